@@ -1,0 +1,1 @@
+"""Subcommands of ``armlab``; one module each (see ``app.cli``)."""

@@ -1,0 +1,66 @@
+"""``armlab experiment NAME``: run a headless experiment and print its figures."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from typing import Any
+
+from control.experiments import all_experiments
+
+NAME = "experiment"
+HELP = "run a headless experiment (seed tables, thesis runs) and print its figures"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="experiment", metavar="NAME", required=True)
+    for exp in all_experiments().values():
+        p = sub.add_parser(exp.name, help=exp.help, description=exp.help)
+        p.add_argument("--json", action="store_true", help="print the result as JSON")
+        p.add_argument("--csv", metavar="FILE", help="also write the result rows to FILE")
+        exp.add_arguments(p)
+        p.set_defaults(_experiment=exp)
+
+
+def _print_table(rows: list[dict[str, Any]]) -> None:
+    if not rows:
+        return
+    keys = list(rows[0])
+    cells = [[_fmt(r.get(k)) for k in keys] for r in rows]
+    widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
+    print("  ".join(k.rjust(w) for k, w in zip(keys, widths, strict=True)))
+    for c in cells:
+        print("  ".join(v.rjust(w) for v, w in zip(c, widths, strict=True)))
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return str(v)
+
+
+def run(args: argparse.Namespace) -> int:
+    exp = args._experiment
+    result = exp.run(args)
+    rows = exp.rows(result) if exp.rows else [
+        {k: v for k, v in result.items() if not isinstance(v, list | dict)}
+    ]
+    if args.csv:
+        with open(args.csv, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else [])
+            writer.writeheader()
+            for r in rows:
+                writer.writerow({k: _fmt(v) for k, v in r.items()})
+    if args.json:
+        json.dump(result, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        _print_table(rows)
+        for k, v in result.items():
+            if isinstance(v, list | tuple) and not (exp.rows and k == "rows"):
+                print(f"{k}: {_fmt(v)}")
+    return 0

@@ -1,0 +1,119 @@
+"""The one interface the controller sees of the servos: the ``Backend`` protocol.
+
+Two implementations exist: ``hardware.sim_backend.SimBackend`` (a simulated
+arm and its servos) and ``hardware.dynamixel_backend.DynamixelBackend`` (real
+or emulated servos over a serial port). The control loop works on either and
+never imports viser or pyserial.
+
+Joint space throughout: positions in rad, speeds in rad/s, torques in N·m, in
+the robot model's joint order and sign convention. Each backend maps joints
+to servos (ID, direction, zero offset) itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class JointState:
+    """What the servos report at one instant (never ground truth).
+
+    Attributes:
+        t: backend time, s (simulation time for SimBackend, monotonic for hardware).
+        position: (n,) rad, as the servo reports it (10-bit quantised).
+        velocity: (n,) rad/s, from Present Speed (signed).
+        load: (n,) N·m, from Present Load (signed, estimated by the servo).
+        errors: (n,) servo error bytes (protocol 1.0 bits; 0 = healthy).
+        torque_on: (n,) whether each servo's torque is enabled.
+    """
+
+    t: float
+    position: np.ndarray
+    velocity: np.ndarray
+    load: np.ndarray
+    errors: tuple[int, ...]
+    torque_on: tuple[bool, ...]
+
+
+class BackendError(RuntimeError):
+    """A backend cannot go on (link lost, servo fault). The message says what to do."""
+
+
+@runtime_checkable
+class Backend(Protocol):
+    """Servos seen from the controller.
+
+    ``lower``/``upper`` are the joint limits the backend will enforce: a goal
+    outside them is clamped before anything moves or leaves the process.
+    """
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        ...
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(n,) rad."""
+        ...
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(n,) rad."""
+        ...
+
+    def sync(self, t: float) -> None:
+        """Bring the backend's world to time ``t`` s since it was opened.
+
+        A simulator integrates its plant up to ``t``; hardware lives in real
+        time and does nothing. The loop calls this once per period, before ``read``.
+        """
+        ...
+
+    def read(self) -> JointState:
+        """Read every joint as the servos report it. Raises BackendError when the link fails."""
+        ...
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Send goal positions (n,) rad and moving speeds (n,) rad/s (magnitudes, >= 0).
+
+        Goals are clamped into [lower, upper]; speeds into the servo's range,
+        with a tiny speed sent as the smallest non-zero unit (Dynamixel 0 means
+        "no speed limit", never what a tiny speed means). Non-finite values
+        raise ValueError and nothing is sent.
+        """
+        ...
+
+    def set_torque(self, on: bool) -> None:
+        """Switch every servo's torque on or off."""
+        ...
+
+    def estop(self) -> None:
+        """Torque off everywhere now (broadcast on a bus); must not raise."""
+        ...
+
+    def close(self) -> None:
+        """Release the backend (torque state is left as it is)."""
+        ...
+
+
+@runtime_checkable
+class Pushable(Protocol):
+    """A backend whose world can be pushed (the simulator). Hardware is pushed by a hand."""
+
+    def push(
+        self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float
+    ) -> None:
+        """Apply ``force`` (3,) N in the world frame at ``point`` (3,) m in link ``link``'s
+        frame for ``duration`` s from now."""
+        ...
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with a
+        spring of ``stiffness`` N/m (a hand dragging the arm); None releases it."""
+        ...

@@ -1,0 +1,425 @@
+"""Robot models: URDF files parsed into serial chains (the *model*, never mutated).
+
+Following Pinocchio, a model is what the robot *is*: joint origins, axes,
+limits, link inertias and gravity. Algorithms (``fk``, ``jacobian``, ``ik``,
+``dynamics``) are pure functions of (model, arrays) in their own modules; the
+methods on :class:`SerialChain` are thin conveniences over them.
+
+Frames: a chain's *base frame* is the link the first movable joint hangs from.
+Fixed joints before it are folded into ``base_pose`` (world <- base); fixed
+joints between movable ones are folded into the next joint's origin; fixed
+joints after the last one form ``tip`` (last link <- end effector). Masses of
+links on fixed joints are lumped into the moving link they ride on.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kinematics.transforms import homogeneous, rpy_matrix
+
+ROBOTS_DIR = Path(__file__).with_name("robots")
+#: Gravity in the URDF's root frame (the viewer's world: z up).
+WORLD_GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+class URDFError(ValueError):
+    """A URDF file that cannot be turned into a model; the message names file and reason."""
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One movable joint. ``origin`` (4, 4): previous link frame <- joint frame at q = 0."""
+
+    name: str
+    kind: str  # "revolute" | "continuous" | "prismatic"
+    origin: np.ndarray
+    axis: np.ndarray  # (3,) unit vector in the joint (= child link) frame
+    lower: float
+    upper: float
+    velocity: float
+    effort: float
+
+
+@dataclass(frozen=True)
+class Link:
+    """Inertia of the body moved by one joint, in that joint's child-link frame."""
+
+    name: str
+    mass: float  # kg
+    com: np.ndarray  # (3,) m
+    inertia: np.ndarray  # (3, 3) kg m^2 about the centre of mass
+
+
+@dataclass(frozen=True)
+class SerialChain:
+    """A serial chain of ``n`` movable joints; ``links[i]`` is moved by ``joints[i]``.
+
+    Attributes:
+        name: robot name.
+        joints: the n movable joints, base to tip.
+        links: the n moving bodies (with masses of fixed children lumped in).
+        base_pose: (4, 4) world <- base frame.
+        tip: (4, 4) last link frame <- end-effector frame.
+        gravity: (3,) gravity in the base frame, m/s^2.
+        urdf_path: file the model came from (for the 3D viewer).
+        link_names: URDF link name of each moving body (the viewer's frames).
+    """
+
+    name: str
+    joints: tuple[Joint, ...]
+    links: tuple[Link, ...]
+    base_pose: np.ndarray
+    tip: np.ndarray
+    gravity: np.ndarray
+    urdf_path: Path | None = None
+    link_names: tuple[str, ...] = field(default=())
+
+    @property
+    def n(self) -> int:
+        """Number of movable joints."""
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(n,) lower joint limits (rad or m)."""
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(n,) upper joint limits (rad or m)."""
+        return np.array([j.upper for j in self.joints])
+
+    def neutral(self) -> np.ndarray:
+        """(n,) zeros clipped into the limits."""
+        return np.clip(np.zeros(self.n), self.lower, self.upper)
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """(4, 4) end-effector pose in the base frame at joint vector q (n,)."""
+        from kinematics.fk import fk
+
+        return fk(self, q)
+
+    def link_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) pose of every moving link frame in the base frame."""
+        from kinematics.fk import link_poses
+
+        return link_poses(self, q)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """(6, n) geometric Jacobian of the end effector, linear rows first, base frame."""
+        from kinematics.fk import jacobian
+
+        return jacobian(self, q)
+
+
+@dataclass(frozen=True)
+class Quadruped:
+    """A body with four 3-joint legs. Each leg's base frame is its hip mount on the body.
+
+    Attributes:
+        name: robot name.
+        legs: leg chains keyed "RF", "LF", "RH", "LH" (right/left, front/hind).
+        body_mass: kg, of the body alone.
+        urdf_path: the URDF file.
+        body_link: URDF name of the body link.
+    """
+
+    name: str
+    legs: dict[str, SerialChain]
+    body_mass: float
+    urdf_path: Path | None = None
+    body_link: str = "body"
+
+
+# ---------------------------------------------------------------------------
+# URDF parsing
+
+
+@dataclass
+class _UJoint:
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: np.ndarray
+    axis: np.ndarray
+    lower: float
+    upper: float
+    velocity: float
+    effort: float
+
+
+def _floats(text: str | None, n: int, default: float, where: str) -> np.ndarray:
+    if text is None:
+        return np.full(n, default)
+    try:
+        vals = np.array([float(v) for v in text.split()])
+    except ValueError:
+        raise URDFError(f"{where}: cannot read numbers from {text!r}") from None
+    if vals.shape != (n,) or not np.all(np.isfinite(vals)):
+        raise URDFError(f"{where}: expected {n} finite numbers, got {text!r}")
+    return vals
+
+
+def _origin(el: ET.Element | None, where: str) -> np.ndarray:
+    if el is None:
+        return np.eye(4)
+    xyz = _floats(el.get("xyz"), 3, 0.0, where + " origin xyz")
+    rpy = _floats(el.get("rpy"), 3, 0.0, where + " origin rpy")
+    return homogeneous(rpy_matrix(*rpy), xyz)
+
+
+def _parse_link(el: ET.Element, where: str) -> Link:
+    name = el.get("name", "")
+    inertial = el.find("inertial")
+    if inertial is None:
+        return Link(name, 0.0, np.zeros(3), np.zeros((3, 3)))
+    T = _origin(inertial.find("origin"), f"{where} link {name!r} inertial")
+    mass_el = inertial.find("mass")
+    mass = float(_floats(mass_el.get("value") if mass_el is not None else None, 1, 0.0,
+                         f"{where} link {name!r} mass")[0])
+    if mass < 0:
+        raise URDFError(f"{where} link {name!r}: negative mass {mass}")
+    I = np.zeros((3, 3))
+    ie = inertial.find("inertia")
+    if ie is not None:
+        g = {k: float(_floats(ie.get(k), 1, 0.0, f"{where} link {name!r} {k}")[0])
+             for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+        I = np.array([[g["ixx"], g["ixy"], g["ixz"]],
+                      [g["ixy"], g["iyy"], g["iyz"]],
+                      [g["ixz"], g["iyz"], g["izz"]]])
+    R = T[:3, :3]
+    return Link(name, mass, T[:3, 3].copy(), R @ I @ R.T)
+
+
+def _parse_joint(el: ET.Element, where: str) -> _UJoint:
+    name = el.get("name", "")
+    kind = el.get("type", "")
+    if kind not in ("revolute", "continuous", "prismatic", "fixed"):
+        raise URDFError(f"{where}: joint {name!r} has unsupported type {kind!r}")
+    parent, child = el.find("parent"), el.find("child")
+    if parent is None or child is None:
+        raise URDFError(f"{where}: joint {name!r} needs <parent> and <child>")
+    axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None,
+                   3, 0.0, f"{where} joint {name!r} axis")
+    if el.find("axis") is None:
+        axis = np.array([1.0, 0.0, 0.0])
+    if kind != "fixed":
+        norm = np.linalg.norm(axis)
+        if norm < 1e-9:
+            raise URDFError(f"{where}: joint {name!r} has a zero axis")
+        axis = axis / norm
+    lim = el.find("limit")
+    lower, upper = (-np.pi, np.pi) if kind == "continuous" else (0.0, 0.0)
+    velocity, effort = np.inf, np.inf
+    if lim is not None:
+        if kind != "continuous":
+            lower = float(lim.get("lower", lower))
+            upper = float(lim.get("upper", upper))
+        velocity = float(lim.get("velocity", velocity))
+        effort = float(lim.get("effort", effort))
+    elif kind in ("revolute", "prismatic"):
+        raise URDFError(f"{where}: {kind} joint {name!r} needs a <limit>")
+    if lower > upper:
+        raise URDFError(f"{where}: joint {name!r} has lower limit {lower} > upper {upper}")
+    return _UJoint(name, kind, parent.get("link", ""), child.get("link", ""),
+                   _origin(el.find("origin"), f"{where} joint {name!r}"), axis,
+                   lower, upper, velocity, effort)
+
+
+def _lump(a: Link, b: Link, T_ab: np.ndarray) -> Link:
+    """Inertia of body a plus body b rigidly attached at a <- b = T_ab, in a's frame."""
+    if b.mass == 0.0:
+        return a
+    R, p = T_ab[:3, :3], T_ab[:3, 3]
+    cb = R @ b.com + p
+    m = a.mass + b.mass
+    com = (a.mass * a.com + b.mass * cb) / m
+
+    def shifted(I: np.ndarray, mass: float, c: np.ndarray) -> np.ndarray:
+        d = c - com
+        return I + mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+
+    I = shifted(a.inertia, a.mass, a.com) + shifted(R @ b.inertia @ R.T, b.mass, cb)
+    return Link(a.name, m, com, I)
+
+
+@dataclass
+class _Tree:
+    path: Path
+    links: dict[str, Link]
+    joints: dict[str, _UJoint]  # by child link
+    children: dict[str, list[_UJoint]]
+    root: str
+
+
+def _read_tree(path: Path) -> _Tree:
+    where = str(path)
+    try:
+        root_el = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise URDFError(f"{where}: no such file") from None
+    except ET.ParseError as exc:
+        raise URDFError(f"{where}: not valid XML ({exc})") from None
+    if root_el.tag != "robot":
+        raise URDFError(f"{where}: root element is <{root_el.tag}>, expected <robot>")
+    links = {}
+    for el in root_el.findall("link"):
+        link = _parse_link(el, where)
+        links[link.name] = link
+    joints: dict[str, _UJoint] = {}
+    children: dict[str, list[_UJoint]] = {name: [] for name in links}
+    for el in root_el.findall("joint"):
+        j = _parse_joint(el, where)
+        for ln in (j.parent, j.child):
+            if ln not in links:
+                raise URDFError(f"{where}: joint {j.name!r} names unknown link {ln!r}")
+        if j.child in joints:
+            raise URDFError(f"{where}: link {j.child!r} has two parent joints")
+        joints[j.child] = j
+        children[j.parent].append(j)
+    roots = [name for name in links if name not in joints]
+    if len(roots) != 1:
+        raise URDFError(f"{where}: expected one root link, found {roots}")
+    return _Tree(path, links, joints, children, roots[0])
+
+
+def _chain_to(tree: _Tree, leaf: str, name: str) -> SerialChain:
+    """Build the serial chain from the tree root to ``leaf``."""
+    path: list[_UJoint] = []
+    link = leaf
+    while link in tree.joints:
+        j = tree.joints[link]
+        path.append(j)
+        link = j.parent
+    path.reverse()
+    movable = [i for i, j in enumerate(path) if j.kind != "fixed"]
+    if not movable:
+        raise URDFError(f"{tree.path}: no movable joint between {tree.root!r} and {leaf!r}")
+    base_pose = np.eye(4)
+    for j in path[: movable[0]]:
+        base_pose = base_pose @ j.origin
+    joints: list[Joint] = []
+    links: list[Link] = []
+    names: list[str] = []
+    pending = np.eye(4)  # fixed transforms waiting to be folded into the next joint
+    for j in path[movable[0]:]:
+        if j.kind == "fixed":
+            # Body on a fixed joint rides on the last moving link.
+            pending = pending @ j.origin
+            links[-1] = _lump(links[-1], tree.links[j.child], pending)
+            continue
+        joints.append(Joint(j.name, j.kind, pending @ j.origin if joints else j.origin,
+                            j.axis, j.lower, j.upper, j.velocity, j.effort))
+        links.append(tree.links[j.child])
+        names.append(j.child)
+        pending = np.eye(4)
+    R = base_pose[:3, :3]
+    return SerialChain(name=name, joints=tuple(joints), links=tuple(links),
+                       base_pose=base_pose, tip=pending, gravity=R.T @ WORLD_GRAVITY,
+                       urdf_path=tree.path, link_names=tuple(names))
+
+
+def _leaves(tree: _Tree) -> list[str]:
+    return [name for name, kids in tree.children.items() if not kids and name != tree.root]
+
+
+def chain_from_urdf(path: str | Path, *, tip_link: str | None = None) -> SerialChain:
+    """Parse a URDF file into a :class:`SerialChain` from its root to ``tip_link``.
+
+    Without ``tip_link`` the URDF must have exactly one leaf link.
+
+    Raises:
+        URDFError: naming the file and the reason when it is malformed.
+    """
+    tree = _read_tree(Path(path))
+    leaves = _leaves(tree)
+    if tip_link is None:
+        if len(leaves) != 1:
+            raise URDFError(f"{path}: not a serial chain (leaf links {leaves}); name tip_link")
+        tip_link = leaves[0]
+    elif tip_link not in tree.links:
+        raise URDFError(f"{path}: no link named {tip_link!r}")
+    name = ET.parse(path).getroot().get("name", Path(path).stem)
+    return _chain_to(tree, tip_link, name)
+
+
+LEG_NAMES = ("RF", "LF", "RH", "LH")
+
+
+def quadruped_from_urdf(path: str | Path) -> Quadruped:
+    """Parse a quadruped URDF whose feet are links named ``<LEG>_foot`` (LEG in LEG_NAMES)."""
+    tree = _read_tree(Path(path))
+    legs = {}
+    for leg in LEG_NAMES:
+        foot = f"{leg}_foot"
+        if foot not in tree.links:
+            raise URDFError(f"{path}: quadruped needs a link named {foot!r}")
+        chain = _chain_to(tree, foot, leg)
+        if chain.n != 3:
+            raise URDFError(f"{path}: leg {leg} has {chain.n} joints, expected 3")
+        legs[leg] = chain
+    body = tree.root
+    name = ET.parse(path).getroot().get("name", Path(path).stem)
+    return Quadruped(name, legs, tree.links[body].mass, Path(path), body)
+
+
+#: Robot names and their URDF files; receptionist_arm has two link-length presets.
+ROBOT_FILES = {
+    "receptionist_arm": "receptionist_arm.urdf",
+    "redundant_planar": "redundant_planar.urdf",
+    "planar_servo_arm": "planar_servo_arm.urdf",
+    "quadruped": "quadruped.urdf",
+}
+
+#: Thesis link-length presets (cm) for the receptionist arm -> URDF file.
+RECEPTIONIST_PRESETS = {
+    "18.5/25": "receptionist_arm.urdf",  # appendix code (default)
+    "18.5/18.5": "receptionist_arm_18_5.urdf",  # specification list
+}
+
+
+def load_robot(name_or_path: str | Path, *, preset: str | None = None) -> SerialChain | Quadruped:
+    """Load a robot by name (see ``ROBOT_FILES``) or from a URDF path.
+
+    Args:
+        name_or_path: "receptionist_arm", "redundant_planar", "planar_servo_arm",
+            "quadruped", or a path to a .urdf file.
+        preset: for "receptionist_arm", a key of ``RECEPTIONIST_PRESETS``
+            (link lengths in cm, "18.5/25" by default).
+
+    Raises:
+        ValueError: for an unknown name (the message lists the known ones) or preset.
+        URDFError: for a malformed URDF (the message names the file and reason).
+    """
+    text = str(name_or_path)
+    if text in ROBOT_FILES:
+        fname = ROBOT_FILES[text]
+        if preset is not None:
+            if text != "receptionist_arm" or preset not in RECEPTIONIST_PRESETS:
+                raise ValueError(
+                    f"unknown preset {preset!r} for {text}; known: {sorted(RECEPTIONIST_PRESETS)}"
+                )
+            fname = RECEPTIONIST_PRESETS[preset]
+        path = ROBOTS_DIR / fname
+        if text == "quadruped":
+            return quadruped_from_urdf(path)
+        return chain_from_urdf(path)
+    if text.endswith(".urdf") or Path(text).exists():
+        path = Path(text)
+        if not path.exists():
+            raise URDFError(f"{path}: no such file")
+        tree = _read_tree(path)
+        if all(f"{leg}_foot" in tree.links for leg in LEG_NAMES):
+            return quadruped_from_urdf(path)
+        return chain_from_urdf(path)
+    raise ValueError(f"unknown robot {text!r}; known robots: {', '.join(ROBOT_FILES)}")

@@ -1,0 +1,54 @@
+"""Argument checks shared by the kinematics functions.
+
+Every public function that takes arrays from a caller runs them through
+:func:`vector` or :func:`matrix`, so a wrongly shaped or non-finite input raises
+``ValueError`` naming the argument instead of producing NaN further down.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def vector(name: str, value: object, size: int | None = None) -> np.ndarray:
+    """Return ``value`` as a finite float64 vector of ``size`` elements.
+
+    Raises:
+        ValueError: naming ``name`` when the shape is wrong or an entry is NaN/inf.
+    """
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of numbers ({exc})") from None
+    if arr.ndim != 1 or (size is not None and arr.shape[0] != size):
+        want = f"({size},)" if size is not None else "a 1-D array"
+        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
+    return arr
+
+
+def matrix(name: str, value: object, shape: tuple[int, int]) -> np.ndarray:
+    """Return ``value`` as a finite float64 matrix of ``shape``; ValueError otherwise."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of numbers ({exc})") from None
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr
+
+
+def scalar(name: str, value: object, *, positive: bool = False) -> float:
+    """Return ``value`` as a finite float (strictly positive if asked); ValueError otherwise."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {x}")
+    if positive and x <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {x}")
+    return x
