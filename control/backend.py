@@ -108,8 +108,8 @@ class Pushable(Protocol):
     def push(
         self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float
     ) -> None:
-        """Apply ``force`` (3,) N in the world frame at ``point`` (3,) m in link ``link``'s
-        frame for ``duration`` s from now."""
+        """Apply ``force`` (3,) N, in the robot's base frame (not the viewer's world), at
+        ``point`` (3,) m in link ``link``'s frame for ``duration`` s from now."""
         ...
 
     def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,

@@ -21,6 +21,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p.add_argument("--json", action="store_true", help="print the result as JSON")
         p.add_argument("--csv", metavar="FILE", help="also write the result rows to FILE")
         exp.add_arguments(p)
+        if "backend_factory" in getattr(exp, "needs", ()):
+            p.add_argument("--backend", choices=("sim", "serial"), default="sim",
+                           help="simulated arm (default) or Dynamixel servos on --port")
+            p.add_argument("--port", help="serial port for --backend serial, e.g. /dev/ttyUSB0")
+            p.add_argument("--baud", type=int, help="bit rate for --backend serial")
         p.set_defaults(_experiment=exp)
 
 
@@ -43,8 +48,37 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _factory(name: str) -> Any:
+    """The plant factory an experiment asks for by name (``Experiment.needs``)."""
+    if name == "hand_plant":
+        from hardware.hand import make_hand
+
+        return make_hand
+    raise ValueError(f"no plant factory named {name!r}")
+
+
+def _backend_factory(args: argparse.Namespace) -> Any:
+    """``factory(model, **sim_options)`` opening the backend chosen by --backend/--port/--baud
+    (options such as ``q0`` only reach the simulator)."""
+    from app.backends import make_backend
+
+    def factory(model: Any, **kw: Any) -> Any:
+        if args.backend != "sim":
+            return make_backend(args.backend, model, port=args.port, baud=args.baud)
+        if args.port is not None or args.baud is not None:
+            raise ValueError("--port and --baud are for --backend serial")
+        return make_backend("sim", model, **kw)
+
+    return factory
+
+
 def run(args: argparse.Namespace) -> int:
     exp = args._experiment
+    for name in getattr(exp, "needs", ()):
+        if name == "backend_factory":
+            setattr(args, name, _backend_factory(args))
+        else:
+            setattr(args, name, _factory(name))
     result = exp.run(args)
     rows = exp.rows(result) if exp.rows else [
         {k: v for k, v in result.items() if not isinstance(v, list | dict)}

@@ -27,6 +27,9 @@ class Experiment:
             (what ``--json`` prints).
         rows: turns that dict into flat table rows for ``--csv`` and the
             human-readable table (None: print the dict's top-level items).
+        needs: names of plant factories the CLI sets on the parsed options
+            before ``run`` (control/ never imports hardware/), e.g.
+            "hand_plant" = ``hardware.hand.make_hand``.
     """
 
     name: str
@@ -34,6 +37,7 @@ class Experiment:
     add_arguments: Callable[[argparse.ArgumentParser], None]
     run: Callable[[argparse.Namespace], dict[str, Any]]
     rows: Callable[[dict[str, Any]], list[dict[str, Any]]] | None = None
+    needs: tuple[str, ...] = ()
 
 
 def all_experiments() -> dict[str, Experiment]:

@@ -1,0 +1,227 @@
+"""UI bench: what the lab sends to each page, how fast and how late, and the loop's jitter.
+
+The lab runs in this process at its defaults (simulated arm, compliance lesson)
+with the thesis line played over and over, so the arm and the charts keep
+moving. Fake browsers (:class:`app.wsclient.HeadlessClient`, the page's own
+websocket protocol) run in a *separate* process, as real browsers would, so
+their decoding does not load the server's interpreter.
+
+Figures:
+
+- ``ui_bytes_per_client_per_s``: websocket bytes one page receives per second
+  while the line runs (target <= 150 kB/s); ``ui_bytes_per_client_per_s_idle``
+  with the arm holding still.
+- ``ui_pose_hz``: scene frames per second a page receives (each carries the
+  arm's pose when it changed, and the probe; target 30); ``ui_arm_moved_hz``:
+  frames in which an arm joint actually turned (lower: the arm rests between
+  plays); ``ui_plot_hz``: frames carrying new data of the joint-angle chart
+  (target >= 10).
+- ``ui_latency_p95_ms``: state to page, p95: from the moment the control loop
+  recorded the newest sample to the moment a page has the frame built from it
+  (a hidden probe node in each frame carries the sample's CLOCK_MONOTONIC time,
+  read by the client process on the same clock).
+- ``ui_loop_jitter_p99_ms_0_clients`` / ``_10_clients``: the control loop's
+  lateness of period starts, p99 over its last 1000 periods, with no page and
+  with 10 pages connected (target <= 1 ms, unchanged by clients).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import threading
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+PROBE = "/bench_probe"
+ROOT = Path(__file__).resolve().parents[2]
+
+
+# ---------------------------------------------------------------- client process
+
+
+def client_main(argv: list[str] | None = None) -> int:
+    """Entry point of the client process: connect N pages, listen, print JSON stats."""
+    from app.wsclient import HeadlessClient
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--url", required=True)
+    ap.add_argument("--clients", type=int, default=1)
+    ap.add_argument("--seconds", type=float, default=5.0)
+    ap.add_argument("--settle", type=float, default=1.0)
+    ap.add_argument("--arm-prefix", default="/compliance/arm/")
+    args = ap.parse_args(argv)
+
+    lock = threading.Lock()
+    measuring = threading.Event()
+    latencies: list[float] = []
+    frames: dict[int, set[float]] = defaultdict(set)
+    pose_frames: dict[int, set[float]] = defaultdict(set)
+    plot_frames: dict[int, set[float]] = defaultdict(set)
+    angle_uuid: dict[str, str] = {}
+
+    def listener(i: int):  # noqa: ANN202
+        def on_message(m: dict, now: float) -> None:
+            if not measuring.is_set():
+                if m.get("type") == "GuiUplotMessage" and str(
+                        (m.get("props") or {}).get("title", "")).startswith("Joint angle"):
+                    angle_uuid.setdefault("uuid", m["uuid"])
+                return
+            kind = m.get("type")
+            if kind == "SetPositionMessage" and m.get("name") == PROBE:
+                with lock:
+                    latencies.append(time.monotonic() - float(m["position"][0]))
+                frames[i].add(now)
+            elif kind == "SetOrientationMessage" and str(m.get("name", "")).startswith(
+                    args.arm_prefix):
+                pose_frames[i].add(now)
+            elif kind == "GuiUpdateMessage" and "data" in m.get("updates", {}) \
+                    and m.get("uuid") == angle_uuid.get("uuid"):
+                plot_frames[i].add(now)
+        return on_message
+
+    clients = [HeadlessClient(args.url, on_message=listener(i)).connect()
+               for i in range(args.clients)]
+    time.sleep(args.settle)
+    b0 = [c.bytes_received for c in clients]
+    measuring.set()
+    t0 = time.monotonic()
+    time.sleep(args.seconds)
+    dt = time.monotonic() - t0
+    measuring.clear()
+    b1 = [c.bytes_received for c in clients]
+    for c in clients:
+        c.close()
+    lat = np.array(latencies) * 1e3 if latencies else np.array([np.nan])
+    out = {
+        "bytes_per_client_per_s": float(np.mean([(b - a) / dt for a, b in zip(b0, b1,
+                                                                               strict=True)])),
+        "pose_hz": float(np.mean([len(frames[i]) / dt for i in range(args.clients)])),
+        "arm_pose_hz": float(np.mean([len(pose_frames[i]) / dt
+                                      for i in range(args.clients)])),
+        "plot_hz": float(np.mean([len(plot_frames[i]) / dt for i in range(args.clients)])),
+        "latency_p50_ms": float(np.percentile(lat, 50)),
+        "latency_p95_ms": float(np.percentile(lat, 95)),
+        "samples": len(latencies),
+    }
+    print(json.dumps(out), flush=True)
+    return 0
+
+
+def _clients(url: str, n: int, seconds: float, settle: float = 1.5) -> dict[str, float]:
+    res = subprocess.run(
+        [sys.executable, "-m", "app.benches.ui", "--url", url, "--clients", str(n),
+         "--seconds", str(seconds), "--settle", str(settle)],
+        cwd=ROOT, capture_output=True, text=True, timeout=seconds + settle + 120)
+    if res.returncode != 0:
+        raise RuntimeError(f"bench clients failed: {res.stderr.strip()[-500:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+# ---------------------------------------------------------------- server side
+
+
+class _Instrumented:
+    """The lab plus the bench's probe: sample times and a probe node in every frame."""
+
+    def __init__(self) -> None:
+        from app.server import Lab, ServeOptions
+
+        self.lab = Lab(ServeOptions(http_port=0))
+        lesson = self.lab.lesson
+        self.lesson = lesson
+        loop = lesson.rig.loop
+        self.loop = loop
+        self._stamp = time.monotonic()
+        recorder = loop.recorder
+        append = recorder.append
+
+        def timed_append(t: float, signals: dict) -> None:
+            append(t, signals)
+            self._stamp = time.monotonic()
+
+        recorder.append = timed_append  # the loop looks the method up each period
+        self.probe = self.lab.server.scene.add_frame(PROBE, show_axes=False, visible=False)
+        self._seq = 0
+
+        def hook() -> None:
+            self._seq += 1
+            self.probe.position = (self._stamp, float(self._seq), 0.0)
+
+        lesson.publisher.add_frame_hook(hook)
+        self._stop = threading.Event()
+        self._runner: threading.Thread | None = None
+
+    @property
+    def ws_url(self) -> str:
+        return self.lab.url.replace("http://", "ws://")
+
+    def keep_running_the_line(self) -> None:
+        """Play the thesis line again whenever the last play ended."""
+        def run() -> None:
+            while not self._stop.wait(0.2):
+                st = self.loop.status
+                if st.trajectory is None and st.active:
+                    self.lesson.run_line()
+                    time.sleep(0.5)
+        self._runner = threading.Thread(target=run, daemon=True)
+        self._runner.start()
+
+    def hold(self) -> None:
+        self._stop.set()
+        if self._runner is not None:
+            self._runner.join(2.0)
+        self._stop = threading.Event()
+
+    def jitter_p99(self, seconds: float) -> float:
+        time.sleep(seconds)
+        v = self.loop.status.jitter_p99_ms
+        return float("nan") if v is None else float(v)
+
+    def close(self) -> None:
+        self.hold()
+        self.lab.close()
+
+
+def run(quick: bool) -> dict[str, float]:
+    """The UI figures (see the module docstring)."""
+    measure = 4.0 if quick else 12.0
+    window = 6.0 if quick else 17.0  # the loop keeps 1000 periods = 16 s of lateness
+    lab = _Instrumented()
+    try:
+        jitter0 = lab.jitter_p99(window)
+        idle = _clients(lab.ws_url, 1, measure)
+        lab.keep_running_the_line()
+        one = _clients(lab.ws_url, 1, measure)
+        ten: dict[str, float] = {}
+        ten_thread = threading.Thread(target=lambda: ten.update(
+            _clients(lab.ws_url, 10, window + 2.0, settle=1.0)))
+        ten_thread.start()
+        jitter10 = lab.jitter_p99(window + 1.5)
+        ten_thread.join()
+    finally:
+        lab.close()
+    return {
+        "ui_bytes_per_client_per_s": one["bytes_per_client_per_s"],
+        "ui_bytes_per_client_per_s_idle": idle["bytes_per_client_per_s"],
+        "ui_bytes_per_client_per_s_10_clients": ten["bytes_per_client_per_s"],
+        "ui_latency_p95_ms": one["latency_p95_ms"],
+        "ui_latency_p50_ms": one["latency_p50_ms"],
+        "ui_latency_p95_ms_10_clients": ten["latency_p95_ms"],
+        "ui_pose_hz": one["pose_hz"],
+        "ui_arm_moved_hz": one["arm_pose_hz"],
+        "ui_plot_hz": one["plot_hz"],
+        "ui_pose_hz_10_clients": ten["pose_hz"],
+        "ui_plot_hz_10_clients": ten["plot_hz"],
+        "ui_loop_jitter_p99_ms_0_clients": jitter0,
+        "ui_loop_jitter_p99_ms_10_clients": jitter10,
+    }
+
+
+if __name__ == "__main__":
+    sys.exit(client_main())

@@ -1,0 +1,94 @@
+"""``armlab scan --port P``: list the Dynamixel servos on a serial port."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict
+
+from control.backend import BackendError
+from hardware.scan import ALL_IDS, COMMON_BAUDS, DEFAULT_BAUDS, scan, scan_time_bound
+
+NAME = "scan"
+HELP = "ping servo IDs 0..253 at each baud and list ID, model, firmware, baud, angle limits"
+
+
+def _ids(text: str) -> list[int]:
+    """"1,3,5" or "0-20" or a mix -> IDs."""
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi or lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"not an ID list: {text!r} (e.g. 1,3,5 or 0-20)") from None
+        if not 0 <= a <= b <= 253:
+            raise argparse.ArgumentTypeError(f"IDs must lie in 0..253: {part!r}")
+        out.extend(range(a, b + 1))
+    return out
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--port", required=True, help="serial device, e.g. /dev/ttyUSB0")
+    parser.add_argument("--baud", type=float, action="append", metavar="B",
+                        help="bit/s to try (repeatable; default "
+                        f"{', '.join(map(str, DEFAULT_BAUDS))})")
+    parser.add_argument("--all-bauds", action="store_true",
+                        help=f"try every usual rate ({', '.join(map(str, COMMON_BAUDS))})")
+    parser.add_argument("--ids", type=_ids, default=list(ALL_IDS),
+                        help="IDs to ping, e.g. 1,3,5 or 0-20 (default 0-253)")
+    parser.add_argument("--timeout", type=float, default=0.010, metavar="S",
+                        help="s to wait beyond wire time for each reply (default 0.010)")
+    parser.add_argument("--json", action="store_true", help="print the servos as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    bauds = list(COMMON_BAUDS) if args.all_bauds else (args.baud or list(DEFAULT_BAUDS))
+    for b in bauds:
+        if not b > 0:
+            raise ValueError(f"--baud must be > 0, got {b:g}")
+    if not args.timeout > 0:
+        raise ValueError(f"--timeout must be > 0 s, got {args.timeout}")
+    bound = scan_time_bound(bauds, args.ids, args.timeout)
+    tty = sys.stderr.isatty()
+    print(f"scanning {args.port}: {len(args.ids)} IDs at {len(bauds)} baud rate(s), "
+          f"at most {bound:.1f} s", file=sys.stderr)
+    state = {"baud": None, "t": 0.0}
+
+    def progress(baud: float, servo_id: int, n_found: int) -> None:
+        now = time.monotonic()
+        if tty and now - state["t"] > 0.1:
+            state["t"] = now
+            print(f"\r  {baud:>9.0f} bps  ID {servo_id:3d}  found {n_found}", end="",
+                  file=sys.stderr, flush=True)
+        elif not tty and baud != state["baud"]:
+            print(f"  {baud:.0f} bps ...", file=sys.stderr, flush=True)
+        state["baud"] = baud
+
+    try:
+        found = scan(args.port, bauds, ids=args.ids, margin=args.timeout, progress=progress)
+    except BackendError as exc:
+        if tty:
+            print(file=sys.stderr)
+        print(f"armlab scan: {exc}", file=sys.stderr)
+        return 2
+    if tty:
+        print("\r" + " " * 40 + "\r", end="", file=sys.stderr)
+    if args.json:
+        json.dump([asdict(f) for f in found], sys.stdout)
+        sys.stdout.write("\n")
+        return 0
+    if not found:
+        print(f"no servo answered on {args.port}: check power, cabling, the baud "
+              "(try --all-bauds) and that the servos speak protocol 1.0")
+        return 1
+    print(f"{'ID':>3}  {'model':8} {'fw':>3} {'baud':>9}  {'angle limits (deg from centre)':>30}")
+    for f in found:
+        limits = ("wheel mode" if f.cw_limit == f.ccw_limit == 0 else
+                  f"{f.cw_limit_deg:+7.1f} .. {f.ccw_limit_deg:+7.1f} "
+                  f"({f.cw_limit}..{f.ccw_limit})")
+        print(f"{f.servo_id:3d}  {f.model:8} {f.firmware:3d} {f.baud:9.0f}  {limits:>30}")
+    return 0

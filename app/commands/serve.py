@@ -1,0 +1,60 @@
+"""``armlab serve``: the browser lab (``make run`` runs it with the defaults)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+
+NAME = "serve"
+HELP = ("serve the browser lab: the arm in 3D, gain sliders, live plots "
+        "(simulated arm by default; loopback only unless --host is given)")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="receptionist_arm",
+                        help="robot to load (default receptionist_arm)")
+    parser.add_argument("--backend", choices=("sim", "serial"), default="sim",
+                        help="sim: simulated arm and servos (default); serial: Dynamixel bus")
+    parser.add_argument("--port", metavar="DEV",
+                        help="serial device for --backend serial, e.g. /dev/ttyUSB0")
+    parser.add_argument("--baud", type=int, help="serial baud rate (default 1000000)")
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="interface to listen on (default 127.0.0.1: this computer only; "
+                             "0.0.0.0 lets the whole network command the robot)")
+    parser.add_argument("--http-port", type=int, default=8080,
+                        help="first port to try (default 8080; the next free one if taken)")
+    parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from app.server import Lab, ServeOptions
+
+    options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
+                           baud=args.baud, host=args.host, http_port=args.http_port,
+                           lesson=args.lesson)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        lab = Lab(options)
+        try:
+            lab.wait_until_loadable()
+            if options.host not in ("127.0.0.1", "localhost", "::1"):
+                print(f"warning: listening on {options.host}: anyone who can reach this "
+                      "computer can command the robot", file=sys.stderr, flush=True)
+            print(f"url: {lab.url}", flush=True)
+            while not stop.wait(0.5):
+                pass
+            print("stopping: control loop shut down, torque off", flush=True)
+        finally:
+            lab.close()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    return 0

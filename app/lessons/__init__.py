@@ -1,0 +1,106 @@
+"""Lessons of the browser lab, one module each, found by name.
+
+A lesson is a module in this package that defines:
+
+- ``NAME``: short id (``"compliance"``), used by ``armlab serve --lesson``;
+- ``TITLE``: what the lesson switcher shows;
+- ``HELP``: one paragraph for the page and ``--help``;
+- ``ROBOTS``: robot names the lesson works with (first = its default robot);
+- ``ORDER`` (optional, default 100): place in the switcher; for a robot the
+  lesson with the smallest ``ORDER`` listing it opens first;
+- ``build(server: viser.ViserServer, ctx: LessonContext) -> LessonHandle``:
+  adds the lesson's GUI and scene to ``server`` and starts whatever runs
+  behind it (a control loop), returning a handle.
+
+The handle's ``close()`` stops what runs (loop shut down, hardware torque
+off) and removes everything the lesson added, so another lesson can be
+opened in the same page. A handle may also define ``estop()``, which the
+lab's always-visible E-STOP button calls (it must switch torque off now and
+never raise).
+
+Modules whose name starts with ``_`` and modules without ``build`` are helpers
+(e.g. ``compliance_plots``), not lessons.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Protocol, runtime_checkable
+
+import viser
+
+
+@dataclass(frozen=True)
+class LessonContext:
+    """What a lesson is built for (from ``armlab serve``'s options).
+
+    Attributes:
+        robot: robot name (``kinematics.load_robot``).
+        backend: "sim" or "serial".
+        port: serial device for "serial".
+        baud: serial baud rate (None: the backend's default).
+        realtime: run loops against the wall clock (False: as fast as possible).
+    """
+
+    robot: str = "receptionist_arm"
+    backend: str = "sim"
+    port: str | None = None
+    baud: int | None = None
+    realtime: bool = True
+
+
+@runtime_checkable
+class LessonHandle(Protocol):
+    """What ``build`` returns."""
+
+    def close(self) -> None:
+        """Stop the lesson and remove its GUI and scene nodes."""
+        ...
+
+
+class LessonModule(Protocol):
+    """The attributes a lesson module defines."""
+
+    NAME: str
+    TITLE: str
+    HELP: str
+    ROBOTS: tuple[str, ...]
+
+    def build(self, server: viser.ViserServer, ctx: LessonContext) -> LessonHandle: ...
+
+
+def all_lessons() -> dict[str, ModuleType]:
+    """Every lesson module in this package, keyed by its ``NAME``."""
+    found: dict[str, ModuleType] = {}
+    for info in pkgutil.iter_modules(__path__):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        if callable(getattr(module, "build", None)) and isinstance(
+            getattr(module, "NAME", None), str
+        ):
+            found[module.NAME] = module
+    return found
+
+
+def lesson_order(module: ModuleType) -> tuple[float, str]:
+    """Sort key of a lesson module: its ``ORDER`` (default 100), then its title."""
+    return (float(getattr(module, "ORDER", 100.0)), str(getattr(module, "TITLE", module.NAME)))
+
+
+def default_lesson(robot: str) -> str:
+    """Name of the lesson to open for ``robot`` (lowest ``ORDER`` among those listing it).
+
+    Raises:
+        ValueError: when no lesson works with ``robot`` (the message lists the robots
+            that have one).
+    """
+    lessons = all_lessons()
+    for module in sorted(lessons.values(), key=lesson_order):
+        if robot in getattr(module, "ROBOTS", ()):
+            return module.NAME
+    robots = sorted({r for m in lessons.values() for r in getattr(m, "ROBOTS", ())})
+    raise ValueError(f"robot: no lesson for {robot!r}; lessons exist for {', '.join(robots)}")

@@ -1,0 +1,645 @@
+"""Lesson: tune the thesis's compliance controller on a live 3D arm (thesis 000, ch. 2–4).
+
+What a teacher opens in front of a class: the receptionist robot's arm, its
+gains and virtual environment on sliders, live charts, a hand that pushes the
+arm. Behind it a :class:`control.loop.ControlLoop` runs the controller on the
+simulated arm (default) or on Dynamixel servos (``--backend serial``).
+
+Data flow (one writer per piece of state): sliders build a validated
+:class:`Params` that the loop swaps in at its next period; buttons post
+commands the loop applies at its next period; a :class:`Publisher` thread reads
+``loop.recorder`` and ``loop.status`` and updates the scene at 30 Hz and the
+charts at 10 Hz inside ``server.atomic()``. UI callbacks never touch the servos.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+from app.backends import make_backend
+from app.inputs import GuardedNumber, notify
+from app.lessons import LessonContext
+from app.lessons.compliance_controls import GainControls
+from app.lessons.compliance_plots import JointPlots, joint_label
+from app.lessons.compliance_scene import ComplianceScene
+from app.lessons.compliance_servos import safe_health_html
+from app.lessons.compliance_teach import (
+    Measured,
+    design_table,
+    equations_markdown,
+    latest_values,
+    measure_response,
+)
+from app.publisher import Publisher
+from control.backend import Backend, Pushable
+from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring, Stop
+from control.loop import ControlLoop, LoopStatus
+from control.params import DEFAULT, Params, loop_stability, stability_warning
+from control.trajectory import (
+    THESIS_LINE_END,
+    THESIS_LINE_START,
+    JointTrajectory,
+    thesis_line,
+)
+from kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
+
+NAME = "compliance"
+TITLE = "Compliance control (thesis ch. 2–4)"
+HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance controller: "
+        "tune Kp, Kv and the virtual environment (M_env, D_env, K_env, K_f), run the 20 cm "
+        "line, push or drag the hand and watch the arm yield.")
+ROBOTS = ("receptionist_arm",)
+ORDER = 0
+
+DEG = 180.0 / math.pi
+#: Push directions offered, in the shoulder (thesis) frame: x = gravity, y = along the line.
+PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
+    "against the line (−y)": (0.0, -1.0, 0.0),
+    "along the line (+y)": (0.0, 1.0, 0.0),
+    "down (+x, with gravity)": (1.0, 0.0, 0.0),
+    "up (−x)": (-1.0, 0.0, 0.0),
+    "towards the body (−z)": (0.0, 0.0, -1.0),
+    "away from the body (+z)": (0.0, 0.0, 1.0),
+}
+HISTORY_S = 30.0  #: seconds the recorder keeps (the CSV of a run comes from it)
+
+
+def build(server: viser.ViserServer, ctx: LessonContext) -> ComplianceLesson:
+    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    return ComplianceLesson(server, ctx)
+
+
+@dataclass
+class Experiment:
+    """The last thing the student ran, measured once it is over.
+
+    Attributes:
+        kind: "line", "step" or "push".
+        t0: loop time when it was posted, s.
+        ready_at: loop time after which it can be measured, s.
+        joint: joint index it concerns (step), or -1.
+        q0, q1: step from/to, rad (step only).
+        label: what the teaching panel calls it.
+    """
+
+    kind: str
+    t0: float
+    ready_at: float
+    joint: int = -1
+    q0: float = 0.0
+    q1: float = 0.0
+    label: str = ""
+    done: bool = False
+
+
+@dataclass
+class Rig:
+    """What a link-length preset needs: model, servos, loop, scene."""
+
+    preset: str
+    model: SerialChain
+    backend: Backend
+    loop: ControlLoop
+    scene: ComplianceScene
+    line: JointTrajectory
+
+
+class ComplianceLesson:
+    """The compliance lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+
+    Args:
+        server: the viser server.
+        ctx: robot and backend choice.
+        link_preset: key of ``RECEPTIONIST_PRESETS`` (link lengths, cm).
+        pose_hz, plot_hz: scene and chart update rates.
+    """
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+                 link_preset: str = "18.5/25", pose_hz: float = 30.0,
+                 plot_hz: float = 11.0) -> None:
+        self.server = server
+        self.ctx = ctx
+        self.hardware = ctx.backend != "sim"
+        self._lock = threading.RLock()
+        self._closed = False
+        self._gui_handles: list = []
+        self._status_html = ""
+        self._teach_text = ""
+        self._last_teach = 0.0
+        self._last_servos = 0.0
+        self.experiment: Experiment | None = None
+        self.run_start: float | None = None  #: loop time the last run started (CSV)
+        self.run_label = "recording"
+        self.measured_pd: Measured | None = None
+        self.measured_env: Measured | None = None
+        self.last_run_text = ""
+        self._drag_anchor: np.ndarray | None = None
+        self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
+        self.rig: Rig | None = None
+        self._build_gui(DEFAULT)
+        try:
+            self.rig = self._make_rig(link_preset, DEFAULT)
+        except BaseException:
+            self._remove_gui()
+            raise
+        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
+                                   pose_hz=pose_hz, plot_hz=plot_hz)
+        self.publisher.start()
+
+    # ================================================================== rig
+
+    def _make_rig(self, preset: str, params: Params) -> Rig:
+        model = load_robot(self.ctx.robot, preset=preset)
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"robot: {self.ctx.robot} is not a serial arm")
+        line = thesis_line(model)
+        extra = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # start on the line
+        backend = make_backend(self.ctx.backend, model, port=self.ctx.port, baud=self.ctx.baud,
+                               **extra)
+        try:
+            loop = ControlLoop(model, backend, params, controller="compliance",
+                               realtime=self.ctx.realtime, history_s=HISTORY_S)
+            scene = ComplianceScene(
+                self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
+                root="/compliance", on_target=self._on_target, on_drag_hand=self._on_drag)
+        except BaseException:
+            backend.close()
+            raise
+        loop.start()
+        return Rig(preset, model, backend, loop, scene, line)
+
+    def _close_rig(self, rig: Rig) -> None:
+        try:
+            rig.loop.shutdown(torque_off=True)
+            rig.backend.estop()  # again, even after a link fault stopped the loop; never raises
+        finally:
+            try:
+                rig.backend.close()
+            finally:
+                rig.scene.remove()
+
+    def set_link_preset(self, preset: str) -> None:
+        """Rebuild model, servos and loop for other link lengths (keeps the gains)."""
+        if preset not in RECEPTIONIST_PRESETS:
+            raise ValueError(f"link lengths: unknown preset {preset!r}; known: "
+                             f"{', '.join(RECEPTIONIST_PRESETS)}")
+        with self._lock:
+            old = self.rig
+            if old is None or old.preset == preset or self._closed:
+                return
+            self.rig = None
+            self._close_rig(old)
+            self.rig = self._make_rig(preset, self.gains.params)
+            self.experiment = None
+            self.run_start = None
+
+    # ================================================================== GUI
+
+    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
+        self._gui_handles.append(handle)
+        return handle
+
+    def _build_gui(self, params: Params) -> None:
+        gui = self.server.gui
+        self.status = self._add(gui.add_html("", order=-80.0))
+        self.warning = self._add(gui.add_html("", order=-79.0, visible=False))
+        tabs = self._add(gui.add_tab_group(order=-70.0))
+        with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
+            self._build_run_tab(gui)
+        with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
+            self.gains = GainControls(gui, params, apply=self._apply_params)
+        with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
+            self._build_push_tab(gui)
+        with tabs.add_tab("Teach", viser.Icon.SCHOOL):
+            self.equations = gui.add_markdown("")
+            self.design = gui.add_markdown(design_table(params, None, None))
+            self.last_run_md = gui.add_markdown("")
+        with tabs.add_tab("Servos", viser.Icon.CPU):
+            self.servo_html = gui.add_html("reading the servos…")
+        self.plot_panel = self._add(gui.add_panel())
+        with self.plot_panel.add_tab("Live charts", viser.Icon.CHART_LINE):
+            self.plots = JointPlots(gui, ("theta1", "theta0", "theta2"), default_joint=2)
+        self.plot_panel.dock_left()
+        self.plot_panel.set_width(430)
+        self._show_warning(params)
+
+    def _build_run_tab(self, gui: viser.GuiApi) -> None:
+        run = gui.add_button("Run thesis line", color="green", icon=viser.Icon.PLAYER_PLAY,
+                             hint="The hand moves 20 cm along y in 1.28 s (thesis ch. 4), "
+                                  "after a smooth approach to the start")
+        stop = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP,
+                              hint="Stop the motion and hold where the command is")
+        reset = gui.add_button("Reset", icon=viser.Icon.REFRESH,
+                               hint="After an E-STOP or a fault: torque on, hold where the arm is")
+        run.on_click(lambda e: self._guard(e, self.run_line))
+        stop.on_click(lambda e: self._guard(e, self.stop))
+        reset.on_click(lambda e: self._guard(e, self.reset))
+        with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
+            self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
+            self.step_size = gui.add_slider("Step (°)", min=-30.0, max=30.0, step=1.0,
+                                            initial_value=10.0)
+            self._step_size = GuardedNumber(self.step_size, name="step", lo=-30.0, hi=30.0,
+                                            apply=lambda v: None)
+            step = gui.add_button("Step", icon=viser.Icon.STAIRS_UP,
+                                  hint="Step one joint's command; the Teach tab compares the "
+                                       "response with eq. 2.16–2.19")
+            step.on_click(lambda e: self._guard(e, self.run_step))
+        self.download = gui.add_button("Download the last run (CSV)", icon=viser.Icon.DOWNLOAD,
+                                       hint="Time, every plotted signal (SI) and the "
+                                            "parameters in the header")
+        self.download.on_click(self._on_download)
+        with gui.add_folder("Arm and display", expand_by_default=False):
+            self.links = gui.add_dropdown("Link lengths (cm)", tuple(RECEPTIONIST_PRESETS),
+                                          initial_value="18.5/25",
+                                          hint="L1/L2: the appendix code (18.5/25) or the "
+                                               "specification list (18.5/18.5)")
+            self.links.on_update(lambda e: self._guard(
+                e, lambda: self.set_link_preset(str(self.links.value))))
+            self.show_ghost = gui.add_checkbox("Show command (ghost)", True)
+            self.show_trail = gui.add_checkbox("Show hand trail", True)
+
+    def _build_push_tab(self, gui: viser.GuiApi) -> None:
+        if self.hardware:
+            gui.add_markdown("Push the **real arm by hand**: the purple arrow and the τ_ext "
+                             "chart show the external torque the controller estimates "
+                             "(eq. 2.23).")
+        else:
+            gui.add_markdown("**Drag the pink sphere at the hand** to pull the arm with a "
+                             "spring, or push it with the button below.")
+        self.spring_k = gui.add_slider("Drag spring (N/m)", min=10.0, max=1000.0, step=10.0,
+                                       initial_value=200.0, visible=not self.hardware)
+        self._spring_k = GuardedNumber(self.spring_k, name="drag spring", lo=10.0, hi=1000.0,
+                                       apply=lambda v: None)
+        self.push_force = gui.add_slider("Push force (N)", min=0.5, max=20.0, step=0.5,
+                                         initial_value=4.0, visible=not self.hardware)
+        self._push_force = GuardedNumber(self.push_force, name="push force", lo=0.5, hi=20.0,
+                                         apply=lambda v: None)
+        self.push_dir = gui.add_dropdown("Direction", tuple(PUSH_DIRECTIONS),
+                                         visible=not self.hardware)
+        self.push_time = gui.add_slider("Duration (s)", min=0.1, max=10.0, step=0.1,
+                                        initial_value=2.0, visible=not self.hardware)
+        self._push_time = GuardedNumber(self.push_time, name="duration", lo=0.1, hi=10.0,
+                                        apply=lambda v: None)
+        push = gui.add_button("Push", icon=viser.Icon.HAND_FINGER, visible=not self.hardware,
+                              hint="Push the hand with this force for this long")
+        push.on_click(lambda e: self._guard(e, self.push))
+
+    def _remove_gui(self) -> None:
+        for h in reversed(self._gui_handles):
+            try:
+                h.remove()
+            except (RuntimeError, KeyError, ValueError):
+                pass
+        self._gui_handles.clear()
+
+    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
+        """Run a button's action; a refusal becomes a notification, never an exception."""
+        try:
+            action()
+        except ValueError as exc:
+            notify(event.client, "Not done", str(exc))
+
+    # ================================================================== actions
+
+    def _loop(self) -> ControlLoop:
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        return rig.loop
+
+    def _apply_params(self, params: Params) -> None:
+        """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
+        if self.hardware and loop_stability(params).unstable:
+            raise ValueError("unstable gains are refused on real servos: "
+                             f"{stability_warning(params)}")
+        self._loop().set_params(params, force=True)
+        self._show_warning(params)
+
+    def _show_warning(self, params: Params) -> None:
+        w = stability_warning(params)
+        if w is None:
+            self.warning.visible = False
+            return
+        unstable = loop_stability(params).unstable
+        color = "#b00020" if unstable else "#a15c00"
+        head = "Unstable gains" if unstable else "Check the gains"
+        self.warning.content = (
+            f"<div style='border-left:4px solid {color};padding:4px 8px;background:#fff4e5'>"
+            f"<b style='color:{color}'>⚠ {head}</b> <span style='font-size:0.9em'>"
+            f"{_esc(w)}</span></div>")
+        self.warning.visible = True
+
+    def _now(self) -> float:
+        return self._loop().status.t
+
+    def run_line(self) -> None:
+        """Play the thesis's 20 cm line (after a smooth approach to its start)."""
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        t0 = self._now()
+        rig.loop.post(RunTrajectory(rig.line))
+        self.run_start, self.run_label = t0, "thesis line"
+        self.experiment = Experiment("line", t0, ready_at=math.inf, label="thesis line")
+        rig.scene.set_target(THESIS_LINE_END)
+
+    def run_step(self) -> None:
+        """Step one joint's command by the chosen angle (measures the PD loop)."""
+        loop = self._loop()
+        j = ("θ1", "θ0", "θ2").index(str(self.step_joint.value))
+        snap = loop.recorder.snapshot(0.2)
+        q_cmd = _last_finite(snap["q_cmd"])
+        if q_cmd is None:
+            raise ValueError("the controller is not running: press Reset first")
+        step = math.radians(self._step_size.value)
+        q1 = q_cmd.copy()
+        q1[j] = float(np.clip(q_cmd[j] + step, loop.lower[j], loop.upper[j]))
+        if abs(q1[j] - q_cmd[j]) < math.radians(0.5):
+            raise ValueError(f"{self.step_joint.value} is at its limit: step the other way")
+        T = loop.params.period
+        z = np.zeros((2, len(q1)))
+        traj = JointTrajectory(np.array([0.0, T]), np.vstack([q_cmd, q1]), z, z.copy(),
+                               name=f"step {self.step_joint.value}")
+        t0 = self._now()
+        loop.post(RunTrajectory(traj, approach=False))
+        p = loop.params
+        settle = 4.0 / max(1e-3, p.kv / 2.0) if p.kv > 0 else 10.0
+        wait = float(np.clip(1.5 * settle, 3.0, 12.0))
+        self.run_start, self.run_label = t0, f"step {self.step_joint.value}"
+        self.experiment = Experiment(
+            "step", t0, ready_at=t0 + wait, joint=j, q0=float(q_cmd[j]), q1=float(q1[j]),
+            label=f"step of {self.step_joint.value} by {math.degrees(q1[j] - q_cmd[j]):+.0f}°")
+
+    def push(self) -> None:
+        """Push the hand with the chosen force, direction and duration (simulated arm)."""
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        if not isinstance(rig.backend, Pushable):
+            raise ValueError("real servos: push the arm by hand")
+        force = self._push_force.value * np.array(PUSH_DIRECTIONS[str(self.push_dir.value)])
+        duration = self._push_time.value
+        t0 = self._now()
+        rig.loop.post(Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
+                           duration=duration))
+        self._push = (force, t0 + duration)
+        self.run_start, self.run_label = t0, "push"
+        self.experiment = Experiment("push", t0, ready_at=t0 + duration, label=(
+            f"push of {self._push_force.value:g} N {self.push_dir.value} for {duration:g} s"))
+
+    def stop(self) -> None:
+        self._loop().post(Stop())
+
+    def reset(self) -> None:
+        loop = self._loop()
+        loop.post(Reset())
+        self._push = None
+
+    def estop(self) -> None:
+        """Torque off now (the loop applies it at its next period); never raises."""
+        rig = self.rig
+        if rig is None:
+            return
+        try:
+            rig.loop.post(EStop())
+            if not rig.loop.status.running:  # no loop to apply it: do it here
+                rig.backend.estop()
+        except (ValueError, RuntimeError, OSError):
+            rig.backend.estop()
+
+    def _on_target(self, xyz: np.ndarray) -> None:
+        rig = self.rig
+        if rig is not None:
+            rig.loop.post(SetTarget(xyz))
+
+    def _on_drag(self, phase: str, anchor: np.ndarray | None) -> None:
+        rig = self.rig
+        if rig is None or not isinstance(rig.backend, Pushable):
+            return
+        k = self._spring_k.value
+        self._drag_anchor = anchor
+        rig.loop.post(Spring(anchor, stiffness=k, link=rig.model.n - 1,
+                             point=rig.model.tip[:3, 3]))
+        if phase == "start":
+            self.run_start, self.run_label = self._now(), "hand drag"
+
+    def _on_download(self, event: viser.GuiEvent) -> None:
+        if event.client is None:
+            return
+        try:
+            name, data = self.csv_bytes()
+        except ValueError as exc:
+            notify(event.client, "Nothing to download", str(exc))
+            return
+        event.client.send_file_download(name, data, save_immediately=True)
+
+    def csv_bytes(self) -> tuple[str, bytes]:
+        """(file name, CSV) of the last run: from its start (or the last 10 s) to now."""
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        loop = rig.loop
+        now = loop.status.t
+        start = self.run_start if self.run_start is not None else now - 10.0
+        window = min(HISTORY_S, max(0.5, now - start + 0.5))
+        text = loop.recorder.to_csv(loop.params, window_s=window)
+        if text.count("\n") <= 3:
+            raise ValueError("no samples recorded yet")
+        head = (f"# run: {self.run_label}; robot {rig.model.name}, link lengths "
+                f"{rig.preset} cm, backend {self.ctx.backend}; loop time {start:.3f} s on\n")
+        first, rest = text.split("\n", 1)
+        label = self.run_label.replace(" ", "-")
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        return f"armlab-{label}-{stamp}.csv", (first + "\n" + head + rest).encode()
+
+    # ================================================================== publishing
+
+    def _pose_frame(self) -> None:
+        rig = self.rig
+        if rig is None:
+            return
+        snap = rig.loop.recorder.snapshot(0.05)
+        if len(snap["t"]) == 0:
+            return
+        q = snap["q"][-1]
+        if not np.all(np.isfinite(q)):
+            return
+        q_cmd = snap["q_cmd"][-1]
+        ghost = self.show_ghost.value and np.all(np.isfinite(q_cmd))
+        rig.scene.ghost.root.visible = bool(ghost)
+        rig.scene.set_pose(q, q_cmd if ghost else q)
+        hand = rig.model.fk(q)[:3, 3]
+        if self.show_trail.value:
+            rig.scene.add_trail(hand)
+        applied = None
+        anchor = self._drag_anchor
+        if anchor is not None:
+            applied = self._spring_k.value * (anchor - hand)
+        rig.scene.set_spring(hand, anchor)
+        push = self._push
+        if push is not None:
+            if snap["t"][-1] <= push[1]:
+                applied = push[0] if applied is None else applied + push[0]
+            else:
+                self._push = None
+        tau_ext = snap["tau_ext"][-1]
+        estimated = None
+        if np.all(np.isfinite(tau_ext)):
+            Jv = rig.model.jacobian(q)[:3]
+            # τ_ext is what the motors spend against the world: the world applies −τ_ext.
+            estimated = np.linalg.pinv(Jv.T) @ (-tau_ext)
+        rig.scene.set_forces(hand, applied, estimated)
+
+    def _plot_frame(self, force: bool) -> None:
+        rig = self.rig
+        if rig is None:
+            return
+        loop = rig.loop
+        status = loop.status
+        snap = loop.recorder.snapshot(self.plots.angle.window_s + 0.5)
+        self.plots.update(snap, force=force)
+        self._update_status(status, snap, rig)
+        now = time.monotonic()
+        if force or now - self._last_teach > 0.5:
+            self._last_teach = now
+            self._update_teach(status, snap, loop.params)
+        if force or now - self._last_servos > 1.0:
+            self._last_servos = now
+            self.servo_html.content = safe_health_html(rig.backend, rig.model.joint_names)
+        self._measure(status, rig)
+
+    def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
+        if st.estopped:
+            state, color = "E-STOPPED: torque off (press Reset)", "#b00020"
+        elif st.fault:
+            state, color = f"stopped: {st.fault}", "#b00020"
+        elif not st.active:
+            state, color = "starting", "#555"
+        elif st.trajectory:
+            state, color = f"running {st.trajectory} ({100 * st.progress:.0f} %)", "#1f5eea"
+        else:
+            state, color = "holding", "#2e7d32"
+        torque = "torque on" if st.torque_on else "torque off"
+        where = "simulated arm" if not self.hardware else f"servos on {self.ctx.port}"
+        hand = ""
+        if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
+            p = rig.model.fk(snap["q"][-1])[:3, 3] * 100
+            hand = f" · hand ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) cm"
+        msg = ""
+        if st.message and not st.fault and st.message != state:
+            msg = f"<div style='color:#555;font-size:0.85em'>{_esc(st.message)}</div>"
+        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(state)}</b>"
+                f"<div style='color:#555;font-size:0.85em'>{where} · {torque} · "
+                f"t = {st.t:.0f} s · T = {st.period_ms:.0f} ms{hand}</div>{msg}</div>")
+        if text != self._status_html:
+            self._status_html = text
+            self.status.content = text
+
+    def _update_teach(self, st: LoopStatus, snap: dict[str, np.ndarray], params: Params) -> None:
+        j = self.plots.joint
+        live = latest_values(snap, j, joint_label(self.plots.labels[j]))
+        eq = equations_markdown(params, live, torque_unit=str(self.plots.torque_unit.value),
+                                mode=st.controller)
+        if eq != self._teach_text:
+            self._teach_text = eq
+            self.equations.content = eq
+        table = design_table(params, self.measured_pd, self.measured_env)
+        if table != self.design.content:
+            self.design.content = table
+        if self.last_run_text != self.last_run_md.content:
+            self.last_run_md.content = self.last_run_text
+
+    def _measure(self, st: LoopStatus, rig: Rig) -> None:
+        exp = self.experiment
+        if exp is None or exp.done:
+            return
+        if exp.kind == "line":
+            if st.t < exp.t0 + 0.1 or st.trajectory is not None:
+                return
+            exp.done = True
+            snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
+            keep = snap["t"] >= exp.t0
+            err = np.nanmax(np.abs(snap["error"][keep]), axis=0) * DEG
+            names = ", ".join(f"{joint_label(n)} {e:.1f}°" for n, e in
+                              zip(rig.model.joint_names, err, strict=True))
+            self.last_run_text = (f"**Last run** (thesis line): max |θ_cmd − θ| = {names} "
+                                  "(thesis: 6° to 20° without the PD loop, under 6° with it)")
+            return
+        if st.t < exp.ready_at:
+            return
+        exp.done = True
+        try:
+            if exp.kind == "step":
+                self.measured_pd = self._measure_step(exp, rig, st.t)
+            elif exp.kind == "push":
+                self.measured_env = self._measure_push(exp, rig, st.t)
+        except ValueError as exc:
+            self.last_run_text = f"**Last run** ({exp.label}): not measured: {_esc(str(exc))}"
+
+    @staticmethod
+    def _measure_step(exp: Experiment, rig: Rig, now: float) -> Measured:
+        snap = rig.loop.recorder.snapshot(now - exp.t0 + 0.2)
+        j = exp.joint
+        half = 0.5 * abs(exp.q1 - exp.q0)
+        stepped = np.abs(snap["q_cmd"][:, j] - exp.q0) > half
+        moved = np.flatnonzero((snap["t"] >= exp.t0) & stepped)
+        if len(moved) == 0:
+            raise ValueError("the command never stepped (was the arm e-stopped?)")
+        k = moved[0]
+        return measure_response(snap["t"][k:], snap["q"][k:, j], initial=exp.q0, final=exp.q1,
+                                what=exp.label)
+
+    @staticmethod
+    def _measure_push(exp: Experiment, rig: Rig, now: float) -> Measured:
+        snap = rig.loop.recorder.snapshot(now - exp.t0 + 0.2)
+        keep = (snap["t"] >= exp.t0) & (snap["t"] <= exp.ready_at)
+        t, env, tau = snap["t"][keep], snap["q_env"][keep], snap["tau_ext"][keep]
+        if len(t) < 10 or not np.any(np.isfinite(env)):
+            raise ValueError("too few samples during the push (compliance off?)")
+        tail = slice(int(0.85 * len(t)), None)
+        j = int(np.nanargmax(np.abs(np.nanmean(tau[tail], axis=0))))
+        e0, tau0 = float(env[0, j]), float(tau[0, j])
+        e1, tau1 = float(np.nanmedian(env[tail, j])), float(np.nanmedian(tau[tail, j]))
+        if abs(tau1 - tau0) < 1e-4:
+            raise ValueError("the push did not reach the estimated torque")
+        name = joint_label(rig.model.joint_names[j])
+        return measure_response(t, env[:, j], initial=e0, final=e1,
+                                what=f"{exp.label}, joint {name}",
+                                static_gain=(e1 - e0) / (tau1 - tau0))
+
+    # ================================================================== lifetime
+
+    def close(self) -> None:
+        """Stop the publisher and the loop (torque off), remove scene and GUI."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self.publisher.close()
+        rig, self.rig = self.rig, None
+        try:
+            if rig is not None:
+                self._close_rig(rig)
+        finally:
+            self._remove_gui()
+
+
+def _last_finite(a: np.ndarray) -> np.ndarray | None:
+    """The newest row of ``a`` (m, n) with no NaN, or None."""
+    for k in range(len(a) - 1, -1, -1):
+        if np.all(np.isfinite(a[k])):
+            return a[k].copy()
+    return None
+
+
+def _esc(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+__all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

@@ -1,0 +1,161 @@
+"""Gain sliders and presets of the compliance lesson.
+
+Each slider is a :class:`app.inputs.GuardedNumber`: a typed value that is not a
+finite number inside the slider's range is refused with a notification and the
+slider goes back. A good value builds a new, validated :class:`Params` and hands
+it to ``apply`` (which swaps it into the control loop at its next period). A
+preset sets every slider and applies the whole preset once.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import fields, replace
+
+import viser
+
+from app.inputs import GuardedNumber, notify
+from control.params import LAWS, PARAM_SPECS, PRESETS, Params
+
+#: Slider value shown = SI value × scale (the period is shown in ms).
+DISPLAY_SCALE = {"period": 1000.0}
+DISPLAY_UNIT = {"period": "ms"}
+LAW_LABELS = {"2.6": "2.6 (consistent, default)", "2.26": "2.26 (thesis literal)"}
+CUSTOM = "(custom)"
+
+
+def slider_label(name: str) -> str:
+    """"Kp (1/s²)", "period (ms)"..."""
+    spec = PARAM_SPECS[name]
+    unit = DISPLAY_UNIT.get(name, spec.unit)
+    return f"{spec.label} ({unit})" if unit else spec.label
+
+
+class GainControls:
+    """Sliders for every numeric field of :class:`Params`, the compliance switch, the law
+    and the preset picker.
+
+    Args:
+        gui: where to add them (inside the caller's tab/folder context).
+        params: initial parameters.
+        apply: called with a new :class:`Params`; raises ValueError to refuse it (its
+            message is shown and the inputs go back).
+
+    Attributes:
+        params: the parameters last accepted.
+        sliders: field name -> GuardedNumber.
+    """
+
+    def __init__(self, gui: viser.GuiApi, params: Params, *,
+                 apply: Callable[[Params], None]) -> None:
+        self._apply = apply
+        self._lock = threading.RLock()
+        self._batch = False
+        self.params = params
+        self.preset = gui.add_dropdown("Preset", (*PRESETS, CUSTOM),
+                                       initial_value=_preset_of(params),
+                                       hint="Gains from the thesis or the lab's damped default")
+        self.compliance = gui.add_checkbox("Compliance on", params.compliance,
+                                           hint="Off: plain PD loop (eq. 2.20); on: the arm "
+                                                "yields to outside torque (eq. 2.6/2.7)")
+        self.law = gui.add_dropdown("Law", tuple(LAW_LABELS[k] for k in LAWS),
+                                    initial_value=LAW_LABELS[params.law],
+                                    hint="2.6 offsets the reference by θ_env; 2.26 (as printed "
+                                         "in the thesis) multiplies the offsets by K_env, "
+                                         "D_env, M_env")
+        self.sliders: dict[str, GuardedNumber] = {}
+        for f in fields(Params):
+            if f.name not in PARAM_SPECS:
+                continue
+            spec = PARAM_SPECS[f.name]
+            k = DISPLAY_SCALE.get(f.name, 1.0)
+            handle = gui.add_slider(slider_label(f.name), min=spec.min * k, max=spec.max * k,
+                                    step=spec.step * k,
+                                    initial_value=float(getattr(params, f.name)) * k,
+                                    hint=spec.help)
+            self.sliders[f.name] = GuardedNumber(
+                handle, name=spec.label, lo=spec.min * k, hi=spec.max * k,
+                apply=lambda v, name=f.name, k=k: self._set_field(name, v / k), lock=self._lock)
+
+        @self.preset.on_update
+        def _(event: viser.GuiEvent) -> None:
+            name = str(self.preset.value)
+            if name in PRESETS and not self._batch:
+                try:
+                    self.set_params(PRESETS[name])
+                except ValueError as exc:
+                    notify(event.client, "Preset refused", str(exc))
+
+        @self.compliance.on_update
+        def _(event: viser.GuiEvent) -> None:
+            self._set_other(event, compliance=bool(self.compliance.value))
+
+        @self.law.on_update
+        def _(event: viser.GuiEvent) -> None:
+            law = next(k for k, v in LAW_LABELS.items() if v == self.law.value)
+            self._set_other(event, law=law)
+
+    # -- changes -----------------------------------------------------------------
+
+    def _set_field(self, name: str, value: float) -> None:
+        """A slider moved (value in SI); raises ValueError to refuse it."""
+        with self._lock:
+            if self._batch:
+                return
+            new = replace(self.params, **{name: value})  # validates
+            self._commit(new)
+
+    def _set_other(self, event: viser.GuiEvent, **changes: object) -> None:
+        with self._lock:
+            if self._batch:
+                return
+            try:
+                self._commit(replace(self.params, **changes))
+            except ValueError as exc:
+                notify(event.client, "Change refused", str(exc))
+                self._show(self.params)
+
+    def _commit(self, new: Params) -> None:
+        if new == self.params:
+            return
+        self._apply(new)
+        self.params = new
+        self._batch = True
+        try:
+            self.preset.value = _preset_of(new)
+        finally:
+            self._batch = False
+
+    def set_params(self, params: Params) -> None:
+        """Apply ``params`` at once (a preset) and show them on every page.
+
+        Raises:
+            ValueError: when ``apply`` refuses them (nothing changes then).
+        """
+        with self._lock:
+            if params != self.params:
+                self._apply(params)
+                self.params = params
+            self._show(params)
+
+    def _show(self, params: Params) -> None:
+        """Put every input at ``params`` without applying anything."""
+        self._batch = True
+        try:
+            for name, g in self.sliders.items():
+                v = float(getattr(params, name)) * DISPLAY_SCALE.get(name, 1.0)
+                g.value = v
+                g.handle.value = v
+            self.compliance.value = params.compliance
+            self.law.value = LAW_LABELS[params.law]
+            self.preset.value = _preset_of(params)
+        finally:
+            self._batch = False
+
+
+def _preset_of(params: Params) -> str:
+    for name, p in PRESETS.items():
+        if p == params:
+            return name
+    return CUSTOM

@@ -1,0 +1,185 @@
+"""The compliance lesson's 3D scene: arm, ghost, shoulder frame, path, target, trail, forces.
+
+Everything the controller works in (target, path, forces) is drawn under the
+shoulder frame node, whose pose is the model's ``base_pose``, so those nodes
+take base-frame (thesis-frame) coordinates directly; the arm meshes hang from
+the world as in the URDF.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import viser
+import viser.transforms as vtf
+
+from app.arm_view import ArmView
+from kinematics.model import SerialChain
+
+#: Newtons drawn per metre of arrow.
+ARROW_M_PER_N = 0.02
+#: Applied forces under this many newtons are not drawn.
+ARROW_MIN_N = 0.05
+#: Estimated forces are drawn above ESTIMATE_ON_N and hidden below ESTIMATE_OFF_N
+#: (hysteresis: the estimate from quantised servo loads hovers near zero at rest).
+ESTIMATE_ON_N = 0.4
+ESTIMATE_OFF_N = 0.25
+TRAIL_DOTS = 24
+GHOST_RGBA = (0.35, 0.6, 1.0, 0.35)
+PATH_RGB = (20, 150, 60)
+FORCE_RGB = (220, 30, 30)
+ESTIMATE_RGB = (150, 40, 190)
+
+
+class ComplianceScene:
+    """Scene nodes of the compliance lesson under ``root``.
+
+    Args:
+        server: viser server.
+        model: the arm.
+        path: (2, 3) start and end of the thesis line, base frame, m.
+        root: scene node holding everything (removed by :meth:`remove`).
+        on_target: called with a new target (3,) m, base frame, when the gizmo moves.
+        on_drag_hand: called with (phase, anchor (3,) base frame or None) while the hand
+            is dragged ("start"/"update" give the anchor, "end" gives None).
+    """
+
+    def __init__(self, server: viser.ViserServer, model: SerialChain, *, path: np.ndarray,
+                 root: str, on_target: Callable[[np.ndarray], None],
+                 on_drag_hand: Callable[[str, np.ndarray | None], None]) -> None:
+        self.server = server
+        self.model = model
+        self.root_name = root
+        scene = server.scene
+        self.root = scene.add_frame(root, show_axes=False)
+        self.arm = ArmView(server, model, root=f"{root}/arm")
+        self.ghost = ArmView(server, model, root=f"{root}/ghost", color=GHOST_RGBA)
+        base = np.asarray(model.base_pose, dtype=float)
+        self._base = base
+        self._base_inv = np.linalg.inv(base)
+        self.shoulder = scene.add_frame(
+            f"{root}/shoulder", show_axes=True, axes_length=0.08, axes_radius=0.003,
+            wxyz=vtf.SO3.from_matrix(base[:3, :3]).wxyz, position=base[:3, 3])
+        sh = f"{root}/shoulder"
+        scene.add_label(f"{sh}/label", "shoulder frame (thesis): x = gravity",
+                        position=(0.0, 0.0, -0.05), font_screen_scale=0.7)
+        path = np.asarray(path, dtype=float).reshape(2, 3)
+        self.path = scene.add_line_segments(f"{sh}/path", points=path[None, :, :],
+                                            colors=PATH_RGB, thickness=0.004)
+        scene.add_label(f"{sh}/path_label", "thesis 20 cm line", position=path[1],
+                        font_screen_scale=0.7)
+        for i, p in enumerate(path):
+            scene.add_icosphere(f"{sh}/path_end{i}", radius=0.006, color=PATH_RGB, position=p)
+        # Target the hand follows by RMRC (translation only).
+        self.target = scene.add_transform_controls(
+            f"{sh}/target", scale=0.09, disable_rotations=True, depth_test=False,
+            position=path[0])
+        scene.add_icosphere(f"{sh}/target/dot", radius=0.01, color=(250, 180, 0))
+        self._suppress_target = False
+
+        @self.target.on_update
+        def _(event: viser.TransformControlsEvent) -> None:
+            if self._suppress_target or event.client is None:
+                return
+            on_target(np.array(self.target.position, dtype=float))
+
+        # Hand: a grab sphere riding on the last link; drag it to pull the arm.
+        tip_link = model.link_names[-1] if model.link_names else None
+        tip = np.asarray(model.tip, dtype=float)
+        parent = self.arm.link_frames[tip_link].name if tip_link in self.arm.link_frames else sh
+        self.hand = scene.add_icosphere(f"{parent}/grab", radius=0.03, color=(255, 120, 120),
+                                        opacity=0.35, position=tip[:3, 3])
+
+        @self.hand.on_drag
+        def _(event: viser.SceneNodeDragEvent) -> None:
+            if event.phase == "end":
+                on_drag_hand("end", None)
+                self.spring.visible = False
+                return
+            anchor = self.to_base(np.asarray(event.end_position, dtype=float))
+            on_drag_hand(event.phase, anchor)
+
+        self.spring = scene.add_line_segments(f"{sh}/spring", points=np.zeros((1, 2, 3)),
+                                              colors=(90, 90, 90), thickness=0.003,
+                                              visible=False)
+        self.force = scene.add_arrows(f"{sh}/force", points=np.zeros((1, 2, 3)),
+                                      colors=FORCE_RGB, shaft_radius=0.005, head_radius=0.012,
+                                      head_length=0.025, visible=False)
+        self.estimate = scene.add_arrows(f"{sh}/estimate", points=np.zeros((1, 2, 3)),
+                                         colors=ESTIMATE_RGB, shaft_radius=0.004,
+                                         head_radius=0.01, head_length=0.02, visible=False)
+        self._trail = [scene.add_icosphere(f"{sh}/trail/{i}", radius=0.004,
+                                           color=(40, 40, 40), visible=False)
+                       for i in range(TRAIL_DOTS)]
+        self._trail_next = 0
+        self._trail_last: np.ndarray | None = None
+        server.initial_camera.position = (0.62, -0.22, 1.22)
+        server.initial_camera.look_at = (0.0, 0.13, 0.96)
+
+    # -- frames -----------------------------------------------------------------
+
+    def to_base(self, p_world: np.ndarray) -> np.ndarray:
+        """World point (3,) -> base (shoulder) frame."""
+        return self._base_inv[:3, :3] @ p_world + self._base_inv[:3, 3]
+
+    # -- per-frame updates ----------------------------------------------------------
+
+    def set_pose(self, q: np.ndarray, q_cmd: np.ndarray) -> None:
+        """Actual arm at ``q``, ghost at the commanded ``q_cmd`` (both (n,), rad)."""
+        self.arm.set_q(q)
+        self.ghost.set_q(q_cmd)
+
+    def set_target(self, p: np.ndarray) -> None:
+        """Move the target gizmo (base frame, m) without reporting it back as a user move."""
+        self._suppress_target = True
+        try:
+            self.target.position = np.asarray(p, dtype=float)
+        finally:
+            self._suppress_target = False
+
+    def add_trail(self, hand: np.ndarray, *, min_step: float = 0.003) -> None:
+        """Drop a trail dot at ``hand`` (base frame) if it moved ``min_step`` m since the last."""
+        if self._trail_last is not None and np.linalg.norm(hand - self._trail_last) < min_step:
+            return
+        dot = self._trail[self._trail_next]
+        dot.position = hand
+        dot.visible = True
+        self._trail_next = (self._trail_next + 1) % len(self._trail)
+        self._trail_last = np.array(hand, dtype=float)
+
+    def set_spring(self, hand: np.ndarray | None, anchor: np.ndarray | None) -> None:
+        """Draw the virtual spring from ``hand`` to ``anchor`` (base frame); None hides it."""
+        if hand is None or anchor is None:
+            self.spring.visible = False
+            return
+        self.spring.points = np.array([[hand, anchor]], dtype=np.float32)
+        self.spring.visible = True
+
+    @staticmethod
+    def _arrow(handle: viser.ArrowsHandle, at: np.ndarray, force: np.ndarray | None, *,
+               on: float = ARROW_MIN_N, off: float = ARROW_MIN_N) -> None:
+        size = float(np.linalg.norm(force)) if force is not None else 0.0
+        if not math.isfinite(size) or size < (off if handle.visible else on):
+            handle.visible = False
+            return
+        # The arrow ends at the hand: it shows the push arriving there.
+        tail = at - force * ARROW_M_PER_N
+        handle.points = np.array([[tail, at]], dtype=np.float32)
+        handle.visible = True
+
+    def set_forces(self, hand: np.ndarray, applied: np.ndarray | None,
+                   estimated: np.ndarray | None) -> None:
+        """Arrows for the applied force (red) and the force estimated from τ_ext (purple), N."""
+        self._arrow(self.force, hand, applied)
+        self._arrow(self.estimate, hand, estimated, on=ESTIMATE_ON_N, off=ESTIMATE_OFF_N)
+
+    def remove(self) -> None:
+        self.root.remove()
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    """``v`` / |v| (zeros stay zeros)."""
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 and math.isfinite(n) else np.zeros_like(v)

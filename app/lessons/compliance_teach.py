@@ -1,0 +1,209 @@
+"""The teaching panel: the equations in use with live numbers, design figures vs measured.
+
+Pure functions from (parameters, recorded signals) to Markdown, so the panel's
+text can be tested without a browser. Design figures come from
+:mod:`control.metrics` (thesis eq. 2.11–2.19); measured ones from the last
+step (PD loop) or push (environment) the student ran, with ωn and ζ read back
+from the measured overshoot and peak time (the inverse of 2.16–2.17).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from control import metrics
+from control.params import Params
+from kinematics.units import KGF_CM_PER_NM
+
+DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True)
+class Measured:
+    """Second-order figures measured on a recorded response (None where undefined).
+
+    Attributes:
+        what: what was measured ("step of θ2 by +10°", "push on θ0").
+        omega_n: rad/s, from Tp and %OS (underdamped responses only).
+        zeta: from %OS (underdamped only).
+        overshoot_pct, peak_time_s, rise_time_s, settling_time_s: as in
+            :class:`control.metrics.StepMetrics`.
+        static_gain: final / input (C_f for a push: rad per N·m), or None.
+    """
+
+    what: str
+    omega_n: float | None
+    zeta: float | None
+    overshoot_pct: float | None
+    peak_time_s: float | None
+    rise_time_s: float | None
+    settling_time_s: float | None
+    static_gain: float | None = None
+
+
+def zeta_from_overshoot(os_pct: float) -> float | None:
+    """ζ from %OS (inverse of eq. 2.17): ζ = −ln(OS) / √(π² + ln²(OS)); None without overshoot."""
+    if not (os_pct > 0.0 and math.isfinite(os_pct)):
+        return None
+    ln = math.log(os_pct / 100.0)
+    return -ln / math.sqrt(math.pi**2 + ln * ln)
+
+
+def omega_from_peak(tp: float | None, zeta: float | None) -> float | None:
+    """ωn from Tp and ζ (inverse of eq. 2.16): ωn = π / (Tp √(1 − ζ²))."""
+    if tp is None or zeta is None or tp <= 0.0 or zeta >= 1.0:
+        return None
+    return math.pi / (tp * math.sqrt(1.0 - zeta * zeta))
+
+
+def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: float,
+                     what: str, static_gain: float | None = None) -> Measured:
+    """Figures of a recorded step response ``y`` (N,) at times ``t`` (N,) from the step.
+
+    Raises:
+        ValueError: when the step is too small to measure (|final − initial| ~ 0).
+    """
+    if not abs(final - initial) > 1e-9:
+        raise ValueError(f"{what}: the response did not move (final = initial = {final:g})")
+    m = metrics.measure_step(np.asarray(t) - t[0], y, final=final, initial=initial)
+    z = zeta_from_overshoot(m.overshoot_pct)
+    return Measured(what, omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
+                    m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain)
+
+
+def _f(x: float | None, fmt: str = ".3g", unit: str = "") -> str:
+    if x is None or not math.isfinite(x):
+        return "—"
+    return f"{x:{fmt}}{(' ' + unit) if unit else ''}"
+
+
+def design_table(params: Params, pd: Measured | None, env: Measured | None) -> str:
+    """Markdown table: formula figures (2.11–2.19) beside the measured ones."""
+    wp = metrics.pd_natural_frequency(params.kp) if params.kp > 0 else float("nan")
+    zp = metrics.pd_damping(params.kp, params.kv) if params.kp > 0 else float("nan")
+    wf = metrics.env_natural_frequency(params.m_env, params.k_env)
+    zf = metrics.env_damping(params.m_env, params.d_env, params.k_env)
+    cf = metrics.static_gain(params.k_f, params.k_env)
+    fp = metrics.formula_metrics(wp, zp) if params.kp > 0 else None
+    fe = metrics.formula_metrics(wf, zf)
+
+    def row(name: str, formula: str, a: float | None, b: float | None, fmt: str = ".3g",
+            unit: str = "") -> str:
+        return f"| {name} | {formula} | {_f(a, fmt, unit)} | {_f(b, fmt, unit)} |"
+
+    pd_m = pd or Measured("", None, None, None, None, None, None)
+    env_m = env or Measured("", None, None, None, None, None, None)
+    lines = [
+        "| | formula | design | measured |",
+        "|---|---|---|---|",
+        "| **PD loop** | | | |",
+        row("ωp", "√Kp (2.11)", wp, pd_m.omega_n, unit="rad/s"),
+        row("ζp", "Kv/(2√Kp) (2.12)", zp, pd_m.zeta),
+        row("Tp", "π/(ωn√(1−ζ²)) (2.16)", fp.peak_time_s if fp else None, pd_m.peak_time_s,
+            unit="s"),
+        row("%OS", "e^(−ζπ/√(1−ζ²))·100 (2.17)", fp.overshoot_pct if fp else None,
+            pd_m.overshoot_pct, ".2g", "%"),
+        row("Ts", "4/(ζωn) (2.18)", fp.settling_time_s if fp else None, pd_m.settling_time_s,
+            unit="s"),
+        row("Tr", "1.8/ωn (2.19)", fp.rise_time_s if fp else None, pd_m.rise_time_s,
+            unit="s"),
+        "| **environment** | | | |",
+        row("ωf", "√(K_env/M_env) (2.13)", wf, env_m.omega_n, unit="rad/s"),
+        row("ζf", "D_env/(2√(M_env K_env)) (2.14)", zf, env_m.zeta),
+        row("C_f", "K_f/K_env (2.15)", cf, env_m.static_gain, unit="rad/N·m"),
+        row("Tp", "(2.16)", fe.peak_time_s, env_m.peak_time_s, unit="s"),
+        row("%OS", "(2.17)", fe.overshoot_pct, env_m.overshoot_pct, ".2g", "%"),
+        row("Ts", "(2.18)", fe.settling_time_s, env_m.settling_time_s, unit="s"),
+        row("Tr", "(2.19)", fe.rise_time_s, env_m.rise_time_s, unit="s"),
+    ]
+    notes = []
+    if pd is not None:
+        notes.append(f"PD measured on: {pd.what}.")
+    if env is not None:
+        notes.append(f"Environment measured on: {env.what} (θ_env against τ_ext; the LPF "
+                     "on τ slows it).")
+    if not notes:
+        notes.append("Press **Step** (Run tab) or **Push** to measure.")
+    return "\n".join(lines) + "\n\n" + " ".join(notes)
+
+
+@dataclass(frozen=True)
+class LiveValues:
+    """The newest recorded values of one joint (SI)."""
+
+    joint: str
+    q_cmd: float
+    q: float
+    q_env: float
+    tau_load: float
+    tau_dyn: float
+    tau_ext: float
+
+
+def latest_values(snap: dict[str, np.ndarray], joint: int, name: str) -> LiveValues | None:
+    """The newest finite row of ``snap`` (a recorder snapshot) for ``joint``; None if none."""
+    t = snap.get("t")
+    if t is None or len(t) == 0:
+        return None
+    for k in range(len(t) - 1, max(-1, len(t) - 10), -1):
+        row = {s: float(snap[s][k, joint]) for s in ("q_cmd", "q", "q_env", "tau_load",
+                                                     "tau_dyn", "tau_ext")}
+        if all(math.isfinite(v) for v in row.values()):
+            return LiveValues(name, **row)
+    return None
+
+
+def torque_text(nm: float, unit: str) -> str:
+    """A torque in N·m shown in ``unit`` ("N·m" or "kgf·cm")."""
+    return f"{nm * KGF_CM_PER_NM:+.2f} kgf·cm" if unit == "kgf·cm" else f"{nm:+.3f} N·m"
+
+
+def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: str = "N·m",
+                       mode: str = "compliance") -> str:
+    """The control law in use with the newest numbers of one joint (angles in degrees)."""
+    p = params
+    effective = "pd" if mode == "compliance" and not p.compliance else mode
+    out: list[str] = []
+    if effective == "none":
+        out.append("**No position controller**: θ_ref = θ_cmd (RMRC angles sent as they are).")
+    elif effective == "pd":
+        out.append("**PD reference loop (2.20)**  \n"
+                   "θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇)")
+        if live is not None:
+            e = (live.q_cmd - live.q) * DEG
+            out.append(f"{live.joint}: Kp (θ_cmd − θ) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
+                       f"{live.q * DEG:.2f}°) = {p.kp * e:.3g} °/s²")
+    else:
+        if p.law == "2.26":
+            out.append("**Compliance, law 2.26 (thesis literal)**  \nθ̈_ref = Kp (θ_cmd − θ − "
+                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env")
+        else:
+            out.append("**Compliance, law 2.6**  \nθ̈_ref = Kp (θ_cmd − θ − θ_env) + "
+                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env")
+        out.append("**Environment (2.7)**  \nM_env θ̈_env + D_env θ̇_env + K_env θ_env = "
+                   f"K_f τ_ext  with M_env {p.m_env:.3g}, D_env {p.d_env:.3g}, "
+                   f"K_env {p.k_env:.3g}, K_f {p.k_f:.3g}")
+        if live is not None:
+            k_env = p.k_env if p.law == "2.26" else 1.0
+            pos = (live.q_cmd - live.q - k_env * live.q_env) * DEG
+            env_term = (f"{p.k_env:.3g}·{live.q_env * DEG:.2f}°" if p.law == "2.26"
+                        else f"{live.q_env * DEG:.2f}°")
+            out.append(f"{live.joint} now: Kp (θ_cmd − θ − {'K_env ' if p.law == '2.26' else ''}"
+                       f"θ_env) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − {live.q * DEG:.2f}° − "
+                       f"{env_term}) = {p.kp * pos:.3g} °/s²  \n"
+                       f"steady state: θ_env → C_f τ_ext = {p.k_f / p.k_env:.3g} × "
+                       f"{torque_text(live.tau_ext, 'N·m')} = "
+                       f"{p.k_f / p.k_env * live.tau_ext * DEG:.2f}°; now "
+                       f"{live.q_env * DEG:.2f}°")
+    out.append(f"**External torque (2.23)**  \nτ_ext = LPF(τ_servo) − τ_NE, "
+               f"LPF y += α(x − y), α = {p.alpha:.3g}")
+    if live is not None:
+        out.append(f"{live.joint} now: τ_ext = {torque_text(live.tau_load, torque_unit)} − "
+                   f"{torque_text(live.tau_dyn, torque_unit)} = "
+                   f"{torque_text(live.tau_ext, torque_unit)}")
+    out.append(f"**Integration**: θ̇_ref += T θ̈_ref, θ_ref += T θ̇_ref, T = {p.period * 1e3:.3g} ms "
+               "(θ_ref, θ̇_ref go to the servos as Goal Position and Moving Speed)")
+    return "\n\n".join(out)

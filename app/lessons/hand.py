@@ -1,0 +1,313 @@
+"""Lesson: the thesis's three-finger hand and a compliant grasp (thesis §2.4, §3.1.1).
+
+Three fingers, each pulled by a 6 V DC gearmotor through a tendon against a
+return spring; the only sensors are the motor currents, and tau = K_t·I
+(eq. 2.29). The student closes the hand on an object of chosen size and
+stiffness with a grip-force limit F and watches the currents and finger forces:
+the hand stops closing when the current says it holds the object with F.
+
+Data flow (one writer per piece of state): a :class:`control.grip_loop.GripLoop`
+thread steps the simulated hand (:mod:`hardware.hand`) and the controller
+(:mod:`control.grip`) every millisecond; buttons and sliders post commands the
+loop runs at its next period; a :class:`app.publisher.Publisher` reads the
+loop's record and updates the scene (30 Hz) and charts (10 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import replace
+
+import numpy as np
+import viser
+
+from app.inputs import GuardedNumber, notify
+from app.lessons import LessonContext
+from app.lessons.hand_scene import HandScene
+from app.plots import COLORS, LivePlot, SeriesSpec
+from app.publisher import Publisher
+from control.grip import GripController, GripModel, GripParams
+from control.grip_loop import GripLoop
+from hardware.hand import MAX_STIFFNESS, GraspObject, HandSim, check_object, make_hand
+
+NAME = "hand"
+TITLE = "The hand: compliant grasp (thesis §2.4)"
+HELP = ("The receptionist robot's three-finger hand: each finger is pulled by a 6 V DC "
+        "gearmotor whose current gives its torque (τ = K_t·I, eq. 2.29). Close it on an "
+        "object of chosen size and stiffness: it stops closing when the current says each "
+        "finger holds the object with the force limit F, a compliant grasp. Watch the motor "
+        "currents and the finger forces.")
+ROBOTS = ("receptionist_arm",)
+ORDER = 30
+
+STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
+DEFAULT_FORCE = 0.8  #: N
+DEFAULT_SIZE_CM = 6.0
+DEFAULT_STIFFNESS = 1000.0
+WINDOW_S = 6.0  #: seconds shown on the charts
+FINGER_COLORS = (COLORS[0], COLORS[1], COLORS[4])
+ZERO_RGB = "#bbbbbb"
+
+EXPLAIN = """\
+**How the hand knows its grip.** No force sensor: the current *I* of each motor
+gives its torque τ = K_t·I (eq. 2.29, K_t = 8.83 mN·m/A from the datasheet:
+2 oz·in at 1.6 A stall). The tendon tension is τ / r_spool; at the finger's
+hinge it balances the return spring and the fingertip force:
+F = (T·r_tendon − τ_spring) / (L cos φ). The finger angle φ comes from the
+motor's back-EMF, ω = (V − R·I)/K_e.
+
+**The grasp.** Approach at a set fingertip speed with the current capped at a
+light touch; once a finger stops, the force cap rises smoothly to F and the
+current is held there. The hand never squeezes harder than F, whatever the
+object. Try a hard object and a fast approach: the first touch is an impact.
+"""
+
+
+def build(server: viser.ViserServer, ctx: LessonContext) -> HandLesson:
+    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    return HandLesson(server, ctx)
+
+
+class HandLesson:
+    """The hand lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+
+    Args:
+        server: the viser server.
+        ctx: lesson context (only ``realtime`` matters: the hand is always simulated).
+        pose_hz, plot_hz: scene and chart update rates.
+
+    Attributes:
+        plant: the simulated hand.
+        loop: the control loop (read its ``status``, ``snapshot()``, ``last_grasp()``).
+    """
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+                 pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
+        self.server = server
+        self.ctx = ctx
+        self._lock = threading.RLock()
+        self._closed = False
+        self._handles: list = []
+        self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
+        self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
+        self.plant: HandSim = make_hand(size=self.obj.size, stiffness=self.obj.stiffness)
+        self.model = GripModel.of(self.plant)
+        self.controller = GripController(self.model, GripParams(force_limit=DEFAULT_FORCE))
+        self.loop = GripLoop(self.plant, self.controller, realtime=ctx.realtime,
+                             history_s=WINDOW_S + 4.0)
+        self.scene = HandScene(server, self.plant.finger, root="/hand")
+        try:
+            self.scene.set_object(self.obj.size, self.obj.stiffness)
+            self._build_gui()
+        except BaseException:
+            self.scene.remove()
+            self._remove_gui()
+            raise
+        self.loop.start()
+        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
+                                   pose_hz=pose_hz, plot_hz=plot_hz)
+        self.publisher.start()
+
+    # ================================================================== GUI
+
+    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
+        self._handles.append(handle)
+        return handle
+
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        self.status = self._add(gui.add_html("", order=-80.0))
+        folder = self._add(gui.add_folder("Hand", order=-70.0))
+        with folder:
+            self.close_button = gui.add_button(
+                "Close (grasp)", color="green", icon=viser.Icon.HAND_GRAB,
+                hint="Close the fingers until each holds the object with F")
+            self.open_button = gui.add_button(
+                "Open", icon=viser.Icon.HAND_STOP,
+                hint="Unwind the tendons; the springs open the fingers")
+            self.close_button.on_click(lambda e: self._guard(e, self.close_hand))
+            self.open_button.on_click(lambda e: self._guard(e, self.open_hand))
+            fmax = math.floor(self.model.max_force() * 20.0) / 20.0
+            self.force_slider = gui.add_slider(
+                "Force limit F (N)", min=0.05, max=fmax, step=0.05, initial_value=DEFAULT_FORCE,
+                hint="Grip force per finger; the controller reads it from the motor current")
+            self.force = GuardedNumber(self.force_slider, name="force limit", lo=0.05, hi=fmax,
+                                       apply=self.set_force_limit)
+            self.speed_slider = gui.add_slider(
+                "Approach speed (cm/s)", min=0.5, max=10.0, step=0.5, initial_value=3.0,
+                hint="Fingertip speed while closing: faster means a harder first touch")
+            self.speed = GuardedNumber(self.speed_slider, name="approach speed", lo=0.5,
+                                       hi=10.0, apply=self.set_approach_speed)
+        objf = self._add(gui.add_folder("Object", order=-60.0))
+        with objf:
+            g = self.plant.finger
+            lo = math.ceil(g.min_size * 200.0) / 2.0  # cm, half-centimetre steps
+            hi = math.floor(g.max_size * 200.0 - 1.0) / 2.0
+            self.size_slider = gui.add_slider(
+                "Size (cm)", min=1.0, max=hi, step=0.5, initial_value=DEFAULT_SIZE_CM,
+                hint=f"Diameter of the cylinder; under {lo:g} cm the fingers close on nothing")
+            self.size = GuardedNumber(self.size_slider, name="size", lo=1.0, hi=hi,
+                                      apply=lambda v: self.set_object(size_cm=v))
+            self.stiffness_slider = gui.add_slider(
+                "Stiffness (N/m)", min=100.0, max=20000.0, step=100.0,
+                initial_value=DEFAULT_STIFFNESS, hint="Contact stiffness of object and pad")
+            self.stiffness = GuardedNumber(self.stiffness_slider, name="stiffness", lo=100.0,
+                                           hi=min(20000.0, MAX_STIFFNESS),
+                                           apply=lambda v: self.set_object(stiffness=v))
+            self.presets = gui.add_button_group("Preset", tuple(STIFFNESS_PRESETS))
+            self.presets.on_click(lambda e: self.stiffness.set(
+                STIFFNESS_PRESETS[str(self.presets.value)]))
+        self.figures = self._add(gui.add_markdown("", order=-50.0))
+        explain = self._add(gui.add_folder("How it works", order=-40.0, expand_by_default=False))
+        with explain:
+            gui.add_markdown(EXPLAIN)
+        self.plot_panel = self._add(gui.add_panel())
+        with self.plot_panel.add_tab("Current and force", viser.Icon.CHART_LINE):
+            kw = {"window_s": WINDOW_S, "points": 200}
+            # each chart has a zero line: it keeps 0 in view, so a held force is a flat
+            # line at F rather than an auto-zoomed band around it
+            self.current_plot = LivePlot(gui, title="Motor current (measured)", y_label="A",
+                                         series=(*(SeriesSpec(f"finger {i + 1}", c)
+                                                   for i, c in enumerate(FINGER_COLORS)),
+                                                 SeriesSpec("0", ZERO_RGB)), **kw)
+            self.force_plot = LivePlot(
+                gui, title="Fingertip force", y_label="N", series=(
+                    *(SeriesSpec(f"finger {i + 1}", c) for i, c in enumerate(FINGER_COLORS)),
+                    SeriesSpec("limit F", COLORS[3], (6, 4)),
+                    SeriesSpec("from current (finger 1)", COLORS[2], (2, 3)),
+                    SeriesSpec("0", ZERO_RGB)), **kw)
+        self.plot_panel.dock_left()
+        self.plot_panel.set_width(430)
+
+    def _remove_gui(self) -> None:
+        for h in reversed(self._handles):
+            try:
+                h.remove()
+            except (RuntimeError, KeyError, ValueError):
+                pass
+        self._handles.clear()
+
+    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
+        """Run a button's action; a refusal becomes a notification, never an exception."""
+        try:
+            action()
+        except ValueError as exc:
+            notify(event.client, "Not done", str(exc))
+
+    # ================================================================== actions
+
+    def close_hand(self) -> None:
+        """Grasp: close with the force limit."""
+        self.loop.close_hand()
+
+    def open_hand(self) -> None:
+        """Release the object."""
+        self.loop.open_hand()
+
+    def estop(self) -> None:
+        """Motors off (the springs open the hand); never raises."""
+        self.loop.post(lambda _p, c: c.stop())
+
+    def set_force_limit(self, force: float) -> None:
+        """New grip-force limit F, N (applied at the loop's next period). ValueError to refuse."""
+        replace(self.controller.params, force_limit=force)  # validates
+        if force > self.model.max_force():
+            raise ValueError(f"force limit must be <= {self.model.max_force():.2f} N")
+        self.loop.post(lambda _p, c: c.set_params(replace(c.params, force_limit=force)))
+
+    def set_approach_speed(self, cm_per_s: float) -> None:
+        """Fingertip approach speed, cm/s."""
+        v = cm_per_s / 100.0
+        replace(self.controller.params, approach_speed=v)  # validates
+        self.loop.post(lambda _p, c: c.set_params(replace(c.params, approach_speed=v)))
+
+    def set_object(self, *, size_cm: float | None = None,
+                   stiffness: float | None = None) -> None:
+        """Change the object (ValueError to refuse).
+
+        The size only changes with the hand open: a bigger object appearing
+        inside closed fingers would be an impossible collision.
+        """
+        with self._lock:
+            size = self.obj.size if size_cm is None else size_cm / 100.0
+            k = self.obj.stiffness if stiffness is None else stiffness
+            obj = check_object(replace(self.obj, size=size, stiffness=k), self.plant.finger)
+            if size != self.obj.size and any(m != "idle" for m in self.loop.status.modes):
+                raise ValueError("open the hand before changing the object's size")
+            self.obj = obj
+            self.loop.post(lambda _p, _c: self.plant.set_object(obj))
+            self.scene.set_object(obj.size, obj.stiffness)
+
+    # ================================================================== publishing
+
+    def _pose_frame(self) -> None:
+        snap = self.loop.snapshot(0.05)
+        if len(snap["t"]) == 0:
+            return
+        self.scene.set_state(snap["angle"][-1], snap["force"][-1],
+                             self.controller.params.force_limit)
+
+    def _plot_frame(self, force: bool) -> None:
+        snap = self.loop.snapshot(WINDOW_S + 0.5)
+        t = snap["t"]
+        if len(t) < 2:
+            return
+        limit = self.controller.params.force_limit
+        zero = np.zeros(len(t))
+        self.current_plot.update(t, (*(snap["current"][:, i] for i in range(3)), zero),
+                                 force=force)
+        self.force_plot.update(t, (*(snap["force"][:, i] for i in range(3)),
+                                   np.full(len(t), limit), snap["estimate"][:, 0], zero),
+                               force=force)
+        self._update_status(snap, limit)
+
+    def _update_status(self, snap: dict[str, np.ndarray], limit: float) -> None:
+        st = self.loop.status
+        modes = st.modes
+        word = modes[0] if len(set(modes)) == 1 else ", ".join(modes)
+        f, cur = snap["force"][-1], snap["current"][-1]
+        color = {"holding": "#2e7d32", "empty": "#a15c00"}.get(modes[0], "#1f5eea")
+        if st.fault:
+            word, color = st.fault, "#b00020"
+        html = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {word}</b>"
+                f"<div style='color:#555;font-size:0.85em'>simulated hand · t = {st.t:.1f} s · "
+                f"force {', '.join(f'{x:.2f}' for x in f)} N · current "
+                f"{', '.join(f'{x:.2f}' for x in cur)} A</div></div>")
+        if html != self.status.content:
+            self.status.content = html
+        self.scene.set_label("closed on nothing" if modes[0] == "empty" else " ")
+        fig = self.loop.last_grasp(limit)
+        if fig is not None:
+            self._grasp = (st.closed_at, fig)
+        elif self._grasp is not None and self._grasp[0] == st.closed_at:
+            fig = self._grasp[1]  # the close has left the record: keep its figures
+        text = ""
+        if fig is not None:
+            grasped = fig["time_to_grasp_s"]
+            text = (f"**Last grasp** (F = {limit:g} N): steady {fig['steady_force_N']:.3f} N · "
+                    f"peak {fig['peak_force_N']:.3f} N · "
+                    + (f"held after {grasped:.2f} s" if grasped is not None else "not held yet")
+                    + f" · current {fig['final_current_A']:.3f} A")
+        if text != self.figures.content:
+            self.figures.content = text
+
+    # ================================================================== lifetime
+
+    def close(self) -> None:
+        """Stop the publisher and the loop, remove scene and GUI."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self.publisher.close()
+        try:
+            self.loop.shutdown()
+        finally:
+            try:
+                self.scene.remove()
+            finally:
+                self._remove_gui()
+
+
+__all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

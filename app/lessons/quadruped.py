@@ -1,0 +1,528 @@
+"""Lesson: the seed 003 quadruped walking, its 12 AX-12A servos and its static stability.
+
+The quadruped walks in 3D, in place or across the floor with its body carried by
+its stance feet, by the paper's sine pattern and trot (Table 1.1, leg IK eq.
+3.1-3.9) or by a crawl that keeps it statically stable (one leg at a time, the
+body shifted over the supporting triangle first). Sliders set A (step length),
+B (outward foot offset), C (step height), D (body height), α (heading) and the
+gait speed; buttons walk forward, back, or turn. The scene shows every foot's path
+over a cycle, trails on the floor, the support polygon, the centre of mass and the
+static stability margin.
+
+Behind it a :class:`control.gait_loop.GaitLoop` drives 12 AX-12A servos: simulated
+(:class:`hardware.quadruped_sim.QuadrupedSimBackend`, the legs loaded by the body's
+weight while they stand) or on a serial port (``DynamixelBackend``: real servos, or
+``armlab emulate --robot quadruped``). The servo tab reports the paper's eq. 4.1,
+the commanded-vs-servo angle error in percent, from the servos' own feedback.
+
+Data flow as in the compliance lesson: UI callbacks validate input, plan the gait
+(``control.walking.plan_gait``) and post it to the loop; a :class:`Publisher` draws
+the loop's latest state at 30 Hz and the charts at 10 Hz.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import replace
+
+import numpy as np
+import viser
+
+from app.backends import make_backend
+from app.inputs import GuardedNumber, notify
+from app.lessons import LessonContext
+from app.lessons.quadruped_scene import QuadrupedScene
+from app.plots import COLORS, LivePlot, SeriesSpec
+from app.publisher import Publisher
+from control.backend import Backend, BackendError
+from control.gait_loop import GaitLoop, GaitStatus
+from control.walking import (
+    COMMANDS,
+    GAITS,
+    GaitPlan,
+    GaitSpec,
+    Walker,
+    angle_error_pct,
+    plan_gait,
+    servo_angle_deg,
+)
+from hardware.quadruped_sim import QuadrupedSimBackend
+from kinematics.gait import SineParams
+from kinematics.model import Quadruped, load_robot
+from kinematics.quadruped import LEGS, QuadrupedGeometry
+
+NAME = "quadruped"
+TITLE = "Quadruped gait: trot, crawl and stability (seed 003)"
+HELP = ("The seed 003 quadruped walks by the sine pattern (A step length, B foot offset, "
+        "C step height, D body height, α heading) and its leg IK, driving 12 AX-12A servos. "
+        "The trot is not statically stable: while two legs swing it stands on two diagonal "
+        "feet, a line, so its stability margin is never positive (it does not tip only "
+        "because each half-step is quick). The crawl "
+        "lifts one leg at a time after shifting the body over the other three: its margin "
+        "stays positive. The servo tab gives the paper's eq. 4.1 error (paper: 1.201 %).")
+ROBOTS = ("quadruped",)
+ORDER = 30
+
+#: The paper's mean commanded-vs-servo angle error (seed 003 §4.1.2), %.
+PAPER_ERROR_PCT = 1.201
+#: Slider specs: name -> (label, lo, hi, step, SineParams field, display scale).
+GAIT_SLIDERS: dict[str, tuple[str, float, float, float, str, float]] = {
+    "A": ("A step length (cm)", 0.0, 8.0, 0.5, "A", 100.0),
+    "B": ("B foot offset (cm)", 5.0, 13.0, 0.5, "B", 100.0),
+    "C": ("C step height (cm)", 0.0, 5.0, 0.5, "C", 100.0),
+    "D": ("D body height (cm)", 5.0, 13.0, 0.5, "D", 100.0),
+    "alpha": ("α heading (°)", 45.0, 135.0, 5.0, "alpha_deg", 1.0),
+}
+SPEED_RANGE = (0.05, 1.5)
+#: Extra seconds to wait for a servo's reply (12 reads a period; an emulator in another
+#: process on a busy machine can answer late, a real servo within microseconds).
+SERIAL_TIMEOUT_MARGIN = 0.03
+#: Plant step and servo tick of the simulated legs, s (eq. 4.1 figures agree with 1 ms
+#: to 0.01 %, at half the cost).
+SIM_DT = 2e-3
+COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
+                  "right": "Turn right"}
+SERVO_NAMES = ("servo 1 (hip yaw θ1)", "servo 2 (hip pitch θ2)", "servo 3 (knee θ3)")
+DEG = 180.0 / math.pi
+
+
+def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
+    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    return QuadrupedLesson(server, ctx)
+
+
+def total_mass(model: Quadruped) -> float:
+    """Body plus every leg link, kg."""
+    return model.body_mass + sum(link.mass for chain in model.legs.values()
+                                 for link in chain.links)
+
+
+def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
+                ) -> tuple[Backend | None, str]:
+    """The 12 servos for ``ctx.backend``: (backend, "") or (None, why not).
+
+    A serial bus without all 12 AX-12A (IDs 1..12 by default) gives one message saying
+    what is missing and what to do; the lesson then shows the gait without servos.
+    """
+    if ctx.backend == "sim":
+        return QuadrupedSimBackend(model, q0=q0, dt=SIM_DT), ""
+    try:
+        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,  # type: ignore[arg-type]
+                               timeout_margin=SERIAL_TIMEOUT_MARGIN)
+    except (BackendError, ValueError, OSError) as exc:
+        return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs RF, LF, RH, LH, "
+                      f"each hip yaw, hip pitch, knee) on {ctx.port}: {exc}. Connect them (or "
+                      "run `armlab emulate --robot quadruped`) and reopen the lesson; the gait "
+                      "is shown without servos.")
+    if backend.n != 12:
+        backend.close()
+        return None, f"the serial backend has {backend.n} joints; the quadruped needs 12"
+    return backend, ""
+
+
+class QuadrupedLesson:
+    """The quadruped lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+
+    Args:
+        server: the viser server.
+        ctx: robot and backend choice ("sim": simulated AX-12A; "serial": a port).
+        pose_hz, plot_hz: scene and chart update rates.
+    """
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+                 pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
+        self.server = server
+        self.ctx = ctx
+        model = load_robot(ctx.robot)
+        if not isinstance(model, Quadruped):
+            raise ValueError(f"robot: {ctx.robot} is not a quadruped")
+        self.model = model
+        self.geom = QuadrupedGeometry()
+        self._lock = threading.RLock()
+        self._closed = False
+        self._gui_handles: list = []
+        self._status_html = ""
+        self._servo_md = ""
+        self.spec = GaitSpec()
+        self.plan = plan_gait(self.spec, self.geom)
+        walker = Walker(self.plan)
+        self.backend, self.servo_message = open_servos(model, ctx, walker.state().q)
+        to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
+        self.loop = GaitLoop(
+            walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
+            realtime=ctx.realtime, speed=0.5, body_weight=total_mass(model) * 9.81,
+            to_servo=to_servo)
+        try:
+            self._build_gui()
+            self.scene = QuadrupedScene(server, model, root="/quadruped")
+            self.scene.set_foot_paths(self.plan)
+            self.scene.set_state(self.loop.state)
+        except BaseException:
+            self._remove_gui()
+            if self.backend is not None:
+                self.backend.close()
+            raise
+        self.loop.start()
+        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
+                                   pose_hz=pose_hz, plot_hz=plot_hz)
+        self.publisher.start()
+
+    # ================================================================== GUI
+
+    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
+        self._gui_handles.append(handle)
+        return handle
+
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        self.status = self._add(gui.add_html("", order=-80.0))
+        self.warning = self._add(gui.add_html(_warning_html(self.servo_message), order=-79.0,
+                                              visible=bool(self.servo_message)))
+        tabs = self._add(gui.add_tab_group(order=-70.0))
+        with tabs.add_tab("Walk", viser.Icon.WALK):
+            self._build_walk_tab(gui)
+        with tabs.add_tab("Gait", viser.Icon.ADJUSTMENTS):
+            self._build_gait_tab(gui)
+        with tabs.add_tab("Servos", viser.Icon.CPU):
+            self.servo_table = gui.add_markdown("")
+        with tabs.add_tab("Teach", viser.Icon.SCHOOL):
+            gui.add_markdown(TEACH)
+        self.plot_panel = self._add(gui.add_panel())
+        with self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE):
+            self._build_plots(gui)
+        self.plot_panel.dock_left()
+        self.plot_panel.set_width(430)
+
+    def _build_walk_tab(self, gui: viser.GuiApi) -> None:
+        icons = {"forward": viser.Icon.ARROW_UP, "back": viser.Icon.ARROW_DOWN,
+                 "left": viser.Icon.ARROW_BACK_UP, "right": viser.Icon.ARROW_FORWARD_UP}
+        self.direction_buttons = {}
+        for command in COMMANDS:
+            b = gui.add_button(COMMAND_LABELS[command], icon=icons[command],
+                               color="blue" if command == "forward" else None,
+                               hint=_command_hint(command))
+            b.on_click(lambda e, c=command: self._guard(e, lambda: self.walk(c)))
+            self.direction_buttons[command] = b
+        self.stop_button = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP,
+                                          hint="Walk on to the next moment all four feet "
+                                               "stand, then stop there")
+        self.stop_button.on_click(lambda e: self._guard(e, self.stop))
+        self.reset_button = gui.add_button("Reset", icon=viser.Icon.REFRESH,
+                                           hint="Back to the start, standing; after an "
+                                                "E-STOP: torque on again")
+        self.reset_button.on_click(lambda e: self._guard(e, self.reset))
+        self.gait_dropdown = gui.add_dropdown(
+            "Gait", GAITS, initial_value=self.spec.gait,
+            hint="trot: diagonal legs together (the paper); crawl: one leg at a time, "
+                 "statically stable")
+        self.gait_dropdown.on_update(lambda e: self._guard(
+            e, lambda: self.set_gait(str(self.gait_dropdown.value)),
+            undo=lambda: setattr(self.gait_dropdown, "value", self.spec.gait)))
+        self.across = gui.add_checkbox("Walk across the floor", True,
+                                       hint="Off: walk in place (the feet slide under a "
+                                            "body held still)")
+        self.across.on_update(lambda _e: self.set_in_place(not bool(self.across.value)))
+        self.follow = gui.add_checkbox("Camera follows the robot", True,
+                                       hint="Carry the view along as the robot walks")
+        self.speed_slider = gui.add_slider("Gait speed (cycles/s)", min=SPEED_RANGE[0],
+                                           max=SPEED_RANGE[1], step=0.05, initial_value=0.5,
+                                           hint="Gait cycles per second")
+        self.speed = GuardedNumber(self.speed_slider, name="gait speed", lo=SPEED_RANGE[0],
+                                   hi=SPEED_RANGE[1], apply=self.loop.set_speed)
+
+    def _build_gait_tab(self, gui: viser.GuiApi) -> None:
+        gui.add_markdown("Sine pattern inputs (seed 003 Table 1.1). A change is taken at the "
+                         "start of the next cycle.")
+        self.gait_sliders: dict[str, GuardedNumber] = {}
+        self._gait_lock = threading.RLock()
+        p = self.spec.params
+        for key, (label, lo, hi, step, field, k) in GAIT_SLIDERS.items():
+            handle = gui.add_slider(label, min=lo, max=hi, step=step,
+                                    initial_value=float(getattr(p, field)) * k)
+            self.gait_sliders[key] = GuardedNumber(
+                handle, name=key, lo=lo, hi=hi, lock=self._gait_lock,
+                apply=lambda v, field=field, k=k: self.set_params(**{field: v / k}))
+        self.reachable_md = gui.add_markdown(_plan_md(self.plan))
+
+    def _build_plots(self, gui: viser.GuiApi) -> None:
+        self.leg_picker = gui.add_button_group("Leg", LEGS, hint="The leg the joint charts show")
+        self.leg_picker.value = "RF"
+        self._shown_leg = ""
+        kw = {"window_s": 8.0, "points": 128}
+        self.joint_plots = [LivePlot(gui, title=f"θ{j + 1}", y_label="°", height=130, series=(
+            SeriesSpec("commanded", COLORS[0], (6, 4)), SeriesSpec("servo", COLORS[2])), **kw)
+            for j in range(3)]
+        self.margin_plot = LivePlot(gui, title="Static stability margin", y_label="cm",
+                                    height=130, series=(SeriesSpec("margin", COLORS[4]),
+                                                        SeriesSpec("0", "#999999", (4, 4))),
+                                    **kw)
+        self.error_plot = LivePlot(gui, title="Eq. 4.1 |servo − commanded| / commanded",
+                                   y_label="%", height=130, series=tuple(
+                                       SeriesSpec(f"servo {j + 1}", COLORS[j + 3])
+                                       for j in range(3)), **kw)
+
+        @self.leg_picker.on_click
+        def _(_: viser.GuiEvent) -> None:
+            self._shown_leg = ""
+
+    def _remove_gui(self) -> None:
+        for h in reversed(self._gui_handles):
+            try:
+                h.remove()
+            except (RuntimeError, KeyError, ValueError):
+                pass
+        self._gui_handles.clear()
+
+    def _guard(self, event: viser.GuiEvent, action, undo=None) -> None:  # noqa: ANN001
+        """Run an action; a refusal becomes a notification (and ``undo``), never an exception."""
+        try:
+            action()
+        except ValueError as exc:
+            notify(event.client, "Not done", str(exc))
+            if undo is not None:
+                undo()
+
+    # ================================================================== actions
+
+    def _replan(self, spec: GaitSpec) -> GaitPlan:
+        """Plan ``spec`` (ValueError if it cannot be walked) and make it the lesson's."""
+        with self._lock:
+            plan = plan_gait(spec, self.geom)
+            self.spec, self.plan = spec, plan
+        self.scene.set_foot_paths(plan)
+        self.reachable_md.content = _plan_md(plan)
+        return plan
+
+    def walk(self, command: str) -> None:
+        """Walk ``command`` ("forward", "back", "left", "right") with the current gait.
+
+        Raises:
+            ValueError: e.g. turning with the crawl.
+        """
+        plan = self._replan(replace(self.spec, command=command))
+        self.loop.go(plan)
+
+    def stop(self) -> None:
+        self.loop.stop()
+
+    def reset(self) -> None:
+        self.loop.reset()
+        self.scene.clear_trails()
+
+    def set_gait(self, gait: str) -> None:
+        """Trot or crawl (a turn becomes "forward" for the crawl, which walks straight)."""
+        command = self.spec.command
+        if gait == "crawl" and command in ("left", "right"):
+            command = "forward"
+        plan = self._replan(replace(self.spec, gait=gait, command=command))
+        self.loop.set_plan(plan)
+
+    def set_params(self, **changes: float) -> None:
+        """New sine-pattern inputs (SI); raises ValueError (refused) when unwalkable."""
+        params = replace(self.spec.params, **changes)
+        plan = self._replan(replace(self.spec, params=params))
+        self.loop.set_plan(plan)
+
+    def set_in_place(self, in_place: bool) -> None:
+        self.loop.set_in_place(in_place)
+        self.scene.clear_trails()
+
+    def estop(self) -> None:
+        """Torque off now; never raises."""
+        self.loop.estop()
+
+    # ================================================================== reading
+
+    @property
+    def params(self) -> SineParams:
+        return self.spec.params
+
+    def servo_error(self, window_s: float | None = 10.0) -> dict[str, object] | None:
+        """Eq. 4.1 from the servos' feedback over the last ``window_s`` s of walking."""
+        return self.loop.angle_error(window_s)
+
+    # ================================================================== publishing
+
+    def _pose_frame(self) -> None:
+        state = self.loop.state
+        snap = self.loop.snapshot(0.1)
+        q = snap["q"][-1] if len(snap["t"]) else None
+        self.scene.set_state(state, q)
+        if self.follow.value:
+            self.scene.follow(state.body[:2])
+
+    def _plot_frame(self, force: bool) -> None:
+        snap = self.loop.snapshot(self.margin_plot.window_s + 0.5)
+        t = snap["t"]
+        leg = str(self.leg_picker.value)
+        if leg != self._shown_leg:
+            force = True
+            for j, plot in enumerate(self.joint_plots):
+                plot.handle.title = f"Leg {leg}: {SERVO_NAMES[j]}, commanded vs servo"
+            self._shown_leg = leg
+        if len(t) >= 2:
+            i = LEGS.index(leg) if leg in LEGS else 0
+            for j, plot in enumerate(self.joint_plots):
+                plot.update(t, (snap["q_cmd"][:, 3 * i + j] * DEG, snap["q"][:, 3 * i + j] * DEG),
+                            force=force)
+            self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force)
+            self.error_plot.update(t, tuple(self._error_series(snap)), force=force)
+        self._update_status(self.loop.status)
+        self._update_servo_table()
+
+    def _error_series(self, snap: dict[str, np.ndarray]) -> list[np.ndarray]:
+        """Per sample, |eq. 4.1| averaged over the four legs for servo 1, 2, 3 (NaN when not
+        walking or without servos)."""
+        to_servo = self.loop.to_servo
+        cmd, act = snap["q_cmd"], snap["q"]
+        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(cmd), axis=1) \
+            & np.all(np.isfinite(act), axis=1)
+        out = np.full((len(cmd), 3), np.nan)
+        if ok.any():
+            c = servo_angle_deg(np.array([to_servo(q) for q in cmd[ok]]))
+            a = servo_angle_deg(np.array([to_servo(q) for q in act[ok]]))
+            out[ok] = np.abs(angle_error_pct(c, a)).reshape(-1, 4, 3).mean(axis=1)
+        return [out[:, j] for j in range(3)]
+
+    def _update_status(self, st: GaitStatus) -> None:
+        state = self.loop.state
+        if st.fault:
+            head, color = f"servos stopped: {st.fault} (press Reset)", "#b00020"
+        elif self.backend is not None and not st.torque_on:
+            head, color = "E-STOPPED: torque off (press Reset)", "#b00020"
+        elif st.standing_up:
+            head, color = "standing up", "#555"
+        elif st.walking:
+            what = "stopping" if st.stopping else f"walking {st.command}"
+            head, color = f"{what}: {st.gait} at {st.speed:g} cycles/s", "#1f5eea"
+        else:
+            head, color = "standing: press a direction", "#2e7d32"
+        if self.backend is None:
+            servos = "no servos (gait only)"
+        elif self.ctx.backend == "sim":
+            servos = "12 simulated AX-12A"
+        else:
+            servos = f"12 AX-12A on {self.ctx.port}"
+        x, y, _, yaw = state.body
+        m = state.margin * 100.0
+        legs_down = int(state.stance.sum())
+        verdict = ("statically stable" if m > 0 else
+                   "on a line: not statically stable" if legs_down == 2 else "would tip")
+        mcolor = "#2e7d32" if m > 0 else "#b00020"
+        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(head)}</b>"
+                f"<div style='color:#555;font-size:0.85em'>{servos} · t = {st.t:.1f} s · "
+                f"body ({x * 100:.1f}, {y * 100:.1f}) cm, yaw {yaw * DEG:.0f}° · "
+                f"{legs_down} feet down</div>"
+                f"<div style='font-size:0.85em'>margin <b style='color:{mcolor}'>{m:+.1f} cm"
+                f"</b> ({verdict})</div></div>")
+        if text != self._status_html:
+            self._status_html = text
+            self.status.content = text
+
+    def _update_servo_table(self) -> None:
+        md = servo_markdown(self.servo_error(10.0), has_servos=self.backend is not None,
+                            where=self.ctx.backend)
+        if md != self._servo_md:
+            self._servo_md = md
+            self.servo_table.content = md
+
+    # ================================================================== lifetime
+
+    def close(self) -> None:
+        """Stop the publisher and the loop (torque off), close the servos, remove everything."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self.publisher.close()
+        try:
+            self.loop.shutdown(torque_off=True)
+        finally:
+            try:
+                if self.backend is not None:
+                    self.backend.close()
+            finally:
+                try:
+                    self.scene.remove()
+                finally:
+                    self._remove_gui()
+
+
+def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str) -> str:
+    """The eq. 4.1 table (servo tab)."""
+    head = ("**Commanded vs servo angle, seed 003 eq. 4.1**: %Error = (servo angle − "
+            "computed angle) / computed angle × 100, angles as the servo counts them (IK "
+            "angle + its 150° set point); the servo's feedback is read one period after the "
+            f"goal is sent. Paper: **{PAPER_ERROR_PCT} %** (mean), largest on servo 2.")
+    if not has_servos:
+        return head + "\n\n*No servos: nothing to measure.*"
+    if err is None:
+        return head + "\n\n*Walk to measure (last 10 s of walking).*"
+    per_servo = err["per_servo_pct"]
+    per_joint = np.asarray(err["per_joint_pct"]).reshape(4, 3)
+    rows = ["| leg | servo 1 | servo 2 | servo 3 |", "|---|---|---|---|"]
+    for i, leg in enumerate(LEGS):
+        rows.append(f"| {leg} | " + " | ".join(f"{v:.2f} %" for v in per_joint[i]) + " |")
+    rows.append("| **mean** | " + " | ".join(f"**{v:.2f} %**" for v in per_servo) + " |")
+    src = "simulated AX-12A (legs loaded by the body's weight)" if where == "sim" else "serial"
+    return "\n".join([head, "",
+                      f"Lab, last 10 s ({err['samples']} samples, {src}): "
+                      f"mean **{err['mean_pct']:.3f} %**", "", *rows])
+
+
+TEACH = """\
+**Sine pattern** (seed 003 Table 1.1): each foot moves ±A/2 along the heading α while it
+stands (z = −D), and swings forward lifted by C sin(ω − 90°). Joint angles come from the leg
+IK θ1 = atan2(x, y), θ3 = atan2(√(1 − A²), A), θ2 = atan2(C, D) (eq. 3.1-3.9).
+
+**Trot**: the diagonal legs RF+LH and LF+RH share a phase. Only two feet stand at a time:
+the support "polygon" is the diagonal line between them, and the centre of mass is at best
+*on* it. The static margin is never positive: a trot does not fall only because each
+half-step is short (dynamic balance).
+
+**Crawl** (the paper's suggested next step, centre-of-gravity control): one leg swings at
+a time; before each swing the body shifts so that the centre of mass lies at least 2 cm
+inside the triangle of the three feet that stay down. The margin stays positive over the
+whole cycle, at the price of half the speed (A per cycle against 2A).
+
+**Turning**: direction index 1 on both right legs reverses their step and the robot turns
+right (the seed); on both left legs it turns left. The stance feet slip a little while
+turning (watch the trails).
+
+**Servos**: the chart and the table compare the angle sent with the angle the servo
+reports (eq. 4.1). Servo 2 carries the body: its error is the largest, as the paper found.
+A fast crawl asks the knees for more than an AX-12A's 6 rad/s: lower the gait speed.
+"""
+
+
+def _plan_md(plan: GaitPlan) -> str:
+    adv = plan.advance
+    m = plan.margins
+    return (f"Per cycle: advance {math.hypot(adv[0], adv[1]) * 100:.1f} cm, turn "
+            f"{adv[2] * DEG:+.0f}°; stability margin {m.min() * 100:+.1f} … "
+            f"{m.max() * 100:+.1f} cm; stance feet slip {plan.slip * 1000:.1f} mm.")
+
+
+def _command_hint(command: str) -> str:
+    return {"forward": "Walk forward (direction index 0 on every leg)",
+            "back": "Walk backward (every step reversed)",
+            "left": "Turn left on the spot (direction index 1 on both left legs; trot only)",
+            "right": "Turn right on the spot (direction index 1 on both right legs, as in the "
+                     "seed; trot only)"}[command]
+
+
+def _warning_html(message: str) -> str:
+    if not message:
+        return ""
+    return ("<div style='border-left:4px solid #b00020;padding:4px 8px;background:#fff4e5'>"
+            f"<b style='color:#b00020'>⚠ Servos not available</b> "
+            f"<span style='font-size:0.9em'>{_esc(message)}</span></div>")
+
+
+def _esc(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+__all__ = ["QuadrupedLesson", "build", "open_servos", "servo_markdown", "NAME", "TITLE",
+           "HELP", "ROBOTS"]

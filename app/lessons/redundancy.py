@@ -1,0 +1,459 @@
+"""Lesson: a redundant planar arm on a circle, with and without its joint limits (seed 002).
+
+The planar 3R arm (three links of 0.5 m) draws the paper's circle in five ways at
+once, each a coloured ghost arm in its own panel: the paper's four simulations
+(1: θ̇ = J⁺ẋ; 2: + joint limits by the decomposition method, eq. 10-20; 3: + the
+manipulability gradient k_a ∇w in the null space, eq. 4; 4: both) and a method that
+guarantees the limits (bounded least squares). Stick pictures, the end-effector path,
+the manipulability ellipse and a red dot on any joint outside its limits show in the
+scene; charts show each joint angle inside its limit band, the manipulability and the
+position error, growing as the runs play.
+
+"Run" calls the same functions as ``armlab experiment seed002-circle``
+(``kinematics.redundancy.simulate_circle`` then ``control.experiments.seed002.summarise``)
+for every mode with the gains on the sliders, in a worker thread; the figures
+table shows exactly what the experiment prints. A :class:`Publisher` plays the
+runs back (scene at 30 Hz, charts at 10 Hz) at the chosen playback speed.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import viser
+
+from app.inputs import GuardedNumber, notify
+from app.lessons import LessonContext
+from app.lessons.redundancy_plots import RedundancyPlots
+from app.lessons.redundancy_scene import MODE_COLORS, MODE_LABELS, RedundancyScene, arm_points
+from app.publisher import Publisher
+from control.experiments.seed002 import SETTLE_S, summarise
+from kinematics.model import SerialChain, load_robot
+from kinematics.redundancy import MODES, CircleRun, CircleTask, manipulability, simulate_circle
+from kinematics.redundancy import task_jacobian as _task_jacobian
+
+NAME = "redundancy"
+TITLE = "Redundancy and joint limits (seed 002)"
+HELP = ("A redundant planar 3R arm draws the paper's circle five ways side by side: the four "
+        "simulations of seed 002 (J⁺ only; joint limits by the decomposition method; the "
+        "manipulability gradient k_a ∇w; both) and a bounded method that guarantees the "
+        "limits. Watch the joints leave their limits (red dots), the manipulability ellipse "
+        "and the charts; change k_a and K and run again.")
+ROBOTS = ("redundant_planar",)
+ORDER = 20
+
+DEG = 180.0 / math.pi
+#: The simulations shown, in chart-series order.
+SHOWN_MODES: tuple[str, ...] = ("1", "2", "3", "4", "bounded")
+#: Slider ranges: k_a (paper 200) and K (paper 400; K Δt must stay below 2).
+K_A_RANGE = (0.0, 500.0)
+GAIN_RANGE = (10.0, 480.0)
+SPEED_RANGE = (0.05, 1.0)
+
+
+def build(server: viser.ViserServer, ctx: LessonContext) -> RedundancyLesson:
+    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    return RedundancyLesson(server, ctx)
+
+
+@dataclass(frozen=True)
+class RunSet:
+    """The five simulations for one pair of gains.
+
+    Attributes:
+        gain: K of ẋ = ẋ_d + K(x_d − x), 1/s. k_a: gradient gain of eq. 2.
+        runs: mode -> the time series (``simulate_circle``).
+        figures: mode -> what ``armlab experiment seed002-circle --mode M`` prints.
+        points: mode -> (T, 4, 3) arm points of every sample (stick pictures).
+    """
+
+    gain: float
+    k_a: float
+    runs: dict[str, CircleRun]
+    figures: dict[str, dict[str, Any]]
+    points: dict[str, np.ndarray]
+
+    @property
+    def dt(self) -> float:
+        t = next(iter(self.runs.values())).t
+        return float(t[1] - t[0])
+
+    @property
+    def duration(self) -> float:
+        return float(next(iter(self.runs.values())).t[-1])
+
+
+def run_modes(model: SerialChain, *, gain: float, k_a: float,
+              modes: tuple[str, ...] = SHOWN_MODES) -> RunSet:
+    """Run every mode on the paper's circle with these gains (what "Run" does).
+
+    Raises:
+        ValueError: for gains the simulation refuses (e.g. K Δt >= 2).
+    """
+    task = CircleTask(gain=gain, k_a=k_a)
+    runs, figures, points = {}, {}, {}
+    for mode in modes:
+        run = simulate_circle(model, mode, task)
+        runs[mode] = run
+        figures[mode] = summarise(model, run)
+        points[mode] = arm_points(model, run.q)
+    return RunSet(float(gain), float(k_a), runs, figures, points)
+
+
+def figures_markdown(rs: RunSet | None) -> str:
+    """The figures table (same numbers as the experiment) with the paper's claims."""
+    if rs is None:
+        return "*Press **Run** to compute the five simulations.*"
+    rows = ["| mode | max error after 0.2 s (mm) | worst excursion θ1, θ2, θ3 (°) | mean w | "
+            "min w |", "|---|---|---|---|---|"]
+    for mode, f in rs.figures.items():
+        v = ", ".join(f"{x * DEG:.1f}" for x in f["max_violation_rad"])
+        rows.append(f"| {MODE_LABELS[mode]} | {f['max_error_m'] * 1000:.3f} | {v} | "
+                    f"{f['mean_manipulability']:.3f} | {f['min_manipulability']:.3f} |")
+    w = {m: f["mean_manipulability"] for m, f in rs.figures.items()}
+    same = abs(w.get("2", 0) - w.get("4", 1)) < 1e-9
+    return "\n".join([
+        f"**Figures** (K = {rs.gain:g} 1/s, k_a = {rs.k_a:g}; identical to "
+        f"`armlab experiment seed002-circle --mode M --gain {rs.gain:g} --k-a {rs.k_a:g}`)",
+        "", *rows, "",
+        "The paper: 1 and 3 leave the limits (joints 2 and 3 in 1); 2 and 4 stay inside; "
+        "w of 4 above w of 2. "
+        + ("Here 2 and 4 are the **same motion**: the printed least-squares step "
+           "(eq. 18-19) pulls the joints to the middle of their ranges and cancels the "
+           "gradient term (docs/redundancy.md). The bounded method keeps the limits *and* "
+           "raises w." if same else "Here w of 4 and of 2 differ."),
+    ])
+
+
+TEACH = """\
+**What the five arms do** (seed 002, circle x_d(t) = (0.25(1 − cos πt), 0.25(2 + sin πt)) m,
+2 s, Δt = 4 ms, task loop ẋ = ẋ_d + K(x_d − x)):
+
+- **1** θ̇ = J⁺ẋ: the shortest joint velocity; joints 2 and 3 leave their limits.
+- **3** θ̇ = J⁺ẋ + (I − J⁺J) k_a ∇w (eq. 4): the self-motion climbs the manipulability
+  w = √det(J Jᵀ); still no limits.
+- **2 / 4** limits as velocity bounds (θ_min − θ)/Δt ≤ θ̇ ≤ (θ_max − θ)/Δt (eq. 5-7), the
+  decomposition J = [J_r J_nr] and the least-squares θ̇_r of eq. 18-20.
+- **bounded** the same bounds as a hard constraint (bounded least squares): limits kept,
+  gradient used.
+
+The **ellipse** at the hand is {J θ̇ : |θ̇| ≤ 1}: its semi-axes are J's singular values,
+their product is w. A thin ellipse means the hand can hardly move across it.
+Joint dots turn **red** while the joint is outside its limits. The top row ignores the
+limits, the bottom row enforces them.
+"""
+
+
+class RedundancyLesson:
+    """The redundancy lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+
+    Args:
+        server: the viser server.
+        ctx: robot choice (the lesson simulates; it drives no servos).
+        pose_hz, plot_hz: scene and chart update rates.
+    """
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+                 pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
+        self.server = server
+        self.ctx = ctx
+        model = load_robot(ctx.robot)
+        if not isinstance(model, SerialChain) or model.n != 3:
+            raise ValueError(f"robot: {ctx.robot} is not a planar 3R arm")
+        self.model = model
+        self.modes = SHOWN_MODES
+        self.q0 = np.array(CircleTask().q0)
+        self._lock = threading.RLock()
+        self._closed = False
+        self._gui_handles: list = []
+        self.results: RunSet | None = None
+        self._worker: threading.Thread | None = None
+        self.computing = False
+        self.last_error = ""
+        self._play_start: float | None = None  # monotonic time of t = 0 of the playback
+        self._paused_t = 0.0
+        self._status_html = ""
+        self._shown_k = -1
+        self._build_gui()
+        try:
+            self.scene = RedundancyScene(server, model, modes=self.modes, root="/redundancy")
+        except BaseException:
+            self._remove_gui()
+            raise
+        self.show(0.0)
+        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
+                                   pose_hz=pose_hz, plot_hz=plot_hz)
+        self.publisher.start()
+
+    # ================================================================== GUI
+
+    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
+        self._gui_handles.append(handle)
+        return handle
+
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        self.status = self._add(gui.add_html("", order=-80.0))
+        tabs = self._add(gui.add_tab_group(order=-70.0))
+        with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
+            self.run_button = gui.add_button(
+                "Run the circle", color="green", icon=viser.Icon.PLAYER_PLAY,
+                hint="Compute the five simulations with these gains and play them")
+            self.reset_button = gui.add_button(
+                "Reset", icon=viser.Icon.REFRESH,
+                hint="Back to θ(0) = [180°, −90°, −90°]; Run plays again")
+            self.run_button.on_click(lambda e: self._guard(e, self.run))
+            self.reset_button.on_click(lambda e: self._guard(e, self.reset))
+            d = CircleTask()
+            self.k_a_slider = gui.add_slider(
+                "k_a (gradient gain)", min=K_A_RANGE[0], max=K_A_RANGE[1], step=10.0,
+                initial_value=d.k_a, hint="Gain of the manipulability gradient (eq. 2); "
+                "the paper uses 200. Changes modes 3, 4 and bounded.")
+            self.k_a = GuardedNumber(self.k_a_slider, name="k_a", lo=K_A_RANGE[0],
+                                     hi=K_A_RANGE[1], apply=self._params_changed)
+            self.gain_slider = gui.add_slider(
+                "K (1/s)", min=GAIN_RANGE[0], max=GAIN_RANGE[1], step=10.0,
+                initial_value=d.gain, hint="Task-space gain of ẋ = ẋ_d + K(x_d − x); the paper "
+                "uses 400. K Δt must stay below 2 (K < 500).")
+            self.gain = GuardedNumber(self.gain_slider, name="K", lo=GAIN_RANGE[0],
+                                      hi=GAIN_RANGE[1], apply=self._params_changed)
+            self.speed_slider = gui.add_slider(
+                "Playback speed (×)", min=SPEED_RANGE[0], max=SPEED_RANGE[1], step=0.05,
+                initial_value=0.25, hint="1 = real time (the circle takes 2 s)")
+            self.speed = GuardedNumber(self.speed_slider, name="playback speed",
+                                       lo=SPEED_RANGE[0], hi=SPEED_RANGE[1],
+                                       apply=self._speed_changed)
+            with gui.add_folder("Show", expand_by_default=False):
+                self.show_boxes = {}
+                for mode in self.modes:
+                    box = gui.add_checkbox(MODE_LABELS[mode], True,
+                                           hint=MODES[mode])
+                    box.on_update(lambda _e, m=mode: self.scene.show_mode(
+                        m, bool(self.show_boxes[m].value)))
+                    self.show_boxes[mode] = box
+        with tabs.add_tab("Figures", viser.Icon.TABLE):
+            self.figures_md = gui.add_markdown(figures_markdown(None))
+        with tabs.add_tab("Teach", viser.Icon.SCHOOL):
+            gui.add_markdown(TEACH)
+            gui.add_html(_legend_html())
+        self.plot_panel = self._add(gui.add_panel())
+        with self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE):
+            self.plots = RedundancyPlots(gui, self.model, self.modes)
+        self.plot_panel.dock_left()
+        self.plot_panel.set_width(430)
+
+    def _remove_gui(self) -> None:
+        for h in reversed(self._gui_handles):
+            try:
+                h.remove()
+            except (RuntimeError, KeyError, ValueError):
+                pass
+        self._gui_handles.clear()
+
+    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
+        """Run a button's action; a refusal becomes a notification, never an exception."""
+        try:
+            action()
+        except ValueError as exc:
+            notify(event.client, "Not done", str(exc))
+
+    # ================================================================== actions
+
+    def _params_changed(self, _value: float) -> None:
+        """k_a or K moved: the runs on screen no longer match the sliders."""
+        self._status_html = ""  # redraw the status line
+
+    def _speed_changed(self, value: float) -> None:
+        with self._lock:
+            if self._play_start is not None:
+                t = self.playhead()
+                self._play_start = time.monotonic() - t / value
+
+    @property
+    def stale(self) -> bool:
+        """True when the runs shown were made with other gains than the sliders'."""
+        rs = self.results
+        return rs is not None and (rs.gain != self.gain.value or rs.k_a != self.k_a.value)
+
+    def run(self, *, wait: bool = False) -> None:
+        """Compute the five runs with the sliders' gains (worker thread), then play them.
+
+        With the same gains as the runs shown it just plays them again.
+
+        Raises:
+            ValueError: while a computation is still going.
+        """
+        with self._lock:
+            if self.computing:
+                raise ValueError("still computing the last run; wait a few seconds")
+            if self.results is not None and not self.stale:
+                self._restart_playback()
+                return
+            self.computing = True
+            self.last_error = ""
+            gain, k_a = self.gain.value, self.k_a.value
+            self._worker = threading.Thread(target=self._compute, args=(gain, k_a),
+                                            name="armlab-redundancy", daemon=True)
+            self._worker.start()
+            worker = self._worker
+        if wait:
+            worker.join()
+
+    def _compute(self, gain: float, k_a: float) -> None:
+        try:
+            rs = run_modes(self.model, gain=gain, k_a=k_a, modes=self.modes)
+        except (ValueError, np.linalg.LinAlgError, FloatingPointError) as exc:
+            with self._lock:
+                self.computing = False
+                self.last_error = str(exc)
+            for client in self.server.get_clients().values():
+                notify(client, "Run failed", str(exc))
+            return
+        with self._lock:
+            if self._closed:
+                return
+            self.results = rs
+            self.computing = False
+            self.figures_md.content = figures_markdown(rs)
+            self._restart_playback()
+
+    def _restart_playback(self) -> None:
+        with self._lock:
+            self.scene.clear()
+            self._shown_k = -1
+            self._play_start = time.monotonic()
+
+    def reset(self) -> None:
+        """Stop the playback and put every arm back at θ(0)."""
+        with self._lock:
+            self._play_start = None
+            self._paused_t = 0.0
+            self.scene.clear()
+            self._shown_k = -1
+            self.show(0.0)
+
+    def playhead(self) -> float:
+        """Time of the runs shown now, s (0 before a run; stops at the end)."""
+        rs = self.results
+        if rs is None or self._play_start is None:
+            return self._paused_t
+        t = (time.monotonic() - self._play_start) * self.speed.value
+        return min(t, rs.duration)
+
+    # ================================================================== drawing
+
+    def sample_at(self, t: float) -> int:
+        """Index of the sample shown at time ``t`` s (0 without runs)."""
+        rs = self.results
+        if rs is None:
+            return 0
+        return int(np.clip(math.floor(t / rs.dt + 1e-9), 0, len(rs.runs[self.modes[0]].t) - 1))
+
+    def ghost_q(self, mode: str) -> np.ndarray:
+        """(3,) joint angles the ghost of ``mode`` shows now, rad."""
+        return self.scene.views[mode].arm.q.copy()
+
+    def show(self, t: float) -> None:
+        """Pose every ghost at time ``t`` of the runs and draw sticks and paths so far."""
+        with self._lock:
+            rs = self.results
+            if rs is None:
+                if self._shown_k != 0:
+                    for mode in self.modes:
+                        self.scene.set_pose(mode, self.q0, status="θ(0) = [180°, −90°, −90°]")
+                    self._shown_k = 0
+                return
+            k = self.sample_at(t)
+            if k == self._shown_k:
+                return
+            for mode in self.modes:
+                run = rs.runs[mode]
+                self.scene.set_pose(mode, run.q[k], status=_mode_status(self.model, run, k))
+                self.scene.set_history(mode, rs.points[mode], k + 1, rs.dt)
+            self._shown_k = k
+
+    def _pose_frame(self) -> None:
+        if self.results is not None and self._play_start is not None:
+            self.show(self.playhead())
+        self._update_status()
+
+    def _plot_frame(self, force: bool) -> None:
+        rs = self.results
+        if rs is None:
+            return
+        k = self.sample_at(self.playhead()) + 1 if self._play_start is not None else 1
+        self.plots.update(rs.runs, k, force=force)
+
+    def _update_status(self) -> None:
+        rs = self.results
+        if self.computing:
+            state, color = "computing the five runs…", "#1f5eea"
+        elif self.last_error:
+            state, color = f"run refused: {self.last_error}", "#b00020"
+        elif rs is None:
+            state, color = "ready: press Run", "#555"
+        elif self._play_start is None:
+            state, color = "reset to θ(0): press Run to play again", "#555"
+        else:
+            t = self.playhead()
+            if t < rs.duration:
+                state, color = f"playing t = {t:.2f} s of {rs.duration:g} s", "#1f5eea"
+            else:
+                state, color = "done: press Run to replay", "#2e7d32"
+        note = ""
+        if self.stale:
+            note = ("<div style='color:#a15c00;font-size:0.85em'>k_a or K changed: press Run "
+                    "to compute with the new gains</div>")
+        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(state)}</b>"
+                f"<div style='color:#555;font-size:0.85em'>K = {self.gain.value:g} 1/s · "
+                f"k_a = {self.k_a.value:g} · playback ×{self.speed.value:g}</div>{note}</div>")
+        if text != self._status_html:
+            self._status_html = text
+            self.status.content = text
+
+    # ================================================================== lifetime
+
+    def close(self) -> None:
+        """Stop the publisher, remove scene and GUI (a computation still going is dropped)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self.publisher.close()
+        try:
+            self.scene.remove()
+        finally:
+            self._remove_gui()
+
+
+def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
+    """One line under a panel: which joints are outside their limits now, and w."""
+    q = run.q[k]
+    out = [f"θ{i + 1}" for i in range(model.n)
+           if q[i] < model.lower[i] - 1e-9 or q[i] > model.upper[i] + 1e-9]
+    w = manipulability(_task_jacobian(model, q))
+    err = run.error()[k] * 1000.0 if run.t[k] >= SETTLE_S else float("nan")
+    limits = "limits kept" if not out else f"{', '.join(out)} outside limits!"
+    e = f" · error {err:.3f} mm" if math.isfinite(err) else ""
+    return f"{limits} · w = {w:.3f}{e}"
+
+
+def _legend_html() -> str:
+    items = "".join(
+        f"<div><span style='display:inline-block;width:14px;height:4px;background:{c};"
+        f"margin-right:6px;vertical-align:middle'></span>{_esc(MODE_LABELS[m])}</div>"
+        for m, c in MODE_COLORS.items())
+    return f"<div style='font-size:0.85em'>{items}</div>"
+
+
+def _esc(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+__all__ = ["RedundancyLesson", "RunSet", "run_modes", "build", "NAME", "TITLE", "HELP",
+           "ROBOTS"]

@@ -1,0 +1,230 @@
+"""The lab's web server: one viser server, an always-visible E-STOP and a lesson switcher.
+
+``Lab`` owns the :class:`LabServer` (a ``viser.ViserServer`` that refuses the
+public share tunnel) and the lesson currently shown. Lessons live in
+``app.lessons``; the lab builds the one chosen for the robot and lets the page
+switch between lessons. The E-STOP button belongs to the lab, not to a lesson,
+so it stays at the top of the control panel whatever lesson is open.
+
+Security: the server binds to loopback unless told otherwise (a robot must not
+be commandable from the whole network by default) and never opens the share
+tunnel (it needs the internet and would expose the robot).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import sys
+import threading
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass, replace
+
+import viser
+
+from app.camera import show_initial_view
+from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
+
+#: Label at the top of the control panel.
+PANEL_LABEL = "armlab"
+#: s: how long a Python thread may hold the GIL while another waits for it. The
+#: default 5 ms would let the web server's message encoding delay a control period
+#: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
+GIL_SWITCH_INTERVAL = 0.0005
+
+
+class LabServer(viser.ViserServer):
+    """A ``viser.ViserServer`` whose share-URL tunnel can never be opened.
+
+    The Share button is hidden with ``configure_theme(show_share_button=False)``;
+    a client that still sends a share request (an old page, a hand-made
+    message) is refused here, server-side.
+    """
+
+    def request_share_url(self, verbose: bool = True) -> str | None:
+        """Refuse: the lab never opens a public tunnel. Returns None."""
+        for client in self.get_clients().values():
+            client.add_notification(
+                "Sharing is off",
+                "armlab never opens a public share link: it would expose the robot.",
+                auto_close_seconds=5.0,
+                color="yellow",
+            )
+        return None
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    """What ``armlab serve`` was asked for.
+
+    Attributes:
+        robot: robot name (``kinematics.load_robot``).
+        backend: "sim" (simulated arm and servos) or "serial" (Dynamixel bus).
+        port: serial device for backend "serial", e.g. /dev/ttyUSB0.
+        baud: serial baud rate (None: the backend's default, 1 Mbps).
+        host: interface to listen on; loopback by default.
+        http_port: first port to try; the next free one is used if it is taken.
+        lesson: lesson name (None: the first lesson for the robot).
+        realtime: run the control loop against the wall clock (False: as fast as
+            possible, for tests).
+    """
+
+    robot: str = "receptionist_arm"
+    backend: str = "sim"
+    port: str | None = None
+    baud: int | None = None
+    host: str = "127.0.0.1"
+    http_port: int = 8080
+    lesson: str | None = None
+    realtime: bool = True
+
+    def __post_init__(self) -> None:
+        if self.backend not in ("sim", "serial"):
+            raise ValueError(f"backend: expected 'sim' or 'serial', got {self.backend!r}")
+        if self.backend == "serial" and not self.port:
+            raise ValueError("port: the serial backend needs --port DEV (e.g. /dev/ttyUSB0)")
+        if not 0 <= self.http_port <= 65535:
+            raise ValueError(f"http_port: expected 0..65535, got {self.http_port}")
+
+
+class Lab:
+    """The running lab: server, E-STOP, lesson switcher and the open lesson.
+
+    Args:
+        options: what to serve.
+        verbose: let viser print its connection log.
+
+    Attributes:
+        server: the :class:`LabServer`.
+        url: ``http://HOST:PORT`` the page is served at.
+        lesson: handle of the open lesson (None while switching).
+    """
+
+    def __init__(self, options: ServeOptions, *, verbose: bool = False) -> None:
+        self.options = options
+        lessons = all_lessons()
+        name = options.lesson or default_lesson(options.robot)
+        if name not in lessons:
+            raise ValueError(f"lesson: unknown {name!r}; known: {', '.join(sorted(lessons))}")
+        self._lessons = lessons
+        sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL))
+        self._lock = threading.RLock()
+        self._closed = False
+        # viser prints a banner on construction; the CLI prints its own url line.
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server = LabServer(host=options.host, port=options.http_port,
+                                    label=PANEL_LABEL, verbose=verbose)
+        try:
+            self.server.gui.configure_theme(show_share_button=False, control_width="large",
+                                            brand_color=(30, 90, 170))
+            self.url = f"http://{options.host}:{self.server.get_port()}"
+            self._build_chrome(name)
+            self.lesson: LessonHandle | None = None
+            self._open(name)
+        except BaseException:
+            self.server.stop()
+            raise
+
+    # -- chrome -----------------------------------------------------------------
+
+    def _build_chrome(self, name: str) -> None:
+        gui = self.server.gui
+        self.estop_button = gui.add_button(
+            "E-STOP", color="red", icon=viser.Icon.HAND_STOP,
+            hint="Torque off on every servo now. Press Reset to go on.", order=-100.0)
+        self.estop_button.on_click(lambda _event: self.estop())
+        ordered = sorted(self._lessons.values(), key=lesson_order)
+        self._by_title = {m.TITLE: m.NAME for m in ordered}
+        self.lesson_dropdown = gui.add_dropdown(
+            "Lesson", tuple(self._by_title), initial_value=self._lessons[name].TITLE,
+            order=-90.0, visible=len(ordered) > 1,
+            hint="Switch to another lesson (stops the current one)")
+        self.lesson_dropdown.on_update(self._on_lesson_picked)
+
+    def _on_lesson_picked(self, event: viser.GuiEvent) -> None:
+        name = self._by_title.get(str(self.lesson_dropdown.value))
+        if name is None:
+            return
+        try:
+            self.switch(name)
+        except (ValueError, OSError, RuntimeError) as exc:
+            if event.client is not None:
+                event.client.add_notification("Cannot open lesson", str(exc), color="red",
+                                              auto_close_seconds=8.0)
+
+    # -- lessons ----------------------------------------------------------------
+
+    def _context(self) -> LessonContext:
+        o = self.options
+        return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
+                             realtime=o.realtime)
+
+    def _open(self, name: str) -> None:
+        module = self._lessons[name]
+        ctx = self._context()
+        if o_robots := getattr(module, "ROBOTS", ()):
+            if ctx.robot not in o_robots:
+                ctx = replace(ctx, robot=o_robots[0])
+        self.lesson = module.build(self.server, ctx)
+        self.lesson_name = name
+
+    def switch(self, name: str) -> None:
+        """Close the open lesson and open lesson ``name``."""
+        with self._lock:
+            if self._closed or (self.lesson is not None and name == self.lesson_name):
+                return
+            previous = self.lesson_name
+            if self.lesson is not None:
+                self.lesson.close()
+                self.lesson = None
+            try:
+                self._open(name)
+                show_initial_view(self.server)  # open pages look at the new lesson's scene
+            except (ValueError, OSError, RuntimeError):
+                self._open(previous)  # back to the lesson that worked
+                self.lesson_dropdown.value = self._lessons[previous].TITLE
+                raise
+
+    def estop(self) -> None:
+        """Torque off now through the open lesson; never raises."""
+        lesson = self.lesson
+        stop = getattr(lesson, "estop", None)
+        if stop is not None:
+            stop()
+
+    # -- lifetime ---------------------------------------------------------------
+
+    def wait_until_loadable(self, timeout: float = 10.0) -> None:
+        """Block until the page answers an HTTP GET (raises OSError after ``timeout`` s)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                with urllib.request.urlopen(self.url, timeout=2.0) as reply:
+                    if reply.status == 200:
+                        return
+            except (urllib.error.URLError, OSError) as exc:
+                if time.monotonic() > deadline:
+                    raise OSError(f"the page at {self.url} does not load: {exc}") from None
+            time.sleep(0.05)
+
+    def close(self) -> None:
+        """Close the lesson (control loop stopped, hardware torque off) and stop the server."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            lesson, self.lesson = self.lesson, None
+        try:
+            if lesson is not None:
+                lesson.close()
+        finally:
+            with contextlib.redirect_stdout(io.StringIO()):
+                self.server.stop()
+
+    def __enter__(self) -> Lab:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,263 @@
+"""A headless viser client: speaks the page's websocket protocol without a browser.
+
+Used by the UI bench (many fake browsers at once) and by the server-side tests
+(click, type a value, drag the hand, disconnect mid-run). It does what the
+page does on the wire:
+
+- connects with the subprotocol ``viser-v<version>`` (the server refuses others);
+- sends a ``ViewerCameraMessage`` (a client counts as connected only after its
+  first camera message);
+- decodes every server frame: ``[8 B msgpack length][8 B zstd length][zstd
+  msgpack][padding][raw binary buffers]``, the msgpack holding
+  ``{"messages": [...], "timestampSec", "binaryBufferLengths"}``;
+- sends GUI changes as ``GuiUpdateMessage`` and drags as ``SceneNodeDragMessage``
+  (plain msgpack dicts with a ``type`` key).
+
+It keeps the latest state of every GUI element (by uuid, with its label) and
+counts bytes and messages, so a test can ask "what does the page show now?".
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections import Counter, defaultdict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec.msgpack
+import numpy as np
+import viser
+import websockets
+import websockets.asyncio.client
+import zstandard
+
+
+def decode_frame(raw: bytes, zstd: zstandard.ZstdDecompressor | None = None
+                 ) -> tuple[list[dict[str, Any]], float]:
+    """One server frame -> (messages as dicts with numpy arrays restored, server timestamp).
+
+    Args:
+        raw: the websocket message.
+        zstd: a decompressor to reuse (one per thread: they are not thread-safe).
+
+    Raises:
+        ValueError: when the frame is not viser's wire format.
+    """
+    zstd = zstd or zstandard.ZstdDecompressor()
+    if len(raw) < 16:
+        raise ValueError(f"frame of {len(raw)} bytes is too short")
+    inner_len = int.from_bytes(raw[0:8], "little")
+    comp_len = int.from_bytes(raw[8:16], "little")
+    inner = zstd.decompress(raw[16:16 + comp_len], max_output_size=inner_len)
+    payload = msgspec.msgpack.decode(inner)
+    offset = 16 + comp_len
+    buffers: list[memoryview] = []
+    view = memoryview(raw)
+    for n in payload.get("binaryBufferLengths", ()):
+        offset += (8 - offset % 8) % 8
+        buffers.append(view[offset:offset + n])
+        offset += n
+
+    def restore(obj: Any) -> Any:
+        if isinstance(obj, dict):
+            if "__binary_index" in obj and "dtype" in obj:
+                return np.frombuffer(buffers[obj["__binary_index"]], dtype=np.dtype(obj["dtype"]))
+            return {k: restore(v) for k, v in obj.items()}
+        if isinstance(obj, list):
+            return [restore(v) for v in obj]
+        return obj
+
+    return [restore(m) for m in payload["messages"]], float(payload.get("timestampSec", 0.0))
+
+
+@dataclass
+class GuiElement:
+    """What the client knows of one GUI element."""
+
+    uuid: str
+    kind: str
+    label: str | None
+    value: Any = None
+    props: dict[str, Any] = field(default_factory=dict)
+
+
+class HeadlessClient:
+    """A fake browser connected to a viser server (runs its own asyncio thread).
+
+    Args:
+        url: ``ws://host:port``.
+        on_message: called (in the client's thread) with each decoded message and the
+            receive time (``time.perf_counter()``).
+
+    Attributes:
+        gui: uuid -> :class:`GuiElement`.
+        notifications: (title, body) of every notification shown.
+        downloads: filename -> bytes of every completed file download.
+        bytes_received, frames_received: traffic counters.
+        counts: message type -> how many.
+    """
+
+    def __init__(self, url: str, *, on_message: Callable[[dict, float], None] | None = None
+                 ) -> None:
+        self.url = url
+        self._on_message = on_message
+        self.gui: dict[str, GuiElement] = {}
+        self.scene: dict[str, dict[str, Any]] = defaultdict(dict)
+        self.notifications: list[tuple[str, str]] = []
+        self.downloads: dict[str, bytes] = {}
+        self.theme: dict[str, Any] | None = None  #: the last ThemeConfigurationMessage
+        self._parts: dict[str, dict[str, Any]] = {}
+        self.bytes_received = 0
+        self.frames_received = 0
+        self.counts: Counter[str] = Counter()
+        self._lock = threading.RLock()  # wait_for predicates call find()
+        self._loop = asyncio.new_event_loop()
+        self._ws: websockets.asyncio.client.ClientConnection | None = None
+        self._connected = threading.Event()
+        self._closed = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="headless-client", daemon=True)
+
+    # -- lifetime -----------------------------------------------------------------
+
+    def connect(self, timeout: float = 10.0) -> HeadlessClient:
+        """Connect and introduce itself with a camera message; returns self."""
+        self._thread.start()
+        if not self._connected.wait(timeout):
+            raise TimeoutError(f"no connection to {self.url} in {timeout} s: {self._error}")
+        if self._error is not None:
+            raise ConnectionError(str(self._error))
+        self.send({"type": "ViewerCameraMessage", "wxyz": (1.0, 0.0, 0.0, 0.0),
+                   "position": (0.5, -0.7, 1.0), "fov": 1.0, "near": 0.01, "far": 100.0,
+                   "image_height": 720, "image_width": 1280, "look_at": (0.0, 0.0, 0.6),
+                   "up_direction": (0.0, 0.0, 1.0)})
+        return self
+
+    def close(self) -> None:
+        """Drop the connection abruptly (like a closed tab)."""
+        if self._ws is not None and not self._closed.is_set():
+            asyncio.run_coroutine_threadsafe(self._ws.close(), self._loop)
+        self._closed.wait(5.0)
+
+    def __enter__(self) -> HeadlessClient:
+        return self if self._thread.is_alive() else self.connect()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self._loop)
+        self._loop.run_until_complete(self._main())
+
+    async def _main(self) -> None:
+        zstd = zstandard.ZstdDecompressor()
+        try:
+            async with websockets.asyncio.client.connect(
+                self.url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
+                compression=None,
+            ) as ws:
+                self._ws = ws
+                self._connected.set()
+                async for raw in ws:
+                    now = time.perf_counter()
+                    assert isinstance(raw, bytes)
+                    messages, _ = decode_frame(raw, zstd)
+                    with self._lock:
+                        self.bytes_received += len(raw)
+                        self.frames_received += 1
+                        for m in messages:
+                            self._absorb(m)
+                    if self._on_message is not None:
+                        for m in messages:
+                            self._on_message(m, now)
+        except (OSError, websockets.exceptions.WebSocketException) as exc:
+            self._error = exc
+        finally:
+            self._connected.set()
+            self._closed.set()
+
+    # -- state --------------------------------------------------------------------
+
+    def _absorb(self, m: dict[str, Any]) -> None:
+        kind = m.get("type", "")
+        self.counts[kind] += 1
+        uuid = m.get("uuid")
+        if kind.startswith("Gui") and kind.endswith("Message") and isinstance(uuid, str) \
+                and "props" in m and kind != "GuiUpdateMessage":
+            props = m.get("props") or {}
+            self.gui[uuid] = GuiElement(uuid, kind, props.get("label"), m.get("value"),
+                                        dict(props))
+        elif kind == "GuiUpdateMessage" and uuid in self.gui:
+            el = self.gui[uuid]
+            for k, v in m["updates"].items():
+                if k == "value":
+                    el.value = v
+                else:
+                    el.props[k] = v
+        elif kind == "GuiRemoveMessage" and uuid in self.gui:
+            del self.gui[uuid]
+        elif kind in ("NotificationShowMessage", "NotificationUpdateMessage"):
+            props = m.get("props") or {}
+            self.notifications.append((props.get("title", ""), props.get("body", "")))
+        elif kind == "FileTransferStartDownload":
+            self._parts[m["transfer_uuid"]] = {"name": m["filename"], "count": m["part_count"],
+                                               "parts": {}}
+        elif kind == "FileTransferPart" and m.get("transfer_uuid") in self._parts:
+            t = self._parts[m["transfer_uuid"]]
+            t["parts"][m["part_index"]] = bytes(m["content"])
+            if len(t["parts"]) == t["count"]:
+                self.downloads[t["name"]] = b"".join(t["parts"][i] for i in range(t["count"]))
+        elif kind == "ThemeConfigurationMessage":
+            self.theme = m
+        elif "name" in m and kind.startswith("Set"):
+            self.scene[m["name"]][kind] = {k: v for k, v in m.items() if k != "type"}
+
+    # -- queries and actions ------------------------------------------------------------
+
+    def find(self, label: str, kind: str | None = None) -> GuiElement:
+        """The GUI element labelled ``label`` (and of message type ``kind``, if given)."""
+        with self._lock:
+            for el in self.gui.values():
+                if el.label == label and (kind is None or el.kind == kind):
+                    return el
+        raise KeyError(f"no GUI element labelled {label!r}")
+
+    def send(self, message: dict[str, Any]) -> None:
+        """Send one client->server message (a dict with its ``type``)."""
+        if self._ws is None:
+            raise ConnectionError("not connected")
+        data = msgspec.msgpack.encode(message)
+        asyncio.run_coroutine_threadsafe(self._ws.send(data), self._loop).result(5.0)
+
+    def set_value(self, label: str, value: Any) -> None:
+        """Type ``value`` into the input labelled ``label`` (as the page would send it)."""
+        el = self.find(label)
+        self.send({"type": "GuiUpdateMessage", "uuid": el.uuid, "updates": {"value": value}})
+
+    def click(self, label: str) -> None:
+        """Click the button labelled ``label``."""
+        el = self.find(label, "GuiButtonMessage")
+        self.send({"type": "GuiUpdateMessage", "uuid": el.uuid, "updates": {"value": True}})
+
+    def drag(self, name: str, phase: str, *, start: tuple[float, float, float],
+             end: tuple[float, float, float]) -> None:
+        """Send one drag event on scene node ``name`` (world coordinates)."""
+        self.send({"type": "SceneNodeDragMessage", "phase": phase, "name": name,
+                   "instance_index": None, "start_position": tuple(map(float, start)),
+                   "start_screen_pos": (0.5, 0.5), "end_position": tuple(map(float, end)),
+                   "end_screen_pos": (0.5, 0.5), "button": "left", "modifier": None})
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = 10.0,
+                 what: str = "condition") -> None:
+        """Poll ``predicate`` until true (TimeoutError naming ``what`` otherwise)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                ok = predicate()
+            if ok:
+                return
+            time.sleep(0.02)
+        raise TimeoutError(f"timed out after {timeout} s waiting for {what}")

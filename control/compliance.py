@@ -1,0 +1,229 @@
+"""The thesis's PD reference loop and compliance controller (thesis 000 §2.1).
+
+One function per equation; each works on floats or on (n,) arrays alike.
+:class:`ComplianceController` strings them together once per control period:
+
+    τ_lpf  = LPF(τ_dist)                      (ch. 4 LPF, y += α(x − y))
+    τ_ext  = τ_lpf − τ_dyn                    (eq. 2.23, τ_dyn from Newton–Euler)
+    θ_env  <- M θ̈ + D θ̇ + K θ = K_f τ_ext     (eq. 2.7, one semi-implicit Euler step)
+    θ̈_ref  = law 2.20 / 2.6 / 2.26
+    θ̇_ref += T θ̈_ref ; θ_ref += T θ̇_ref       (integrated twice, then sent to the servos)
+
+Sign convention: the servo's load is the torque the motor *applies*, so τ_ext
+is the torque the motor spends against the outside world; a hand pushing a
+joint forward gives τ_ext < 0, θ_env < 0, and the reference θ_cmd − θ_env moves
+forward with the hand (eq. 2.4: x_real = x_virtual − x_env).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from control.backend import JointState
+from control.params import Params
+
+Mode = Literal["none", "pd", "compliance"]
+MODES: tuple[str, ...] = ("none", "pd", "compliance")
+
+Array = np.ndarray | float
+
+
+def pd_reference_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Array,
+                       qd: Array) -> Array:
+    """Thesis eq. 2.20: θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇).
+
+    Args:
+        q_cmd, qd_cmd: commanded position (rad) and speed (rad/s), (n,) or scalar.
+        q, qd: measured position and speed, same shape.
+
+    Returns:
+        θ̈_ref, rad/s², same shape.
+    """
+    return kp * (q_cmd - q) + kv * (qd_cmd - qd)
+
+
+def compliance_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Array, qd: Array,
+                     q_env: Array, qd_env: Array, qdd_env: Array) -> Array:
+    """Thesis eq. 2.6 in joint space (the consistent form, default law):
+
+    θ̈_ref = Kp (θ_cmd − θ − θ_env) + Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env.
+
+    The reference model (2.3) is then applied to θ_cmd − θ_env, so a steady
+    external torque τ_ext moves the arm by −θ_env = −K_f τ_ext / K_env.
+    """
+    return kp * (q_cmd - q - q_env) + kv * (qd_cmd - qd - qd_env) - qdd_env
+
+
+def compliance_accel_literal(kp: float, kv: float, m_env: float, d_env: float, k_env: float,
+                             q_cmd: Array, qd_cmd: Array, q: Array, qd: Array, q_env: Array,
+                             qd_env: Array, qdd_env: Array) -> Array:
+    """Thesis eq. 2.26 as printed (thesis-literal variant):
+
+    θ̈_ref = Kp (θ_cmd − θ − K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env.
+
+    Dimensionally inconsistent with 2.6/2.7 (the offsets are multiplied by the
+    environment's parameters again); a steady τ_ext moves the arm by −K_f τ_ext.
+    """
+    return (kp * (q_cmd - q - k_env * q_env) + kv * (qd_cmd - qd - d_env * qd_env)
+            - m_env * qdd_env)
+
+
+def environment_accel(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: Array,
+                      q_env: Array, qd_env: Array) -> Array:
+    """Thesis eq. 2.7 as a differential equation: M θ̈_env + D θ̇_env + K θ_env = K_f τ_ext.
+
+    Returns θ̈_env (rad/s²) for the current state and external torque (N·m).
+    """
+    return (k_f * tau_ext - d_env * qd_env - k_env * q_env) / m_env
+
+
+def environment_step(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: Array,
+                     q_env: Array, qd_env: Array, dt: float) -> tuple[Array, Array, Array]:
+    """One discrete step of the environment impedance (thesis eq. 2.7).
+
+    Semi-implicit Euler: θ̈ from (2.7), then θ̇ += dt θ̈, then θ += dt θ̇.
+
+    Returns:
+        (θ_env, θ̇_env, θ̈_env) after the step.
+    """
+    qdd = environment_accel(m_env, d_env, k_env, k_f, tau_ext, q_env, qd_env)
+    qd = qd_env + dt * qdd
+    return q_env + dt * qd, qd, qdd
+
+
+def integrate_reference(q_ref: Array, qd_ref: Array, qdd_ref: Array,
+                        dt: float) -> tuple[Array, Array]:
+    """θ̈_ref integrated twice over one period (semi-implicit Euler, as the thesis's loop).
+
+    Returns:
+        (θ_ref, θ̇_ref) after the step.
+    """
+    qd = qd_ref + dt * qdd_ref
+    return q_ref + dt * qd, qd
+
+
+def lpf(y: Array, x: Array, alpha: float) -> Array:
+    """The thesis's digital low-pass filter (ch. 4, on eq. 2.21–2.23): y + α (x − y).
+
+    α = dt / (RC + dt); the thesis uses α = 0.05.
+    """
+    return y + alpha * (x - y)
+
+
+def external_torque(tau_dist_filtered: Array, tau_dyn: Array) -> Array:
+    """Thesis eq. 2.23: τ_ext = LPF(τ_dist) − τ_dyn (friction neglected, eq. 2.22).
+
+    Args:
+        tau_dist_filtered: the servo load after the LPF, N·m.
+        tau_dyn: the Newton–Euler torque of the motion (gravity included), N·m.
+    """
+    return tau_dist_filtered - tau_dyn
+
+
+@dataclass
+class ControllerState:
+    """What the controller remembers between periods (all (n,) arrays).
+
+    Attributes:
+        q_ref, qd_ref, qdd_ref: the integrated reference (rad, rad/s, rad/s²).
+        q_env, qd_env, qdd_env: the environment offset of eq. 2.7.
+        tau_lpf: the filtered servo load, N·m.
+        tau_ext: the last external-torque estimate (eq. 2.23), N·m.
+    """
+
+    q_ref: np.ndarray
+    qd_ref: np.ndarray
+    qdd_ref: np.ndarray
+    q_env: np.ndarray
+    qd_env: np.ndarray
+    qdd_env: np.ndarray
+    tau_lpf: np.ndarray
+    tau_ext: np.ndarray
+
+    @classmethod
+    def at_rest(cls, q: np.ndarray, load: np.ndarray | None = None) -> ControllerState:
+        """A state holding position ``q`` (n,), with the LPF primed on ``load`` (n,)."""
+        q = np.array(q, dtype=float)
+        z = np.zeros_like(q)
+        tau = z.copy() if load is None else np.array(load, dtype=float)
+        return cls(q.copy(), z.copy(), z.copy(), z.copy(), z.copy(), z.copy(), tau, z.copy())
+
+
+class ComplianceController:
+    """PD reference loop (2.20) or compliance controller (2.6 / 2.26) for n joints.
+
+    Args:
+        lower, upper: (n,) joint limits, rad; the integrated reference is kept
+            inside them (no wind-up against a limit).
+        max_speed: (n,) or scalar, rad/s; |θ̇_ref| is kept below it.
+        mode: "none" (send θ_cmd itself), "pd" (eq. 2.20) or "compliance".
+
+    ``Params.feedforward`` adds θ̈_cmd to θ̈_ref (not in the thesis; off keeps eq. 2.3).
+    """
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, max_speed: np.ndarray | float,
+                 *, mode: Mode = "compliance") -> None:
+        if mode not in MODES:
+            raise ValueError(f"controller must be one of {', '.join(MODES)}, got {mode!r}")
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.max_speed = np.broadcast_to(np.asarray(max_speed, dtype=float),
+                                         self.lower.shape).copy()
+        self.mode: Mode = mode
+
+    def effective_mode(self, params: Params) -> Mode:
+        """The mode actually run: "compliance" with ``params.compliance`` off is "pd"."""
+        if self.mode == "compliance" and not params.compliance:
+            return "pd"
+        return self.mode
+
+    def step(self, params: Params, state: ControllerState, q_cmd: np.ndarray,
+             qd_cmd: np.ndarray, qdd_cmd: np.ndarray, measured: JointState,
+             tau_dyn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Advance one period of ``params.period`` s; updates ``state`` in place.
+
+        Args:
+            q_cmd, qd_cmd, qdd_cmd: (n,) the commanded trajectory (e.g. from RMRC).
+            measured: what the servos report (position, velocity, load).
+            tau_dyn: (n,) Newton–Euler torque of the measured motion, N·m.
+
+        Returns:
+            (θ_ref, θ̇_ref), each (n,): the goal position and signed speed to send.
+        """
+        p, T = params, params.period
+        state.tau_lpf = lpf(state.tau_lpf, measured.load, p.alpha)
+        state.tau_ext = external_torque(state.tau_lpf, tau_dyn)
+        mode = self.effective_mode(p)
+        if mode == "none":
+            state.q_ref = np.array(q_cmd, dtype=float)
+            state.qd_ref = np.array(qd_cmd, dtype=float)
+            state.qdd_ref = np.array(qdd_cmd, dtype=float)
+            state.q_env[:] = state.qd_env[:] = state.qdd_env[:] = 0.0
+            return state.q_ref.copy(), state.qd_ref.copy()
+        q, qd = measured.position, measured.velocity
+        if mode == "pd":
+            state.q_env[:] = state.qd_env[:] = state.qdd_env[:] = 0.0
+            qdd = pd_reference_accel(p.kp, p.kv, q_cmd, qd_cmd, q, qd)
+        else:
+            state.q_env, state.qd_env, state.qdd_env = environment_step(
+                p.m_env, p.d_env, p.k_env, p.k_f, state.tau_ext, state.q_env, state.qd_env, T)
+            if p.law == "2.26":
+                qdd = compliance_accel_literal(p.kp, p.kv, p.m_env, p.d_env, p.k_env, q_cmd,
+                                               qd_cmd, q, qd, state.q_env, state.qd_env,
+                                               state.qdd_env)
+            else:
+                qdd = compliance_accel(p.kp, p.kv, q_cmd, qd_cmd, q, qd, state.q_env,
+                                       state.qd_env, state.qdd_env)
+        if p.feedforward:
+            qdd = qdd + qdd_cmd
+        state.qdd_ref = np.asarray(qdd, dtype=float)
+        q_ref, qd_ref = integrate_reference(state.q_ref, state.qd_ref, state.qdd_ref, T)
+        qd_ref = np.clip(qd_ref, -self.max_speed, self.max_speed)
+        low, high = q_ref < self.lower, q_ref > self.upper
+        qd_ref = np.where((low & (qd_ref < 0)) | (high & (qd_ref > 0)), 0.0, qd_ref)
+        state.q_ref = np.clip(q_ref, self.lower, self.upper)
+        state.qd_ref = qd_ref
+        return state.q_ref.copy(), state.qd_ref.copy()

@@ -1,0 +1,214 @@
+"""Thesis 000 chapter 4 on the simulated (or a real) arm, and the step-response check.
+
+``armlab experiment thesis-line --controller none|pd|compliance [--push N] [--preset NAME]``
+runs the chapter-4 20 cm line twice through the same :class:`ControlLoop` the lab
+uses, headless: once in free motion (max angle error θ_cmd − θ per joint, and the
+torque error LPF(servo load) − Newton–Euler, thesis fig. 4.2/4.4/4.6) and once
+with a hand pushing against the motion (how far the push moved each joint,
+fig. 4.9/4.12).
+
+``armlab experiment step --kp K --kv K`` prints eq. 2.16–2.19 next to the same
+figures measured on the sampled ideal joint and on eq. 2.3 (with its zero).
+
+The backend comes from ``args.backend_factory`` (set by the CLI from
+``--backend``/``--port``/``--baud``): control/ never imports hardware/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from control.backend import Backend, Pushable
+from control.commands import Push, RunTrajectory
+from control.experiments import Experiment
+from control.loop import APPROACH_MIN, ControlLoop
+from control.metrics import step_report
+from control.params import LAWS, PRESETS, Params, preset
+from control.trajectory import (
+    JointTrajectory,
+    approach_duration,
+    hold,
+    minimum_jerk,
+    thesis_line,
+)
+from kinematics.model import SerialChain, load_robot
+
+BackendFactory = Callable[..., Backend]
+
+SETTLE_S = 1.0  #: hold at the line's start before it runs
+TAIL_S = 2.0  #: hold at its end afterwards
+PUSH_DELAY_S = 0.3  #: the push starts this long after the line does
+PUSH_S = 1.5  #: and lasts this long
+DEFAULT_PUSH_N = 3.0
+
+
+@dataclass(frozen=True)
+class LineRun:
+    """One run of the line: the plan and the loop's recording."""
+
+    plan: JointTrajectory
+    line_start: float
+    line_end: float
+    snapshot: dict[str, np.ndarray]
+
+
+def line_plan(model: SerialChain) -> tuple[JointTrajectory, float, float]:
+    """Hold at the start, the thesis line, hold at the end; with the line's start/end times."""
+    line = thesis_line(model)
+    plan = hold(line.q[0], SETTLE_S).then(line).then(hold(line.q[-1], TAIL_S), name=line.name)
+    return plan, SETTLE_S, SETTLE_S + line.duration
+
+
+def _advance(loop: ControlLoop, until: float) -> None:
+    """Run the loop until its time reaches ``until`` s: stepped headless, or waited for when
+    its thread paces it (real servos live in real time)."""
+    if loop.status.running:
+        while loop.status.t + 1e-9 < until and loop.status.fault is None:
+            time.sleep(0.005)
+    else:
+        loop.run_for(until - loop.status.t)
+
+
+def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
+             controller: str, push_n: float = 0.0, realtime: bool = False) -> LineRun:
+    """Run the plan; push the hand along −y (base frame) when ``push_n`` > 0.
+
+    A simulated arm starts on the line's first point and runs headless (``realtime``
+    False); real servos run paced by the clock, and are first moved to the line's
+    start (minimum jerk) from wherever they stand.
+
+    Raises:
+        ValueError: the loop stopped on a fault, or the backend cannot be pushed.
+    """
+    plan, settle, line_end = line_plan(model)
+    backend = backend_factory(model, q0=plan.q[0])
+    loop: ControlLoop | None = None
+    try:
+        if push_n > 0 and not isinstance(backend, Pushable):
+            raise ValueError("this backend cannot be pushed; use --push 0 and push the "
+                             "real arm by hand")
+        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]
+                           realtime=realtime, history_s=plan.duration + 15.0)
+        if realtime:
+            loop.start()
+        _advance(loop, 0.1)
+        here = loop.recorder.snapshot(0.0)["q_cmd"][-1]
+        full, lead = plan, 0.0
+        if np.max(np.abs(here - plan.q[0])) > APPROACH_MIN:
+            approach = minimum_jerk(here, plan.q[0], approach_duration(here, plan.q[0]))
+            full, lead = approach.then(plan, name=plan.name), approach.duration
+        start = loop.status.t  # a command posted now applies at the period starting now
+        loop.post(RunTrajectory(full, approach=False))
+        t0, t1 = start + lead + settle, start + lead + line_end
+        if push_n > 0:
+            _advance(loop, t0 + PUSH_DELAY_S)
+            loop.post(Push(np.array([0.0, -push_n, 0.0]), model.n - 1, model.tip[:3, 3],
+                           PUSH_S))
+        _advance(loop, start + full.duration + 0.05)
+        status = loop.status
+        if status.fault:
+            raise ValueError(f"the loop stopped: {status.fault}")
+        return LineRun(full, t0, t1, loop.recorder.snapshot())
+    finally:
+        if loop is not None:
+            loop.shutdown()
+        backend.close()
+
+
+def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
+                        controller: str, push_n: float,
+                        realtime: bool = False) -> dict[str, Any]:
+    """The chapter-4 figures for one controller (JSON keys of issue 3's public surface).
+
+    Returns:
+        {"controller", "max_angle_error_deg" [n], "torque_error_max_nm" [n],
+        "max_yield_deg" [n]}: the first two over the line in free motion, the last the
+        largest change of each joint's angle that the push caused (pushed run − free run).
+    """
+    free = run_line(model, backend_factory, params, controller=controller, realtime=realtime)
+    s = free.snapshot
+    on_line = (s["t"] >= free.line_start) & (s["t"] <= free.line_end)
+    err = np.degrees(np.nanmax(np.abs(s["error"][on_line]), axis=0))
+    torque = np.nanmax(np.abs(s["tau_load"][on_line] - s["tau_dyn"][on_line]), axis=0)
+    if push_n > 0:
+        pushed = run_line(model, backend_factory, params, controller=controller, push_n=push_n,
+                          realtime=realtime)
+        p = pushed.snapshot
+        m = min(len(p["t"]), len(s["t"]))
+        yield_deg = np.degrees(np.nanmax(np.abs(p["q"][:m] - s["q"][:m]), axis=0))
+    else:
+        yield_deg = np.zeros(model.n)
+    return {
+        "controller": controller,
+        "max_angle_error_deg": [round(float(x), 3) for x in err],
+        "torque_error_max_nm": [round(float(x), 4) for x in torque],
+        "max_yield_deg": [round(float(x), 3) for x in yield_deg],
+    }
+
+
+def _line_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--controller", choices=("none", "pd", "compliance"), default="compliance",
+                   help="none: RMRC angles straight to the servos; pd: eq. 2.20; "
+                        "compliance: eq. 2.6/2.26 (default)")
+    p.add_argument("--push", type=float, metavar="N",
+                   help=f"hand push against the motion, N (default {DEFAULT_PUSH_N:g} on the "
+                        "simulated arm, 0 on real servos)")
+    p.add_argument("--preset", default="well-damped default", metavar="NAME",
+                   help="parameter preset: " + ", ".join(repr(k) for k in PRESETS))
+    p.add_argument("--law", choices=LAWS, help="override the preset's compliance law")
+    p.add_argument("--robot", default="receptionist_arm", help=argparse.SUPPRESS)
+
+
+def _line_run(args: argparse.Namespace) -> dict[str, Any]:
+    if args.push is None:
+        args.push = DEFAULT_PUSH_N if getattr(args, "backend", "sim") == "sim" else 0.0
+    if not np.isfinite(args.push) or args.push < 0:
+        raise ValueError(f"--push must be a force >= 0 N, got {args.push}")
+    params = preset(args.preset)
+    if args.law:
+        params = replace(params, law=args.law)
+    model = load_robot(args.robot)
+    return thesis_line_figures(model, args.backend_factory, params, controller=args.controller,
+                               push_n=args.push,
+                               realtime=getattr(args, "backend", "sim") != "sim")
+
+
+def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    n = len(result["max_angle_error_deg"])
+    return [{"joint": j, "controller": result["controller"],
+             "max_angle_error_deg": result["max_angle_error_deg"][j],
+             "torque_error_max_nm": result["torque_error_max_nm"][j],
+             "max_yield_deg": result["max_yield_deg"][j]} for j in range(n)]
+
+
+def _step_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--kp", type=float, default=3.8, help="Kp, 1/s² (default: thesis 3.8)")
+    p.add_argument("--kv", type=float, default=0.2, help="Kv, 1/s (default: thesis 0.2)")
+    p.add_argument("--period", type=float, default=1e-3,
+                   help="integration period of the simulated loop, s (default 0.001)")
+
+
+def _step_run(args: argparse.Namespace) -> dict[str, Any]:
+    if not (np.isfinite(args.period) and 0 < args.period <= 0.05):
+        raise ValueError(f"--period must be in (0, 0.05] s, got {args.period}")
+    return step_report(args.kp, args.kv, period=args.period)
+
+
+def _step_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    return [{"metric": k, "formula": result["formula"][k], "measured": result["measured"][k],
+             "measured_eq_2_3": result["measured_eq_2_3"][k]} for k in result["formula"]]
+
+
+EXPERIMENTS = (
+    Experiment("thesis-line", "thesis ch. 4: the 20 cm line with no controller, PD or "
+               "compliance; angle error, torque error and yield under a push",
+               _line_arguments, _line_run, _line_rows, needs=("backend_factory",)),
+    Experiment("step", "step response of the PD loop: eq. 2.16–2.19 vs measured "
+               "(ideal joint and eq. 2.3)", _step_arguments, _step_run, _step_rows),
+)

@@ -1,0 +1,390 @@
+"""The quadruped's walking loop: a :class:`Walker` driving 12 servos through a Backend.
+
+Every period (20 ms by default) the loop thread
+
+1. runs the commands the UI posted (go, stop, new plan, speed, reset, e-stop);
+2. brings the backend to the loop time and reads the servos (positions as they
+   report them);
+3. records the row: the goal sent last period next to the position read now (what
+   seed 003 §4.1 compares), the stability margin, the body pose, the stance flags and
+   the feet on the floor;
+4. advances the walker by ``speed × period`` cycles and sends the new joint goals,
+   with moving speeds that reach them within about a period;
+5. on a simulated backend (``Pushable``), puts the body's weight on the stance feet:
+   the floor's reaction, shared equally, pushes each one up for one period.
+
+Without a backend (no servos) the loop only plays the walker, so the lesson still
+shows the gait. One writer: the loop thread owns walker, backend and record; the UI
+reads :attr:`GaitLoop.status`, :attr:`GaitLoop.state` and :meth:`GaitLoop.snapshot`.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from control.backend import Backend, BackendError, Pushable
+from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
+
+#: Record layout: name -> number of columns (t first).
+COLUMNS: dict[str, int] = {"t": 1, "walking": 1, "phase": 1, "q_cmd": 12, "q": 12,
+                           "margin": 1, "body": 4, "stance": 4, "feet": 12}
+#: Moving-speed limits sent with each goal, rad/s (AX-12A: about 6 rad/s unloaded).
+MIN_SPEED = 0.2
+MAX_SPEED = 6.0
+#: Seconds to rise from where the servos are to the standing pose before walking.
+STAND_UP_S = 1.5
+
+Command = Callable[["GaitLoop"], None]
+
+
+@dataclass(frozen=True)
+class GaitStatus:
+    """The loop's latest state, replaced as a whole every period.
+
+    Attributes:
+        t: loop time, s.
+        walking: the phase is advancing.
+        stopping: walking on to the next moment all four feet stand, then stopping.
+        command: the direction walked ("forward", ...).
+        gait: "trot" or "crawl".
+        speed: gait speed, cycles/s.
+        servos: True while servos are driven (a backend is attached and healthy).
+        torque_on: whether the servos' torque is on.
+        standing_up: rising to the standing pose.
+        fault: "" or why the servos are no longer driven (press Reset).
+        running: whether the thread runs.
+    """
+
+    t: float = 0.0
+    walking: bool = False
+    stopping: bool = False
+    command: str = "forward"
+    gait: str = "trot"
+    speed: float = 0.5
+    servos: bool = False
+    torque_on: bool = False
+    standing_up: bool = False
+    fault: str = ""
+    running: bool = False
+
+
+class GaitLoop:
+    """Runs ``walker`` on ``backend`` every ``period`` s.
+
+    Args:
+        walker: the gait player.
+        backend: 12 servos in the walker's joint order, or None (animation only).
+        period: control period, s.
+        realtime: pace by the wall clock (False: as fast as possible, for tests).
+        speed: gait speed, cycles/s.
+        body_weight: N the stance feet carry on a Pushable (simulated) backend; None or 0:
+            no load.
+        to_servo: (12,) joint angles -> (12,) horn angles from the servo centre, rad (a
+            joint map's ``to_servo``); default identity.
+        history_s: seconds of record kept.
+    """
+
+    def __init__(self, walker: Walker, backend: Backend | None, *, period: float = 0.02,
+                 realtime: bool = True, speed: float = 0.5, body_weight: float | None = None,
+                 to_servo: Callable[[np.ndarray], np.ndarray] | None = None,
+                 history_s: float = 20.0, tick_s: float = 0.01,
+                 max_catch_up: float = 0.1) -> None:
+        if not (math.isfinite(period) and 0.001 <= period <= 0.2):
+            raise ValueError(f"period must be in [0.001, 0.2] s, got {period}")
+        self.walker = walker
+        self.backend = backend
+        self.period = float(period)
+        self.realtime = realtime
+        self.body_weight = float(body_weight or 0.0)
+        self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
+        self.tick_s = tick_s
+        self.max_catch_up = max_catch_up
+        self._speed = self._check_speed(speed)
+        self._cap = max(2, math.ceil(history_s / self.period))
+        self._width = sum(COLUMNS.values())
+        self._rows = np.full((self._cap, self._width), np.nan)
+        self._count = 0
+        self._rec_lock = threading.Lock()
+        self._commands: deque[Command] = deque()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._t = 0.0
+        self._walking = False
+        self._stopping = False
+        self._rest_at: float | None = None  # phase at which a stop completes
+        self._fault = ""
+        self._torque = backend is not None
+        self._torque_sent = False  # torque on is sent at the first period with servos
+        self._last_goal = np.full(12, np.nan)
+        self._ramp: tuple[np.ndarray, float] | None = None  # (from q, start time)
+        self.state: WalkState = walker.state()
+        self.status = self._make_status()
+
+    # --- commands (any thread) ---------------------------------------------------------
+
+    def post(self, command: Command) -> None:
+        """Run ``command(loop)`` in the loop thread before its next period."""
+        self._commands.append(command)
+
+    def go(self, plan: GaitPlan) -> None:
+        """Walk ``plan`` (a direction or a gait): at once when standing, else from the next
+        cycle boundary."""
+        def apply(loop: GaitLoop) -> None:
+            loop.walker.set_plan(plan, now=not loop._walking)
+            loop._walking, loop._stopping, loop._rest_at = True, False, None
+        self.post(apply)
+
+    def set_plan(self, plan: GaitPlan) -> None:
+        """Use ``plan`` from the next cycle boundary (at once when standing)."""
+        self.post(lambda loop: loop.walker.set_plan(plan, now=not loop._walking))
+
+    def stop(self) -> None:
+        """Walk on until all four feet stand, then stop there."""
+        def apply(loop: GaitLoop) -> None:
+            if loop._walking:
+                loop._stopping = True
+                loop._rest_at = loop.walker.phase + loop.walker.next_rest()
+        self.post(apply)
+
+    def set_speed(self, speed: float) -> None:
+        """Gait speed, cycles/s (0.05..3)."""
+        v = self._check_speed(speed)
+        self.post(lambda loop: setattr(loop, "_speed", v))
+
+    def set_in_place(self, in_place: bool) -> None:
+        """Walk in place (body held at the origin) or across the floor; back to the origin."""
+        def apply(loop: GaitLoop) -> None:
+            loop.walker.in_place = bool(in_place)
+            loop.walker.reset()
+        self.post(apply)
+
+    def reset(self) -> None:
+        """Stop, back to the origin at phase 0; torque on again and stand up (after an
+        e-stop or a fault)."""
+        def apply(loop: GaitLoop) -> None:
+            loop._walking = loop._stopping = False
+            loop._rest_at = None
+            loop.walker.reset()
+            if loop.backend is not None:
+                try:
+                    loop.backend.set_torque(True)
+                    loop._torque = True
+                    loop._fault = ""
+                    loop._ramp = None  # set from the next reading
+                except (BackendError, OSError, ValueError) as exc:
+                    loop._fail(f"torque on failed: {exc}")
+        self.post(apply)
+
+    def estop(self) -> None:
+        """Torque off now (from any thread; never raises) and stop walking."""
+        if self.backend is not None:
+            try:
+                self.backend.estop()
+            except (BackendError, OSError, ValueError):
+                pass
+
+        def apply(loop: GaitLoop) -> None:
+            loop._walking = loop._stopping = False
+            loop._torque = False
+            if loop.backend is not None:
+                loop.backend.estop()
+        self.post(apply)
+
+    @staticmethod
+    def _check_speed(speed: float) -> float:
+        v = float(speed)
+        if not (math.isfinite(v) and 0.05 <= v <= 3.0):
+            raise ValueError(f"gait speed must be 0.05..3 cycles/s, got {speed}")
+        return v
+
+    # --- the loop ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the loop thread."""
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="armlab-gait", daemon=True)
+        self._thread.start()
+
+    def shutdown(self, *, torque_off: bool = True) -> None:
+        """Stop the thread (waits for the current tick); torque off by default."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=3.0)
+        self._thread = None
+        if torque_off and self.backend is not None:
+            try:
+                self.backend.estop()
+            except (BackendError, OSError, ValueError):
+                pass
+            self._torque = False
+        self.status = self._make_status()
+
+    def run_for(self, seconds: float) -> None:
+        """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
+        if self._thread is not None:
+            raise RuntimeError("run_for: the loop thread is running")
+        for _ in range(max(1, round(seconds / self.period))):
+            self._period()
+
+    def _run(self) -> None:
+        start = time.perf_counter()
+        done = 0
+        per_tick = max(1, round(self.tick_s / self.period))
+        while not self._stop.is_set():
+            if self.realtime:
+                due = int((time.perf_counter() - start) / self.period) - done
+                limit = max(1, round(self.max_catch_up / self.period))
+                if due > limit:  # fell behind: skip wall time, do not race
+                    start += (due - limit) * self.period
+                    due = limit
+            else:
+                due = per_tick
+            for _ in range(due):
+                self._period()
+            done += due
+            self._stop.wait(self.tick_s if self.realtime else 0.002)
+        self.status = self._make_status()
+
+    def _fail(self, why: str) -> None:
+        self._fault = why
+        self._walking = self._stopping = False
+        self._torque = False
+        if self.backend is not None:
+            self.backend.estop()
+
+    def _period(self) -> None:
+        while self._commands:
+            self._commands.popleft()(self)
+        self._t += self.period
+        t = self._t
+        q_meas = np.full(12, np.nan)
+        servos = self.backend is not None and not self._fault
+        if servos:
+            try:
+                if self._torque and not self._torque_sent:
+                    self.backend.set_torque(True)  # goal = where each servo is: no jump
+                    self._torque_sent = True
+                self.backend.sync(t)
+                q_meas = np.asarray(self.backend.read().position, dtype=float)
+            except (BackendError, OSError) as exc:
+                self._fail(f"reading the servos failed: {exc}")
+                servos = False
+        state = self.state
+        self._record(t, state, q_meas)
+        if self._walking:
+            self.walker.advance(self._speed * self.period)
+            if self._stopping and self._rest_at is not None and \
+                    self.walker.phase >= self._rest_at - 1e-9:
+                self._walking = self._stopping = False
+                self._rest_at = None
+        state = self.walker.state()
+        self.state = state
+        goal = state.q
+        if servos and self._torque:
+            if self._ramp is None and np.all(np.isfinite(q_meas)):
+                self._ramp = (q_meas.copy(), t)
+            if self._ramp is not None and t - self._ramp[1] < STAND_UP_S:
+                s = (t - self._ramp[1]) / STAND_UP_S
+                goal = (1.0 - s) * self._ramp[0] + s * goal
+            prev = np.where(np.isfinite(self._last_goal), self._last_goal, goal)
+            speed = np.clip(1.5 * np.abs(goal - prev) / self.period, MIN_SPEED, MAX_SPEED)
+            try:
+                self.backend.write(goal, speed)
+                self._load_feet(state)
+            except (BackendError, OSError) as exc:
+                self._fail(f"writing the servos failed: {exc}")
+            except ValueError as exc:
+                self._fail(f"goal refused: {exc}")
+        self._last_goal = goal.copy()
+        self.status = self._make_status()
+
+    def _load_feet(self, state: WalkState) -> None:
+        """The floor's reaction on the stance feet (simulated legs only)."""
+        backend = self.backend
+        if self.body_weight <= 0 or not isinstance(backend, Pushable):
+            return
+        down = np.flatnonzero(state.stance)
+        if len(down) == 0:
+            return
+        point = getattr(backend, "foot_point", None)
+        share = np.array([0.0, 0.0, self.body_weight / len(down)])
+        for i in down:
+            where = point(int(i)) if point is not None else np.zeros(3)
+            backend.push(share, link=3 * int(i) + 2, point=where, duration=self.period)
+
+    def _record(self, t: float, state: WalkState, q_meas: np.ndarray) -> None:
+        row = np.concatenate([[t, float(self._walking and self._ramp_done(t)), state.phase],
+                              self._last_goal, q_meas, [state.margin], state.body,
+                              state.stance.astype(float), state.feet.reshape(12)])
+        with self._rec_lock:
+            self._rows[self._count % self._cap] = row
+            self._count += 1
+
+    def _ramp_done(self, t: float) -> bool:
+        return self._ramp is None or t - self._ramp[1] >= STAND_UP_S + self.period
+
+    def _make_status(self) -> GaitStatus:
+        spec = self.walker.plan.spec
+        return GaitStatus(
+            t=self._t, walking=self._walking, stopping=self._stopping, command=spec.command,
+            gait=spec.gait, speed=self._speed,
+            servos=self.backend is not None and not self._fault, torque_on=self._torque,
+            standing_up=self._ramp is not None and self._t - self._ramp[1] < STAND_UP_S,
+            fault=self._fault, running=self._thread is not None)
+
+    # --- reading (any thread) ------------------------------------------------------------
+
+    def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
+        """Copy of the record, oldest first: each of :data:`COLUMNS` as (m,) or (m, k).
+
+        ``feet`` is (m, 12): the four feet's world x, y, z in leg order.
+        ``q_cmd`` is the goal sent one period before ``q`` was read (without servos: the
+        commanded angles; NaN before the first); ``q`` is NaN without servos; ``walking``
+        is 1 while the gait runs (after standing up).
+        """
+        with self._rec_lock:
+            n = min(self._count, self._cap)
+            if self._count <= self._cap:
+                rows = self._rows[:n].copy()
+            else:
+                k = self._count % self._cap
+                rows = np.concatenate([self._rows[k:], self._rows[:k]])
+        if window_s is not None and n:
+            rows = rows[rows[:, 0] >= rows[-1, 0] - window_s]
+        out, c = {}, 0
+        for name, width in COLUMNS.items():
+            out[name] = rows[:, c] if width == 1 else rows[:, c:c + width]
+            c += width
+        return out
+
+    def angle_error(self, window_s: float | None = None) -> dict[str, object] | None:
+        """Seed 003 eq. 4.1 over the walking samples of the last ``window_s`` s.
+
+        Commanded = the goal sent (IK angle + the servo's set point), actual = the
+        position the servo reported one period later, both as horn angles in degrees from
+        the servo's raw 0 (:func:`control.walking.servo_angle_deg`).
+
+        Returns:
+            None without walking samples read from servos; else ``mean_pct`` (mean |%| over
+            all servos), ``per_servo_pct`` (3,) by servo number in the leg (1 hip yaw,
+            2 hip pitch, 3 knee), ``per_joint_pct`` (12,), ``samples``.
+        """
+        snap = self.snapshot(window_s)
+        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q_cmd"]), axis=1) \
+            & np.all(np.isfinite(snap["q"]), axis=1)
+        if not ok.any():
+            return None
+        cmd = servo_angle_deg(np.array([self.to_servo(q) for q in snap["q_cmd"][ok]]))
+        act = servo_angle_deg(np.array([self.to_servo(q) for q in snap["q"][ok]]))
+        per_joint = np.array([mean_angle_error_pct(cmd[:, j], act[:, j]) for j in range(12)])
+        per_servo = per_joint.reshape(4, 3).mean(axis=0)
+        return {"mean_pct": mean_angle_error_pct(cmd, act), "per_servo_pct": per_servo,
+                "per_joint_pct": per_joint, "samples": int(ok.sum())}

@@ -1,0 +1,578 @@
+"""The control loop: one period = read the servos, run the controller, write goals, record.
+
+``ControlLoop`` runs at the fixed period ``params.period`` either in its own
+thread paced by the wall clock (``start()`` / ``shutdown()``) or stepped as fast
+as possible by the caller (``step()``, ``run_for(seconds)``) for headless runs
+and tests. Backend time is the loop's own clock k·T, so a simulated arm gives
+the same numbers paced or not.
+
+One writer per piece of state: only the loop touches the backend and the
+controller. Other threads
+
+* replace the parameters (``set_params``; swapped at the next period boundary),
+* post commands (``post``; applied at the next period, in order),
+* read ``status`` (a frozen snapshot) and ``recorder.snapshot()``.
+
+Safety: every goal is clamped into the joint limits (model and backend) and
+every speed into the joint's speed limit before ``write``. A non-finite value,
+a reference acceleration beyond ``max_accel`` or a reference speed at the
+servo's limit (gains unstable for this arm and period), a joint lagging its
+reference by more than ``max_lag`` for ``lag_time`` (blocked, or an oscillation
+growing), a servo error or a ``BackendError`` stops the controller: torque goes
+off (``backend.estop()``), ``status.fault`` says why, nothing escapes the
+thread; ``Reset`` starts again from where the arm is.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from control.backend import Backend, BackendError, JointState, Pushable
+from control.commands import (
+    COMMANDS,
+    Command,
+    EStop,
+    Push,
+    Reset,
+    RunTrajectory,
+    SetController,
+    SetTarget,
+    Spring,
+    Stop,
+)
+from control.compliance import MODES, ComplianceController, ControllerState, Mode
+from control.params import DEFAULT, Params, loop_stability, stability_warning
+from control.recorder import Recorder
+from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
+from kinematics.dynamics import rnea
+from kinematics.ik import rmrc
+from kinematics.model import SerialChain
+
+#: Protocol-1.0 error bits, for fault messages.
+SERVO_ERRORS = ("input voltage", "angle limit", "overheating", "range", "checksum",
+                "overload", "instruction")
+DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
+TARGET_SPEED = 0.156  #: m/s hand speed when following a target (thesis: 2.5 mm / 16 ms)
+SWITCH_INTERVAL = 0.001  #: s, the interpreter's thread switch interval while paced
+APPROACH_MIN = 0.01  #: rad; a trajectory starting farther than this from the command is approached
+
+
+@dataclass(frozen=True)
+class LoopStatus:
+    """A snapshot of the loop for the UI (all times in s unless the name says ms).
+
+    Attributes:
+        running: the loop thread is alive (always False when stepped headless).
+        active: the controller is writing goals (False after a fault, e-stop, before start).
+        torque_on: the loop last switched the servos' torque on.
+        estopped: an e-stop is in force (until Reset).
+        fault: why the controller stopped, or None.
+        message: the latest note for a person (a refused push, an unreachable target...).
+        t: loop time.
+        steps: periods run.
+        controller: "none", "pd" or "compliance" (the mode asked for).
+        trajectory: name of the trajectory playing, or None.
+        progress: 0..1 through it.
+        period_ms: the nominal period.
+        period_mean_ms: mean measured period (paced runs; None headless).
+        jitter_p50_ms, jitter_p99_ms, jitter_max_ms: lateness of period starts
+            over the last 1000 periods (paced runs; None headless).
+        overruns: periods started more than one period late.
+        warning: :func:`control.params.stability_warning` of the current parameters.
+    """
+
+    running: bool
+    active: bool
+    torque_on: bool
+    estopped: bool
+    fault: str | None
+    message: str
+    t: float
+    steps: int
+    controller: str
+    trajectory: str | None
+    progress: float
+    period_ms: float
+    period_mean_ms: float | None
+    jitter_p50_ms: float | None
+    jitter_p99_ms: float | None
+    jitter_max_ms: float | None
+    overruns: int
+    warning: str | None
+
+
+class _Fault(Exception):
+    """Raised inside a period to stop the controller with a message."""
+
+
+class ControlLoop:
+    """Fixed-period loop running a :class:`ComplianceController` on any :class:`Backend`.
+
+    Args:
+        model: the arm (joint order = backend order).
+        backend: the servos (simulated or real).
+        params: controller parameters (default: the well-damped preset).
+        controller: "none", "pd" or "compliance".
+        realtime: ``start()`` paces periods by the wall clock; False runs them back to back.
+        history_s: seconds of signals the recorder keeps.
+        max_accel: rad/s²; a larger reference acceleration is a fault (unstable gains).
+        max_lag, lag_time: a joint farther than ``max_lag`` rad from its reference for
+            ``lag_time`` s is a fault (blocked, overloaded, or an oscillation growing).
+        target_speed: m/s, hand speed when following a ``SetTarget``.
+    """
+
+    def __init__(self, model: SerialChain, backend: Backend, params: Params | None = None, *,
+                 controller: Mode = "compliance", realtime: bool = True,
+                 history_s: float = 20.0, max_accel: float = 500.0, max_lag: float = 0.5,
+                 lag_time: float = 0.5, target_speed: float = TARGET_SPEED) -> None:
+        if not isinstance(backend, Backend):
+            raise ValueError(f"backend must implement control.backend.Backend, got "
+                             f"{type(backend).__name__}")
+        if backend.n != model.n:
+            raise ValueError(f"backend has {backend.n} joints but the model {model.name!r} "
+                             f"has {model.n}")
+        params = DEFAULT if params is None else params
+        if not isinstance(params, Params):
+            raise ValueError(f"params must be a control.params.Params, got "
+                             f"{type(params).__name__}")
+        if controller not in MODES:
+            raise ValueError(f"controller must be one of {', '.join(MODES)}, got {controller!r}")
+        if not (math.isfinite(history_s) and history_s > 0):
+            raise ValueError(f"history_s must be > 0, got {history_s}")
+        self.model = model
+        self.backend = backend
+        self.realtime = realtime
+        self.history_s = float(history_s)
+        self.max_accel = float(max_accel)
+        self.max_lag = float(max_lag)
+        self.lag_time = float(lag_time)
+        self._lag_time = 0.0
+        self.target_speed = float(target_speed)
+        self.lower = np.maximum(model.lower, np.asarray(backend.lower, dtype=float))
+        self.upper = np.minimum(model.upper, np.asarray(backend.upper, dtype=float))
+        vel = np.array([j.velocity for j in model.joints], dtype=float)
+        self.max_speed = np.where(np.isfinite(vel) & (vel > 0), vel, DEFAULT_MAX_SPEED)
+        self.controller = ComplianceController(self.lower, self.upper, self.max_speed,
+                                               mode=controller)
+        self._params = params
+        self._pending: Params | None = None
+        self._commands: queue.SimpleQueue[Command] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self.recorder = Recorder(model.n, self._capacity(params.period),
+                                 joint_names=model.joint_names)
+        # loop-thread state
+        self._k = 0
+        self._t = 0.0
+        self._state: ControllerState | None = None
+        self._hold: np.ndarray | None = None
+        self._qd_cmd_prev = np.zeros(model.n)
+        self._traj: JointTrajectory | None = None
+        self._traj_t0 = 0.0
+        self._target: np.ndarray | None = None
+        self._active = False
+        self._torque_on = False
+        self._estopped = False
+        self._backend_ok = True
+        self._fault: str | None = None
+        self._message = ""
+        self._lateness: deque[float] = deque(maxlen=1000)
+        self._periods: deque[float] = deque(maxlen=1000)
+        self._overruns = 0
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._warning = stability_warning(params)
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def params(self) -> Params:
+        """The parameters in force (a pending swap shows after the next period)."""
+        with self._lock:
+            return self._pending or self._params
+
+    def set_params(self, params: Params, *, force: bool = False) -> str | None:
+        """Use ``params`` from the next period boundary on.
+
+        Gains whose sampled loop diverges even on an ideal servo are refused unless
+        ``force`` (to demonstrate instability; the run-time checks still stop the arm).
+
+        Returns:
+            :func:`stability_warning` for the new parameters (None when all is well).
+
+        Raises:
+            ValueError: not a Params, or unstable gains without ``force``.
+        """
+        if not isinstance(params, Params):
+            raise ValueError(f"params must be a control.params.Params, got "
+                             f"{type(params).__name__}")
+        warning = stability_warning(params)
+        if loop_stability(params).unstable and not force:
+            raise ValueError(f"gains refused: {warning}")
+        with self._lock:
+            self._pending = params
+        return warning
+
+    def post(self, command: Command) -> None:
+        """Queue ``command``; the loop applies it at the start of its next period."""
+        if not isinstance(command, COMMANDS):
+            raise ValueError(f"not a loop command: {type(command).__name__}")
+        self._commands.put(command)
+
+    @property
+    def status(self) -> LoopStatus:
+        """A consistent snapshot (cheap; safe from any thread)."""
+        with self._lock:
+            lat = np.array(self._lateness) if self._lateness else None
+            per = np.array(self._periods) if self._periods else None
+            traj, progress = None, 0.0
+            if self._traj is not None:
+                traj = self._traj.name or "trajectory"
+                d = self._traj.duration
+                progress = 1.0 if d <= 0 else min(1.0, max(0.0, (self._t - self._traj_t0) / d))
+            return LoopStatus(
+                running=self._thread is not None and self._thread.is_alive(),
+                active=self._active, torque_on=self._torque_on, estopped=self._estopped,
+                fault=self._fault, message=self._message, t=self._t, steps=self._k,
+                controller=self.controller.mode, trajectory=traj, progress=progress,
+                period_ms=self._params.period * 1e3,
+                period_mean_ms=None if per is None else float(per.mean() * 1e3),
+                jitter_p50_ms=None if lat is None else float(np.percentile(lat, 50) * 1e3),
+                jitter_p99_ms=None if lat is None else float(np.percentile(lat, 99) * 1e3),
+                jitter_max_ms=None if lat is None else float(lat.max() * 1e3),
+                overruns=self._overruns, warning=self._warning,
+            )
+
+    def step(self) -> None:
+        """Run one period now (headless use; do not mix with a running thread)."""
+        if self._thread is not None and self._thread.is_alive():
+            raise RuntimeError("the loop thread is running; post commands instead of step()")
+        self._tick()
+
+    def run_for(self, seconds: float) -> LoopStatus:
+        """Run ``seconds`` of loop time headless (as fast as possible); stops at a fault."""
+        end = self._t + float(seconds)
+        while self._t + 0.5 * self.params.period <= end:
+            self.step()
+            if self._fault is not None:
+                break
+        return self.status
+
+    def start(self) -> None:
+        """Run the loop in its own daemon thread (paced when ``realtime``).
+
+        A paced loop lowers the interpreter's thread switch interval to 1 ms
+        (``sys.setswitchinterval``; the default 5 ms lets a busy UI thread hold the
+        GIL for 5 ms while a period is due).
+        """
+        if self._thread is not None and self._thread.is_alive():
+            return
+        if self.realtime:
+            sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL))
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="armlab-control", daemon=True)
+        self._thread.start()
+
+    def shutdown(self, *, torque_off: bool = False, timeout: float = 2.0) -> None:
+        """Stop the thread (finishing the current period); optionally switch torque off."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        if torque_off and self._backend_ok:
+            self._safe_estop()
+            self._torque_on = False
+
+    # ------------------------------------------------------------------ thread
+
+    def _run(self) -> None:
+        next_t = time.perf_counter()
+        last_start: float | None = None
+        while not self._stop.is_set():
+            period = self._params.period
+            if self.realtime:
+                _sleep_until(next_t, self._stop)
+                if self._stop.is_set():
+                    break
+            start = time.perf_counter()
+            if self.realtime:
+                late = start - next_t
+                with self._lock:
+                    self._lateness.append(max(0.0, late))
+                    if last_start is not None:
+                        self._periods.append(start - last_start)
+                if late > period:
+                    with self._lock:
+                        self._overruns += 1
+                    next_t = start  # re-anchor: never try to catch up a burst of periods
+            last_start = start
+            self._tick()
+            next_t += self._params.period
+
+    # ------------------------------------------------------------------ one period
+
+    def _tick(self) -> None:
+        try:
+            self._period()
+        except _Fault as exc:
+            self._fail(str(exc))
+        except BackendError as exc:
+            self._backend_ok = False
+            self._fail(f"backend error: {exc}")
+        except ArithmeticError as exc:  # e.g. the simulated plant diverged
+            self._fail(f"numerical failure ({exc}); torque off")
+        except Exception as exc:  # keep the arm safe whatever went wrong in this period
+            self._fail(f"internal error ({type(exc).__name__}: {exc}); torque off")
+        finally:
+            with self._lock:
+                self._k += 1
+                self._t += self._params.period
+
+    def _period(self) -> None:
+        self._swap_params()
+        cmds: list[Command] = []
+        while True:
+            try:
+                cmds.append(self._commands.get_nowait())
+            except queue.Empty:
+                break
+        p, t = self._params, self._t
+        if not self._backend_ok:  # the link failed: touch nothing until a Reset
+            if any(isinstance(c, Reset) for c in cmds):
+                self._backend_ok, self._state = True, None
+                self._clear_fault()
+            return
+        self.backend.sync(t)
+        meas = self.backend.read()
+        q, qd, load = (np.asarray(meas.position, dtype=float),
+                       np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
+        started = self._state is None or any(isinstance(c, Reset) for c in cmds)
+        if self._state is None:
+            self._start(meas)
+        for cmd in cmds:
+            self._apply(cmd, meas)
+        if not self._active:  # faulted or e-stopped: keep watching, write nothing
+            self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
+            return
+        for name, arr in (("position", q), ("velocity", qd), ("load", load)):
+            if not np.all(np.isfinite(arr)):
+                raise _Fault(f"the servos reported a non-finite {name} ({arr.tolist()}); "
+                             "torque off")
+        bad = [(j, e) for j, e in enumerate(meas.errors) if e]
+        if bad and not started:  # a Reset's torque-on clears them by the next reading
+            j, e = bad[0]
+            names = ", ".join(n for b, n in enumerate(SERVO_ERRORS) if e & (1 << b))
+            raise _Fault(f"servo of joint {self.model.joints[j].name} reports {names or e}; "
+                         "torque off (check load, temperature and supply, then Reset)")
+        q_cmd, qd_cmd, qdd_cmd = self._command(t, p.period)
+        st = self._state
+        assert st is not None
+        tau_dyn = rnea(self.model, q, qd, st.qdd_ref)
+        q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
+        if not (np.all(np.isfinite(q_ref)) and np.all(np.isfinite(qd_ref))
+                and np.all(np.isfinite(st.qdd_ref))):
+            raise _Fault("the controller produced a non-finite goal (unstable gains?); "
+                         "torque off")
+        worst = int(np.argmax(np.abs(st.qdd_ref)))
+        if abs(st.qdd_ref[worst]) > self.max_accel:
+            raise _Fault(
+                f"unstable: reference acceleration {st.qdd_ref[worst]:.0f} rad/s² on joint "
+                f"{self.model.joints[worst].name} exceeds {self.max_accel:g} "
+                f"(Kp {p.kp:g}, Kv {p.kv:g}, M_env {p.m_env:g}, D_env {p.d_env:g}, "
+                f"K_env {p.k_env:g}, K_f {p.k_f:g} at {p.period * 1e3:g} ms); torque off")
+        fast = np.abs(qd_ref) >= self.max_speed * (1.0 - 1e-9)
+        if np.any(fast):
+            j = int(np.argmax(fast))
+            raise _Fault(f"unstable: the reference speed of joint {self.model.joints[j].name} "
+                         f"reached the servo's limit ({self.max_speed[j]:.1f} rad/s); "
+                         "torque off (lower the gains)")
+        lag = np.abs(q_ref - q) > self.max_lag
+        self._lag_time = self._lag_time + p.period if np.any(lag) else 0.0
+        if self._lag_time > self.lag_time:
+            j = int(np.argmax(np.abs(q_ref - q)))
+            raise _Fault(f"joint {self.model.joints[j].name} has been more than "
+                         f"{np.degrees(self.max_lag):.0f}° from its reference for "
+                         f"{self.lag_time:g} s (blocked, overloaded or oscillating); torque off")
+        goal = np.clip(q_ref, self.lower, self.upper)
+        speed = np.minimum(np.abs(qd_ref), self.max_speed)
+        self.backend.write(goal, speed)
+        self._record(t, q_cmd=q_cmd, q_ref=goal, q=q, error=q_cmd - q, qd_ref=qd_ref,
+                     load=load, tau_load=st.tau_lpf, tau_dyn=tau_dyn, tau_ext=st.tau_ext,
+                     q_env=st.q_env)
+
+    def _record(self, t: float, **signals: np.ndarray) -> None:
+        self.recorder.append(t, signals)
+
+    def _swap_params(self) -> None:
+        with self._lock:
+            new, self._pending = self._pending, None
+        if new is None:
+            return
+        old = self._params
+        with self._lock:
+            self._params = new
+            self._warning = stability_warning(new)
+        if new.period != old.period:
+            self.recorder.resize(self._capacity(new.period))
+
+    def _capacity(self, period: float) -> int:
+        return max(2, int(math.ceil(self.history_s / period)) + 1)
+
+    def _start(self, meas: JointState) -> None:
+        """First period (or Reset): hold where the arm is, torque on."""
+        q = np.clip(np.asarray(meas.position, dtype=float), self.lower, self.upper)
+        if not np.all(np.isfinite(q)):
+            raise _Fault("the servos reported a non-finite position; torque off")
+        self._state = ControllerState.at_rest(q, np.nan_to_num(np.asarray(meas.load, float)))
+        self._lag_time = 0.0
+        self._hold = q.copy()
+        self._qd_cmd_prev = np.zeros(self.model.n)
+        self._traj = None
+        self._target = None
+        self.backend.set_torque(True)
+        with self._lock:
+            self._torque_on = True
+            self._active = True
+
+    def _fail(self, why: str) -> None:
+        self._safe_estop()
+        with self._lock:
+            if self._fault is None:
+                self._fault = why
+                self._message = why
+            self._active = False
+            self._torque_on = False
+
+    def _safe_estop(self) -> None:
+        try:
+            self.backend.estop()
+        except Exception as exc:  # estop must not raise; note it and go on
+            with self._lock:
+                self._message = f"e-stop failed too ({exc}); switch the servo power off"
+
+    def _note(self, msg: str) -> None:
+        with self._lock:
+            self._message = msg
+
+    # ------------------------------------------------------------------ commands
+
+    def _clear_fault(self) -> None:
+        with self._lock:
+            self._fault = None
+            self._estopped = False
+            self._message = "reset: holding the arm where it is"
+
+    def _apply(self, cmd: Command, meas: JointState) -> None:
+        if isinstance(cmd, Reset):
+            self._clear_fault()
+            self._start(meas)
+            return
+        if isinstance(cmd, EStop):
+            self._safe_estop()
+            with self._lock:
+                self._estopped = True
+                self._active = False
+                self._torque_on = False
+                self._message = "e-stop: torque off; Reset to go on"
+            return
+        if isinstance(cmd, SetController):
+            self.controller.mode = cmd.mode
+            if self._state is not None:  # bumpless: go on from the current reference
+                self._state.q_env[:] = self._state.qd_env[:] = self._state.qdd_env[:] = 0.0
+            self._note(f"controller: {cmd.mode}")
+            return
+        if isinstance(cmd, Push | Spring):
+            if not isinstance(self.backend, Pushable):
+                self._note("this backend cannot be pushed: push the real arm by hand")
+            elif isinstance(cmd, Push):
+                self.backend.push(cmd.force, link=cmd.link, point=cmd.point,
+                                  duration=cmd.duration)
+            else:
+                self.backend.set_spring(cmd.anchor, stiffness=cmd.stiffness, link=cmd.link,
+                                        point=cmd.point)
+            return
+        assert self._hold is not None
+        current = self._current_cmd()
+        if isinstance(cmd, Stop):
+            self._hold, self._traj, self._target = current, None, None
+            self._note("stopped: holding the command")
+        elif isinstance(cmd, RunTrajectory):
+            traj = cmd.trajectory
+            if traj.n != self.model.n:
+                self._note(f"trajectory has {traj.n} joints, the arm {self.model.n}; ignored")
+                return
+            if cmd.approach and np.max(np.abs(traj.q[0] - current)) > APPROACH_MIN:
+                approach = minimum_jerk(current, traj.q[0],
+                                        approach_duration(current, traj.q[0]))
+                traj = approach.then(traj, name=traj.name)
+            self._traj, self._traj_t0, self._target = traj, self._t, None
+            self._note(f"running {traj.name or 'trajectory'} ({traj.duration:.2f} s)")
+        elif isinstance(cmd, SetTarget):
+            self._traj = None
+            self._hold = current
+            self._target = cmd.xyz
+            if cmd.xyz is None:
+                self._note("target released: holding")
+
+    def _current_cmd(self) -> np.ndarray:
+        if self._traj is not None:
+            return self._traj.sample(self._t - self._traj_t0)[0]
+        assert self._hold is not None
+        return self._hold.copy()
+
+    def _command(self, t: float, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """θ_cmd, θ̇_cmd, θ̈_cmd for this period (trajectory, target or hold), in limits."""
+        if self._traj is not None:
+            q, qd, qdd = self._traj.sample(t - self._traj_t0)
+            if t - self._traj_t0 >= self._traj.duration:
+                self._hold, self._traj = q.copy(), None
+                self._note("trajectory done: holding the last point")
+        elif self._target is not None:
+            q, qd, qdd = self._follow_target(period)
+        else:
+            assert self._hold is not None
+            q, qd, qdd = self._hold.copy(), np.zeros(self.model.n), np.zeros(self.model.n)
+        q = np.clip(q, self.lower, self.upper)
+        self._qd_cmd_prev = qd
+        return q, qd, qdd
+
+    def _follow_target(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One RMRC sample towards the target: dX limited to ``target_speed``·T (thesis §3.3)."""
+        assert self._hold is not None and self._target is not None
+        q0 = self._hold
+        x = self.model.fk(q0)[:3, 3]
+        dx = self._target - x
+        dist = float(np.linalg.norm(dx))
+        reach = self.target_speed * period
+        if dist > reach:
+            dx *= reach / dist
+        if dist < 1e-5:
+            q1 = q0
+        else:
+            res = rmrc(self.model, x + dx, q0, restarts=0, max_iter=20)
+            q1 = np.clip(res.q, self.lower, self.upper)
+            if not res.reached:
+                self._note(f"target out of reach: {res.message}")
+        qd = (q1 - q0) / period
+        qdd = (qd - self._qd_cmd_prev) / period
+        self._hold = q1
+        return q1.copy(), qd, qdd
+
+
+def _sleep_until(deadline: float, stop: threading.Event) -> None:
+    """Sleep to ``deadline`` (perf_counter s): coarse sleep, then a short spin for precision."""
+    while True:
+        left = deadline - time.perf_counter()
+        if left <= 0 or stop.is_set():
+            return
+        if left > 0.002:
+            time.sleep(left - 0.0015)
+        elif left > 0.0002:
+            time.sleep(0)
+        # else spin the last 0.2 ms

@@ -1,0 +1,325 @@
+"""``DynamixelBackend``: the controller's servos are real (or emulated) Dynamixels on a port.
+
+Implements ``control.backend.Backend`` over a :class:`~hardware.bus.Bus`:
+
+- open: find every mapped servo (PING, model number; a wrong model is refused),
+  read its CW/CCW angle limits and narrow the joint limits to them;
+- :meth:`DynamixelBackend.configure`: the thesis's configuration sequence
+  (§2.3, Fig. 2.22): return delay 0, status return level 1 (answer READ only),
+  compliance margins 0 and slopes 64, torque limit, baud. Explicit and logged;
+  EEPROM items are written only when they differ (EEPROM wears);
+- :meth:`read`: one READ of addresses 36..41 (present position, speed, load) per
+  servo (the AX-12A and RX-24F have no SYNC_READ);
+- :meth:`write`: every goal position and moving speed in one SYNC_WRITE, after
+  clamping into the joint limits, so a goal outside the CW/CCW limits never
+  leaves the process;
+- :meth:`estop`: broadcast torque off; also tried whenever the link fails.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from control.backend import BackendError, JointState
+from hardware import protocol1 as p1
+from hardware.bus import Bus, BusError, BusStats, sync_data
+from hardware.control_table import ControlTable, table_for
+from hardware.joint_map import JointMap, default_joint_map, load_joint_map
+from hardware.servo_spec import value_from_baud
+from kinematics.model import Quadruped, SerialChain
+
+log = logging.getLogger("armlab.dynamixel")
+
+#: Thesis §2.3 "Set Compliance Margin and Slope": margins 0, slopes 64 (0x40).
+THESIS_COMPLIANCE_MARGIN = 0
+THESIS_COMPLIANCE_SLOPE = 64
+#: Thesis §2.3 "Set Status Return Level": 1 = status packets for READ only.
+THESIS_STATUS_RETURN_LEVEL = 1
+#: Error bits that stop the servo's torque with the default alarm shutdown (36).
+SHUTDOWN_BITS = p1.ErrorBits.OVERHEATING | p1.ErrorBits.OVERLOAD
+#: rad/s towards the goal set when torque comes on (the present position, clamped).
+SAFE_SPEED = 1.0
+
+
+class DynamixelBackend:
+    """A :class:`~control.backend.Backend` on protocol-1.0 servos.
+
+    Args:
+        model: the robot model (joint order, joint limits).
+        port: serial device (or the emulator's /dev/pts/N).
+        baud: bit/s the servos run at after configuration (thesis: 1 Mbps).
+        joint_map: joint-to-servo mapping, or the path of a JSON/TOML map file;
+            default: :func:`default_joint_map` (thesis IDs 1, 3, 5 for the receptionist arm).
+        from_baud: bit/s the servos answer at now, if not ``baud`` (e.g. an RX-24F
+            fresh from the factory at 57 600): configuration then switches them.
+        configure: run the thesis's configuration sequence on open.
+        torque_limit: fraction 0..1 of the maximum torque for the torque limit.
+        status_return_level: what the servos answer after configuration (1 or 2).
+        retries, timeout_margin, echo, rs485: passed to :class:`~hardware.bus.Bus`.
+
+    Raises:
+        BackendError: port missing/busy/forbidden, a servo silent or of the wrong model.
+    """
+
+    def __init__(self, model: SerialChain | Quadruped, port: str, *, baud: float = 1_000_000,
+                 joint_map: JointMap | str | Path | None = None, from_baud: float | None = None,
+                 configure: bool = True, torque_limit: float = 1.0,
+                 status_return_level: int = THESIS_STATUS_RETURN_LEVEL,
+                 retries: int = 2, timeout_margin: float = 0.010, echo: bool = False,
+                 rs485: bool = False):
+        if not 0.0 <= torque_limit <= 1.0:
+            raise ValueError(f"torque_limit: a fraction 0..1 of max torque, got {torque_limit}")
+        if status_return_level not in (1, 2):
+            raise ValueError(f"status_return_level must be 1 or 2, got {status_return_level}")
+        value_from_baud(baud)  # ValueError for a rate the servos cannot take
+        self.model = model
+        if isinstance(joint_map, str | Path):
+            joint_map = load_joint_map(joint_map, model)
+        self.map = joint_map or default_joint_map(model)
+        self.table: ControlTable = table_for(self.map.servo)
+        self.spec = self.table.spec
+        self.baud = float(baud)
+        self.torque_limit = float(torque_limit)
+        self._torque_limit_raw = self.spec.torque_limit_to_raw(
+            torque_limit * self.spec.stall_torque)
+        self.status_return_level_setting = int(status_return_level)
+        self.configuration: list[str] = []
+        self.estops = 0
+        self._torque = False
+        self._shutdown = np.zeros(self.map.n, dtype=bool)
+        self._closed = False
+        self._sync_t0: float | None = None
+        #: s, the most a ``sync(t)`` came after its time (the loop or the OS stalled)
+        self.late_max = 0.0
+        self.bus = Bus(port, from_baud or baud, retries=retries, timeout_margin=timeout_margin,
+                       echo=echo, rs485=rs485, table=self.table)
+        try:
+            self._find_servos()
+            self._lower, self._upper = self._limits()
+            if configure:
+                self.configure(from_baud=from_baud)
+            elif from_baud is not None and from_baud != baud:
+                raise ValueError("from_baud needs configure=True to switch the servos' baud")
+        except BaseException:
+            self.bus.close()
+            raise
+        self._t0 = time.monotonic()
+
+    # -- Backend protocol ---------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        return self.map.n
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self._lower.copy()
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self._upper.copy()
+
+    @property
+    def stats(self) -> BusStats:
+        """The bus counters (transactions, retries, timeouts, corrupt replies...)."""
+        return self.bus.stats
+
+    def sync(self, t: float) -> None:
+        """Hardware lives in real time: nothing to integrate.
+
+        A loop running ahead of the wall clock (headless ``run_for``) is held back
+        until ``t`` s after its first ``sync``, so a 16 ms period stays 16 ms on the
+        servos; a real-time loop (behind or on time) never waits here.
+        """
+        now = time.monotonic()
+        if self._sync_t0 is None:
+            self._sync_t0 = now - t
+        wait = self._sync_t0 + t - now
+        if wait > 0:
+            time.sleep(wait)
+        else:
+            self.late_max = max(self.late_max, -wait)
+
+    def read(self) -> JointState:
+        """READ 36..41 of every servo -> joint positions, speeds, loads and error bits."""
+        pos = np.empty(self.n)
+        vel = np.empty(self.n)
+        load = np.empty(self.n)
+        errors = []
+        s = self.spec
+        for k, j in enumerate(self.map.joints):
+            data = self._guard(self.bus.read_bytes, j.servo_id, 36, 6)
+            pos[k] = s.raw_to_position(int.from_bytes(data[0:2], "little"))
+            vel[k] = s.raw_to_present_speed(int.from_bytes(data[2:4], "little"))
+            load[k] = s.raw_to_load(int.from_bytes(data[4:6], "little"))
+            err = int(self.bus.errors.get(j.servo_id, 0))
+            errors.append(err)
+            if err & SHUTDOWN_BITS and not self._shutdown[k]:
+                self._shutdown[k] = True
+                log.warning("joint %s (servo %d): %s; its torque is off", j.name, j.servo_id,
+                            p1.describe_errors(err))
+        signs = self.map.signs
+        return JointState(
+            t=time.monotonic() - self._t0,
+            position=self.map.to_joint(pos),
+            velocity=signs * vel,
+            load=signs * load,
+            errors=tuple(errors),
+            torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
+        )
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Clamp goals into the limits and send them with the speeds in one SYNC_WRITE."""
+        q = np.asarray(position, dtype=float)
+        v = np.asarray(speed, dtype=float)
+        if q.shape != (self.n,) or v.shape != (self.n,):
+            raise ValueError(f"position and speed must be ({self.n},), got {q.shape}, {v.shape}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise ValueError("position/speed: non-finite values; nothing sent")
+        raw_goal, raw_speed = self.goal_words(q, v)
+        data = sync_data({j.servo_id: (g, sp) for j, g, sp in
+                          zip(self.map.joints, raw_goal, raw_speed, strict=True)}, (2, 2))
+        self._guard(self.bus.sync_write, 30, 4, data)
+
+    def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
+        """Raw goal positions and moving speeds for joint goals: clamped into
+        [lower, upper], then into each servo's CW..CCW limits (never outside)."""
+        q = np.clip(position, self._lower, self._upper)
+        a = self.map.to_servo(q)
+        goals = [min(max(self.spec.position_to_raw(x), lo), hi)
+                 for x, lo, hi in zip(a, self._cw, self._ccw, strict=True)]
+        speeds = [self.spec.speed_to_raw(abs(x)) for x in speed]
+        return goals, speeds
+
+    def set_torque(self, on: bool) -> None:
+        """Torque on or off. A servo whose torque was off first gets its present position
+        (clamped into the limits) as goal at ``SAFE_SPEED``, so nothing jumps; the torque
+        limit is written again (the recovery from an overload shutdown)."""
+        ids = self.map.ids
+        if on:
+            # an overload shutdown zeroed the torque limit: restoring it is the recovery
+            limit = p1.word(self._torque_limit_raw)
+            self._guard(self.bus.sync_write, 34, 2, {i: limit for i in ids})
+            off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
+            if off:  # only servos without torque get a new goal (holding ones keep theirs)
+                here = self.read().position
+                goals, speeds = self.goal_words(here, np.full(self.n, SAFE_SPEED))
+                self._guard(self.bus.sync_write, 30, 4, sync_data(
+                    {ids[k]: (goals[k], speeds[k]) for k in off}, (2, 2)))
+            self._guard(self.bus.sync_write, 24, 1, {i: b"\x01" for i in ids})
+            self._shutdown[:] = False
+        else:
+            self._guard(self.bus.sync_write, 24, 1, {i: b"\x00" for i in ids})
+        self._torque = bool(on)
+
+    def estop(self) -> None:
+        """Broadcast torque off now; never raises (the link may be gone)."""
+        self.estops += 1
+        self._torque = False
+        try:
+            self.bus.transact(p1.write(p1.BROADCAST_ID, 24, b"\x00"), reply=False)
+            log.warning("e-stop: broadcast torque off sent")
+        except (BusError, OSError, ValueError) as exc:
+            log.error("e-stop: torque off could not be sent (%s)", exc)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.bus.close()
+
+    # -- set-up -------------------------------------------------------------
+
+    def configure(self, *, from_baud: float | None = None) -> list[str]:
+        """The thesis's configuration sequence (§2.3, Fig. 2.22), one logged line per step.
+
+        IDs are already set (the joint map names them). Steps: return delay 0
+        (thesis: the minimum), status return level, compliance margins 0 and
+        slopes 64, torque limit (``torque_limit`` × max torque), baud. Returns
+        the lines, also kept in :attr:`configuration`.
+        """
+        steps: list[tuple[str, int, str]] = [
+            ("return_delay_time", 0, "return delay 0 µs"),
+            ("status_return_level", self.status_return_level_setting,
+             f"status return level {self.status_return_level_setting}"),
+            ("cw_compliance_margin", THESIS_COMPLIANCE_MARGIN, "CW compliance margin 0"),
+            ("ccw_compliance_margin", THESIS_COMPLIANCE_MARGIN, "CCW compliance margin 0"),
+            ("cw_compliance_slope", THESIS_COMPLIANCE_SLOPE, "CW compliance slope 64"),
+            ("ccw_compliance_slope", THESIS_COMPLIANCE_SLOPE, "CCW compliance slope 64"),
+            ("torque_limit", self._torque_limit_raw, f"torque limit {self.torque_limit:.0%}"),
+        ]
+        lines = []
+        for j in self.map.joints:
+            i = j.servo_id
+            for name, value, text in steps:
+                item = self.table.item(name)
+                if item.area == "EEPROM" and self._guard(self.bus.read, i, name) == value:
+                    line = f"servo {i} ({j.name}): {text} (already set)"
+                else:
+                    self._write_setting(i, name, value)
+                    line = f"servo {i} ({j.name}): {text}"
+                log.info(line)
+                lines.append(line)
+        target = value_from_baud(self.baud)
+        if from_baud is not None and value_from_baud(from_baud) != target:
+            for j in self.map.joints:
+                self._write_setting(j.servo_id, "baud_rate", target)
+                lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
+                log.info(lines[-1])
+            time.sleep(0.01)
+            self.bus.set_baud(self.baud)
+            for j in self.map.joints:
+                self._guard(self.bus.ping, j.servo_id)
+        else:
+            lines.append(f"all servos: baud {self.baud:.0f} bps (already set)")
+            log.info(lines[-1])
+        self.configuration = lines
+        return lines
+
+    def _write_setting(self, servo_id: int, name: str, value: int) -> None:
+        self._guard(self.bus.write, servo_id, name, value)
+
+    def _find_servos(self) -> None:
+        for j in self.map.joints:
+            try:
+                self.bus.ping(j.servo_id)
+            except BusError as exc:
+                raise type(exc)(f"joint {j.name}: {exc}") from None
+            self.bus.identify(j.servo_id, expect=self.map.servo)
+            self.bus.return_delay[j.servo_id] = self.bus.read(j.servo_id, "return_delay_time")
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint limits: the map's, narrowed to each servo's CW..CCW angle limits."""
+        cw = np.array([self.bus.read(i, "cw_angle_limit") for i in self.map.ids])
+        ccw = np.array([self.bus.read(i, "ccw_angle_limit") for i in self.map.ids])
+        for j, a, b in zip(self.map.joints, cw, ccw, strict=True):
+            if a == 0 and b == 0:
+                raise BackendError(
+                    f"servo {j.servo_id} ({j.name}) is in wheel mode (CW and CCW angle "
+                    "limits 0): set its angle limits before using it as a joint")
+        self._cw, self._ccw = [int(x) for x in cw], [int(x) for x in ccw]
+        a_lo = np.array([self.spec.raw_to_position(x) for x in cw])
+        a_hi = np.array([self.spec.raw_to_position(x) for x in ccw])
+        q_lo, q_hi = self.map.servo_limits_to_joint(a_lo, a_hi)
+        lower = np.maximum(self.map.lower, q_lo)
+        upper = np.minimum(self.map.upper, q_hi)
+        if np.any(lower > upper):
+            bad = [j.name for j, lo, hi in zip(self.map.joints, lower, upper, strict=True)
+                   if lo > hi]
+            raise BackendError(f"joints {', '.join(bad)}: the joint map's limits and the "
+                               "servos' angle limits do not overlap")
+        return lower, upper
+
+    def _guard(self, fn, *args, **kwargs):
+        """Run a bus call; on a link failure try torque off, then raise one BackendError."""
+        try:
+            return fn(*args, **kwargs)
+        except BusError:
+            self.estop()
+            raise
+        except OSError as exc:
+            self.estop()
+            raise BackendError(f"serial link on {self.bus.port} failed: {exc}") from None

@@ -1,0 +1,208 @@
+"""Which servo drives which joint: ID, direction sign, zero offset and limits.
+
+A joint angle q (rad, the robot model's convention) and the servo's horn angle
+a (rad from raw 512, counter-clockwise positive, see ``hardware.servo_spec``)
+are related by ``q = offset + sign · a``. The map comes from a small JSON or
+TOML file (angles in degrees for people), or by default from the robot model:
+the thesis's left arm IDs 1, 3, 5 (thesis §2.3, "Set ID") for the receptionist
+arm, 1..12 in leg order RF, LF, RH, LH for the quadruped, 1..n otherwise.
+
+Example ``arm.toml``::
+
+    servo = "RX-24F"
+    [[joints]]
+    name = "theta1"
+    id = 1
+    sign = 1
+    offset_deg = 0.0
+    lower_deg = -150
+    upper_deg = 150
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hardware.control_table import table_for
+from hardware.servo_spec import ServoSpec
+from kinematics.model import Joint, Quadruped, SerialChain
+
+THESIS_LEFT_ARM_IDS = (1, 3, 5)
+THESIS_RIGHT_ARM_IDS = (2, 4, 6)
+
+
+@dataclass(frozen=True)
+class JointServo:
+    """One joint's servo.
+
+    Attributes:
+        name: joint name in the robot model.
+        servo_id: Dynamixel ID 0..253.
+        sign: +1 when the joint turns with the horn, −1 when against it.
+        offset: rad, joint angle when the horn is at its centre (raw 512).
+        lower, upper: rad, joint limits the backend enforces (inside the servo's range).
+    """
+
+    name: str
+    servo_id: int
+    sign: int = 1
+    offset: float = 0.0
+    lower: float = -math.radians(150.0)
+    upper: float = math.radians(150.0)
+
+
+@dataclass(frozen=True)
+class JointMap:
+    """The servos of a robot, in the robot model's joint order.
+
+    Attributes:
+        servo: model name every servo must be ("RX-24F" or "AX-12A").
+        joints: one :class:`JointServo` per joint.
+    """
+
+    servo: str
+    joints: tuple[JointServo, ...]
+
+    def __post_init__(self) -> None:
+        table_for(self.servo)  # ValueError for an unknown model
+        ids = [j.servo_id for j in self.joints]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"joint map: duplicate servo IDs in {ids}")
+        for j in self.joints:
+            if not 0 <= j.servo_id <= 253:
+                raise ValueError(f"joint map: {j.name} id {j.servo_id} outside 0..253")
+            if j.sign not in (1, -1):
+                raise ValueError(f"joint map: {j.name} sign must be 1 or -1, got {j.sign}")
+            if not all(math.isfinite(v) for v in (j.offset, j.lower, j.upper)):
+                raise ValueError(f"joint map: {j.name} offset and limits must be finite")
+            if not j.lower < j.upper:
+                raise ValueError(f"joint map: {j.name} lower limit must be below upper")
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def spec(self) -> ServoSpec:
+        return table_for(self.servo).spec
+
+    @property
+    def signs(self) -> np.ndarray:
+        return np.array([j.sign for j in self.joints], dtype=float)
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return np.array([j.offset for j in self.joints])
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([j.upper for j in self.joints])
+
+    def to_servo(self, q: np.ndarray) -> np.ndarray:
+        """(n,) joint angles rad -> (n,) horn angles rad: a = sign · (q − offset)."""
+        return self.signs * (np.asarray(q, dtype=float) - self.offsets)
+
+    def to_joint(self, a: np.ndarray) -> np.ndarray:
+        """(n,) horn angles rad -> (n,) joint angles rad: q = offset + sign · a."""
+        return self.offsets + self.signs * np.asarray(a, dtype=float)
+
+    def servo_limits_to_joint(self, a_lo: np.ndarray, a_hi: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray]:
+        """Horn-angle interval per servo -> (lower, upper) joint-angle interval."""
+        q1, q2 = self.to_joint(a_lo), self.to_joint(a_hi)
+        return np.minimum(q1, q2), np.maximum(q1, q2)
+
+
+def robot_joints(model: SerialChain | Quadruped) -> list[Joint]:
+    """The movable joints of a model in order (a quadruped: legs RF, LF, RH, LH)."""
+    if isinstance(model, Quadruped):
+        return [j for leg in model.legs.values() for j in leg.joints]
+    return list(model.joints)
+
+
+def default_servo(robot_name: str) -> str:
+    """The thesis arm has RX-24F servos; the quadruped and the others AX-12A."""
+    return "RX-24F" if robot_name == "receptionist_arm" else "AX-12A"
+
+
+def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = None,
+                      ids: tuple[int, ...] | None = None) -> JointMap:
+    """The map a robot gets without a config file: sign +1, offset 0, limits = the
+    model's joint limits inside the servo's ±150°."""
+    joints = robot_joints(model)
+    servo = servo or default_servo(model.name)
+    if ids is None:
+        if model.name == "receptionist_arm" and len(joints) == 3:
+            ids = THESIS_LEFT_ARM_IDS
+        else:
+            ids = tuple(range(1, len(joints) + 1))
+    if len(ids) != len(joints):
+        raise ValueError(f"ids: {len(ids)} given for the {len(joints)} joints of {model.name}")
+    half = table_for(servo).spec.position_range / 2
+    return JointMap(servo, tuple(
+        JointServo(j.name, int(i), 1, 0.0, max(j.lower, -half), min(j.upper, half))
+        for j, i in zip(joints, ids, strict=True)
+    ))
+
+
+def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap:
+    """Read a JSON or TOML joint map; ValueError naming the file and the problem.
+
+    Keys: ``servo`` (optional, model name), ``joints``: a list of tables with
+    ``name`` (must be a joint of ``model``, every joint listed once, any order),
+    ``id``, and optional ``sign``, ``offset_deg``, ``lower_deg``, ``upper_deg``.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"joint map {path}: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"joint map {path}: {exc}") from None
+    joints = robot_joints(model)
+    base = default_joint_map(model, servo=data.get("servo"))
+    by_name = {j.name: j for j in base.joints}
+    entries = data.get("joints")
+    if not isinstance(entries, list):
+        raise ValueError(f"joint map {path}: needs a 'joints' list")
+    given: dict[str, JointServo] = {}
+    for e in entries:
+        name = e.get("name")
+        if name not in by_name:
+            raise ValueError(
+                f"joint map {path}: unknown joint {name!r}; joints: {', '.join(by_name)}")
+        if "id" not in e:
+            raise ValueError(f"joint map {path}: joint {name} needs an 'id'")
+        d = by_name[name]
+        try:
+            given[name] = JointServo(
+                name, int(e["id"]), int(e.get("sign", 1)),
+                math.radians(float(e.get("offset_deg", 0.0))),
+                math.radians(float(e["lower_deg"])) if "lower_deg" in e else d.lower,
+                math.radians(float(e["upper_deg"])) if "upper_deg" in e else d.upper,
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"joint map {path}: joint {name}: {exc}") from None
+    missing = [j.name for j in joints if j.name not in given]
+    if missing:
+        raise ValueError(f"joint map {path}: no servo for joint(s) {', '.join(missing)}")
+    try:
+        return JointMap(base.servo, tuple(given[j.name] for j in joints))
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None

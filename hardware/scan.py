@@ -1,0 +1,111 @@
+"""Find the servos on a port: PING every ID 0..253 at each baud, then read what they are.
+
+Time is bounded: an absent ID costs one ping timeout (wire time + margin), so a
+scan takes at most about ``len(bauds) · 254 · timeout`` (see :func:`scan_time_bound`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+
+from hardware import protocol1 as p1
+from hardware.bus import Bus, BusError, NoReply, reply_timeout
+from hardware.control_table import TABLES
+
+#: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
+COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)
+DEFAULT_BAUDS = (1_000_000, 57_600)
+ALL_IDS = range(0, p1.MAX_ID + 1)
+
+
+@dataclass(frozen=True)
+class Found:
+    """One servo that answered.
+
+    Attributes:
+        servo_id: its ID.
+        model_number: address 0 (12 = AX-12A, 24 = RX-24F).
+        model: model name ("unknown" for other numbers).
+        firmware: address 2.
+        baud: bit/s it answered at.
+        baud_value: its EEPROM baud value (address 4).
+        cw_limit, ccw_limit: raw angle limits (addresses 6, 8; both 0 = wheel mode).
+        cw_limit_deg, ccw_limit_deg: the same as horn angles from the centre, degrees.
+        error: the error byte of its reply.
+    """
+
+    servo_id: int
+    model_number: int
+    model: str
+    firmware: int
+    baud: float
+    baud_value: int
+    cw_limit: int
+    ccw_limit: int
+    cw_limit_deg: float
+    ccw_limit_deg: float
+    error: int
+
+
+def scan_time_bound(bauds: Sequence[float], ids: Iterable[int], margin: float) -> float:
+    """Upper bound of a scan's time in s, if no servo answers (a PING is 6 + 6 bytes)."""
+    n = len(list(ids))
+    return sum(n * reply_timeout(6, 6, b, 254, margin) for b in bauds)
+
+
+def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] = ALL_IDS,
+         margin: float = 0.010,
+         progress: Callable[[float, int, int], None] | None = None) -> list[Found]:
+    """PING ``ids`` at each baud on ``port``; describe every servo that answers.
+
+    Args:
+        port: serial device.
+        bauds: bit/s to try, in order.
+        ids: IDs to ping (default 0..253).
+        margin: s of timeout beyond wire time for each ping.
+        progress: called as ``progress(baud, servo_id, n_found)`` before each ping.
+
+    Raises:
+        BusError: the port cannot be opened or is lost.
+    """
+    ids = list(ids)
+    found: list[Found] = []
+    if not bauds:
+        raise ValueError("bauds: give at least one baud rate")
+    with Bus(port, bauds[0], retries=2, timeout_margin=margin) as bus:
+        for baud in bauds:
+            bus.set_baud(baud)
+            for servo_id in ids:
+                if progress is not None:
+                    progress(baud, servo_id, len(found))
+                try:
+                    status = bus.ping(servo_id, tries=1)
+                except NoReply:
+                    continue
+                found.append(_describe(bus, servo_id, baud, status))
+    return found
+
+
+def _describe(bus: Bus, servo_id: int, baud: float, status: p1.StatusPacket) -> Found:
+    try:
+        head = bus.read_bytes(servo_id, 0, 10)
+    except BusError:
+        head = bytes(10)  # answers PING but not READ (status return level 0 still reads)
+    model_number = int.from_bytes(head[0:2], "little")
+    table = TABLES.get(model_number)
+    cw = int.from_bytes(head[6:8], "little")
+    ccw = int.from_bytes(head[8:10], "little")
+    if table is not None:
+        cw_deg = math.degrees(table.spec.raw_to_position(cw))
+        ccw_deg = math.degrees(table.spec.raw_to_position(ccw))
+    else:
+        cw_deg = ccw_deg = float("nan")
+    return Found(
+        servo_id=servo_id, model_number=model_number,
+        model=table.name if table is not None else "unknown",
+        firmware=head[2], baud=float(baud),
+        baud_value=head[4], cw_limit=cw, ccw_limit=ccw, cw_limit_deg=cw_deg,
+        ccw_limit_deg=ccw_deg, error=int(status.error),
+    )

@@ -1,0 +1,125 @@
+"""Dynamixel RX-24F and AX-12A: datasheet numbers and raw-register conversions.
+
+One home for the numbers in ../shared/dynamixel-notes.md, used by the servo
+model, the control tables, the emulator and the backends. A *joint-side* angle
+here is the servo horn's angle from its centre (raw 512), counter-clockwise
+positive (raw counts increase CCW); mapping servo to robot joint (direction
+sign, zero offset) is the backend's business.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+RPM = 2.0 * np.pi / 60.0  #: rad/s per rpm
+DIRECTION_BIT = 1 << 10  #: bit 10 of Present Speed / Present Load: 1 = clockwise
+
+
+@dataclass(frozen=True)
+class ServoSpec:
+    """Datasheet of one Dynamixel model (protocol 1.0).
+
+    Attributes:
+        name: "RX-24F" or "AX-12A".
+        model_number: control-table address 0 value (24 or 12).
+        stall_torque: N·m at 12 V.
+        no_load_speed: rad/s at the horn at 12 V.
+        gear_ratio: motor turns per horn turn.
+        default_baud_value: EEPROM address 4 factory value.
+        temperature_limit: °C (address 11 default).
+        max_voltage: V (address 13 default ×0.1).
+        position_range: rad covered by raw 0..1023 (300°).
+        speed_unit: rad/s per Moving/Present Speed unit (0.111 rpm).
+    """
+
+    name: str
+    model_number: int
+    stall_torque: float
+    no_load_speed: float
+    gear_ratio: float
+    default_baud_value: int
+    temperature_limit: int
+    max_voltage: float
+    position_range: float = np.radians(300.0)
+    speed_unit: float = 0.111 * RPM
+
+    @property
+    def position_unit(self) -> float:
+        """rad per position count (300° / 1023 ≈ 0.29°)."""
+        return self.position_range / 1023.0
+
+    def position_to_raw(self, angle: float) -> int:
+        """Joint-side angle (rad from centre) -> goal position 0..1023, rounded and clamped."""
+        return int(np.clip(np.rint(512 + angle / self.position_unit), 0, 1023))
+
+    def raw_to_position(self, raw: int) -> float:
+        """Position count 0..1023 -> rad from centre."""
+        return (int(raw) - 512) * self.position_unit
+
+    def speed_to_raw(self, speed: float) -> int:
+        """Moving-speed magnitude rad/s -> 1..1023 (never 0, which means "no limit").
+
+        ``inf`` asks for the fastest setting: 0 (no speed control).
+        """
+        if np.isinf(speed):
+            return 0
+        return int(np.clip(np.rint(abs(speed) / self.speed_unit), 1, 1023))
+
+    def raw_to_speed_limit(self, raw: int) -> float:
+        """Moving Speed register -> rad/s limit (0 -> the no-load speed: no control)."""
+        raw = int(raw) & 0x3FF
+        return self.no_load_speed if raw == 0 else min(raw * self.speed_unit, self.no_load_speed)
+
+    def present_speed_to_raw(self, velocity: float) -> int:
+        """Signed rad/s -> Present Speed word (magnitude 0..1023, bit 10 set when CW)."""
+        mag = int(min(np.rint(abs(velocity) / self.speed_unit), 1023))
+        return mag | (DIRECTION_BIT if velocity < 0 and mag else 0)
+
+    def raw_to_present_speed(self, raw: int) -> float:
+        """Present Speed word -> signed rad/s (CCW positive)."""
+        mag = (int(raw) & 0x3FF) * self.speed_unit
+        return -mag if int(raw) & DIRECTION_BIT else mag
+
+    def load_to_raw(self, torque: float) -> int:
+        """Signed output torque N·m -> Present Load word (0.1 % of stall per unit, bit 10 = CW)."""
+        mag = int(min(np.rint(abs(torque) / self.stall_torque * 1023.0), 1023))
+        return mag | (DIRECTION_BIT if torque < 0 and mag else 0)
+
+    def raw_to_load(self, raw: int) -> float:
+        """Present Load word -> signed N·m (CCW positive)."""
+        mag = (int(raw) & 0x3FF) / 1023.0 * self.stall_torque
+        return -mag if int(raw) & DIRECTION_BIT else mag
+
+    def torque_limit_to_raw(self, torque: float) -> int:
+        """N·m -> Torque Limit / Max Torque register 0..1023."""
+        return int(np.clip(np.rint(torque / self.stall_torque * 1023.0), 0, 1023))
+
+    def raw_to_torque_limit(self, raw: int) -> float:
+        """Torque Limit register -> N·m."""
+        return (int(raw) & 0x3FF) / 1023.0 * self.stall_torque
+
+
+RX24F = ServoSpec(
+    name="RX-24F", model_number=24, stall_torque=2.6, no_load_speed=126 * RPM,
+    gear_ratio=193.0, default_baud_value=34, temperature_limit=80, max_voltage=19.0,
+)
+AX12A = ServoSpec(
+    name="AX-12A", model_number=12, stall_torque=1.5, no_load_speed=59 * RPM,
+    gear_ratio=254.0, default_baud_value=1, temperature_limit=70, max_voltage=14.0,
+)
+SPECS = {spec.model_number: spec for spec in (RX24F, AX12A)}
+
+
+def baud_from_value(value: int) -> float:
+    """EEPROM baud value -> bit/s: 2 000 000 / (value + 1) (thesis §2.3)."""
+    return 2_000_000 / (int(value) + 1)
+
+
+def value_from_baud(baud: float) -> int:
+    """bit/s -> EEPROM baud value; ValueError when no value gives that rate within 3 %."""
+    value = int(round(2_000_000 / baud - 1))
+    if not 0 <= value <= 254 or abs(baud_from_value(value) - baud) / baud > 0.03:
+        raise ValueError(f"baud {baud:g} is not a Dynamixel rate (2 000 000 / (n + 1))")
+    return value

@@ -1,0 +1,204 @@
+"""``SimBackend``: the :class:`control.backend.Backend` protocol over a simulated plant.
+
+The controller sees exactly what it would see on a real bus: goals are turned into
+raw Goal Position / Moving Speed registers, readings come back as the servos report
+them (10-bit positions, 0.111 rpm speed units, Present Load as 0.1 % of full torque)
+and are decoded with the same :class:`hardware.servo_spec.ServoSpec` conversions.
+The plant's ground truth stays available as ``.plant`` for tests and plots.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+
+import numpy as np
+
+from control.backend import BackendError, JointState
+from hardware.plant import Plant
+from hardware.servo import ServoParams, ServoRegisters
+from hardware.servo_spec import RX24F, ServoSpec
+from kinematics.model import SerialChain
+from kinematics.validate import scalar, vector
+
+
+def thesis_registers(spec: ServoSpec, *, goal: int, cw_limit: int, ccw_limit: int,
+                     torque_on: bool = True) -> ServoRegisters:
+    """Registers as the thesis configures each servo (§2.3): compliance margin 0, slope 64
+    (0x40), torque limit and max torque 1023, factory punch 32, speed control off."""
+    return ServoRegisters(
+        torque_enable=int(torque_on), cw_compliance_margin=0, ccw_compliance_margin=0,
+        cw_compliance_slope=64, ccw_compliance_slope=64, goal_position=goal, moving_speed=0,
+        torque_limit=1023, max_torque=1023, punch=32, cw_angle_limit=cw_limit,
+        ccw_angle_limit=ccw_limit,
+    )
+
+
+class SimBackend:
+    """A simulated arm of Dynamixel servos behind the ``Backend`` (and ``Pushable``) protocol.
+
+    Args:
+        model: the serial chain.
+        specs: one :class:`ServoSpec` per joint, or one for all (default RX-24F each).
+        dt: plant step and servo tick, s.
+        q0: (n,) initial joint positions (default neutral); the servos start holding it.
+        directions: (n,) +1/-1 servo-to-joint signs (default +1).
+        params: :class:`ServoParams` for all servos or per servo.
+        torque_on: start with torque enabled (True: the arm holds its pose at once).
+
+    Joint limits (``lower``/``upper``) are the model's limits intersected with the
+    servos' 300° range; the servos' CW/CCW Angle Limit registers are set to them.
+    Methods are safe to call from several threads (one lock).
+    """
+
+    def __init__(self, model: SerialChain, *, specs: ServoSpec | Sequence[ServoSpec] | None = None,
+                 dt: float = 1e-3, q0: np.ndarray | None = None,
+                 directions: Sequence[float] | None = None,
+                 params: ServoParams | Sequence[ServoParams] | None = None,
+                 torque_on: bool = True) -> None:
+        n = model.n
+        if specs is None or isinstance(specs, ServoSpec):
+            spec_list = [specs or RX24F] * n
+        else:
+            spec_list = list(specs)
+        if len(spec_list) != n:
+            raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
+        dirs = [1.0] * n if directions is None else [float(d) for d in directions]
+        lower, upper = [], []
+        for i in range(n):
+            spec = spec_list[i]
+            lo_s, hi_s = spec.raw_to_position(0), spec.raw_to_position(1023)
+            lo_j, hi_j = (lo_s, hi_s) if dirs[i] > 0 else (-hi_s, -lo_s)
+            lower.append(max(float(model.lower[i]), lo_j))
+            upper.append(min(float(model.upper[i]), hi_j))
+        self._lower = np.array(lower)
+        self._upper = np.array(upper)
+        if np.any(self._lower > self._upper):
+            raise ValueError("a joint's limits do not overlap its servo's 300° range")
+        q_start = model.neutral() if q0 is None else vector("q0", q0, n)
+        regs = []
+        for i in range(n):
+            spec = spec_list[i]
+            ends = sorted(spec.position_to_raw(dirs[i] * x) for x in (lower[i], upper[i]))
+            goal = spec.position_to_raw(dirs[i] * float(np.clip(q_start[i], lower[i], upper[i])))
+            regs.append(thesis_registers(spec, goal=goal, cw_limit=ends[0], ccw_limit=ends[1],
+                                         torque_on=torque_on))
+        self.plant = Plant(model, spec_list, dt=dt, q0=q0, directions=dirs, params=params,
+                           registers=regs)
+        self.specs = tuple(spec_list)
+        self.directions = tuple(dirs)
+        self._torque_limits = tuple(r.torque_limit for r in regs)
+        self._lock = threading.RLock()
+        self._closed = False
+
+    # -- Backend protocol ---------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.plant.n
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(n,) rad."""
+        return self._lower.copy()
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(n,) rad."""
+        return self._upper.copy()
+
+    def sync(self, t: float) -> None:
+        """Integrate the plant up to ``t`` s (no-op when already there)."""
+        t = scalar("t", t)
+        with self._lock:
+            self._check_open()
+            self.plant.advance_to(t)
+
+    def read(self) -> JointState:
+        """Every joint as its servo reports it (decoded raw words, quantised)."""
+        with self._lock:
+            self._check_open()
+            reports = self.plant.reports()
+            t = self.plant.t
+        pos, vel, load = [], [], []
+        for i, r in enumerate(reports):
+            spec, d = self.specs[i], self.directions[i]
+            pos.append(d * spec.raw_to_position(r.position))
+            vel.append(d * spec.raw_to_present_speed(r.speed))
+            load.append(d * spec.raw_to_load(r.load))
+        return JointState(t=t, position=np.array(pos), velocity=np.array(vel),
+                          load=np.array(load), errors=tuple(r.error for r in reports),
+                          torque_on=tuple(bool(r.torque_enable) for r in reports))
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving Speed.
+
+        Positions are clamped into [lower, upper]; speeds are magnitudes, sent as
+        1..1023 units (never 0, which would mean "no speed limit"). NaN/inf or a wrong
+        shape raise ValueError and nothing is written.
+        """
+        p = self._vector("position", position)
+        s = self._vector("speed", speed)
+        p = np.clip(p, self._lower, self._upper)
+        goals = [spec.position_to_raw(d * x)
+                 for spec, d, x in zip(self.specs, self.directions, p, strict=True)]
+        speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(self.specs, s, strict=True)]
+        with self._lock:
+            self._check_open()
+            for servo, g, v in zip(self.plant.servos, goals, speeds, strict=True):
+                servo.regs.goal_position = g
+                servo.regs.moving_speed = v
+
+    def set_torque(self, on: bool) -> None:
+        """Torque Enable on every servo. Switching on also restores a Torque Limit that an
+        overload shutdown set to 0 (what a user does to recover a real servo)."""
+        with self._lock:
+            self._check_open()
+            for servo, limit in zip(self.plant.servos, self._torque_limits, strict=True):
+                if on and servo.regs.torque_limit == 0:
+                    servo.regs.torque_limit = limit
+                servo.regs.torque_enable = int(bool(on))
+
+    def estop(self) -> None:
+        """Torque off everywhere now; never raises."""
+        with self._lock:
+            for servo in self.plant.servos:
+                servo.regs.torque_enable = 0
+
+    def close(self) -> None:
+        """Release the backend; later calls raise BackendError (torque left as it is)."""
+        with self._lock:
+            self._closed = True
+
+    # -- Pushable -----------------------------------------------------------------
+
+    def push(self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float) -> None:
+        """Apply ``force`` (3,) N, given in the model's **base frame**, at ``point`` (3,) m in
+        link ``link``'s frame for ``duration`` s of simulated time from now."""
+        with self._lock:
+            self.plant.push(force, link=link, point=point, duration=duration)
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with ``stiffness``
+        N/m; None releases it."""
+        with self._lock:
+            self.plant.set_spring(anchor, stiffness=stiffness, link=link, point=point)
+
+    # -- helpers ------------------------------------------------------------------
+
+    def _vector(self, name: str, value: object) -> np.ndarray:
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be {self.n} numbers, got {value!r}") from None
+        if arr.shape != (self.n,):
+            raise ValueError(f"{name} must have shape ({self.n},), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must be finite, got {arr.tolist()}; nothing was sent")
+        return arr
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise BackendError("the simulated arm is closed; open a new backend")

@@ -1,0 +1,97 @@
+"""Run ``armlab emulate`` as a real subprocess on a real pty for the bus tests."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+START_TIMEOUT = 30.0  # s for the emulator to print its port (a loaded 2-core machine)
+
+
+@dataclass
+class EmulatorProcess:
+    port: str
+    proc: subprocess.Popen
+    log: Path | None
+    err: Path
+
+    def stderr(self) -> str:
+        return self.err.read_text()
+
+    def packets(self, tag: str = "rx") -> list[bytes]:
+        """Packets the emulator logged as received ("rx") or sent ("tx"), in order."""
+        assert self.log is not None, "start the emulator with log=True"
+        out = []
+        for line in self.log.read_text().splitlines():
+            parts = line.split(" ", 2)
+            if len(parts) == 3 and parts[1] == tag:
+                out.append(bytes.fromhex(parts[2]))
+        return out
+
+    def timed(self) -> list[tuple[float, str, bytes]]:
+        assert self.log is not None
+        out = []
+        for line in self.log.read_text().splitlines():
+            t, tag, hexs = line.split(" ", 2)
+            out.append((float(t), tag, bytes.fromhex(hexs)))
+        return out
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 10.0) -> tuple[int, str]:
+        """Signal the emulator and wait; returns (exit code, stderr)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        try:
+            self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        return self.proc.returncode, self.stderr()
+
+
+@contextlib.contextmanager
+def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProcess]:
+    """Start ``python -m app emulate ARGS``, yield once it printed its port, always kill it.
+
+    An emulator that died on its own (not killed by the test) fails the test with its stderr.
+    """
+    cmd = [sys.executable, "-m", "app", "emulate", *args]
+    tmp = Path(tempfile.mkdtemp(prefix="armlab-emu-"))
+    log = None
+    if log_dir is not None:
+        log = log_dir / f"emulator-{time.monotonic_ns()}.log"
+        cmd += ["--log", str(log)]
+    err = tmp / "stderr"
+    with open(err, "w") as err_file:
+        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=err_file,
+                                text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    emu = None
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], START_TIMEOUT)
+        line = proc.stdout.readline() if ready else ""
+        if not line.startswith("port: "):
+            proc.kill()
+            proc.wait(timeout=10)
+            raise RuntimeError(f"emulator did not start: {line!r} {err.read_text()}")
+        emu = EmulatorProcess(line.split(" ", 1)[1].strip(), proc, log, err)
+        yield emu
+        code = proc.poll()
+        if code not in (None, 0, -signal.SIGKILL, -signal.SIGTERM):
+            raise RuntimeError(f"the emulator died (exit {code}): {err.read_text()}")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=10)
+        proc.stdout.close()
+        shutil.rmtree(tmp, ignore_errors=True)

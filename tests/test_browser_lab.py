@@ -1,0 +1,168 @@
+"""The lab in a real headless Chromium (Playwright driving Debian's /usr/bin/chromium).
+
+What a person sees: the page loads without console errors, the 3D view shows
+the arm, moving the Kp slider changes the controller, Run fills the charts, and
+the CSV download arrives with the recorded rows. Skipped, with a message, where
+chromium is not installed (``apt-get install chromium``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.server import Lab, ServeOptions
+from control.params import DEFAULT
+
+CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
+ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+#: Console messages that are expected in headless software rendering, not faults.
+EXPECTED = ("software webgl", "three.clock", "gpu stall", "automatic fallback to software")
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(not CHROMIUM.exists(),
+                       reason=f"no Chromium at {CHROMIUM}: install it (apt-get install "
+                              "chromium) or set ARMLAB_CHROMIUM to run the browser tests"),
+    pytest.mark.timeout(300),
+]
+
+
+def wait(predicate, timeout: float = 30.0, what: str = "condition") -> None:  # noqa: ANN001
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def lab():
+    lab = Lab(ServeOptions(http_port=0))
+    yield lab
+    lab.close()
+
+
+@pytest.fixture(scope="module")
+def page(lab, tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+
+    console: list[tuple[str, str]] = []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        pg = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
+        pg.on("console", lambda m: console.append((m.type, m.text)))
+        pg.on("pageerror", lambda e: console.append(("pageerror", str(e))))
+        pg.goto(lab.url)
+        pg.get_by_role("button", name="Run thesis line").wait_for(timeout=90_000)
+        pg.console_log = console  # type: ignore[attr-defined]
+        pg.shots = tmp_path_factory.mktemp("shots")  # type: ignore[attr-defined]
+        yield pg
+        browser.close()
+
+
+def test_page_loads_without_console_errors(page):
+    time.sleep(2.0)  # a few frames of updates
+    errors = [(k, t) for k, t in page.console_log
+              if k in ("error", "pageerror") and not any(e in t.lower() for e in EXPECTED)]
+    assert errors == []
+    assert page.get_by_role("button", name="E-STOP").is_visible()
+
+
+def test_3d_view_renders_the_arm(page):
+    canvases = page.locator("canvas")
+    sizes = [(i, canvases.nth(i).bounding_box()) for i in range(canvases.count())]
+    i, box = max(((i, b) for i, b in sizes if b), key=lambda ib: ib[1]["width"] * ib[1]["height"])
+    assert box["width"] > 800 and box["height"] > 600  # the 3D view fills the page
+    shot = page.shots / "scene.png"
+    canvases.nth(i).screenshot(path=str(shot))
+    from PIL import Image
+
+    img = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    assert img.std() > 10  # not a blank canvas
+    # The URDF's colours: the blue upper arm (38, 89, 191) and orange forearm (242, 140, 38),
+    # lit and shaded, so look for pixels near those hues.
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    orange = (r > 150) & (g > 70) & (g < 170) & (b < 90)
+    blue = (b > 120) & (r < 90) & (g < 140)
+    assert orange.sum() > 200 and blue.sum() > 200, (orange.sum(), blue.sum())
+
+
+def _slider(page, label: str):  # noqa: ANN001, ANN202
+    return page.locator(f"xpath=//*[text()='{label}']/ancestor::*[.//*[@role='slider']][1]"
+                        "//*[@role='slider']").first
+
+
+def test_moving_the_kp_slider_changes_the_controller(page, lab):
+    loop = lab.lesson.rig.loop
+    page.get_by_role("tab", name="Gains").click()
+    thumb = _slider(page, "Kp (1/s²)")
+    assert float(thumb.get_attribute("aria-valuenow")) == pytest.approx(DEFAULT.kp)
+    thumb.focus()
+    for _ in range(5):
+        page.keyboard.press("ArrowRight")  # 5 steps of 0.1
+    wait(lambda: loop.params.kp == pytest.approx(DEFAULT.kp + 0.5), 30, "Kp + 0.5 in the loop")
+    # ... and by mouse: drag the thumb right; the loop follows the slider.
+    box = thumb.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + 60, box["y"] + box["height"] / 2, steps=5)
+    page.mouse.up()
+    wait(lambda: loop.params.kp > DEFAULT.kp + 5.0, 30, "a larger Kp from the drag")
+    shown = float(thumb.get_attribute("aria-valuenow"))
+    wait(lambda: loop.params.kp == pytest.approx(shown), 30, "the loop at the shown Kp")
+    page.get_by_role("tab", name="Run").click()
+
+
+def _chart_series(page, title_start: str) -> list[list[float]] | None:  # noqa: ANN001
+    return page.evaluate(
+        """(t) => {
+            const reg = (window.__viserTestpoints || {}).uplots || {};
+            for (const {chart} of Object.values(reg)) {
+                const title = chart.root.querySelector('.u-title');
+                if (title && title.textContent.startsWith(t))
+                    return chart.data.map(a => Array.from(a));
+            }
+            return null;
+        }""", title_start)
+
+
+def test_run_fills_the_charts(page, lab):
+    loop = lab.lesson.rig.loop
+    page.get_by_role("button", name="Run thesis line").click()
+    wait(lambda: loop.status.trajectory is not None, 30, "the run to start")
+    wait(lambda: loop.status.trajectory is None, 60, "the run to end")
+
+    def sweep() -> float:
+        data = _chart_series(page, "Joint angle")
+        return float(np.ptp(data[1])) if data and len(data[0]) > 50 else 0.0
+
+    wait(lambda: sweep() > 40.0, 60, "the elbow's sweep in the angle chart")
+    data = _chart_series(page, "Joint angle")
+    assert data[0][-1] - data[0][0] == pytest.approx(10.0, abs=0.5)  # a 10 s window
+    page.screenshot(path=str(page.shots / "after_run.png"))
+
+
+def test_csv_download_arrives_with_the_recorded_rows(page, lab, tmp_path):
+    with page.expect_download(timeout=60_000) as info:
+        page.get_by_role("button", name="Download the last run (CSV)").click()
+    path = tmp_path / info.value.suggested_filename
+    info.value.save_as(path)
+    assert path.name.startswith("armlab-") and path.suffix == ".csv"
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("# armlab recording")
+    assert any(ln.startswith("# kp=") for ln in lines)
+    rows = list(csv.reader(io.StringIO("\n".join(ln for ln in lines if not ln.startswith("#")))))
+    cols = rows[0]
+    assert cols[0] == "t_s" and "q_theta2_rad" in cols
+    t = np.array([float(r[0]) for r in rows[1:]])
+    assert len(t) > 70 and np.all(np.diff(t) > 0)
+    assert np.median(np.diff(t)) == pytest.approx(0.016, abs=1e-6)

@@ -1,0 +1,133 @@
+"""Every lesson in a real headless Chromium: switch to it from the page's lesson switcher,
+see its scene drawn, switch back, and no error in the browser console.
+
+Screenshots of each lesson go to ``$ARMLAB_SCREENSHOTS`` (a directory) when it is set,
+for a person to look at.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.lessons import all_lessons, lesson_order
+from app.server import Lab, ServeOptions
+
+CHROMIUM = Path("/usr/bin/chromium")
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's /usr/bin/chromium"),
+]
+sync_api = pytest.importorskip("playwright.sync_api")
+Image = pytest.importorskip("PIL.Image")
+
+#: Part of the 3D canvas to judge: left of the floating control panel, below the
+#: notifications (fractions of the canvas width and height).
+VIEW = (0.0, 0.22, 0.55, 1.0)
+
+
+@pytest.fixture(scope="module")
+def lab():
+    with Lab(ServeOptions(http_port=0)) as running:
+        running.wait_until_loadable()
+        yield running
+
+
+@pytest.fixture(scope="module")
+def page(lab):
+    with sync_api.sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
+                                     args=["--no-sandbox", "--use-angle=swiftshader"])
+        try:
+            pg = browser.new_page(viewport={"width": 1400, "height": 860})
+            pg.console_errors = []  # type: ignore[attr-defined]
+            pg.on("console", lambda m: pg.console_errors.append(m.text)
+                  if m.type == "error" else None)
+            pg.on("pageerror", lambda e: pg.console_errors.append(f"page error: {e}"))
+            pg.goto(lab.url)
+            pg.locator("canvas").first.wait_for(timeout=30_000)
+            yield pg
+        finally:
+            browser.close()
+
+
+def view_pixels(page) -> np.ndarray:
+    """(h, w, 3) the 3D view's free area as the page shows it now."""
+    box = page.locator("canvas").first.bounding_box()
+    x0, y0, x1, y1 = VIEW
+    clip = {"x": box["x"] + x0 * box["width"], "y": box["y"] + y0 * box["height"],
+            "width": (x1 - x0) * box["width"], "height": (y1 - y0) * box["height"]}
+    png = page.screenshot(clip=clip)
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
+
+
+def drawn_fraction(pixels: np.ndarray) -> float:
+    """Fraction of pixels that differ from the background (the most common colour)."""
+    flat = pixels.reshape(-1, 3)
+    colours, counts = np.unique(flat.astype(np.uint8), axis=0, return_counts=True)
+    background = colours[np.argmax(counts)].astype(float)
+    return float(np.mean(np.abs(flat - background).sum(axis=1) > 30))
+
+
+def differs(a: np.ndarray, b: np.ndarray) -> bool:
+    """True when two views differ (in size, or by more than 1 grey level on average)."""
+    return a.shape != b.shape or float(np.mean(np.abs(a - b))) > 1.0
+
+
+def switch(page, lab, name: str, title: str) -> None:
+    """Pick ``title`` in the page's Lesson select, as a person does."""
+    page.get_by_label("Lesson").first.click()
+    page.get_by_role("option", name=title, exact=True).click()
+    deadline = time.monotonic() + 60
+    while lab.lesson_name != name:
+        assert time.monotonic() < deadline, f"the lab never opened {name}"
+        time.sleep(0.05)
+
+
+def settled_view(page, previous: np.ndarray | None, *, timeout: float = 40.0) -> np.ndarray:
+    """The view once it changed from ``previous`` and has something drawn."""
+    deadline = time.monotonic() + timeout
+    while True:
+        time.sleep(1.0)
+        now = view_pixels(page)
+        changed = previous is None or differs(now, previous)
+        if changed and drawn_fraction(now) > 0.02:
+            return now
+        if time.monotonic() > deadline:
+            return now
+
+
+def save(pixels: np.ndarray, name: str) -> None:
+    where = os.environ.get("ARMLAB_SCREENSHOTS")
+    if where:
+        Path(where).mkdir(parents=True, exist_ok=True)
+        Image.fromarray(pixels.astype(np.uint8)).save(Path(where) / f"{name}.png")
+
+
+def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, page):
+    lessons = all_lessons()
+    first = lab.lesson_name
+    names = [n for n in sorted(lessons, key=lambda n: lesson_order(lessons[n])) if n != first]
+    assert {"redundancy", "quadruped"} <= set(lessons)
+    before = settled_view(page, None)
+    save(before, first)
+    assert drawn_fraction(before) > 0.02, f"{first}: nothing drawn"
+    shown = {first: before}
+    for name in names:
+        switch(page, lab, name, lessons[name].TITLE)
+        now = settled_view(page, before)
+        save(now, name)
+        assert drawn_fraction(now) > 0.02, f"{name}: the 3D view is blank"
+        assert differs(now, before), f"{name}: the view did not change"
+        shown[name] = before = now
+        assert page.console_errors == [], f"after opening {name}: {page.console_errors}"
+    switch(page, lab, first, lessons[first].TITLE)
+    back = settled_view(page, before)
+    save(back, f"{first}-again")
+    assert drawn_fraction(back) > 0.02, f"{first}: blank after switching back"
+    assert page.console_errors == [], page.console_errors

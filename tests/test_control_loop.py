@@ -1,0 +1,264 @@
+"""The control loop on the simulated arm: commands, limits, faults, recorder, real-time thread."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from control.backend import BackendError, JointState
+from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Stop
+from control.loop import ControlLoop
+from control.params import Params
+from control.trajectory import minimum_jerk, thesis_line
+from hardware.sim_backend import SimBackend
+from kinematics import load_robot
+
+ARM = load_robot("receptionist_arm")
+POSE = np.array([0.6, 0.3, 1.2])
+
+
+class Faulty:
+    """The simulated arm behind a cable that can go bad: it records every write and can
+    hand back NaN or lose the link after a given number of reads. Not Pushable."""
+
+    def __init__(self, *, nan_after: int | None = None, fail_after: int | None = None):
+        self.sim = SimBackend(ARM, q0=POSE)
+        self.writes: list[tuple[np.ndarray, np.ndarray]] = []
+        self.reads = 0
+        self.estops = 0
+        self.nan_after, self.fail_after = nan_after, fail_after
+
+    n = property(lambda self: self.sim.n)
+    lower = property(lambda self: self.sim.lower)
+    upper = property(lambda self: self.sim.upper)
+
+    def sync(self, t: float) -> None:
+        self.sim.sync(t)
+
+    def read(self) -> JointState:
+        self.reads += 1
+        if self.fail_after is not None and self.reads > self.fail_after:
+            raise BackendError("no status packet from servo 3; check the cable and power")
+        s = self.sim.read()
+        if self.nan_after is not None and self.reads > self.nan_after:
+            load = s.load.copy()
+            load[1] = np.nan
+            s = JointState(s.t, s.position, s.velocity, load, s.errors, s.torque_on)
+        return s
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        self.writes.append((np.array(position), np.array(speed)))
+        self.sim.write(position, speed)
+
+    def set_torque(self, on: bool) -> None:
+        self.sim.set_torque(on)
+
+    def estop(self) -> None:
+        self.estops += 1
+        self.sim.estop()
+
+    def close(self) -> None:
+        self.sim.close()
+
+    def torque_enabled(self) -> list[int]:
+        return [s.regs.torque_enable for s in self.sim.plant.servos]
+
+
+def all_finite(writes) -> bool:
+    return all(np.all(np.isfinite(p)) and np.all(np.isfinite(s)) for p, s in writes)
+
+
+def test_nan_from_the_servos_stops_the_loop_torque_off_and_no_nan_written():
+    be = Faulty(nan_after=20)
+    loop = ControlLoop(ARM, be, realtime=False)
+    status = loop.run_for(1.0)
+    assert status.fault is not None and "non-finite load" in status.fault
+    assert not status.active and not status.torque_on
+    assert be.torque_enabled() == [0, 0, 0] and be.estops >= 1
+    assert len(be.writes) == 20 and all_finite(be.writes)
+    loop.run_for(0.5)  # stays stopped: nothing more is written
+    assert len(be.writes) == 20
+
+
+def test_unstable_gains_are_refused_or_caught_at_run_time():
+    be = Faulty()
+    loop = ControlLoop(ARM, be, realtime=False)
+    with pytest.raises(ValueError, match="unstable"):
+        loop.set_params(Params(kp=10.0, kv=50.0, period=0.05))  # diverges on any joint
+    # stable on paper, but too fast for the servos' own loop: the arm starts to shake
+    warning = loop.set_params(Params(kp=100.0, kv=20.0), force=True)
+    assert warning is not None and "servos" in warning
+    loop.post(RunTrajectory(minimum_jerk(POSE, POSE + [0.3, 0.2, -0.3], 1.0)))
+    status = loop.run_for(10.0)
+    assert status.fault is not None and "unstable" in status.fault
+    assert be.torque_enabled() == [0, 0, 0]
+    assert status.t < 9.0 and all_finite(be.writes)
+
+
+def test_non_finite_or_bad_parameters_never_reach_the_loop():
+    loop = ControlLoop(ARM, Faulty(), realtime=False)
+    with pytest.raises(ValueError, match="m_env"):
+        loop.set_params(Params(m_env=0.0))
+    with pytest.raises(ValueError, match="params"):
+        loop.set_params({"kp": 1.0})  # type: ignore[arg-type]
+
+
+def test_backend_error_in_the_thread_gives_one_message_and_no_traceback():
+    be = Faulty(fail_after=10)
+    hooked: list[object] = []
+    old = threading.excepthook
+    threading.excepthook = hooked.append
+    try:
+        loop = ControlLoop(ARM, be, Params(period=0.005), realtime=True)
+        loop.start()
+        deadline = time.monotonic() + 5.0
+        while loop.status.fault is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.05)
+        status = loop.status
+        loop.shutdown()
+    finally:
+        threading.excepthook = old
+    assert status.fault == "backend error: no status packet from servo 3; check the cable " \
+                           "and power"
+    assert status.running and not status.active  # the thread lives on, waiting for Reset
+    assert hooked == [] and be.reads == 11  # no retries hammering a dead link
+    assert be.estops >= 1
+
+
+def test_estop_then_reset_holds_where_the_arm_is():
+    be = Faulty()
+    loop = ControlLoop(ARM, be, realtime=False)
+    loop.run_for(0.5)
+    loop.post(EStop())
+    loop.run_for(0.5)
+    n = len(be.writes)
+    st = loop.status
+    assert st.estopped and not st.torque_on and be.torque_enabled() == [0, 0, 0]
+    loop.run_for(0.5)
+    assert len(be.writes) == n  # nothing written while stopped
+    loop.post(Reset())
+    loop.run_for(1.0)
+    st = loop.status
+    assert not st.estopped and st.fault is None and st.active
+    assert be.torque_enabled() == [1, 1, 1]
+    snap = loop.recorder.snapshot(0.2)
+    np.testing.assert_allclose(snap["q_cmd"][-1], snap["q_cmd"][0])  # holding, not moving
+
+
+def test_trajectory_runs_and_goals_stay_in_the_limits():
+    be = Faulty()
+    loop = ControlLoop(ARM, be, Params(), controller="none", realtime=False)
+    lower, upper = be.lower, be.upper
+    beyond = POSE.copy()
+    beyond[2] = upper[2] + 0.5  # the elbow asked past its limit
+    loop.post(RunTrajectory(minimum_jerk(POSE, beyond, 1.0), approach=False))
+    loop.run_for(2.0)
+    goals = np.array([w[0] for w in be.writes])
+    speeds = np.array([w[1] for w in be.writes])
+    assert np.all(goals >= lower - 1e-12) and np.all(goals <= upper + 1e-12)
+    assert goals[-1, 2] == pytest.approx(upper[2])
+    assert np.all(speeds >= 0) and np.all(speeds <= loop.max_speed)
+
+
+def test_stop_holds_the_command_and_trajectory_progress_is_reported():
+    loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=False)
+    loop.post(RunTrajectory(minimum_jerk(POSE, POSE + [0.4, 0.0, 0.4], 2.0, name="swing")))
+    loop.run_for(1.0)
+    st = loop.status
+    assert st.trajectory == "swing" and 0.4 < st.progress < 0.6
+    loop.post(Stop())
+    loop.run_for(0.5)
+    snap = loop.recorder.snapshot(0.4)
+    assert loop.status.trajectory is None
+    np.testing.assert_allclose(snap["q_cmd"][-1], snap["q_cmd"][0])
+    assert 0.1 < snap["q_cmd"][-1][0] - POSE[0] < 0.3  # stopped half way
+
+
+def test_set_target_follows_by_rmrc():
+    loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=False)
+    loop.run_for(0.2)
+    start = ARM.fk(POSE)[:3, 3]
+    target = start + np.array([0.0, 0.05, -0.05])
+    loop.post(SetTarget(target))
+    loop.run_for(2.0)
+    snap = loop.recorder.snapshot(0.1)
+    hand_cmd = ARM.fk(snap["q_cmd"][-1])[:3, 3]
+    hand = ARM.fk(snap["q"][-1])[:3, 3]
+    assert np.linalg.norm(hand_cmd - target) < 1e-3
+    assert np.linalg.norm(hand - target) < 0.01  # the arm itself, within servo resolution
+
+
+def test_push_on_hardware_is_refused_with_a_message():
+    loop = ControlLoop(ARM, Faulty(), realtime=False)
+    loop.run_for(0.1)
+    loop.post(Push([0, 1.0, 0], 2, [0.25, 0, 0], 0.5))
+    loop.run_for(0.1)
+    assert "push the real arm by hand" in loop.status.message and loop.status.fault is None
+
+
+def test_params_swap_at_the_next_period_boundary():
+    loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), Params(period=0.016), realtime=False)
+    loop.run_for(0.16)
+    assert loop.status.steps == 10
+    loop.set_params(Params(period=0.005))
+    assert loop.status.period_ms == pytest.approx(16.0)  # not yet
+    t = loop.status.t
+    loop.step()
+    assert loop.status.period_ms == pytest.approx(5.0)
+    assert loop.status.t == pytest.approx(t + 0.005)
+
+
+def test_recorder_snapshot_window_and_csv():
+    loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=False, history_s=2.0)
+    loop.run_for(3.0)
+    snap = loop.recorder.snapshot()
+    assert len(snap["t"]) == loop.recorder.capacity  # the ring kept the last 2 s only
+    assert snap["t"][-1] - snap["t"][0] == pytest.approx(2.0, abs=0.02)
+    part = loop.recorder.snapshot(0.5)
+    assert part["t"][-1] - part["t"][0] == pytest.approx(0.5, abs=0.017)
+    assert part["q"].shape == (len(part["t"]), 3)
+    thin = loop.recorder.snapshot(max_points=10)
+    assert len(thin["t"]) <= 10 and thin["t"][-1] == snap["t"][-1]
+    csv = loop.recorder.to_csv(Params(), window_s=0.1)
+    lines = csv.splitlines()
+    assert "kp=20.0" in lines[1] and "law=2.6" in lines[1]
+    assert lines[2].startswith("t_s,q_cmd_theta1_rad")
+    assert len(lines) == 3 + len(loop.recorder.snapshot(0.1)["t"])
+
+
+def test_real_time_thread_paces_and_a_reader_can_snapshot_meanwhile():
+    loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=True)
+    loop.start()
+    line = thesis_line(ARM)
+    loop.post(RunTrajectory(line))
+    shapes = []
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 0.8:  # the UI's 30 Hz reader
+        snap = loop.recorder.snapshot(5.0)
+        shapes.append((len(snap["t"]), snap["q"].shape[0]))
+        time.sleep(1 / 30)
+    status = loop.status
+    loop.shutdown()
+    assert not loop.status.running
+    assert all(a == b for a, b in shapes) and shapes[-1][0] > shapes[0][0]
+    assert status.running and status.fault is None
+    assert 5 <= status.steps <= 70  # about 50 periods in 0.8 s: paced, not free-running
+    assert status.jitter_p99_ms is not None and status.period_mean_ms is not None
+
+
+def test_a_servo_stalled_against_a_wall_stops_the_loop_and_reset_recovers():
+    q0 = np.array([0.6, 0.0, 1.2])
+    d = ARM.jacobian(q0)[:3, 0] / np.linalg.norm(ARM.jacobian(q0)[:3, 0])
+    be = SimBackend(ARM, q0=q0)
+    be.plant.set_wall(ARM.fk(q0)[:3, 3] + 0.01 * d, -d)  # 1 cm ahead of the hand
+    loop = ControlLoop(ARM, be, controller="none", realtime=False)
+    loop.post(RunTrajectory(minimum_jerk(q0, q0 + [0.5, 0.0, 0.0], 1.0)))
+    status = loop.run_for(6.0)
+    assert status.fault is not None and "overload" in status.fault  # the servo's own alarm
+    assert [s.regs.torque_enable for s in be.plant.servos] == [0, 0, 0]
+    loop.post(Reset())
+    status = loop.run_for(1.0)
+    assert status.fault is None and status.active
+    assert [s.regs.torque_enable for s in be.plant.servos] == [1, 1, 1]

@@ -1,0 +1,66 @@
+"""Controller parameters: presets from the thesis, validation, the stability check."""
+
+import dataclasses
+import math
+
+import pytest
+
+from control.params import PARAM_SPECS, PRESETS, Params, loop_stability, preset, stability_warning
+
+
+def test_thesis_presets_carry_the_thesis_numbers():
+    t41 = preset("thesis Table 4.1")
+    assert (t41.kp, t41.kv, t41.k_f, t41.k_env, t41.d_env, t41.m_env) == (3.8, 0.2, 0.3, 12, 5, 1)
+    con = preset("thesis conclusion")
+    assert (con.kp, con.kv, con.k_f, con.k_env, con.d_env, con.m_env) == (3.8, 0.02, 0.2, 9, 5, 9)
+    assert t41.alpha == 0.05 and t41.period == 0.016
+
+
+def test_every_preset_fits_the_slider_ranges_and_is_stable():
+    for name, p in PRESETS.items():
+        for field, spec in PARAM_SPECS.items():
+            assert spec.min <= getattr(p, field) <= spec.max, (name, field)
+        assert not loop_stability(p).unstable, name
+
+
+def test_default_is_well_damped_and_thesis_table_is_not():
+    assert stability_warning(preset("well-damped default")) is None
+    warn = stability_warning(preset("thesis Table 4.1"))
+    assert warn is not None and "badly damped" in warn and "0.05" in warn  # ζp = 0.2/(2√3.8)
+
+
+@pytest.mark.parametrize("field,value,words", [
+    ("kp", math.nan, "kp must be finite"),
+    ("kv", math.inf, "kv must be finite"),
+    ("m_env", 0.0, "m_env must be > 0"),
+    ("m_env", -1.0, "m_env must be > 0"),
+    ("period", 0.1, "period must be in"),
+    ("period", 0.0005, "period must be in"),
+    ("alpha", 0.0, "alpha must be in"),
+    ("law", "2.7", "law must be one of"),
+])
+def test_bad_values_are_refused_naming_the_field(field, value, words):
+    with pytest.raises(ValueError, match=words):
+        Params(**{field: value})
+
+
+def test_params_are_frozen_and_replace_validates():
+    p = Params()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.kp = 1.0  # type: ignore[misc]
+    with pytest.raises(ValueError, match="kv"):
+        dataclasses.replace(p, kv=-1.0)
+
+
+def test_gains_that_diverge_at_the_period_are_reported_unstable():
+    # Kv·T > 2 makes the sampled loop diverge (semi-implicit Euler): 50 · 0.05 = 2.5
+    p = Params(kp=10.0, kv=50.0, period=0.05)
+    assert loop_stability(p).unstable
+    assert "unstable" in stability_warning(p)
+    # the same gains at 16 ms converge
+    assert not loop_stability(Params(kp=10.0, kv=50.0, period=0.016)).unstable
+
+
+def test_too_fast_for_the_period_is_flagged():
+    warn = stability_warning(Params(kp=200.0, kv=20.0, period=0.05))
+    assert warn is not None and ("too fast" in warn or "unstable" in warn)

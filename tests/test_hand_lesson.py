@@ -1,0 +1,114 @@
+"""The hand lesson on a real viser server (port 0), driven by a real websocket client."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pytest
+import viser
+from _viser_client import ViserTestClient
+
+from app.lessons import LessonContext, all_lessons
+from app.lessons.hand import build
+from control.experiments.hand import run_grip
+from hardware.hand import make_hand
+
+
+@pytest.fixture
+def lesson():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    handle = build(server, LessonContext(realtime=False))
+    try:
+        yield handle
+    finally:
+        handle.close()
+        server.stop()
+
+
+def wait_sim(lesson, seconds: float, *, timeout: float = 30.0) -> None:
+    """Let the lesson's loop run ``seconds`` more simulated seconds."""
+    end = lesson.loop.status.t + seconds
+    deadline = time.monotonic() + timeout
+    while lesson.loop.status.t < end:
+        assert time.monotonic() < deadline, "the hand loop stalled"
+        assert not lesson.loop.status.fault, lesson.loop.status.fault
+        time.sleep(0.02)
+
+
+def wait_for(predicate, *, timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_lesson_is_registered():
+    module = all_lessons()["hand"]
+    assert module.TITLE and module.HELP and module.ROBOTS == ("receptionist_arm",)
+
+
+def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.force_slider, 0.4)
+        wait_for(lambda: lesson.force.value == 0.4)
+        client.click(lesson.close_button)
+        wait_for(lambda: lesson.loop.status.closed_at is not None)
+        wait_sim(lesson, 2.0)
+        np.testing.assert_allclose(lesson.plant.contact_force, 0.4, rtol=0.10)
+        # what the lesson shows is what `armlab experiment hand-grip` computes
+        shown = lesson.loop.last_grasp(0.4)
+        args = argparse.Namespace(force=0.4, stiffness=1000.0, size=6.0, damping=1.0, lpf=None,
+                                  duration=2.0, hand_plant=make_hand)
+        expected = run_grip(args)
+        for key in ("steady_force_N", "peak_force_N", "time_to_grasp_s"):
+            assert shown[key] == pytest.approx(expected[key], rel=1e-6, abs=1e-9), key
+        lesson._plot_frame(True)
+        assert f"peak {expected['peak_force_N']:.3f} N" in lesson.figures.content
+        assert lesson.force_plot.updates > 0 and lesson.current_plot.updates > 0
+        # a higher limit squeezes harder, read from the current alone
+        client.set_value(lesson.force_slider, 1.0)
+        wait_for(lambda: lesson.controller.params.force_limit == 1.0)
+        wait_sim(lesson, 1.0)
+        np.testing.assert_allclose(lesson.plant.contact_force, 1.0, rtol=0.10)
+        assert lesson.controller.modes == ("holding",) * 3
+
+
+def test_open_releases_and_the_object_controls_change_the_object(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.close_button)
+        wait_for(lambda: lesson.loop.status.closed_at is not None)
+        wait_sim(lesson, 1.8)
+        assert lesson.plant.contact_force.min() > 0.7
+        # the size cannot change while the fingers hold the object
+        client.set_value(lesson.size_slider, 8.0)
+        body = client.wait_notification("Value refused")
+        assert "open the hand" in body
+        assert lesson.plant.obj.size == pytest.approx(0.06)
+        client.click(lesson.open_button)
+        wait_sim(lesson, 1.0)
+        assert lesson.loop.status.modes == ("idle",) * 3
+        assert np.all(lesson.plant.contact_force == 0.0)
+        # open: a bigger, harder object
+        client.set_value(lesson.size_slider, 8.0)
+        client.set_value(lesson.presets, "hard")
+        wait_for(lambda: lesson.stiffness.value == 5000.0 and lesson.size.value == 8.0)
+        wait_sim(lesson, 0.05)
+        assert lesson.plant.obj.size == pytest.approx(0.08)
+        assert lesson.plant.obj.stiffness == 5000.0
+        assert lesson.scene.object.radius == pytest.approx(0.04)
+
+
+@pytest.mark.parametrize("value", [1e9, -0.3, float("nan")])
+def test_bad_typed_force_is_refused_and_the_lesson_goes_on(lesson, value):
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.force_slider, value)
+        body = client.wait_notification("Value refused")
+        assert body.startswith("force limit")
+        assert lesson.force_slider.value == 0.8
+        assert lesson.controller.params.force_limit == 0.8
+        # still serving: a good value goes through
+        client.set_value(lesson.force_slider, 0.5)
+        wait_for(lambda: lesson.controller.params.force_limit == 0.5)
+        assert lesson.loop.status.fault == ""

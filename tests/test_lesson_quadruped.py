@@ -1,0 +1,242 @@
+"""The quadruped lesson (seed 003) on a real viser server (port 0), driven by a real
+websocket client: simulated AX-12A legs, and the serial path through the emulator."""
+
+from __future__ import annotations
+
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+import viser
+from _emulator import emulator
+from _viser_client import ViserTestClient
+
+from app.lessons import LessonContext, all_lessons
+from app.lessons.quadruped import build
+from control.walking import mean_angle_error_pct, servo_angle_deg
+from hardware.servo_spec import AX12A
+
+
+def make_lesson(ctx: LessonContext):
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        return build(server, ctx), server
+    except BaseException:
+        server.stop()
+        raise
+
+
+@pytest.fixture
+def lesson():
+    handle, server = make_lesson(LessonContext(robot="quadruped", realtime=False))
+    try:
+        yield handle
+    finally:
+        handle.close()
+        server.stop()
+
+
+def wait_for(predicate, *, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def walk_for(lesson, cycles: float, *, timeout: float = 60.0) -> dict[str, np.ndarray]:
+    """Let the loop walk ``cycles`` more gait cycles; the record since then."""
+    wait_for(lambda: lesson.loop.status.walking and not lesson.loop.status.standing_up,
+             timeout=timeout)
+    start_t = lesson.loop.status.t
+    start = lesson.loop.state.phase
+    wait_for(lambda: lesson.loop.state.phase >= start + cycles, timeout=timeout)
+    assert not lesson.loop.status.fault, lesson.loop.status.fault
+    snap = lesson.loop.snapshot()
+    keep = snap["t"] > start_t
+    return {k: v[keep] for k, v in snap.items()}
+
+
+def stance_slip(snap: dict[str, np.ndarray]) -> float:
+    """Largest distance a foot moved on the floor while it stood, m."""
+    worst = 0.0
+    for i in range(4):
+        feet = snap["feet"][:, 3 * i:3 * i + 3]
+        down = snap["stance"][:, i] > 0.5
+        anchor = None
+        for k in range(len(down)):
+            if not down[k]:
+                anchor = None
+                continue
+            if anchor is None:
+                anchor = feet[k]
+            worst = max(worst, float(np.linalg.norm(feet[k] - anchor)))
+    return worst
+
+
+def stride(snap: dict[str, np.ndarray]) -> float:
+    """Body advance along its heading over the first whole gait cycle of the record, m."""
+    phase, body = snap["phase"], snap["body"]
+    assert phase[-1] >= phase[0] + 1.0, "record shorter than a cycle"
+    end = np.array([np.interp(phase[0] + 1.0, phase, body[:, k]) for k in (0, 1)])
+    yaw = body[0, 3]
+    return float((end - body[0, :2]) @ np.array([np.cos(yaw), np.sin(yaw)]))
+
+
+def test_lesson_is_registered():
+    module = all_lessons()["quadruped"]
+    assert module.TITLE and module.HELP and module.ROBOTS == ("quadruped",)
+    assert "not statically stable" in module.HELP
+
+
+def test_walking_forward_the_stance_feet_stay_put_and_a_changes_the_stride(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.direction_buttons["forward"])
+        snap = walk_for(lesson, 1.2)
+        # Across the floor: the trot advances 2A per cycle; stance feet stay put.
+        assert stance_slip(snap) < 1e-3
+        assert stride(snap) == pytest.approx(2 * 0.04, rel=0.02)
+        assert snap["body"][-1, 0] - snap["body"][0, 0] > 0.08
+        for i in range(4):  # every foot both stood and swung
+            assert 0 < snap["stance"][:, i].sum() < len(snap["stance"])
+        # While two legs swing the trot stands on a diagonal: never a positive margin.
+        two = snap["stance"].sum(axis=1) == 2
+        assert two.mean() > 0.9
+        assert snap["margin"][two].max() <= 1e-12
+        # A (step length) from the slider: the stride follows (taken at the next cycle).
+        client.set_value(lesson.gait_sliders["A"].handle, 6.0)
+        wait_for(lambda: lesson.params.A == pytest.approx(0.06))
+        wait_for(lambda: lesson.loop.walker.plan.spec.params.A == pytest.approx(0.06))
+        snap = walk_for(lesson, 1.05)
+        assert stride(snap) == pytest.approx(2 * 0.06, rel=0.02)
+        assert stance_slip(snap) < 1e-3
+
+
+def test_turn_and_back_buttons_change_the_motion(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.direction_buttons["left"])
+        snap = walk_for(lesson, 1.0)
+        assert snap["body"][-1, 3] - snap["body"][0, 3] > 0.3  # rad: turned left
+        client.click(lesson.direction_buttons["back"])
+        wait_for(lambda: lesson.loop.walker.plan.spec.command == "back")
+        snap = walk_for(lesson, 1.05)
+        assert stride(snap) == pytest.approx(-2 * 0.04, rel=0.02)
+
+
+def test_crawl_keeps_a_positive_margin_and_refuses_to_turn(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.gait_dropdown, "crawl")
+        wait_for(lambda: lesson.spec.gait == "crawl")
+        client.click(lesson.direction_buttons["forward"])
+        wait_for(lambda: lesson.loop.walker.plan.spec.gait == "crawl")
+        snap = walk_for(lesson, 1.05)
+        assert snap["margin"].min() > 0.015  # m, over a whole cycle
+        assert stance_slip(snap) < 1e-3
+        assert (snap["stance"].sum(axis=1) >= 3).all()
+        client.click(lesson.direction_buttons["left"])
+        body = client.wait_notification("Not done")
+        assert "crawl" in body and "trot" in body
+        assert lesson.spec.command == "forward"
+
+
+def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.direction_buttons["forward"])
+        walk_for(lesson, 1.0)
+    err = lesson.servo_error(None)
+    snap = lesson.loop.snapshot()
+    ok = (snap["walking"] > 0.5) & np.isfinite(snap["q"]).all(axis=1) \
+        & np.isfinite(snap["q_cmd"]).all(axis=1)
+    assert ok.sum() == err["samples"] >= 40
+    # The positions are the servos' 10-bit reports, not the commands.
+    raw = snap["q"][ok] / AX12A.position_unit + 512
+    np.testing.assert_allclose(raw, np.round(raw), atol=1e-6)
+    assert not np.allclose(snap["q"][ok], snap["q_cmd"][ok])
+    expected = mean_angle_error_pct(servo_angle_deg(snap["q_cmd"][ok]),
+                                    servo_angle_deg(snap["q"][ok]))
+    assert err["mean_pct"] == pytest.approx(expected)
+    # The order of the paper's 1.201 %; servo 2 (hip pitch, carrying the body) worst.
+    assert 0.3 < err["mean_pct"] < 5.0
+    assert np.argmax(err["per_servo_pct"]) == 1
+    lesson._plot_frame(True)
+    assert f"{lesson.servo_error(10.0)['mean_pct']:.3f} %" in lesson.servo_table.content
+    assert lesson.error_plot.updates > 0 and all(p.updates > 0 for p in lesson.joint_plots)
+
+
+@pytest.mark.parametrize("value", [1e9, float("nan"), -2.0])
+def test_bad_typed_step_length_is_refused_and_the_lesson_goes_on(lesson, value):
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.gait_sliders["A"].handle, value)
+        body = client.wait_notification("Value refused")
+        assert body.startswith("A: ") and "kept 4" in body
+        assert lesson.params.A == 0.04
+        client.click(lesson.direction_buttons["forward"])
+        walk_for(lesson, 0.2)
+
+
+def test_an_unreachable_pose_is_refused_with_the_reason(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.gait_sliders["B"].handle, 13.0)
+        wait_for(lambda: lesson.params.B == pytest.approx(0.13))
+        client.set_value(lesson.gait_sliders["D"].handle, 13.0)
+        body = client.wait_notification("Value refused")
+        assert "out of the leg's reach" in body
+        assert lesson.params.D == pytest.approx(0.09)
+
+
+def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
+    with emulator("--robot", "redundant_planar", "--servo", "AX-12A") as emu:
+        handle, server = make_lesson(LessonContext(robot="quadruped", backend="serial",
+                                                   port=emu.port, realtime=False))
+        try:
+            assert handle.backend is None
+            msg = handle.servo_message
+            assert "12 AX-12A" in msg and "servo 4" in msg and emu.port in msg
+            assert handle.warning.visible
+            handle.walk("forward")  # the gait still plays, without servos
+            walk_for(handle, 0.3)
+            assert handle.servo_error() is None
+            url = f"http://127.0.0.1:{server.get_port()}"
+            with urllib.request.urlopen(url, timeout=5) as reply:
+                assert reply.status == 200
+        finally:
+            handle.close()
+            server.stop()
+
+
+def test_twelve_emulated_servos_walk_over_the_serial_bus():
+    with emulator("--robot", "quadruped") as emu:
+        handle, server = make_lesson(LessonContext(robot="quadruped", backend="serial",
+                                                   port=emu.port, realtime=True))
+        try:
+            assert handle.backend is not None and handle.backend.n == 12
+            handle.walk("forward")
+            walk_for(handle, 0.4)
+            err = handle.servo_error(None)
+            assert err is not None and err["samples"] >= 5
+            assert 0.0 < err["mean_pct"] < 5.0
+            snap = handle.loop.snapshot()
+            ok = np.isfinite(snap["q"]).all(axis=1)
+            legs_moved = np.ptp(snap["q"][ok], axis=0).reshape(4, 3)
+            assert (legs_moved[:, 1] > np.radians(2)).all(), "every hip pitch servo moved"
+        finally:
+            handle.close()
+            server.stop()
+
+
+def test_estop_switches_the_twelve_servos_off_and_reset_stands_up_again(lesson):
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.direction_buttons["forward"])
+        walk_for(lesson, 0.2)
+        lesson.estop()  # what the lab's E-STOP button calls
+        wait_for(lambda: not lesson.loop.status.torque_on)
+        assert not any(lesson.backend.read().torque_on)
+        assert not lesson.loop.status.walking
+        lesson._plot_frame(True)
+        assert "E-STOPPED" in lesson.status.content
+        client.click(lesson.reset_button)
+        wait_for(lambda: lesson.loop.status.torque_on)
+        assert all(lesson.backend.read().torque_on)
+        wait_for(lambda: not lesson.loop.status.standing_up)
+        assert lesson.loop.state.stance.all()  # standing on four feet at the start
+        assert lesson.loop.state.margin > 0.05

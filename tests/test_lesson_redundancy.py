@@ -1,0 +1,119 @@
+"""The redundancy lesson (seed 002) on a real viser server (port 0), driven by a real
+websocket client."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+import viser
+from _viser_client import ViserTestClient
+
+from app.lessons import LessonContext, all_lessons
+from app.lessons.redundancy import SHOWN_MODES, build
+from control.experiments.seed002 import circle
+
+
+@pytest.fixture(scope="module")
+def lesson():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    handle = build(server, LessonContext(robot="redundant_planar", realtime=False))
+    try:
+        yield handle
+    finally:
+        handle.close()
+        server.stop()
+
+
+def wait_for(predicate, *, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_lesson_is_registered():
+    module = all_lessons()["redundancy"]
+    assert module.TITLE and module.HELP and module.ROBOTS == ("redundant_planar",)
+
+
+def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(lesson):
+    # Before a run every ghost stands at the paper's θ(0).
+    for mode in SHOWN_MODES:
+        np.testing.assert_allclose(lesson.ghost_q(mode), [math.pi, -math.pi / 2, -math.pi / 2])
+    with ViserTestClient(lesson.server) as client:
+        client.click(lesson.run_button)
+        wait_for(lambda: lesson.results is not None and not lesson.computing)
+    rs = lesson.results
+    # Same function underneath as `armlab experiment seed002-circle --mode M`.
+    for mode in ("1", "bounded"):
+        assert rs.figures[mode] == circle(mode, gain=400.0, k_a=200.0)
+    table = lesson.figures_md.content
+    for mode in SHOWN_MODES:
+        assert f"{rs.figures[mode]['mean_manipulability']:.3f}" in table
+    # The paper's findings, seen on the ghosts at t = 1 s: mode 1 has joints 2 and 3
+    # outside their limits (red dots), the limit-keeping modes do not.
+    lesson.show(1.0)
+    assert lesson.scene.views["1"].outside == (False, True, True)
+    for mode in ("2", "4", "bounded"):
+        assert lesson.scene.views[mode].outside == (False, False, False)
+    # Each mode is a different motion (2 and 4 coincide: docs/redundancy.md).
+    assert np.linalg.norm(lesson.ghost_q("1") - lesson.ghost_q("3")) > 0.05
+    assert np.linalg.norm(lesson.ghost_q("3") - lesson.ghost_q("bounded")) > 0.05
+    np.testing.assert_allclose(lesson.ghost_q("2"), lesson.ghost_q("4"), atol=1e-9)
+    # Sticks (every 0.1 s) and the ellipse at the hand follow the playhead.
+    assert lesson.scene.views["1"].sticks_shown == 11
+    ell = np.asarray(lesson.scene.views["3"].ellipse.points)[:, 0, :2]
+    hand = lesson.model.fk(lesson.ghost_q("3"))[:2, 3]
+    np.testing.assert_allclose(ell.mean(axis=0), hand, atol=1e-6)
+    # The charts draw what was played.
+    lesson._plot_frame(True)
+    assert all(p.updates > 0 for p in lesson.plots.plots)
+
+
+def test_k_a_slider_changes_the_redundant_ghost(lesson):
+    if lesson.results is None:
+        lesson.run(wait=True)
+    lesson.show(1.0)
+    before_3 = lesson.ghost_q("3")
+    before_1 = lesson.ghost_q("1")
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.k_a_slider, 0.0)
+        wait_for(lambda: lesson.k_a.value == 0.0)
+        assert lesson.stale
+        lesson._update_status()
+        assert "press Run" in lesson.status.content
+        client.click(lesson.run_button)
+        wait_for(lambda: lesson.results.k_a == 0.0 and not lesson.computing)
+    lesson.show(1.0)
+    # Without the gradient term eq. 4 is plain J⁺ẋ: ghost 3 now moves like ghost 1.
+    assert np.linalg.norm(lesson.ghost_q("3") - before_3) > 0.05
+    np.testing.assert_allclose(lesson.ghost_q("3"), before_1, atol=1e-9)
+    np.testing.assert_allclose(lesson.ghost_q("1"), before_1, atol=1e-12)
+    plain = circle("1", gain=400.0, k_a=0.0)
+    for key in ("max_error_m", "max_violation_rad", "mean_manipulability"):
+        assert lesson.results.figures["3"][key] == plain[key]
+
+
+def test_show_checkbox_hides_a_panel(lesson):
+    box = lesson.show_boxes["3"]
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(box, False)
+        wait_for(lambda: not lesson.scene.views["3"].root.visible, timeout=5.0)
+        client.set_value(box, True)
+        wait_for(lambda: lesson.scene.views["3"].root.visible, timeout=5.0)
+
+
+@pytest.mark.parametrize("value", [1e9, float("nan"), 600.0])
+def test_bad_typed_gain_is_refused_and_the_server_goes_on(lesson, value):
+    before = lesson.gain.value
+    with ViserTestClient(lesson.server) as client:
+        client.set_value(lesson.gain_slider, value)
+        body = client.wait_notification("Value refused")
+        assert body.startswith("K: ") and f"kept {before:g}" in body
+        assert lesson.gain.value == before
+        # The server still answers: a good value is taken.
+        client.set_value(lesson.speed_slider, 0.5)
+        wait_for(lambda: lesson.speed.value == 0.5, timeout=5.0)

@@ -1,0 +1,150 @@
+"""The simulated arm: rigid body + servos + pushes, springs and a wall (hardware.plant)."""
+
+import numpy as np
+import pytest
+
+from hardware.plant import Plant
+from hardware.servo import IDEAL, ServoRegisters
+from hardware.servo_spec import RX24F
+from hardware.sim_backend import thesis_registers
+from kinematics import load_robot
+from kinematics.dynamics import point_force_torques, point_position, potential_energy
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_robot("receptionist_arm")
+
+
+def holding(arm, q0, **kw) -> Plant:
+    """The arm with the thesis's servo settings, holding q0."""
+    regs = [thesis_registers(RX24F, goal=RX24F.position_to_raw(q), cw_limit=0, ccw_limit=1023)
+            for q in q0]
+    return Plant(arm, RX24F, q0=q0, registers=regs, **kw)
+
+
+def test_unactuated_undamped_arm_conserves_energy(arm):
+    """Torque off, no friction, no rotor: the arm swings freely for 2 s and keeps its
+    mechanical energy (above hanging at rest) within 0.5 %."""
+    plant = Plant(arm, RX24F, q0=[0.5, 0.8, -0.6], qd0=[1.0, -0.5, 2.0], params=IDEAL,
+                  stops=None)
+    rest = potential_energy(arm, np.zeros(3))
+    e0 = sum(plant.energy()) - rest
+    worst = 0.0
+    for _ in range(20):
+        plant.advance_to(plant.t + 0.1)
+        worst = max(worst, abs(sum(plant.energy()) - rest - e0))
+    assert plant.t == pytest.approx(2.0)
+    assert np.ptp(plant.q) > 0.5  # it did swing
+    assert worst < 0.005 * e0
+
+
+def test_torque_off_arm_falls_to_hanging(arm):
+    plant = Plant(arm, RX24F, q0=[0.0, 1.2, 0.0])  # torque off, with gear friction and rotor
+    plant.advance_to(3.0)
+    assert abs(plant.q[1]) < 0.5 * 1.2  # swung down, damped by the gear friction
+    assert plant.reports()[1].load == 0
+
+
+def test_servos_hold_the_arm_against_gravity_with_the_compliance_droop(arm):
+    q0 = np.array([0.0, 1.0, 0.0])  # upper arm and forearm lifted 57° from hanging
+    plant = holding(arm, q0)
+    plant.advance_to(1.0)
+    truth = plant.truth()
+    # The shoulder servo carries the static load ...
+    gravity = (0.176 * 0.0925 + 0.19 * 0.31) * 9.81 * np.sin(truth.q[1])
+    assert truth.motor_torque[1] + truth.friction_torque[1] == pytest.approx(gravity, rel=0.02)
+    # ... by the droop its compliance slope needs: about 7.7 N·m/rad at slope 64.
+    droop = q0[1] - truth.q[1]
+    assert 0.03 < droop < 0.12
+    assert abs(truth.qd).max() < 1e-3
+
+
+def test_push_displaces_the_arm_and_it_returns(arm):
+    q0 = np.array([0.0, 0.5, 0.5])
+    plant = holding(arm, q0)
+    plant.advance_to(0.5)
+    before = plant.q
+    hand = arm.tip[:3, 3]
+    plant.push([0.0, -3.0, 0.0], link=2, point=hand, duration=0.5)  # 3 N, base frame -y
+    plant.advance_to(0.9)
+    pushed = plant.truth()
+    expected = point_force_torques(arm, pushed.q, 2, hand, [0.0, -3.0, 0.0])
+    np.testing.assert_allclose(pushed.external_torque, expected, atol=0.05)
+    assert np.abs(pushed.q - before).max() > 0.05
+    plant.advance_to(2.0)
+    assert np.abs(plant.truth().external_torque).max() == 0.0
+    assert np.abs(plant.q - before).max() < 0.02
+
+
+def test_spring_drags_the_hand_towards_the_anchor_when_torque_is_off(arm):
+    plant = Plant(arm, RX24F, q0=[0.0, 0.0, 0.0])
+    hand = arm.tip[:3, 3]
+    anchor = np.array([0.35, 0.2, 0.0])
+    plant.set_spring(anchor, stiffness=200.0, link=2, point=hand, damping=5.0)
+    plant.advance_to(3.0)
+    # Spring 200 N/m against 3.6 N of arm weight: the hand ends within a few cm.
+    assert np.linalg.norm(point_position(arm, plant.q, 2, hand) - anchor) < 0.03
+    plant.set_spring(None, stiffness=0, link=2, point=hand)
+    assert np.abs(plant.truth().external_torque).max() == 0.0
+
+
+def test_wall_stops_the_hand(arm):
+    plant = holding(arm, np.zeros(3))
+    for servo in plant.servos:
+        servo.regs.goal_position = RX24F.position_to_raw(0.8)
+    # A wall across the hand's path: the plane y = 0.15 m (base frame), free side y < 0.15.
+    plant.set_wall([0.0, 0.15, 0.0], [0.0, -1.0, 0.0], stiffness=5000, damping=30)
+    plant.advance_to(1.0)
+    hand_y = point_position(arm, plant.q, 2, arm.tip[:3, 3])[1]
+    # The servos press with their stall torque: a few N, a couple of mm into 5000 N/m.
+    assert 0.15 < hand_y < 0.155
+    assert np.abs(plant.truth().external_torque).max() > 0.5
+
+
+def test_stiffest_servo_setting_stays_bounded(arm):
+    regs = [ServoRegisters(torque_enable=1, goal_position=600, cw_compliance_margin=0,
+                           ccw_compliance_margin=0, cw_compliance_slope=2,
+                           ccw_compliance_slope=2) for _ in range(3)]
+    plant = Plant(arm, RX24F, registers=regs)
+    plant.advance_to(1.0)
+    worst = 0
+    for _ in range(1000):
+        plant.step()
+        worst = max(worst, *(abs(r.position - 600) for r in plant.reports()))
+    # Slope 2 is ~250 N·m/rad: the quantised loop buzzes by a few counts, no more.
+    assert worst <= 4
+
+
+def test_joint_stop_catches_a_falling_arm(arm):
+    plant = Plant(arm, RX24F, q0=[0.0, -1.5, 0.0], qd0=[0.0, -3.0, 0.0])
+    plant.advance_to(0.3)
+    assert plant.q[1] > arm.lower[1] - 0.15
+    assert plant.truth().stop_torque[1] >= 0.0
+
+
+def test_directions_mirror_the_servo(arm):
+    plant = Plant(arm, RX24F, q0=[0.2, 0.3, -0.4], directions=[1, -1, -1])
+    positions = [r.position for r in plant.reports()]
+    assert positions == [RX24F.position_to_raw(0.2), RX24F.position_to_raw(-0.3),
+                         RX24F.position_to_raw(0.4)]
+
+
+def test_advance_to_takes_whole_steps(arm):
+    plant = Plant(arm, RX24F, dt=2e-3)
+    assert plant.advance_to(0.1) == 50
+    assert plant.advance_to(0.1) == 0
+    assert plant.advance_to(0.1009) == 0
+    assert plant.advance_to(0.1011) == 1
+
+
+def test_bad_arguments_are_refused_with_their_name(arm):
+    plant = Plant(arm, RX24F)
+    with pytest.raises(ValueError, match="force_base"):
+        plant.push([np.nan, 0, 0], link=2, point=np.zeros(3), duration=0.1)
+    with pytest.raises(ValueError, match="link"):
+        plant.push([1, 0, 0], link=5, point=np.zeros(3), duration=0.1)
+    with pytest.raises(ValueError, match="dt"):
+        Plant(arm, RX24F, dt=0.0)
+    with pytest.raises(ValueError, match="specs"):
+        Plant(arm, [RX24F, RX24F])

@@ -1,0 +1,145 @@
+"""Seed 002: redundant planar 3R arm on the paper's circle, joint limits, manipulability."""
+
+import io
+import json
+from contextlib import redirect_stdout
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from control.experiments.seed002 import circle
+from kinematics import load_robot
+from kinematics.redundancy import (
+    MODES,
+    CircleTask,
+    bounded_rate,
+    circle_target,
+    decomposition,
+    decomposition_rate,
+    limit_inequality,
+    manipulability,
+    manipulability_gradient,
+    simulate_circle,
+    task_jacobian,
+    velocity_bounds,
+)
+
+LIMITS = 1e-6  # rad
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_robot("redundant_planar")
+
+
+@pytest.fixture(scope="module")
+def results():
+    return {mode: circle(mode) for mode in MODES}
+
+
+def test_model_has_the_papers_links_limits_and_start_pose(model):
+    np.testing.assert_allclose(model.lower, [np.pi / 2, -np.pi / 2, -np.pi])
+    np.testing.assert_allclose(model.upper, [np.pi, 0.0, -np.pi / 2])
+    # θ(0) = [π, −π/2, −π/2] puts the end effector at x_d(0) = (0, 0.5) m.
+    np.testing.assert_allclose(model.fk([np.pi, -np.pi / 2, -np.pi / 2])[:2, 3],
+                               circle_target(0.0)[0], atol=1e-12)
+    assert np.linalg.norm(model.fk([0.0, 0.0, 0.0])[:3, 3]) == pytest.approx(1.5)
+
+
+def test_manipulability_gradient_matches_finite_differences(model):
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        q = rng.uniform(-np.pi, np.pi, 3)
+        h = 1e-6
+        fd = [(manipulability(task_jacobian(model, q + e)) -
+               manipulability(task_jacobian(model, q - e))) / (2 * h) for e in np.eye(3) * h]
+        np.testing.assert_allclose(manipulability_gradient(model, q), fd, atol=1e-7)
+    # Planar 3R with equal links: w = l1 l2 |sin θ2| + ... does not depend on θ1.
+    assert manipulability_gradient(model, [0.3, 1.0, -0.7])[0] == pytest.approx(0, abs=1e-12)
+
+
+def test_decomposition_parts_and_eq_20_inverse(model):
+    q = np.array([2.5, -0.6, -2.0])
+    J = task_jacobian(model, q)
+    J_c, N = decomposition(J)
+    np.testing.assert_allclose(J @ N, 0, atol=1e-12)  # N spans the null space (eq. 17)
+    np.testing.assert_allclose(J @ J_c, np.eye(2), atol=1e-12)
+    xdot = np.array([0.3, -0.2])
+    lo, hi = velocity_bounds(q, model.lower, model.upper, 0.004)
+    A, B = limit_inequality(lo, hi)
+    qdot = decomposition_rate(J, xdot, A, B)
+    np.testing.assert_allclose(J @ qdot, xdot, atol=1e-10)  # eq. 19 tracks ẋ exactly
+    # With A = [I; −I] the least-squares choice (eq. 18) is the minimum-norm J⁺ẋ plus the
+    # null-space projection of the middle of the velocity bounds (docs/redundancy.md).
+    P = N @ np.linalg.pinv(N)
+    np.testing.assert_allclose(qdot, np.linalg.pinv(J) @ xdot + P @ (lo + hi) / 2, atol=1e-9)
+    with pytest.raises(ValueError, match="J_nr"):
+        decomposition(task_jacobian(model, [2.5, -0.6, -np.pi]))
+
+
+def test_bounded_rate_never_leaves_the_bounds():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        J = rng.normal(size=(2, 3))
+        lo = -rng.uniform(0, 1, 3)
+        hi = rng.uniform(0, 1, 3)
+        qdot = bounded_rate(J, rng.normal(size=2) * 3, lo, hi, rng.normal(size=3))
+        assert np.all(qdot >= lo) and np.all(qdot <= hi)
+
+
+def test_modes_1_and_3_leave_the_limits_mode_1_on_joints_2_and_3(results):
+    v1 = results["1"]["max_violation_rad"]
+    assert v1[0] <= LIMITS and v1[1] > 0.1 and v1[2] > 0.1
+    assert max(results["3"]["max_violation_rad"]) > 0.1
+
+
+@pytest.mark.parametrize("mode", ["2", "4", "bounded"])
+def test_limited_modes_never_leave_the_limits(results, mode):
+    assert max(results[mode]["max_violation_rad"]) <= LIMITS
+
+
+@pytest.mark.parametrize("mode", list(MODES))
+def test_tracking_error_after_0_2_s_is_below_1_mm(results, mode):
+    assert results[mode]["max_error_m"] < 1e-3
+
+
+def test_printed_method_gives_mode_4_the_motion_of_mode_2_and_bounded_beats_it(model, results):
+    # The paper claims w(mode 4) > w(mode 2). With its eq. 7-19 the manipulability
+    # gradient cancels exactly (docs/redundancy.md): the two runs are the same motion.
+    run2, run4 = simulate_circle(model, "2"), simulate_circle(model, "4")
+    np.testing.assert_allclose(run4.q, run2.q, atol=1e-9)
+    assert results["4"]["mean_manipulability"] >= results["2"]["mean_manipulability"] - 1e-12
+    # The guaranteed method does use the gradient inside the limits.
+    assert results["bounded"]["mean_manipulability"] > results["2"]["mean_manipulability"] + 0.03
+    assert results["bounded"]["min_manipulability"] > results["2"]["min_manipulability"]
+    # Using redundancy without limits raises w most of all (the paper's Fig. 10).
+    assert results["3"]["mean_manipulability"] > results["bounded"]["mean_manipulability"]
+
+
+def test_decomposition_jumps_the_self_motion_to_mid_range_in_one_sample(model, results):
+    run = simulate_circle(model, "2")
+    mid = (model.lower + model.upper) / 2
+    # First step: the null-space part of (mid − θ) is removed at once (gain 1/Δt).
+    assert np.abs(run.q[1] - run.q[0]).max() > 0.5
+    assert results["2"]["max_joint_speed_rad_s"] > 100
+    assert results["bounded"]["max_joint_speed_rad_s"] < 10
+    assert np.linalg.norm(run.q[1] - mid) < np.linalg.norm(run.q[0] - mid)
+
+
+def test_unstable_gain_and_unknown_mode_are_refused(model):
+    with pytest.raises(ValueError, match="unstable"):
+        simulate_circle(model, "1", CircleTask(gain=600.0))
+    with pytest.raises(ValueError, match="mode"):
+        simulate_circle(model, "5")
+
+
+def test_cli_prints_the_issue_schema():
+    out = io.StringIO()
+    with redirect_stdout(out):
+        assert main(["experiment", "seed002-circle", "--mode", "1", "--json"]) == 0
+    r = json.loads(out.getvalue())
+    assert r["mode"] == 1
+    assert set(r) >= {"mode", "max_error_m", "max_violation_rad", "mean_manipulability",
+                      "min_manipulability"}
+    assert len(r["max_violation_rad"]) == 3 and r["max_violation_rad"][2] > 0.1

@@ -1,0 +1,271 @@
+"""The compliance lesson served by a real viser server on a free port, driven over its
+websocket by a headless client that sends what a browser sends (app.wsclient).
+
+One lab for the module (the control loop runs in real time at 16 ms); each test
+leaves the arm reset and holding.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+
+from app.server import Lab, ServeOptions
+from app.wsclient import HeadlessClient
+from control.params import DEFAULT, PRESETS
+
+KP = "Kp (1/s²)"
+
+
+def wait(predicate, timeout: float = 20.0, what: str = "condition") -> None:  # noqa: ANN001
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def lab():
+    lab = Lab(ServeOptions(http_port=0))
+    yield lab
+    lab.close()
+
+
+@pytest.fixture
+def client(lab):
+    c = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
+    c.wait_for(lambda: any(e.label == "Run thesis line" for e in c.gui.values()),
+               what="the lesson's GUI")
+    yield c
+    c.close()
+    lesson = lab.lesson
+    lesson.gains.set_params(PRESETS["well-damped default"])
+    lesson.reset()
+    wait(lambda: lesson.rig.loop.status.active and not lesson.rig.loop.status.estopped,
+         what="the arm to hold again")
+
+
+def loop_of(lab):  # noqa: ANN001, ANN201
+    return lab.lesson.rig.loop
+
+
+def hand(lab, q: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    return lab.lesson.rig.model.fk(q)[:3, 3]
+
+
+def test_page_loads_on_loopback(lab):
+    assert lab.url.startswith("http://127.0.0.1:")
+    with urllib.request.urlopen(lab.url, timeout=5) as reply:
+        assert reply.status == 200
+        assert b"<html" in reply.read(2000).lower()
+
+
+def test_slider_changes_the_loop_params_at_the_next_period(lab, client):
+    loop = loop_of(lab)
+    client.set_value(KP, 12.5)
+    wait(lambda: loop.params.kp == 12.5, 5.0, "Kp to reach the loop")
+    assert lab.lesson.gains.params.kp == 12.5
+    # The period is applied at a period boundary: status.period_ms shows the
+    # parameters in force, and it changes within a couple of periods.
+    steps0 = loop.status.steps
+    client.set_value("period (ms)", 20.0)
+    wait(lambda: abs(loop.status.period_ms - 20.0) < 1e-9, 5.0, "the 20 ms period")
+    assert loop.status.steps - steps0 <= 60  # under a second even on a loaded machine
+    assert loop.params.period == pytest.approx(0.020)
+
+
+def test_preset_sets_every_slider_and_the_loop(lab, client):
+    loop = loop_of(lab)
+    client.set_value("Preset", "thesis Table 4.1")
+    t41 = PRESETS["thesis Table 4.1"]
+    wait(lambda: loop.params == t41, 5.0, "Table 4.1 in the loop")
+    client.wait_for(lambda: client.find(KP).value == pytest.approx(3.8), what="Kp slider 3.8")
+    assert client.find("Kv (1/s)").value == pytest.approx(0.2)
+    assert client.find("Law").value.startswith("2.26")
+
+
+def test_unstable_gains_warn_before_run(lab, client):
+    warning = lab.lesson.warning
+    assert not warning.visible
+    client.set_value("Kv (1/s)", 0.05)  # Kp 20, Kv 0.05: ζp = 0.006
+    wait(lambda: warning.visible, 5.0, "the stability warning")
+    assert "badly damped" in warning.content
+
+
+def test_run_thesis_line_fills_the_plots(lab, client):
+    loop = loop_of(lab)
+    client.click("Run thesis line")
+    wait(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
+    wait(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    # The page got the joint-angle chart (θ2 shown by default) with the elbow's 53° sweep.
+    def sweep() -> float:
+        for e in client.gui.values():
+            if e.kind == "GuiUplotMessage" and str(e.props.get("title", "")).startswith(
+                    "Joint angle"):
+                data = e.props.get("data")
+                if data is not None and len(data) == 4 and len(data[0]) > 50:
+                    return float(np.ptp(data[1]))  # command series, degrees
+        return 0.0
+
+    client.wait_for(lambda: sweep() > 40.0, 10.0, "a 40°+ sweep in the angle chart")
+    assert "max |θ_cmd − θ|" in lab.lesson.last_run_text
+
+
+def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
+    loop = loop_of(lab)
+
+    def push_and_measure() -> tuple[float, float, float]:
+        time.sleep(0.5)
+        before = loop.recorder.snapshot(0.3)
+        rest = float(np.max(np.abs(before["tau_ext"][-5:])))
+        q0 = before["q"][-1].copy()
+        client.set_value("Direction", "against the line (−y)")
+        client.set_value("Push force (N)", 4.0)
+        client.set_value("Duration (s)", 2.0)
+        client.click("Push")
+        t_end = loop.status.t + 2.0
+        wait(lambda: loop.status.t > t_end - 0.1, 10.0, "the push to run")
+        snap = loop.recorder.snapshot(0.3)
+        tau = float(np.max(np.abs(snap["tau_ext"][-5:])))
+        dy = float(hand(lab, snap["q"][-1])[1] - hand(lab, q0)[1])  # along the push (−y)
+        wait(lambda: loop.status.t > t_end + 1.5, 10.0, "the arm to settle")
+        return rest, tau, -dy
+
+    rest, tau_on, yield_on = push_and_measure()
+    assert tau_on > 0.2 and tau_on > 4 * rest  # N·m: 4 N at ~12 cm lever
+    client.set_value("Compliance on", False)
+    wait(lambda: not loop.params.compliance, 5.0, "compliance off")
+    _, tau_off, yield_off = push_and_measure()
+    assert tau_off > 0.2
+    # With compliance the hand gives way by centimetres; the PD loop holds it.
+    assert yield_on > 0.01
+    assert yield_on > 3 * abs(yield_off)
+
+
+def test_dragging_the_hand_pulls_the_arm_with_a_spring(lab, client):
+    loop = loop_of(lab)
+    lesson = lab.lesson
+    base = lesson.rig.model.base_pose
+    p0 = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
+    grab = lesson.rig.scene.hand.name
+    start = (base @ np.append(p0, 1.0))[:3]
+    anchor = (base @ np.append(p0 + np.array([0.0, -0.06, 0.0]), 1.0))[:3]
+    client.drag(grab, "start", start=start, end=anchor)
+    client.drag(grab, "update", start=start, end=anchor)
+    wait(lambda: lesson._drag_anchor is not None, 5.0, "the spring")
+    t0 = loop.status.t
+    wait(lambda: loop.status.t > t0 + 1.5, 10.0, "1.5 s of pulling")
+    p1 = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
+    assert p0[1] - p1[1] > 0.01  # pulled more than 1 cm towards the hand's anchor
+    assert lesson.rig.scene.force.visible  # the red arrow shows the pull
+    client.drag(grab, "end", start=start, end=anchor)
+    wait(lambda: lesson._drag_anchor is None, 5.0, "the spring to let go")
+
+
+def test_estop_switches_torque_off_and_reset_restores(lab, client):
+    loop = loop_of(lab)
+    plant = lab.lesson.rig.backend.plant
+    assert all(r.torque_enable for r in plant.reports())
+    client.click("E-STOP")
+    wait(lambda: loop.status.estopped and not loop.status.torque_on, 5.0, "the e-stop")
+    assert not any(r.torque_enable for r in plant.reports())
+    client.wait_for(lambda: any("E-STOPPED" in str(e.props.get("content", ""))
+                                for e in client.gui.values()), 5.0, "the E-STOPPED banner")
+    client.click("Reset")
+    wait(lambda: loop.status.torque_on and not loop.status.estopped, 5.0, "torque back on")
+    assert all(r.torque_enable for r in plant.reports())
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), 1e6, -5.0])
+def test_bad_typed_value_is_refused_with_a_notification(lab, client, bad):
+    loop = loop_of(lab)
+    kp = loop.params.kp
+    n0 = len(client.notifications)
+    client.set_value(KP, bad)
+    client.wait_for(lambda: len(client.notifications) > n0, 5.0, "a notification")
+    title, body = client.notifications[-1]
+    assert title == "Value refused" and "Kp" in body
+    client.wait_for(lambda: client.find(KP).value == pytest.approx(kp), 5.0, "Kp put back")
+    assert loop.params.kp == kp and math.isfinite(lab.lesson.gains.params.kp)
+    # The server goes on serving and taking good values.
+    client.set_value(KP, kp + 1.0)
+    wait(lambda: loop.params.kp == kp + 1.0, 5.0, "a good value after the bad one")
+    with urllib.request.urlopen(lab.url, timeout=5) as reply:
+        assert reply.status == 200
+
+
+def test_garbage_message_does_not_kill_the_server(lab, client):
+    loop = loop_of(lab)
+    client.set_value(KP, "not a number")  # viser cannot even cast it
+    client.send({"type": "NoSuchMessage", "x": 1})  # viser drops this client's connection
+    steps = loop.status.steps
+    wait(lambda: loop.status.steps > steps + 10, 5.0, "the loop to keep running")
+    with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as other:
+        other.wait_for(lambda: any(e.label == KP for e in other.gui.values()),
+                       what="a fresh page")
+
+
+def test_disconnect_mid_run_and_mid_drag_leaves_the_server_healthy(lab, client):
+    loop = loop_of(lab)
+    lesson = lab.lesson
+    c2 = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
+    c2.wait_for(lambda: any(e.label == "Push" for e in c2.gui.values()), what="GUI")
+    c2.click("Run thesis line")
+    wait(lambda: loop.status.trajectory is not None, 5.0, "the run")
+    grab = lesson.rig.scene.hand.name
+    p = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
+    world = lesson.rig.model.base_pose @ np.append(p, 1.0)
+    pull = world[:3] + np.array([0.0, 0.0, 0.05])
+    c2.drag(grab, "start", start=tuple(world[:3]), end=tuple(pull))
+    c2.drag(grab, "update", start=tuple(world[:3]), end=tuple(pull))
+    wait(lambda: lesson._drag_anchor is not None, 5.0, "the spring to attach")
+    c2.close()  # the tab closes mid-run, mid-drag
+    wait(lambda: lesson._drag_anchor is None, 5.0, "the spring to be released")
+    steps = loop.status.steps
+    wait(lambda: loop.status.steps > steps + 20, 5.0, "the loop to keep running")
+    assert loop.status.fault is None and loop.status.running
+    frames = lesson.publisher.stats.pose_frames
+    wait(lambda: lesson.publisher.stats.pose_frames > frames + 5, 5.0, "the publisher")
+    assert lesson.publisher.stats.errors == 0
+    b0 = client.bytes_received
+    client.wait_for(lambda: client.bytes_received > b0, 5.0, "updates to the other page")
+
+
+def test_csv_download_has_the_parameters_and_the_rows(lab, client):
+    loop = loop_of(lab)
+    client.click("Run thesis line")
+    wait(lambda: loop.status.trajectory is not None, 5.0, "the run")
+    wait(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    client.click("Download the last run (CSV)")
+    client.wait_for(lambda: client.downloads, 10.0, "the CSV download")
+    name, data = next(iter(client.downloads.items()))
+    assert name.endswith(".csv") and "thesis-line" in name
+    text = data.decode()
+    header = [ln for ln in text.splitlines() if ln.startswith("#")]
+    assert any(f"kp={DEFAULT.kp}" in ln and "law=2.6" in ln for ln in header), header
+    assert any("run: thesis line" in ln for ln in header)
+    rows = list(csv.reader(io.StringIO("\n".join(ln for ln in text.splitlines()
+                                                 if not ln.startswith("#")))))
+    cols = rows[0]
+    assert cols[0] == "t_s" and "q_cmd_theta2_rad" in cols and "tau_ext_theta1_Nm" in cols
+    body = np.array([[float(v) if v else np.nan for v in r] for r in rows[1:]])
+    assert len(body) > 70  # the 1.28 s line at 16 ms is 81 rows, plus its approach
+    q2 = body[:, cols.index("q_cmd_theta2_rad")]
+    assert np.degrees(np.nanmax(q2) - np.nanmin(q2)) > 40.0
+
+
+def test_share_request_is_refused(lab, client):
+    n0 = len(client.notifications)
+    client.send({"type": "ShareUrlRequest"})
+    client.wait_for(lambda: len(client.notifications) > n0, 5.0, "the refusal")
+    assert client.notifications[-1][0] == "Sharing is off"
+    assert lab.server._share_tunnel is None
+    assert client.theme is not None and client.theme["show_share_button"] is False

@@ -1,0 +1,115 @@
+"""The lab's pure pieces: chart decimation, input checks, the teaching panel's numbers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from app.inputs import check_number
+from app.lessons.compliance_servos import ServoHealth, advice, error_text
+from app.lessons.compliance_teach import (
+    LiveValues,
+    design_table,
+    equations_markdown,
+    measure_response,
+    omega_from_peak,
+    zeta_from_overshoot,
+)
+from app.plots import decimate, fill_gaps
+from control import metrics
+from control.params import PRESETS, Params
+
+
+def test_decimate_keeps_the_window_and_a_few_hundred_points():
+    t = np.arange(0.0, 30.0, 0.016)
+    y = np.sin(t)
+    tt, (yy,) = decimate(t, [y], window_s=10.0, points=128)
+    assert len(tt) <= 130
+    assert tt[-1] == t[-1] and tt[0] == pytest.approx(t[-1] - 10.0, abs=0.1)
+    assert np.allclose(yy, np.sin(tt))  # samples, not averages
+    # Bins are aligned to t = 0: one more sample picks the same earlier points.
+    tt2, _ = decimate(t[:-1], [y[:-1]], window_s=10.0, points=128)
+    shared = np.intersect1d(tt, tt2)
+    assert len(shared) >= len(tt) - 3
+
+
+def test_decimate_pads_a_short_record_to_the_full_window():
+    t = np.arange(0.0, 1.4, 0.016)
+    tt, (yy,) = decimate(t, [t * 2], window_s=10.0, points=128)
+    assert tt[-1] - tt[0] == pytest.approx(10.0)
+    assert yy[0] == yy[1] and tt[1] < 0.1  # the pad repeats the oldest kept value
+
+
+def test_fill_gaps_leaves_no_nan_for_the_chart():
+    a = np.array([np.nan, 1.0, np.nan, 3.0])
+    b = np.full(4, np.nan)
+    c = np.array([5.0, 6.0, 7.0, 8.0])
+    fa, fb, fc = fill_gaps([a, b, c])
+    assert fa.tolist() == [1.0, 1.0, 1.0, 3.0]
+    assert np.all(np.isfinite(fb)) and fc.tolist() == c.tolist()
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -1e-9, 200.0001, "x", None])
+def test_check_number_refuses_bad_values_naming_the_input(value):
+    with pytest.raises(ValueError, match="Kp"):
+        check_number(value, name="Kp", lo=0.0, hi=200.0)
+
+
+def test_check_number_accepts_the_range_ends():
+    assert check_number("3.8", name="Kp", lo=0.0, hi=200.0) == 3.8
+    assert check_number(200, name="Kp", lo=0.0, hi=200.0) == 200.0
+
+
+@pytest.mark.parametrize("zeta", [0.05, 0.3, 0.59, 0.83])
+def test_zeta_and_omega_read_back_from_overshoot_and_peak(zeta):
+    wn = 4.47
+    os_pct = metrics.overshoot_pct(zeta)
+    tp = metrics.peak_time(wn, zeta)
+    assert zeta_from_overshoot(os_pct) == pytest.approx(zeta, rel=1e-9)
+    assert omega_from_peak(tp, zeta) == pytest.approx(wn, rel=1e-9)
+
+
+def test_measure_response_of_an_exact_second_order_step():
+    wn, zeta = 3.0, 0.4
+    t = np.arange(0.0, 12.0, 0.001)
+    wd = wn * math.sqrt(1 - zeta**2)
+    y = 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2)
+                                      * np.sin(wd * t))
+    m = measure_response(t, 2.0 + 10.0 * y, initial=2.0, final=12.0, what="test")
+    assert m.zeta == pytest.approx(zeta, rel=0.01)
+    assert m.omega_n == pytest.approx(wn, rel=0.01)
+    assert m.overshoot_pct == pytest.approx(metrics.overshoot_pct(zeta), rel=0.01)
+    with pytest.raises(ValueError, match="did not move"):
+        measure_response(t, np.zeros_like(t), initial=1.0, final=1.0, what="flat")
+
+
+def test_design_table_shows_the_thesis_table_4_1_figures():
+    text = design_table(PRESETS["thesis Table 4.1"], None, None)
+    # ωp = √3.8 = 1.95 rad/s, ζp = 0.2/(2√3.8) = 0.0513, %OS = 85 %;
+    # ωf = √(12/1) = 3.46, ζf = 5/(2√12) = 0.722, C_f = 0.3/12 = 0.025.
+    for figure in ("1.95 rad/s", "0.0513", "85 %", "3.46 rad/s", "0.722", "0.025 rad/N·m"):
+        assert figure in text, figure
+    assert "Press **Step**" in text
+
+
+def test_equations_show_live_numbers_in_degrees_and_the_law_in_use():
+    live = LiveValues("θ2", q_cmd=math.radians(30.0), q=math.radians(28.0),
+                      q_env=math.radians(-1.0), tau_load=0.5, tau_dyn=0.6, tau_ext=-0.1)
+    p = Params()
+    md = equations_markdown(p, live, torque_unit="kgf·cm")
+    assert "law 2.6" in md and "30.00°" in md and "28.00°" in md and "-1.00°" in md
+    assert "-1.02 kgf·cm" in md  # τ_ext = −0.1 N·m
+    pd = equations_markdown(Params(compliance=False), live)
+    assert "PD reference loop (2.20)" in pd and "θ_env" not in pd.split("External")[0]
+    literal = equations_markdown(PRESETS["thesis Table 4.1"], live)
+    assert "2.26 (thesis literal)" in literal and "K_env θ_env" in literal
+
+
+def test_servo_advice_names_the_fault_and_what_to_do():
+    h = ServoHealth(5, "theta2", 8.1, 72.0, (1 << 5) | (1 << 2), True)
+    assert error_text(h.error) == "overheating, overload"
+    tips = " ".join(advice(h))
+    assert "free it, then press Reset" in tips and "8.1 V" in tips and "72 °C" in tips
+    assert advice(ServoHealth(1, "theta1", 12.0, 35.0, 0, True)) == []

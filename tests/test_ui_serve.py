@@ -1,0 +1,111 @@
+"""``armlab serve`` as a real process: the url line, loopback, a taken port, Ctrl-C, and the
+serial backend on emulated servos (torque off when the lab stops)."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+from _emulator import emulator
+
+from hardware import protocol1 as p1
+
+ROOT = Path(__file__).resolve().parents[1]
+START_TIMEOUT = 60.0  # s: a loaded 2-core machine
+
+
+def start_serve(*args: str) -> tuple[subprocess.Popen, str]:
+    proc = subprocess.Popen([sys.executable, "-m", "app", "serve", *args], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    deadline = time.monotonic() + START_TIMEOUT
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.5)
+        if ready:
+            line = proc.stdout.readline()
+            if line.startswith("url: "):
+                return proc, line.split(" ", 1)[1].strip()
+            if line == "" and proc.poll() is not None:
+                break
+    proc.kill()
+    out, err = proc.communicate(timeout=10)
+    raise AssertionError(f"no url line: {out!r} {err!r}")
+
+
+def stop(proc: subprocess.Popen, sig: int = signal.SIGINT) -> tuple[int, str, str]:
+    proc.send_signal(sig)
+    try:
+        out, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        raise AssertionError(f"serve did not stop on signal {sig}: {err}") from None
+    return proc.returncode, out, err
+
+
+def test_serve_prints_a_loopback_url_on_a_free_port_and_stops_on_ctrl_c():
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc, url = start_serve("--http-port", str(port))
+        try:
+            host, got = url.removeprefix("http://").rsplit(":", 1)
+            assert host == "127.0.0.1"
+            assert int(got) != port  # the taken port was skipped
+            with urllib.request.urlopen(url, timeout=10) as reply:
+                assert reply.status == 200
+        finally:
+            code, out, err = stop(proc)
+    assert code == 0, err
+    assert "stopping" in out
+
+
+def test_serve_refuses_serial_without_a_port():
+    res = subprocess.run([sys.executable, "-m", "app", "serve", "--backend", "serial"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2
+    assert "armlab serve: port:" in res.stderr and "--port" in res.stderr
+
+
+def _torque_off_packets(packets: list[bytes]) -> list[bytes]:
+    """Packets that write 0 to Torque Enable (address 24): broadcast WRITE or SYNC_WRITE."""
+    out = []
+    for raw in packets:
+        try:
+            pkt = p1.decode_instruction(raw)
+        except ValueError:
+            continue
+        params = bytes(pkt.params)
+        if pkt.instruction == p1.Instruction.WRITE and params[:1] == b"\x18" \
+                and params[1:] == b"\x00":
+            out.append(raw)
+        elif pkt.instruction == p1.Instruction.SYNC_WRITE and params[:1] == b"\x18" \
+                and all(b == 0 for b in params[3::2]):
+            out.append(raw)
+    return out
+
+
+@pytest.mark.timeout(240)
+def test_serial_lab_switches_torque_off_when_stopped(tmp_path):
+    with emulator("--robot", "receptionist_arm", log_dir=tmp_path) as emu:
+        proc, url = start_serve("--backend", "serial", "--port", emu.port, "--http-port", "0")
+        try:
+            with urllib.request.urlopen(url, timeout=10) as reply:
+                assert reply.status == 200
+            time.sleep(1.0)
+        finally:
+            code, out, err = stop(proc, signal.SIGTERM)
+        assert code == 0, err
+        time.sleep(0.3)
+        packets = emu.packets("rx")
+    assert packets, "the lab never talked to the servos"
+    assert _torque_off_packets(packets[-20:]), "the last packets do not switch torque off"
