@@ -21,11 +21,21 @@ def aim(server: viser.ViserServer, *, position: tuple[float, float, float],
     show_initial_view(server)
 
 
+def connected(client: viser.ClientHandle) -> bool:
+    """False once the page has gone (its message buffer closed): writing to its camera
+    then only makes viser warn. (viser has no public flag for it.)"""
+    conn = getattr(client, "_websock_connection", None)
+    get = getattr(conn, "get_message_buffer", None)
+    return get is None or not getattr(get(), "done", False)
+
+
 def show_initial_view(server: viser.ViserServer) -> None:
     """Move every open page's camera to ``server.initial_camera`` (after a lesson switch)."""
     ic = server.initial_camera
     up = ic.up if ic.up is not None else (0.0, 0.0, 1.0)
     for client in server.get_clients().values():
+        if not connected(client):
+            continue
         try:
             client.camera.up_direction = up
             client.camera.position = ic.position

@@ -14,24 +14,36 @@ import sys
 from app import commands
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with one subparser per module in ``app.commands``."""
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The top-level parser with one subparser per module in ``app.commands``.
+
+    Only the subcommand named in ``argv`` gets its options built (some of them
+    import the experiments, scipy or viser), so ``armlab emulate`` starts fast;
+    without one, every subcommand is built for ``--help``.
+    """
     parser = argparse.ArgumentParser(
         prog="armlab",
         description="A browser lab for teaching robot-arm kinematics and compliance control.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
-        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+    names = sorted(info.name for info in pkgutil.iter_modules(commands.__path__))
+    chosen = next((a for a in (argv or []) if not a.startswith("-")), None)
+    if chosen not in names:
+        chosen = None
+    for name in names:
+        module = importlib.import_module(f"{commands.__name__}.{name}")
         p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
-        module.add_arguments(p)
+        if chosen is None or module.NAME == chosen:
+            module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run the chosen subcommand; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    if argv is None:
+        argv = sys.argv[1:]
+    args = build_parser(argv).parse_args(argv)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:

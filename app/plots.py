@@ -5,6 +5,12 @@ append), so a chart costs ``(series + 1) * points * 8`` bytes per update per
 browser. Windows are therefore short (about 10 s) and decimated to a fixed
 grid of ``points`` bins; the bins are aligned to absolute time so a curve does
 not shimmer as the window slides.
+
+The x axis is time relative to the newest sample, from −window to 0 exactly.
+The page keeps a chart's x range *relative to its data's x extent* across
+updates (to keep a user's zoom), and it can lose that state while a chart is
+being created (the view then shrinks to a 1 s slice); with a fixed extent
+[−window, 0] the range never needs re-deriving and always shows the window.
 """
 
 from __future__ import annotations
@@ -27,34 +33,31 @@ def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
 
     Bins are ``window_s / points`` wide and aligned to t = 0, and each keeps its
     last sample, so successive calls on a growing record pick the same samples.
+    A first sample at exactly t[-1] − window_s repeats the oldest kept values, so
+    the result always spans exactly ``window_s``.
 
     Args:
         t: (N,) sample times, s, increasing.
         ys: arrays of shape (N,).
         window_s: window length, s.
-        points: number of bins (the result has at most ``points + 1`` samples).
+        points: number of bins (the result has at most ``points + 2`` samples).
 
     Returns:
-        (t (M,), [y (M,), ...]) with M <= points + 2. When the record is shorter
-        than the window, a first sample at t[-1] − window_s repeats the oldest
-        values, so the result always spans exactly ``window_s`` (the page keeps
-        a chart's x range relative to its data span: a growing span would leave
-        the view stuck on the first seconds).
+        (t (M,), [y (M,), ...]) with M <= points + 2.
     """
     t = np.asarray(t, dtype=float)
     if t.size == 0:
         return t, [np.asarray(y, dtype=float) for y in ys]
     start = t[-1] - window_s
-    keep = t >= start
+    keep = t > start
     t = t[keep]
     ys = [np.asarray(y, dtype=float)[keep] for y in ys]
     width = window_s / max(points, 1)
     bins = np.floor(t / width)
     last = np.append(bins[1:] != bins[:-1], True)
     t, ys = t[last], [y[last] for y in ys]
-    if t[0] > start:
-        t = np.concatenate([[start], t])
-        ys = [np.concatenate([y[:1], y]) for y in ys]
+    t = np.concatenate([[start], t])
+    ys = [np.concatenate([y[:1], y]) for y in ys]
     return t, ys
 
 
@@ -126,28 +129,36 @@ class LivePlot:
         y2_label: right axis label for series on scale "y2" (None: no right axis).
         window_s: seconds shown.
         points: decimation bins per window.
+        height: chart height, px.
+        order: place among its container's elements (viser's ``order``).
+
+    Change nothing but ``data`` after creation: the page rebuilds a chart whose
+    options change and then loses its x range (it shows a 1 s slice). To retitle or
+    relabel, remove the chart and add a new one at the same ``order``.
     """
 
     def __init__(self, gui: viser.GuiApi, *, title: str, series: Sequence[SeriesSpec],
                  y_label: str, y2_label: str | None = None, window_s: float = 10.0,
-                 points: int = 128, height: int = 170) -> None:
+                 points: int = 128, height: int = 170, order: float | None = None) -> None:
         self.window_s = window_s
         self.points = points
         self.n_series = len(series)
         scales: dict = {"x": {"time": False}, "y": {"auto": True}}
-        axes: list = [{"label": "t (s)", "size": 34}, {"label": y_label, "scale": "y", "size": 52}]
+        axes: list = [{"label": "t − now (s)", "size": 34},
+                      {"label": y_label, "scale": "y", "size": 52}]
         if y2_label is not None:
             scales["y2"] = {"auto": True}
             axes.append({"label": y2_label, "scale": "y2", "side": 1, "size": 52,
                          "grid": {"show": False}})
-        # Start with the full window span (see decimate) and flat zero lines.
+        # Start with the fixed x extent (see the module docstring) and flat zero lines.
         empty = (np.array([-window_s, 0.0]), *(np.zeros(2) for _ in range(self.n_series)))
         self.handle = gui.add_uplot(
             data=empty,
-            series=({"label": "t (s)"}, *(_series(s) for s in series)),
+            series=({"label": "t − now (s)"}, *(_series(s) for s in series)),
             scales=scales, axes=tuple(axes), title=title, height=height,
             legend={"live": False},
             cursor={"show": False},
+            order=order,
         )
         self._last_t: float | None = None
         self._last_sent = 0.0
@@ -184,7 +195,9 @@ class LivePlot:
         if tt.size < 2:
             return False
         yy = fill_gaps(yy)
-        self.handle.data = (tt, *yy)
+        x = tt - tt[-1]
+        x[0], x[-1] = -self.window_s, 0.0  # exactly: the page's x range never changes
+        self.handle.data = (x, *yy)
         self._last_t = newest
         self._last_sent = now
         self._last_values = np.array([y[-1] for y in yy])

@@ -119,12 +119,16 @@ class Lab:
         try:
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
+            # Docked, the controls never cover the 3D view: the camera frames the arm in
+            # the space left between them and a lesson's charts docked on the left.
+            self.server.gui.main_panel.dock_right()
             self.url = f"http://{options.host}:{self.server.get_port()}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)
         except BaseException:
-            self.server.stop()
+            with contextlib.redirect_stdout(io.StringIO()):
+                self.server.stop()
             raise
 
     # -- chrome -----------------------------------------------------------------

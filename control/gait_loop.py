@@ -183,19 +183,22 @@ class GaitLoop:
         self.post(apply)
 
     def estop(self) -> None:
-        """Torque off now (from any thread; never raises) and stop walking."""
-        if self.backend is not None:
-            try:
-                self.backend.estop()
-            except (BackendError, OSError, ValueError):
-                pass
+        """Torque off at the next period (from any thread; never raises) and stop walking.
 
+        The loop thread sends it (one writer on the bus); without a running thread it is
+        sent from here.
+        """
         def apply(loop: GaitLoop) -> None:
             loop._walking = loop._stopping = False
             loop._torque = False
             if loop.backend is not None:
                 loop.backend.estop()
         self.post(apply)
+        if self._thread is None and self.backend is not None:
+            try:
+                self.backend.estop()
+            except (BackendError, OSError, ValueError):
+                pass
 
     @staticmethod
     def _check_speed(speed: float) -> float:

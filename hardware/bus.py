@@ -102,20 +102,25 @@ def reply_timeout(request: int, reply: int, baud: float, return_delay: int, marg
     return wire_time(request + reply, baud) + 2e-6 * return_delay + margin
 
 
+def ftdi_latency_ms(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:
+    """The FTDI latency timer of ``port`` in ms, or None when it is not a usb-serial device."""
+    dev = Path(os.path.realpath(port)).name
+    try:
+        return int((sysfs / dev / "latency_timer").read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
 def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | None:
     """Warn when an FTDI adapter's latency timer will cost ~16 ms per transaction.
 
     Returns None when the port is not a usb-serial device or the timer is 1 ms,
     otherwise a one-line message naming the fix.
     """
-    dev = Path(os.path.realpath(port)).name
-    timer = sysfs / dev / "latency_timer"
-    try:
-        value = int(timer.read_text().strip())
-    except (OSError, ValueError):
+    value = ftdi_latency_ms(port, sysfs=sysfs)
+    if value is None or value <= 1:
         return None
-    if value <= 1:
-        return None
+    timer = sysfs / Path(os.path.realpath(port)).name / "latency_timer"
     return (
         f"{port}: FTDI latency timer is {value} ms, so every servo reply waits up to {value} ms; "
         f"fix: echo 1 | sudo tee {timer}  (or a udev rule ATTR{{latency_timer}}=\"1\")"
@@ -154,7 +159,9 @@ class Bus:
         port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
         baud: bit/s (1 000 000 in the thesis).
         retries: extra attempts after a timeout or a broken reply (bounded).
-        timeout_margin: s added to the computed wire time of each reply.
+        timeout_margin: s added to the computed wire time of each reply; raised to the
+            adapter's FTDI latency timer + 5 ms where that is longer (a 16 ms timer
+            would otherwise time out every reply).
         echo: the adapter echoes what it sends (half-duplex TTL with TX and RX tied).
         rs485: switch a native UART into kernel RS-485 mode (not applicable on a
             USB adapter or a pty; noted in :attr:`notes`, not an error).
@@ -171,7 +178,7 @@ class Bus:
     """
 
     def __init__(self, port: str, baud: float = 1_000_000, *, retries: int = 2,
-                 timeout_margin: float = 0.010, echo: bool = False, rs485: bool = False,
+                 timeout_margin: float = 0.020, echo: bool = False, rs485: bool = False,
                  table: ControlTable = RX24F_TABLE, exclusive: bool = True):
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
@@ -195,6 +202,9 @@ class Bus:
         self._fd = self._ser.fileno()
         if rs485:
             self._enable_rs485()
+        latency = ftdi_latency_ms(port)
+        if latency is not None:
+            self.timeout_margin = max(self.timeout_margin, latency / 1000.0 + 0.005)
         note = ftdi_latency_check(port)
         if note:
             self.notes.append(note)

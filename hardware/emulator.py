@@ -45,7 +45,7 @@ PACKET_GAP = 0.1  #: s: a longer pause between bytes drops a partial packet
 BAUD_TOLERANCE = 0.03  #: a UART still decodes bytes within about 3 % of its rate
 #: s of plant time integrated at most before answering; when the CPU cannot keep the
 #: plant in real time, its clock slips instead of the replies coming late
-MAX_CATCH_UP = 0.02
+MAX_CATCH_UP = 0.1
 
 
 def line_baud(master_fd: int) -> float | None:
@@ -447,7 +447,7 @@ class PtyEmulator:
             reply = self._inject(reply)
             if reply is None:
                 continue
-            if reply is not None and self._rng.random() < self.faults.delay:
+            if self.faults.delay and self._rng.random() < self.faults.delay:
                 self.stats.delayed += 1
                 due += self.faults.delay_time
             self._queue.append((due, reply))

@@ -81,7 +81,7 @@ def test_3d_view_renders_the_arm(page):
     canvases = page.locator("canvas")
     sizes = [(i, canvases.nth(i).bounding_box()) for i in range(canvases.count())]
     i, box = max(((i, b) for i, b in sizes if b), key=lambda ib: ib[1]["width"] * ib[1]["height"])
-    assert box["width"] > 800 and box["height"] > 600  # the 3D view fills the page
+    assert box["width"] > 500 and box["height"] > 800  # the view between the two panels
     shot = page.shots / "scene.png"
     canvases.nth(i).screenshot(path=str(shot))
     from PIL import Image
@@ -97,8 +97,9 @@ def test_3d_view_renders_the_arm(page):
 
 
 def _slider(page, label: str):  # noqa: ANN001, ANN202
-    return page.locator(f"xpath=//*[text()='{label}']/ancestor::*[.//*[@role='slider']][1]"
-                        "//*[@role='slider']").first
+    """The thumb of the slider labelled ``label`` (its <label for=...> names the slider)."""
+    target = page.locator("label", has_text=label).first.get_attribute("for")
+    return page.locator(f"[id='{target}'] [role=slider]")
 
 
 def test_moving_the_kp_slider_changes_the_controller(page, lab):
@@ -135,6 +136,13 @@ def _chart_series(page, title_start: str) -> list[list[float]] | None:  # noqa: 
         }""", title_start)
 
 
+def _shown_widths(page) -> list[float]:  # noqa: ANN001
+    """The x span each chart on the page displays, s."""
+    return page.evaluate("""() => Object.values((window.__viserTestpoints || {}).uplots || {})
+        .filter(({chart}) => chart.root.isConnected)
+        .map(({chart}) => chart.scales.x.max - chart.scales.x.min)""")
+
+
 def test_run_fills_the_charts(page, lab):
     loop = lab.lesson.rig.loop
     page.get_by_role("button", name="Run thesis line").click()
@@ -147,7 +155,13 @@ def test_run_fills_the_charts(page, lab):
 
     wait(lambda: sweep() > 40.0, 60, "the elbow's sweep in the angle chart")
     data = _chart_series(page, "Joint angle")
-    assert data[0][-1] - data[0][0] == pytest.approx(10.0, abs=0.5)  # a 10 s window
+    assert data[0][0] == -10.0 and data[0][-1] == 0.0  # the last 10 s, now at 0
+    # ... and the page shows all of it (not a zoomed slice), also after picking a joint.
+    assert _shown_widths(page) == [pytest.approx(10.0)] * 4
+    page.get_by_role("button", name="θ1", exact=True).click()
+    wait(lambda: (_chart_series(page, "Joint angle θ1") or [[]])[0][:1] == [-10.0], 60,
+         "the θ1 charts")
+    wait(lambda: _shown_widths(page) == [pytest.approx(10.0)] * 4, 30, "full-width θ1 charts")
     page.screenshot(path=str(page.shots / "after_run.png"))
 
 

@@ -25,9 +25,10 @@ from kinematics.model import load_robot
 
 ARM = load_robot("receptionist_arm")
 PRE = 2.0  # s to bring the arm from hanging (q = 0) to the line's start before the run
-#: counts outside the one-period band: each side's 10-bit reading (±1) plus the count the
-#: servo model itself moves by under a 1 ms or 1-count perturbation of the same run
-TOLERANCE_COUNTS = 3
+#: counts outside the one-period band. The compliance loop feeds the quantised load back,
+#: so two *simulated* runs that differ by one count at the start or 1 ms of actuation delay
+#: already leave each other's one-period band by up to 3 counts (measured); + 2 here.
+TOLERANCE_COUNTS = 5
 
 
 class _SimAfter:
@@ -57,22 +58,13 @@ class _SimAfter:
         self.sim.close()
 
 
-def _skip_if_stalled(late: float, period: float) -> None:
-    """The comparison assumes both processes kept real time; a shared machine that stalled
-    the loop, or made the emulator's plant clock slip, by more than a period voids it."""
-    if late > period:
-        pytest.skip(f"the machine stalled the real-time loop or the emulator by "
-                    f"{late * 1e3:.0f} ms (more than the {period * 1e3:.0f} ms period): "
-                    "no fair comparison")
-
-
 def test_thesis_line_through_the_emulator_matches_the_simulator():
     plan, t0, t1 = line_plan(ARM)
     params = preset("well-damped default")
     start = plan.q[0]
     nice = os.getpriority(os.PRIO_PROCESS, 0)
     with emulator() as emu:
-        # generous retries: a stalled shared machine must end in the skip below, not a fault
+        # generous retries: a stall of the shared machine must show as lateness, not a fault
         serial = DynamixelBackend(ARM, emu.port, timeout_margin=0.1, retries=10)
         serial.set_torque(True)  # the emulated arm hangs at q = 0 with torque off
         serial.write(start, np.full(3, 2.0))
@@ -82,8 +74,8 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
         try:
             emu_run = run_line(ARM, lambda model, **kw: serial, params, controller="compliance")
         except ValueError as exc:  # the loop stopped on a fault
-            _skip_if_stalled(serial.late_max, params.period)
-            raise AssertionError(f"the run through the emulator failed: {exc}") from None
+            raise AssertionError(f"the run through the emulator failed (loop late by up to "
+                                 f"{serial.late_max * 1e3:.0f} ms): {exc}") from None
         finally:
             with contextlib.suppress(OSError):
                 os.setpriority(os.PRIO_PROCESS, 0, nice)
@@ -102,11 +94,16 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
     assert np.allclose(e["t"][:n], s["t"][:n])
     qe, qs = e["q"][:n], s["q"][:n]
     assert np.any(np.abs(qs[-1] - qs[0]) > 0.5)  # the arm really travelled the line
-    _skip_if_stalled(max(serial.late_max, slipped), params.period)
-    # band: the simulated angle one period earlier, now or one period later, ± tolerance
-    lo = np.minimum(np.minimum(qs[:-2], qs[1:-1]), qs[2:])
-    hi = np.maximum(np.maximum(qs[:-2], qs[1:-1]), qs[2:])
-    outside = np.maximum(lo - qe[1:-1], qe[1:-1] - hi)
+    stall = max(serial.late_max, slipped)
+    if stall > params.period:
+        pytest.skip(f"the shared machine stalled the real-time loop or the emulator by "
+                    f"{stall * 1e3:.0f} ms, more than the {params.period * 1e3:.0f} ms period: "
+                    "no fair comparison")
+    # band: the simulated angles one period earlier, now and one period later, ± tolerance
+    k = 1
+    m = n - 2 * k
+    window = np.stack([qs[j : j + m] for j in range(2 * k + 1)])
+    outside = np.maximum(window.min(axis=0) - qe[k : k + m], qe[k : k + m] - window.max(axis=0))
     counts = outside.max(axis=0) / RX24F.position_unit
     assert np.all(counts <= TOLERANCE_COUNTS + 1e-6), (
         f"emulated angles leave the simulated ones by {counts} counts")

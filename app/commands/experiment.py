@@ -95,6 +95,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         _print_table(rows)
         for k, v in result.items():
-            if isinstance(v, list | tuple) and not (exp.rows and k == "rows"):
+            # With its own rows, an experiment's other keys are its summary.
+            if isinstance(v, dict) or (k == "rows" and exp.rows):
+                continue
+            if exp.rows or isinstance(v, list | tuple):
                 print(f"{k}: {_fmt(v)}")
     return 0

@@ -171,6 +171,7 @@ class ComplianceLesson:
         except BaseException:
             backend.close()
             raise
+        scene.hand.visible = not self.hardware  # real servos are pushed by a real hand
         loop.start()
         return Rig(preset, model, backend, loop, scene, line)
 
@@ -223,8 +224,8 @@ class ComplianceLesson:
         with tabs.add_tab("Servos", viser.Icon.CPU):
             self.servo_html = gui.add_html("reading the servos…")
         self.plot_panel = self._add(gui.add_panel())
-        with self.plot_panel.add_tab("Live charts", viser.Icon.CHART_LINE):
-            self.plots = JointPlots(gui, ("theta1", "theta0", "theta2"), default_joint=2)
+        charts = self.plot_panel.add_tab("Live charts", viser.Icon.CHART_LINE)
+        self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"), default_joint=2)
         self.plot_panel.dock_left()
         self.plot_panel.set_width(430)
         self._show_warning(params)
@@ -243,7 +244,9 @@ class ComplianceLesson:
         with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
             self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
             self.step_size = gui.add_slider("Step (°)", min=-30.0, max=30.0, step=1.0,
-                                            initial_value=10.0)
+                                            initial_value=-20.0,
+                                            hint="Size and sign of the step; it goes the "
+                                                 "other way when a joint limit is too near")
             self._step_size = GuardedNumber(self.step_size, name="step", lo=-30.0, hi=30.0,
                                             apply=lambda v: None)
             step = gui.add_button("Step", icon=viser.Icon.STAIRS_UP,
@@ -358,10 +361,15 @@ class ComplianceLesson:
         if q_cmd is None:
             raise ValueError("the controller is not running: press Reset first")
         step = math.radians(self._step_size.value)
+        if abs(step) < math.radians(0.5):
+            raise ValueError("step: choose a step of at least 1°")
         q1 = q_cmd.copy()
+        if not loop.lower[j] <= q_cmd[j] + step <= loop.upper[j]:
+            step = -step  # too near a limit: the other way
         q1[j] = float(np.clip(q_cmd[j] + step, loop.lower[j], loop.upper[j]))
-        if abs(q1[j] - q_cmd[j]) < math.radians(0.5):
-            raise ValueError(f"{self.step_joint.value} is at its limit: step the other way")
+        if abs(q1[j] - q_cmd[j]) < 0.5 * abs(step):
+            raise ValueError(f"{self.step_joint.value}: no room for a "
+                             f"{abs(self._step_size.value):g}° step between its limits")
         T = loop.params.period
         z = np.zeros((2, len(q1)))
         traj = JointTrajectory(np.array([0.0, T]), np.vstack([q_cmd, q1]), z, z.copy(),
@@ -415,13 +423,15 @@ class ComplianceLesson:
 
     def _on_target(self, xyz: np.ndarray) -> None:
         rig = self.rig
-        if rig is not None:
+        if rig is not None and np.all(np.isfinite(xyz)):  # a page cannot send NaN on
             rig.loop.post(SetTarget(xyz))
 
     def _on_drag(self, phase: str, anchor: np.ndarray | None) -> None:
         rig = self.rig
         if rig is None or not isinstance(rig.backend, Pushable):
             return
+        if anchor is not None and not np.all(np.isfinite(anchor)):
+            return  # a malformed drag event: ignore it
         k = self._spring_k.value
         self._drag_anchor = anchor
         rig.loop.post(Spring(anchor, stiffness=k, link=rig.model.n - 1,
@@ -544,7 +554,7 @@ class ComplianceLesson:
     def _update_teach(self, st: LoopStatus, snap: dict[str, np.ndarray], params: Params) -> None:
         j = self.plots.joint
         live = latest_values(snap, j, joint_label(self.plots.labels[j]))
-        eq = equations_markdown(params, live, torque_unit=str(self.plots.torque_unit.value),
+        eq = equations_markdown(params, live, torque_unit=self.plots.unit,
                                 mode=st.controller)
         if eq != self._teach_text:
             self._teach_text = eq

@@ -18,8 +18,8 @@ import viser.transforms as vtf
 from app.arm_view import ArmView
 from kinematics.model import SerialChain
 
-#: Newtons drawn per metre of arrow.
-ARROW_M_PER_N = 0.02
+#: Metres of arrow drawn per newton.
+ARROW_M_PER_N = 0.03
 #: Applied forces under this many newtons are not drawn.
 ARROW_MIN_N = 0.05
 #: Estimated forces are drawn above ESTIMATE_ON_N and hidden below ESTIMATE_OFF_N
@@ -63,19 +63,19 @@ class ComplianceScene:
             f"{root}/shoulder", show_axes=True, axes_length=0.08, axes_radius=0.003,
             wxyz=vtf.SO3.from_matrix(base[:3, :3]).wxyz, position=base[:3, 3])
         sh = f"{root}/shoulder"
-        scene.add_label(f"{sh}/label", "shoulder frame (thesis): x = gravity",
-                        position=(0.0, 0.0, -0.05), font_screen_scale=0.7)
+        scene.add_label(f"{sh}/label", "shoulder (thesis frame, x = gravity)",
+                        position=(0.09, 0.0, 0.0), font_screen_scale=0.6)
         path = np.asarray(path, dtype=float).reshape(2, 3)
         self.path = scene.add_line_segments(f"{sh}/path", points=path[None, :, :],
                                             colors=PATH_RGB, thickness=0.004)
         scene.add_label(f"{sh}/path_label", "thesis 20 cm line", position=path[1],
-                        font_screen_scale=0.7)
+                        font_screen_scale=0.6)
         for i, p in enumerate(path):
             scene.add_icosphere(f"{sh}/path_end{i}", radius=0.006, color=PATH_RGB, position=p)
         # Target the hand follows by RMRC (translation only).
         self.target = scene.add_transform_controls(
-            f"{sh}/target", scale=0.09, disable_rotations=True, depth_test=False,
-            position=path[0])
+            f"{sh}/target", scale=0.07, disable_rotations=True, depth_test=False,
+            position=path[1])
         scene.add_icosphere(f"{sh}/target/dot", radius=0.01, color=(250, 180, 0))
         self._suppress_target = False
 
@@ -105,8 +105,8 @@ class ComplianceScene:
                                               colors=(90, 90, 90), thickness=0.003,
                                               visible=False)
         self.force = scene.add_arrows(f"{sh}/force", points=np.zeros((1, 2, 3)),
-                                      colors=FORCE_RGB, shaft_radius=0.005, head_radius=0.012,
-                                      head_length=0.025, visible=False)
+                                      colors=FORCE_RGB, shaft_radius=0.007, head_radius=0.016,
+                                      head_length=0.03, visible=False)
         self.estimate = scene.add_arrows(f"{sh}/estimate", points=np.zeros((1, 2, 3)),
                                          colors=ESTIMATE_RGB, shaft_radius=0.004,
                                          head_radius=0.01, head_length=0.02, visible=False)
@@ -115,8 +115,8 @@ class ComplianceScene:
                        for i in range(TRAIL_DOTS)]
         self._trail_next = 0
         self._trail_last: np.ndarray | None = None
-        server.initial_camera.position = (0.62, -0.22, 1.22)
-        server.initial_camera.look_at = (0.0, 0.13, 0.96)
+        server.initial_camera.position = (0.62, -0.12, 1.16)
+        server.initial_camera.look_at = (0.0, 0.14, 0.93)
 
     # -- frames -----------------------------------------------------------------
 

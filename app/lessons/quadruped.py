@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import viser
@@ -189,8 +190,7 @@ class QuadrupedLesson:
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(TEACH)
         self.plot_panel = self._add(gui.add_panel())
-        with self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE):
-            self._build_plots(gui)
+        self._build_plots(gui, self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE))
         self.plot_panel.dock_left()
         self.plot_panel.set_width(430)
 
@@ -245,26 +245,43 @@ class QuadrupedLesson:
                 apply=lambda v, field=field, k=k: self.set_params(**{field: v / k}))
         self.reachable_md = gui.add_markdown(_plan_md(self.plan))
 
-    def _build_plots(self, gui: viser.GuiApi) -> None:
-        self.leg_picker = gui.add_button_group("Leg", LEGS, hint="The leg the joint charts show")
-        self.leg_picker.value = "RF"
-        self._shown_leg = ""
-        kw = {"window_s": 8.0, "points": 128}
-        self.joint_plots = [LivePlot(gui, title=f"θ{j + 1}", y_label="°", height=130, series=(
-            SeriesSpec("commanded", COLORS[0], (6, 4)), SeriesSpec("servo", COLORS[2])), **kw)
-            for j in range(3)]
-        self.margin_plot = LivePlot(gui, title="Static stability margin", y_label="cm",
-                                    height=130, series=(SeriesSpec("margin", COLORS[4]),
-                                                        SeriesSpec("0", "#999999", (4, 4))),
-                                    **kw)
-        self.error_plot = LivePlot(gui, title="Eq. 4.1 |servo − commanded| / commanded",
-                                   y_label="%", height=130, series=tuple(
-                                       SeriesSpec(f"servo {j + 1}", COLORS[j + 3])
-                                       for j in range(3)), **kw)
+    def _build_plots(self, gui: viser.GuiApi, container: Any) -> None:
+        self.charts = container
+        self._leg = "RF"
+        self._leg_stale = False
+        self._plot_lock = threading.Lock()
+        kw = {"window_s": 8.0, "points": 128, "height": 130}
+        with container:
+            self.leg_picker = gui.add_button_group("Leg", LEGS, order=1.0,
+                                                   hint="The leg the joint charts show")
+            self.margin_plot = LivePlot(gui, title="Static stability margin",
+                                        y_label="cm", order=20.0, series=(
+                                            SeriesSpec("margin", COLORS[4]),
+                                            SeriesSpec("0", "#999999", (4, 4))), **kw)
+            self.error_plot = LivePlot(gui, title="Eq. 4.1 |servo − commanded| / commanded",
+                                       y_label="%", order=21.0, series=tuple(
+                                           SeriesSpec(f"servo {j + 1}", COLORS[j + 3])
+                                           for j in range(3)), **kw)
+        self._build_joint_charts()
 
         @self.leg_picker.on_click
         def _(_: viser.GuiEvent) -> None:
-            self._shown_leg = ""
+            leg = str(self.leg_picker.value)
+            if leg in LEGS and leg != self._leg:
+                self._leg = leg
+                self._leg_stale = True  # rebuilt by the next chart frame
+
+    def _build_joint_charts(self) -> None:
+        """The three joint charts of the chosen leg (rebuilt, not retitled, on a change:
+        see ``app.plots.LivePlot``)."""
+        gui = self.server.gui
+        with self.charts:
+            self.joint_plots = [
+                LivePlot(gui, title=f"Leg {self._leg}: {SERVO_NAMES[j]}", y_label="angle (°)",
+                         order=10.0 + j, height=130, window_s=8.0, points=128, series=(
+                             SeriesSpec("commanded", COLORS[0], (6, 4)),
+                             SeriesSpec("servo", COLORS[2])))
+                for j in range(3)]
 
     def _remove_gui(self) -> None:
         for h in reversed(self._gui_handles):
@@ -355,14 +372,16 @@ class QuadrupedLesson:
     def _plot_frame(self, force: bool) -> None:
         snap = self.loop.snapshot(self.margin_plot.window_s + 0.5)
         t = snap["t"]
-        leg = str(self.leg_picker.value)
-        if leg != self._shown_leg:
-            force = True
-            for j, plot in enumerate(self.joint_plots):
-                plot.handle.title = f"Leg {leg}: {SERVO_NAMES[j]}, commanded vs servo"
-            self._shown_leg = leg
+        with self._plot_lock:
+            if self._leg_stale:
+                self._leg_stale = False
+                for plot in self.joint_plots:
+                    plot.remove()
+                self._build_joint_charts()
+                force = True
+            leg = self._leg
         if len(t) >= 2:
-            i = LEGS.index(leg) if leg in LEGS else 0
+            i = LEGS.index(leg)
             for j, plot in enumerate(self.joint_plots):
                 plot.update(t, (snap["q_cmd"][:, 3 * i + j] * DEG, snap["q"][:, 3 * i + j] * DEG),
                             force=force)

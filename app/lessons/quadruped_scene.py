@@ -21,7 +21,7 @@ import viser
 import viser.transforms as vtf
 
 from app.arm_view import ArmView
-from app.camera import aim
+from app.camera import aim, connected
 from control.walking import GaitPlan, WalkState
 from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS
@@ -100,9 +100,7 @@ class QuadrupedScene:
                                             anchor="bottom-left")
         self.stable: bool | None = None
         self._followed: np.ndarray | None = None
-        # Looking at a point right of the robot: the robot shows left of the canvas's middle,
-        # in the free space between the docked charts and the control panel.
-        aim(server, position=(0.60, -0.50, 0.42), look_at=(0.24, 0.12, 0.05))
+        aim(server, position=(0.40, -0.58, 0.40), look_at=(0.04, 0.0, 0.05))
 
     def set_foot_paths(self, plan: GaitPlan) -> None:
         """Draw every foot's closed path over one cycle of ``plan`` (body frame)."""
@@ -187,6 +185,8 @@ class QuadrupedScene:
             return
         self._followed = xy
         for client in self.server.get_clients().values():
+            if not connected(client):
+                continue
             try:
                 client.camera.position = client.camera.position + np.array([*step, 0.0])
             except (AssertionError, ValueError, RuntimeError):

@@ -7,13 +7,13 @@ manipulability gradient k_a ∇w in the null space, eq. 4; 4: both) and a method
 guarantees the limits (bounded least squares). Stick pictures, the end-effector path,
 the manipulability ellipse and a red dot on any joint outside its limits show in the
 scene; charts show each joint angle inside its limit band, the manipulability and the
-position error, growing as the runs play.
+position error over the whole run (the paper's figures).
 
 "Run" calls the same functions as ``armlab experiment seed002-circle``
 (``kinematics.redundancy.simulate_circle`` then ``control.experiments.seed002.summarise``)
 for every mode with the gains on the sliders, in a worker thread; the figures
 table shows exactly what the experiment prints. A :class:`Publisher` plays the
-runs back (scene at 30 Hz, charts at 10 Hz) at the chosen playback speed.
+runs back at the chosen playback speed (scene at 30 Hz; the charts are sent once per run).
 """
 
 from __future__ import annotations
@@ -34,8 +34,14 @@ from app.lessons.redundancy_scene import MODE_COLORS, MODE_LABELS, RedundancySce
 from app.publisher import Publisher
 from control.experiments.seed002 import SETTLE_S, summarise
 from kinematics.model import SerialChain, load_robot
-from kinematics.redundancy import MODES, CircleRun, CircleTask, manipulability, simulate_circle
-from kinematics.redundancy import task_jacobian as _task_jacobian
+from kinematics.redundancy import (
+    MODES,
+    CircleRun,
+    CircleTask,
+    manipulability,
+    simulate_circle,
+    task_jacobian,
+)
 
 NAME = "redundancy"
 TITLE = "Redundancy and joint limits (seed 002)"
@@ -144,8 +150,9 @@ TEACH = """\
 
 The **ellipse** at the hand is {J θ̇ : |θ̇| ≤ 1}: its semi-axes are J's singular values,
 their product is w. A thin ellipse means the hand can hardly move across it.
-Joint dots turn **red** while the joint is outside its limits. The top row ignores the
-limits, the bottom row enforces them.
+Joint dots turn **red** while the joint is outside its limits. Left column: no redundancy
+use; right column: the gradient. Top row: no limits; middle row: the paper's limit
+method; bottom: the guaranteed method.
 """
 
 
@@ -179,6 +186,7 @@ class RedundancyLesson:
         self._paused_t = 0.0
         self._status_html = ""
         self._shown_k = -1
+        self._plotted: RunSet | None = None  # the runs the charts show
         self._build_gui()
         try:
             self.scene = RedundancyScene(server, model, modes=self.modes, root="/redundancy")
@@ -384,10 +392,10 @@ class RedundancyLesson:
 
     def _plot_frame(self, force: bool) -> None:
         rs = self.results
-        if rs is None:
+        if rs is None or (rs is self._plotted and not force):
             return
-        k = self.sample_at(self.playhead()) + 1 if self._play_start is not None else 1
-        self.plots.update(rs.runs, k, force=force)
+        self.plots.show(rs.runs)
+        self._plotted = rs
 
     def _update_status(self) -> None:
         rs = self.results
@@ -436,7 +444,7 @@ def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
     q = run.q[k]
     out = [f"θ{i + 1}" for i in range(model.n)
            if q[i] < model.lower[i] - 1e-9 or q[i] > model.upper[i] + 1e-9]
-    w = manipulability(_task_jacobian(model, q))
+    w = manipulability(task_jacobian(model, q))
     err = run.error()[k] * 1000.0 if run.t[k] >= SETTLE_S else float("nan")
     limits = "limits kept" if not out else f"{', '.join(out)} outside limits!"
     e = f" · error {err:.3f} mm" if math.isfinite(err) else ""

@@ -1,28 +1,78 @@
-"""The redundancy lesson's charts: the paper's figures, drawn as the runs play.
+"""The redundancy lesson's charts: the paper's figures for the whole 2 s run.
 
-Five charts over the 2 s of the circle, one line per simulation (mode colours as
-in the scene):
+Five charts over the circle's 2 s, one line per simulation (mode colours as in
+the scene), drawn once a run is computed (the 3D view plays it back):
 
 1.-3. each joint angle, degrees, with its limits as dashed lines and the allowed
       band shaded between them (seed 002 §5: joint 1 [90°, 180°], joint 2
       [−90°, 0°], joint 3 [−180°, −90°]);
 4. Yoshikawa's manipulability w = sqrt(det(J Jᵀ));
 5. the position-error norm |x_d − x|, mm.
+
+Unlike the live charts (``app.plots.LivePlot``, a window sliding with "now"), the
+x axis is the run's own time, always [0, duration]: every data set spans it
+exactly, and nothing but the data changes after a chart is created (the page
+keeps a chart's x range relative to its data extent).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import viser
 
 from app.lessons.redundancy_scene import MODE_COLORS
-from app.plots import LivePlot, SeriesSpec
+from app.plots import SeriesSpec, _series
 from kinematics.model import SerialChain
 from kinematics.redundancy import CircleRun
 
 DEG = 180.0 / np.pi
 LIMIT_COLOR = "#777777"
 BAND_FILL = "rgba(46, 125, 50, 0.10)"
+
+
+class RunPlot:
+    """A uPlot chart of whole runs against their time, 0..``duration`` s.
+
+    Args:
+        gui: where to add it.
+        title: chart title. y_label: left axis label.
+        series: the lines (y arrays given to :meth:`show` in this order).
+        duration: s, the x extent.
+        bands: uPlot bands (series index pairs, 1-based as in uPlot) to shade.
+        points: samples sent per line (the runs are decimated to about this many).
+    """
+
+    def __init__(self, gui: viser.GuiApi, *, title: str, y_label: str,
+                 series: Sequence[SeriesSpec], duration: float, bands: tuple = (),
+                 points: int = 126, height: int = 150) -> None:
+        self.duration = float(duration)
+        self.points = points
+        self.n_series = len(series)
+        self.handle = gui.add_uplot(
+            data=(np.array([0.0, self.duration]), *(np.zeros(2) for _ in series)),
+            series=({"label": "t (s)"}, *(_series(s) for s in series)),
+            scales={"x": {"time": False}, "y": {"auto": True}},
+            axes=({"label": "t (s)", "size": 34}, {"label": y_label, "scale": "y", "size": 52}),
+            bands=bands or None, title=title, height=height, legend={"live": False},
+            cursor={"show": False})
+        self.updates = 0  #: how many times data was sent
+
+    def show(self, t: np.ndarray, ys: Sequence[np.ndarray]) -> None:
+        """Draw the runs: ``t`` (N,) from 0 to ``duration``, one (N,) array per series."""
+        if len(ys) != self.n_series:
+            raise ValueError(f"ys: expected {self.n_series} series, got {len(ys)}")
+        t = np.asarray(t, dtype=float)
+        every = max(1, int(np.ceil(len(t) / self.points)))
+        idx = np.unique(np.append(np.arange(0, len(t), every), len(t) - 1))
+        x = t[idx].copy()
+        x[0], x[-1] = 0.0, self.duration  # exactly: the page's x range never changes
+        self.handle.data = (x, *(np.asarray(y, dtype=float)[idx] for y in ys))
+        self.updates += 1
+
+    def remove(self) -> None:
+        self.handle.remove()
 
 
 class RedundancyPlots:
@@ -32,54 +82,39 @@ class RedundancyPlots:
         gui: where to add them.
         model: the arm (joint names and limits).
         modes: the simulations, in series order.
-        duration: length of a run, s (the charts' window).
-        points: decimation bins per chart.
+        duration: length of a run, s.
     """
 
     def __init__(self, gui: viser.GuiApi, model: SerialChain, modes: tuple[str, ...], *,
-                 duration: float = 2.0, points: int = 120) -> None:
+                 duration: float = 2.0) -> None:
         self.model = model
         self.modes = modes
-        kw = {"window_s": duration + 0.05, "points": points, "height": 150}
         # Mode 4 dashed: it runs exactly on top of mode 2 (docs/redundancy.md).
         lines = tuple(SeriesSpec(f"mode {m}", MODE_COLORS[m], (6, 4) if m == "4" else None)
                       for m in modes)
         limits = (SeriesSpec("lower limit", LIMIT_COLOR, (6, 4)),
                   SeriesSpec("upper limit", LIMIT_COLOR, (6, 4)))
-        self.joints = []
         n = len(modes)
-        for i in range(model.n):
-            plot = LivePlot(gui, title=f"Joint {i + 1} angle θ{i + 1} and its limits",
-                            y_label="°", series=lines + limits, **kw)
-            # Shade the allowed band: between the upper (n + 2) and lower (n + 1) series.
-            plot.handle.bands = ({"series": (n + 2, n + 1), "fill": BAND_FILL},)
-            self.joints.append(plot)
-        self.w = LivePlot(gui, title="Manipulability w = √det(J Jᵀ)", y_label="w (m²)",
-                          series=lines, **kw)
-        self.error = LivePlot(gui, title="Position error |x_d − x|", y_label="mm",
-                              series=lines, **kw)
-        for plot in self.plots:  # the whole run on the x axis, filled as it plays
-            scales = dict(plot.handle.scales or {})
-            scales["x"] = {"time": False, "auto": False, "range": (0.0, duration)}
-            plot.handle.scales = scales
+        # Shade the allowed band: between the upper (n + 2) and lower (n + 1) series.
+        band = ({"series": (n + 2, n + 1), "fill": BAND_FILL},)
+        self.joints = [RunPlot(gui, title=f"Joint {i + 1} angle θ{i + 1} and its limits",
+                               y_label="angle (°)", series=lines + limits, duration=duration,
+                               bands=band) for i in range(model.n)]
+        self.w = RunPlot(gui, title="Manipulability w = √det(J Jᵀ)", y_label="w (m²)",
+                         series=lines, duration=duration)
+        self.error = RunPlot(gui, title="Position error |x_d − x|", y_label="error (mm)",
+                             series=lines, duration=duration)
 
     @property
-    def plots(self) -> tuple[LivePlot, ...]:
+    def plots(self) -> tuple[RunPlot, ...]:
         return (*self.joints, self.w, self.error)
 
-    def update(self, runs: dict[str, CircleRun], k: int, *, force: bool = False) -> int:
-        """Draw the first ``k`` samples of every run; returns how many charts were sent."""
-        if not runs or k < 2:
-            return 0
-        first = runs[self.modes[0]]
-        t = first.t[:k]
-        sent = 0
+    def show(self, runs: dict[str, CircleRun]) -> None:
+        """Draw every run (all of the same length and sample times)."""
+        t = runs[self.modes[0]].t
         lo, hi = self.model.lower * DEG, self.model.upper * DEG
         for i, plot in enumerate(self.joints):
-            ys = [runs[m].q[:k, i] * DEG for m in self.modes]
-            ys += [np.full(k, lo[i]), np.full(k, hi[i])]
-            sent += plot.update(t, ys, force=force)
-        sent += self.w.update(t, [runs[m].w[:k] for m in self.modes], force=force)
-        sent += self.error.update(t, [runs[m].error()[:k] * 1000.0 for m in self.modes],
-                                  force=force)
-        return sent
+            ys = [runs[m].q[:, i] * DEG for m in self.modes]
+            plot.show(t, [*ys, np.full(len(t), lo[i]), np.full(len(t), hi[i])])
+        self.w.show(t, [runs[m].w for m in self.modes])
+        self.error.show(t, [runs[m].error() * 1000.0 for m in self.modes])

@@ -6,9 +6,10 @@ end effector drew, stick pictures (the arm drawn every ``STICK_S`` seconds, as i
 the paper's figures), the manipulability ellipse at the end effector and a dot on
 each joint that turns red while the joint is outside its limits.
 
-Panels form a grid: columns "no redundancy use" (1 above 2), "redundancy" (3
-above 4), "guaranteed" (bounded); the top row ignores the joint limits, the
-bottom row enforces them. Everything but the arm meshes is drawn under a node
+Panels form a grid of two columns, "no redundancy use" and "redundancy" (the
+manipulability gradient), and three rows: joint limits ignored (1, 3), joint
+limits by the paper's decomposition method (2, 4), limits guaranteed (bounded,
+centred below). Everything but the arm meshes is drawn under a node
 posed at the model's ``base_pose``, so it takes the paper's (base-frame) x-y
 coordinates directly.
 """
@@ -28,7 +29,8 @@ from kinematics.model import SerialChain
 from kinematics.redundancy import circle_target, task_jacobian
 
 #: Mode -> (column, row) of its panel; row 0 is the top row (no joint limits).
-GRID = {"1": (0, 0), "3": (1, 0), "2": (0, 1), "4": (1, 1), "bounded": (2, 1)}
+GRID = {"1": (0.0, 0), "3": (1.0, 0), "2": (0.0, 1), "4": (1.0, 1), "bounded": (0.5, 2)}
+ROWS = 3
 #: Mode -> colour (hex, as in the plots).
 MODE_COLORS = {"1": "#1f5eea", "2": "#e8820c", "3": "#c2185b", "4": "#2e7d32",
                "bounded": "#6a1b9a"}
@@ -40,8 +42,8 @@ MODE_LABELS = {"1": "1 · J⁺ẋ, no limits", "2": "2 · J⁺ẋ + limits (deco
 COLUMN_M = 1.45
 ROW_M = 1.35
 #: Camera: in front of the grid of panels (world y < 0), looking at its middle.
-CAMERA_LOOK_AT = (1.5, 0.0, 1.15)
-CAMERA_AT = (1.5, -3.1, 1.15)
+CAMERA_LOOK_AT = (0.72, 0.0, 1.85)
+CAMERA_AT = (0.72, -3.2, 1.85)
 #: Seconds between two stick pictures.
 STICK_S = 0.1
 #: Ellipse semi-axis (m) per unit singular value of J (m/rad).
@@ -144,7 +146,7 @@ class RedundancyScene:
             col, row = GRID[mode]
             name = f"{root}/mode_{mode}"
             frame = scene.add_frame(name, show_axes=False,
-                                    position=(col * COLUMN_M, 0.0, (1 - row) * ROW_M))
+                                    position=(col * COLUMN_M, 0.0, (ROWS - 1 - row) * ROW_M))
             rgb = hex_rgb(MODE_COLORS[mode])
             arm = ArmView(server, model, root=f"{name}/arm",
                           color=(rgb[0] / 255, rgb[1] / 255, rgb[2] / 255, 0.55))

@@ -1,0 +1,66 @@
+"""The lab around the lessons: lesson registry, switching lessons from the page, E-STOP."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from app.lessons import all_lessons, default_lesson
+from app.server import Lab, ServeOptions
+from app.wsclient import HeadlessClient
+
+
+def test_every_lesson_module_declares_what_the_switcher_needs():
+    lessons = all_lessons()
+    assert "compliance" in lessons
+    for name, module in lessons.items():
+        assert module.NAME == name
+        assert module.TITLE and module.HELP and module.ROBOTS
+    assert default_lesson("receptionist_arm") == "compliance"
+    with pytest.raises(ValueError, match="no lesson for 'no_such_robot'"):
+        default_lesson("no_such_robot")
+
+
+def test_bad_serve_options_name_the_option():
+    with pytest.raises(ValueError, match="backend"):
+        ServeOptions(backend="usb")
+    with pytest.raises(ValueError, match="port"):
+        ServeOptions(backend="serial")
+    with pytest.raises(ValueError, match="lesson"):
+        Lab(ServeOptions(http_port=0, lesson="no_such_lesson"))
+
+
+def test_switching_lessons_from_the_page_stops_the_old_one():
+    with Lab(ServeOptions(http_port=0)) as lab:
+        compliance = lab.lesson
+        loop = compliance.rig.loop
+        with HeadlessClient(lab.url.replace("http://", "ws://")) as page:
+            page.wait_for(lambda: any(e.label == "Lesson" for e in page.gui.values()),
+                          what="the lesson switcher")
+            others = [m for n, m in all_lessons().items() if n != "compliance"]
+            for module in others:
+                page.set_value("Lesson", module.TITLE)
+                deadline = time.monotonic() + 30
+                while lab.lesson_name != module.NAME and time.monotonic() < deadline:
+                    time.sleep(0.05)
+                assert lab.lesson_name == module.NAME
+            if others:
+                assert not loop.status.running  # the compliance loop was shut down
+                page.wait_for(lambda: not any(
+                    e.label == "Run thesis line" or str(e.props.get("title", "")).startswith(
+                        "Joint angle") for e in page.gui.values()), 10.0,
+                    "the compliance controls and charts to go")
+            page.set_value("Lesson", all_lessons()["compliance"].TITLE)
+            page.wait_for(lambda: any(e.label == "Run thesis line" for e in page.gui.values()),
+                          30.0, "the compliance controls back")
+            deadline = time.monotonic() + 30
+            while lab.lesson_name != "compliance" and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert lab.lesson_name == "compliance" and lab.lesson is not compliance
+            assert lab.lesson.rig.loop.status.running
+            page.click("E-STOP")
+            deadline = time.monotonic() + 10
+            while not lab.lesson.rig.loop.status.estopped and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert lab.lesson.rig.loop.status.estopped
