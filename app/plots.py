@@ -16,7 +16,7 @@ being created (the view then shrinks to a 1 s slice); with a fixed extent
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -206,3 +206,13 @@ class LivePlot:
 
     def remove(self) -> None:
         self.handle.remove()
+
+
+def rebuild_plots(plots: Iterable[LivePlot], build: Callable[[], None]) -> None:
+    """Take ``plots`` off every page, then call ``build()`` to add their replacements.
+
+    A chart whose title or labels change is replaced, never edited (see :class:`LivePlot`).
+    """
+    for plot in plots:
+        plot.remove()
+    build()

@@ -1,8 +1,8 @@
 """A headless viser client: speaks the page's websocket protocol without a browser.
 
 Used by the UI bench (many fake browsers at once) and by the server-side tests
-(click, type a value, drag the hand, disconnect mid-run). It does what the
-page does on the wire:
+(click, type a value, drag the hand or a gizmo, disconnect mid-run). It does what
+the page does on the wire:
 
 - connects with the subprotocol ``viser-v<version>`` (the server refuses others);
 - sends a ``ViewerCameraMessage`` (a client counts as connected only after its
@@ -10,8 +10,8 @@ page does on the wire:
 - decodes every server frame: ``[8 B msgpack length][8 B zstd length][zstd
   msgpack][padding][raw binary buffers]``, the msgpack holding
   ``{"messages": [...], "timestampSec", "binaryBufferLengths"}``;
-- sends GUI changes as ``GuiUpdateMessage`` and drags as ``SceneNodeDragMessage``
-  (plain msgpack dicts with a ``type`` key).
+- sends GUI changes as ``GuiUpdateMessage``, drags as ``SceneNodeDragMessage`` and
+  gizmo moves as ``TransformControls*Message`` (plain msgpack dicts with a ``type`` key).
 
 It keeps the latest state of every GUI element (by uuid, with its label) and
 counts bytes and messages, so a test can ask "what does the page show now?".
@@ -232,15 +232,22 @@ class HeadlessClient:
         data = msgspec.msgpack.encode(message)
         asyncio.run_coroutine_threadsafe(self._ws.send(data), self._loop).result(5.0)
 
-    def set_value(self, label: str, value: Any) -> None:
-        """Type ``value`` into the input labelled ``label`` (as the page would send it)."""
-        el = self.find(label)
-        self.send({"type": "GuiUpdateMessage", "uuid": el.uuid, "updates": {"value": value}})
+    def _uuid(self, target: str | Any, kind: str | None = None) -> str:
+        """The uuid of a GUI element given by its label or by the server's handle of it."""
+        if isinstance(target, str):
+            return self.find(target, kind).uuid
+        return target._impl.uuid  # a viser GUI handle (a test holding the server side)
 
-    def click(self, label: str) -> None:
-        """Click the button labelled ``label``."""
-        el = self.find(label, "GuiButtonMessage")
-        self.send({"type": "GuiUpdateMessage", "uuid": el.uuid, "updates": {"value": True}})
+    def set_value(self, target: str | Any, value: Any) -> None:
+        """Type ``value`` into the input labelled ``target`` (or whose server handle it is),
+        as the page would send it."""
+        self.send({"type": "GuiUpdateMessage", "uuid": self._uuid(target),
+                   "updates": {"value": value}})
+
+    def click(self, target: str | Any) -> None:
+        """Click the button labelled ``target`` (or whose server handle it is)."""
+        self.send({"type": "GuiUpdateMessage", "uuid": self._uuid(target, "GuiButtonMessage"),
+                   "updates": {"value": True}})
 
     def drag(self, name: str, phase: str, *, start: tuple[float, float, float],
              end: tuple[float, float, float]) -> None:
@@ -249,6 +256,30 @@ class HeadlessClient:
                    "instance_index": None, "start_position": tuple(map(float, start)),
                    "start_screen_pos": (0.5, 0.5), "end_position": tuple(map(float, end)),
                    "end_screen_pos": (0.5, 0.5), "button": "left", "modifier": None})
+
+    def move_gizmo(self, name: str, positions: list[tuple[float, float, float]]) -> None:
+        """Drag the transform-controls gizmo ``name`` through ``positions`` (its parent
+        frame, m): drag start, one update per position, drag end."""
+        self.send({"type": "TransformControlsDragStartMessage", "name": name, "owner": ""})
+        for p in positions:
+            self.send({"type": "TransformControlsUpdateMessage", "name": name,
+                       "wxyz": (1.0, 0.0, 0.0, 0.0), "position": tuple(map(float, p)),
+                       "owner": ""})
+        self.send({"type": "TransformControlsDragEndMessage", "name": name, "owner": ""})
+
+    def wait_notification(self, title: str, timeout: float = 5.0) -> str:
+        """Body of the first notification titled ``title`` (waits for it; TimeoutError
+        listing the notifications seen otherwise)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                for t, body in self.notifications:
+                    if t == title:
+                        return body
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"no notification {title!r} in {timeout} s; got "
+                                       f"{self.notifications}")
+            time.sleep(0.02)
 
     def wait_for(self, predicate: Callable[[], bool], timeout: float = 10.0,
                  what: str = "condition") -> None:

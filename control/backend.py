@@ -117,3 +117,49 @@ class Pushable(Protocol):
         """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with a
         spring of ``stiffness`` N/m (a hand dragging the arm); None releases it."""
         ...
+
+
+class GoalLimits:
+    """The joint limits a backend enforces and the goal check every ``Backend.write`` runs.
+
+    A backend subclasses it and sets ``_lower``, ``_upper`` ((n,) rad) when it opens;
+    it gets the ``lower``/``upper`` properties of :class:`Backend` and :meth:`checked_goal`.
+    """
+
+    _lower: np.ndarray
+    _upper: np.ndarray
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(n,) rad."""
+        return self._lower.copy()
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(n,) rad."""
+        return self._upper.copy()
+
+    def checked_goal(self, position: object, speed: object) -> tuple[np.ndarray, np.ndarray]:
+        """``write``'s arguments as (n,) goal positions clamped into [lower, upper], rad,
+        and (n,) speeds, rad/s.
+
+        Raises:
+            ValueError: naming ``position`` or ``speed``, for a wrong shape or a NaN/inf
+                (the caller then sends nothing).
+        """
+        n = len(self._lower)
+        q = _goal_vector("position", position, n)
+        v = _goal_vector("speed", speed, n)
+        return np.clip(q, self._lower, self._upper), v
+
+
+def _goal_vector(name: str, value: object, n: int) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {n} numbers, got {value!r}; nothing was sent") from None
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}; nothing was sent")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: non-finite values {arr.tolist()}; nothing was sent")
+    return arr

@@ -21,8 +21,6 @@ reads :attr:`GaitLoop.status`, :attr:`GaitLoop.state` and :meth:`GaitLoop.snapsh
 from __future__ import annotations
 
 import math
-import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.backend import Backend, BackendError, Pushable
+from control.periodic import RowRing, Ticker
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
 
 #: Record layout: name -> number of columns (t first).
@@ -104,17 +103,12 @@ class GaitLoop:
         self.realtime = realtime
         self.body_weight = float(body_weight or 0.0)
         self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
-        self.tick_s = tick_s
-        self.max_catch_up = max_catch_up
         self._speed = self._check_speed(speed)
-        self._cap = max(2, math.ceil(history_s / self.period))
-        self._width = sum(COLUMNS.values())
-        self._rows = np.full((self._cap, self._width), np.nan)
-        self._count = 0
-        self._rec_lock = threading.Lock()
+        self._ring = RowRing(sum(COLUMNS.values()), seconds=history_s, period=self.period)
         self._commands: deque[Command] = deque()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._ticker = Ticker(self._period, period=self.period, name="armlab-gait",
+                              realtime=realtime, tick_s=tick_s, max_catch_up=max_catch_up,
+                              idle_s=0.002, on_exit=self._stopped)
         self._t = 0.0
         self._walking = False
         self._stopping = False
@@ -194,7 +188,7 @@ class GaitLoop:
             if loop.backend is not None:
                 loop.backend.estop()
         self.post(apply)
-        if self._thread is None and self.backend is not None:
+        if not self._ticker.running and self.backend is not None:
             try:
                 self.backend.estop()
             except (BackendError, OSError, ValueError):
@@ -211,17 +205,11 @@ class GaitLoop:
 
     def start(self) -> None:
         """Start the loop thread."""
-        if self._thread is not None:
-            return
-        self._thread = threading.Thread(target=self._run, name="armlab-gait", daemon=True)
-        self._thread.start()
+        self._ticker.start()
 
     def shutdown(self, *, torque_off: bool = True) -> None:
         """Stop the thread (waits for the current tick); torque off by default."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=3.0)
-        self._thread = None
+        self._ticker.stop(timeout=3.0)
         if torque_off and self.backend is not None:
             try:
                 self.backend.estop()
@@ -232,28 +220,9 @@ class GaitLoop:
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
-        if self._thread is not None:
-            raise RuntimeError("run_for: the loop thread is running")
-        for _ in range(max(1, round(seconds / self.period))):
-            self._period()
+        self._ticker.run_for(seconds)
 
-    def _run(self) -> None:
-        start = time.perf_counter()
-        done = 0
-        per_tick = max(1, round(self.tick_s / self.period))
-        while not self._stop.is_set():
-            if self.realtime:
-                due = int((time.perf_counter() - start) / self.period) - done
-                limit = max(1, round(self.max_catch_up / self.period))
-                if due > limit:  # fell behind: skip wall time, do not race
-                    start += (due - limit) * self.period
-                    due = limit
-            else:
-                due = per_tick
-            for _ in range(due):
-                self._period()
-            done += due
-            self._stop.wait(self.tick_s if self.realtime else 0.002)
+    def _stopped(self, _error: Exception | None) -> None:
         self.status = self._make_status()
 
     def _fail(self, why: str) -> None:
@@ -327,9 +296,7 @@ class GaitLoop:
         row = np.concatenate([[t, float(self._walking and self._ramp_done(t)), state.phase],
                               self._last_goal, q_meas, [state.margin], state.body,
                               state.stance.astype(float), state.feet.reshape(12)])
-        with self._rec_lock:
-            self._rows[self._count % self._cap] = row
-            self._count += 1
+        self._ring.append(row)
 
     def _ramp_done(self, t: float) -> bool:
         return self._ramp is None or t - self._ramp[1] >= STAND_UP_S + self.period
@@ -341,7 +308,7 @@ class GaitLoop:
             gait=spec.gait, speed=self._speed,
             servos=self.backend is not None and not self._fault, torque_on=self._torque,
             standing_up=self._ramp is not None and self._t - self._ramp[1] < STAND_UP_S,
-            fault=self._fault, running=self._thread is not None)
+            fault=self._fault, running=self._ticker.running)
 
     # --- reading (any thread) ------------------------------------------------------------
 
@@ -353,15 +320,7 @@ class GaitLoop:
         commanded angles; NaN before the first); ``q`` is NaN without servos; ``walking``
         is 1 while the gait runs (after standing up).
         """
-        with self._rec_lock:
-            n = min(self._count, self._cap)
-            if self._count <= self._cap:
-                rows = self._rows[:n].copy()
-            else:
-                k = self._count % self._cap
-                rows = np.concatenate([self._rows[k:], self._rows[:k]])
-        if window_s is not None and n:
-            rows = rows[rows[:, 0] >= rows[-1, 0] - window_s]
+        rows = self._ring.rows(window_s)
         out, c = {}, 0
         for name, width in COLUMNS.items():
             out[name] = rows[:, c] if width == 1 else rows[:, c:c + width]

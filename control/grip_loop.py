@@ -13,9 +13,6 @@ runs a tick's worth of periods after another as fast as it can.
 
 from __future__ import annotations
 
-import math
-import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.grip import N_FINGERS, GraspTrace, GripController, HandPlant, grasp_figures
+from control.periodic import RowRing, Ticker
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
 COLUMNS: dict[str, str] = {
@@ -75,16 +73,12 @@ class GripLoop:
         self.controller = controller
         self.realtime = realtime
         self.dt = controller.dt
-        self.tick_s = tick_s
-        self.max_catch_up = max_catch_up
-        self._cap = max(2, math.ceil(history_s / self.dt))
-        self._width = 1 + N_FINGERS * len(COLUMNS)
-        self._rows = np.full((self._cap, self._width), np.nan)
-        self._count = 0  # rows ever written
-        self._rec_lock = threading.Lock()
+        self._ring = RowRing(1 + N_FINGERS * len(COLUMNS), seconds=history_s, period=self.dt)
         self._commands: deque[Command] = deque()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._ticker = Ticker(self._period, period=self.dt, name="armlab-grip",
+                              realtime=realtime, tick_s=tick_s, max_catch_up=max_catch_up,
+                              idle_s=0.0005, catch=(ValueError, RuntimeError, FloatingPointError),
+                              on_exit=self._stopped)
         self._current = plant.step(np.zeros(N_FINGERS), self.dt)
         self._closed_at: float | None = None
         self.status = GripStatus(t=plant.t, modes=controller.modes)
@@ -109,50 +103,22 @@ class GripLoop:
     # --- the loop ------------------------------------------------------------------
     def start(self) -> None:
         """Start the loop thread."""
-        if self._thread is not None:
-            return
-        self._thread = threading.Thread(target=self._run, name="armlab-grip", daemon=True)
-        self._thread.start()
+        self._ticker.start()
 
     def shutdown(self) -> None:
         """Stop the thread (waits for the current tick); the motors are left at 0 V."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
-        self._thread = None
+        self._ticker.stop(timeout=2.0)
         self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False,
                                  self.status.fault)
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
-        if self._thread is not None:
-            raise RuntimeError("run_for: the loop thread is running")
-        for _ in range(max(1, round(seconds / self.dt))):
-            self._period()
+        self._ticker.run_for(seconds)
 
-    def _run(self) -> None:
-        start = time.perf_counter()
-        done = 0
-        periods_per_tick = max(1, round(self.tick_s / self.dt))
-        try:
-            while not self._stop.is_set():
-                if self.realtime:
-                    due = int((time.perf_counter() - start) / self.dt) - done
-                    limit = round(self.max_catch_up / self.dt)
-                    if due > limit:  # fell behind: skip wall time, do not race
-                        start += (due - limit) * self.dt
-                        due = limit
-                else:
-                    due = periods_per_tick
-                for _ in range(due):
-                    self._period()
-                done += due
-                self._stop.wait(self.tick_s if self.realtime else 0.0005)
-        except (ValueError, RuntimeError, FloatingPointError) as exc:
-            self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at,
-                                     False, f"the hand loop stopped: {exc}")
-            return
-        self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False)
+    def _stopped(self, error: Exception | None) -> None:
+        fault = "" if error is None else f"the hand loop stopped: {error}"
+        self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False,
+                                 fault)
 
     def _period(self) -> None:
         plant, ctl = self.plant, self.controller
@@ -164,10 +130,8 @@ class GripLoop:
             [plant.t], volts, self._current, plant.contact_force, ctl.estimated_force(),
             ctl.force_cap, plant.finger_angle,
         ])
-        with self._rec_lock:
-            self._rows[self._count % self._cap] = row
-            self._count += 1
-        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._thread is not None)
+        self._ring.append(row)
+        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._ticker.running)
 
     # --- reading (any thread) --------------------------------------------------------
     def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
@@ -175,15 +139,7 @@ class GripLoop:
 
         ``window_s``: only the last that many seconds (None: everything kept).
         """
-        with self._rec_lock:
-            n = min(self._count, self._cap)
-            if self._count <= self._cap:
-                rows = self._rows[:n].copy()
-            else:
-                k = self._count % self._cap
-                rows = np.concatenate([self._rows[k:], self._rows[:k]])
-        if window_s is not None and n:
-            rows = rows[rows[:, 0] >= rows[-1, 0] - window_s]
+        rows = self._ring.rows(window_s)
         out = {"t": rows[:, 0]}
         for i, name in enumerate(COLUMNS):
             out[name] = rows[:, 1 + N_FINGERS * i: 1 + N_FINGERS * (i + 1)]

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from control.backend import BackendError, JointState
+from control.backend import BackendError, GoalLimits, JointState
 from hardware import protocol1 as p1
 from hardware.bus import Bus, BusError, BusStats, sync_data
 from hardware.control_table import ControlTable, table_for
@@ -45,7 +45,7 @@ SHUTDOWN_BITS = p1.ErrorBits.OVERHEATING | p1.ErrorBits.OVERLOAD
 SAFE_SPEED = 1.0
 
 
-class DynamixelBackend:
+class DynamixelBackend(GoalLimits):
     """A :class:`~control.backend.Backend` on protocol-1.0 servos.
 
     Args:
@@ -116,14 +116,6 @@ class DynamixelBackend:
         return self.map.n
 
     @property
-    def lower(self) -> np.ndarray:
-        return self._lower.copy()
-
-    @property
-    def upper(self) -> np.ndarray:
-        return self._upper.copy()
-
-    @property
     def stats(self) -> BusStats:
         """The bus counters (transactions, retries, timeouts, corrupt replies...)."""
         return self.bus.stats
@@ -174,12 +166,7 @@ class DynamixelBackend:
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Clamp goals into the limits and send them with the speeds in one SYNC_WRITE."""
-        q = np.asarray(position, dtype=float)
-        v = np.asarray(speed, dtype=float)
-        if q.shape != (self.n,) or v.shape != (self.n,):
-            raise ValueError(f"position and speed must be ({self.n},), got {q.shape}, {v.shape}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise ValueError("position/speed: non-finite values; nothing sent")
+        q, v = self.checked_goal(position, speed)
         raw_goal, raw_speed = self.goal_words(q, v)
         data = sync_data({j.servo_id: (g, sp) for j, g, sp in
                           zip(self.map.joints, raw_goal, raw_speed, strict=True)}, (2, 2))

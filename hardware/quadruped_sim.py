@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from control.backend import JointState
+from control.backend import GoalLimits, JointState
 from hardware.servo_spec import AX12A
 from hardware.sim_backend import SimBackend
 from kinematics.model import Quadruped
@@ -29,7 +29,7 @@ from kinematics.validate import vector
 LEG_JOINTS = 3
 
 
-class QuadrupedSimBackend:
+class QuadrupedSimBackend(GoalLimits):
     """Four simulated legs of AX-12A servos behind one 12-joint Backend (and Pushable).
 
     Args:
@@ -52,6 +52,8 @@ class QuadrupedSimBackend:
         self.legs = [SimBackend(chain, specs=AX12A, dt=dt,
                                 q0=start[LEG_JOINTS * k:LEG_JOINTS * (k + 1)])
                      for k, chain in enumerate(chains)]
+        self._lower = np.concatenate([leg.lower for leg in self.legs])
+        self._upper = np.concatenate([leg.upper for leg in self.legs])
         self._lock = threading.RLock()
 
     # -- Backend protocol ---------------------------------------------------------
@@ -60,14 +62,6 @@ class QuadrupedSimBackend:
     def n(self) -> int:
         """Number of joints (12)."""
         return LEG_JOINTS * len(self.legs)
-
-    @property
-    def lower(self) -> np.ndarray:
-        return np.concatenate([leg.lower for leg in self.legs])
-
-    @property
-    def upper(self) -> np.ndarray:
-        return np.concatenate([leg.upper for leg in self.legs])
 
     def sync(self, t: float) -> None:
         """Integrate every leg up to ``t`` s."""
@@ -94,12 +88,7 @@ class QuadrupedSimBackend:
         Raises:
             ValueError: a wrong shape or a non-finite value (nothing is written).
         """
-        p = np.asarray(position, dtype=float)
-        s = np.asarray(speed, dtype=float)
-        if p.shape != (self.n,) or s.shape != (self.n,):
-            raise ValueError(f"position and speed must be ({self.n},), got {p.shape}, {s.shape}")
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(s))):
-            raise ValueError("position/speed: non-finite values; nothing was sent")
+        p, s = self.checked_goal(position, speed)
         with self._lock:
             for k, leg in enumerate(self.legs):
                 sl = slice(LEG_JOINTS * k, LEG_JOINTS * (k + 1))

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from control.backend import BackendError, JointState
+from control.backend import BackendError, GoalLimits, JointState
 from hardware.plant import Plant
 from hardware.servo import ServoParams, ServoRegisters
 from hardware.servo_spec import RX24F, ServoSpec
@@ -34,7 +34,7 @@ def thesis_registers(spec: ServoSpec, *, goal: int, cw_limit: int, ccw_limit: in
     )
 
 
-class SimBackend:
+class SimBackend(GoalLimits):
     """A simulated arm of Dynamixel servos behind the ``Backend`` (and ``Pushable``) protocol.
 
     Args:
@@ -98,16 +98,6 @@ class SimBackend:
         """Number of joints."""
         return self.plant.n
 
-    @property
-    def lower(self) -> np.ndarray:
-        """(n,) rad."""
-        return self._lower.copy()
-
-    @property
-    def upper(self) -> np.ndarray:
-        """(n,) rad."""
-        return self._upper.copy()
-
     def sync(self, t: float) -> None:
         """Integrate the plant up to ``t`` s (no-op when already there)."""
         t = scalar("t", t)
@@ -138,9 +128,7 @@ class SimBackend:
         1..1023 units (never 0, which would mean "no speed limit"). NaN/inf or a wrong
         shape raise ValueError and nothing is written.
         """
-        p = self._vector("position", position)
-        s = self._vector("speed", speed)
-        p = np.clip(p, self._lower, self._upper)
+        p, s = self.checked_goal(position, speed)
         goals = [spec.position_to_raw(d * x)
                  for spec, d, x in zip(self.specs, self.directions, p, strict=True)]
         speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(self.specs, s, strict=True)]
@@ -185,19 +173,6 @@ class SimBackend:
         N/m; None releases it."""
         with self._lock:
             self.plant.set_spring(anchor, stiffness=stiffness, link=link, point=point)
-
-    # -- helpers ------------------------------------------------------------------
-
-    def _vector(self, name: str, value: object) -> np.ndarray:
-        try:
-            arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be {self.n} numbers, got {value!r}") from None
-        if arr.shape != (self.n,):
-            raise ValueError(f"{name} must have shape ({self.n},), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} must be finite, got {arr.tolist()}; nothing was sent")
-        return arr
 
     def _check_open(self) -> None:
         if self._closed:

@@ -10,69 +10,35 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _helpers import expected_console, wait_for
 
-from app.server import Lab, ServeOptions
 from control.params import DEFAULT
 
-CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
-ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
-#: Console messages that are expected in headless software rendering, not faults.
-EXPECTED = ("software webgl", "three.clock", "gpu stall", "automatic fallback to software")
-
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists(),
-                       reason=f"no Chromium at {CHROMIUM}: install it (apt-get install "
-                              "chromium) or set ARMLAB_CHROMIUM to run the browser tests"),
-    pytest.mark.timeout(300),
-]
-
-
-def wait(predicate, timeout: float = 30.0, what: str = "condition") -> None:  # noqa: ANN001
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
 
 
 @pytest.fixture(scope="module")
-def lab():
-    lab = Lab(ServeOptions(http_port=0))
-    yield lab
-    lab.close()
-
-
-@pytest.fixture(scope="module")
-def page(lab, tmp_path_factory):
-    from playwright.sync_api import sync_playwright
-
+def page(browser, lab, tmp_path_factory):
     console: list[tuple[str, str]] = []
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        pg = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
-        pg.on("console", lambda m: console.append((m.type, m.text)))
-        pg.on("pageerror", lambda e: console.append(("pageerror", str(e))))
-        pg.goto(lab.url)
-        pg.get_by_role("button", name="Run thesis line").wait_for(timeout=90_000)
-        pg.console_log = console  # type: ignore[attr-defined]
-        pg.shots = tmp_path_factory.mktemp("shots")  # type: ignore[attr-defined]
-        yield pg
-        browser.close()
+    pg = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
+    pg.on("console", lambda m: console.append((m.type, m.text)))
+    pg.on("pageerror", lambda e: console.append(("pageerror", str(e))))
+    pg.goto(lab.url)
+    pg.get_by_role("button", name="Run thesis line").wait_for(timeout=90_000)
+    pg.console_log = console  # type: ignore[attr-defined]
+    pg.shots = tmp_path_factory.mktemp("shots")  # type: ignore[attr-defined]
+    yield pg
+    pg.close()
 
 
 def test_page_loads_without_console_errors(page):
     time.sleep(2.0)  # a few frames of updates
     errors = [(k, t) for k, t in page.console_log
-              if k in ("error", "pageerror") and not any(e in t.lower() for e in EXPECTED)]
+              if k in ("error", "pageerror") and not expected_console(t)]
     assert errors == []
     assert page.get_by_role("button", name="E-STOP").is_visible()
 
@@ -110,16 +76,16 @@ def test_moving_the_kp_slider_changes_the_controller(page, lab):
     thumb.focus()
     for _ in range(5):
         page.keyboard.press("ArrowRight")  # 5 steps of 0.1
-    wait(lambda: loop.params.kp == pytest.approx(DEFAULT.kp + 0.5), 30, "Kp + 0.5 in the loop")
+    wait_for(lambda: loop.params.kp == pytest.approx(DEFAULT.kp + 0.5), 30, "Kp + 0.5 in the loop")
     # ... and by mouse: drag the thumb right; the loop follows the slider.
     box = thumb.bounding_box()
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.down()
     page.mouse.move(box["x"] + 60, box["y"] + box["height"] / 2, steps=5)
     page.mouse.up()
-    wait(lambda: loop.params.kp > DEFAULT.kp + 5.0, 30, "a larger Kp from the drag")
+    wait_for(lambda: loop.params.kp > DEFAULT.kp + 5.0, 30, "a larger Kp from the drag")
     shown = float(thumb.get_attribute("aria-valuenow"))
-    wait(lambda: loop.params.kp == pytest.approx(shown), 30, "the loop at the shown Kp")
+    wait_for(lambda: loop.params.kp == pytest.approx(shown), 30, "the loop at the shown Kp")
     page.get_by_role("tab", name="Run").click()
 
 
@@ -146,22 +112,22 @@ def _shown_widths(page) -> list[float]:  # noqa: ANN001
 def test_run_fills_the_charts(page, lab):
     loop = lab.lesson.rig.loop
     page.get_by_role("button", name="Run thesis line").click()
-    wait(lambda: loop.status.trajectory is not None, 30, "the run to start")
-    wait(lambda: loop.status.trajectory is None, 60, "the run to end")
+    wait_for(lambda: loop.status.trajectory is not None, 30, "the run to start")
+    wait_for(lambda: loop.status.trajectory is None, 60, "the run to end")
 
     def sweep() -> float:
         data = _chart_series(page, "Joint angle")
         return float(np.ptp(data[1])) if data and len(data[0]) > 50 else 0.0
 
-    wait(lambda: sweep() > 40.0, 60, "the elbow's sweep in the angle chart")
+    wait_for(lambda: sweep() > 40.0, 60, "the elbow's sweep in the angle chart")
     data = _chart_series(page, "Joint angle")
     assert data[0][0] == -10.0 and data[0][-1] == 0.0  # the last 10 s, now at 0
     # ... and the page shows all of it (not a zoomed slice), also after picking a joint.
     assert _shown_widths(page) == [pytest.approx(10.0)] * 4
     page.get_by_role("button", name="θ1", exact=True).click()
-    wait(lambda: (_chart_series(page, "Joint angle θ1") or [[]])[0][:1] == [-10.0], 60,
+    wait_for(lambda: (_chart_series(page, "Joint angle θ1") or [[]])[0][:1] == [-10.0], 60,
          "the θ1 charts")
-    wait(lambda: _shown_widths(page) == [pytest.approx(10.0)] * 4, 30, "full-width θ1 charts")
+    wait_for(lambda: _shown_widths(page) == [pytest.approx(10.0)] * 4, 30, "full-width θ1 charts")
     page.screenshot(path=str(page.shots / "after_run.png"))
 
 

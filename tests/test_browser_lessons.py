@@ -14,24 +14,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _helpers import expected_console
 
 from app.lessons import all_lessons, lesson_order
-from app.server import Lab, ServeOptions
 
-CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
-ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
-#: Console messages that are expected in headless software rendering, not faults
-#: (as in tests/test_browser_lab.py).
-EXPECTED = ("software webgl", "three.clock", "gpu stall", "automatic fallback to software")
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists(),
-                       reason=f"no Chromium at {CHROMIUM}: install it (apt-get install "
-                              "chromium) or set ARMLAB_CHROMIUM to run the browser tests"),
-    pytest.mark.timeout(300),
-]
-sync_api = pytest.importorskip("playwright.sync_api")
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
 Image = pytest.importorskip("PIL.Image")
 
 #: Part of the 3D canvas to judge: below the notifications (fractions of the canvas
@@ -40,28 +27,17 @@ VIEW = (0.0, 0.22, 1.0, 1.0)
 
 
 @pytest.fixture(scope="module")
-def lab():
-    with Lab(ServeOptions(http_port=0)) as running:
-        running.wait_until_loadable()
-        yield running
-
-
-@pytest.fixture(scope="module")
-def page(lab):
-    with sync_api.sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=ARGS)
-        try:
-            pg = browser.new_page(viewport={"width": 1400, "height": 860})
-            pg.console_errors = []  # type: ignore[attr-defined]
-            pg.on("console", lambda m: pg.console_errors.append(m.text)
-                  if m.type == "error" and not any(e in m.text.lower() for e in EXPECTED)
-                  else None)
-            pg.on("pageerror", lambda e: pg.console_errors.append(f"page error: {e}"))
-            pg.goto(lab.url)
-            pg.locator("canvas").first.wait_for(timeout=30_000)
-            yield pg
-        finally:
-            browser.close()
+def page(browser, lab):
+    lab.wait_until_loadable()
+    pg = browser.new_page(viewport={"width": 1400, "height": 860})
+    pg.console_errors = []  # type: ignore[attr-defined]
+    pg.on("console", lambda m: pg.console_errors.append(m.text)
+          if m.type == "error" and not expected_console(m.text) else None)
+    pg.on("pageerror", lambda e: pg.console_errors.append(f"page error: {e}"))
+    pg.goto(lab.url)
+    pg.locator("canvas").first.wait_for(timeout=30_000)
+    yield pg
+    pg.close()
 
 
 def view_pixels(page) -> np.ndarray:

@@ -58,10 +58,12 @@ class _SimAfter:
         self.sim.close()
 
 
-def test_thesis_line_through_the_emulator_matches_the_simulator():
-    plan, t0, t1 = line_plan(ARM)
-    params = preset("well-damped default")
-    start = plan.q[0]
+#: runs through the emulator before giving up on a quiet enough machine
+ATTEMPTS = 3
+
+
+def _emulated_run(params, start):
+    """One thesis-line run through a fresh emulator; returns (run, worst stall in s)."""
     nice = os.getpriority(os.PRIO_PROCESS, 0)
     with emulator() as emu:
         # generous retries: a stall of the shared machine must show as lateness, not a fault
@@ -83,6 +85,17 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
         code, err = emu.stop()
     assert code == 0, err
     slipped = float(re.search(r"plant clock slipped ([0-9.]+) s", err).group(1))
+    return emu_run, max(serial.late_max, slipped)
+
+
+def test_thesis_line_through_the_emulator_matches_the_simulator():
+    plan, t0, t1 = line_plan(ARM)
+    params = preset("well-damped default")
+    start = plan.q[0]
+    for _ in range(ATTEMPTS):
+        emu_run, stall = _emulated_run(params, start)
+        if stall <= params.period:
+            break
     sim = SimBackend(ARM)  # hanging at q = 0, the same pre-positioning in simulated time
     sim.write(start, np.full(3, 2.0))
     sim.sync(PRE)
@@ -94,11 +107,10 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
     assert np.allclose(e["t"][:n], s["t"][:n])
     qe, qs = e["q"][:n], s["q"][:n]
     assert np.any(np.abs(qs[-1] - qs[0]) > 0.5)  # the arm really travelled the line
-    stall = max(serial.late_max, slipped)
     if stall > params.period:
-        pytest.skip(f"the shared machine stalled the real-time loop or the emulator by "
-                    f"{stall * 1e3:.0f} ms, more than the {params.period * 1e3:.0f} ms period: "
-                    "no fair comparison")
+        pytest.skip(f"in {ATTEMPTS} runs the shared machine stalled the real-time loop or the "
+                    f"emulator by at least {stall * 1e3:.0f} ms, more than the "
+                    f"{params.period * 1e3:.0f} ms period: no fair comparison")
     # band: the simulated angles one period earlier, now and one period later, ± tolerance
     k = 1
     m = n - 2 * k

@@ -7,8 +7,7 @@ import time
 
 import numpy as np
 import pytest
-import viser
-from _viser_client import ViserTestClient
+from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.hand import build
@@ -18,13 +17,8 @@ from hardware.hand import make_hand
 
 @pytest.fixture
 def lesson():
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    handle = build(server, LessonContext(realtime=False))
-    try:
+    with served_lesson(build, LessonContext(realtime=False)) as handle:
         yield handle
-    finally:
-        handle.close()
-        server.stop()
 
 
 def wait_sim(lesson, seconds: float, *, timeout: float = 30.0) -> None:
@@ -37,20 +31,13 @@ def wait_sim(lesson, seconds: float, *, timeout: float = 30.0) -> None:
         time.sleep(0.02)
 
 
-def wait_for(predicate, *, timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
-
-
 def test_lesson_is_registered():
     module = all_lessons()["hand"]
     assert module.TITLE and module.HELP and module.ROBOTS == ("receptionist_arm",)
 
 
 def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.force_slider, 0.4)
         wait_for(lambda: lesson.force.value == 0.4)
         client.click(lesson.close_button)
@@ -76,7 +63,7 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
 
 
 def test_open_releases_and_the_object_controls_change_the_object(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.close_button)
         wait_for(lambda: lesson.loop.status.closed_at is not None)
         wait_sim(lesson, 1.8)
@@ -102,7 +89,7 @@ def test_open_releases_and_the_object_controls_change_the_object(lesson):
 
 @pytest.mark.parametrize("value", [1e9, -0.3, float("nan")])
 def test_bad_typed_force_is_refused_and_the_lesson_goes_on(lesson, value):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.force_slider, value)
         body = client.wait_notification("Value refused")
         assert body.startswith("force limit")

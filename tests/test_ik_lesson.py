@@ -10,8 +10,7 @@ import time
 
 import numpy as np
 import pytest
-import viser
-from _viser_client import ViserTestClient
+from _helpers import client_of, served_lesson, wait_for
 
 from app.cli import main
 from app.lessons import LessonContext
@@ -24,20 +23,8 @@ IN_RANGE_ROWS = [*range(1, 6), *range(20, 25)]
 
 @pytest.fixture
 def lesson():
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    handle = build(server, LessonContext(robot="planar_servo_arm"))
-    try:
+    with served_lesson(build, LessonContext(robot="planar_servo_arm")) as handle:
         yield handle
-    finally:
-        handle.close()
-        server.stop()
-
-
-def wait_for(predicate, *, timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 def shown(lesson, X_cm: float, Y_cm: float) -> bool:
@@ -56,14 +43,14 @@ def arc_rgb(handle) -> tuple[int, ...]:
 
 
 def test_typed_and_dragged_targets_move_the_arm(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.x_input, 12.0)
         client.set_value(lesson.y_input, 8.0)
         wait_for(lambda: shown(lesson, 12.0, 8.0))
         tip = arm_tip(lesson)
         assert math.dist(tip, (0.12, 0.08)) < 0.005  # whole-degree commands: mm off
         assert tip == pytest.approx(lesson.result.position, abs=1e-12)
-        client.drag(lesson.gizmo, [(0.10, 0.10, 0.0), (0.05, 0.16, 0.0)])
+        client.move_gizmo(lesson.gizmo.name, [(0.10, 0.10, 0.0), (0.05, 0.16, 0.0)])
         wait_for(lambda: shown(lesson, 5.0, 16.0))
         assert math.dist(arm_tip(lesson), (0.05, 0.16)) < 0.005
         assert lesson.x_input.value == pytest.approx(5.0)  # the inputs follow the drag
@@ -97,7 +84,7 @@ def test_servo_ranges_turn_red_when_the_solution_leaves_them(lesson):
 
 
 def test_table_run_shows_the_paper_columns_and_matches_rows_1_5_and_20_24(lesson, capsys):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.table_button)
         wait_for(lambda: lesson.table_result is not None)
     rows = lesson.table_result["rows"]
@@ -134,24 +121,24 @@ def test_table_run_shows_the_paper_columns_and_matches_rows_1_5_and_20_24(lesson
 
 
 def test_target_outside_the_workspace_gives_one_clear_message(lesson):
-    with ViserTestClient(lesson.server) as client:
-        client.drag(lesson.gizmo, [(0.20, 0.10, 0.0), (0.26, 0.12, 0.0), (0.27, 0.12, 0.0),
-                                   (0.28, 0.12, 0.0)])
+    with client_of(lesson.server) as client:
+        client.move_gizmo(lesson.gizmo.name, [(0.20, 0.10, 0.0), (0.26, 0.12, 0.0),
+                                              (0.27, 0.12, 0.0), (0.28, 0.12, 0.0)])
         wait_for(lambda: shown(lesson, 28.0, 12.0))
         time.sleep(0.2)
-        titles = [t for t, _ in client.notifications()]
+        titles = [t for t, _ in client.notifications]
         assert titles.count("Outside the workspace") == 1
         assert "outside the workspace" in lesson.readout.content
         assert not lesson.result.reachable
         # back inside: the message goes, the arm follows again
-        client.drag(lesson.gizmo, [(0.10, 0.10, 0.0)])
+        client.move_gizmo(lesson.gizmo.name, [(0.10, 0.10, 0.0)])
         wait_for(lambda: shown(lesson, 10.0, 10.0))
         assert lesson.message == "" and "outside the workspace" not in lesson.readout.content
 
 
 @pytest.mark.parametrize("value", [1e9, float("nan"), -31.0])
 def test_bad_typed_target_is_refused_and_the_server_goes_on(lesson, value):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         before = lesson.target
         client.set_value(lesson.x_input, value)
         body = client.wait_notification("Value refused")

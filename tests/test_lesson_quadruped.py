@@ -3,14 +3,12 @@ websocket client: simulated AX-12A legs, and the serial path through the emulato
 
 from __future__ import annotations
 
-import time
 import urllib.request
 
 import numpy as np
 import pytest
-import viser
 from _emulator import emulator
-from _viser_client import ViserTestClient
+from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.quadruped import build
@@ -18,30 +16,10 @@ from control.walking import angle_error_pct, mean_angle_error_pct, servo_angle_d
 from hardware.servo_spec import AX12A
 
 
-def make_lesson(ctx: LessonContext):
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    try:
-        return build(server, ctx), server
-    except BaseException:
-        server.stop()
-        raise
-
-
 @pytest.fixture
 def lesson():
-    handle, server = make_lesson(LessonContext(robot="quadruped", realtime=False))
-    try:
+    with served_lesson(build, LessonContext(robot="quadruped", realtime=False)) as handle:
         yield handle
-    finally:
-        handle.close()
-        server.stop()
-
-
-def wait_for(predicate, *, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 def walk_for(lesson, cycles: float, *, timeout: float = 60.0) -> dict[str, np.ndarray]:
@@ -105,7 +83,7 @@ def test_lesson_is_registered():
 
 
 def test_walking_forward_the_stance_feet_stay_put_and_a_changes_the_stride(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
         snap = walk_for(lesson, 1.2)
         # Across the floor: the trot advances 2A per cycle; stance feet stay put.
@@ -128,7 +106,7 @@ def test_walking_forward_the_stance_feet_stay_put_and_a_changes_the_stride(lesso
 
 
 def test_turn_and_back_buttons_change_the_motion(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["left"])
         snap = walk_for(lesson, 1.0)
         assert snap["body"][-1, 3] - snap["body"][0, 3] > 0.3  # rad: turned left
@@ -139,7 +117,7 @@ def test_turn_and_back_buttons_change_the_motion(lesson):
 
 
 def test_crawl_keeps_a_positive_margin_and_refuses_to_turn(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.gait_dropdown, "crawl")
         wait_for(lambda: lesson.spec.gait == "crawl")
         client.click(lesson.direction_buttons["forward"])
@@ -155,7 +133,7 @@ def test_crawl_keeps_a_positive_margin_and_refuses_to_turn(lesson):
 
 
 def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
         walk_for(lesson, 1.0)
     err = lesson.servo_error(None)
@@ -177,7 +155,7 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     assert f"{lesson.servo_error(10.0)['mean_pct']:.3f} %" in lesson.servo_table.content
     assert lesson.error_plot.updates > 0 and all(p.updates > 0 for p in lesson.joint_plots)
     # The leg picker puts another leg's servos on the joint charts.
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.leg_picker, "LH")
         wait_for(lambda: lesson._leg == "LH", timeout=5.0)
     lesson._plot_frame(False)
@@ -187,7 +165,7 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
 
 @pytest.mark.parametrize("value", [1e9, float("nan"), -2.0])
 def test_bad_typed_step_length_is_refused_and_the_lesson_goes_on(lesson, value):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.gait_sliders["A"].handle, value)
         body = client.wait_notification("Value refused")
         assert body.startswith("A: ") and "kept 4" in body
@@ -197,7 +175,7 @@ def test_bad_typed_step_length_is_refused_and_the_lesson_goes_on(lesson, value):
 
 
 def test_an_unreachable_pose_is_refused_with_the_reason(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.gait_sliders["B"].handle, 13.0)
         wait_for(lambda: lesson.params.B == pytest.approx(0.13))
         client.set_value(lesson.gait_sliders["D"].handle, 13.0)
@@ -208,9 +186,8 @@ def test_an_unreachable_pose_is_refused_with_the_reason(lesson):
 
 def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
     with emulator("--robot", "redundant_planar", "--servo", "AX-12A") as emu:
-        handle, server = make_lesson(LessonContext(robot="quadruped", backend="serial",
-                                                   port=emu.port, realtime=False))
-        try:
+        with served_lesson(build, LessonContext(robot="quadruped", backend="serial",
+                                                port=emu.port, realtime=False)) as handle:
             assert handle.backend is None
             msg = handle.servo_message
             assert "12 AX-12A" in msg and "servo 4" in msg and emu.port in msg
@@ -218,19 +195,15 @@ def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
             handle.walk("forward")  # the gait still plays, without servos
             walk_for(handle, 0.3)
             assert handle.servo_error() is None
-            url = f"http://127.0.0.1:{server.get_port()}"
+            url = f"http://127.0.0.1:{handle.server.get_port()}"
             with urllib.request.urlopen(url, timeout=5) as reply:
                 assert reply.status == 200
-        finally:
-            handle.close()
-            server.stop()
 
 
 def test_twelve_emulated_servos_walk_over_the_serial_bus():
     with emulator("--robot", "quadruped") as emu:
-        handle, server = make_lesson(LessonContext(robot="quadruped", backend="serial",
-                                                   port=emu.port, realtime=True))
-        try:
+        with served_lesson(build, LessonContext(robot="quadruped", backend="serial",
+                                                port=emu.port, realtime=True)) as handle:
             assert handle.backend is not None and handle.backend.n == 12
             handle.walk("forward")
             try:
@@ -253,13 +226,10 @@ def test_twelve_emulated_servos_walk_over_the_serial_bus():
             ok = np.isfinite(snap["q"]).all(axis=1)
             legs_moved = np.ptp(snap["q"][ok], axis=0).reshape(4, 3)
             assert (legs_moved[:, 1] > np.radians(2)).all(), "every hip pitch servo moved"
-        finally:
-            handle.close()
-            server.stop()
 
 
 def test_estop_switches_the_twelve_servos_off_and_reset_stands_up_again(lesson):
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
         walk_for(lesson, 0.2)
         lesson.estop()  # what the lab's E-STOP button calls

@@ -4,12 +4,10 @@ websocket client."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
-import viser
-from _viser_client import ViserTestClient
+from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.redundancy import SHOWN_MODES, build
@@ -18,20 +16,8 @@ from control.experiments.seed002 import circle
 
 @pytest.fixture(scope="module")
 def lesson():
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    handle = build(server, LessonContext(robot="redundant_planar", realtime=False))
-    try:
+    with served_lesson(build, LessonContext(robot="redundant_planar", realtime=False)) as handle:
         yield handle
-    finally:
-        handle.close()
-        server.stop()
-
-
-def wait_for(predicate, *, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 def test_lesson_is_registered():
@@ -43,9 +29,9 @@ def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(less
     # Before a run every ghost stands at the paper's θ(0).
     for mode in SHOWN_MODES:
         np.testing.assert_allclose(lesson.ghost_q(mode), [math.pi, -math.pi / 2, -math.pi / 2])
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.click(lesson.run_button)
-        wait_for(lambda: lesson.results is not None and not lesson.computing)
+        wait_for(lambda: lesson.results is not None and not lesson.computing, timeout=60.0)
     rs = lesson.results
     # Same function underneath as `armlab experiment seed002-circle --mode M`.
     for mode in ("1", "bounded"):
@@ -79,14 +65,14 @@ def test_k_a_slider_changes_the_redundant_ghost(lesson):
     lesson.show(1.0)
     before_3 = lesson.ghost_q("3")
     before_1 = lesson.ghost_q("1")
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.k_a_slider, 0.0)
         wait_for(lambda: lesson.k_a.value == 0.0)
         assert lesson.stale
         lesson._update_status()
         assert "press Run" in lesson.status.content
         client.click(lesson.run_button)
-        wait_for(lambda: lesson.results.k_a == 0.0 and not lesson.computing)
+        wait_for(lambda: lesson.results.k_a == 0.0 and not lesson.computing, timeout=60.0)
     lesson.show(1.0)
     # Without the gradient term eq. 4 is plain J⁺ẋ: ghost 3 now moves like ghost 1.
     assert np.linalg.norm(lesson.ghost_q("3") - before_3) > 0.05
@@ -99,7 +85,7 @@ def test_k_a_slider_changes_the_redundant_ghost(lesson):
 
 def test_show_checkbox_hides_a_panel(lesson):
     box = lesson.show_boxes["3"]
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(box, False)
         wait_for(lambda: not lesson.scene.views["3"].root.visible, timeout=5.0)
         client.set_value(box, True)
@@ -109,7 +95,7 @@ def test_show_checkbox_hides_a_panel(lesson):
 @pytest.mark.parametrize("value", [1e9, float("nan"), 600.0])
 def test_bad_typed_gain_is_refused_and_the_server_goes_on(lesson, value):
     before = lesson.gain.value
-    with ViserTestClient(lesson.server) as client:
+    with client_of(lesson.server) as client:
         client.set_value(lesson.gain_slider, value)
         body = client.wait_notification("Value refused")
         assert body.startswith("K: ") and f"kept {before:g}" in body

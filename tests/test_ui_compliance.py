@@ -15,28 +15,12 @@ import urllib.request
 
 import numpy as np
 import pytest
+from _helpers import wait_for
 
-from app.server import Lab, ServeOptions
 from app.wsclient import HeadlessClient
 from control.params import DEFAULT, PRESETS
 
 KP = "Kp (1/s²)"
-
-
-def wait(predicate, timeout: float = 20.0, what: str = "condition") -> None:  # noqa: ANN001
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-
-
-@pytest.fixture(scope="module")
-def lab():
-    lab = Lab(ServeOptions(http_port=0))
-    yield lab
-    lab.close()
 
 
 @pytest.fixture
@@ -49,8 +33,8 @@ def client(lab):
     lesson = lab.lesson
     lesson.gains.set_params(PRESETS["well-damped default"])
     lesson.reset()
-    wait(lambda: lesson.rig.loop.status.active and not lesson.rig.loop.status.estopped,
-         what="the arm to hold again")
+    wait_for(lambda: lesson.rig.loop.status.active and not lesson.rig.loop.status.estopped,
+             20.0, "the arm to hold again")
 
 
 def loop_of(lab):  # noqa: ANN001, ANN201
@@ -71,13 +55,13 @@ def test_page_loads_on_loopback(lab):
 def test_slider_changes_the_loop_params_at_the_next_period(lab, client):
     loop = loop_of(lab)
     client.set_value(KP, 12.5)
-    wait(lambda: loop.params.kp == 12.5, 5.0, "Kp to reach the loop")
+    wait_for(lambda: loop.params.kp == 12.5, 5.0, "Kp to reach the loop")
     assert lab.lesson.gains.params.kp == 12.5
     # The period is applied at a period boundary: status.period_ms shows the
     # parameters in force, and it changes within a couple of periods.
     steps0 = loop.status.steps
     client.set_value("period (ms)", 20.0)
-    wait(lambda: abs(loop.status.period_ms - 20.0) < 1e-9, 5.0, "the 20 ms period")
+    wait_for(lambda: abs(loop.status.period_ms - 20.0) < 1e-9, 5.0, "the 20 ms period")
     assert loop.status.steps - steps0 <= 60  # under a second even on a loaded machine
     assert loop.params.period == pytest.approx(0.020)
 
@@ -86,7 +70,7 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     loop = loop_of(lab)
     client.set_value("Preset", "thesis Table 4.1")
     t41 = PRESETS["thesis Table 4.1"]
-    wait(lambda: loop.params == t41, 5.0, "Table 4.1 in the loop")
+    wait_for(lambda: loop.params == t41, 5.0, "Table 4.1 in the loop")
     client.wait_for(lambda: client.find(KP).value == pytest.approx(3.8), what="Kp slider 3.8")
     client.wait_for(lambda: client.find("Kv (1/s)").value == pytest.approx(0.2), what="Kv 0.2")
     client.wait_for(lambda: client.find("Law").value.startswith("2.26"), what="law 2.26")
@@ -96,15 +80,15 @@ def test_unstable_gains_warn_before_run(lab, client):
     warning = lab.lesson.warning
     assert not warning.visible
     client.set_value("Kv (1/s)", 0.05)  # Kp 20, Kv 0.05: ζp = 0.006
-    wait(lambda: warning.visible, 5.0, "the stability warning")
+    wait_for(lambda: warning.visible, 5.0, "the stability warning")
     assert "badly damped" in warning.content
 
 
 def test_run_thesis_line_fills_the_plots(lab, client):
     loop = loop_of(lab)
     client.click("Run thesis line")
-    wait(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
-    wait(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
+    wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
     # The page got the joint-angle chart (θ2 shown by default) with the elbow's 53° sweep.
     def sweep() -> float:
         for e in client.gui.values():
@@ -132,17 +116,17 @@ def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
         client.set_value("Duration (s)", 2.0)
         client.click("Push")
         t_end = loop.status.t + 2.0
-        wait(lambda: loop.status.t > t_end - 0.1, 10.0, "the push to run")
+        wait_for(lambda: loop.status.t > t_end - 0.1, 10.0, "the push to run")
         snap = loop.recorder.snapshot(0.3)
         tau = float(np.max(np.abs(snap["tau_ext"][-5:])))
         dy = float(hand(lab, snap["q"][-1])[1] - hand(lab, q0)[1])  # along the push (−y)
-        wait(lambda: loop.status.t > t_end + 1.5, 10.0, "the arm to settle")
+        wait_for(lambda: loop.status.t > t_end + 1.5, 10.0, "the arm to settle")
         return rest, tau, -dy
 
     rest, tau_on, yield_on = push_and_measure()
     assert tau_on > 0.2 and tau_on > 4 * rest  # N·m: 4 N at ~12 cm lever
     client.set_value("Compliance on", False)
-    wait(lambda: not loop.params.compliance, 5.0, "compliance off")
+    wait_for(lambda: not loop.params.compliance, 5.0, "compliance off")
     _, tau_off, yield_off = push_and_measure()
     assert tau_off > 0.2
     # With compliance the hand gives way by centimetres; the PD loop holds it.
@@ -160,14 +144,14 @@ def test_dragging_the_hand_pulls_the_arm_with_a_spring(lab, client):
     anchor = (base @ np.append(p0 + np.array([0.0, -0.06, 0.0]), 1.0))[:3]
     client.drag(grab, "start", start=start, end=anchor)
     client.drag(grab, "update", start=start, end=anchor)
-    wait(lambda: lesson._drag_anchor is not None, 5.0, "the spring")
+    wait_for(lambda: lesson._drag_anchor is not None, 5.0, "the spring")
     t0 = loop.status.t
-    wait(lambda: loop.status.t > t0 + 1.5, 10.0, "1.5 s of pulling")
+    wait_for(lambda: loop.status.t > t0 + 1.5, 10.0, "1.5 s of pulling")
     p1 = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
     assert p0[1] - p1[1] > 0.01  # pulled more than 1 cm towards the hand's anchor
     assert lesson.rig.scene.force.visible  # the red arrow shows the pull
     client.drag(grab, "end", start=start, end=anchor)
-    wait(lambda: lesson._drag_anchor is None, 5.0, "the spring to let go")
+    wait_for(lambda: lesson._drag_anchor is None, 5.0, "the spring to let go")
 
 
 def test_estop_switches_torque_off_and_reset_restores(lab, client):
@@ -175,12 +159,12 @@ def test_estop_switches_torque_off_and_reset_restores(lab, client):
     plant = lab.lesson.rig.backend.plant
     assert all(r.torque_enable for r in plant.reports())
     client.click("E-STOP")
-    wait(lambda: loop.status.estopped and not loop.status.torque_on, 5.0, "the e-stop")
+    wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 5.0, "the e-stop")
     assert not any(r.torque_enable for r in plant.reports())
     client.wait_for(lambda: any("E-STOPPED" in str(e.props.get("content", ""))
                                 for e in client.gui.values()), 5.0, "the E-STOPPED banner")
     client.click("Reset")
-    wait(lambda: loop.status.torque_on and not loop.status.estopped, 5.0, "torque back on")
+    wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 5.0, "torque back on")
     assert all(r.torque_enable for r in plant.reports())
 
 
@@ -197,7 +181,7 @@ def test_bad_typed_value_is_refused_with_a_notification(lab, client, bad):
     assert loop.params.kp == kp and math.isfinite(lab.lesson.gains.params.kp)
     # The server goes on serving and taking good values.
     client.set_value(KP, kp + 1.0)
-    wait(lambda: loop.params.kp == kp + 1.0, 5.0, "a good value after the bad one")
+    wait_for(lambda: loop.params.kp == kp + 1.0, 5.0, "a good value after the bad one")
     with urllib.request.urlopen(lab.url, timeout=5) as reply:
         assert reply.status == 200
 
@@ -216,7 +200,7 @@ def test_garbage_message_does_not_kill_the_server(lab, client):
     client.set_value(KP, "not a number")  # viser cannot even cast it
     client.send({"type": "NoSuchMessage", "x": 1})  # viser drops this client's connection
     steps = loop.status.steps
-    wait(lambda: loop.status.steps > steps + 10, 5.0, "the loop to keep running")
+    wait_for(lambda: loop.status.steps > steps + 10, 5.0, "the loop to keep running")
     with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as other:
         other.wait_for(lambda: any(e.label == KP for e in other.gui.values()),
                        what="a fresh page")
@@ -228,21 +212,21 @@ def test_disconnect_mid_run_and_mid_drag_leaves_the_server_healthy(lab, client):
     c2 = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
     c2.wait_for(lambda: any(e.label == "Push" for e in c2.gui.values()), what="GUI")
     c2.click("Run thesis line")
-    wait(lambda: loop.status.trajectory is not None, 5.0, "the run")
+    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run")
     grab = lesson.rig.scene.hand.name
     p = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
     world = lesson.rig.model.base_pose @ np.append(p, 1.0)
     pull = world[:3] + np.array([0.0, 0.0, 0.05])
     c2.drag(grab, "start", start=tuple(world[:3]), end=tuple(pull))
     c2.drag(grab, "update", start=tuple(world[:3]), end=tuple(pull))
-    wait(lambda: lesson._drag_anchor is not None, 5.0, "the spring to attach")
+    wait_for(lambda: lesson._drag_anchor is not None, 5.0, "the spring to attach")
     c2.close()  # the tab closes mid-run, mid-drag
-    wait(lambda: lesson._drag_anchor is None, 5.0, "the spring to be released")
+    wait_for(lambda: lesson._drag_anchor is None, 5.0, "the spring to be released")
     steps = loop.status.steps
-    wait(lambda: loop.status.steps > steps + 20, 5.0, "the loop to keep running")
+    wait_for(lambda: loop.status.steps > steps + 20, 5.0, "the loop to keep running")
     assert loop.status.fault is None and loop.status.running
     frames = lesson.publisher.stats.pose_frames
-    wait(lambda: lesson.publisher.stats.pose_frames > frames + 5, 5.0, "the publisher")
+    wait_for(lambda: lesson.publisher.stats.pose_frames > frames + 5, 5.0, "the publisher")
     assert lesson.publisher.stats.errors == 0
     b0 = client.bytes_received
     client.wait_for(lambda: client.bytes_received > b0, 5.0, "updates to the other page")
@@ -251,8 +235,8 @@ def test_disconnect_mid_run_and_mid_drag_leaves_the_server_healthy(lab, client):
 def test_csv_download_has_the_parameters_and_the_rows(lab, client):
     loop = loop_of(lab)
     client.click("Run thesis line")
-    wait(lambda: loop.status.trajectory is not None, 5.0, "the run")
-    wait(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run")
+    wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
     client.click("Download the last run (CSV)")
     client.wait_for(lambda: client.downloads, 10.0, "the CSV download")
     name, data = next(iter(client.downloads.items()))
@@ -285,7 +269,7 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
     lesson.measured_pd = None
     client.set_value("Joint", "θ2")
     client.click("Step")
-    wait(lambda: lesson.measured_pd is not None, 30.0, "the step to be measured")
+    wait_for(lambda: lesson.measured_pd is not None, 30.0, "the step to be measured")
     m = lesson.measured_pd
     assert "step of θ2 by" in m.what
     # Kp 20, Kv 5: the formulas say Tr = 1.8/√20 = 0.40 s and Tp = 0.85 s; the servo's
@@ -301,12 +285,12 @@ def test_link_length_preset_rebuilds_the_arm(lab, client):
     lesson = lab.lesson
     old_loop = lesson.rig.loop
     client.set_value("Link lengths (cm)", "18.5/18.5")
-    wait(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/18.5", 20.0,
+    wait_for(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/18.5", 20.0,
          "the 18.5/18.5 arm")
     assert lesson.rig.model.tip[0, 3] == pytest.approx(0.185)
     assert not old_loop.status.running
-    wait(lambda: lesson.rig.loop.status.active, 10.0, "the new loop to hold")
+    wait_for(lambda: lesson.rig.loop.status.active, 10.0, "the new loop to hold")
     client.set_value("Link lengths (cm)", "18.5/25")
-    wait(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/25", 20.0,
+    wait_for(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/25", 20.0,
          "the 18.5/25 arm back")
-    wait(lambda: lesson.rig.loop.status.active, 10.0, "the loop to hold")
+    wait_for(lambda: lesson.rig.loop.status.active, 10.0, "the loop to hold")

@@ -18,13 +18,24 @@ import math
 import threading
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import viser
 
 from app.backends import make_backend
-from app.inputs import GuardedNumber, notify
+from app.inputs import GuardedNumber
 from app.lessons import LessonContext
+from app.lessons._common import (
+    LessonGui,
+    close_in_turn,
+    esc,
+    guarded,
+    send_download,
+    set_content,
+    status_html,
+    warning_html,
+)
 from app.lessons.compliance_controls import GainControls
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
@@ -128,9 +139,7 @@ class ComplianceLesson:
         self.hardware = ctx.backend != "sim"
         self._lock = threading.RLock()
         self._closed = False
-        self._gui_handles: list = []
-        self._status_html = ""
-        self._teach_text = ""
+        self._gui = LessonGui(server.gui)
         self._last_teach = 0.0
         self._last_servos = 0.0
         self.experiment: Experiment | None = None
@@ -146,7 +155,7 @@ class ComplianceLesson:
         try:
             self.rig = self._make_rig(link_preset, DEFAULT)
         except BaseException:
-            self._remove_gui()
+            self._gui.remove_all()
             raise
         self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
                                    pose_hz=pose_hz, plot_hz=plot_hz)
@@ -202,15 +211,11 @@ class ComplianceLesson:
 
     # ================================================================== GUI
 
-    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
-        self._gui_handles.append(handle)
-        return handle
-
     def _build_gui(self, params: Params) -> None:
         gui = self.server.gui
-        self.status = self._add(gui.add_html("", order=-80.0))
-        self.warning = self._add(gui.add_html("", order=-79.0, visible=False))
-        tabs = self._add(gui.add_tab_group(order=-70.0))
+        self.status = self._gui.add_status()
+        self.warning = self._gui.add(gui.add_html("", order=-79.0, visible=False))
+        tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
             self._build_run_tab(gui)
         with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
@@ -223,11 +228,9 @@ class ComplianceLesson:
             self.last_run_md = gui.add_markdown("")
         with tabs.add_tab("Servos", viser.Icon.CPU):
             self.servo_html = gui.add_html("reading the servos…")
-        self.plot_panel = self._add(gui.add_panel())
-        charts = self.plot_panel.add_tab("Live charts", viser.Icon.CHART_LINE)
-        self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"), default_joint=2)
-        self.plot_panel.dock_left()
-        self.plot_panel.set_width(430)
+        with self._gui.chart_panel("Live charts") as charts:
+            self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"),
+                                    default_joint=2)
         self._show_warning(params)
 
     def _build_run_tab(self, gui: viser.GuiApi) -> None:
@@ -238,9 +241,9 @@ class ComplianceLesson:
                               hint="Stop the motion and hold where the command is")
         reset = gui.add_button("Reset", icon=viser.Icon.REFRESH,
                                hint="After an E-STOP or a fault: torque on, hold where the arm is")
-        run.on_click(lambda e: self._guard(e, self.run_line))
-        stop.on_click(lambda e: self._guard(e, self.stop))
-        reset.on_click(lambda e: self._guard(e, self.reset))
+        run.on_click(lambda e: guarded(e, self.run_line))
+        stop.on_click(lambda e: guarded(e, self.stop))
+        reset.on_click(lambda e: guarded(e, self.reset))
         with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
             self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
             self.step_size = gui.add_slider("Step (°)", min=-30.0, max=30.0, step=1.0,
@@ -252,17 +255,17 @@ class ComplianceLesson:
             step = gui.add_button("Step", icon=viser.Icon.STAIRS_UP,
                                   hint="Step one joint's command; the Teach tab compares the "
                                        "response with eq. 2.16–2.19")
-            step.on_click(lambda e: self._guard(e, self.run_step))
+            step.on_click(lambda e: guarded(e, self.run_step))
         self.download = gui.add_button("Download the last run (CSV)", icon=viser.Icon.DOWNLOAD,
                                        hint="Time, every plotted signal (SI) and the "
                                             "parameters in the header")
-        self.download.on_click(self._on_download)
+        self.download.on_click(lambda e: send_download(e, self.csv_bytes))
         with gui.add_folder("Arm and display", expand_by_default=False):
             self.links = gui.add_dropdown("Link lengths (cm)", tuple(RECEPTIONIST_PRESETS),
                                           initial_value="18.5/25",
                                           hint="L1/L2: the appendix code (18.5/25) or the "
                                                "specification list (18.5/18.5)")
-            self.links.on_update(lambda e: self._guard(
+            self.links.on_update(lambda e: guarded(
                 e, lambda: self.set_link_preset(str(self.links.value))))
             self.show_ghost = gui.add_checkbox("Show command (ghost)", True)
             self.show_trail = gui.add_checkbox("Show hand trail", True)
@@ -291,22 +294,7 @@ class ComplianceLesson:
                                         apply=lambda v: None)
         push = gui.add_button("Push", icon=viser.Icon.HAND_FINGER, visible=not self.hardware,
                               hint="Push the hand with this force for this long")
-        push.on_click(lambda e: self._guard(e, self.push))
-
-    def _remove_gui(self) -> None:
-        for h in reversed(self._gui_handles):
-            try:
-                h.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
-        self._gui_handles.clear()
-
-    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
-        """Run a button's action; a refusal becomes a notification, never an exception."""
-        try:
-            action()
-        except ValueError as exc:
-            notify(event.client, "Not done", str(exc))
+        push.on_click(lambda e: guarded(e, self.push))
 
     # ================================================================== actions
 
@@ -332,10 +320,7 @@ class ComplianceLesson:
         unstable = loop_stability(params).unstable
         color = "#b00020" if unstable else "#a15c00"
         head = "Unstable gains" if unstable else "Check the gains"
-        self.warning.content = (
-            f"<div style='border-left:4px solid {color};padding:4px 8px;background:#fff4e5'>"
-            f"<b style='color:{color}'>⚠ {head}</b> <span style='font-size:0.9em'>"
-            f"{_esc(w)}</span></div>")
+        self.warning.content = warning_html(head, w, color=color)
         self.warning.visible = True
 
     def _now(self) -> float:
@@ -439,16 +424,6 @@ class ComplianceLesson:
         if phase == "start":
             self.run_start, self.run_label = self._now(), "hand drag"
 
-    def _on_download(self, event: viser.GuiEvent) -> None:
-        if event.client is None:
-            return
-        try:
-            name, data = self.csv_bytes()
-        except ValueError as exc:
-            notify(event.client, "Nothing to download", str(exc))
-            return
-        event.client.send_file_download(name, data, save_immediately=True)
-
     def csv_bytes(self) -> tuple[str, bytes]:
         """(file name, CSV) of the last run: from its start (or the last 10 s) to now."""
         rig = self.rig
@@ -543,27 +518,19 @@ class ComplianceLesson:
             hand = f" · hand ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) cm"
         msg = ""
         if st.message and not st.fault and st.message != state:
-            msg = f"<div style='color:#555;font-size:0.85em'>{_esc(st.message)}</div>"
-        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(state)}</b>"
-                f"<div style='color:#555;font-size:0.85em'>{where} · {torque} · "
-                f"t = {st.t:.0f} s · T = {st.period_ms:.0f} ms{hand}</div>{msg}</div>")
-        if text != self._status_html:
-            self._status_html = text
-            self.status.content = text
+            msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
+        set_content(self.status, status_html(
+            state, color, f"{where} · {torque} · t = {st.t:.0f} s · T = {st.period_ms:.0f} ms"
+            f"{hand}", extra=msg))
 
     def _update_teach(self, st: LoopStatus, snap: dict[str, np.ndarray], params: Params) -> None:
         j = self.plots.joint
         live = latest_values(snap, j, joint_label(self.plots.labels[j]))
         eq = equations_markdown(params, live, torque_unit=self.plots.unit,
                                 mode=st.controller)
-        if eq != self._teach_text:
-            self._teach_text = eq
-            self.equations.content = eq
-        table = design_table(params, self.measured_pd, self.measured_env)
-        if table != self.design.content:
-            self.design.content = table
-        if self.last_run_text != self.last_run_md.content:
-            self.last_run_md.content = self.last_run_text
+        set_content(self.equations, eq)
+        set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
+        set_content(self.last_run_md, self.last_run_text)
 
     def _measure(self, st: LoopStatus, rig: Rig) -> None:
         exp = self.experiment
@@ -590,7 +557,7 @@ class ComplianceLesson:
             elif exp.kind == "push":
                 self.measured_env = self._measure_push(exp, rig, st.t)
         except ValueError as exc:
-            self.last_run_text = f"**Last run** ({exp.label}): not measured: {_esc(str(exc))}"
+            self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"
 
     @staticmethod
     def _measure_step(exp: Experiment, rig: Rig, now: float) -> Measured:
@@ -633,11 +600,8 @@ class ComplianceLesson:
             self._closed = True
         self.publisher.close()
         rig, self.rig = self.rig, None
-        try:
-            if rig is not None:
-                self._close_rig(rig)
-        finally:
-            self._remove_gui()
+        close_in_turn(partial(self._close_rig, rig) if rig is not None else None,
+                      self._gui.remove_all)
 
 
 def _last_finite(a: np.ndarray) -> np.ndarray | None:
@@ -646,10 +610,6 @@ def _last_finite(a: np.ndarray) -> np.ndarray | None:
         if np.all(np.isfinite(a[k])):
             return a[k].copy()
     return None
-
-
-def _esc(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.plots import COLORS, LivePlot, SeriesSpec
+from app.plots import COLORS, LivePlot, SeriesSpec, rebuild_plots
 from kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / np.pi
@@ -120,9 +120,7 @@ class JointPlots:
         with self._lock:
             if self._stale:
                 self._stale = False
-                for plot in self.plots:
-                    plot.remove()
-                self._build()
+                rebuild_plots(self.plots, self._build)
                 force = True
             t = snap["t"]
             if len(t) < 2:

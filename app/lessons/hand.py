@@ -22,8 +22,9 @@ from dataclasses import replace
 import numpy as np
 import viser
 
-from app.inputs import GuardedNumber, notify
+from app.inputs import GuardedNumber
 from app.lessons import LessonContext
+from app.lessons._common import LessonGui, close_in_turn, guarded, set_content, status_html
 from app.lessons.hand_scene import HandScene
 from app.plots import COLORS, LivePlot, SeriesSpec
 from app.publisher import Publisher
@@ -88,7 +89,7 @@ class HandLesson:
         self.ctx = ctx
         self._lock = threading.RLock()
         self._closed = False
-        self._handles: list = []
+        self._gui = LessonGui(server.gui)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
         self.plant: HandSim = make_hand(size=self.obj.size, stiffness=self.obj.stiffness)
@@ -102,7 +103,7 @@ class HandLesson:
             self._build_gui()
         except BaseException:
             self.scene.remove()
-            self._remove_gui()
+            self._gui.remove_all()
             raise
         self.loop.start()
         self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
@@ -111,14 +112,10 @@ class HandLesson:
 
     # ================================================================== GUI
 
-    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
-        self._handles.append(handle)
-        return handle
-
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._add(gui.add_html("", order=-80.0))
-        folder = self._add(gui.add_folder("Hand", order=-70.0))
+        self.status = self._gui.add_status()
+        folder = self._gui.add(gui.add_folder("Hand", order=-70.0))
         with folder:
             self.close_button = gui.add_button(
                 "Close (grasp)", color="green", icon=viser.Icon.HAND_GRAB,
@@ -126,8 +123,8 @@ class HandLesson:
             self.open_button = gui.add_button(
                 "Open", icon=viser.Icon.HAND_STOP,
                 hint="Unwind the tendons; the springs open the fingers")
-            self.close_button.on_click(lambda e: self._guard(e, self.close_hand))
-            self.open_button.on_click(lambda e: self._guard(e, self.open_hand))
+            self.close_button.on_click(lambda e: guarded(e, self.close_hand))
+            self.open_button.on_click(lambda e: guarded(e, self.open_hand))
             fmax = math.floor(self.model.max_force() * 20.0) / 20.0
             self.force_slider = gui.add_slider(
                 "Force limit F (N)", min=0.05, max=fmax, step=0.05, initial_value=DEFAULT_FORCE,
@@ -139,7 +136,7 @@ class HandLesson:
                 hint="Fingertip speed while closing: faster means a harder first touch")
             self.speed = GuardedNumber(self.speed_slider, name="approach speed", lo=0.5,
                                        hi=10.0, apply=self.set_approach_speed)
-        objf = self._add(gui.add_folder("Object", order=-60.0))
+        objf = self._gui.add(gui.add_folder("Object", order=-60.0))
         with objf:
             g = self.plant.finger
             lo = math.ceil(g.min_size * 200.0) / 2.0  # cm, half-centimetre steps
@@ -158,12 +155,12 @@ class HandLesson:
             self.presets = gui.add_button_group("Preset", tuple(STIFFNESS_PRESETS))
             self.presets.on_click(lambda e: self.stiffness.set(
                 STIFFNESS_PRESETS[str(self.presets.value)]))
-        self.figures = self._add(gui.add_markdown("", order=-50.0))
-        explain = self._add(gui.add_folder("How it works", order=-40.0, expand_by_default=False))
+        self.figures = self._gui.add(gui.add_markdown("", order=-50.0))
+        explain = self._gui.add(gui.add_folder("How it works", order=-40.0,
+                                               expand_by_default=False))
         with explain:
             gui.add_markdown(EXPLAIN)
-        self.plot_panel = self._add(gui.add_panel())
-        with self.plot_panel.add_tab("Current and force", viser.Icon.CHART_LINE):
+        with self._gui.chart_panel("Current and force") as tab, tab:
             kw = {"window_s": WINDOW_S, "points": 200}
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
             # line at F rather than an auto-zoomed band around it
@@ -177,23 +174,6 @@ class HandLesson:
                     SeriesSpec("limit F", COLORS[3], (6, 4)),
                     SeriesSpec("from current (finger 1)", COLORS[2], (2, 3)),
                     SeriesSpec("0", ZERO_RGB)), **kw)
-        self.plot_panel.dock_left()
-        self.plot_panel.set_width(430)
-
-    def _remove_gui(self) -> None:
-        for h in reversed(self._handles):
-            try:
-                h.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
-        self._handles.clear()
-
-    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
-        """Run a button's action; a refusal becomes a notification, never an exception."""
-        try:
-            action()
-        except ValueError as exc:
-            notify(event.client, "Not done", str(exc))
 
     # ================================================================== actions
 
@@ -270,12 +250,10 @@ class HandLesson:
         color = {"holding": "#2e7d32", "empty": "#a15c00"}.get(modes[0], "#1f5eea")
         if st.fault:
             word, color = st.fault, "#b00020"
-        html = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {word}</b>"
-                f"<div style='color:#555;font-size:0.85em'>simulated hand · t = {st.t:.1f} s · "
-                f"force {', '.join(f'{x:.2f}' for x in f)} N · current "
-                f"{', '.join(f'{x:.2f}' for x in cur)} A</div></div>")
-        if html != self.status.content:
-            self.status.content = html
+        set_content(self.status, status_html(
+            word, color, f"simulated hand · t = {st.t:.1f} s · force "
+            f"{', '.join(f'{x:.2f}' for x in f)} N · current "
+            f"{', '.join(f'{x:.2f}' for x in cur)} A"))
         self.scene.set_label("closed on nothing" if modes[0] == "empty" else " ")
         fig = self.loop.last_grasp(limit)
         if fig is not None:
@@ -289,8 +267,7 @@ class HandLesson:
                     f"peak {fig['peak_force_N']:.3f} N · "
                     + (f"held after {grasped:.2f} s" if grasped is not None else "not held yet")
                     + f" · current {fig['final_current_A']:.3f} A")
-        if text != self.figures.content:
-            self.figures.content = text
+        set_content(self.figures, text)
 
     # ================================================================== lifetime
 
@@ -300,14 +277,8 @@ class HandLesson:
             if self._closed:
                 return
             self._closed = True
-        self.publisher.close()
-        try:
-            self.loop.shutdown()
-        finally:
-            try:
-                self.scene.remove()
-            finally:
-                self._remove_gui()
+        close_in_turn(self.publisher.close, self.loop.shutdown, self.scene.remove,
+                      self._gui.remove_all)
 
 
 __all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

@@ -28,6 +28,7 @@ import viser.uplot
 from app.arm_view import ArmView
 from app.inputs import check_number, notify
 from app.lessons import LessonContext
+from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
 from app.plots import COLORS
 from control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from control.experiments.seed004 import table
@@ -126,7 +127,7 @@ class IKAccuracyLesson:
         self.model = model
         self._lock = threading.RLock()
         self._closed = False
-        self._handles: list = []
+        self._gui = LessonGui(server.gui)
         self.rounding = "truncate"
         self.elbow = "down"
         self.target = (0.02, 0.21)
@@ -204,14 +205,10 @@ class IKAccuracyLesson:
 
     # ================================================================== GUI
 
-    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
-        self._handles.append(handle)
-        return handle
-
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.readout = self._add(gui.add_html("", order=-80.0))
-        folder = self._add(gui.add_folder("Target and solution", order=-70.0))
+        self.readout = self._gui.add_status()
+        folder = self._gui.add(gui.add_folder("Target and solution", order=-70.0))
         with folder:
             gui.add_markdown("Drag the orange target in the arm's plane, or type it.")
             lim = TARGET_LIMIT_CM
@@ -235,12 +232,12 @@ class IKAccuracyLesson:
         @self.elbow_input.on_update
         def _(event: viser.GuiEvent) -> None:
             key = _key(ELBOW_LABELS, self.elbow_input.value)
-            self._guard(event, lambda: self.set_mode(elbow=key))
+            guarded(event, lambda: self.set_mode(elbow=key))
 
         @self.rounding_input.on_update
         def _(event: viser.GuiEvent) -> None:
             key = _key(ROUNDING_LABELS, self.rounding_input.value)
-            self._guard(event, lambda: self.set_mode(rounding=key))
+            guarded(event, lambda: self.set_mode(rounding=key))
 
         @self.row_input.on_update
         def _(event: viser.GuiEvent) -> None:
@@ -249,17 +246,17 @@ class IKAccuracyLesson:
                 return
             no = int(value.split(":")[0])
             _, X, Y, *_ = TABLE1[no - 1]
-            self._guard(event, lambda: self.set_target(X / 100, Y / 100, client=event.client))
+            guarded(event, lambda: self.set_target(X / 100, Y / 100, client=event.client))
 
-        tab = self._add(gui.add_folder("The paper's Table 1", order=-60.0))
+        tab = self._gui.add(gui.add_folder("The paper's Table 1", order=-60.0))
         with tab:
             self.table_button = gui.add_button(
                 "Run the paper's table", color="green", icon=viser.Icon.TABLE,
                 hint="Solve the 24 targets with the elbow and rounding above")
-            self.table_button.on_click(lambda e: self._guard(e, self.run_table))
+            self.table_button.on_click(lambda e: guarded(e, self.run_table))
             self.download = gui.add_button("Download the table (CSV)", icon=viser.Icon.DOWNLOAD,
                                            disabled=True)
-            self.download.on_click(self._on_download)
+            self.download.on_click(lambda e: send_download(e, self.csv_bytes))
             self.summary = gui.add_markdown("")
             self.error_plot = gui.add_uplot(
                 data=(np.arange(1.0, 25.0), *(np.zeros(24) for _ in TABLE_COLUMNS)),
@@ -271,12 +268,6 @@ class IKAccuracyLesson:
                 height=180, visible=False)
             self.table_md = gui.add_markdown("")
             self.out_of_range_md = gui.add_markdown("")
-
-    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
-        try:
-            action()
-        except ValueError as exc:
-            notify(event.client, "Not done", str(exc))
 
     # ================================================================== actions
 
@@ -397,7 +388,7 @@ class IKAccuracyLesson:
             f"<th>servo</th></tr>{cells}</table>",
         ]
         if self.message:
-            lines.append(f"<div style='color:#a15c00'>⚠ {_esc(self.message)}</div>")
+            lines.append(f"<div style='color:#a15c00'>⚠ {esc(self.message)}</div>")
         elif not r.in_servo_range:
             bad = ", ".join(f"θ{i + 1}" for i in range(3) if not ok[i])
             text = (f"⚠ {bad} needs a servo angle outside 0–180°: the servo cannot go there.")
@@ -408,7 +399,7 @@ class IKAccuracyLesson:
                          f"{math.degrees(alt.theta0_shift):+.1f}°, reaching "
                          f"({a.position[0] * 100:.2f}, {a.position[1] * 100:.2f}) cm, "
                          f"{alt.error * 1000:.2f} mm from the target.")
-            lines.append(f"<div style='color:#b00020'>{_esc(text)}</div>")
+            lines.append(f"<div style='color:#b00020'>{esc(text)}</div>")
         return "<div style='font-size:0.92em'>" + "<br>".join(lines) + "</div>"
 
     # ================================================================== the table
@@ -460,30 +451,12 @@ class IKAccuracyLesson:
         name = f"seed004-table1-{result['elbow']}-{result['rounding']}.csv"
         return name, buf.getvalue().encode()
 
-    def _on_download(self, event: viser.GuiEvent) -> None:
-        if event.client is None:
-            return
-        try:
-            name, data = self.csv_bytes()
-        except ValueError as exc:
-            notify(event.client, "Nothing to download", str(exc))
-            return
-        event.client.send_file_download(name, data, save_immediately=True)
-
     # ================================================================== lifetime
 
     def _remove(self) -> None:
-        for h in reversed(self._handles):
-            try:
-                h.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
-        self._handles.clear()
+        self._gui.remove_all()
         for node in (self.view, self.ghost, self.root):
-            try:
-                node.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
+            remove_quietly(node)
 
     def close(self) -> None:
         """Remove the lesson's scene and GUI."""
@@ -553,10 +526,6 @@ def _key(labels: dict[str, str], value: object) -> str:
         if v == value:
             return k
     raise ValueError(f"unknown choice {value!r}")
-
-
-def _esc(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 __all__ = ["IKAccuracyLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

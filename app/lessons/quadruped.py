@@ -25,16 +25,25 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import replace
+from functools import partial
 from typing import Any
 
 import numpy as np
 import viser
 
 from app.backends import make_backend
-from app.inputs import GuardedNumber, notify
+from app.inputs import GuardedNumber
 from app.lessons import LessonContext
+from app.lessons._common import (
+    LessonGui,
+    close_in_turn,
+    guarded,
+    set_content,
+    status_html,
+    warning_html,
+)
 from app.lessons.quadruped_scene import QuadrupedScene
-from app.plots import COLORS, LivePlot, SeriesSpec
+from app.plots import COLORS, LivePlot, SeriesSpec, rebuild_plots
 from app.publisher import Publisher
 from control.backend import Backend, BackendError
 from control.gait_loop import GaitLoop, GaitStatus
@@ -142,9 +151,7 @@ class QuadrupedLesson:
         self.geom = QuadrupedGeometry()
         self._lock = threading.RLock()
         self._closed = False
-        self._gui_handles: list = []
-        self._status_html = ""
-        self._servo_md = ""
+        self._gui = LessonGui(server.gui)
         self.spec = GaitSpec()
         self.plan = plan_gait(self.spec, self.geom)
         walker = Walker(self.plan)
@@ -160,7 +167,7 @@ class QuadrupedLesson:
             self.scene.set_foot_paths(self.plan)
             self.scene.set_state(self.loop.state)
         except BaseException:
-            self._remove_gui()
+            self._gui.remove_all()
             if self.backend is not None:
                 self.backend.close()
             raise
@@ -171,16 +178,14 @@ class QuadrupedLesson:
 
     # ================================================================== GUI
 
-    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
-        self._gui_handles.append(handle)
-        return handle
-
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._add(gui.add_html("", order=-80.0))
-        self.warning = self._add(gui.add_html(_warning_html(self.servo_message), order=-79.0,
-                                              visible=bool(self.servo_message)))
-        tabs = self._add(gui.add_tab_group(order=-70.0))
+        self.status = self._gui.add_status()
+        warning = (warning_html("Servos not available", self.servo_message)
+                   if self.servo_message else "")
+        self.warning = self._gui.add(gui.add_html(warning, order=-79.0,
+                                                  visible=bool(self.servo_message)))
+        tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Walk", viser.Icon.WALK):
             self._build_walk_tab(gui)
         with tabs.add_tab("Gait", viser.Icon.ADJUSTMENTS):
@@ -189,10 +194,8 @@ class QuadrupedLesson:
             self.servo_table = gui.add_markdown("")
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(TEACH)
-        self.plot_panel = self._add(gui.add_panel())
-        self._build_plots(gui, self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE))
-        self.plot_panel.dock_left()
-        self.plot_panel.set_width(430)
+        with self._gui.chart_panel("Charts") as tab:
+            self._build_plots(gui, tab)
 
     def _build_walk_tab(self, gui: viser.GuiApi) -> None:
         icons = {"forward": viser.Icon.ARROW_UP, "back": viser.Icon.ARROW_DOWN,
@@ -202,21 +205,21 @@ class QuadrupedLesson:
             b = gui.add_button(COMMAND_LABELS[command], icon=icons[command],
                                color="blue" if command == "forward" else None,
                                hint=_command_hint(command))
-            b.on_click(lambda e, c=command: self._guard(e, lambda: self.walk(c)))
+            b.on_click(lambda e, c=command: guarded(e, lambda: self.walk(c)))
             self.direction_buttons[command] = b
         self.stop_button = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP,
                                           hint="Walk on to the next moment all four feet "
                                                "stand, then stop there")
-        self.stop_button.on_click(lambda e: self._guard(e, self.stop))
+        self.stop_button.on_click(lambda e: guarded(e, self.stop))
         self.reset_button = gui.add_button("Reset", icon=viser.Icon.REFRESH,
                                            hint="Back to the start, standing; after an "
                                                 "E-STOP: torque on again")
-        self.reset_button.on_click(lambda e: self._guard(e, self.reset))
+        self.reset_button.on_click(lambda e: guarded(e, self.reset))
         self.gait_dropdown = gui.add_dropdown(
             "Gait", GAITS, initial_value=self.spec.gait,
             hint="trot: diagonal legs together (the paper); crawl: one leg at a time, "
                  "statically stable")
-        self.gait_dropdown.on_update(lambda e: self._guard(
+        self.gait_dropdown.on_update(lambda e: guarded(
             e, lambda: self.set_gait(str(self.gait_dropdown.value)),
             undo=lambda: setattr(self.gait_dropdown, "value", self.spec.gait)))
         self.across = gui.add_checkbox("Walk across the floor", True,
@@ -282,23 +285,6 @@ class QuadrupedLesson:
                              SeriesSpec("commanded", COLORS[0], (6, 4)),
                              SeriesSpec("servo", COLORS[2])))
                 for j in range(3)]
-
-    def _remove_gui(self) -> None:
-        for h in reversed(self._gui_handles):
-            try:
-                h.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
-        self._gui_handles.clear()
-
-    def _guard(self, event: viser.GuiEvent, action, undo=None) -> None:  # noqa: ANN001
-        """Run an action; a refusal becomes a notification (and ``undo``), never an exception."""
-        try:
-            action()
-        except ValueError as exc:
-            notify(event.client, "Not done", str(exc))
-            if undo is not None:
-                undo()
 
     # ================================================================== actions
 
@@ -375,9 +361,7 @@ class QuadrupedLesson:
         with self._plot_lock:
             if self._leg_stale:
                 self._leg_stale = False
-                for plot in self.joint_plots:
-                    plot.remove()
-                self._build_joint_charts()
+                rebuild_plots(self.joint_plots, self._build_joint_charts)
                 force = True
             leg = self._leg
         if len(t) >= 2:
@@ -429,22 +413,15 @@ class QuadrupedLesson:
         verdict = ("statically stable" if m > 0 else
                    "on a line: not statically stable" if legs_down == 2 else "would tip")
         mcolor = "#2e7d32" if m > 0 else "#b00020"
-        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(head)}</b>"
-                f"<div style='color:#555;font-size:0.85em'>{servos} · t = {st.t:.1f} s · "
-                f"body ({x * 100:.1f}, {y * 100:.1f}) cm, yaw {yaw * DEG:.0f}° · "
-                f"{legs_down} feet down</div>"
-                f"<div style='font-size:0.85em'>margin <b style='color:{mcolor}'>{m:+.1f} cm"
-                f"</b> ({verdict})</div></div>")
-        if text != self._status_html:
-            self._status_html = text
-            self.status.content = text
+        set_content(self.status, status_html(
+            head, color, f"{servos} · t = {st.t:.1f} s · body ({x * 100:.1f}, {y * 100:.1f}) "
+            f"cm, yaw {yaw * DEG:.0f}° · {legs_down} feet down",
+            extra=f"<div style='font-size:0.85em'>margin <b style='color:{mcolor}'>{m:+.1f} cm"
+                  f"</b> ({verdict})</div>"))
 
     def _update_servo_table(self) -> None:
-        md = servo_markdown(self.servo_error(10.0), has_servos=self.backend is not None,
-                            where=self.ctx.backend)
-        if md != self._servo_md:
-            self._servo_md = md
-            self.servo_table.content = md
+        set_content(self.servo_table, servo_markdown(
+            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend))
 
     # ================================================================== lifetime
 
@@ -454,18 +431,9 @@ class QuadrupedLesson:
             if self._closed:
                 return
             self._closed = True
-        self.publisher.close()
-        try:
-            self.loop.shutdown(torque_off=True)
-        finally:
-            try:
-                if self.backend is not None:
-                    self.backend.close()
-            finally:
-                try:
-                    self.scene.remove()
-                finally:
-                    self._remove_gui()
+        close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
+                      self.backend.close if self.backend is not None else None,
+                      self.scene.remove, self._gui.remove_all)
 
 
 def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str) -> str:
@@ -529,18 +497,6 @@ def _command_hint(command: str) -> str:
             "left": "Turn left on the spot (direction index 1 on both left legs; trot only)",
             "right": "Turn right on the spot (direction index 1 on both right legs, as in the "
                      "seed; trot only)"}[command]
-
-
-def _warning_html(message: str) -> str:
-    if not message:
-        return ""
-    return ("<div style='border-left:4px solid #b00020;padding:4px 8px;background:#fff4e5'>"
-            f"<b style='color:#b00020'>⚠ Servos not available</b> "
-            f"<span style='font-size:0.9em'>{_esc(message)}</span></div>")
-
-
-def _esc(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 __all__ = ["QuadrupedLesson", "build", "open_servos", "servo_markdown", "NAME", "TITLE",

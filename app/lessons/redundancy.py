@@ -29,6 +29,14 @@ import viser
 
 from app.inputs import GuardedNumber, notify
 from app.lessons import LessonContext
+from app.lessons._common import (
+    LessonGui,
+    close_in_turn,
+    esc,
+    guarded,
+    set_content,
+    status_html,
+)
 from app.lessons.redundancy_plots import RedundancyPlots
 from app.lessons.redundancy_scene import MODE_COLORS, MODE_LABELS, RedundancyScene, arm_points
 from app.publisher import Publisher
@@ -177,21 +185,20 @@ class RedundancyLesson:
         self.q0 = np.array(CircleTask().q0)
         self._lock = threading.RLock()
         self._closed = False
-        self._gui_handles: list = []
+        self._gui = LessonGui(server.gui)
         self.results: RunSet | None = None
         self._worker: threading.Thread | None = None
         self.computing = False
         self.last_error = ""
         self._play_start: float | None = None  # monotonic time of t = 0 of the playback
         self._paused_t = 0.0
-        self._status_html = ""
         self._shown_k = -1
         self._plotted: RunSet | None = None  # the runs the charts show
         self._build_gui()
         try:
             self.scene = RedundancyScene(server, model, modes=self.modes, root="/redundancy")
         except BaseException:
-            self._remove_gui()
+            self._gui.remove_all()
             raise
         self.show(0.0)
         self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
@@ -200,14 +207,10 @@ class RedundancyLesson:
 
     # ================================================================== GUI
 
-    def _add(self, handle):  # noqa: ANN001, ANN202 (any viser handle)
-        self._gui_handles.append(handle)
-        return handle
-
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._add(gui.add_html("", order=-80.0))
-        tabs = self._add(gui.add_tab_group(order=-70.0))
+        self.status = self._gui.add_status()
+        tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
             self.run_button = gui.add_button(
                 "Run the circle", color="green", icon=viser.Icon.PLAYER_PLAY,
@@ -215,8 +218,8 @@ class RedundancyLesson:
             self.reset_button = gui.add_button(
                 "Reset", icon=viser.Icon.REFRESH,
                 hint="Back to θ(0) = [180°, −90°, −90°]; Run plays again")
-            self.run_button.on_click(lambda e: self._guard(e, self.run))
-            self.reset_button.on_click(lambda e: self._guard(e, self.reset))
+            self.run_button.on_click(lambda e: guarded(e, self.run))
+            self.reset_button.on_click(lambda e: guarded(e, self.reset))
             d = CircleTask()
             self.k_a_slider = gui.add_slider(
                 "k_a (gradient gain)", min=K_A_RANGE[0], max=K_A_RANGE[1], step=10.0,
@@ -249,32 +252,14 @@ class RedundancyLesson:
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(TEACH)
             gui.add_html(_legend_html())
-        self.plot_panel = self._add(gui.add_panel())
-        with self.plot_panel.add_tab("Charts", viser.Icon.CHART_LINE):
+        with self._gui.chart_panel("Charts") as tab, tab:
             self.plots = RedundancyPlots(gui, self.model, self.modes)
-        self.plot_panel.dock_left()
-        self.plot_panel.set_width(430)
-
-    def _remove_gui(self) -> None:
-        for h in reversed(self._gui_handles):
-            try:
-                h.remove()
-            except (RuntimeError, KeyError, ValueError):
-                pass
-        self._gui_handles.clear()
-
-    def _guard(self, event: viser.GuiEvent, action) -> None:  # noqa: ANN001
-        """Run a button's action; a refusal becomes a notification, never an exception."""
-        try:
-            action()
-        except ValueError as exc:
-            notify(event.client, "Not done", str(exc))
 
     # ================================================================== actions
 
     def _params_changed(self, _value: float) -> None:
-        """k_a or K moved: the runs on screen no longer match the sliders."""
-        self._status_html = ""  # redraw the status line
+        """k_a or K moved: the runs on screen no longer match the sliders (the status
+        line, drawn every frame, says so)."""
 
     def _speed_changed(self, value: float) -> None:
         with self._lock:
@@ -417,12 +402,9 @@ class RedundancyLesson:
         if self.stale:
             note = ("<div style='color:#a15c00;font-size:0.85em'>k_a or K changed: press Run "
                     "to compute with the new gains</div>")
-        text = (f"<div style='font-size:0.95em'><b style='color:{color}'>● {_esc(state)}</b>"
-                f"<div style='color:#555;font-size:0.85em'>K = {self.gain.value:g} 1/s · "
-                f"k_a = {self.k_a.value:g} · playback ×{self.speed.value:g}</div>{note}</div>")
-        if text != self._status_html:
-            self._status_html = text
-            self.status.content = text
+        set_content(self.status, status_html(
+            state, color, f"K = {self.gain.value:g} 1/s · k_a = {self.k_a.value:g} · "
+            f"playback ×{self.speed.value:g}", extra=note))
 
     # ================================================================== lifetime
 
@@ -432,11 +414,7 @@ class RedundancyLesson:
             if self._closed:
                 return
             self._closed = True
-        self.publisher.close()
-        try:
-            self.scene.remove()
-        finally:
-            self._remove_gui()
+        close_in_turn(self.publisher.close, self.scene.remove, self._gui.remove_all)
 
 
 def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
@@ -454,13 +432,9 @@ def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
 def _legend_html() -> str:
     items = "".join(
         f"<div><span style='display:inline-block;width:14px;height:4px;background:{c};"
-        f"margin-right:6px;vertical-align:middle'></span>{_esc(MODE_LABELS[m])}</div>"
+        f"margin-right:6px;vertical-align:middle'></span>{esc(MODE_LABELS[m])}</div>"
         for m, c in MODE_COLORS.items())
     return f"<div style='font-size:0.85em'>{items}</div>"
-
-
-def _esc(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 __all__ = ["RedundancyLesson", "RunSet", "run_modes", "build", "NAME", "TITLE", "HELP",

@@ -1,0 +1,150 @@
+"""What every lesson does to the page in the same way (a helper module, not a lesson).
+
+Keeping a lesson's GUI elements and removing them when it closes, docking its
+charts panel, turning a refused action into a notification, sending a file,
+and the HTML of the status and warning lines.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any, TypeVar
+
+import viser
+
+from app.inputs import notify
+
+H = TypeVar("H")
+
+#: Place of the status line in the control panel (viser ``order``: first).
+STATUS_ORDER = -80.0
+#: Width of the docked charts panel, px.
+CHART_PANEL_WIDTH = 430
+
+
+def remove_quietly(handle: Any) -> None:
+    """Remove a GUI element or scene node from every page; one already gone is ignored."""
+    try:
+        handle.remove()
+    except (RuntimeError, KeyError, ValueError):
+        pass
+
+
+class LessonGui:
+    """The top-level GUI elements a lesson adds, so that closing it removes them all.
+
+    Args:
+        gui: the server's GUI API (``server.gui``).
+    """
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.gui = gui
+        self._handles: list[Any] = []
+
+    def add(self, handle: H) -> H:
+        """Keep ``handle`` (already on the page) for :meth:`remove_all`; returns it."""
+        self._handles.append(handle)
+        return handle
+
+    def add_status(self) -> viser.GuiHtmlHandle:
+        """Add an empty status line at the top of the control panel (see :func:`status_html`)."""
+        return self.add(self.gui.add_html("", order=STATUS_ORDER))
+
+    @contextmanager
+    def chart_panel(self, tab: str, *,
+                    width: float = CHART_PANEL_WIDTH) -> Iterator[viser.GuiTabHandle]:
+        """A panel with one charts tab named ``tab``, yielded (not entered) to be filled.
+
+        When the block ends the panel is docked at the left edge of the page, ``width``
+        px wide. It is kept for :meth:`remove_all`.
+        """
+        panel = self.add(self.gui.add_panel())
+        yield panel.add_tab(tab, viser.Icon.CHART_LINE)
+        panel.dock_left()
+        panel.set_width(width)
+
+    def remove_all(self) -> None:
+        """Remove every kept element from the page, newest first."""
+        for handle in reversed(self._handles):
+            remove_quietly(handle)
+        self._handles.clear()
+
+
+def guarded(event: viser.GuiEvent, action: Callable[[], object], *,
+            undo: Callable[[], object] | None = None) -> None:
+    """Run a GUI callback's ``action``; a ValueError it raises is never passed on.
+
+    Instead the browser that sent ``event`` shows a "Not done" notification with the
+    message, and ``undo`` (e.g. putting a dropdown back) is called.
+    """
+    try:
+        action()
+    except ValueError as exc:
+        notify(event.client, "Not done", str(exc))
+        if undo is not None:
+            undo()
+
+
+def send_download(event: viser.GuiEvent, make: Callable[[], tuple[str, bytes]]) -> None:
+    """Send the file ``make()`` returns, (name, bytes), to the browser that clicked.
+
+    A ValueError from ``make`` (nothing to send yet) becomes a "Nothing to download"
+    notification in that browser; a click from Python (no client) does nothing.
+    """
+    if event.client is None:
+        return
+    try:
+        name, data = make()
+    except ValueError as exc:
+        notify(event.client, "Nothing to download", str(exc))
+        return
+    event.client.send_file_download(name, data, save_immediately=True)
+
+
+def esc(text: str) -> str:
+    """``text`` safe inside HTML (``&``, ``<`` and ``>`` escaped; quotes kept)."""
+    return html.escape(text, quote=False)
+
+
+def status_html(state: str, color: str, detail: str, *, extra: str = "") -> str:
+    """The status line at the top of the panel.
+
+    Args:
+        state: what the lesson is doing (escaped), after a dot in ``color``.
+        color: CSS colour of the dot and the state.
+        detail: HTML of the small grey line under it.
+        extra: HTML appended below (a note, a figure).
+    """
+    return (f"<div style='font-size:0.95em'><b style='color:{color}'>● {esc(state)}</b>"
+            f"<div style='color:#555;font-size:0.85em'>{detail}</div>{extra}</div>")
+
+
+def warning_html(title: str, message: str, *, color: str = "#b00020") -> str:
+    """A warning box: bold ``title`` after a ⚠, then ``message`` (escaped), in ``color``."""
+    return (f"<div style='border-left:4px solid {color};padding:4px 8px;background:#fff4e5'>"
+            f"<b style='color:{color}'>⚠ {title}</b> "
+            f"<span style='font-size:0.9em'>{esc(message)}</span></div>")
+
+
+def set_content(handle: Any, text: str) -> None:
+    """Show ``text`` in an HTML or markdown element; sent to the pages only if it changed."""
+    if handle.content != text:
+        handle.content = text
+
+
+def close_in_turn(*steps: Callable[[], object] | None) -> None:
+    """Call each step in order (None: skipped), every one even after another raised.
+
+    The same as nested ``try``/``finally`` blocks: an exception propagates once every
+    later step has run.
+    """
+    if not steps:
+        return
+    first, rest = steps[0], steps[1:]
+    try:
+        if first is not None:
+            first()
+    finally:
+        close_in_turn(*rest)

@@ -1,0 +1,70 @@
+"""Helpers shared by the tests that serve the lab or a lesson (fixtures: conftest.py).
+
+- :func:`wait_for`: poll a condition the server side reaches in its own time.
+- :func:`served_lesson`: a lesson built on a real viser server on a free port.
+- :func:`client_of`: a headless client (:class:`app.wsclient.HeadlessClient`, what the
+  page sends on the wire) connected to a server, once the server counts it as a client.
+- The Chromium the browser tests drive, its flags, and the console messages that
+  headless software rendering prints without a fault.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import viser
+
+from app.lessons import LessonContext
+from app.wsclient import HeadlessClient
+
+CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
+CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+#: Console messages that are expected in headless software rendering, not faults.
+EXPECTED_CONSOLE = ("software webgl", "three.clock", "gpu stall",
+                    "automatic fallback to software")
+
+
+def expected_console(text: str) -> bool:
+    """True for a browser console message listed in :data:`EXPECTED_CONSOLE`."""
+    return any(e in text.lower() for e in EXPECTED_CONSOLE)
+
+
+def wait_for(predicate: Callable[[], object], timeout: float = 30.0,
+             what: str = "condition") -> None:
+    """Poll ``predicate`` every 20 ms until true; AssertionError after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.02)
+
+
+@contextmanager
+def served_lesson(build: Callable[[viser.ViserServer, LessonContext], Any],
+                  ctx: LessonContext) -> Iterator[Any]:
+    """``build(server, ctx)`` on a viser server on a free port; closed, then stopped."""
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        handle = build(server, ctx)
+        try:
+            yield handle
+        finally:
+            handle.close()
+    finally:
+        server.stop()
+
+
+@contextmanager
+def client_of(server: viser.ViserServer, *, timeout: float = 10.0) -> Iterator[HeadlessClient]:
+    """A headless client of ``server``, returned once the server has registered it."""
+    before = set(server.get_clients())
+    with HeadlessClient(f"ws://127.0.0.1:{server.get_port()}").connect(timeout) as client:
+        client.wait_for(lambda: bool(set(server.get_clients()) - before), timeout,
+                        "the server to register the client")
+        yield client

@@ -1,0 +1,36 @@
+"""Fixtures shared by the tests that serve the lab (helpers: tests/_helpers.py).
+
+Imports happen inside the fixtures, so tests that use none of them start fast.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def lab():
+    """The whole lab on a free port (one per test module)."""
+    from app.server import Lab, ServeOptions
+
+    with Lab(ServeOptions(http_port=0)) as running:
+        yield running
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """A headless Chromium (Playwright driving ``$ARMLAB_CHROMIUM``, default Debian's
+    /usr/bin/chromium); the test is skipped, with a message, where it is not installed."""
+    from _helpers import CHROMIUM, CHROMIUM_ARGS
+
+    if not CHROMIUM.exists():
+        pytest.skip(f"no Chromium at {CHROMIUM}: install it (apt-get install chromium) or set "
+                    "ARMLAB_CHROMIUM to run the browser tests")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as pw:
+        chromium = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
+                                      args=CHROMIUM_ARGS)
+        try:
+            yield chromium
+        finally:
+            chromium.close()
