@@ -136,6 +136,9 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
         walk_for(lesson, 1.0)
+    # Halt first: every figure below must come from the same, finished record.
+    lesson.stop()
+    wait_for(lambda: not lesson.loop.status.walking, timeout=30.0)
     err = lesson.servo_error(None)
     snap = lesson.loop.snapshot()
     ok = (snap["walking"] > 0.5) & np.isfinite(snap["q"]).all(axis=1) \
