@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from control.backend import Backend
@@ -23,7 +22,7 @@ def make_backend(kind: str, model: SerialChain, *, port: str | None = None,
         **kw: passed to the backend's constructor (e.g. ``q0``, ``specs``, ``dt`` for "sim").
 
     Raises:
-        ValueError: unknown kind, options that do not fit it, or the serial backend missing.
+        ValueError: unknown kind or options that do not fit it.
     """
     if kind == "sim":
         if port is not None or baud is not None:
@@ -32,15 +31,11 @@ def make_backend(kind: str, model: SerialChain, *, port: str | None = None,
 
         return SimBackend(model, **kw)
     if kind == "serial":
-        try:
-            module = importlib.import_module("hardware.dynamixel_backend")
-        except ModuleNotFoundError as exc:
-            if exc.name != "hardware.dynamixel_backend":
-                raise
-            raise ValueError("the serial backend is not available") from None
         if port is None:
             raise ValueError("the serial backend needs a port (e.g. /dev/ttyUSB0)")
+        from hardware.dynamixel_backend import DynamixelBackend  # pyserial only when asked
+
         if baud is not None:
             kw["baud"] = baud
-        return module.DynamixelBackend(model, port, **kw)
+        return DynamixelBackend(model, port, **kw)
     raise ValueError(f"unknown backend {kind!r}; choose one of {', '.join(KINDS)}")

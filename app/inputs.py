@@ -98,3 +98,17 @@ class GuardedNumber:
     def set(self, value: float) -> None:
         """Set from Python (a preset): shown on every page and applied."""
         self.handle.value = float(value)
+
+
+def guarded_slider(gui: viser.GuiApi, label: str, *, name: str, lo: float, hi: float,
+                   step: float, initial: float, apply: Callable[[float], None],
+                   hint: str | None = None, visible: bool = True,
+                   lock: threading.RLock | None = None) -> GuardedNumber:
+    """A slider over [lo, hi] whose values pass a :class:`GuardedNumber` over the same range.
+
+    The range is stated once, so the slider and its guard cannot disagree. The
+    slider handle is the result's ``handle``.
+    """
+    handle = gui.add_slider(label, min=lo, max=hi, step=step, initial_value=initial, hint=hint,
+                            visible=visible)
+    return GuardedNumber(handle, name=name, lo=lo, hi=hi, apply=apply, lock=lock)

@@ -30,6 +30,7 @@ import numpy as np
 from control.backend import Backend, BackendError, Pushable
 from control.periodic import RowRing, Ticker
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
+from kinematics.quadruped import LEGS, foot_in_tibia
 
 #: Record layout: name -> number of columns (t first).
 COLUMNS: dict[str, int] = {"t": 1, "walking": 1, "phase": 1, "q_cmd": 12, "q": 12,
@@ -85,8 +86,8 @@ class GaitLoop:
         speed: gait speed, cycles/s.
         body_weight: N the stance feet carry on a Pushable (simulated) backend; None or 0:
             no load.
-        to_servo: (12,) joint angles -> (12,) horn angles from the servo centre, rad (a
-            joint map's ``to_servo``); default identity.
+        to_servo: (..., 12) joint angles -> (..., 12) horn angles from the servo centre, rad
+            (a joint map's ``to_servo``; it must broadcast over rows); default identity.
         history_s: seconds of record kept.
     """
 
@@ -286,11 +287,11 @@ class GaitLoop:
         down = np.flatnonzero(state.stance)
         if len(down) == 0:
             return
-        point = getattr(backend, "foot_point", None)
+        geom = self.walker.plan.geom
         share = np.array([0.0, 0.0, self.body_weight / len(down)])
         for i in down:
-            where = point(int(i)) if point is not None else np.zeros(3)
-            backend.push(share, link=3 * int(i) + 2, point=where, duration=self.period)
+            backend.push(share, link=3 * int(i) + 2, point=foot_in_tibia(LEGS[int(i)], geom),
+                         duration=self.period)
 
     def _record(self, t: float, state: WalkState, q_meas: np.ndarray) -> None:
         row = np.concatenate([[t, float(self._walking and self._ramp_done(t)), state.phase],
@@ -327,6 +328,16 @@ class GaitLoop:
             c += width
         return out
 
+    def servo_angles_deg(self, snap: dict[str, np.ndarray]
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Eq. 4.1's inputs from a :meth:`snapshot`: ``ok`` (N,) marks the walking samples
+        with finite angles; their commanded and reported horn angles (M, 12), degrees."""
+        cmd, act = snap["q_cmd"], snap["q"]
+        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(cmd), axis=1) \
+            & np.all(np.isfinite(act), axis=1)
+        return (ok, servo_angle_deg(self.to_servo(cmd[ok])),
+                servo_angle_deg(self.to_servo(act[ok])))
+
     def angle_error(self, window_s: float | None = None) -> dict[str, object] | None:
         """Seed 003 eq. 4.1 over the walking samples of the last ``window_s`` s.
 
@@ -339,13 +350,9 @@ class GaitLoop:
             all servos), ``per_servo_pct`` (3,) by servo number in the leg (1 hip yaw,
             2 hip pitch, 3 knee), ``per_joint_pct`` (12,), ``samples``.
         """
-        snap = self.snapshot(window_s)
-        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q_cmd"]), axis=1) \
-            & np.all(np.isfinite(snap["q"]), axis=1)
+        ok, cmd, act = self.servo_angles_deg(self.snapshot(window_s))
         if not ok.any():
             return None
-        cmd = servo_angle_deg(np.array([self.to_servo(q) for q in snap["q_cmd"][ok]]))
-        act = servo_angle_deg(np.array([self.to_servo(q) for q in snap["q"][ok]]))
         per_joint = np.array([mean_angle_error_pct(cmd[:, j], act[:, j]) for j in range(12)])
         per_servo = per_joint.reshape(4, 3).mean(axis=0)
         return {"mean_pct": mean_angle_error_pct(cmd, act), "per_servo_pct": per_servo,

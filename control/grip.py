@@ -391,9 +391,9 @@ class GripController:
             if gap <= 0.002 * p.force_limit:
                 s.force_cap[i] = p.force_limit
                 s.mode[i] = "holding"
-        i_cap = float(m.current_for_force(np.array(s.force_cap[i]), np.array(phi)))
+        # the currents that hold no force (the spring alone) and the capped force
+        i_spring, i_cap = m.current_for_force(np.array([0.0, s.force_cap[i]]), phi).tolist()
         omega_ref = p.approach_speed / float(contact_lever(g, phi)) * g.ratio
-        i_spring = float(m.current_for_force(np.array(0.0), np.array(phi)))
         if mode in ("squeezing", "holding", "empty"):
             # force control: the current that holds the capped force
             i_ref = i_cap

@@ -414,10 +414,9 @@ class ControlLoop:
             new, self._pending = self._pending, None
         if new is None:
             return
-        old = self._params
+        warning = stability_warning(new)
         with self._lock:
-            self._params = new
-            self._warning = stability_warning(new)
+            old, self._params, self._warning = self._params, new, warning
         if new.period != old.period:
             self.recorder.resize(self._capacity(new.period))
 

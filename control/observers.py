@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from control.compliance import lpf
+
 OZ_IN = 0.00706155  #: N·m per ounce-inch
 GRIPPER_KT = 2.0 * OZ_IN / 1.6 * 5.0  #: N·m/A at the gear output (thesis §2.4)
 
@@ -108,7 +110,7 @@ def disturbance_observer(state: ObserverState, current: float, qd: float, *, j_n
         τ̂_dis, N·m.
     """
     u = kt_n * current + g_dis * j_n * qd
-    state.z += lpf_gain(g_dis, dt) * (u - state.z)
+    state.z = lpf(state.z, u, lpf_gain(g_dis, dt))
     return state.z - g_dis * j_n * qd
 
 
@@ -126,7 +128,7 @@ def reaction_torque_observer(state: ObserverState, current: float, qd: float,
         τ̂_reac, the external torque estimate, N·m.
     """
     u = kt_n * current + g_reac * j_n * qd - tau_known
-    state.z += lpf_gain(g_reac, dt) * (u - state.z)
+    state.z = lpf(state.z, u, lpf_gain(g_reac, dt))
     return state.z - g_reac * j_n * qd
 
 

@@ -24,6 +24,8 @@ from typing import Literal
 
 import numpy as np
 
+from kinematics.validate import scalar
+
 Law = Literal["2.6", "2.26"]
 LAWS: tuple[str, ...] = ("2.6", "2.26")
 
@@ -102,14 +104,8 @@ class Params:
         for f in fields(self):
             if f.name not in PARAM_SPECS:
                 continue
-            value = getattr(self, f.name)
-            try:
-                x = float(value)
-            except (TypeError, ValueError):
-                raise ValueError(f"{f.name} must be a number, got {value!r}") from None
+            x = scalar(f.name, getattr(self, f.name))
             spec = PARAM_SPECS[f.name]
-            if not math.isfinite(x):
-                raise ValueError(f"{f.name} must be finite, got {x}")
             if f.name == "m_env" and x <= 0.0:
                 raise ValueError(f"m_env must be > 0 (virtual mass of eq. 2.7), got {x:g}")
             if not spec.min <= x <= spec.max:

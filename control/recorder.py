@@ -72,12 +72,12 @@ class Recorder:
 
     def append(self, t: float, signals: Mapping[str, np.ndarray]) -> None:
         """Add one row: ``t`` s and each signal (n,) (missing ones are NaN)."""
-        row = np.full(self._width, np.nan)
-        row[0] = t
-        for name, value in signals.items():
-            row[self._cols[name]] = value
         with self._lock:
-            self._data[self._head] = row
+            row = self._data[self._head]  # written in place: no allocation per period
+            row.fill(np.nan)
+            row[0] = t
+            for name, value in signals.items():
+                row[self._cols[name]] = value
             self._head = (self._head + 1) % self.capacity
             self._count = min(self._count + 1, self.capacity)
 

@@ -174,13 +174,12 @@ def plan_gait(spec: GaitSpec | None = None, geom: QuadrupedGeometry | None = Non
             f"a foot is out of the leg's reach (femur {geom.leg.femur * 100:g} cm + tibia "
             f"{geom.leg.tibia * 100:g} cm): lower A, B, C or D")
     T = len(cycle.omega_deg)
-    two = walk(cycle, geom, cycles=2)
-    one = walk(cycle, geom)
+    two = walk(cycle, geom, cycles=2)  # its first cycle is walk(cycle, geom) itself
     feet_body = np.array([[leg_to_body(cycle.feet[j, i], leg, geom)
                            for i, leg in enumerate(LEGS)] for j in range(T)])
     com = np.array([centre_of_mass({leg: angles[j, i] for i, leg in enumerate(LEGS)}, geom)
                     for j in range(T)])
-    margins = cycle_margins(cycle, one, angles, geom)
+    margins = cycle_margins(cycle, two, angles, geom)
     return GaitPlan(spec, geom, cycle, angles, True, two.body[:T + 1].copy(),
                     two.feet_world[:T + 1].copy(), feet_body, com, margins,
                     float(np.max(two.slip)))
@@ -190,10 +189,6 @@ def _se2(pose: np.ndarray) -> np.ndarray:
     """(x, y, yaw) -> 3x3 homogeneous transform."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
     return np.array([[c, -s, pose[0]], [s, c, pose[1]], [0.0, 0.0, 1.0]])
-
-
-def _pose(T: np.ndarray) -> np.ndarray:
-    return np.array([T[0, 2], T[1, 2], math.atan2(T[1, 0], T[0, 0])])
 
 
 @dataclass(frozen=True)
@@ -313,9 +308,9 @@ class Walker:
         f = s - j
         j1 = (j + 1) % T
         angles = (1 - f) * plan.angles[j] + f * plan.angles[j1]
-        feet_b = (1 - f) * plan.feet_body[j] + f * plan.feet_body[j1]
         com_b = (1 - f) * plan.com_body[j] + f * plan.com_body[j1]
         if self.in_place:
+            feet_b = (1 - f) * plan.feet_body[j] + f * plan.feet_body[j1]
             z = (1 - f) * plan.body[j, 2] + f * plan.body[j + 1, 2]
             body = np.array([0.0, 0.0, z, 0.0])
             feet = feet_b + np.array([0.0, 0.0, z])

@@ -33,7 +33,8 @@ import serial
 from control.backend import BackendError
 from hardware import protocol1 as p1
 from hardware.control_table import RX24F_TABLE, ControlTable, table_for
-from hardware.servo_spec import SPECS
+from hardware.protocol1 import wire_time
+from hardware.servo_spec import RETURN_DELAY_UNIT, SPECS
 
 log = logging.getLogger("armlab.bus")
 
@@ -91,15 +92,10 @@ class BusStats:
     bytes_in: int = 0
 
 
-def wire_time(n_bytes: int, baud: float) -> float:
-    """Seconds ``n_bytes`` take on an 8N1 line (10 bits a byte): 10 µs a byte at 1 Mbps."""
-    return n_bytes * 10.0 / baud
-
-
 def reply_timeout(request: int, reply: int, baud: float, return_delay: int, margin: float) -> float:
     """Seconds to wait for a status packet: wire time of request + reply, the servo's
     return delay (2 µs a unit, thesis §2.3) and a margin for the adapter and the OS."""
-    return wire_time(request + reply, baud) + 2e-6 * return_delay + margin
+    return wire_time(request + reply, baud) + RETURN_DELAY_UNIT * return_delay + margin
 
 
 def ftdi_latency_ms(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:

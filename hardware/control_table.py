@@ -13,12 +13,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from hardware.servo_spec import AX12A, RX24F, ServoSpec, baud_from_value, value_from_baud
+from hardware.servo_spec import (
+    AX12A,
+    RETURN_DELAY_UNIT,
+    RX24F,
+    ServoSpec,
+    baud_from_value,
+    value_from_baud,
+)
 
 EEPROM = "EEPROM"
 RAM = "RAM"
 TABLE_SIZE = 50  #: addresses 0..49
 LOCKED_WRITABLE = range(24, 36)  #: with Lock = 1 only addresses 24..35 accept writes
+#: Thesis §2.3 "Set Compliance Margin and Slope": margins 0, slopes 64 (0x40).
+THESIS_COMPLIANCE_MARGIN = 0
+THESIS_COMPLIANCE_SLOPE = 64
 
 
 @dataclass(frozen=True)
@@ -201,7 +211,7 @@ class ControlTable:
         if unit == "voltage":
             return raw * 0.1
         if unit == "delay":
-            return raw * 2e-6
+            return raw * RETURN_DELAY_UNIT
         if unit == "baud":
             return baud_from_value(raw)
         return float(raw)
@@ -219,18 +229,12 @@ class ControlTable:
         if unit == "voltage":
             return int(round(value * 10.0))
         if unit == "delay":
-            return int(round(value / 2e-6))
+            return int(round(value / RETURN_DELAY_UNIT))
         if unit in ("present_speed", "load"):
             raise ValueError(f"{name} is read-only on the {self.name}")
         if unit == "baud":
             return value_from_baud(value)
         return int(round(value))
-
-
-def load_fraction(raw: int) -> float:
-    """Present Load word -> signed fraction of the maximum torque (−1..1, CCW positive)."""
-    mag = (int(raw) & 0x3FF) / 1023.0
-    return -mag if int(raw) & 0x400 else mag
 
 
 AX12A_TABLE = ControlTable(AX12A, _items(baud=1, temperature_limit=70, max_voltage=140))

@@ -27,16 +27,18 @@ import numpy as np
 from control.backend import BackendError, GoalLimits, JointState
 from hardware import protocol1 as p1
 from hardware.bus import Bus, BusError, BusStats, sync_data
-from hardware.control_table import ControlTable, table_for
+from hardware.control_table import (
+    THESIS_COMPLIANCE_MARGIN,
+    THESIS_COMPLIANCE_SLOPE,
+    ControlTable,
+    table_for,
+)
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
 from hardware.servo_spec import value_from_baud
 from kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.dynamixel")
 
-#: Thesis §2.3 "Set Compliance Margin and Slope": margins 0, slopes 64 (0x40).
-THESIS_COMPLIANCE_MARGIN = 0
-THESIS_COMPLIANCE_SLOPE = 64
 #: Thesis §2.3 "Set Status Return Level": 1 = status packets for READ only.
 THESIS_STATUS_RETURN_LEVEL = 1
 #: Error bits that stop the servo's torque with the default alarm shutdown (36).

@@ -28,15 +28,21 @@ import struct
 import time
 import tty
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Protocol, TextIO
 
 from hardware import protocol1 as p1
-from hardware.control_table import LOCKED_WRITABLE, TABLE_SIZE, ControlTable, table_for
+from hardware.control_table import (
+    LOCKED_WRITABLE,
+    RX24F_TABLE,
+    TABLE_SIZE,
+    ControlTable,
+    table_for,
+)
 from hardware.joint_map import default_joint_map
 from hardware.plant import Plant
-from hardware.servo import REGISTER_ADDRESSES
-from hardware.servo_spec import baud_from_value, value_from_baud
+from hardware.servo import ServoRegisters
+from hardware.servo_spec import RETURN_DELAY_UNIT, baud_from_value, value_from_baud
 from kinematics.model import Quadruped, SerialChain
 
 TCGETS2 = 0x802C542A  #: _IOR('T', 0x2A, struct termios2) on Linux
@@ -46,6 +52,12 @@ BAUD_TOLERANCE = 0.03  #: a UART still decodes bytes within about 3 % of its rat
 #: s of plant time integrated at most before answering; when the CPU cannot keep the
 #: plant in real time, its clock slips instead of the replies coming late
 MAX_CATCH_UP = 0.1
+#: (field, address, size) of every :class:`ServoRegisters` field in the control table
+#: (both models share one layout), for copying a servo's RAM into its simulated firmware
+REGISTER_ADDRESSES = tuple(
+    (f.name, RX24F_TABLE.item(f.name).address, RX24F_TABLE.item(f.name).size)
+    for f in fields(ServoRegisters)
+)
 
 
 def line_baud(master_fd: int) -> float | None:
@@ -104,7 +116,7 @@ class VirtualServo:
     @property
     def return_delay(self) -> float:
         """s before the status packet (2 µs a unit, thesis §2.3)."""
-        return 2e-6 * self.memory[5]
+        return RETURN_DELAY_UNIT * self.memory[5]
 
     def hears(self, baud: float | None) -> bool:
         """Whether bytes at ``baud`` reach this servo's UART intact (None: unknown, yes)."""
@@ -437,12 +449,12 @@ class PtyEmulator:
                   now: float, baud: float) -> None:
         t = now
         if self.pace:
-            t = max(self._wire_free, now) + 10.0 * len(request) / baud
+            t = max(self._wire_free, now) + p1.wire_time(len(request), baud)
             self._wire_free = t
         for servo, reply in replies:
             due = t + servo.return_delay
             if self.pace:
-                due = max(due, self._wire_free) + 10.0 * len(reply) / baud
+                due = max(due, self._wire_free) + p1.wire_time(len(reply), baud)
                 self._wire_free = due
             reply = self._inject(reply)
             if reply is None:

@@ -113,11 +113,11 @@ class JointMap:
         return np.array([j.upper for j in self.joints])
 
     def to_servo(self, q: np.ndarray) -> np.ndarray:
-        """(n,) joint angles rad -> (n,) horn angles rad: a = sign · (q − offset)."""
+        """(..., n) joint angles rad -> (..., n) horn angles rad: a = sign · (q − offset)."""
         return self.signs * (np.asarray(q, dtype=float) - self.offsets)
 
     def to_joint(self, a: np.ndarray) -> np.ndarray:
-        """(n,) horn angles rad -> (n,) joint angles rad: q = offset + sign · a."""
+        """(..., n) horn angles rad -> (..., n) joint angles rad: q = offset + sign · a."""
         return self.offsets + self.signs * np.asarray(a, dtype=float)
 
     def servo_limits_to_joint(self, a_lo: np.ndarray, a_hi: np.ndarray

@@ -227,6 +227,11 @@ def expected_status_length(instruction: int, params: bytes = b"") -> int:
     return OVERHEAD
 
 
+def wire_time(n_bytes: int, baud: float) -> float:
+    """Seconds ``n_bytes`` take on an 8N1 line (10 bits a byte): 10 µs a byte at 1 Mbps."""
+    return n_bytes * 10.0 / baud
+
+
 def word(value: int) -> bytes:
     """A 16-bit value as its two little-endian bytes (L, H), as the control table stores it."""
     if not 0 <= value <= 0xFFFF:

@@ -92,7 +92,7 @@ class QuadrupedSimBackend(GoalLimits):
         with self._lock:
             for k, leg in enumerate(self.legs):
                 sl = slice(LEG_JOINTS * k, LEG_JOINTS * (k + 1))
-                leg.write(p[sl], s[sl])
+                leg.write_checked(p[sl], s[sl])
 
     def set_torque(self, on: bool) -> None:
         with self._lock:
@@ -132,13 +132,6 @@ class QuadrupedSimBackend(GoalLimits):
         leg, i = self._leg(link)
         with self._lock:
             leg.set_spring(anchor, stiffness=stiffness, link=i, point=point)
-
-    def foot_point(self, leg_index: int) -> np.ndarray:
-        """(3,) the foot in its tibia's frame (where the floor pushes), m."""
-        chains = list(self.model.legs.values())
-        if not 0 <= leg_index < len(chains):
-            raise ValueError(f"leg_index must be 0..{len(chains) - 1}, got {leg_index}")
-        return np.asarray(chains[leg_index].tip, dtype=float)[:3, 3].copy()
 
 
 __all__ = ["QuadrupedSimBackend", "LEG_JOINTS"]

@@ -26,37 +26,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hardware.servo_spec import DIRECTION_BIT, ServoSpec
+from hardware.protocol1 import ErrorBits
+from hardware.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
 
-#: Error-byte bits (protocol 1.0 status packet).
-ERROR_VOLTAGE = 1 << 0
-ERROR_ANGLE_LIMIT = 1 << 1
-ERROR_OVERHEATING = 1 << 2
-ERROR_RANGE = 1 << 3
-ERROR_CHECKSUM = 1 << 4
-ERROR_OVERLOAD = 1 << 5
-ERROR_INSTRUCTION = 1 << 6
-
-#: (register field, control-table address, size in bytes) of every register a
-#: :class:`ServoRegisters` holds, for an emulator that maps WRITE packets onto it.
-REGISTER_ADDRESSES: tuple[tuple[str, int, int], ...] = (
-    ("cw_angle_limit", 6, 2),
-    ("ccw_angle_limit", 8, 2),
-    ("max_torque", 14, 2),
-    ("alarm_led", 17, 1),
-    ("alarm_shutdown", 18, 1),
-    ("torque_enable", 24, 1),
-    ("led", 25, 1),
-    ("cw_compliance_margin", 26, 1),
-    ("ccw_compliance_margin", 27, 1),
-    ("cw_compliance_slope", 28, 1),
-    ("ccw_compliance_slope", 29, 1),
-    ("goal_position", 30, 2),
-    ("moving_speed", 32, 2),
-    ("torque_limit", 34, 2),
-    ("lock", 47, 1),
-    ("punch", 48, 2),
-)
+#: Error-byte bits the firmware sets (plain ints: this runs every tick).
+ERROR_ANGLE_LIMIT = int(ErrorBits.ANGLE_LIMIT)
+ERROR_OVERLOAD = int(ErrorBits.OVERLOAD)
 
 
 @dataclass
@@ -339,8 +314,7 @@ class ServoModel:
 
     def present_load(self) -> int:
         """Present Load word: the duty the firmware applies, 0..1023, bit 10 = CW."""
-        mag = int(round(abs(self._duty) * 1023.0))
-        return mag | (DIRECTION_BIT if self._duty < 0 and mag else 0)
+        return signed_word(self._duty * 1023.0)
 
     def present_voltage(self) -> int:
         """Present Voltage, 0.1 V."""

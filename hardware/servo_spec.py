@@ -15,6 +15,25 @@ import numpy as np
 
 RPM = 2.0 * np.pi / 60.0  #: rad/s per rpm
 DIRECTION_BIT = 1 << 10  #: bit 10 of Present Speed / Present Load: 1 = clockwise
+RETURN_DELAY_UNIT = 2e-6  #: s per Return Delay Time unit (address 5, thesis §2.3)
+
+
+def signed_word(units: float) -> int:
+    """Signed magnitude in register units -> Present Speed/Load word (0..1023, bit 10 = CW)."""
+    a = abs(units)
+    mag = 1023 if a >= 1023.0 else round(a)  # round: half to even, as np.rint
+    return mag | (DIRECTION_BIT if units < 0 and mag else 0)
+
+
+def word_to_signed(raw: int) -> int:
+    """Present Speed/Load word -> signed magnitude in register units (CCW positive)."""
+    raw = int(raw)
+    return -(raw & 0x3FF) if raw & DIRECTION_BIT else raw & 0x3FF
+
+
+def load_fraction(raw: int) -> float:
+    """Present Load word -> signed fraction of the maximum torque (−1..1, CCW positive)."""
+    return word_to_signed(raw) / 1023.0
 
 
 @dataclass(frozen=True)
@@ -74,23 +93,19 @@ class ServoSpec:
 
     def present_speed_to_raw(self, velocity: float) -> int:
         """Signed rad/s -> Present Speed word (magnitude 0..1023, bit 10 set when CW)."""
-        mag = int(min(np.rint(abs(velocity) / self.speed_unit), 1023))
-        return mag | (DIRECTION_BIT if velocity < 0 and mag else 0)
+        return signed_word(velocity / self.speed_unit)
 
     def raw_to_present_speed(self, raw: int) -> float:
         """Present Speed word -> signed rad/s (CCW positive)."""
-        mag = (int(raw) & 0x3FF) * self.speed_unit
-        return -mag if int(raw) & DIRECTION_BIT else mag
+        return word_to_signed(raw) * self.speed_unit
 
     def load_to_raw(self, torque: float) -> int:
         """Signed output torque N·m -> Present Load word (0.1 % of stall per unit, bit 10 = CW)."""
-        mag = int(min(np.rint(abs(torque) / self.stall_torque * 1023.0), 1023))
-        return mag | (DIRECTION_BIT if torque < 0 and mag else 0)
+        return signed_word(torque / self.stall_torque * 1023.0)
 
     def raw_to_load(self, raw: int) -> float:
         """Present Load word -> signed N·m (CCW positive)."""
-        mag = (int(raw) & 0x3FF) / 1023.0 * self.stall_torque
-        return -mag if int(raw) & DIRECTION_BIT else mag
+        return load_fraction(raw) * self.stall_torque
 
     def torque_limit_to_raw(self, torque: float) -> int:
         """N·m -> Torque Limit / Max Torque register 0..1023."""

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
+from hardware.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
 from hardware.plant import Plant
 from hardware.servo import ServoParams, ServoRegisters
 from hardware.servo_spec import RX24F, ServoSpec
@@ -26,10 +27,11 @@ def thesis_registers(spec: ServoSpec, *, goal: int, cw_limit: int, ccw_limit: in
                      torque_on: bool = True) -> ServoRegisters:
     """Registers as the thesis configures each servo (§2.3): compliance margin 0, slope 64
     (0x40), torque limit and max torque 1023, factory punch 32, speed control off."""
+    margin, slope = THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
     return ServoRegisters(
-        torque_enable=int(torque_on), cw_compliance_margin=0, ccw_compliance_margin=0,
-        cw_compliance_slope=64, ccw_compliance_slope=64, goal_position=goal, moving_speed=0,
-        torque_limit=1023, max_torque=1023, punch=32, cw_angle_limit=cw_limit,
+        torque_enable=int(torque_on), cw_compliance_margin=margin, ccw_compliance_margin=margin,
+        cw_compliance_slope=slope, ccw_compliance_slope=slope, goal_position=goal,
+        moving_speed=0, torque_limit=1023, max_torque=1023, punch=32, cw_angle_limit=cw_limit,
         ccw_angle_limit=ccw_limit,
     )
 
@@ -128,10 +130,14 @@ class SimBackend(GoalLimits):
         1..1023 units (never 0, which would mean "no speed limit"). NaN/inf or a wrong
         shape raise ValueError and nothing is written.
         """
-        p, s = self.checked_goal(position, speed)
+        self.write_checked(*self.checked_goal(position, speed))
+
+    def write_checked(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """:meth:`write` of goals already checked and clamped (``checked_goal``), e.g. a
+        slice of a bigger backend's goals."""
         goals = [spec.position_to_raw(d * x)
-                 for spec, d, x in zip(self.specs, self.directions, p, strict=True)]
-        speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(self.specs, s, strict=True)]
+                 for spec, d, x in zip(self.specs, self.directions, position, strict=True)]
+        speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(self.specs, speed, strict=True)]
         with self._lock:
             self._check_open()
             for servo, g, v in zip(self.plant.servos, goals, speeds, strict=True):

@@ -457,27 +457,15 @@ def _gravity(model: SerialChain, gravity: object) -> list[float]:
     return _floats("gravity", gravity, 3)
 
 
-def _external_torques(model: SerialChain, q: list[float], f_ext: object) -> list[float]:
-    """J^T f_ext: joint torques of wrenches (n, 6) [force N, moment N·m about the link
+def _external_torques(model: SerialChain, q: list[float], f_ext: object) -> np.ndarray:
+    """J^T f_ext: joint torques (n,) of wrenches (n, 6) [force N, moment N·m about the link
     origin], base frame, one row per link, acting on the robot."""
-    n = model.n
-    W = matrix("f_ext", f_ext, (n, 6))
-    dyn = dynamics_model(model)
-    fr = dyn.frames(q)
-    out = [0.0] * n
-    for i in range(n):
-        f, m = W[i, :3], W[i, 3:]
-        if not (np.any(f) or np.any(m)):
-            continue
-        o_i = np.array(fr[12 * i + 9: 12 * i + 12])
-        for j in range(i + 1):
-            Rj = np.array(fr[12 * j: 12 * j + 9]).reshape(3, 3)
-            z = Rj @ np.array(dyn.axes[j])
-            if dyn.revolute[j]:
-                o_j = np.array(fr[12 * j + 9: 12 * j + 12])
-                out[j] += float(f @ np.cross(z, o_i - o_j) + m @ z)
-            else:
-                out[j] += float(f @ z)
+    W = matrix("f_ext", f_ext, (model.n, 6))
+    frames = _link_frames(model, q)
+    out = np.zeros(model.n)
+    for i, (_, o_i) in enumerate(frames):
+        if np.any(W[i]):
+            out += _point_jacobian6(model, frames, i, o_i).T @ W[i]
     return out
 
 
@@ -550,7 +538,7 @@ def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.
     qv = _floats("q", q, n)
     tv = _floats("tau", tau, n)
     if f_ext is not None:
-        tv = [a + b for a, b in zip(tv, _external_torques(model, qv, f_ext), strict=True)]
+        tv = (np.array(tv) + _external_torques(model, qv, f_ext)).tolist()
     arm = [0.0] * n if armature is None else _floats("armature", armature, n)
     if any(a < 0 for a in arm):
         raise ValueError(f"armature must be >= 0, got {arm}")
@@ -565,7 +553,7 @@ def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.
 
 def point_position(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray) -> np.ndarray:
     """(3,) base-frame position of ``point`` (3,) m given in link ``link``'s frame."""
-    R, p = _link_frame(model, _floats("q", q, model.n), _link_index(model, link))
+    R, p = _link_frames(model, _floats("q", q, model.n))[_link_index(model, link)]
     return R @ vector("point", point, 3) + p
 
 
@@ -576,18 +564,10 @@ def point_jacobian(model: SerialChain, q: np.ndarray, link: int, point: np.ndarr
     (thesis eq. 3.14-3.15 applied to any point); columns of later joints are zero.
     A force F (base frame) at that point acts on the joints as J^T F.
     """
-    n = model.n
-    qv = _floats("q", q, n)
     k = _link_index(model, link)
-    dyn = dynamics_model(model)
-    R, p0 = _link_frame(model, qv, k)
-    p = R @ vector("point", point, 3) + p0
-    J = np.zeros((3, n))
-    for j in range(k + 1):
-        Rj, oj = _link_frame(model, qv, j)
-        z = Rj @ np.array(dyn.axes[j])
-        J[:, j] = np.cross(z, p - oj) if dyn.revolute[j] else z
-    return J
+    frames = _link_frames(model, _floats("q", q, model.n))
+    R, o = frames[k]
+    return _point_jacobian6(model, frames, k, R @ vector("point", point, 3) + o)[:3]
 
 
 def point_force_torques(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray,
@@ -603,9 +583,28 @@ def _link_index(model: SerialChain, link: int) -> int:
     return int(link)
 
 
-def _link_frame(model: SerialChain, q: list[float], i: int) -> tuple[np.ndarray, np.ndarray]:
+def _link_frames(model: SerialChain, q: list[float]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per link (R (3, 3), origin (3,)), base <- link, from one call of the generated code."""
     fr = dynamics_model(model).frames(q)
-    return np.array(fr[12 * i: 12 * i + 9]).reshape(3, 3), np.array(fr[12 * i + 9: 12 * i + 12])
+    return [(np.array(fr[12 * i: 12 * i + 9]).reshape(3, 3), np.array(fr[12 * i + 9: 12 * i + 12]))
+            for i in range(model.n)]
+
+
+def _point_jacobian6(model: SerialChain, frames: list[tuple[np.ndarray, np.ndarray]], link: int,
+                     p: np.ndarray) -> np.ndarray:
+    """(6, n) Jacobian of the base-frame point p (3,) riding on ``link``: linear rows
+    z_j × (p - o_j) (revolute) or z_j (prismatic), angular rows z_j (revolute), j <= link."""
+    J = np.zeros((6, model.n))
+    for j in range(link + 1):
+        Rj, oj = frames[j]
+        joint = model.joints[j]
+        z = Rj @ joint.axis
+        if joint.kind == "prismatic":
+            J[:3, j] = z
+        else:
+            J[:3, j] = np.cross(z, p - oj)
+            J[3:, j] = z
+    return J
 
 
 def kinetic_energy(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
@@ -624,9 +623,8 @@ def potential_energy(model: SerialChain, q: np.ndarray, *,
     g = np.array(_gravity(model, gravity))
     qv = _floats("q", q, model.n)
     V = 0.0
-    for i, link in enumerate(model.links):
+    for link, (R, p) in zip(model.links, _link_frames(model, qv), strict=True):
         if link.mass:
-            R, p = _link_frame(model, qv, i)
             V -= link.mass * float(g @ (R @ link.com + p))
     return V
 

@@ -115,11 +115,6 @@ def spring_torque(g: FingerGeometry, phi: float | np.ndarray) -> np.ndarray:
     return g.spring_preload + g.spring_rate * (np.asarray(phi) - g.open_angle)
 
 
-def taut_motor_angle(g: FingerGeometry, phi: float | np.ndarray) -> np.ndarray:
-    """Motor output angle (rad, 0 at the open stop) at which the tendon just goes taut."""
-    return g.ratio * (np.asarray(phi) - g.open_angle)
-
-
 def grip_force_from_tension(
     g: FingerGeometry, tension: float | np.ndarray, phi: float | np.ndarray
 ) -> np.ndarray:

@@ -93,7 +93,7 @@ def leg_ik(foot: tuple[float, float, float] | list[float], geom: LegGeometry = L
     if knee not in (1, -1):
         raise ValueError(f"knee must be +1 or -1, got {knee}")
     l1, l2 = geom.femur, geom.tibia
-    t1 = math.atan2(x, y)
+    t1 = hip_yaw(x, y)
     A = knee_cosine(x, y, z, l1, l2)
     ok = -1.0 - 1e-12 <= A <= 1.0 + 1e-12  # tolerance for a stretched leg
     msg = ""

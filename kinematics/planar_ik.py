@@ -195,9 +195,8 @@ def solve(X: float, Y: float, *, arm: PlanarArm = PlanarArm(), elbow: str = "dow
     elif not math.isfinite(theta0):
         raise ValueError(f"theta0 must be finite, got {theta0}")
     l1, l2 = arm.l1, arm.l2
-    x = X - arm.l3 * math.cos(theta0)
-    y = Y - arm.l3 * math.sin(theta0)
-    c2 = (x * x + y * y - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+    x, y = wrist_point(X, Y, theta0, arm.l3)
+    c2 = elbow_cosine(x, y, l1, l2)
     reachable = -1.0 - 1e-12 <= c2 <= 1.0 + 1e-12  # tolerance for a stretched arm
     message = ""
     if not reachable:
@@ -205,19 +204,13 @@ def solve(X: float, Y: float, *, arm: PlanarArm = PlanarArm(), elbow: str = "dow
         message = (f"target ({X:.4f}, {Y:.4f}) m unreachable with orientation "
                    f"{math.degrees(theta0):.1f} deg: wrist point at {d:.4f} m, the two-link "
                    f"arm reaches {abs(l1 - l2):.4f}..{l1 + l2:.4f} m; returning the nearest pose")
-    c2 = 1.0 if c2 > 1.0 else (-1.0 if c2 < -1.0 else c2)
-    s2 = math.sqrt(1.0 - c2 * c2)
-    t2 = math.atan2(-s2 if elbow == "down" else s2, c2)
-    t1 = math.atan2(y, x) - math.atan2(l2 * math.sin(t2), l1 + l2 * c2)
-    t1 = _wrap(t1)
-    t3 = _wrap(theta0 - t1 - t2)
-    angles = (t1, t2, t3)
-    o = arm.servo_offset_deg
-    servo = (round_command(o[0] - math.degrees(t1), rounding),
-             round_command(o[1] - math.degrees(t2), rounding),
-             round_command(o[2] - math.degrees(t3), rounding))
-    cmd = (math.radians(o[0] - servo[0]), math.radians(o[1] - servo[1]),
-           math.radians(o[2] - servo[2]))
+    t2 = elbow_angle(1.0 if c2 > 1.0 else (-1.0 if c2 < -1.0 else c2), elbow)
+    t1 = _wrap(shoulder_angle(x, y, t2, l1, l2))
+    angles = (t1, t2, wrist_angle(theta0, t1, t2))
+    s1, s2, s3 = servo_angles(angles, arm)
+    servo = (round_command(s1, rounding), round_command(s2, rounding),
+             round_command(s3, rounding))
+    cmd = joint_angles(servo, arm)
     X1, Y1, _ = fk(cmd, arm)
     lo, hi = arm.servo_min_deg - 1e-9, arm.servo_max_deg + 1e-9
     in_range = lo <= servo[0] <= hi and lo <= servo[1] <= hi and lo <= servo[2] <= hi

@@ -83,6 +83,12 @@ def leg_to_body(p_leg: np.ndarray, leg: str, geom: QuadrupedGeometry = DEFAULT_G
     return hip_position(leg, geom) + p * np.array([1.0, SIDE[leg], 1.0])
 
 
+def foot_in_tibia(leg: str, geom: QuadrupedGeometry = DEFAULT_GEOMETRY) -> np.ndarray:
+    """(3,) the foot point of ``leg`` in its tibia's frame (where the floor pushes), m."""
+    _check_leg(leg)
+    return np.array([0.0, SIDE[leg] * geom.leg.tibia, 0.0])
+
+
 def body_to_leg(p_body: np.ndarray, leg: str, geom: QuadrupedGeometry = DEFAULT_GEOMETRY
                 ) -> np.ndarray:
     """Point(s) (..., 3) from the body frame into the leg's seed frame."""
@@ -153,7 +159,7 @@ def _leg_urdf(leg: str, geom: QuadrupedGeometry) -> list[str]:
         f'  <link name="{leg}_foot"><visual><geometry><sphere radius="0.01"/></geometry>'
         f'{foot}</visual></link>',
         f'  <joint name="{leg}_foot_fixed" type="fixed"><parent link="{leg}_tibia"/>'
-        f'<child link="{leg}_foot"/><origin xyz="{_v(0, s * l2, 0)}"/></joint>',
+        f'<child link="{leg}_foot"/><origin xyz="{_v(*foot_in_tibia(leg, geom))}"/></joint>',
     ]
 
 

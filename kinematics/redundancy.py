@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from kinematics.fk import fk_and_jacobian
 from kinematics.model import SerialChain
 from kinematics.validate import matrix, scalar, vector
 
@@ -280,14 +281,14 @@ def joint_rate(mode: str, model: SerialChain, q: np.ndarray, xdot: np.ndarray, *
     J = task_jacobian(model, q)
     if mode == "1":
         return np.linalg.pinv(J) @ xdot
-    use_w = mode in ("3", "4", "bounded")
-    ns = null_space_rate(J, manipulability_gradient(model, q), k_a) if use_w \
-        else np.zeros(model.n)
-    if mode == "3":
-        return np.linalg.pinv(J) @ xdot + ns
-    if mode == "bounded":
+    if mode in ("3", "bounded"):
+        qdot = gradient_projection(J, xdot, manipulability_gradient(model, q), k_a)  # eq. 4
+        if mode == "3":
+            return qdot
         lo, hi = velocity_bounds(q, model.lower, model.upper, dt)
-        return bounded_rate(J, xdot, lo, hi, np.linalg.pinv(J) @ xdot + ns)
+        return bounded_rate(J, xdot, lo, hi, qdot)
+    ns = null_space_rate(J, manipulability_gradient(model, q), k_a) if mode == "4" \
+        else np.zeros(model.n)
     lo, hi = velocity_bounds(q, model.lower, model.upper, dt, ns)  # eq. 7
     A, B = limit_inequality(lo, hi)  # eq. 10
     return decomposition_rate(J, xdot, A, B) + ns  # eq. 19 + θ̇_NS (eq. 6)
@@ -330,13 +331,14 @@ def simulate_circle(model: SerialChain, mode: str, task: CircleTask | None = Non
     ts, qs, xs, xds, ws = [], [], [], [], []
     for k in range(steps + 1):
         t = k * task.dt
-        x = model.fk(q)[:2, 3]
+        T, J = fk_and_jacobian(model, q)
+        x = T[:2, 3]
         x_d, xd_d = circle_target(t)
         ts.append(t)
         qs.append(q.copy())
         xs.append(x)
         xds.append(x_d)
-        ws.append(manipulability(task_jacobian(model, q)))
+        ws.append(manipulability(J[list(PLANAR_ROWS)]))
         if k == steps:
             break
         xdot = xd_d + task.gain * (x_d - x)

@@ -123,7 +123,8 @@ def test_run_fills_the_charts(page, lab):
     data = _chart_series(page, "Joint angle")
     assert data[0][0] == -10.0 and data[0][-1] == 0.0  # the last 10 s, now at 0
     # ... and the page shows all of it (not a zoomed slice), also after picking a joint.
-    assert _shown_widths(page) == [pytest.approx(10.0)] * 4
+    # (uPlot applies new data to its scales on its next animation frame: wait for it)
+    wait_for(lambda: _shown_widths(page) == [pytest.approx(10.0)] * 4, 30, "full-width charts")
     page.get_by_role("button", name="θ1", exact=True).click()
     wait_for(lambda: (_chart_series(page, "Joint angle θ1") or [[]])[0][:1] == [-10.0], 60,
          "the θ1 charts")

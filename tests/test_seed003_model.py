@@ -123,3 +123,12 @@ def test_seed_robot_loads_in_yourdfpy_and_viser(name):
         assert len(view.get_actuated_joint_names()) == n
     finally:
         server.stop()
+
+
+def test_foot_point_of_the_geometry_is_the_urdf_foot():
+    """The floor's push on a stance foot (gait loop) lands where the URDF puts the foot."""
+    from kinematics.quadruped import LEGS, foot_in_tibia
+
+    robot = load_robot("quadruped")
+    for leg in LEGS:
+        np.testing.assert_allclose(robot.legs[leg].tip[:3, 3], foot_in_tibia(leg), atol=1e-12)

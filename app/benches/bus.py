@@ -18,8 +18,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from hardware.bus import wire_time
 from hardware.dynamixel_backend import DynamixelBackend
+from hardware.protocol1 import wire_time
 from kinematics.model import load_robot
 
 BAUD = 1_000_000

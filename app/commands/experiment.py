@@ -6,6 +6,7 @@ import argparse
 import csv
 import json
 import sys
+from collections.abc import Callable
 from typing import Any
 
 from control.experiments import all_experiments
@@ -21,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p.add_argument("--json", action="store_true", help="print the result as JSON")
         p.add_argument("--csv", metavar="FILE", help="also write the result rows to FILE")
         exp.add_arguments(p)
-        if "backend_factory" in getattr(exp, "needs", ()):
+        if "backend_factory" in exp.needs:
             p.add_argument("--backend", choices=("sim", "serial"), default="sim",
                            help="simulated arm (default) or Dynamixel servos on --port")
             p.add_argument("--port", help="serial port for --backend serial, e.g. /dev/ttyUSB0")
@@ -48,15 +49,6 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _factory(name: str) -> Any:
-    """The plant factory an experiment asks for by name (``Experiment.needs``)."""
-    if name == "hand_plant":
-        from hardware.hand import make_hand
-
-        return make_hand
-    raise ValueError(f"no plant factory named {name!r}")
-
-
 def _backend_factory(args: argparse.Namespace) -> Any:
     """``factory(model, **sim_options)`` opening the backend chosen by --backend/--port/--baud
     (options such as ``q0`` only reach the simulator)."""
@@ -72,13 +64,26 @@ def _backend_factory(args: argparse.Namespace) -> Any:
     return factory
 
 
+def _hand_plant(args: argparse.Namespace) -> Any:
+    """``hardware.hand.make_hand``: the simulated three-finger hand."""
+    from hardware.hand import make_hand
+
+    return make_hand
+
+
+#: What an experiment can ask for in ``Experiment.needs``: name -> maker(parsed options).
+FACTORIES: dict[str, Callable[[argparse.Namespace], Any]] = {
+    "backend_factory": _backend_factory,
+    "hand_plant": _hand_plant,
+}
+
+
 def run(args: argparse.Namespace) -> int:
     exp = args._experiment
-    for name in getattr(exp, "needs", ()):
-        if name == "backend_factory":
-            setattr(args, name, _backend_factory(args))
-        else:
-            setattr(args, name, _factory(name))
+    for name in exp.needs:
+        if name not in FACTORIES:
+            raise ValueError(f"experiment {exp.name} needs {name!r}, which the CLI cannot give")
+        setattr(args, name, FACTORIES[name](args))
     result = exp.run(args)
     rows = exp.rows(result) if exp.rows else [
         {k: v for k, v in result.items() if not isinstance(v, list | dict)}

@@ -24,7 +24,7 @@ import numpy as np
 import viser
 
 from app.backends import make_backend
-from app.inputs import GuardedNumber
+from app.inputs import guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
     LessonGui,
@@ -58,6 +58,7 @@ from control.trajectory import (
     JointTrajectory,
     thesis_line,
 )
+from kinematics.fk import fk_and_jacobian
 from kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
 
 NAME = "compliance"
@@ -149,6 +150,7 @@ class ComplianceLesson:
         self.measured_env: Measured | None = None
         self.last_run_text = ""
         self._drag_anchor: np.ndarray | None = None
+        self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
         self.rig: Rig | None = None
         self._build_gui(DEFAULT)
@@ -246,12 +248,10 @@ class ComplianceLesson:
         reset.on_click(lambda e: guarded(e, self.reset))
         with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
             self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
-            self.step_size = gui.add_slider("Step (°)", min=-30.0, max=30.0, step=1.0,
-                                            initial_value=-20.0,
-                                            hint="Size and sign of the step; it goes the "
-                                                 "other way when a joint limit is too near")
-            self._step_size = GuardedNumber(self.step_size, name="step", lo=-30.0, hi=30.0,
-                                            apply=lambda v: None)
+            self._step_size = guarded_slider(
+                gui, "Step (°)", name="step", lo=-30.0, hi=30.0, step=1.0, initial=-20.0,
+                apply=lambda v: None, hint="Size and sign of the step; it goes the other way "
+                "when a joint limit is too near")
             step = gui.add_button("Step", icon=viser.Icon.STAIRS_UP,
                                   hint="Step one joint's command; the Teach tab compares the "
                                        "response with eq. 2.16–2.19")
@@ -278,20 +278,18 @@ class ComplianceLesson:
         else:
             gui.add_markdown("**Drag the pink sphere at the hand** to pull the arm with a "
                              "spring, or push it with the button below.")
-        self.spring_k = gui.add_slider("Drag spring (N/m)", min=10.0, max=1000.0, step=10.0,
-                                       initial_value=200.0, visible=not self.hardware)
-        self._spring_k = GuardedNumber(self.spring_k, name="drag spring", lo=10.0, hi=1000.0,
-                                       apply=lambda v: None)
-        self.push_force = gui.add_slider("Push force (N)", min=0.5, max=20.0, step=0.5,
-                                         initial_value=4.0, visible=not self.hardware)
-        self._push_force = GuardedNumber(self.push_force, name="push force", lo=0.5, hi=20.0,
-                                         apply=lambda v: None)
+        sim = not self.hardware
+        self._spring_k = guarded_slider(gui, "Drag spring (N/m)", name="drag spring", lo=10.0,
+                                        hi=1000.0, step=10.0, initial=200.0,
+                                        apply=lambda v: None, visible=sim)
+        self._push_force = guarded_slider(gui, "Push force (N)", name="push force", lo=0.5,
+                                          hi=20.0, step=0.5, initial=4.0,
+                                          apply=lambda v: None, visible=sim)
         self.push_dir = gui.add_dropdown("Direction", tuple(PUSH_DIRECTIONS),
                                          visible=not self.hardware)
-        self.push_time = gui.add_slider("Duration (s)", min=0.1, max=10.0, step=0.1,
-                                        initial_value=2.0, visible=not self.hardware)
-        self._push_time = GuardedNumber(self.push_time, name="duration", lo=0.1, hi=10.0,
-                                        apply=lambda v: None)
+        self._push_time = guarded_slider(gui, "Duration (s)", name="duration", lo=0.1, hi=10.0,
+                                         step=0.1, initial=2.0, apply=lambda v: None,
+                                         visible=sim)
         push = gui.add_button("Push", icon=viser.Icon.HAND_FINGER, visible=not self.hardware,
                               hint="Push the hand with this force for this long")
         push.on_click(lambda e: guarded(e, self.push))
@@ -459,7 +457,8 @@ class ComplianceLesson:
         ghost = self.show_ghost.value and np.all(np.isfinite(q_cmd))
         rig.scene.ghost.root.visible = bool(ghost)
         rig.scene.set_pose(q, q_cmd if ghost else q)
-        hand = rig.model.fk(q)[:3, 3]
+        T, J = fk_and_jacobian(rig.model, q)  # one pass for the hand and the force estimate
+        hand = self._hand = T[:3, 3]
         if self.show_trail.value:
             rig.scene.add_trail(hand)
         applied = None
@@ -476,9 +475,8 @@ class ComplianceLesson:
         tau_ext = snap["tau_ext"][-1]
         estimated = None
         if np.all(np.isfinite(tau_ext)):
-            Jv = rig.model.jacobian(q)[:3]
             # τ_ext is what the motors spend against the world: the world applies −τ_ext.
-            estimated = np.linalg.pinv(Jv.T) @ (-tau_ext)
+            estimated = np.linalg.pinv(J[:3].T) @ (-tau_ext)
         rig.scene.set_forces(hand, applied, estimated)
 
     def _plot_frame(self, force: bool) -> None:
@@ -513,8 +511,8 @@ class ComplianceLesson:
         torque = "torque on" if st.torque_on else "torque off"
         where = "simulated arm" if not self.hardware else f"servos on {self.ctx.port}"
         hand = ""
-        if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
-            p = rig.model.fk(snap["q"][-1])[:3, 3] * 100
+        if self._hand is not None:  # from the latest pose frame (at most 1/30 s old)
+            p = self._hand * 100
             hand = f" · hand ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) cm"
         msg = ""
         if st.message and not st.fault and st.message != state:

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 import viser
 
-from app.inputs import GuardedNumber
+from app.inputs import guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import LessonGui, close_in_turn, guarded, set_content, status_html
 from app.lessons.hand_scene import HandScene
@@ -126,32 +126,30 @@ class HandLesson:
             self.close_button.on_click(lambda e: guarded(e, self.close_hand))
             self.open_button.on_click(lambda e: guarded(e, self.open_hand))
             fmax = math.floor(self.model.max_force() * 20.0) / 20.0
-            self.force_slider = gui.add_slider(
-                "Force limit F (N)", min=0.05, max=fmax, step=0.05, initial_value=DEFAULT_FORCE,
+            self.force = guarded_slider(
+                gui, "Force limit F (N)", name="force limit", lo=0.05, hi=fmax, step=0.05,
+                initial=DEFAULT_FORCE, apply=self.set_force_limit,
                 hint="Grip force per finger; the controller reads it from the motor current")
-            self.force = GuardedNumber(self.force_slider, name="force limit", lo=0.05, hi=fmax,
-                                       apply=self.set_force_limit)
-            self.speed_slider = gui.add_slider(
-                "Approach speed (cm/s)", min=0.5, max=10.0, step=0.5, initial_value=3.0,
+            self.speed = guarded_slider(
+                gui, "Approach speed (cm/s)", name="approach speed", lo=0.5, hi=10.0,
+                step=0.5, initial=3.0, apply=self.set_approach_speed,
                 hint="Fingertip speed while closing: faster means a harder first touch")
-            self.speed = GuardedNumber(self.speed_slider, name="approach speed", lo=0.5,
-                                       hi=10.0, apply=self.set_approach_speed)
+            self.force_slider = self.force.handle
         objf = self._gui.add(gui.add_folder("Object", order=-60.0))
         with objf:
             g = self.plant.finger
             lo = math.ceil(g.min_size * 200.0) / 2.0  # cm, half-centimetre steps
             hi = math.floor(g.max_size * 200.0 - 1.0) / 2.0
-            self.size_slider = gui.add_slider(
-                "Size (cm)", min=1.0, max=hi, step=0.5, initial_value=DEFAULT_SIZE_CM,
+            self.size = guarded_slider(
+                gui, "Size (cm)", name="size", lo=1.0, hi=hi, step=0.5,
+                initial=DEFAULT_SIZE_CM, apply=lambda v: self.set_object(size_cm=v),
                 hint=f"Diameter of the cylinder; under {lo:g} cm the fingers close on nothing")
-            self.size = GuardedNumber(self.size_slider, name="size", lo=1.0, hi=hi,
-                                      apply=lambda v: self.set_object(size_cm=v))
-            self.stiffness_slider = gui.add_slider(
-                "Stiffness (N/m)", min=100.0, max=20000.0, step=100.0,
-                initial_value=DEFAULT_STIFFNESS, hint="Contact stiffness of object and pad")
-            self.stiffness = GuardedNumber(self.stiffness_slider, name="stiffness", lo=100.0,
-                                           hi=min(20000.0, MAX_STIFFNESS),
-                                           apply=lambda v: self.set_object(stiffness=v))
+            self.stiffness = guarded_slider(
+                gui, "Stiffness (N/m)", name="stiffness", lo=100.0,
+                hi=min(20000.0, MAX_STIFFNESS), step=100.0, initial=DEFAULT_STIFFNESS,
+                apply=lambda v: self.set_object(stiffness=v),
+                hint="Contact stiffness of object and pad")
+            self.size_slider = self.size.handle
             self.presets = gui.add_button_group("Preset", tuple(STIFFNESS_PRESETS))
             self.presets.on_click(lambda e: self.stiffness.set(
                 STIFFNESS_PRESETS[str(self.presets.value)]))

@@ -14,6 +14,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
+from app.camera import aim
 from kinematics.hand import FingerGeometry, tip_positions
 
 OBJECT_HEIGHT = 0.09  #: m, height of the drawn cylinder
@@ -79,8 +80,7 @@ class HandScene:
         self.label = scene.add_label(f"{root}/label", "", position=(0.0, 0.0, 0.12),
                                      font_screen_scale=0.8)
         # looking at a point right of the palm, so the hand clears the control panel
-        server.initial_camera.position = (0.17, -0.16, 0.16)
-        server.initial_camera.look_at = (0.03, 0.025, 0.035)
+        aim(server, position=(0.17, -0.16, 0.16), look_at=(0.03, 0.025, 0.035))
 
     @staticmethod
     def _finger_wxyz(azimuth: float, phi: float) -> np.ndarray:

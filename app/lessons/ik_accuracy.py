@@ -26,6 +26,7 @@ import viser
 import viser.uplot
 
 from app.arm_view import ArmView
+from app.camera import aim
 from app.inputs import check_number, notify
 from app.lessons import LessonContext
 from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
@@ -200,8 +201,7 @@ class IKAccuracyLesson:
                 notify(event.client, "Target refused", str(exc))
 
         # from above the near edge of the board, the arm left of the control panel
-        self.server.initial_camera.position = (0.15, -0.12, 0.33)
-        self.server.initial_camera.look_at = (0.13, 0.10, 0.0)
+        aim(self.server, position=(0.15, -0.12, 0.33), look_at=(0.13, 0.10, 0.0))
 
     # ================================================================== GUI
 

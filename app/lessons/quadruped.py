@@ -32,7 +32,7 @@ import numpy as np
 import viser
 
 from app.backends import make_backend
-from app.inputs import GuardedNumber
+from app.inputs import GuardedNumber, guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
     LessonGui,
@@ -55,12 +55,12 @@ from control.walking import (
     Walker,
     angle_error_pct,
     plan_gait,
-    servo_angle_deg,
 )
 from hardware.quadruped_sim import QuadrupedSimBackend
 from kinematics.gait import SineParams
 from kinematics.model import Quadruped, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
+from kinematics.units import deg
 
 NAME = "quadruped"
 TITLE = "Quadruped gait: trot, crawl and stability (seed 003)"
@@ -94,7 +94,6 @@ SIM_DT = 2e-3
 COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
                   "right": "Turn right"}
 SERVO_NAMES = ("servo 1 (hip yaw θ1)", "servo 2 (hip pitch θ2)", "servo 3 (knee θ3)")
-DEG = 180.0 / math.pi
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
@@ -228,11 +227,10 @@ class QuadrupedLesson:
         self.across.on_update(lambda _e: self.set_in_place(not bool(self.across.value)))
         self.follow = gui.add_checkbox("Camera follows the robot", True,
                                        hint="Carry the view along as the robot walks")
-        self.speed_slider = gui.add_slider("Gait speed (cycles/s)", min=SPEED_RANGE[0],
-                                           max=SPEED_RANGE[1], step=0.05, initial_value=0.5,
-                                           hint="Gait cycles per second")
-        self.speed = GuardedNumber(self.speed_slider, name="gait speed", lo=SPEED_RANGE[0],
-                                   hi=SPEED_RANGE[1], apply=self.loop.set_speed)
+        self.speed = guarded_slider(gui, "Gait speed (cycles/s)", name="gait speed",
+                                    lo=SPEED_RANGE[0], hi=SPEED_RANGE[1], step=0.05,
+                                    initial=0.5, apply=self.loop.set_speed,
+                                    hint="Gait cycles per second")
 
     def _build_gait_tab(self, gui: viser.GuiApi) -> None:
         gui.add_markdown("Sine pattern inputs (seed 003 Table 1.1). A change is taken at the "
@@ -241,10 +239,9 @@ class QuadrupedLesson:
         self._gait_lock = threading.RLock()
         p = self.spec.params
         for key, (label, lo, hi, step, field, k) in GAIT_SLIDERS.items():
-            handle = gui.add_slider(label, min=lo, max=hi, step=step,
-                                    initial_value=float(getattr(p, field)) * k)
-            self.gait_sliders[key] = GuardedNumber(
-                handle, name=key, lo=lo, hi=hi, lock=self._gait_lock,
+            self.gait_sliders[key] = guarded_slider(
+                gui, label, name=key, lo=lo, hi=hi, step=step,
+                initial=float(getattr(p, field)) * k, lock=self._gait_lock,
                 apply=lambda v, field=field, k=k: self.set_params(**{field: v / k}))
         self.reachable_md = gui.add_markdown(_plan_md(self.plan))
 
@@ -367,7 +364,7 @@ class QuadrupedLesson:
         if len(t) >= 2:
             i = LEGS.index(leg)
             for j, plot in enumerate(self.joint_plots):
-                plot.update(t, (snap["q_cmd"][:, 3 * i + j] * DEG, snap["q"][:, 3 * i + j] * DEG),
+                plot.update(t, (deg(snap["q_cmd"][:, 3 * i + j]), deg(snap["q"][:, 3 * i + j])),
                             force=force)
             self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force)
             self.error_plot.update(t, tuple(self._error_series(snap)), force=force)
@@ -377,14 +374,9 @@ class QuadrupedLesson:
     def _error_series(self, snap: dict[str, np.ndarray]) -> list[np.ndarray]:
         """Per sample, |eq. 4.1| averaged over the four legs for servo 1, 2, 3 (NaN when not
         walking or without servos)."""
-        to_servo = self.loop.to_servo
-        cmd, act = snap["q_cmd"], snap["q"]
-        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(cmd), axis=1) \
-            & np.all(np.isfinite(act), axis=1)
-        out = np.full((len(cmd), 3), np.nan)
+        ok, c, a = self.loop.servo_angles_deg(snap)
+        out = np.full((len(ok), 3), np.nan)
         if ok.any():
-            c = servo_angle_deg(np.array([to_servo(q) for q in cmd[ok]]))
-            a = servo_angle_deg(np.array([to_servo(q) for q in act[ok]]))
             out[ok] = np.abs(angle_error_pct(c, a)).reshape(-1, 4, 3).mean(axis=1)
         return [out[:, j] for j in range(3)]
 
@@ -415,7 +407,7 @@ class QuadrupedLesson:
         mcolor = "#2e7d32" if m > 0 else "#b00020"
         set_content(self.status, status_html(
             head, color, f"{servos} · t = {st.t:.1f} s · body ({x * 100:.1f}, {y * 100:.1f}) "
-            f"cm, yaw {yaw * DEG:.0f}° · {legs_down} feet down",
+            f"cm, yaw {deg(yaw):.0f}° · {legs_down} feet down",
             extra=f"<div style='font-size:0.85em'>margin <b style='color:{mcolor}'>{m:+.1f} cm"
                   f"</b> ({verdict})</div>"))
 
@@ -487,7 +479,7 @@ def _plan_md(plan: GaitPlan) -> str:
     adv = plan.advance
     m = plan.margins
     return (f"Per cycle: advance {math.hypot(adv[0], adv[1]) * 100:.1f} cm, turn "
-            f"{adv[2] * DEG:+.0f}°; stability margin {m.min() * 100:+.1f} … "
+            f"{deg(adv[2]):+.0f}°; stability margin {m.min() * 100:+.1f} … "
             f"{m.max() * 100:+.1f} cm; stance feet slip {plan.slip * 1000:.1f} mm.")
 
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.inputs import GuardedNumber, notify
+from app.inputs import guarded_slider, notify
 from app.lessons import LessonContext
 from app.lessons._common import (
     LessonGui,
@@ -46,10 +46,9 @@ from kinematics.redundancy import (
     MODES,
     CircleRun,
     CircleTask,
-    manipulability,
     simulate_circle,
-    task_jacobian,
 )
+from kinematics.units import deg
 
 NAME = "redundancy"
 TITLE = "Redundancy and joint limits (seed 002)"
@@ -61,7 +60,6 @@ HELP = ("A redundant planar 3R arm draws the paper's circle five ways side by si
 ROBOTS = ("redundant_planar",)
 ORDER = 20
 
-DEG = 180.0 / math.pi
 #: The simulations shown, in chart-series order.
 SHOWN_MODES: tuple[str, ...] = ("1", "2", "3", "4", "bounded")
 #: Slider ranges: k_a (paper 200) and K (paper 400; K Δt must stay below 2).
@@ -126,7 +124,7 @@ def figures_markdown(rs: RunSet | None) -> str:
     rows = ["| mode | max error after 0.2 s (mm) | worst excursion θ1, θ2, θ3 (°) | mean w | "
             "min w |", "|---|---|---|---|---|"]
     for mode, f in rs.figures.items():
-        v = ", ".join(f"{x * DEG:.1f}" for x in f["max_violation_rad"])
+        v = ", ".join(f"{deg(x):.1f}" for x in f["max_violation_rad"])
         rows.append(f"| {MODE_LABELS[mode]} | {f['max_error_m'] * 1000:.3f} | {v} | "
                     f"{f['mean_manipulability']:.3f} | {f['min_manipulability']:.3f} |")
     w = {m: f["mean_manipulability"] for m, f in rs.figures.items()}
@@ -221,24 +219,24 @@ class RedundancyLesson:
             self.run_button.on_click(lambda e: guarded(e, self.run))
             self.reset_button.on_click(lambda e: guarded(e, self.reset))
             d = CircleTask()
-            self.k_a_slider = gui.add_slider(
-                "k_a (gradient gain)", min=K_A_RANGE[0], max=K_A_RANGE[1], step=10.0,
-                initial_value=d.k_a, hint="Gain of the manipulability gradient (eq. 2); "
-                "the paper uses 200. Changes modes 3, 4 and bounded.")
-            self.k_a = GuardedNumber(self.k_a_slider, name="k_a", lo=K_A_RANGE[0],
-                                     hi=K_A_RANGE[1], apply=self._params_changed)
-            self.gain_slider = gui.add_slider(
-                "K (1/s)", min=GAIN_RANGE[0], max=GAIN_RANGE[1], step=10.0,
-                initial_value=d.gain, hint="Task-space gain of ẋ = ẋ_d + K(x_d − x); the paper "
-                "uses 400. K Δt must stay below 2 (K < 500).")
-            self.gain = GuardedNumber(self.gain_slider, name="K", lo=GAIN_RANGE[0],
-                                      hi=GAIN_RANGE[1], apply=self._params_changed)
-            self.speed_slider = gui.add_slider(
-                "Playback speed (×)", min=SPEED_RANGE[0], max=SPEED_RANGE[1], step=0.05,
-                initial_value=0.25, hint="1 = real time (the circle takes 2 s)")
-            self.speed = GuardedNumber(self.speed_slider, name="playback speed",
-                                       lo=SPEED_RANGE[0], hi=SPEED_RANGE[1],
-                                       apply=self._speed_changed)
+            lo, hi = K_A_RANGE
+            self.k_a = guarded_slider(
+                gui, "k_a (gradient gain)", name="k_a", lo=lo, hi=hi, step=10.0,
+                initial=d.k_a, apply=self._params_changed,
+                hint="Gain of the manipulability gradient (eq. 2); the paper uses 200. "
+                "Changes modes 3, 4 and bounded.")
+            lo, hi = GAIN_RANGE
+            self.gain = guarded_slider(
+                gui, "K (1/s)", name="K", lo=lo, hi=hi, step=10.0, initial=d.gain,
+                apply=self._params_changed, hint="Task-space gain of ẋ = ẋ_d + K(x_d − x); "
+                "the paper uses 400. K Δt must stay below 2 (K < 500).")
+            lo, hi = SPEED_RANGE
+            self.speed = guarded_slider(
+                gui, "Playback speed (×)", name="playback speed", lo=lo, hi=hi, step=0.05,
+                initial=0.25, apply=self._speed_changed,
+                hint="1 = real time (the circle takes 2 s)")
+            self.k_a_slider, self.gain_slider = self.k_a.handle, self.gain.handle
+            self.speed_slider = self.speed.handle
             with gui.add_folder("Show", expand_by_default=False):
                 self.show_boxes = {}
                 for mode in self.modes:
@@ -422,7 +420,7 @@ def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
     q = run.q[k]
     out = [f"θ{i + 1}" for i in range(model.n)
            if q[i] < model.lower[i] - 1e-9 or q[i] > model.upper[i] + 1e-9]
-    w = manipulability(task_jacobian(model, q))
+    w = run.w[k]  # manipulability(task_jacobian(model, q)), stored by simulate_circle
     err = run.error()[k] * 1000.0 if run.t[k] >= SETTLE_S else float("nan")
     limits = "limits kept" if not out else f"{', '.join(out)} outside limits!"
     e = f" · error {err:.3f} mm" if math.isfinite(err) else ""

@@ -26,8 +26,8 @@ from app.lessons.redundancy_scene import MODE_COLORS
 from app.plots import SeriesSpec, _series
 from kinematics.model import SerialChain
 from kinematics.redundancy import CircleRun
+from kinematics.units import deg
 
-DEG = 180.0 / np.pi
 LIMIT_COLOR = "#777777"
 BAND_FILL = "rgba(46, 125, 50, 0.10)"
 
@@ -112,9 +112,9 @@ class RedundancyPlots:
     def show(self, runs: dict[str, CircleRun]) -> None:
         """Draw every run (all of the same length and sample times)."""
         t = runs[self.modes[0]].t
-        lo, hi = self.model.lower * DEG, self.model.upper * DEG
+        lo, hi = deg(self.model.lower), deg(self.model.upper)
         for i, plot in enumerate(self.joints):
-            ys = [runs[m].q[:, i] * DEG for m in self.modes]
+            ys = [deg(runs[m].q[:, i]) for m in self.modes]
             plot.show(t, [*ys, np.full(len(t), lo[i]), np.full(len(t), hi[i])])
         self.w.show(t, [runs[m].w for m in self.modes])
         self.error.show(t, [runs[m].error() * 1000.0 for m in self.modes])

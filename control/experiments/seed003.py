@@ -38,7 +38,8 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
     warnings = [] if reachable else [
         f"some feet are out of the leg's reach ({geom.leg.femur + geom.leg.tibia:.3f} m from "
         "the hip): their joint angles are the nearest reachable pose"]
-    moved = walk(cycle, geom)
+    # Two cycles: the first is the cycle itself, the same phase in the second gives the advance.
+    moved = walk(cycle, geom, cycles=2)
     margins = cycle_margins(cycle, moved, angles, geom)
     out = []
     for j, w in enumerate(cycle.omega_deg):
@@ -51,8 +52,6 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
             "angles_deg": {leg: np.degrees(angles[j, i]).tolist() for i, leg in enumerate(LEGS)},
             "margin_m": float(margins[j]) if math.isfinite(margins[j]) else None,
         })
-    # Advance over one full cycle: walk two cycles and compare the same phase.
-    two = walk(cycle, geom, cycles=2)
     n = len(cycle.omega_deg)
     return {
         "gait": gait,
@@ -61,9 +60,9 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
         "leg_m": {"femur": geom.leg.femur, "tibia": geom.leg.tibia},
         "reachable": reachable,
         "min_margin_m": float(np.min(margins)),
-        "max_slip_m": float(np.max(two.slip)),
-        "advance_per_cycle_m": (two.body[n, :2] - two.body[0, :2]).tolist(),
-        "yaw_per_cycle_rad": float(two.body[n, 3] - two.body[0, 3]),
+        "max_slip_m": float(np.max(moved.slip)),
+        "advance_per_cycle_m": (moved.body[n, :2] - moved.body[0, :2]).tolist(),
+        "yaw_per_cycle_rad": float(moved.body[n, 3] - moved.body[0, 3]),
         "warnings": warnings,
         "rows": out,
     }
