@@ -6,11 +6,13 @@ browser. Windows are therefore short (about 10 s) and decimated to a fixed
 grid of ``points`` bins; the bins are aligned to absolute time so a curve does
 not shimmer as the window slides.
 
-The x axis is time relative to the newest sample, from −window to 0 exactly.
-The page keeps a chart's x range *relative to its data's x extent* across
-updates (to keep a user's zoom), and it can lose that state while a chart is
-being created (the view then shrinks to a 1 s slice); with a fixed extent
-[−window, 0] the range never needs re-deriving and always shows the window.
+The x axis is time relative to the newest sample, from −window to 0 exactly,
+and the chart's x scale is pinned to that range (:func:`fixed_x`). Left to
+auto-scale, the x range is only queued when uPlot creates a chart; on a busy
+page a data update can land before the queue is applied and replace the queued
+range with the still-empty one, and the chart then shows no x range (and no
+curves) for good. A pinned scale is computed from its range function every time
+it is applied, so it is always [−window, 0].
 """
 
 from __future__ import annotations
@@ -98,6 +100,16 @@ def fill_gaps(ys: Sequence[np.ndarray]) -> list[np.ndarray]:
                                      else np.zeros(len(ys[0]))) for y in out]
 
 
+def fixed_x(lo: float, hi: float) -> dict:
+    """A uPlot x scale that always shows [lo, hi] (numbers, not dates).
+
+    viser pins an x scale whose ``range`` is a tuple: the chart opens at
+    [lo, hi], data updates never move it, and a double click returns to it
+    (a user's drag-zoom is kept until then).
+    """
+    return {"time": False, "range": (float(lo), float(hi))}
+
+
 @dataclass(frozen=True)
 class SeriesSpec:
     """One line of a chart: label, colour, dashed or not, scale ("y" or "y2")."""
@@ -132,9 +144,8 @@ class LivePlot:
         height: chart height, px.
         order: place among its container's elements (viser's ``order``).
 
-    Change nothing but ``data`` after creation: the page rebuilds a chart whose
-    options change and then loses its x range (it shows a 1 s slice). To retitle or
-    relabel, remove the chart and add a new one at the same ``order``.
+    Change nothing but ``data`` after creation: the page would rebuild the chart in
+    place. To retitle or relabel, remove it and add a new one at the same ``order``.
     """
 
     def __init__(self, gui: viser.GuiApi, *, title: str, series: Sequence[SeriesSpec],
@@ -143,14 +154,14 @@ class LivePlot:
         self.window_s = window_s
         self.points = points
         self.n_series = len(series)
-        scales: dict = {"x": {"time": False}, "y": {"auto": True}}
+        scales: dict = {"x": fixed_x(-window_s, 0.0), "y": {"auto": True}}
         axes: list = [{"label": "t − now (s)", "size": 34},
                       {"label": y_label, "scale": "y", "size": 52}]
         if y2_label is not None:
             scales["y2"] = {"auto": True}
             axes.append({"label": y2_label, "scale": "y2", "side": 1, "size": 52,
                          "grid": {"show": False}})
-        # Start with the fixed x extent (see the module docstring) and flat zero lines.
+        # Start with the window's x extent and flat zero lines.
         empty = (np.array([-window_s, 0.0]), *(np.zeros(2) for _ in range(self.n_series)))
         self.handle = gui.add_uplot(
             data=empty,
@@ -196,7 +207,7 @@ class LivePlot:
             return False
         yy = fill_gaps(yy)
         x = tt - tt[-1]
-        x[0], x[-1] = -self.window_s, 0.0  # exactly: the page's x range never changes
+        x[0], x[-1] = -self.window_s, 0.0  # the data spans the whole pinned axis
         self.handle.data = (x, *yy)
         self._last_t = newest
         self._last_sent = now

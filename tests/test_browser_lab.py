@@ -103,10 +103,11 @@ def _chart_series(page, title_start: str) -> list[list[float]] | None:  # noqa: 
 
 
 def _shown_widths(page) -> list[float]:  # noqa: ANN001
-    """The x span each chart on the page displays, s."""
+    """The x span each chart on the page displays, s (NaN: a chart with no x range yet)."""
     return page.evaluate("""() => Object.values((window.__viserTestpoints || {}).uplots || {})
         .filter(({chart}) => chart.root.isConnected)
-        .map(({chart}) => chart.scales.x.max - chart.scales.x.min)""")
+        .map(({chart}) => chart.scales.x.min == null || chart.scales.x.max == null
+             ? NaN : chart.scales.x.max - chart.scales.x.min)""")
 
 
 def test_run_fills_the_charts(page, lab):

@@ -30,7 +30,7 @@ from app.camera import aim
 from app.inputs import check_number, notify
 from app.lessons import LessonContext
 from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
-from app.plots import COLORS
+from app.plots import COLORS, fixed_x
 from control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from control.experiments.seed004 import table
 from control.experiments.seed004_data import TABLE1
@@ -263,7 +263,7 @@ class IKAccuracyLesson:
                 series=({"label": "row"},
                         *({"label": f"{label} (mm)", "stroke": COLORS[i], "width": 2}
                           for i, label in enumerate(TABLE_COLUMNS))),
-                scales={"x": {"time": False}, "y": {"auto": True}},
+                scales={"x": fixed_x(1.0, 24.0), "y": {"auto": True}},
                 axes=({"label": "row"}, {"label": "mm"}), title="Error per row",
                 height=180, visible=False)
             self.table_md = gui.add_markdown("")

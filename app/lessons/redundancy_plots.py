@@ -10,9 +10,7 @@ the scene), drawn once a run is computed (the 3D view plays it back):
 5. the position-error norm |x_d − x|, mm.
 
 Unlike the live charts (``app.plots.LivePlot``, a window sliding with "now"), the
-x axis is the run's own time, always [0, duration]: every data set spans it
-exactly, and nothing but the data changes after a chart is created (the page
-keeps a chart's x range relative to its data extent).
+x axis is the run's own time, pinned to [0, duration] (``app.plots.fixed_x``).
 """
 
 from __future__ import annotations
@@ -23,7 +21,7 @@ import numpy as np
 import viser
 
 from app.lessons.redundancy_scene import MODE_COLORS
-from app.plots import SeriesSpec, _series
+from app.plots import SeriesSpec, _series, fixed_x
 from kinematics.model import SerialChain
 from kinematics.redundancy import CircleRun
 from kinematics.units import deg
@@ -53,7 +51,7 @@ class RunPlot:
         self.handle = gui.add_uplot(
             data=(np.array([0.0, self.duration]), *(np.zeros(2) for _ in series)),
             series=({"label": "t (s)"}, *(_series(s) for s in series)),
-            scales={"x": {"time": False}, "y": {"auto": True}},
+            scales={"x": fixed_x(0.0, self.duration), "y": {"auto": True}},
             axes=({"label": "t (s)", "size": 34}, {"label": y_label, "scale": "y", "size": 52}),
             bands=bands or None, title=title, height=height, legend={"live": False},
             cursor={"show": False})
@@ -67,7 +65,7 @@ class RunPlot:
         every = max(1, int(np.ceil(len(t) / self.points)))
         idx = np.unique(np.append(np.arange(0, len(t), every), len(t) - 1))
         x = t[idx].copy()
-        x[0], x[-1] = 0.0, self.duration  # exactly: the page's x range never changes
+        x[0], x[-1] = 0.0, self.duration  # every run spans the whole axis
         self.handle.data = (x, *(np.asarray(y, dtype=float)[idx] for y in ys))
         self.updates += 1
 
