@@ -1,5 +1,6 @@
 """Every lesson in a real headless Chromium: switch to it from the page's lesson switcher,
-see its scene drawn, switch back, and no error in the browser console.
+see its scene drawn and its charts showing their whole x range, switch back, and no
+error in the browser console.
 
 Screenshots of each lesson go to ``$ARMLAB_SCREENSHOTS`` (a directory) when it is set,
 for a person to look at.
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _helpers import expected_console
+from _helpers import expected_console, wait_for
 
 from app.lessons import all_lessons, lesson_order
 
@@ -86,6 +87,16 @@ def settled_view(page, previous: np.ndarray | None, *, timeout: float = 40.0) ->
             return now
 
 
+def charts_show_all_their_data(page) -> bool:  # noqa: ANN001
+    """True when every chart on the page has an x range, and it spans exactly its data
+    (the lab's charts pin their x range to their data's extent: ``app.plots.fixed_x``)."""
+    return page.evaluate("""() => Object.values((window.__viserTestpoints || {}).uplots || {})
+        .filter(({chart}) => chart.root.isConnected)
+        .every(({chart}) => chart.scales.x.min != null && chart.scales.x.max != null
+               && chart.scales.x.min === chart.data[0][0]
+               && chart.scales.x.max === chart.data[0][chart.data[0].length - 1])""")
+
+
 def save(pixels: np.ndarray, name: str) -> None:
     where = os.environ.get("ARMLAB_SCREENSHOTS")
     if where:
@@ -108,6 +119,7 @@ def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, pag
         save(now, name)
         assert drawn_fraction(now) > 0.02, f"{name}: the 3D view is blank"
         assert differs(now, before), f"{name}: the view did not change"
+        wait_for(lambda: charts_show_all_their_data(page), 30, f"{name}: charts' x ranges")
         shown[name] = before = now
         assert page.console_errors == [], f"after opening {name}: {page.console_errors}"
     switch(page, lab, first, lessons[first].TITLE)
