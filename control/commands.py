@@ -72,9 +72,7 @@ class Spring:
     def __post_init__(self) -> None:
         if self.anchor is not None:
             object.__setattr__(self, "anchor", vector("anchor", self.anchor, 3))
-        k = scalar("stiffness", self.stiffness)
-        if k < 0:
-            raise ValueError(f"stiffness must be >= 0 N/m, got {k:g}")
+        k = scalar("stiffness (N/m)", self.stiffness, nonnegative=True)
         object.__setattr__(self, "stiffness", k)
         object.__setattr__(self, "point", vector("point", self.point, 3))
         if not isinstance(self.link, int | np.integer) or self.link < 0:

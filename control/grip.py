@@ -191,8 +191,7 @@ class GripParams:
         ):
             scalar(name, getattr(self, name), positive=True)
         for name in ("speed_gain", "speed_integral", "current_gain", "current_integral"):
-            if scalar(name, getattr(self, name)) < 0.0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+            scalar(name, getattr(self, name), nonnegative=True)
 
 
 def back_emf_speed(model: GripModel, voltage: np.ndarray, current: np.ndarray) -> np.ndarray:

@@ -55,6 +55,7 @@ from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
 from kinematics.dynamics import rnea
 from kinematics.ik import rmrc
 from kinematics.model import SerialChain
+from kinematics.validate import scalar
 
 #: Protocol-1.0 error bits, for fault messages.
 SERVO_ERRORS = ("input voltage", "angle limit", "overheating", "range", "checksum",
@@ -145,8 +146,7 @@ class ControlLoop:
                              f"{type(params).__name__}")
         if controller not in MODES:
             raise ValueError(f"controller must be one of {', '.join(MODES)}, got {controller!r}")
-        if not (math.isfinite(history_s) and history_s > 0):
-            raise ValueError(f"history_s must be > 0, got {history_s}")
+        scalar("history_s", history_s, positive=True)
         self.model = model
         self.backend = backend
         self.realtime = realtime

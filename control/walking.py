@@ -35,6 +35,7 @@ from kinematics.gait import (
 )
 from kinematics.quadruped import LEGS, QuadrupedGeometry, leg_to_body
 from kinematics.stability import centre_of_mass, stability_margin, support_polygon
+from kinematics.validate import scalar
 
 GAITS = ("trot", "crawl")
 #: Crawl walking backwards: the forward sequence (hind leg before the front leg of the
@@ -276,9 +277,7 @@ class Walker:
 
     def advance(self, cycles: float) -> None:
         """Move the phase on by ``cycles`` (>= 0), crossing cycle boundaries as needed."""
-        if not (math.isfinite(cycles) and cycles >= 0.0):
-            raise ValueError(f"cycles must be finite and >= 0, got {cycles}")
-        u = self._u + cycles
+        u = self._u + scalar("cycles", cycles, nonnegative=True)
         while u >= 1.0:
             u -= 1.0
             self._cycles += 1

@@ -44,6 +44,7 @@ from hardware.plant import Plant
 from hardware.servo import ServoRegisters
 from hardware.servo_spec import RETURN_DELAY_UNIT, baud_from_value, value_from_baud
 from kinematics.model import Quadruped, SerialChain
+from kinematics.validate import scalar
 
 TCGETS2 = 0x802C542A  #: _IOR('T', 0x2A, struct termios2) on Linux
 EMULATED_FIRMWARE = 24
@@ -336,8 +337,7 @@ class Faults:
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name}: a fraction of replies in [0, 1], got {v}")
-        if not self.delay_time >= 0.0:
-            raise ValueError(f"delay_time must be >= 0 s, got {self.delay_time}")
+        scalar("delay_time (s)", self.delay_time, nonnegative=True)
 
 
 @dataclass

@@ -140,8 +140,7 @@ class GraspObject:
     def __post_init__(self) -> None:
         scalar("size", self.size, positive=True)
         scalar("stiffness", self.stiffness, positive=True)
-        if scalar("damping", self.damping) < 0.0:
-            raise ValueError(f"damping must be >= 0, got {self.damping}")
+        scalar("damping", self.damping, nonnegative=True)
 
 
 MAX_STIFFNESS = 5.0e4  #: N/m; stiffer contacts would need a shorter plant step

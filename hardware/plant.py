@@ -192,9 +192,7 @@ class Plant:
         f = vector("force_base", force_base, 3)
         p = vector("point", point, 3)
         k = self._link(link)
-        d = scalar("duration", duration)
-        if d < 0:
-            raise ValueError(f"duration must be >= 0, got {d}")
+        d = scalar("duration", duration, nonnegative=True)
         self._pushes.append(_Push(tuple(f), k, tuple(p), self.t + d))
 
     def set_spring(self, anchor_base: np.ndarray | None, *, stiffness: float, link: int,
@@ -204,10 +202,8 @@ class Plant:
         if anchor_base is None:
             self._spring = None
             return
-        k = scalar("stiffness", stiffness)
-        c = scalar("damping", damping)
-        if k < 0 or c < 0:
-            raise ValueError(f"stiffness and damping must be >= 0, got {k}, {c}")
+        k = scalar("stiffness", stiffness, nonnegative=True)
+        c = scalar("damping", damping, nonnegative=True)
         self._spring = _Spring(tuple(vector("anchor_base", anchor_base, 3)), k, c,
                                self._link(link), tuple(vector("point", point, 3)))
 
@@ -233,9 +229,7 @@ class Plant:
         if length < 1e-9:
             raise ValueError("normal_base must not be zero")
         k = scalar("stiffness", stiffness, positive=True)
-        c = scalar("damping", damping)
-        if c < 0:
-            raise ValueError(f"damping must be >= 0, got {c}")
+        c = scalar("damping", damping, nonnegative=True)
         li = self.n - 1 if link is None else self._link(link)
         pt = self.model.tip[:3, 3] if point is None else vector("point", point, 3)
         if point is None and link is not None and li != self.n - 1:

@@ -32,6 +32,7 @@ from kinematics.quadruped import (
     leg_to_body,
 )
 from kinematics.stability import centre_of_mass, stability_margin
+from kinematics.validate import scalar
 
 #: Trot (seed 003 §2.4, §3.3.1): diagonal legs share a phase index.
 TROT_PHASE = {"RF": 0, "LH": 0, "LF": 1, "RH": 1}
@@ -58,15 +59,11 @@ class SineParams:
     alpha_deg: float = 90.0
 
     def __post_init__(self) -> None:
-        for name in ("A", "B", "C", "D", "alpha_deg"):
-            v = getattr(self, name)
-            if not math.isfinite(v):
-                raise ValueError(f"{name} must be finite, got {v}")
         for name in ("A", "C"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.D <= 0:
-            raise ValueError(f"D (body height) must be > 0, got {self.D}")
+            scalar(name, getattr(self, name), nonnegative=True)
+        scalar("B", self.B)
+        scalar("D (body height)", self.D, positive=True)
+        scalar("alpha_deg", self.alpha_deg)
 
 
 def in_swing(omega_deg: float, phase: int) -> bool:

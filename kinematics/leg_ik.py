@@ -20,6 +20,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from kinematics.validate import scalar
+
 
 @dataclass(frozen=True)
 class LegGeometry:
@@ -30,9 +32,7 @@ class LegGeometry:
 
     def __post_init__(self) -> None:
         for name in ("femur", "tibia"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive length in m, got {v}")
+            scalar(f"{name} length (m)", getattr(self, name), positive=True)
 
 
 @dataclass(frozen=True)

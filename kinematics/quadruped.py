@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinematics.leg_ik import LegGeometry
+from kinematics.validate import scalar
 
 #: Legs in the order of kinematics.model.LEG_NAMES.
 LEGS = ("RF", "LF", "RH", "LH")
@@ -61,9 +62,7 @@ class QuadrupedGeometry:
     def __post_init__(self) -> None:
         for name in ("hip_x", "hip_y", "body_mass", "coxa_mass", "femur_mass", "tibia_mass",
                      "joint_limit"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive and finite, got {v}")
+            scalar(name, getattr(self, name), positive=True)
 
 
 #: The default geometry (immutable).

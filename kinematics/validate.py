@@ -1,7 +1,8 @@
-"""Argument checks shared by the kinematics functions.
+"""Argument checks shared by the kinematics functions (and the layers above).
 
 Every public function that takes arrays from a caller runs them through
-:func:`vector` or :func:`matrix`, so a wrongly shaped or non-finite input raises
+:func:`vector` or :func:`matrix`, and every parameter set its numbers through
+:func:`scalar`, so a wrongly shaped, non-finite or out-of-sign input raises
 ``ValueError`` naming the argument instead of producing NaN further down.
 """
 
@@ -41,8 +42,9 @@ def matrix(name: str, value: object, shape: tuple[int, int]) -> np.ndarray:
     return arr
 
 
-def scalar(name: str, value: object, *, positive: bool = False) -> float:
-    """Return ``value`` as a finite float (strictly positive if asked); ValueError otherwise."""
+def scalar(name: str, value: object, *, positive: bool = False,
+           nonnegative: bool = False) -> float:
+    """Return ``value`` as a finite float (> 0 or >= 0 if asked); ValueError otherwise."""
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
@@ -51,4 +53,6 @@ def scalar(name: str, value: object, *, positive: bool = False) -> float:
         raise ValueError(f"{name} must be finite, got {x}")
     if positive and x <= 0.0:
         raise ValueError(f"{name} must be > 0, got {x}")
+    if nonnegative and x < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {x}")
     return x

@@ -4,8 +4,8 @@
 - :func:`served_lesson`: a lesson built on a real viser server on a free port.
 - :func:`client_of`: a headless client (:class:`app.wsclient.HeadlessClient`, what the
   page sends on the wire) connected to a server, once the server counts it as a client.
-- The Chromium the browser tests drive, its flags, and the console messages that
-  headless software rendering prints without a fault.
+- The Chromium the browser tests drive, its flags, the console messages that
+  headless software rendering prints without a fault, and :func:`chart_x_ranges`.
 """
 
 from __future__ import annotations
@@ -33,6 +33,19 @@ EXPECTED_CONSOLE = ("software webgl", "three.clock", "gpu stall",
 def expected_console(text: str) -> bool:
     """True for a browser console message listed in :data:`EXPECTED_CONSOLE`."""
     return any(e in text.lower() for e in EXPECTED_CONSOLE)
+
+
+def chart_x_ranges(page: Any) -> list[tuple[float | None, float | None, float, float]]:
+    """(x min shown, x max shown, first x, last x of the data) of every chart on the page.
+
+    From viser's uPlot test registry (``window.__viserTestpoints.uplots``); a shown bound
+    is None while the chart has no x range.
+    """
+    return [tuple(r) for r in page.evaluate(
+        """() => Object.values((window.__viserTestpoints || {}).uplots || {})
+            .filter(({chart}) => chart.root.isConnected)
+            .map(({chart}) => [chart.scales.x.min, chart.scales.x.max,
+                               chart.data[0][0], chart.data[0][chart.data[0].length - 1]])""")]
 
 
 def wait_for(predicate: Callable[[], object], timeout: float = 30.0,

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import pytest
-from _helpers import expected_console, wait_for
+from _helpers import chart_x_ranges, expected_console, wait_for
 
 from control.params import DEFAULT
 
@@ -64,10 +64,15 @@ def test_3d_view_renders_the_arm(page):
     assert orange.sum() > 200 and blue.sum() > 200, (orange.sum(), blue.sum())
 
 
-def _slider(page, label: str):  # noqa: ANN001, ANN202
-    """The thumb of the slider labelled ``label`` (its <label for=...> names the slider)."""
+def _labelled(page, label: str):  # noqa: ANN001, ANN202
+    """The control that the <label for=...> reading ``label`` names."""
     target = page.locator("label", has_text=label).first.get_attribute("for")
-    return page.locator(f"[id='{target}'] [role=slider]")
+    return page.locator(f"[id='{target}']")
+
+
+def _slider(page, label: str):  # noqa: ANN001, ANN202
+    """The thumb of the slider labelled ``label``."""
+    return _labelled(page, label).locator("[role=slider]")
 
 
 def test_moving_the_kp_slider_changes_the_controller(page, lab):
@@ -106,10 +111,8 @@ def _chart_series(page, title_start: str) -> list[list[float]] | None:  # noqa: 
 
 def _shown_widths(page) -> list[float]:  # noqa: ANN001
     """The x span each chart on the page displays, s (NaN: a chart with no x range yet)."""
-    return page.evaluate("""() => Object.values((window.__viserTestpoints || {}).uplots || {})
-        .filter(({chart}) => chart.root.isConnected)
-        .map(({chart}) => chart.scales.x.min == null || chart.scales.x.max == null
-             ? NaN : chart.scales.x.max - chart.scales.x.min)""")
+    return [float("nan") if lo is None or hi is None else hi - lo
+            for lo, hi, _, _ in chart_x_ranges(page)]
 
 
 def test_run_fills_the_charts(page, lab):
@@ -178,8 +181,7 @@ def _back_to_the_default_gains(page, loop) -> None:  # noqa: ANN001
     """Pick the well-damped preset on the Gains tab (the Kp test left a large Kp), then
     Reset on the Run tab (torque on, the arm home)."""
     page.get_by_role("tab", name="Gains").click()
-    target = page.locator("label", has_text="Preset").first.get_attribute("for")
-    page.locator(f"input[id='{target}']").click()
+    _labelled(page, "Preset").click()
     page.get_by_role("option", name="well-damped default").click()
     wait_for(lambda: loop.params == DEFAULT, 30, "the default gains in the loop")
     page.get_by_role("tab", name="Run").click()

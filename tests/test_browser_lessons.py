@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _helpers import expected_console, wait_for
+from _helpers import chart_x_ranges, expected_console, wait_for
 
 from app.lessons import all_lessons, lesson_order
 
@@ -90,11 +90,8 @@ def settled_view(page, previous: np.ndarray | None, *, timeout: float = 40.0) ->
 def charts_show_all_their_data(page) -> bool:  # noqa: ANN001
     """True when every chart on the page has an x range, and it spans exactly its data
     (the lab's charts pin their x range to their data's extent: ``app.plots.fixed_x``)."""
-    return page.evaluate("""() => Object.values((window.__viserTestpoints || {}).uplots || {})
-        .filter(({chart}) => chart.root.isConnected)
-        .every(({chart}) => chart.scales.x.min != null && chart.scales.x.max != null
-               && chart.scales.x.min === chart.data[0][0]
-               && chart.scales.x.max === chart.data[0][chart.data[0].length - 1])""")
+    return all(lo is not None and hi is not None and lo == first and hi == last
+               for lo, hi, first, last in chart_x_ranges(page))
 
 
 def save(pixels: np.ndarray, name: str) -> None:
