@@ -29,6 +29,8 @@ class JointState:
         load: (n,) N·m, from Present Load (signed, estimated by the servo).
         errors: (n,) servo error bytes (protocol 1.0 bits; 0 = healthy).
         torque_on: (n,) whether each servo's torque is enabled.
+        alarms: (n,) the backend's names for each servo's set error bits
+            ("overheating, overload"; "ok" = healthy), or () when it names none.
     """
 
     t: float
@@ -37,6 +39,7 @@ class JointState:
     load: np.ndarray
     errors: tuple[int, ...]
     torque_on: tuple[bool, ...]
+    alarms: tuple[str, ...] = ()
 
 
 class BackendError(RuntimeError):

@@ -18,12 +18,14 @@ forward with the hand (eq. 2.4: x_real = x_virtual − x_env).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from control.backend import JointState
-from control.params import Params
+
+if TYPE_CHECKING:  # annotations only: control.params imports control.metrics, which imports us
+    from control.params import Params
 
 Mode = Literal["none", "pd", "compliance"]
 MODES: tuple[str, ...] = ("none", "pd", "compliance")

@@ -57,9 +57,6 @@ from kinematics.ik import rmrc
 from kinematics.model import SerialChain
 from kinematics.validate import scalar
 
-#: Protocol-1.0 error bits, for fault messages.
-SERVO_ERRORS = ("input voltage", "angle limit", "overheating", "range", "checksum",
-                "overload", "instruction")
 DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
 TARGET_SPEED = 0.156  #: m/s hand speed when following a target (thesis: 2.5 mm / 16 ms)
 SWITCH_INTERVAL = 0.001  #: s, the interpreter's thread switch interval while paced
@@ -367,8 +364,8 @@ class ControlLoop:
         bad = [(j, e) for j, e in enumerate(meas.errors) if e]
         if bad and not started:  # a Reset's torque-on clears them by the next reading
             j, e = bad[0]
-            names = ", ".join(n for b, n in enumerate(SERVO_ERRORS) if e & (1 << b))
-            raise _Fault(f"servo of joint {self.model.joints[j].name} reports {names or e}; "
+            names = meas.alarms[j] if meas.alarms else f"error bits {e:#04x}"
+            raise _Fault(f"servo of joint {self.model.joints[j].name} reports {names}; "
                          "torque off (check load, temperature and supply, then Reset)")
         q_cmd, qd_cmd, qdd_cmd = self._command(t, p.period)
         st = self._state

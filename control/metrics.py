@@ -63,6 +63,21 @@ def overshoot_pct(zeta: float) -> float:
     return 100.0 * math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta * zeta))
 
 
+def zeta_from_overshoot(os_pct: float) -> float | None:
+    """ζ from %OS (inverse of eq. 2.17): ζ = −ln(OS) / √(π² + ln²(OS)); None without overshoot."""
+    if not (os_pct > 0.0 and math.isfinite(os_pct)):
+        return None
+    ln = math.log(os_pct / 100.0)
+    return -ln / math.sqrt(math.pi**2 + ln * ln)
+
+
+def omega_from_peak(tp: float | None, zeta: float | None) -> float | None:
+    """ωn from Tp and ζ (inverse of eq. 2.16): ωn = π / (Tp √(1 − ζ²))."""
+    if tp is None or zeta is None or tp <= 0.0 or zeta >= 1.0:
+        return None
+    return math.pi / (tp * math.sqrt(1.0 - zeta * zeta))
+
+
 def settling_time(omega_n: float, zeta: float) -> float:
     """Thesis eq. 2.18: Ts = 4 / (ζ ωn), s (2 % envelope); inf when ζ = 0."""
     return math.inf if zeta <= 0.0 else 4.0 / (zeta * omega_n)

@@ -24,6 +24,7 @@ from typing import Literal
 
 import numpy as np
 
+from control.metrics import overshoot_pct, pd_damping
 from kinematics.validate import scalar
 
 Law = Literal["2.6", "2.26"]
@@ -270,8 +271,8 @@ def stability_warning(params: Params) -> str | None:
         msgs.append("Kp = 0: no position feedback, the arm drifts")
     else:
         if st.zeta < 0.2:
-            zp = params.kv / (2.0 * math.sqrt(params.kp))
-            os_pct = 100.0 * math.exp(-zp * math.pi / math.sqrt(1.0 - zp * zp)) if zp < 1 else 0
+            zp = pd_damping(params.kp, params.kv)
+            os_pct = overshoot_pct(zp)
             msgs.append(f"badly damped: ζp = {zp:.2f} (overshoot {os_pct:.0f} %); "
                         f"raise Kv towards {1.4 * math.sqrt(params.kp):.2g}")
         if st.omega * T > 0.6:

@@ -84,6 +84,17 @@ class DynamixelBackend(GoalLimits):
         self.map = joint_map or default_joint_map(model)
         self.table: ControlTable = table_for(self.map.servo)
         self.spec = self.table.spec
+        item = self.table.item
+        # one READ of present position, speed and load (adjacent items): address, length and
+        # each item's bytes in the reply
+        present = [item(n) for n in ("present_position", "present_speed", "present_load")]
+        self._present_at = present[0].address
+        self._present_len = present[-1].address + present[-1].size - self._present_at
+        self._present = [slice(i.address - self._present_at, i.address - self._present_at + i.size)
+                         for i in present]
+        self._torque_limit = item("torque_limit")
+        self._goal = item("goal_position")  # followed by moving_speed: one 4-byte write
+        self._goal_size = self._goal.size + item("moving_speed").size
         self.baud = float(baud)
         self.torque_limit = float(torque_limit)
         self._torque_limit_raw = self.spec.torque_limit_to_raw(
@@ -146,10 +157,13 @@ class DynamixelBackend(GoalLimits):
         errors = []
         s = self.spec
         for k, j in enumerate(self.map.joints):
-            data = self._guard(self.bus.read_bytes, j.servo_id, 36, 6)
-            pos[k] = s.raw_to_position(int.from_bytes(data[0:2], "little"))
-            vel[k] = s.raw_to_present_speed(int.from_bytes(data[2:4], "little"))
-            load[k] = s.raw_to_load(int.from_bytes(data[4:6], "little"))
+            data = self._guard(self.bus.read_bytes, j.servo_id, self._present_at,
+                               self._present_len)
+            raw_pos, raw_speed, raw_load = (int.from_bytes(data[at], "little")
+                                            for at in self._present)
+            pos[k] = s.raw_to_position(raw_pos)
+            vel[k] = s.raw_to_present_speed(raw_speed)
+            load[k] = s.raw_to_load(raw_load)
             err = int(self.bus.errors.get(j.servo_id, 0))
             errors.append(err)
             if err & SHUTDOWN_BITS and not self._shutdown[k]:
@@ -164,6 +178,7 @@ class DynamixelBackend(GoalLimits):
             load=signs * load,
             errors=tuple(errors),
             torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
+            alarms=tuple(p1.error_names(e) for e in errors),
         )
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
@@ -172,7 +187,7 @@ class DynamixelBackend(GoalLimits):
         raw_goal, raw_speed = self.goal_words(q, v)
         data = sync_data({j.servo_id: (g, sp) for j, g, sp in
                           zip(self.map.joints, raw_goal, raw_speed, strict=True)}, (2, 2))
-        self._guard(self.bus.sync_write, 30, 4, data)
+        self._guard(self.bus.sync_write, self._goal.address, self._goal_size, data)
 
     def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
         """Raw goal positions and moving speeds for joint goals: clamped into
@@ -192,25 +207,31 @@ class DynamixelBackend(GoalLimits):
         if on:
             # an overload shutdown zeroed the torque limit: restoring it is the recovery
             limit = p1.word(self._torque_limit_raw)
-            self._guard(self.bus.sync_write, 34, 2, {i: limit for i in ids})
+            self._guard(self.bus.sync_write, self._torque_limit.address, self._torque_limit.size,
+                        {i: limit for i in ids})
             off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
             if off:  # only servos without torque get a new goal (holding ones keep theirs)
                 here = self.read().position
                 goals, speeds = self.goal_words(here, np.full(self.n, SAFE_SPEED))
-                self._guard(self.bus.sync_write, 30, 4, sync_data(
+                self._guard(self.bus.sync_write, self._goal.address, self._goal_size, sync_data(
                     {ids[k]: (goals[k], speeds[k]) for k in off}, (2, 2)))
-            self._guard(self.bus.sync_write, 24, 1, {i: b"\x01" for i in ids})
+            self._sync_torque(ids, 1)
             self._shutdown[:] = False
         else:
-            self._guard(self.bus.sync_write, 24, 1, {i: b"\x00" for i in ids})
+            self._sync_torque(ids, 0)
         self._torque = bool(on)
+
+    def _sync_torque(self, ids: tuple[int, ...], on: int) -> None:
+        address, data = self.table.encode("torque_enable", on)
+        self._guard(self.bus.sync_write, address, len(data), {i: data for i in ids})
 
     def estop(self) -> None:
         """Broadcast torque off now; never raises (the link may be gone)."""
         self.estops += 1
         self._torque = False
         try:
-            self.bus.transact(p1.write(p1.BROADCAST_ID, 24, b"\x00"), reply=False)
+            self.bus.transact(p1.write(p1.BROADCAST_ID, *self.table.encode("torque_enable", 0)),
+                              reply=False)
             log.warning("e-stop: broadcast torque off sent")
         except (BusError, OSError, ValueError) as exc:
             log.error("e-stop: torque off could not be sent (%s)", exc)

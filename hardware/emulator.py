@@ -1,7 +1,7 @@
 """A virtual Dynamixel bus behind a pseudo-terminal: servos a serial client cannot tell apart.
 
 ``armlab emulate`` runs this in its own process (an emulator thread inside the
-client's process showed ~23 ms latency spikes, ../shared/dynamixel-notes.md).
+client's process showed ~23 ms latency spikes; docs/serial.md, "Timing").
 Each :class:`VirtualServo` keeps a control-table image with EEPROM/RAM
 semantics and answers protocol 1.0 as the manual describes: status return
 level, return delay, error bits, REG_WRITE/ACTION, SYNC_WRITE, FACTORY_RESET,

@@ -1,6 +1,7 @@
 """Dynamixel protocol 1.0: packets, checksum, status errors and a resynchronising parser.
 
-Thesis §2.3.2 (instruction and status packets) and ../shared/dynamixel-notes.md.
+Thesis §2.3.2 (instruction and status packets) and the ROBOTIS e-manual's
+"Protocol 1.0" page; docs/serial.md says how the lab uses it.
 An instruction packet is ``FF FF ID LEN INST P1..Pn CHK`` with LEN = n + 2 and
 CHK = ~(ID + LEN + INST + ΣP) & 0xFF; a status packet has the error byte in
 place of INST. Pure functions on bytes, no I/O: the bus, the emulator and the
@@ -61,6 +62,15 @@ _ERROR_TEXT = {
     ErrorBits.OVERLOAD: "overload (load beyond the torque limit)",
     ErrorBits.INSTRUCTION: "undefined instruction (or ACTION without REG_WRITE)",
 }
+
+
+def error_names(error: int) -> str:
+    """Short names of the set bits, lowest bit first ("overheating, overload"); "ok" when 0."""
+    if not int(error) & 0x7F:
+        return "ok"
+    flags = ErrorBits(int(error) & 0x7F)
+    names = [bit.name.lower().replace("_", " ") for bit in ErrorBits if bit in flags]
+    return ", ".join(names)
 
 
 def describe_errors(error: int) -> str:

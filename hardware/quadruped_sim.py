@@ -80,6 +80,7 @@ class QuadrupedSimBackend(GoalLimits):
             load=np.concatenate([s.load for s in states]),
             errors=tuple(e for s in states for e in s.errors),
             torque_on=tuple(x for s in states for x in s.torque_on),
+            alarms=tuple(a for s in states for a in s.alarms),
         )
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:

@@ -39,9 +39,9 @@ class ServoRegisters:
     """The writable control-table registers the firmware acts on (raw values, factory defaults).
 
     Anyone may assign these at any time, as a WRITE packet would; the firmware reads
-    them at its next tick. Attributes are named after the control table
-    (../shared/dynamixel-notes.md): angle limits, compliance margins (0..255 counts),
-    compliance slopes (0..255, 7 effective steps), goal position (0..1023), moving
+    them at its next tick. Attributes are named after the control table (ROBOTIS
+    e-manual, AX-12A / RX-24F; docs/servo-model.md): angle limits, compliance margins
+    (0..255 counts), compliance slopes (0..255, 7 effective steps), goal position (0..1023), moving
     speed (0..1023, 0 = no speed control; in wheel mode bit 10 = CW), torque limit and
     max torque (0..1023 of full torque), punch (0..1023), alarm bit masks.
     """

@@ -1,7 +1,8 @@
 """Dynamixel RX-24F and AX-12A: datasheet numbers and raw-register conversions.
 
-One home for the numbers in ../shared/dynamixel-notes.md, used by the servo
-model, the control tables, the emulator and the backends. A *joint-side* angle
+One home for the datasheet numbers (ROBOTIS e-manual, RX-24F and AX-12A pages;
+docs/servo-model.md), used by the servo model, the control tables, the emulator
+and the backends. A *joint-side* angle
 here is the servo horn's angle from its centre (raw 512), counter-clockwise
 positive (raw counts increase CCW); mapping servo to robot joint (direction
 sign, zero offset) is the backend's business.

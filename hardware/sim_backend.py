@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
+from hardware import protocol1 as p1
 from hardware.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
 from hardware.plant import Plant
 from hardware.servo import ServoParams, ServoRegisters
@@ -121,7 +122,8 @@ class SimBackend(GoalLimits):
             load.append(d * spec.raw_to_load(r.load))
         return JointState(t=t, position=np.array(pos), velocity=np.array(vel),
                           load=np.array(load), errors=tuple(r.error for r in reports),
-                          torque_on=tuple(bool(r.torque_enable) for r in reports))
+                          torque_on=tuple(bool(r.torque_enable) for r in reports),
+                          alarms=tuple(p1.error_names(r.error) for r in reports))
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving Speed.

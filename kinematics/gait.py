@@ -3,7 +3,7 @@
 Foot positions are in each leg's seed frame (x forward, y outward, z up, origin at the
 hip; see kinematics/quadruped.py). A cycle is one turn of the phase ω ∈ [0°, 360°).
 
-Table 1.1 as extracted has two typos (../shared/seed-notes.md): it prints the same y for
+Table 1.1 as extracted has two typos (docs/seed003-quadruped.md): it prints the same y for
 both phase indices and the same x and y for both direction indices. Here the step's sign
 flips with the phase index in x *and* y (so that both phases swing the same way), and
 direction index 1 reverses the step (the seed: direction 1 on both right legs turns right).

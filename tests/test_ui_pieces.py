@@ -8,18 +8,18 @@ import numpy as np
 import pytest
 
 from app.inputs import check_number
-from app.lessons.compliance_servos import ServoHealth, advice, error_text
+from app.lessons.compliance_servos import ServoHealth, advice
 from app.lessons.compliance_teach import (
     LiveValues,
     design_table,
     equations_markdown,
     measure_response,
-    omega_from_peak,
-    zeta_from_overshoot,
 )
 from app.plots import decimate, fill_gaps
 from control import metrics
+from control.metrics import omega_from_peak, zeta_from_overshoot
 from control.params import PRESETS, Params
+from hardware.protocol1 import error_names
 
 
 def test_decimate_keeps_the_window_and_a_few_hundred_points():
@@ -109,7 +109,7 @@ def test_equations_show_live_numbers_in_degrees_and_the_law_in_use():
 
 def test_servo_advice_names_the_fault_and_what_to_do():
     h = ServoHealth(5, "theta2", 8.1, 72.0, (1 << 5) | (1 << 2), True)
-    assert error_text(h.error) == "overheating, overload"
+    assert error_names(h.error) == "overheating, overload"
     tips = " ".join(advice(h))
     assert "free it, then press Reset" in tips and "8.1 V" in tips and "72 °C" in tips
     assert advice(ServoHealth(1, "theta1", 12.0, 35.0, 0, True)) == []

@@ -13,17 +13,18 @@ import html
 from dataclasses import dataclass
 
 from control.backend import Backend, BackendError
+from hardware.protocol1 import ErrorBits, error_names
 
-#: Protocol 1.0 error bits: (bit, name, what to do).
-ERROR_ADVICE: tuple[tuple[int, str, str], ...] = (
-    (0, "input voltage", "supply out of range: check the 12 V supply and its cable"),
-    (1, "angle limit", "a goal beyond the CW/CCW limits: check the joint map and limits"),
-    (2, "overheating", "let the servo cool down; lower the load or the gains"),
-    (3, "range", "a value out of range was sent: check the configuration"),
-    (4, "checksum", "noise on the bus: check the RS-485 wiring, terminator and baud"),
-    (5, "overload", "the arm is blocked or the load too high: free it, then press Reset"),
-    (6, "instruction", "an unknown instruction: check that nothing else talks on the bus"),
-)
+#: What to do about each protocol 1.0 error bit (their names: ``protocol1.error_names``).
+ERROR_ADVICE: dict[ErrorBits, str] = {
+    ErrorBits.INPUT_VOLTAGE: "supply out of range: check the 12 V supply and its cable",
+    ErrorBits.ANGLE_LIMIT: "a goal beyond the CW/CCW limits: check the joint map and limits",
+    ErrorBits.OVERHEATING: "let the servo cool down; lower the load or the gains",
+    ErrorBits.RANGE: "a value out of range was sent: check the configuration",
+    ErrorBits.CHECKSUM: "noise on the bus: check the RS-485 wiring, terminator and baud",
+    ErrorBits.OVERLOAD: "the arm is blocked or the load too high: free it, then press Reset",
+    ErrorBits.INSTRUCTION: "an unknown instruction: check that nothing else talks on the bus",
+}
 VOLTAGE_RANGE = (9.0, 12.6)  #: V, RX-24F operating range
 HOT_C = 70.0  #: °C, warn above (RX-24F shuts down at its 80 °C limit)
 
@@ -40,15 +41,9 @@ class ServoHealth:
     torque_on: bool | None
 
 
-def error_text(error: int) -> str:
-    """Names of the set bits ("overload, overheating"); "ok" for 0."""
-    names = [name for bit, name, _ in ERROR_ADVICE if error & (1 << bit)]
-    return ", ".join(names) if names else "ok"
-
-
 def advice(h: ServoHealth) -> list[str]:
     """What to do about servo ``h`` (empty when healthy)."""
-    out = [f"{h.joint}: {what}" for bit, _, what in ERROR_ADVICE if h.error & (1 << bit)]
+    out = [f"{h.joint}: {what}" for bit, what in ERROR_ADVICE.items() if h.error & bit]
     if h.voltage is not None and not VOLTAGE_RANGE[0] <= h.voltage <= VOLTAGE_RANGE[1]:
         out.append(f"{h.joint}: {h.voltage:.1f} V is outside {VOLTAGE_RANGE[0]:g}–"
                    f"{VOLTAGE_RANGE[1]:g} V: check the supply")
@@ -111,7 +106,7 @@ def health_html(servos: list[ServoHealth], link: str, *, error: str | None = Non
             f"<tr><td>{'' if h.servo_id is None else h.servo_id}</td><td>{esc(h.joint)}</td>"
             f"<td>{'—' if h.voltage is None else f'{h.voltage:.1f}'}</td>"
             f"<td>{'—' if h.temperature is None else f'{h.temperature:.0f}'}</td>"
-            f"<td{style}>{esc(error_text(h.error))}</td>"
+            f"<td{style}>{esc(error_names(h.error))}</td>"
             f"<td>{'—' if h.torque_on is None else ('on' if h.torque_on else 'off')}</td></tr>")
     tips = [t for h in servos for t in advice(h)]
     tip_html = ("<ul style='margin:4px 0 0 16px;padding:0'>"

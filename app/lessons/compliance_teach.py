@@ -44,21 +44,6 @@ class Measured:
     static_gain: float | None = None
 
 
-def zeta_from_overshoot(os_pct: float) -> float | None:
-    """ζ from %OS (inverse of eq. 2.17): ζ = −ln(OS) / √(π² + ln²(OS)); None without overshoot."""
-    if not (os_pct > 0.0 and math.isfinite(os_pct)):
-        return None
-    ln = math.log(os_pct / 100.0)
-    return -ln / math.sqrt(math.pi**2 + ln * ln)
-
-
-def omega_from_peak(tp: float | None, zeta: float | None) -> float | None:
-    """ωn from Tp and ζ (inverse of eq. 2.16): ωn = π / (Tp √(1 − ζ²))."""
-    if tp is None or zeta is None or tp <= 0.0 or zeta >= 1.0:
-        return None
-    return math.pi / (tp * math.sqrt(1.0 - zeta * zeta))
-
-
 def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: float,
                      what: str, static_gain: float | None = None) -> Measured:
     """Figures of a recorded step response ``y`` (N,) at times ``t`` (N,) from the step.
@@ -69,8 +54,8 @@ def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: flo
     if not abs(final - initial) > 1e-9:
         raise ValueError(f"{what}: the response did not move (final = initial = {final:g})")
     m = metrics.measure_step(np.asarray(t) - t[0], y, final=final, initial=initial)
-    z = zeta_from_overshoot(m.overshoot_pct)
-    return Measured(what, omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
+    z = metrics.zeta_from_overshoot(m.overshoot_pct)
+    return Measured(what, metrics.omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
                     m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain)
 
 
