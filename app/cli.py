@@ -1,21 +1,21 @@
 """The ``armlab`` command line (also ``python -m app``).
 
-Subcommands live in ``app/commands/``: each module defines ``NAME``, ``HELP``,
-``add_arguments(parser)`` and ``run(args) -> int``.
+Subcommands live in ``app/commands/``, listed in ``commands.COMMANDS``: each module
+defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import pkgutil
 import sys
 
 from app import commands
+from control.backend import BackendError
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
-    """The top-level parser with one subparser per module in ``app.commands``.
+    """The top-level parser with one subparser per module of ``app.commands.COMMANDS``.
 
     Only the subcommand named in ``argv`` gets its options built (some of them
     import the experiments, scipy or viser), so ``armlab emulate`` starts fast;
@@ -26,7 +26,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         description="A browser lab for teaching robot-arm kinematics and compliance control.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    names = sorted(info.name for info in pkgutil.iter_modules(commands.__path__))
+    names = commands.COMMANDS
     chosen = next((a for a in (argv or []) if not a.startswith("-")), None)
     if chosen not in names:
         chosen = None
@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         return 130
-    except (ValueError, OSError) as exc:  # a user's mistake: one clear line, no traceback
+    except (ValueError, OSError, BackendError) as exc:  # a user's mistake: one clear line
         print(f"armlab {args.command}: {exc}", file=sys.stderr)
         return 2
 

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import serial
 
-from control.backend import BackendError
 from hardware import protocol1 as p1
 from hardware.control_table import RX24F_TABLE, ControlTable, table_for
 from hardware.protocol1 import wire_time
@@ -44,11 +43,12 @@ REFUSED = p1.ErrorBits.RANGE | p1.ErrorBits.INSTRUCTION | p1.ErrorBits.CHECKSUM
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 
 
-class BusError(BackendError, OSError):
+class BusError(OSError):
     """The bus cannot do what was asked; the message says what to check.
 
-    A :class:`~control.backend.BackendError` for the control loop, and an OSError
-    (an I/O failure) for a command line that prints OSErrors as one line.
+    An OSError (an I/O failure), which a command line prints as one line; the
+    backend over the bus (:class:`~hardware.dynamixel_backend.DynamixelBackend`)
+    hands it to the control loop as a :class:`~control.backend.BackendError`.
     """
 
 

@@ -64,7 +64,8 @@ class DynamixelBackend(GoalLimits):
         retries, timeout_margin, echo, rs485: passed to :class:`~hardware.bus.Bus`.
 
     Raises:
-        BackendError: port missing/busy/forbidden, a servo silent or of the wrong model.
+        BackendError: port missing/busy/forbidden, a servo silent or of the wrong model
+            (the bus's :class:`~hardware.bus.BusError` translated, kept as its cause).
     """
 
     def __init__(self, model: SerialChain | Quadruped, port: str, *, baud: float = 1_000_000,
@@ -108,8 +109,12 @@ class DynamixelBackend(GoalLimits):
         self._sync_t0: float | None = None
         #: s, the most a ``sync(t)`` came after its time (the loop or the OS stalled)
         self.late_max = 0.0
-        self.bus = Bus(port, from_baud or baud, retries=retries, timeout_margin=timeout_margin,
-                       echo=echo, rs485=rs485, table=self.table)
+        try:
+            self.bus = Bus(port, from_baud or baud, retries=retries,
+                           timeout_margin=timeout_margin, echo=echo, rs485=rs485,
+                           table=self.table)
+        except BusError as exc:
+            raise BackendError(str(exc)) from exc
         try:
             self._find_servos()
             self._lower, self._upper = self._limits()
@@ -117,6 +122,9 @@ class DynamixelBackend(GoalLimits):
                 self.configure(from_baud=from_baud)
             elif from_baud is not None and from_baud != baud:
                 raise ValueError("from_baud needs configure=True to switch the servos' baud")
+        except BusError as exc:
+            self.bus.close()
+            raise BackendError(str(exc)) from exc
         except BaseException:
             self.bus.close()
             raise
@@ -280,7 +288,7 @@ class DynamixelBackend(GoalLimits):
                 lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
                 log.info(lines[-1])
             time.sleep(0.01)
-            self.bus.set_baud(self.baud)
+            self._guard(self.bus.set_baud, self.baud)
             for j in self.map.joints:
                 self._guard(self.bus.ping, j.servo_id)
         else:
@@ -297,7 +305,7 @@ class DynamixelBackend(GoalLimits):
             try:
                 self.bus.ping(j.servo_id)
             except BusError as exc:
-                raise type(exc)(f"joint {j.name}: {exc}") from None
+                raise BackendError(f"joint {j.name}: {exc}") from exc
             self.bus.identify(j.servo_id, expect=self.map.servo)
             self.bus.return_delay[j.servo_id] = self.bus.read(j.servo_id, "return_delay_time")
 
@@ -324,12 +332,13 @@ class DynamixelBackend(GoalLimits):
         return lower, upper
 
     def _guard(self, fn, *args, **kwargs):
-        """Run a bus call; on a link failure try torque off, then raise one BackendError."""
+        """Run a bus call; on a link failure try torque off, then raise one BackendError
+        (the control layer's error; the bus's :class:`~hardware.bus.BusError` is its cause)."""
         try:
             return fn(*args, **kwargs)
-        except BusError:
+        except BusError as exc:
             self.estop()
-            raise
+            raise BackendError(str(exc)) from exc
         except OSError as exc:
             self.estop()
             raise BackendError(f"serial link on {self.bus.port} failed: {exc}") from None

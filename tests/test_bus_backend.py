@@ -174,11 +174,13 @@ def test_joint_map_file_ids_signs_and_offsets(tmp_path):
 
 def test_wrong_model_and_missing_servo_are_named():
     with emulator("--servo", "AX-12A") as emu:
-        with pytest.raises(WrongModel, match="servo 1 is a AX-12A.*expected a RX-24F"):
+        with pytest.raises(BackendError, match="servo 1 is a AX-12A.*expected a RX-24F") as e:
             DynamixelBackend(ARM, emu.port, timeout_margin=MARGIN)
+        assert isinstance(e.value.__cause__, WrongModel)  # the bus's error, translated
         jmap = JointMap("AX-12A", (JointServo("theta1", 1), JointServo("theta0", 3),
                                    JointServo("theta2", 7)))
-        with pytest.raises(NoReply, match="joint theta2: no reply from servo 7"):
+        with pytest.raises(BackendError, match="joint theta2: no reply from servo 7") as e:
             DynamixelBackend(ARM, emu.port, joint_map=jmap, timeout_margin=MARGIN)
+        assert isinstance(e.value.__cause__, NoReply)
         with Bus(emu.port):  # the failed backends released the port
             pass

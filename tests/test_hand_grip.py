@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
@@ -10,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from control.experiments.hand import run_grip
+from control.experiments.hand import GripOptions, run_grip
 from control.grip import (
     GripController,
     GripModel,
@@ -125,11 +124,10 @@ def test_object_too_small_closes_on_nothing():
     assert grasp_figures(trace, 0.8)["time_to_grasp_s"] is None
 
 
-def _args(**kw) -> argparse.Namespace:
-    base = dict(force=0.8, stiffness=1000.0, size=6.0, damping=1.0, lpf=None, duration=2.0,
-                hand_plant=make_hand)
+def _args(**kw) -> GripOptions:
+    base = dict(force=0.8, stiffness=1000.0, size=6.0, damping=1.0, lpf=None, duration=2.0)
     base.update(kw)
-    return argparse.Namespace(**base)
+    return GripOptions(**base)
 
 
 @pytest.mark.parametrize(
@@ -147,7 +145,7 @@ def _args(**kw) -> argparse.Namespace:
 )
 def test_bad_input_names_the_argument(kw, name):
     with pytest.raises(ValueError, match=rf"^{name}\b"):
-        run_grip(_args(**kw))
+        run_grip(_args(**kw), hand_plant=make_hand)
 
 
 def test_bad_plant_and_controller_input():

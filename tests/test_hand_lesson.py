@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -11,7 +10,7 @@ from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.hand import build
-from control.experiments.hand import run_grip
+from control.experiments.hand import GripOptions, run_grip
 from hardware.hand import make_hand
 
 
@@ -46,9 +45,9 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
         np.testing.assert_allclose(lesson.plant.contact_force, 0.4, rtol=0.10)
         # what the lesson shows is what `armlab experiment hand-grip` computes
         shown = lesson.loop.last_grasp(0.4)
-        args = argparse.Namespace(force=0.4, stiffness=1000.0, size=6.0, damping=1.0, lpf=None,
-                                  duration=2.0, hand_plant=make_hand)
-        expected = run_grip(args)
+        options = GripOptions(force=0.4, stiffness=1000.0, size=6.0, damping=1.0, lpf=None,
+                              duration=2.0)
+        expected = run_grip(options, hand_plant=make_hand)
         for key in ("steady_force_N", "peak_force_N", "time_to_grasp_s"):
             assert shown[key] == pytest.approx(expected[key], rel=1e-6, abs=1e-9), key
         lesson._plot_frame(True)

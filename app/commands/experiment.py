@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import sys
+import types
+import typing
 from collections.abc import Callable
 from typing import Any
 
-from control.experiments import all_experiments
+from control.experiments import BackendOptions, Experiment, all_experiments
 
 NAME = "experiment"
 HELP = "run a headless experiment (seed tables, thesis runs) and print its figures"
@@ -21,13 +24,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p = sub.add_parser(exp.name, help=exp.help, description=exp.help)
         p.add_argument("--json", action="store_true", help="print the result as JSON")
         p.add_argument("--csv", metavar="FILE", help="also write the result rows to FILE")
-        exp.add_arguments(p)
-        if "backend_factory" in exp.needs:
-            p.add_argument("--backend", choices=("sim", "serial"), default="sim",
-                           help="simulated arm (default) or Dynamixel servos on --port")
-            p.add_argument("--port", help="serial port for --backend serial, e.g. /dev/ttyUSB0")
-            p.add_argument("--baud", type=int, help="bit rate for --backend serial")
+        add_options(p, exp.options)
         p.set_defaults(_experiment=exp)
+
+
+def add_options(parser: argparse.ArgumentParser, options: type) -> None:
+    """One option ``--field-name`` per field of an experiment's options dataclass
+    (``control.experiments.option``): its type, default, choices and help."""
+    hints = typing.get_type_hints(options)
+    for f in dataclasses.fields(options):
+        kind, choices = _value_type(hints[f.name])
+        meta = f.metadata
+        kw: dict[str, Any] = {"dest": f.name, "default": f.default,
+                              "help": argparse.SUPPRESS if meta.get("hidden") else meta["help"]}
+        if kind is not str:
+            kw["type"] = kind
+        if meta.get("choices") or choices:
+            kw["choices"] = list(meta.get("choices") or choices)
+        if meta.get("metavar"):
+            kw["metavar"] = meta["metavar"]
+        parser.add_argument("--" + f.name.replace("_", "-"), **kw)
+
+
+def _value_type(hint: Any) -> tuple[type, tuple[Any, ...]]:
+    """(what argparse converts a value to, the allowed values of a ``Literal`` or ()) of
+    a field's annotation; ``X | None`` is read as X (None is the default)."""
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) is typing.Literal:
+        values = typing.get_args(hint)
+        return type(values[0]), values
+    return hint, ()
+
+
+def options_of(exp: Experiment, args: argparse.Namespace) -> Any:
+    """The experiment's typed options from the parsed command line."""
+    return exp.options(**{f.name: getattr(args, f.name) for f in dataclasses.fields(exp.options)})
 
 
 def _print_table(rows: list[dict[str, Any]]) -> None:
@@ -49,30 +81,30 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _backend_factory(args: argparse.Namespace) -> Any:
+def _backend_factory(options: BackendOptions) -> Any:
     """``factory(model, **sim_options)`` opening the backend chosen by --backend/--port/--baud
     (options such as ``q0`` only reach the simulator)."""
     from app.backends import make_backend
 
     def factory(model: Any, **kw: Any) -> Any:
-        if args.backend != "sim":
-            return make_backend(args.backend, model, port=args.port, baud=args.baud)
-        if args.port is not None or args.baud is not None:
+        if options.backend != "sim":
+            return make_backend(options.backend, model, port=options.port, baud=options.baud)
+        if options.port is not None or options.baud is not None:
             raise ValueError("--port and --baud are for --backend serial")
         return make_backend("sim", model, **kw)
 
     return factory
 
 
-def _hand_plant(args: argparse.Namespace) -> Any:
+def _hand_plant(options: Any) -> Any:
     """``hardware.hand.make_hand``: the simulated three-finger hand."""
     from hardware.hand import make_hand
 
     return make_hand
 
 
-#: What an experiment can ask for in ``Experiment.needs``: name -> maker(parsed options).
-FACTORIES: dict[str, Callable[[argparse.Namespace], Any]] = {
+#: What an experiment can ask for in ``Experiment.needs``: name -> maker(options).
+FACTORIES: dict[str, Callable[[Any], Any]] = {
     "backend_factory": _backend_factory,
     "hand_plant": _hand_plant,
 }
@@ -80,11 +112,13 @@ FACTORIES: dict[str, Callable[[argparse.Namespace], Any]] = {
 
 def run(args: argparse.Namespace) -> int:
     exp = args._experiment
+    options = options_of(exp, args)
+    needs = {}
     for name in exp.needs:
         if name not in FACTORIES:
             raise ValueError(f"experiment {exp.name} needs {name!r}, which the CLI cannot give")
-        setattr(args, name, FACTORIES[name](args))
-    result = exp.run(args)
+        needs[name] = FACTORIES[name](options)
+    result = exp.run(options, **needs)
     rows = exp.rows(result) if exp.rows else [
         {k: v for k, v in result.items() if not isinstance(v, list | dict)}
     ]

@@ -8,7 +8,7 @@ import sys
 import time
 from dataclasses import asdict
 
-from control.backend import BackendError
+from hardware.bus import BusError
 from hardware.scan import ALL_IDS, COMMON_BAUDS, DEFAULT_BAUDS, scan, scan_time_bound
 
 NAME = "scan"
@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         found = scan(args.port, bauds, ids=args.ids, margin=args.timeout, progress=progress)
-    except BackendError as exc:
+    except BusError as exc:
         if tty:
             print(file=sys.stderr)
         print(f"armlab scan: {exc}", file=sys.stderr)

@@ -1,6 +1,6 @@
-"""Lessons of the browser lab, one module each, found by name.
+"""Lessons of the browser lab, one module each, listed in :data:`LESSONS`.
 
-A lesson is a module in this package that defines:
+A lesson is a module in this package, named in :data:`LESSONS`, that defines:
 
 - ``NAME``: short id (``"compliance"``), used by ``armlab serve --lesson``;
 - ``TITLE``: what the lesson switcher shows;
@@ -18,19 +18,20 @@ opened in the same page. A handle may also define ``estop()``, which the
 lab's always-visible E-STOP button calls (it must switch torque off now and
 never raise).
 
-Modules whose name starts with ``_`` and modules without ``build`` are helpers
-(e.g. ``compliance_plots``), not lessons.
+The other modules (``_common``, ``compliance_plots``, ...) are the lessons' helpers.
 """
 
 from __future__ import annotations
 
 import importlib
-import pkgutil
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Protocol, runtime_checkable
 
 import viser
+
+#: The lesson modules of this package (adding a lesson: add its module name here).
+LESSONS: tuple[str, ...] = ("compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
 
 
 @dataclass(frozen=True)
@@ -73,17 +74,9 @@ class LessonModule(Protocol):
 
 
 def all_lessons() -> dict[str, ModuleType]:
-    """Every lesson module in this package, keyed by its ``NAME``."""
-    found: dict[str, ModuleType] = {}
-    for info in pkgutil.iter_modules(__path__):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        if callable(getattr(module, "build", None)) and isinstance(
-            getattr(module, "NAME", None), str
-        ):
-            found[module.NAME] = module
-    return found
+    """Every lesson module of :data:`LESSONS`, keyed by its ``NAME``."""
+    modules = [importlib.import_module(f"{__name__}.{name}") for name in LESSONS]
+    return {module.NAME: module for module in modules}
 
 
 def lesson_order(module: ModuleType) -> tuple[float, str]:

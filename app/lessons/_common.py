@@ -1,6 +1,7 @@
 """What every lesson does to the page in the same way (a helper module, not a lesson).
 
-Keeping a lesson's GUI elements and removing them when it closes, docking its
+The fields, opening and closing every lesson handle shares (:class:`LessonBase`),
+keeping a lesson's GUI elements and removing them when it closes, docking its
 charts panel, turning a refused action into a notification, sending a file,
 and the HTML of the status and warning lines.
 """
@@ -8,13 +9,18 @@ and the HTML of the status and warning lines.
 from __future__ import annotations
 
 import html
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import viser
 
 from app.inputs import notify
+from app.publisher import Publisher
+
+if TYPE_CHECKING:
+    from app.lessons import LessonContext
 
 H = TypeVar("H")
 
@@ -70,6 +76,53 @@ class LessonGui:
         for handle in reversed(self._handles):
             remove_quietly(handle)
         self._handles.clear()
+
+
+class LessonBase:
+    """What every lesson handle shares: the server, the context, a lock, its GUI, closing once.
+
+    A lesson's ``__init__`` calls ``super().__init__(server, ctx)``, adds its scene and
+    GUI inside ``with self.opening(...)``, then starts its frames with :meth:`publish`;
+    its ``close`` does its teardown only when :meth:`mark_closed` says it is the first.
+
+    Args:
+        server: the viser server the lesson is on.
+        ctx: what it is built for.
+    """
+
+    publisher: Publisher
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext) -> None:
+        self.server = server
+        self.ctx = ctx
+        self._lock = threading.RLock()
+        self._closed = False
+        self._gui = LessonGui(server.gui)
+
+    @contextmanager
+    def opening(self, *undo: Callable[[], object] | None) -> Iterator[None]:
+        """A block that adds the lesson to the page: if it raises, each of ``undo`` (None:
+        skipped) runs, then every GUI element kept so far is removed, and the error goes on."""
+        try:
+            yield
+        except BaseException:
+            close_in_turn(*undo, self._gui.remove_all)
+            raise
+
+    def publish(self, *, pose: Callable[[], None], plots: Callable[[bool], None],
+                pose_hz: float, plot_hz: float) -> None:
+        """Start :attr:`publisher`: ``pose()`` at ``pose_hz``, ``plots(force)`` at ``plot_hz``."""
+        self.publisher = Publisher(self.server, pose=pose, plots=plots, pose_hz=pose_hz,
+                                   plot_hz=plot_hz)
+        self.publisher.start()
+
+    def mark_closed(self) -> bool:
+        """Mark the lesson closed; True the first time (the caller tears it down), then False."""
+        with self._lock:
+            if self._closed:
+                return False
+            self._closed = True
+            return True
 
 
 def guarded(event: viser.GuiEvent, action: Callable[[], object], *,

@@ -15,7 +15,6 @@ charts at 10 Hz inside ``server.atomic()``. UI callbacks never touch the servos.
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -27,7 +26,7 @@ from app.backends import make_backend
 from app.inputs import guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
-    LessonGui,
+    LessonBase,
     close_in_turn,
     esc,
     guarded,
@@ -47,7 +46,6 @@ from app.lessons.compliance_teach import (
     latest_values,
     measure_response,
 )
-from app.publisher import Publisher
 from control.backend import Backend, Pushable
 from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring, Stop
 from control.loop import ControlLoop, LoopStatus
@@ -122,7 +120,7 @@ class Rig:
     line: JointTrajectory
 
 
-class ComplianceLesson:
+class ComplianceLesson(LessonBase):
     """The compliance lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
 
     Args:
@@ -135,12 +133,8 @@ class ComplianceLesson:
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  link_preset: str = "18.5/25", pose_hz: float = 30.0,
                  plot_hz: float = 11.0) -> None:
-        self.server = server
-        self.ctx = ctx
+        super().__init__(server, ctx)
         self.hardware = ctx.backend != "sim"
-        self._lock = threading.RLock()
-        self._closed = False
-        self._gui = LessonGui(server.gui)
         self._last_teach = 0.0
         self._last_servos = 0.0
         self.experiment: Experiment | None = None
@@ -154,14 +148,10 @@ class ComplianceLesson:
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
         self.rig: Rig | None = None
         self._build_gui(DEFAULT)
-        try:
+        with self.opening():
             self.rig = self._make_rig(link_preset, DEFAULT)
-        except BaseException:
-            self._gui.remove_all()
-            raise
-        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
-                                   pose_hz=pose_hz, plot_hz=plot_hz)
-        self.publisher.start()
+        self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
+                     plot_hz=plot_hz)
 
     # ================================================================== rig
 
@@ -592,10 +582,8 @@ class ComplianceLesson:
 
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), remove scene and GUI."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
+        if not self.mark_closed():
+            return
         self.publisher.close()
         rig, self.rig = self.rig, None
         close_in_turn(partial(self._close_rig, rig) if rig is not None else None,

@@ -16,7 +16,6 @@ loop's record and updates the scene (30 Hz) and charts (10 Hz).
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import replace
 
 import numpy as np
@@ -24,10 +23,9 @@ import viser
 
 from app.inputs import guarded_slider
 from app.lessons import LessonContext
-from app.lessons._common import LessonGui, close_in_turn, guarded, set_content, status_html
+from app.lessons._common import LessonBase, close_in_turn, guarded, set_content, status_html
 from app.lessons.hand_scene import HandScene
 from app.plots import COLORS, LivePlot, SeriesSpec
-from app.publisher import Publisher
 from control.grip import GripController, GripModel, GripParams
 from control.grip_loop import GripLoop
 from hardware.hand import MAX_STIFFNESS, GraspObject, HandSim, check_object, make_hand
@@ -70,7 +68,7 @@ def build(server: viser.ViserServer, ctx: LessonContext) -> HandLesson:
     return HandLesson(server, ctx)
 
 
-class HandLesson:
+class HandLesson(LessonBase):
     """The hand lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
 
     Args:
@@ -85,11 +83,7 @@ class HandLesson:
 
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
-        self.server = server
-        self.ctx = ctx
-        self._lock = threading.RLock()
-        self._closed = False
-        self._gui = LessonGui(server.gui)
+        super().__init__(server, ctx)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
         self.plant: HandSim = make_hand(size=self.obj.size, stiffness=self.obj.stiffness)
@@ -98,17 +92,12 @@ class HandLesson:
         self.loop = GripLoop(self.plant, self.controller, realtime=ctx.realtime,
                              history_s=WINDOW_S + 4.0)
         self.scene = HandScene(server, self.plant.finger, root="/hand")
-        try:
+        with self.opening(self.scene.remove):
             self.scene.set_object(self.obj.size, self.obj.stiffness)
             self._build_gui()
-        except BaseException:
-            self.scene.remove()
-            self._gui.remove_all()
-            raise
         self.loop.start()
-        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
-                                   pose_hz=pose_hz, plot_hz=plot_hz)
-        self.publisher.start()
+        self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
+                     plot_hz=plot_hz)
 
     # ================================================================== GUI
 
@@ -271,12 +260,9 @@ class HandLesson:
 
     def close(self) -> None:
         """Stop the publisher and the loop, remove scene and GUI."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-        close_in_turn(self.publisher.close, self.loop.shutdown, self.scene.remove,
-                      self._gui.remove_all)
+        if self.mark_closed():
+            close_in_turn(self.publisher.close, self.loop.shutdown, self.scene.remove,
+                          self._gui.remove_all)
 
 
 __all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

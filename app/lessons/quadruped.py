@@ -35,7 +35,7 @@ from app.backends import make_backend
 from app.inputs import GuardedNumber, guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
-    LessonGui,
+    LessonBase,
     close_in_turn,
     guarded,
     set_content,
@@ -44,7 +44,6 @@ from app.lessons._common import (
 )
 from app.lessons.quadruped_scene import QuadrupedScene
 from app.plots import COLORS, LivePlot, SeriesSpec, rebuild_plots
-from app.publisher import Publisher
 from control.backend import Backend, BackendError
 from control.gait_loop import GaitLoop, GaitStatus
 from control.walking import (
@@ -130,7 +129,7 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
     return backend, ""
 
 
-class QuadrupedLesson:
+class QuadrupedLesson(LessonBase):
     """The quadruped lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
 
     Args:
@@ -141,16 +140,12 @@ class QuadrupedLesson:
 
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
-        self.server = server
-        self.ctx = ctx
+        super().__init__(server, ctx)
         model = load_robot(ctx.robot)
         if not isinstance(model, Quadruped):
             raise ValueError(f"robot: {ctx.robot} is not a quadruped")
         self.model = model
         self.geom = QuadrupedGeometry()
-        self._lock = threading.RLock()
-        self._closed = False
-        self._gui = LessonGui(server.gui)
         self.spec = GaitSpec()
         self.plan = plan_gait(self.spec, self.geom)
         walker = Walker(self.plan)
@@ -160,20 +155,14 @@ class QuadrupedLesson:
             walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
             realtime=ctx.realtime, speed=0.5, body_weight=total_mass(model) * 9.81,
             to_servo=to_servo)
-        try:
+        with self.opening(self.backend.close if self.backend is not None else None):
             self._build_gui()
             self.scene = QuadrupedScene(server, model, root="/quadruped")
             self.scene.set_foot_paths(self.plan)
             self.scene.set_state(self.loop.state)
-        except BaseException:
-            self._gui.remove_all()
-            if self.backend is not None:
-                self.backend.close()
-            raise
         self.loop.start()
-        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
-                                   pose_hz=pose_hz, plot_hz=plot_hz)
-        self.publisher.start()
+        self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
+                     plot_hz=plot_hz)
 
     # ================================================================== GUI
 
@@ -419,13 +408,10 @@ class QuadrupedLesson:
 
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove everything."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-        close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
-                      self.backend.close if self.backend is not None else None,
-                      self.scene.remove, self._gui.remove_all)
+        if self.mark_closed():
+            close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
+                          self.backend.close if self.backend is not None else None,
+                          self.scene.remove, self._gui.remove_all)
 
 
 def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str) -> str:

@@ -30,7 +30,7 @@ import viser
 from app.inputs import guarded_slider, notify
 from app.lessons import LessonContext
 from app.lessons._common import (
-    LessonGui,
+    LessonBase,
     close_in_turn,
     esc,
     guarded,
@@ -39,7 +39,6 @@ from app.lessons._common import (
 )
 from app.lessons.redundancy_plots import RedundancyPlots
 from app.lessons.redundancy_scene import MODE_COLORS, MODE_LABELS, RedundancyScene, arm_points
-from app.publisher import Publisher
 from control.experiments.seed002 import SETTLE_S, summarise
 from kinematics.model import SerialChain, load_robot
 from kinematics.redundancy import (
@@ -162,7 +161,7 @@ method; bottom: the guaranteed method.
 """
 
 
-class RedundancyLesson:
+class RedundancyLesson(LessonBase):
     """The redundancy lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
 
     Args:
@@ -173,17 +172,13 @@ class RedundancyLesson:
 
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
-        self.server = server
-        self.ctx = ctx
+        super().__init__(server, ctx)
         model = load_robot(ctx.robot)
         if not isinstance(model, SerialChain) or model.n != 3:
             raise ValueError(f"robot: {ctx.robot} is not a planar 3R arm")
         self.model = model
         self.modes = SHOWN_MODES
         self.q0 = np.array(CircleTask().q0)
-        self._lock = threading.RLock()
-        self._closed = False
-        self._gui = LessonGui(server.gui)
         self.results: RunSet | None = None
         self._worker: threading.Thread | None = None
         self.computing = False
@@ -193,15 +188,11 @@ class RedundancyLesson:
         self._shown_k = -1
         self._plotted: RunSet | None = None  # the runs the charts show
         self._build_gui()
-        try:
+        with self.opening():
             self.scene = RedundancyScene(server, model, modes=self.modes, root="/redundancy")
-        except BaseException:
-            self._gui.remove_all()
-            raise
         self.show(0.0)
-        self.publisher = Publisher(server, pose=self._pose_frame, plots=self._plot_frame,
-                                   pose_hz=pose_hz, plot_hz=plot_hz)
-        self.publisher.start()
+        self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
+                     plot_hz=plot_hz)
 
     # ================================================================== GUI
 
@@ -408,11 +399,8 @@ class RedundancyLesson:
 
     def close(self) -> None:
         """Stop the publisher, remove scene and GUI (a computation still going is dropped)."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-        close_in_turn(self.publisher.close, self.scene.remove, self._gui.remove_all)
+        if self.mark_closed():
+            close_in_turn(self.publisher.close, self.scene.remove, self._gui.remove_all)
 
 
 def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:

@@ -1,18 +1,48 @@
 """Headless experiments run by ``armlab experiment NAME``.
 
-Each module in this package defines ``EXPERIMENTS``: a tuple of
-:class:`Experiment`. The CLI discovers them, so adding an experiment means
-adding a module here and nothing else.
+Each module named in :data:`MODULES` defines ``EXPERIMENTS``: a tuple of
+:class:`Experiment`. An experiment's options are a frozen dataclass (one field
+per option, declared with :func:`option`); the command line
+(``app/commands/experiment.py``) turns its fields into command-line options and
+calls ``run(options, **needs)``. No argparse here: the experiments are plain
+functions of typed options, callable from a test or a script.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
-import pkgutil
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+#: The modules of this package that define experiments (adding one: add its name here).
+MODULES: tuple[str, ...] = ("hand", "observers", "seed002", "seed003", "seed004", "thesis")
+
+
+def option(default: Any, help: str, *, choices: Sequence[Any] | None = None,
+           metavar: str | None = None, hidden: bool = False) -> Any:
+    """A field of an experiment's options dataclass, with what ``--help`` says of it.
+
+    Args:
+        default: the value when the option is not given.
+        help: one line for ``--help``.
+        choices: the allowed values (a ``Literal`` type gives them too).
+        metavar: the value's name in ``--help``.
+        hidden: left out of ``--help`` (still accepted).
+    """
+    return field(default=default, metadata={"help": help, "choices": choices,
+                                            "metavar": metavar, "hidden": hidden})
+
+
+@dataclass(frozen=True)
+class BackendOptions:
+    """Options of an experiment that runs on a backend the command line opens for it
+    (``needs=("backend_factory",)``; control/ never imports hardware/)."""
+
+    backend: Literal["sim", "serial"] = option(
+        "sim", "simulated arm (default) or Dynamixel servos on --port")
+    port: str | None = option(None, "serial port for --backend serial, e.g. /dev/ttyUSB0")
+    baud: int | None = option(None, "bit rate for --backend serial")
 
 
 @dataclass(frozen=True)
@@ -22,29 +52,29 @@ class Experiment:
     Attributes:
         name: the CLI name, e.g. "seed004-table".
         help: one line for ``--help``.
-        add_arguments: adds the experiment's own options to its argparse parser.
-        run: runs it from the parsed options; returns a JSON-serialisable dict
+        options: the frozen dataclass of its options (fields made with :func:`option`).
+        run: ``run(options, **needs)`` runs it; returns a JSON-serialisable dict
             (what ``--json`` prints).
         rows: turns that dict into flat table rows for ``--csv`` and the
             human-readable table (None: print the dict's top-level items).
-        needs: names of plant factories the CLI sets on the parsed options
-            before ``run`` (control/ never imports hardware/), e.g.
-            "hand_plant" = ``hardware.hand.make_hand``.
+        needs: names of factories the caller passes to ``run`` as keyword arguments
+            (control/ never imports hardware/), e.g. "hand_plant" =
+            ``hardware.hand.make_hand``, "backend_factory" (with :class:`BackendOptions`).
     """
 
     name: str
     help: str
-    add_arguments: Callable[[argparse.ArgumentParser], None]
-    run: Callable[[argparse.Namespace], dict[str, Any]]
+    options: type
+    run: Callable[..., dict[str, Any]]
     rows: Callable[[dict[str, Any]], list[dict[str, Any]]] | None = None
     needs: tuple[str, ...] = ()
 
 
 def all_experiments() -> dict[str, Experiment]:
-    """Every experiment defined in this package, by name."""
+    """Every experiment of the modules in :data:`MODULES`, by name."""
     found: dict[str, Experiment] = {}
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        for exp in getattr(module, "EXPERIMENTS", ()):
+    for name in MODULES:
+        module = importlib.import_module(f"{__name__}.{name}")
+        for exp in module.EXPERIMENTS:
             found[exp.name] = exp
     return dict(sorted(found.items()))

@@ -13,12 +13,12 @@ RX-24F servos take no current command, so this is a simulation lesson only.
 
 from __future__ import annotations
 
-import argparse
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from control.experiments import Experiment
+from control.experiments import Experiment, option
 from control.observers import ObserverRun, TorqueJoint, simulate_observers
 from kinematics.validate import scalar
 
@@ -87,18 +87,22 @@ def observers(*, step: float = 0.004, at: float = 0.5, duration: float = 1.5,
     return figures, runs[False]
 
 
-def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--step", type=float, default=0.004, help="external torque step, N·m")
-    p.add_argument("--at", type=float, default=0.5, help="time of the step, s")
-    p.add_argument("--g-dis", type=float, default=200.0, help="DOB cut-off, rad/s")
-    p.add_argument("--g-reac", type=float, default=200.0, help="RTOB cut-off, rad/s")
-    p.add_argument("--model-error", type=float, default=0.0,
-                   help="relative error of the nominal inertia J_n (0.2 = 20 %% too large)")
+@dataclass(frozen=True)
+class ObserverOptions:
+    """Options of ``observers`` (see :func:`observers`)."""
+
+    step: float = option(0.004, "external torque step, N·m")
+    at: float = option(0.5, "time of the step, s")
+    g_dis: float = option(200.0, "DOB cut-off, rad/s")
+    g_reac: float = option(200.0, "RTOB cut-off, rad/s")
+    model_error: float = option(0.0, "relative error of the nominal inertia J_n "
+                                "(0.2 = 20 %% too large)")
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
-    figures, run = observers(step=args.step, at=args.at, g_dis=args.g_dis,
-                             g_reac=args.g_reac, model_error=args.model_error)
+def _run(options: ObserverOptions) -> dict[str, Any]:
+    o = options
+    figures, run = observers(step=o.step, at=o.at, g_dis=o.g_dis, g_reac=o.g_reac,
+                             model_error=o.model_error)
     sl = slice(None, None, DECIMATE)
     figures["series"] = {k: getattr(run, k)[sl].tolist()
                          for k in ("t", "tau_dis", "tau_dis_hat", "tau_ext", "tau_ext_hat")}
@@ -112,5 +116,5 @@ def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 EXPERIMENTS = (
     Experiment("observers", "disturbance and reaction-torque observers on a torque-driven "
-               "joint (thesis eq. 2.36, 2.37)", _add_arguments, _run, _rows),
+               "joint (thesis eq. 2.36, 2.37)", ObserverOptions, _run, _rows),
 )

@@ -10,12 +10,12 @@ excursion beyond its limits, and the mean and minimum manipulability.
 
 from __future__ import annotations
 
-import argparse
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from control.experiments import Experiment
+from control.experiments import Experiment, option
 from kinematics.model import SerialChain, load_robot
 from kinematics.redundancy import (
     MODES,
@@ -51,17 +51,18 @@ def summarise(model: SerialChain, run: CircleRun) -> dict[str, Any]:
     }
 
 
-def _add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--mode", choices=list(MODES), default="4",
-                        help="simulation: " + "; ".join(f"{k}: {v}" for k, v in MODES.items()))
-    parser.add_argument("--gain", type=float, default=400.0,
-                        help="task-space gain K of x' = x'_d + K (x_d - x), 1/s (paper: 400)")
-    parser.add_argument("--k-a", type=float, default=200.0,
-                        help="manipulability gradient gain k_a (paper: 200)")
+@dataclass(frozen=True)
+class CircleOptions:
+    """Options of ``seed002-circle`` (see :func:`circle`)."""
+
+    mode: str = option("4", "simulation: " + "; ".join(f"{k}: {v}" for k, v in MODES.items()),
+                       choices=tuple(MODES))
+    gain: float = option(400.0, "task-space gain K of x' = x'_d + K (x_d - x), 1/s (paper: 400)")
+    k_a: float = option(200.0, "manipulability gradient gain k_a (paper: 200)")
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
-    return circle(args.mode, gain=args.gain, k_a=args.k_a)
+def _run(options: CircleOptions) -> dict[str, Any]:
+    return circle(options.mode, gain=options.gain, k_a=options.k_a)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -80,7 +81,7 @@ EXPERIMENTS = (
     Experiment(
         name="seed002-circle",
         help="seed 002: redundant 3R arm on a circle, joint limits and manipulability",
-        add_arguments=_add_arguments,
+        options=CircleOptions,
         run=_run,
         rows=_rows,
     ),

@@ -7,13 +7,13 @@ floor so that the stance feet stay put, and the static stability margin of every
 
 from __future__ import annotations
 
-import argparse
 import math
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 
-from control.experiments import Experiment
+from control.experiments import Experiment, option
 from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
 from kinematics.quadruped import LEGS, QuadrupedGeometry
 
@@ -68,27 +68,28 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
     }
 
 
-def _add_arguments(parser: argparse.ArgumentParser) -> None:
-    d = SineParams()
-    parser.add_argument("--gait", choices=("trot", "crawl"), default="trot")
-    parser.add_argument("--A", type=float, default=d.A * 100, help="step length, cm")
-    parser.add_argument("--B", type=float, default=d.B * 100,
-                        help="outward offset of the foot from the hip, cm")
-    parser.add_argument("--C", type=float, default=d.C * 100, help="step height, cm")
-    parser.add_argument("--D", type=float, default=d.D * 100,
-                        help="body height (hip above the floor), cm")
-    parser.add_argument("--alpha", type=float, default=d.alpha_deg,
-                        help="heading alpha, degrees (90 = straight ahead)")
-    parser.add_argument("--samples", type=int, default=36, help="samples per cycle")
-    parser.add_argument("--right-direction", type=int, choices=(0, 1), default=0,
-                        help="direction index of the right legs (trot; 1 turns right)")
+_D = SineParams()
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
-    params = SineParams(A=args.A / 100, B=args.B / 100, C=args.C / 100, D=args.D / 100,
-                        alpha_deg=args.alpha)
-    return gait_cycle(args.gait, params, samples=args.samples,
-                      right_direction=args.right_direction)
+@dataclass(frozen=True)
+class GaitOptions:
+    """Options of ``seed003-gait`` (lengths in cm, as the seed gives them)."""
+
+    gait: Literal["trot", "crawl"] = option("trot", "trot (default) or crawl")
+    A: float = option(_D.A * 100, "step length, cm")
+    B: float = option(_D.B * 100, "outward offset of the foot from the hip, cm")
+    C: float = option(_D.C * 100, "step height, cm")
+    D: float = option(_D.D * 100, "body height (hip above the floor), cm")
+    alpha: float = option(_D.alpha_deg, "heading alpha, degrees (90 = straight ahead)")
+    samples: int = option(36, "samples per cycle")
+    right_direction: Literal[0, 1] = option(
+        0, "direction index of the right legs (trot; 1 turns right)")
+
+
+def _run(options: GaitOptions) -> dict[str, Any]:
+    o = options
+    params = SineParams(A=o.A / 100, B=o.B / 100, C=o.C / 100, D=o.D / 100, alpha_deg=o.alpha)
+    return gait_cycle(o.gait, params, samples=o.samples, right_direction=o.right_direction)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -107,7 +108,7 @@ EXPERIMENTS = (
     Experiment(
         name="seed003-gait",
         help="seed 003: one cycle of the quadruped's trot or crawl (feet, joints, margin)",
-        add_arguments=_add_arguments,
+        options=GaitOptions,
         run=_run,
         rows=_rows,
     ),

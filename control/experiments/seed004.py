@@ -9,11 +9,11 @@ get an in-range alternative (another end-effector orientation) and its position 
 
 from __future__ import annotations
 
-import argparse
 import math
+from dataclasses import dataclass
 from typing import Any
 
-from control.experiments import Experiment
+from control.experiments import Experiment, option
 from control.experiments.seed004_data import TABLE1
 from kinematics.planar_ik import ELBOWS, ROUNDINGS, PlanarArm, in_range_alternative, solve
 
@@ -73,15 +73,17 @@ def table(*, rounding: str = "truncate", elbow: str = "down") -> dict[str, Any]:
     }
 
 
-def _add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--rounding", choices=ROUNDINGS, default="truncate",
-                        help="whole-degree rounding of the servo command (paper: truncate)")
-    parser.add_argument("--elbow", choices=ELBOWS, default="down",
-                        help="branch of the two-link solution (paper: down)")
+@dataclass(frozen=True)
+class TableOptions:
+    """Options of ``seed004-table`` (see :func:`table`)."""
+
+    rounding: str = option("truncate", "whole-degree rounding of the servo command "
+                           "(paper: truncate)", choices=ROUNDINGS)
+    elbow: str = option("down", "branch of the two-link solution (paper: down)", choices=ELBOWS)
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
-    return table(rounding=args.rounding, elbow=args.elbow)
+def _run(options: TableOptions) -> dict[str, Any]:
+    return table(rounding=options.rounding, elbow=options.elbow)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -110,7 +112,7 @@ EXPERIMENTS = (
     Experiment(
         name="seed004-table",
         help="seed 004 Table 1: closed-form IK, whole-degree servo commands, servo range",
-        add_arguments=_add_arguments,
+        options=TableOptions,
         run=_run,
         rows=_rows,
     ),

@@ -10,13 +10,12 @@ fig. 4.9/4.12).
 ``armlab experiment step --kp K --kv K`` prints eq. 2.16–2.19 next to the same
 figures measured on the sampled ideal joint and on eq. 2.3 (with its zero).
 
-The backend comes from ``args.backend_factory`` (set by the CLI from
+The backend comes from ``backend_factory`` (the CLI makes it from
 ``--backend``/``--port``/``--baud``): control/ never imports hardware/.
 """
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -26,10 +25,11 @@ import numpy as np
 
 from control.backend import Backend, Pushable
 from control.commands import Push, RunTrajectory
-from control.experiments import Experiment
+from control.compliance import Mode
+from control.experiments import BackendOptions, Experiment, option
 from control.loop import APPROACH_MIN, ControlLoop
 from control.metrics import step_report
-from control.params import LAWS, PRESETS, Params, preset
+from control.params import PRESETS, Law, Params, preset
 from control.trajectory import (
     JointTrajectory,
     approach_duration,
@@ -152,31 +152,36 @@ def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, par
     }
 
 
-def _line_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--controller", choices=("none", "pd", "compliance"), default="compliance",
-                   help="none: RMRC angles straight to the servos; pd: eq. 2.20; "
-                        "compliance: eq. 2.6/2.26 (default)")
-    p.add_argument("--push", type=float, metavar="N",
-                   help=f"hand push against the motion, N (default {DEFAULT_PUSH_N:g} on the "
-                        "simulated arm, 0 on real servos)")
-    p.add_argument("--preset", default="well-damped default", metavar="NAME",
-                   help="parameter preset: " + ", ".join(repr(k) for k in PRESETS))
-    p.add_argument("--law", choices=LAWS, help="override the preset's compliance law")
-    p.add_argument("--robot", default="receptionist_arm", help=argparse.SUPPRESS)
+@dataclass(frozen=True)
+class LineOptions(BackendOptions):
+    """Options of ``thesis-line`` (see :func:`thesis_line_figures`)."""
+
+    controller: Mode = option(
+        "compliance", "none: RMRC angles straight to the servos; pd: eq. 2.20; "
+        "compliance: eq. 2.6/2.26 (default)")
+    push: float | None = option(
+        None, f"hand push against the motion, N (default {DEFAULT_PUSH_N:g} on the "
+        "simulated arm, 0 on real servos)", metavar="N")
+    preset: str = option("well-damped default",
+                         "parameter preset: " + ", ".join(repr(k) for k in PRESETS),
+                         metavar="NAME")
+    law: Law | None = option(None, "override the preset's compliance law")
+    robot: str = option("receptionist_arm", "robot model", hidden=True)
 
 
-def _line_run(args: argparse.Namespace) -> dict[str, Any]:
-    if args.push is None:
-        args.push = DEFAULT_PUSH_N if getattr(args, "backend", "sim") == "sim" else 0.0
-    if not np.isfinite(args.push) or args.push < 0:
-        raise ValueError(f"--push must be a force >= 0 N, got {args.push}")
-    params = preset(args.preset)
-    if args.law:
-        params = replace(params, law=args.law)
-    model = load_robot(args.robot)
-    return thesis_line_figures(model, args.backend_factory, params, controller=args.controller,
-                               push_n=args.push,
-                               realtime=getattr(args, "backend", "sim") != "sim")
+def _line_run(options: LineOptions, *, backend_factory: BackendFactory) -> dict[str, Any]:
+    o = options
+    push = o.push
+    if push is None:
+        push = DEFAULT_PUSH_N if o.backend == "sim" else 0.0
+    if not np.isfinite(push) or push < 0:
+        raise ValueError(f"--push must be a force >= 0 N, got {push}")
+    params = preset(o.preset)
+    if o.law:
+        params = replace(params, law=o.law)
+    model = load_robot(o.robot)
+    return thesis_line_figures(model, backend_factory, params, controller=o.controller,
+                               push_n=push, realtime=o.backend != "sim")
 
 
 def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -187,17 +192,19 @@ def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
              "max_yield_deg": result["max_yield_deg"][j]} for j in range(n)]
 
 
-def _step_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--kp", type=float, default=3.8, help="Kp, 1/s² (default: thesis 3.8)")
-    p.add_argument("--kv", type=float, default=0.2, help="Kv, 1/s (default: thesis 0.2)")
-    p.add_argument("--period", type=float, default=1e-3,
-                   help="integration period of the simulated loop, s (default 0.001)")
+@dataclass(frozen=True)
+class StepOptions:
+    """Options of ``step`` (see :func:`control.metrics.step_report`)."""
+
+    kp: float = option(3.8, "Kp, 1/s² (default: thesis 3.8)")
+    kv: float = option(0.2, "Kv, 1/s (default: thesis 0.2)")
+    period: float = option(1e-3, "integration period of the simulated loop, s (default 0.001)")
 
 
-def _step_run(args: argparse.Namespace) -> dict[str, Any]:
-    if not (np.isfinite(args.period) and 0 < args.period <= 0.05):
-        raise ValueError(f"--period must be in (0, 0.05] s, got {args.period}")
-    return step_report(args.kp, args.kv, period=args.period)
+def _step_run(options: StepOptions) -> dict[str, Any]:
+    if not (np.isfinite(options.period) and 0 < options.period <= 0.05):
+        raise ValueError(f"--period must be in (0, 0.05] s, got {options.period}")
+    return step_report(options.kp, options.kv, period=options.period)
 
 
 def _step_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -208,7 +215,7 @@ def _step_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 EXPERIMENTS = (
     Experiment("thesis-line", "thesis ch. 4: the 20 cm line with no controller, PD or "
                "compliance; angle error, torque error and yield under a push",
-               _line_arguments, _line_run, _line_rows, needs=("backend_factory",)),
+               LineOptions, _line_run, _line_rows, needs=("backend_factory",)),
     Experiment("step", "step response of the PD loop: eq. 2.16–2.19 vs measured "
-               "(ideal joint and eq. 2.3)", _step_arguments, _step_run, _step_rows),
+               "(ideal joint and eq. 2.3)", StepOptions, _step_run, _step_rows),
 )
