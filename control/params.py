@@ -18,6 +18,7 @@ presets select it; with law 2.6 those numbers would make the arm yield 12x less.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 from typing import Literal
@@ -217,6 +218,7 @@ def _dominant(A: np.ndarray, period: float) -> tuple[float, float, float]:
     return radius, float(zeta), float(omega)
 
 
+@functools.lru_cache(maxsize=64)  # Params is frozen: each change is analysed once
 def loop_stability(params: Params) -> LoopStability:
     """Poles of the integrated PD loop and of the environment filter at ``params.period``.
 
@@ -255,6 +257,7 @@ def servo_loop_pole(kp: float, kv: float, period: float, *, omega_s: float = SER
     return float(zetas[i]), float(abs(roots[i]))
 
 
+@functools.lru_cache(maxsize=64)
 def stability_warning(params: Params) -> str | None:
     """A sentence for the student when the gains are unstable, badly damped or too fast.
 

@@ -18,7 +18,7 @@ import pytest
 from _helpers import wait_for
 
 from app.wsclient import HeadlessClient
-from control.params import DEFAULT, PRESETS
+from control.params import DEFAULT, PRESETS, loop_stability
 
 KP = "Kp (1/s²)"
 
@@ -294,3 +294,29 @@ def test_link_length_preset_rebuilds_the_arm(lab, client):
     wait_for(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/25", 20.0,
          "the 18.5/25 arm back")
     wait_for(lambda: lesson.rig.loop.status.active, 10.0, "the loop to hold")
+
+
+def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client):
+    """The poles of a new Params are computed once (lesson warning, loop check and
+    swap share it), and the preset picker set by a slider applies nothing again."""
+    loop = loop_of(lab)
+    lesson = lab.lesson
+    applied: list[object] = []
+    apply = lesson.gains._apply
+    lesson.gains._apply = lambda p: (applied.append(p), apply(p))
+    try:
+        loop_stability.cache_clear()
+        client.set_value("Kv (1/s)", 4.5)
+        wait_for(lambda: loop.params.kv == 4.5, 5.0, "Kv 4.5 in the loop")
+        steps = loop.status.steps
+        wait_for(lambda: loop.status.steps > steps + 3, 5.0, "the swap")
+        assert loop_stability.cache_info().misses == 1
+        assert len(applied) == 1
+        # Back to the default by the slider: the picker shows the preset, nothing re-applies.
+        client.set_value("Kv (1/s)", DEFAULT.kv)
+        wait_for(lambda: loop.params == DEFAULT, 5.0, "the default again")
+        client.wait_for(lambda: client.find("Preset").value == "well-damped default",
+                        what="the picker to show the preset")
+        assert len(applied) == 2
+    finally:
+        lesson.gains._apply = apply

@@ -13,12 +13,12 @@ from app.lessons.compliance_teach import (
     LiveValues,
     design_table,
     equations_markdown,
-    measure_response,
 )
 from app.plots import decimate, fill_gaps
 from control import metrics
 from control.metrics import omega_from_peak, zeta_from_overshoot
 from control.params import PRESETS, Params
+from control.response import measure_response
 from hardware.protocol1 import error_names
 
 

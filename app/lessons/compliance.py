@@ -39,17 +39,12 @@ from app.lessons.compliance_controls import GainControls
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
 from app.lessons.compliance_servos import safe_health_html
-from app.lessons.compliance_teach import (
-    Measured,
-    design_table,
-    equations_markdown,
-    latest_values,
-    measure_response,
-)
+from app.lessons.compliance_teach import design_table, equations_markdown, latest_values
 from control.backend import Backend, Pushable
 from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring, Stop
 from control.loop import ControlLoop, LoopStatus
 from control.params import DEFAULT, Params, loop_stability, stability_warning
+from control.response import Measured, line_errors, measure_push, measure_step, plan_step
 from control.trajectory import (
     THESIS_LINE_END,
     THESIS_LINE_START,
@@ -223,7 +218,7 @@ class ComplianceLesson(LessonBase):
         with self._gui.chart_panel("Live charts") as charts:
             self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"),
                                     default_joint=2)
-        self._show_warning(params)
+        self._show_warning(params, unstable=loop_stability(params).unstable)
 
     def _build_run_tab(self, gui: viser.GuiApi) -> None:
         run = gui.add_button("Run thesis line", color="green", icon=viser.Icon.PLAYER_PLAY,
@@ -294,18 +289,18 @@ class ComplianceLesson(LessonBase):
 
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
-        if self.hardware and loop_stability(params).unstable:
+        unstable = loop_stability(params).unstable
+        if self.hardware and unstable:
             raise ValueError("unstable gains are refused on real servos: "
                              f"{stability_warning(params)}")
         self._loop().set_params(params, force=True)
-        self._show_warning(params)
+        self._show_warning(params, unstable=unstable)
 
-    def _show_warning(self, params: Params) -> None:
+    def _show_warning(self, params: Params, *, unstable: bool) -> None:
         w = stability_warning(params)
         if w is None:
             self.warning.visible = False
             return
-        unstable = loop_stability(params).unstable
         color = "#b00020" if unstable else "#a15c00"
         head = "Unstable gains" if unstable else "Check the gains"
         self.warning.content = warning_html(head, w, color=color)
@@ -328,34 +323,16 @@ class ComplianceLesson(LessonBase):
     def run_step(self) -> None:
         """Step one joint's command by the chosen angle (measures the PD loop)."""
         loop = self._loop()
-        j = ("θ1", "θ0", "θ2").index(str(self.step_joint.value))
-        snap = loop.recorder.snapshot(0.2)
-        q_cmd = _last_finite(snap["q_cmd"])
-        if q_cmd is None:
-            raise ValueError("the controller is not running: press Reset first")
-        step = math.radians(self._step_size.value)
-        if abs(step) < math.radians(0.5):
-            raise ValueError("step: choose a step of at least 1°")
-        q1 = q_cmd.copy()
-        if not loop.lower[j] <= q_cmd[j] + step <= loop.upper[j]:
-            step = -step  # too near a limit: the other way
-        q1[j] = float(np.clip(q_cmd[j] + step, loop.lower[j], loop.upper[j]))
-        if abs(q1[j] - q_cmd[j]) < 0.5 * abs(step):
-            raise ValueError(f"{self.step_joint.value}: no room for a "
-                             f"{abs(self._step_size.value):g}° step between its limits")
-        T = loop.params.period
-        z = np.zeros((2, len(q1)))
-        traj = JointTrajectory(np.array([0.0, T]), np.vstack([q_cmd, q1]), z, z.copy(),
-                               name=f"step {self.step_joint.value}")
+        label = str(self.step_joint.value)
+        plan = plan_step(loop.recorder.snapshot(0.2), joint=("θ1", "θ0", "θ2").index(label),
+                         step=math.radians(self._step_size.value), lower=loop.lower,
+                         upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
-        loop.post(RunTrajectory(traj, approach=False))
-        p = loop.params
-        settle = 4.0 / max(1e-3, p.kv / 2.0) if p.kv > 0 else 10.0
-        wait = float(np.clip(1.5 * settle, 3.0, 12.0))
-        self.run_start, self.run_label = t0, f"step {self.step_joint.value}"
+        loop.post(RunTrajectory(plan.trajectory, approach=False))
+        self.run_start, self.run_label = t0, f"step {label}"
         self.experiment = Experiment(
-            "step", t0, ready_at=t0 + wait, joint=j, q0=float(q_cmd[j]), q1=float(q1[j]),
-            label=f"step of {self.step_joint.value} by {math.degrees(q1[j] - q_cmd[j]):+.0f}°")
+            "step", t0, ready_at=t0 + plan.wait_s, joint=plan.joint, q0=plan.q0, q1=plan.q1,
+            label=f"step of {label} by {math.degrees(plan.q1 - plan.q0):+.0f}°")
 
     def push(self) -> None:
         """Push the hand with the chosen force, direction and duration (simulated arm)."""
@@ -528,9 +505,7 @@ class ComplianceLesson(LessonBase):
             if st.t < exp.t0 + 0.1 or st.trajectory is not None:
                 return
             exp.done = True
-            snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
-            keep = snap["t"] >= exp.t0
-            err = np.nanmax(np.abs(snap["error"][keep]), axis=0) * DEG
+            err = line_errors(rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2), t0=exp.t0) * DEG
             names = ", ".join(f"{joint_label(n)} {e:.1f}°" for n, e in
                               zip(rig.model.joint_names, err, strict=True))
             self.last_run_text = (f"**Last run** (thesis line): max |θ_cmd − θ| = {names} "
@@ -539,44 +514,17 @@ class ComplianceLesson(LessonBase):
         if st.t < exp.ready_at:
             return
         exp.done = True
+        snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
         try:
             if exp.kind == "step":
-                self.measured_pd = self._measure_step(exp, rig, st.t)
+                self.measured_pd = measure_step(snap, t0=exp.t0, joint=exp.joint, q0=exp.q0,
+                                                q1=exp.q1, what=exp.label)
             elif exp.kind == "push":
-                self.measured_env = self._measure_push(exp, rig, st.t)
+                self.measured_env = measure_push(
+                    snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
+                    joint_labels=[joint_label(n) for n in rig.model.joint_names])
         except ValueError as exc:
             self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"
-
-    @staticmethod
-    def _measure_step(exp: Experiment, rig: Rig, now: float) -> Measured:
-        snap = rig.loop.recorder.snapshot(now - exp.t0 + 0.2)
-        j = exp.joint
-        half = 0.5 * abs(exp.q1 - exp.q0)
-        stepped = np.abs(snap["q_cmd"][:, j] - exp.q0) > half
-        moved = np.flatnonzero((snap["t"] >= exp.t0) & stepped)
-        if len(moved) == 0:
-            raise ValueError("the command never stepped (was the arm e-stopped?)")
-        k = moved[0]
-        return measure_response(snap["t"][k:], snap["q"][k:, j], initial=exp.q0, final=exp.q1,
-                                what=exp.label)
-
-    @staticmethod
-    def _measure_push(exp: Experiment, rig: Rig, now: float) -> Measured:
-        snap = rig.loop.recorder.snapshot(now - exp.t0 + 0.2)
-        keep = (snap["t"] >= exp.t0) & (snap["t"] <= exp.ready_at)
-        t, env, tau = snap["t"][keep], snap["q_env"][keep], snap["tau_ext"][keep]
-        if len(t) < 10 or not np.any(np.isfinite(env)):
-            raise ValueError("too few samples during the push (compliance off?)")
-        tail = slice(int(0.85 * len(t)), None)
-        j = int(np.nanargmax(np.abs(np.nanmean(tau[tail], axis=0))))
-        e0, tau0 = float(env[0, j]), float(tau[0, j])
-        e1, tau1 = float(np.nanmedian(env[tail, j])), float(np.nanmedian(tau[tail, j]))
-        if abs(tau1 - tau0) < 1e-4:
-            raise ValueError("the push did not reach the estimated torque")
-        name = joint_label(rig.model.joint_names[j])
-        return measure_response(t, env[:, j], initial=e0, final=e1,
-                                what=f"{exp.label}, joint {name}",
-                                static_gain=(e1 - e0) / (tau1 - tau0))
 
     # ================================================================== lifetime
 
@@ -588,14 +536,6 @@ class ComplianceLesson(LessonBase):
         rig, self.rig = self.rig, None
         close_in_turn(partial(self._close_rig, rig) if rig is not None else None,
                       self._gui.remove_all)
-
-
-def _last_finite(a: np.ndarray) -> np.ndarray | None:
-    """The newest row of ``a`` (m, n) with no NaN, or None."""
-    for k in range(len(a) - 1, -1, -1):
-        if np.all(np.isfinite(a[k])):
-            return a[k].copy()
-    return None
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

@@ -5,6 +5,11 @@ finite number inside the slider's range is refused with a notification and the
 slider goes back. A good value builds a new, validated :class:`Params` and hands
 it to ``apply`` (which swaps it into the control loop at its next period). A
 preset sets every slider and applies the whole preset once.
+
+viser calls an input's callbacks when Python sets its value too. Every callback
+here compares with :attr:`GainControls.params` (updated before any input is
+shown) and does nothing when they agree, so showing the parameters on the
+inputs never applies anything again and needs no re-entry flag.
 """
 
 from __future__ import annotations
@@ -51,7 +56,6 @@ class GainControls:
                  apply: Callable[[Params], None]) -> None:
         self._apply = apply
         self._lock = threading.RLock()
-        self._batch = False
         self.params = params
         self.preset = gui.add_dropdown("Preset", (*PRESETS, CUSTOM),
                                        initial_value=_preset_of(params),
@@ -81,7 +85,7 @@ class GainControls:
         @self.preset.on_update
         def _(event: viser.GuiEvent) -> None:
             name = str(self.preset.value)
-            if name in PRESETS and not self._batch:
+            if name in PRESETS and PRESETS[name] != self.params:
                 try:
                     self.set_params(PRESETS[name])
                 except ValueError as exc:
@@ -101,15 +105,10 @@ class GainControls:
     def _set_field(self, name: str, value: float) -> None:
         """A slider moved (value in SI); raises ValueError to refuse it."""
         with self._lock:
-            if self._batch:
-                return
-            new = replace(self.params, **{name: value})  # validates
-            self._commit(new)
+            self._commit(replace(self.params, **{name: value}))  # validates
 
     def _set_other(self, event: viser.GuiEvent, **changes: object) -> None:
         with self._lock:
-            if self._batch:
-                return
             try:
                 self._commit(replace(self.params, **changes))
             except ValueError as exc:
@@ -117,15 +116,12 @@ class GainControls:
                 self._show(self.params)
 
     def _commit(self, new: Params) -> None:
+        """Apply ``new`` (unless it is in force) and show which preset it is."""
         if new == self.params:
             return
         self._apply(new)
         self.params = new
-        self._batch = True
-        try:
-            self.preset.value = _preset_of(new)
-        finally:
-            self._batch = False
+        self.preset.value = _preset_of(new)
 
     def set_params(self, params: Params) -> None:
         """Apply ``params`` at once (a preset) and show them on every page.
@@ -140,18 +136,15 @@ class GainControls:
             self._show(params)
 
     def _show(self, params: Params) -> None:
-        """Put every input at ``params`` without applying anything."""
-        self._batch = True
-        try:
-            for name, g in self.sliders.items():
-                v = float(getattr(params, name)) * DISPLAY_SCALE.get(name, 1.0)
-                g.value = v
-                g.handle.value = v
-            self.compliance.value = params.compliance
-            self.law.value = LAW_LABELS[params.law]
-            self.preset.value = _preset_of(params)
-        finally:
-            self._batch = False
+        """Put every input at ``params`` (the parameters in force: their callbacks then
+        find nothing to apply)."""
+        for name, g in self.sliders.items():
+            v = float(getattr(params, name)) * DISPLAY_SCALE.get(name, 1.0)
+            g.value = v  # first, so the slider's callback sees no change
+            g.handle.value = v
+        self.compliance.value = params.compliance
+        self.law.value = LAW_LABELS[params.law]
+        self.preset.value = _preset_of(params)
 
 
 def _preset_of(params: Params) -> str:

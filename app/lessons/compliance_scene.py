@@ -77,11 +77,10 @@ class ComplianceScene:
             f"{sh}/target", scale=0.07, disable_rotations=True, depth_test=False,
             position=path[1])
         scene.add_icosphere(f"{sh}/target/dot", radius=0.01, color=(250, 180, 0))
-        self._suppress_target = False
 
-        @self.target.on_update
+        @self.target.on_update  # a page's move only: setting the position from Python is silent
         def _(event: viser.TransformControlsEvent) -> None:
-            if self._suppress_target or event.client is None:
+            if event.client is None:
                 return
             on_target(np.array(self.target.position, dtype=float))
 
@@ -132,12 +131,9 @@ class ComplianceScene:
         self.ghost.set_q(q_cmd)
 
     def set_target(self, p: np.ndarray) -> None:
-        """Move the target gizmo (base frame, m) without reporting it back as a user move."""
-        self._suppress_target = True
-        try:
-            self.target.position = np.asarray(p, dtype=float)
-        finally:
-            self._suppress_target = False
+        """Move the target gizmo (base frame, m); viser reports only a page's moves, so
+        this is not taken for a user's."""
+        self.target.position = np.asarray(p, dtype=float)
 
     def add_trail(self, hand: np.ndarray, *, min_step: float = 0.003) -> None:
         """Drop a trail dot at ``hand`` (base frame) if it moved ``min_step`` m since the last."""

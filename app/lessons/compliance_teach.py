@@ -3,8 +3,8 @@
 Pure functions from (parameters, recorded signals) to Markdown, so the panel's
 text can be tested without a browser. Design figures come from
 :mod:`control.metrics` (thesis eq. 2.11–2.19); measured ones from the last
-step (PD loop) or push (environment) the student ran, with ωn and ζ read back
-from the measured overshoot and peak time (the inverse of 2.16–2.17).
+step (PD loop) or push (environment) the student ran, measured by
+:mod:`control.response`.
 """
 
 from __future__ import annotations
@@ -16,47 +16,10 @@ import numpy as np
 
 from control import metrics
 from control.params import Params
+from control.response import Measured
 from kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / math.pi
-
-
-@dataclass(frozen=True)
-class Measured:
-    """Second-order figures measured on a recorded response (None where undefined).
-
-    Attributes:
-        what: what was measured ("step of θ2 by +10°", "push on θ0").
-        omega_n: rad/s, from Tp and %OS (underdamped responses only).
-        zeta: from %OS (underdamped only).
-        overshoot_pct, peak_time_s, rise_time_s, settling_time_s: as in
-            :class:`control.metrics.StepMetrics`.
-        static_gain: final / input (C_f for a push: rad per N·m), or None.
-    """
-
-    what: str
-    omega_n: float | None
-    zeta: float | None
-    overshoot_pct: float | None
-    peak_time_s: float | None
-    rise_time_s: float | None
-    settling_time_s: float | None
-    static_gain: float | None = None
-
-
-def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: float,
-                     what: str, static_gain: float | None = None) -> Measured:
-    """Figures of a recorded step response ``y`` (N,) at times ``t`` (N,) from the step.
-
-    Raises:
-        ValueError: when the step is too small to measure (|final − initial| ~ 0).
-    """
-    if not abs(final - initial) > 1e-9:
-        raise ValueError(f"{what}: the response did not move (final = initial = {final:g})")
-    m = metrics.measure_step(np.asarray(t) - t[0], y, final=final, initial=initial)
-    z = metrics.zeta_from_overshoot(m.overshoot_pct)
-    return Measured(what, metrics.omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
-                    m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain)
 
 
 def _f(x: float | None, fmt: str = ".3g", unit: str = "") -> str:

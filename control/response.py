@@ -1,0 +1,178 @@
+"""Step and push responses on a recording: what the student ran, measured (thesis eq. 2.11–2.19).
+
+Pure functions over a recorder snapshot (:meth:`control.recorder.Recorder.snapshot`:
+``"t"`` (N,) and (N, n) signals ``"q"``, ``"q_cmd"``, ``"q_env"``, ``"tau_ext"``,
+``"error"``), so they run in a test or a script without a server:
+
+- :func:`plan_step`: the step of one joint's command a PD-loop test posts, and how long
+  to wait before measuring it;
+- :func:`measure_step`: the PD loop's response to that step (θ against θ_cmd);
+- :func:`measure_push`: the environment's response to a push (θ_env against τ_ext);
+- :func:`line_errors`: the largest |θ_cmd − θ| of a run.
+
+The figures are :func:`control.metrics.measure_step`'s, with ωn and ζ read back from
+the measured overshoot and peak time (the inverses of eq. 2.16–2.17).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from control import metrics
+from control.params import Params
+from control.trajectory import JointTrajectory
+
+MIN_STEP = math.radians(0.5)  #: rad; a smaller step is refused (the slider moves by 1°)
+
+
+@dataclass(frozen=True)
+class Measured:
+    """Second-order figures measured on a recorded response (None where undefined).
+
+    Attributes:
+        what: what was measured ("step of θ2 by +10°", "push on θ0").
+        omega_n: rad/s, from Tp and %OS (underdamped responses only).
+        zeta: from %OS (underdamped only).
+        overshoot_pct, peak_time_s, rise_time_s, settling_time_s: as in
+            :class:`control.metrics.StepMetrics`.
+        static_gain: final / input (C_f for a push: rad per N·m), or None.
+    """
+
+    what: str
+    omega_n: float | None
+    zeta: float | None
+    overshoot_pct: float | None
+    peak_time_s: float | None
+    rise_time_s: float | None
+    settling_time_s: float | None
+    static_gain: float | None = None
+
+
+def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: float,
+                     what: str, static_gain: float | None = None) -> Measured:
+    """Figures of a recorded step response ``y`` (N,) at times ``t`` (N,) from the step.
+
+    Raises:
+        ValueError: when the step is too small to measure (|final − initial| ~ 0).
+    """
+    if not abs(final - initial) > 1e-9:
+        raise ValueError(f"{what}: the response did not move (final = initial = {final:g})")
+    m = metrics.measure_step(np.asarray(t) - t[0], y, final=final, initial=initial)
+    z = metrics.zeta_from_overshoot(m.overshoot_pct)
+    return Measured(what, metrics.omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
+                    m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain)
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """A step of one joint's command (post ``RunTrajectory(trajectory, approach=False)``).
+
+    Attributes:
+        trajectory: hold the present command for one period, then the stepped one.
+        joint: the stepped joint's index.
+        q0, q1: its command before and after, rad.
+        wait_s: measure this long after posting (covers the settling time).
+    """
+
+    trajectory: JointTrajectory
+    joint: int
+    q0: float
+    q1: float
+    wait_s: float
+
+
+def last_finite(a: np.ndarray) -> np.ndarray | None:
+    """The newest row of ``a`` (m, n) with no NaN, or None."""
+    for k in range(len(a) - 1, -1, -1):
+        if np.all(np.isfinite(a[k])):
+            return a[k].copy()
+    return None
+
+
+def plan_step(snap: dict[str, np.ndarray], *, joint: int, step: float, lower: np.ndarray,
+              upper: np.ndarray, params: Params, label: str) -> StepPlan:
+    """Step joint ``joint``'s present command (the newest in ``snap``) by ``step`` rad.
+
+    The step goes the other way when the joint limit [lower, upper] (rad) is too near.
+    The wait is 1.5 × Ts of the PD loop, Ts = 4/(ζp ωp) = 8/Kv (eq. 2.18 with 2.11–2.12),
+    kept within 3..12 s.
+
+    Raises:
+        ValueError: the loop records no command (not running), the step is under 0.5°,
+            or there is no room for it between the limits (``label`` names the joint).
+    """
+    q_cmd = last_finite(snap["q_cmd"])
+    if q_cmd is None:
+        raise ValueError("the controller is not running: press Reset first")
+    if abs(step) < MIN_STEP:
+        raise ValueError("step: choose a step of at least 1°")
+    j = joint
+    q1 = q_cmd.copy()
+    if not lower[j] <= q_cmd[j] + step <= upper[j]:
+        step = -step  # too near a limit: the other way
+    q1[j] = float(np.clip(q_cmd[j] + step, lower[j], upper[j]))
+    if abs(q1[j] - q_cmd[j]) < 0.5 * abs(step):
+        raise ValueError(f"{label}: no room for a {abs(math.degrees(step)):g}° step between "
+                         "its limits")
+    T = params.period
+    z = np.zeros((2, len(q1)))
+    traj = JointTrajectory(np.array([0.0, T]), np.vstack([q_cmd, q1]), z, z.copy(),
+                           name=f"step {label}")
+    settle = 4.0 / max(1e-3, params.kv / 2.0) if params.kv > 0 else 10.0
+    wait = float(np.clip(1.5 * settle, 3.0, 12.0))
+    return StepPlan(traj, j, float(q_cmd[j]), float(q1[j]), wait)
+
+
+def measure_step(snap: dict[str, np.ndarray], *, t0: float, joint: int, q0: float, q1: float,
+                 what: str) -> Measured:
+    """The PD loop's response to a step of joint ``joint``'s command from ``q0`` to ``q1``
+    (rad) posted at loop time ``t0``: θ from the first period the command has stepped.
+
+    Raises:
+        ValueError: the command never stepped in ``snap`` (e-stopped, faulted).
+    """
+    j = joint
+    half = 0.5 * abs(q1 - q0)
+    stepped = np.abs(snap["q_cmd"][:, j] - q0) > half
+    moved = np.flatnonzero((snap["t"] >= t0) & stepped)
+    if len(moved) == 0:
+        raise ValueError("the command never stepped (was the arm e-stopped?)")
+    k = moved[0]
+    return measure_response(snap["t"][k:], snap["q"][k:, j], initial=q0, final=q1, what=what)
+
+
+def measure_push(snap: dict[str, np.ndarray], *, t0: float, t1: float, what: str,
+                 joint_labels: Sequence[str]) -> Measured:
+    """The environment filter's response (θ_env, eq. 2.7) to a push from ``t0`` to ``t1``
+    (loop time, s), on the joint that felt the most torque at its end.
+
+    The final values are the medians of the push's last 15 %; the static gain is
+    Δθ_env / Δτ_ext (C_f = K_f / K_env for law 2.6, eq. 2.15). ``what`` is followed by
+    ``", joint "`` and that joint's entry of ``joint_labels``.
+
+    Raises:
+        ValueError: too few finite samples (compliance off), or no torque change.
+    """
+    keep = (snap["t"] >= t0) & (snap["t"] <= t1)
+    t, env, tau = snap["t"][keep], snap["q_env"][keep], snap["tau_ext"][keep]
+    if len(t) < 10 or not np.any(np.isfinite(env)):
+        raise ValueError("too few samples during the push (compliance off?)")
+    tail = slice(int(0.85 * len(t)), None)
+    j = int(np.nanargmax(np.abs(np.nanmean(tau[tail], axis=0))))
+    e0, tau0 = float(env[0, j]), float(tau[0, j])
+    e1, tau1 = float(np.nanmedian(env[tail, j])), float(np.nanmedian(tau[tail, j]))
+    if abs(tau1 - tau0) < 1e-4:
+        raise ValueError("the push did not reach the estimated torque")
+    return measure_response(t, env[:, j], initial=e0, final=e1,
+                            what=f"{what}, joint {joint_labels[j]}",
+                            static_gain=(e1 - e0) / (tau1 - tau0))
+
+
+def line_errors(snap: dict[str, np.ndarray], *, t0: float) -> np.ndarray:
+    """(n,) largest |θ_cmd − θ| per joint since loop time ``t0``, rad (NaN rows skipped)."""
+    keep = snap["t"] >= t0
+    return np.nanmax(np.abs(snap["error"][keep]), axis=0)
