@@ -452,7 +452,7 @@ class Bus:
 
         Raises :class:`WrongModel` when ``expect`` (model number or name) differs.
         """
-        model = int.from_bytes(self.read_bytes(servo_id, 0, 2), "little")
+        model = self.read(servo_id, "model_number")  # same address on every model
         if expect is not None:
             want = table_for(expect)
             if model != want.spec.model_number:
