@@ -137,7 +137,6 @@ class IKAccuracyLesson:
         self.table_result: dict[str, Any] | None = None
         self.message = ""
         self._outside = False
-        self._suppress = False
         self._build_scene()
         try:
             self._build_gui()
@@ -190,9 +189,9 @@ class IKAccuracyLesson:
             f"{b}/table_dots", points=np.zeros((1, 3), dtype=np.float32),
             colors=(30, 90, 200), point_size=0.004, visible=False)
 
-        @self.gizmo.on_update
+        @self.gizmo.on_update  # a page's drag only: setting the position from Python is silent
         def _(event: viser.TransformControlsEvent) -> None:
-            if self._suppress or event.client is None:
+            if event.client is None:
                 return
             p = np.asarray(self.gizmo.position, dtype=float)
             try:
@@ -273,11 +272,13 @@ class IKAccuracyLesson:
 
     def _on_typed(self, event: viser.GuiEvent, axis: int) -> None:
         """A typed target coordinate: refuse a bad number, else solve (a target out of
-        reach is accepted and explained)."""
+        reach is accepted and explained). The lesson's own writes (no client) are ignored."""
+        if event.client is None:
+            return
         handle = (self.x_input, self.y_input)[axis]
         name = ("target X (cm)", "target Y (cm)")[axis]
         with self._lock:
-            if self._suppress or self._closed:
+            if self._closed:
                 return
             raw = handle.value
             try:
@@ -295,13 +296,9 @@ class IKAccuracyLesson:
             self.set_target(target[0], target[1], client=event.client, from_inputs=True)
 
     def _write_inputs(self) -> None:
-        """Show the target in the typed inputs (without solving again)."""
-        self._suppress = True
-        try:
-            self.x_input.value = round(self.target[0] * 100.0, 2)
-            self.y_input.value = round(self.target[1] * 100.0, 2)
-        finally:
-            self._suppress = False
+        """Show the target in the typed inputs (their callbacks ignore writes from Python)."""
+        self.x_input.value = round(self.target[0] * 100.0, 2)
+        self.y_input.value = round(self.target[1] * 100.0, 2)
 
     def set_mode(self, *, elbow: str | None = None, rounding: str | None = None) -> None:
         """Change the elbow branch or the rounding and solve the target again."""
@@ -349,11 +346,7 @@ class IKAccuracyLesson:
             self.ghost.set_q(np.array(alt.result.commanded))
         self.reached.position = (r.position[0], r.position[1], 0.004)
         if not dragging:
-            self._suppress = True
-            try:
-                self.gizmo.position = (X, Y, 0.0)
-            finally:
-                self._suppress = False
+            self.gizmo.position = (X, Y, 0.0)
         if not from_inputs:
             self._write_inputs()
         ok = servo_in_range(r.servo_deg, self.arm)
