@@ -23,6 +23,7 @@ def make_backend(kind: str, model: SerialChain, *, port: str | None = None,
 
     Raises:
         ValueError: unknown kind or options that do not fit it.
+        control.backend.BackendError: the serial port or its servos cannot be opened.
     """
     if kind == "sim":
         if port is not None or baud is not None:
