@@ -1,12 +1,15 @@
 """``armlab experiment thesis-line`` and ``step`` through the real command line."""
 
+import dataclasses
 import io
 import json
-from contextlib import redirect_stdout
+from contextlib import redirect_stderr, redirect_stdout
 
 import pytest
 
-from app.cli import main
+from app.cli import build_parser, main
+from app.commands.experiment import options_of
+from control.experiments import all_experiments
 
 
 def run_json(capsys, *argv: str) -> dict:
@@ -72,3 +75,23 @@ def test_bad_options_give_one_line(capsys):
     assert err.startswith("armlab experiment: unknown preset 'nope'") and err.count("\n") == 1
     assert main(["experiment", "thesis-line", "--port", "/dev/null"]) == 2
     assert "--port and --baud are for --backend serial" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", sorted(all_experiments()))
+def test_each_experiments_typed_options_are_its_command_line(name):
+    """The CLI's options are the experiment's dataclass fields: its defaults when none is
+    given, and a typed value (kebab-case flag, converted by the field's type) when given."""
+    exp = all_experiments()[name]
+    parser = build_parser(["experiment", name])
+    assert options_of(exp, parser.parse_args(["experiment", name])) == exp.options()
+    for f in dataclasses.fields(exp.options):
+        assert f.metadata["help"], f.name
+    if name == "seed003-gait":
+        args = parser.parse_args(["experiment", name, "--A", "3", "--right-direction", "1",
+                                  "--gait", "crawl"])
+        assert options_of(exp, args) == exp.options(A=3.0, right_direction=1, gait="crawl")
+    if name == "thesis-line":
+        args = parser.parse_args(["experiment", name, "--law", "2.26", "--push", "0"])
+        assert options_of(exp, args) == exp.options(law="2.26", push=0.0)
+        with pytest.raises(SystemExit), redirect_stderr(io.StringIO()):
+            parser.parse_args(["experiment", name, "--controller", "fast"])
