@@ -142,8 +142,8 @@ class ComplianceLesson(LessonBase):
         self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
         self.rig: Rig | None = None
-        self._build_gui(DEFAULT)
         with self.opening():
+            self._build_gui(DEFAULT)
             self.rig = self._make_rig(link_preset, DEFAULT)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
                      plot_hz=plot_hz)

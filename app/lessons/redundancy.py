@@ -187,8 +187,8 @@ class RedundancyLesson(LessonBase):
         self._paused_t = 0.0
         self._shown_k = -1
         self._plotted: RunSet | None = None  # the runs the charts show
-        self._build_gui()
         with self.opening():
+            self._build_gui()
             self.scene = RedundancyScene(server, model, modes=self.modes, root="/redundancy")
         self.show(0.0)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
