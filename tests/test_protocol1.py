@@ -202,3 +202,10 @@ def test_conversions_go_through_servo_spec():
     assert t.to_si("return_delay_time", 250) == pytest.approx(500e-6)
     assert t.from_si("goal_position", math.radians(24.05)) == 0x252
     assert table_for("ax12a") is AX12A_TABLE and table_for(24) is RX24F_TABLE
+
+
+def test_error_names_one_per_bit_lowest_first():
+    assert p1.error_names(0) == "ok" and p1.error_names(0x80) == "ok"  # bit 7 is not an error
+    assert p1.error_names(0x24) == "overheating, overload"
+    assert p1.error_names(0x7F) == ("input voltage, angle limit, overheating, range, checksum, "
+                                    "overload, instruction")
