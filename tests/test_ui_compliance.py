@@ -103,6 +103,27 @@ def test_run_thesis_line_fills_the_plots(lab, client):
     assert "max |θ_cmd − θ|" in lab.lesson.last_run_text
 
 
+def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
+    loop, lesson = loop_of(lab), lab.lesson
+    for pushed in (False, True):
+        client.click("Run thesis line")
+        wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
+        if pushed:
+            client.set_value("Direction", "against the line (−y)")
+            client.set_value("Push force (N)", 4.0)
+            client.set_value("Duration (s)", 2.0)
+            client.click("Push")
+        wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+        wait_for(lambda p=pushed: (lesson.chapter4.pushed if p else lesson.chapter4.free)
+                 is not None, 10.0, "the run's figures")
+    ch4 = lesson.chapter4
+    # the compliant arm falls far behind its command under the push (the thesis: > 15°)
+    assert ch4.pushed[2] > ch4.free[2] + 5.0
+    assert ch4.yield_deg is not None and ch4.yield_deg[2] > 3.0
+    text = lesson.last_run_text
+    assert "free: θ1" in text and "pushed" in text and "yield" in text
+
+
 def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
     loop = loop_of(lab)
 

@@ -10,7 +10,9 @@ import pytest
 from app.inputs import check_number
 from app.lessons.compliance_servos import ServoHealth, advice, error_text
 from app.lessons.compliance_teach import (
+    Chapter4,
     LiveValues,
+    chapter4_markdown,
     design_table,
     equations_markdown,
     measure_response,
@@ -113,3 +115,14 @@ def test_servo_advice_names_the_fault_and_what_to_do():
     tips = " ".join(advice(h))
     assert "free it, then press Reset" in tips and "8.1 V" in tips and "72 °C" in tips
     assert advice(ServoHealth(1, "theta1", 12.0, 35.0, 0, True)) == []
+
+
+def test_chapter4_panel_names_each_figure_for_what_it_is():
+    ch4 = Chapter4(free=np.array([1.0, 0.0, 2.7]), pushed=np.array([4.7, 0.0, 16.2]),
+                   yield_deg=np.array([7.3, 0.0, 11.4]))
+    text = chapter4_markdown(ch4, ("θ1", "θ0", "θ2"))
+    lines = text.splitlines()
+    assert "free: θ1 1.0°, θ0 0.0°, θ2 2.7°" in lines[1]
+    assert "θ2 16.2°" in lines[2] and "over 15° on servo 3" in lines[2]
+    assert "θ2 11.4°" in lines[3] and "different quantity" in lines[3]
+    assert chapter4_markdown(Chapter4(), ("a", "b", "c")).count("—") == 3

@@ -41,7 +41,9 @@ from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
 from app.lessons.compliance_servos import safe_health_html
 from app.lessons.compliance_teach import (
+    Chapter4,
     Measured,
+    chapter4_markdown,
     design_table,
     equations_markdown,
     latest_values,
@@ -108,6 +110,7 @@ class Experiment:
     q1: float = 0.0
     label: str = ""
     done: bool = False
+    pushed: bool = False  #: line only: a push or drag happened while it ran
 
 
 @dataclass
@@ -149,6 +152,8 @@ class ComplianceLesson:
         self.measured_pd: Measured | None = None
         self.measured_env: Measured | None = None
         self.last_run_text = ""
+        self.chapter4 = Chapter4()
+        self._free_q: np.ndarray | None = None  #: θ of the last free line run, from its start
         self._drag_anchor: np.ndarray | None = None
         self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
@@ -210,6 +215,7 @@ class ComplianceLesson:
             self.rig = self._make_rig(preset, self.gains.params)
             self.experiment = None
             self.run_start = None
+            self.chapter4, self._free_q = Chapter4(), None
 
     # ================================================================== GUI
 
@@ -380,6 +386,8 @@ class ComplianceLesson:
         rig.loop.post(Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
                            duration=duration))
         self._push = (force, t0 + duration)
+        if self._mark_line_pushed():
+            return
         self.run_start, self.run_label = t0, "push"
         self.experiment = Experiment("push", t0, ready_at=t0 + duration, label=(
             f"push of {self._push_force.value:g} N {self.push_dir.value} for {duration:g} s"))
@@ -419,8 +427,16 @@ class ComplianceLesson:
         self._drag_anchor = anchor
         rig.loop.post(Spring(anchor, stiffness=k, link=rig.model.n - 1,
                              point=rig.model.tip[:3, 3]))
-        if phase == "start":
+        if phase == "start" and not self._mark_line_pushed():
             self.run_start, self.run_label = self._now(), "hand drag"
+
+    def _mark_line_pushed(self) -> bool:
+        """A push or drag during a line run makes it a pushed run (chapter 4); True if so."""
+        exp = self.experiment
+        if exp is None or exp.kind != "line" or exp.done:
+            return False
+        exp.pushed = True
+        return True
 
     def csv_bytes(self) -> tuple[str, bytes]:
         """(file name, CSV) of the last run: from its start (or the last 10 s) to now."""
@@ -541,10 +557,20 @@ class ComplianceLesson:
             snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
             keep = snap["t"] >= exp.t0
             err = np.nanmax(np.abs(snap["error"][keep]), axis=0) * DEG
-            names = ", ".join(f"{joint_label(n)} {e:.1f}°" for n, e in
-                              zip(rig.model.joint_names, err, strict=True))
-            self.last_run_text = (f"**Last run** (thesis line): max |θ_cmd − θ| = {names} "
-                                  "(thesis: 6° to 20° without the PD loop, under 6° with it)")
+            q = snap["q"][keep]
+            ch4 = self.chapter4
+            if exp.pushed:
+                free_q = self._free_q
+                yld = None
+                if free_q is not None and free_q.shape[1] == q.shape[1]:
+                    m = min(len(q), len(free_q))
+                    yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
+                self.chapter4 = Chapter4(ch4.free, err, yld)
+            else:
+                self._free_q = q
+                self.chapter4 = Chapter4(err, ch4.pushed, None)
+            self.last_run_text = chapter4_markdown(
+                self.chapter4, [joint_label(n) for n in rig.model.joint_names])
             return
         if st.t < exp.ready_at:
             return

@@ -207,3 +207,38 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
     out.append(f"**Integration**: θ̇_ref += T θ̈_ref, θ_ref += T θ̇_ref, T = {p.period * 1e3:.3g} ms "
                "(θ_ref, θ̇_ref go to the servos as Goal Position and Moving Speed)")
     return "\n\n".join(out)
+
+
+@dataclass(frozen=True)
+class Chapter4:
+    """The thesis's chapter-4 figures of the last line runs (degrees, per joint, or None).
+
+    Attributes:
+        free: max |θ_cmd − θ| of the last run without a push (fig. 4.2/4.4).
+        pushed: max |θ_cmd − θ| of the last run with a push or drag (fig. 4.9/4.12).
+        yield_deg: max |θ_pushed − θ_free|: how far the push moved each joint
+            compared with the last free run. Not the thesis's metric.
+    """
+
+    free: np.ndarray | None = None
+    pushed: np.ndarray | None = None
+    yield_deg: np.ndarray | None = None
+
+
+def chapter4_markdown(ch4: Chapter4, names: list[str] | tuple[str, ...]) -> str:
+    """The thesis's metric (command minus actual) for free and pushed runs, yield apart."""
+
+    def per_joint(x: np.ndarray | None) -> str:
+        if x is None:
+            return "—"
+        return ", ".join(f"{n} {v:.1f}°" for n, v in zip(names, x, strict=True))
+
+    return "\n".join([
+        "**Chapter 4's metric**: max |θ_cmd − θ| over the last thesis-line run",
+        f"- free: {per_joint(ch4.free)} (thesis: 6° to over 20° without the PD loop, under "
+        "6° with it)",
+        f"- pushed (push or drag during the run): {per_joint(ch4.pushed)} (thesis, "
+        "compliance on: over 15° on servo 3)",
+        f"- yield under the push, pushed − free run (a different quantity): "
+        f"{per_joint(ch4.yield_deg)}",
+    ])
