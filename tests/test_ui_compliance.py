@@ -12,6 +12,7 @@ import io
 import math
 import time
 import urllib.request
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from app.wsclient import HeadlessClient
 from control.params import DEFAULT, PRESETS
 
 KP = "Kp (1/s²)"
+FF = "Feed-forward θ̈_cmd"
 
 
 @pytest.fixture
@@ -74,6 +76,12 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     client.wait_for(lambda: client.find(KP).value == pytest.approx(3.8), what="Kp slider 3.8")
     client.wait_for(lambda: client.find("Kv (1/s)").value == pytest.approx(0.2), what="Kv 0.2")
     client.wait_for(lambda: client.find("Law").value.startswith("2.26"), what="law 2.26")
+    # the thesis has no feed-forward: its switch shows off, and it can be turned on
+    client.wait_for(lambda: client.find(FF).value is False, what="feed-forward off")
+    client.set_value(FF, True)
+    wait_for(lambda: loop.params.feedforward, 5.0, "feed-forward on in the loop")
+    assert loop.params == replace(t41, feedforward=True)
+    client.wait_for(lambda: client.find("Preset").value == "(custom)", what="preset (custom)")
 
 
 def test_unstable_gains_warn_before_run(lab, client):

@@ -107,6 +107,9 @@ def test_equations_show_live_numbers_in_degrees_and_the_law_in_use():
     assert "PD reference loop (2.20)" in pd and "θ_env" not in pd.split("External")[0]
     literal = equations_markdown(PRESETS["thesis Table 4.1"], live)
     assert "2.26 (thesis literal)" in literal and "K_env θ_env" in literal
+    # the default's feed-forward is written into the law; the thesis preset has none
+    assert "+ θ̈_cmd  (feed-forward: not in the thesis)" in md
+    assert "feed-forward" not in literal
 
 
 def test_servo_advice_names_the_fault_and_what_to_do():

@@ -161,6 +161,11 @@ def torque_text(nm: float, unit: str) -> str:
     return f"{nm * KGF_CM_PER_NM:+.2f} kgf·cm" if unit == "kgf·cm" else f"{nm:+.3f} N·m"
 
 
+def _ff(p: Params) -> str:
+    """The feed-forward term when it is on (the thesis's law has none)."""
+    return " + θ̈_cmd  (feed-forward: not in the thesis)" if p.feedforward else ""
+
+
 def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: str = "N·m",
                        mode: str = "compliance") -> str:
     """The control law in use with the newest numbers of one joint (angles in degrees)."""
@@ -171,7 +176,7 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
         out.append("**No position controller**: θ_ref = θ_cmd (RMRC angles sent as they are).")
     elif effective == "pd":
         out.append("**PD reference loop (2.20)**  \n"
-                   "θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇)")
+                   "θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇)" + _ff(p))
         if live is not None:
             e = (live.q_cmd - live.q) * DEG
             out.append(f"{live.joint}: Kp (θ_cmd − θ) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
@@ -179,10 +184,10 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
     else:
         if p.law == "2.26":
             out.append("**Compliance, law 2.26 (thesis literal)**  \nθ̈_ref = Kp (θ_cmd − θ − "
-                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env")
+                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env" + _ff(p))
         else:
             out.append("**Compliance, law 2.6**  \nθ̈_ref = Kp (θ_cmd − θ − θ_env) + "
-                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env")
+                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env" + _ff(p))
         out.append("**Environment (2.7)**  \nM_env θ̈_env + D_env θ̇_env + K_env θ_env = "
                    f"K_f τ_ext  with M_env {p.m_env:.3g}, D_env {p.d_env:.3g}, "
                    f"K_env {p.k_env:.3g}, K_f {p.k_f:.3g}")

@@ -184,6 +184,9 @@ def _line_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="well-damped default", metavar="NAME",
                    help="parameter preset: " + ", ".join(repr(k) for k in PRESETS))
     p.add_argument("--law", choices=LAWS, help="override the preset's compliance law")
+    p.add_argument("--feedforward", choices=("on", "off"),
+                   help="override the preset's feed-forward of θ̈_cmd (not in the thesis; "
+                        "on in the lab's default, off in the thesis presets)")
     p.add_argument("--robot", default="receptionist_arm", help=argparse.SUPPRESS)
 
 
@@ -195,6 +198,8 @@ def _line_run(args: argparse.Namespace) -> dict[str, Any]:
     params = preset(args.preset)
     if args.law:
         params = replace(params, law=args.law)
+    if args.feedforward:
+        params = replace(params, feedforward=args.feedforward == "on")
     model = load_robot(args.robot)
     return thesis_line_figures(model, args.backend_factory, params, controller=args.controller,
                                push_n=args.push,
