@@ -105,3 +105,40 @@ def test_bad_options_give_one_line(capsys):
     assert err.startswith("armlab experiment: unknown preset 'nope'") and err.count("\n") == 1
     assert main(["experiment", "thesis-line", "--port", "/dev/null"]) == 2
     assert "--port and --baud are for --backend serial" in capsys.readouterr().err
+
+
+def test_no_reading_of_table_4_1_reproduces_all_three_figures(capsys):
+    """``thesis-readings``: every reading of the thesis's gains and units on the line.
+
+    The no-controller run uses no gains, so it stays at 4.6° (thesis: 6° to over
+    20°) under every reading of the 1.28 s line, and at 4.0° on a 6.4 s line.
+    """
+    r = run_json(capsys, "thesis-readings")
+    assert r["any_reproduces_all"] is False
+    by = {x["name"]: x for x in r["readings"]}
+    for x in r["readings"]:
+        assert not x["reproduces"]["none_6_to_20"]
+        if x["line_s"] == 1.28:
+            assert x["none"] == pytest.approx([4.59, 0.0, 1.64], abs=0.3)
+    assert by["line takes 6.4 s"]["none"][0] == pytest.approx(3.95, abs=0.3)
+    # SI: the PD loop lags 19.5° (thesis: under 6°)
+    assert by["SI"]["pd"] == pytest.approx([11.58, 0.0, 19.49], abs=0.5)
+    # gains per control period: Kp/T² = 14844, Kv/T = 12.5 diverge in either order
+    assert by["per control period"]["pole_radius"] == pytest.approx(1.447, abs=1e-3)
+    assert by["explicit Euler, per control period"]["pole_radius"] == pytest.approx(2.145,
+                                                                                    abs=1e-3)
+    assert by["per control period"]["pd"] is None
+    assert "kp must be in" in by["radians in, degrees out"]["refused"]
+    assert by["radians in, degrees out"]["servo_zeta"] == pytest.approx(-0.367, abs=0.01)
+    # the nearest: Kv per period with torque in kgf·cm gives two of the three
+    best = by["Kv per period, torque in kgf·cm"]
+    assert best["pd"][2] == pytest.approx(3.46, abs=0.4)
+    assert best["compliance_pushed"][2] == pytest.approx(54.7, abs=3.0)
+    assert best["reproduces"] == {"none_6_to_20": False, "pd_under_6": True,
+                                  "compliance_pushed_over_15": True}
+    assert by["Kv per period"]["compliance_pushed"][2] == pytest.approx(8.83, abs=1.0)
+
+
+def test_thesis_readings_refuses_an_unknown_reading(capsys):
+    assert main(["experiment", "thesis-readings", "--reading", "nope"]) == 2
+    assert "unknown reading 'nope'" in capsys.readouterr().err

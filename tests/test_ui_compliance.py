@@ -78,6 +78,8 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     client.wait_for(lambda: client.find("Law").value.startswith("2.26"), what="law 2.26")
     # the thesis has no feed-forward: its switch shows off, and it can be turned on
     client.wait_for(lambda: client.find(FF).value is False, what="feed-forward off")
+    wait_for(lambda: "chapter 4 does not reproduce" in lab.lesson.equations.content, 5.0,
+             "the Teach tab's note on Table 4.1")
     client.set_value(FF, True)
     wait_for(lambda: loop.params.feedforward, 5.0, "feed-forward on in the loop")
     assert loop.params == replace(t41, feedforward=True)

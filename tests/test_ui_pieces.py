@@ -17,6 +17,7 @@ from app.lessons.compliance_teach import (
     equations_markdown,
     measure_response,
     omega_from_peak,
+    thesis_preset_note,
     zeta_from_overshoot,
 )
 from app.plots import decimate, fill_gaps
@@ -129,3 +130,12 @@ def test_chapter4_panel_names_each_figure_for_what_it_is():
     assert "θ2 16.2°" in lines[2] and "over 15° on servo 3" in lines[2]
     assert "θ2 11.4°" in lines[3] and "different quantity" in lines[3]
     assert chapter4_markdown(Chapter4(), ("a", "b", "c")).count("—") == 3
+
+
+def test_a_thesis_preset_says_chapter_4_does_not_reproduce():
+    for name in ("thesis Table 4.1", "thesis conclusion"):
+        note = thesis_preset_note(PRESETS[name])
+        assert note.startswith(f"**{name}: chapter 4 does not reproduce here.**")
+        assert "19.5°" in note and "thesis-readings" in note
+    assert thesis_preset_note(PRESETS["well-damped default"]) == ""
+    assert thesis_preset_note(Params(kp=3.8, kv=0.2)) == ""  # custom gains: no note

@@ -48,6 +48,7 @@ from app.lessons.compliance_teach import (
     equations_markdown,
     latest_values,
     measure_response,
+    thesis_preset_note,
 )
 from app.publisher import Publisher
 from control.backend import Backend, Pushable
@@ -269,8 +270,9 @@ class ComplianceLesson:
         with gui.add_folder("Arm and display", expand_by_default=False):
             self.links = gui.add_dropdown("Link lengths (cm)", tuple(RECEPTIONIST_PRESETS),
                                           initial_value="18.5/25",
-                                          hint="L1/L2: the appendix code (18.5/25) or the "
-                                               "specification list (18.5/18.5)")
+                                          hint="L1/L2: the appendix code (18.5/25), the "
+                                               "specification list (18.5/18.5) or the FK "
+                                               "text of eq. 3.13 (17/25)")
             self.links.on_update(lambda e: guarded(
                 e, lambda: self.set_link_preset(str(self.links.value))))
             self.show_ghost = gui.add_checkbox("Show command (ghost)", True)
@@ -542,7 +544,8 @@ class ComplianceLesson:
         live = latest_values(snap, j, joint_label(self.plots.labels[j]))
         eq = equations_markdown(params, live, torque_unit=self.plots.unit,
                                 mode=st.controller)
-        set_content(self.equations, eq)
+        note = thesis_preset_note(params)
+        set_content(self.equations, f"{note}\n\n{eq}" if note else eq)
         set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
         set_content(self.last_run_md, self.last_run_text)
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control import metrics
-from control.params import Params
+from control.params import PRESETS, Params
 from kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / math.pi
@@ -247,3 +247,20 @@ def chapter4_markdown(ch4: Chapter4, names: list[str] | tuple[str, ...]) -> str:
         f"- yield under the push, pushed − free run (a different quantity): "
         f"{per_joint(ch4.yield_deg)}",
     ])
+
+
+def thesis_preset_note(params: Params) -> str:
+    """What a student must know when a thesis preset is chosen ("" otherwise).
+
+    Figures from ``armlab experiment thesis-readings`` (docs/compliance.md).
+    """
+    name = next((k for k, v in PRESETS.items() if v == params and k.startswith("thesis")), None)
+    if name is None:
+        return ""
+    return (f"**{name}: chapter 4 does not reproduce here.** Read in SI, Kp 3.8 and Kv 0.2 "
+            "make the PD loop lag 19.5° on the 1.28 s line (thesis: under 6°). No reading of "
+            "the thesis's units reproduces all three of its figures (`armlab experiment "
+            "thesis-readings`): gains per control period diverge (pole radius 1.45); Kv per "
+            "period with torque in kgf·cm gives PD 3.5° and 54.7° under the push, but no "
+            "reading can move the no-controller run (4.6° here, thesis 6° to over 20°), "
+            "which uses no gains at all. See docs/compliance.md.")

@@ -32,6 +32,7 @@ from control.loop import APPROACH_MIN, ControlLoop
 from control.metrics import step_report
 from control.params import LAWS, PRESETS, Params, preset
 from control.trajectory import (
+    THESIS_PERIOD,
     JointTrajectory,
     approach_duration,
     hold,
@@ -59,9 +60,13 @@ class LineRun:
     snapshot: dict[str, np.ndarray]
 
 
-def line_plan(model: SerialChain) -> tuple[JointTrajectory, float, float]:
-    """Hold at the start, the thesis line, hold at the end; with the line's start/end times."""
-    line = thesis_line(model)
+def line_plan(model: SerialChain, *, line_period: float = THESIS_PERIOD
+              ) -> tuple[JointTrajectory, float, float]:
+    """Hold at the start, the thesis line, hold at the end; with the line's start/end times.
+
+    ``line_period``: seconds per 2.5 mm step of the line (the thesis: 16 ms, so 1.28 s).
+    """
+    line = thesis_line(model, period=line_period)
     plan = hold(line.q[0], SETTLE_S).then(line).then(hold(line.q[-1], TAIL_S), name=line.name)
     return plan, SETTLE_S, SETTLE_S + line.duration
 
@@ -77,7 +82,8 @@ def _advance(loop: ControlLoop, until: float) -> None:
 
 
 def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
-             controller: str, push_n: float = 0.0, realtime: bool = False) -> LineRun:
+             controller: str, push_n: float = 0.0, realtime: bool = False,
+             line_period: float = THESIS_PERIOD) -> LineRun:
     """Run the plan; push the hand along −y (base frame) when ``push_n`` > 0.
 
     A simulated arm starts on the line's first point and runs headless (``realtime``
@@ -87,7 +93,7 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
     Raises:
         ValueError: the loop stopped on a fault, or the backend cannot be pushed.
     """
-    plan, settle, line_end = line_plan(model)
+    plan, settle, line_end = line_plan(model, line_period=line_period)
     backend = backend_factory(model, q0=plan.q[0])
     loop: ControlLoop | None = None
     try:
@@ -135,8 +141,8 @@ def max_angle_error(run: LineRun, until: float | None = None) -> np.ndarray:
 
 
 def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
-                        controller: str, push_n: float,
-                        realtime: bool = False) -> dict[str, Any]:
+                        controller: str, push_n: float, realtime: bool = False,
+                        line_period: float = THESIS_PERIOD) -> dict[str, Any]:
     """The chapter-4 figures for one controller (JSON keys of issue 3's public surface).
 
     Chapter 4 judges every run by command minus actual angle per servo; that is
@@ -150,14 +156,15 @@ def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, par
         "torque_error_max_nm" [n], "max_yield_deg" [n]}; the pushed figures are zeros
         without a push.
     """
-    free = run_line(model, backend_factory, params, controller=controller, realtime=realtime)
+    free = run_line(model, backend_factory, params, controller=controller, realtime=realtime,
+                    line_period=line_period)
     s = free.snapshot
     on_line = (s["t"] >= free.line_start) & (s["t"] <= free.line_end)
     err = np.degrees(max_angle_error(free))
     torque = np.nanmax(np.abs(s["tau_load"][on_line] - s["tau_dyn"][on_line]), axis=0)
     if push_n > 0:
         pushed = run_line(model, backend_factory, params, controller=controller, push_n=push_n,
-                          realtime=realtime)
+                          realtime=realtime, line_period=line_period)
         p = pushed.snapshot
         m = min(len(p["t"]), len(s["t"]))
         yield_deg = np.degrees(np.nanmax(np.abs(p["q"][:m] - s["q"][:m]), axis=0))
