@@ -7,9 +7,14 @@ stacks the four legs into one :class:`control.backend.Backend` of 12 joints in t
 order of ``hardware.joint_map.default_joint_map`` (RF, LF, RH, LH; hip yaw, hip
 pitch, knee), the order the serial backend uses too.
 
-The legs do not carry the body's weight by themselves (their hips are fixed). A
-walking controller puts that load on through :meth:`QuadrupedSimBackend.push`: the
-floor's reaction on each stance foot, in the hip-mount (= body) frame.
+The legs carry the body (:class:`BodyOnLegs`, quasi-static): before each step the
+floor plane the body rests on is found from where the feet really are (the servos'
+deflected angles), the robot's weight is shared among the feet that touch it by
+force and moment balance, and each contact foot is pushed by its share along the
+floor's normal. Through J^T f that load turns each stance leg's servos, which give
+way by their compliance (margin, slope, punch: ``hardware.servo``), and the plane
+through the deflected contact feet is the body's pose: :attr:`BodyOnLegs.tilt_deg`.
+The emulator loads its legs with the same class (``armlab emulate --robot quadruped``).
 """
 
 from __future__ import annotations
@@ -20,13 +25,77 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.backend import GoalLimits, JointState
+from hardware.plant import Plant
 from hardware.servo_spec import AX12A
 from hardware.sim_backend import SimBackend
+from kinematics.body_statics import contact_forces, feet_in_body, rest_pose, tilt_deg
 from kinematics.model import Quadruped
-from kinematics.validate import vector
+from kinematics.quadruped import LEGS, foot_in_tibia
+from kinematics.validate import scalar, vector
 
 #: Joints per leg.
 LEG_JOINTS = 3
+G = 9.81  #: m/s²
+
+
+def total_mass(model: Quadruped) -> float:
+    """Body plus every leg link, kg."""
+    return model.body_mass + sum(link.mass for chain in model.legs.values()
+                                 for link in chain.links)
+
+
+class BodyOnLegs:
+    """The quadruped's weight on its four leg plants (hips held in the body frame).
+
+    Args:
+        model: the quadruped.
+        plants: its four leg plants, in ``model.legs`` order.
+        mass: kg the feet carry (default: the whole robot, :func:`total_mass`); 0 turns
+            the load off.
+
+    Attributes:
+        tilt_deg: the body's tilt at the last :meth:`load`, degrees.
+        contact: (4,) which feet touched the floor then.
+        forces: (4,) the floor's normal force on each foot then, N.
+        max_tilt_deg: the largest tilt since :meth:`reset_max`.
+    """
+
+    def __init__(self, model: Quadruped, plants: Sequence[Plant], *,
+                 mass: float | None = None) -> None:
+        self.model = model
+        self.plants = list(plants)
+        self.weight = G * (total_mass(model) if mass is None
+                           else scalar("mass", mass, nonnegative=True))
+        self._feet_points = [foot_in_tibia(leg) for leg in LEGS]
+        self.tilt_deg = 0.0
+        self.max_tilt_deg = 0.0
+        self.contact = np.ones(len(self.plants), dtype=bool)
+        self.forces = np.zeros(len(self.plants))
+
+    def q(self) -> np.ndarray:
+        """(12,) the legs' true joint angles now, rad."""
+        return np.concatenate([plant.q for plant in self.plants])
+
+    def load(self, until: float) -> None:
+        """Put the weight on the feet touching the floor, from now until ``until`` s."""
+        duration = until - self.plants[0].t
+        if duration <= 0.0 or self.weight <= 0.0:
+            return
+        q = self.q()
+        n, contact, com = rest_pose(self.model, q)
+        feet = feet_in_body(self.model, q)
+        f = np.zeros(len(feet))
+        f[contact] = contact_forces(feet[contact], com, self.weight, n)
+        for i in np.flatnonzero(f > 0.0):
+            self.plants[i].push(f[i] * n, link=LEG_JOINTS - 1, point=self._feet_points[i],
+                                duration=duration)
+        self.contact, self.forces = contact, f
+        self.tilt_deg = tilt_deg(n)
+        self.max_tilt_deg = max(self.max_tilt_deg, self.tilt_deg)
+
+    def reset_max(self) -> None:
+        """Start a new :attr:`max_tilt_deg`."""
+        self.max_tilt_deg = self.tilt_deg
 
 
 class QuadrupedSimBackend(GoalLimits):
@@ -36,13 +105,15 @@ class QuadrupedSimBackend(GoalLimits):
         model: the quadruped (``kinematics.load_robot("quadruped")``).
         q0: (12,) initial joint angles, rad (default zeros), in leg order.
         dt: plant step and servo tick, s.
+        body_mass: kg the legs carry (default the whole robot; 0: legs unloaded).
 
     Attributes:
         legs: the four :class:`SimBackend`, in the order of ``model.legs``.
+        body: the body's weight on them (:class:`BodyOnLegs`).
     """
 
     def __init__(self, model: Quadruped, *, q0: Sequence[float] | np.ndarray | None = None,
-                 dt: float = 1e-3) -> None:
+                 dt: float = 1e-3, body_mass: float | None = None) -> None:
         if not isinstance(model, Quadruped):
             raise ValueError("model: QuadrupedSimBackend needs a Quadruped")
         chains = list(model.legs.values())
@@ -54,6 +125,7 @@ class QuadrupedSimBackend(GoalLimits):
                      for k, chain in enumerate(chains)]
         self._lower = np.concatenate([leg.lower for leg in self.legs])
         self._upper = np.concatenate([leg.upper for leg in self.legs])
+        self.body = BodyOnLegs(model, [leg.plant for leg in self.legs], mass=body_mass)
         self._lock = threading.RLock()
 
     # -- Backend protocol ---------------------------------------------------------
@@ -64,8 +136,9 @@ class QuadrupedSimBackend(GoalLimits):
         return LEG_JOINTS * len(self.legs)
 
     def sync(self, t: float) -> None:
-        """Integrate every leg up to ``t`` s."""
+        """Integrate every leg up to ``t`` s, carrying the body (:class:`BodyOnLegs`)."""
         with self._lock:
+            self.body.load(t)
             for leg in self.legs:
                 leg.sync(t)
 
@@ -134,4 +207,4 @@ class QuadrupedSimBackend(GoalLimits):
             leg.set_spring(anchor, stiffness=stiffness, link=i, point=point)
 
 
-__all__ = ["QuadrupedSimBackend", "LEG_JOINTS"]
+__all__ = ["QuadrupedSimBackend", "BodyOnLegs", "LEG_JOINTS", "total_mass"]

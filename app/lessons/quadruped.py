@@ -101,12 +101,6 @@ def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
     return QuadrupedLesson(server, ctx)
 
 
-def total_mass(model: Quadruped) -> float:
-    """Body plus every leg link, kg."""
-    return model.body_mass + sum(link.mass for chain in model.legs.values()
-                                 for link in chain.links)
-
-
 def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
                 ) -> tuple[Backend | None, str]:
     """The 12 servos for ``ctx.backend``: (backend, "") or (None, why not).
@@ -158,8 +152,7 @@ class QuadrupedLesson:
         to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
         self.loop = GaitLoop(
             walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
-            realtime=ctx.realtime, speed=0.5, body_weight=total_mass(model) * 9.81,
-            to_servo=to_servo)
+            realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
         try:
             self._build_gui()
             self.scene = QuadrupedScene(server, model, root="/quadruped")

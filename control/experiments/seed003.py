@@ -3,19 +3,33 @@
 Foot positions from the sine pattern of seed 003 Table 1.1 (trot) or a statically
 stable crawl, joint angles from the leg IK (eq. 3.1-3.9), the body walked across the
 floor so that the stance feet stay put, and the static stability margin of every sample.
+
+Then (``--cycles`` > 0) the gait walks on 12 servos: simulated AX-12A legs carrying the
+body (default), or servos on ``--backend serial --port`` (the emulator's legs carry it
+too). From the servos' reports come seed 003's two figures: the eq. 4.1 error
+(commanded vs reported angle, per servo number and overall; the seed: 1.201 %, servo 2
+worst) and the body's tilt that the deflected legs imply on flat ground (the seed:
+3.6–5.7°, :func:`kinematics.body_statics.implied_tilt_deg`).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import time
 from typing import Any
 
 import numpy as np
 
 from control.experiments import Experiment
+from control.gait_loop import STAND_UP_S, GaitLoop
+from control.walking import GaitSpec, Walker, plan_gait
+from kinematics.body_statics import implied_tilt_deg
 from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
+from kinematics.model import Quadruped, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
+
+SIM_DT = 2e-3  #: plant step of the simulated legs, s
 
 
 def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples: int = 36,
@@ -68,6 +82,64 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
     }
 
 
+def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams | None = None,
+                   *, cycles: float = 2.0, speed: float = 0.5, period: float = 0.02,
+                   realtime: bool = False) -> dict[str, Any]:
+    """Walk ``cycles`` gait cycles on the 12 servos ``backend_factory(model, q0=...)`` opens.
+
+    Returns:
+        {"eq41_error_pct": {"servo1", "servo2", "servo3", "overall"}, "body_tilt_deg" (max),
+        "body_tilt_mean_deg", "eq41_samples"}: eq. 4.1 over the walking samples (mean |%| per
+        servo number in the legs, and over all 12), and the tilt the reported angles imply.
+
+    Raises:
+        ValueError: the servos faulted or gave no walking samples.
+    """
+    model = load_robot("quadruped")
+    assert isinstance(model, Quadruped)
+    plan = plan_gait(GaitSpec(gait=gait, params=params or SineParams()))
+    walker = Walker(plan)
+    kw = {"q0": walker.state().q, "dt": SIM_DT} if not realtime else {}
+    backend = backend_factory(model, **kw)
+    to_servo = getattr(getattr(backend, "map", None), "to_servo", None)
+    loop = GaitLoop(walker, backend, period=period, realtime=realtime, speed=speed,
+                    to_servo=to_servo, history_s=STAND_UP_S + cycles / speed + 5.0)
+    try:
+        loop.go(plan)
+        duration = STAND_UP_S + cycles / speed + 2 * period
+        if realtime:
+            loop.start()
+            end = time.monotonic() + 3 * duration + 10.0
+            while loop.status.t < duration and not loop.status.fault:
+                if time.monotonic() > end:
+                    raise ValueError("the servos did not keep up with the gait loop")
+                time.sleep(0.02)
+            loop.shutdown(torque_off=True)
+        else:
+            loop.run_for(duration)
+        if loop.status.fault:
+            raise ValueError(f"the servos stopped: {loop.status.fault}")
+        err = loop.angle_error(None)
+        if err is None:
+            raise ValueError("no walking samples were read from the servos")
+        snap = loop.snapshot()
+        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q"]), axis=1)
+        tilt = np.array([implied_tilt_deg(model, q) for q in snap["q"][ok]])
+    finally:
+        if loop.status.running:
+            loop.shutdown(torque_off=True)
+        backend.close()
+    per = err["per_servo_pct"]
+    return {
+        "eq41_error_pct": {"servo1": round(float(per[0]), 4), "servo2": round(float(per[1]), 4),
+                           "servo3": round(float(per[2]), 4),
+                           "overall": round(float(err["mean_pct"]), 4)},
+        "body_tilt_deg": round(float(tilt.max()), 3),
+        "body_tilt_mean_deg": round(float(tilt.mean()), 3),
+        "eq41_samples": int(err["samples"]),
+    }
+
+
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
     d = SineParams()
     parser.add_argument("--gait", choices=("trot", "crawl"), default="trot")
@@ -82,13 +154,22 @@ def _add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--samples", type=int, default=36, help="samples per cycle")
     parser.add_argument("--right-direction", type=int, choices=(0, 1), default=0,
                         help="direction index of the right legs (trot; 1 turns right)")
+    parser.add_argument("--cycles", type=float, default=2.0,
+                        help="gait cycles walked on the servos for eq. 4.1 and the body tilt "
+                             "(0: the planned cycle only)")
 
 
 def _run(args: argparse.Namespace) -> dict[str, Any]:
     params = SineParams(A=args.A / 100, B=args.B / 100, C=args.C / 100, D=args.D / 100,
                         alpha_deg=args.alpha)
-    return gait_cycle(args.gait, params, samples=args.samples,
-                      right_direction=args.right_direction)
+    if not (math.isfinite(args.cycles) and 0.0 <= args.cycles <= 20.0):
+        raise ValueError(f"--cycles must be in [0, 20], got {args.cycles}")
+    out = gait_cycle(args.gait, params, samples=args.samples,
+                     right_direction=args.right_direction)
+    if args.cycles > 0:
+        out.update(walk_on_servos(args.backend_factory, args.gait, params, cycles=args.cycles,
+                                  realtime=getattr(args, "backend", "sim") != "sim"))
+    return out
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -106,9 +187,11 @@ def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 EXPERIMENTS = (
     Experiment(
         name="seed003-gait",
-        help="seed 003: one cycle of the quadruped's trot or crawl (feet, joints, margin)",
+        help="seed 003: one cycle of the quadruped's trot or crawl (feet, joints, margin), "
+             "then walked on servos: eq. 4.1 error and body tilt",
         add_arguments=_add_arguments,
         run=_run,
         rows=_rows,
+        needs=("backend_factory",),
     ),
 )
