@@ -55,6 +55,7 @@ from control.walking import (
     Walker,
     angle_error_pct,
     plan_gait,
+    walking_tilts_deg,
 )
 from hardware.quadruped_sim import QuadrupedSimBackend
 from kinematics.gait import SineParams
@@ -405,8 +406,10 @@ class QuadrupedLesson:
                   f"</b> ({verdict})</div>"))
 
     def _update_servo_table(self) -> None:
+        tilts = walking_tilts_deg(self.model, self.loop.snapshot(10.0))
         set_content(self.servo_table, servo_markdown(
-            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend))
+            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend,
+            tilts=tilts))
 
     # ================================================================== lifetime
 
@@ -421,8 +424,9 @@ class QuadrupedLesson:
                       self.scene.remove, self._gui.remove_all)
 
 
-def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str) -> str:
-    """The eq. 4.1 table (servo tab)."""
+def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str,
+                   tilts: np.ndarray | None = None) -> str:
+    """The eq. 4.1 table (servo tab), and the body tilt the servos' angles imply."""
     head = ("**Commanded vs servo angle, seed 003 eq. 4.1**: %Error = (servo angle − "
             "computed angle) / computed angle × 100, angles as the servo counts them (IK "
             "angle + its 150° set point); the servo's feedback is read one period after the "
@@ -438,9 +442,14 @@ def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: st
         rows.append(f"| {leg} | " + " | ".join(f"{v:.2f} %" for v in per_joint[i]) + " |")
     rows.append("| **mean** | " + " | ".join(f"**{v:.2f} %**" for v in per_servo) + " |")
     src = "simulated AX-12A (legs loaded by the body's weight)" if where == "sim" else "serial"
+    tilt = ""
+    if tilts is not None and len(tilts):
+        tilt = (f"\n\n**Body tilt** the servos' angles imply on flat ground: mean "
+                f"**{float(np.mean(tilts)):.1f}°**, max {float(np.max(tilts)):.1f}° (paper: "
+                "3.6–5.7°): the body leans onto a swing foot, less as the loaded legs give way.")
     return "\n".join([head, "",
                       f"Lab, last 10 s ({err['samples']} samples, {src}): "
-                      f"mean **{err['mean_pct']:.3f} %**", "", *rows])
+                      f"mean **{err['mean_pct']:.3f} %**", "", *rows]) + tilt
 
 
 TEACH = """\

@@ -23,8 +23,7 @@ import numpy as np
 
 from control.experiments import Experiment
 from control.gait_loop import STAND_UP_S, GaitLoop
-from control.walking import GaitSpec, Walker, plan_gait
-from kinematics.body_statics import implied_tilt_deg
+from control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
 from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
 from kinematics.model import Quadruped, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
@@ -122,9 +121,7 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
         err = loop.angle_error(None)
         if err is None:
             raise ValueError("no walking samples were read from the servos")
-        snap = loop.snapshot()
-        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q"]), axis=1)
-        tilt = np.array([implied_tilt_deg(model, q) for q in snap["q"][ok]])
+        tilt = walking_tilts_deg(model, loop.snapshot())
     finally:
         if loop.status.running:
             loop.shutdown(torque_off=True)
