@@ -115,6 +115,7 @@ def test_no_reading_of_table_4_1_reproduces_all_three_figures(capsys):
     """
     r = run_json(capsys, "thesis-readings")
     assert r["any_reproduces_all"] is False
+    assert set(r["thesis_figures"]) == set(r["readings"][0]["reproduces"])
     by = {x["name"]: x for x in r["readings"]}
     for x in r["readings"]:
         assert not x["reproduces"]["none_6_to_20"]

@@ -120,7 +120,8 @@ def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
     """Run every reading (or the one named ``only``) on the simulated line.
 
     Returns:
-        {"readings": [{"name", "kp", "kv", "k_f", "line_s", "pole_radius",
+        {"thesis_figures": what each "reproduces" key checks, "readings": [{"name", "kp",
+        "kv", "k_f", "line_s", "pole_radius",
         "servo_zeta", "none", "pd", "compliance_pushed", "refused", "reproduces"}],
         "any_reproduces_all": bool}. Angles are max |θ_cmd − θ| per joint, degrees;
         "compliance_pushed" is the run with the 3 N push; None where not run.
@@ -170,7 +171,7 @@ def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
                     row["refused"] = str(exc)
         row["reproduces"] = judge(row["none"], row["pd"], row["compliance_pushed"])
         out.append(row)
-    return {"readings": out,
+    return {"thesis_figures": dict(THESIS_FIGURES), "readings": out,
             "any_reproduces_all": any(all(r["reproduces"].values()) for r in out)}
 
 
