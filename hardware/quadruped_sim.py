@@ -30,12 +30,14 @@ from hardware.servo_spec import AX12A
 from hardware.sim_backend import SimBackend
 from kinematics.body_statics import contact_forces, feet_in_body, rest_pose, tilt_deg
 from kinematics.model import Quadruped
-from kinematics.quadruped import LEGS, foot_in_tibia
+from kinematics.quadruped import LEGS, QuadrupedGeometry, foot_in_tibia
 from kinematics.validate import scalar, vector
 
 #: Joints per leg.
 LEG_JOINTS = 3
 G = 9.81  #: m/s²
+LOAD_STEP = 0.004  #: s between renewals of the body's load on the legs
+BELLY_RAMP = 0.01  #: m over which the body's underside takes its weight off the feet
 
 
 def total_mass(model: Quadruped) -> float:
@@ -52,6 +54,10 @@ class BodyOnLegs:
         plants: its four leg plants, in ``model.legs`` order.
         mass: kg the feet carry (default: the whole robot, :func:`total_mass`); 0 turns
             the load off.
+        belly: m from the body frame's origin down to the body's underside; when the feet
+            no longer reach below it the body lies on the floor and the feet carry nothing.
+            So it does when any servo lets go (torque off): a quasi-static model has no
+            body inertia to follow a fall, so the body is put on its underside at once.
 
     Attributes:
         tilt_deg: the body's tilt at the last :meth:`load`, degrees.
@@ -61,8 +67,10 @@ class BodyOnLegs:
     """
 
     def __init__(self, model: Quadruped, plants: Sequence[Plant], *,
-                 mass: float | None = None) -> None:
+                 mass: float | None = None,
+                 belly: float = QuadrupedGeometry().body_size[2] / 2) -> None:
         self.model = model
+        self.belly = scalar("belly", belly, nonnegative=True)
         self.plants = list(plants)
         self.weight = G * (total_mass(model) if mass is None
                            else scalar("mass", mass, nonnegative=True))
@@ -82,10 +90,23 @@ class BodyOnLegs:
         if duration <= 0.0 or self.weight <= 0.0:
             return
         q = self.q()
-        n, contact, com = rest_pose(self.model, q)
+        f = np.zeros(len(self.plants))
+        holding = all(servo.regs.torque_enable for plant in self.plants for servo in plant.servos)
+        try:
+            n, d, contact, com = rest_pose(self.model, q)
+        except ValueError:  # no three feet under the body
+            contact = np.zeros(len(f), dtype=bool)
+        if not holding:  # a servo let go (torque off, e-stop, overload): the body sits down
+            contact = np.zeros(len(f), dtype=bool)
+        # The underside takes the weight over as the floor comes up to it (belly contact
+        # over BELLY_RAMP): torque off, the robot sits down on its body, legs unloaded.
+        share = 0.0 if not contact.any() else float(np.clip((-d - self.belly) / BELLY_RAMP,
+                                                            0.0, 1.0))
+        if share <= 0.0:
+            self.contact, self.forces, self.tilt_deg = np.zeros(len(f), dtype=bool), f, 0.0
+            return
         feet = feet_in_body(self.model, q)
-        f = np.zeros(len(feet))
-        f[contact] = contact_forces(feet[contact], com, self.weight, n)
+        f[contact] = contact_forces(feet[contact], com, share * self.weight, n)
         for i in np.flatnonzero(f > 0.0):
             self.plants[i].push(f[i] * n, link=LEG_JOINTS - 1, point=self._feet_points[i],
                                 duration=duration)
@@ -136,11 +157,15 @@ class QuadrupedSimBackend(GoalLimits):
         return LEG_JOINTS * len(self.legs)
 
     def sync(self, t: float) -> None:
-        """Integrate every leg up to ``t`` s, carrying the body (:class:`BodyOnLegs`)."""
+        """Integrate every leg up to ``t`` s, carrying the body (:class:`BodyOnLegs`, its load
+        renewed every :data:`LOAD_STEP` s)."""
         with self._lock:
-            self.body.load(t)
-            for leg in self.legs:
-                leg.sync(t)
+            now = self.legs[0].plant.t
+            while now < t - 1e-12:
+                now = min(t, now + LOAD_STEP)
+                self.body.load(now)
+                for leg in self.legs:
+                    leg.sync(now)
 
     def read(self) -> JointState:
         """Every servo's report, legs in order (positions quantised to AX-12A steps)."""

@@ -137,18 +137,23 @@ def feet_in_body(model: Quadruped, q: np.ndarray) -> np.ndarray:
                      for chain, qi in zip(model.legs.values(), q, strict=True)])
 
 
-def rest_pose(model: Quadruped, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rest_pose(model: Quadruped, q: np.ndarray
+              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """How the body rests on the floor with the legs at ``q`` (12,) rad.
 
     Returns:
-        (n, contact, com): the floor's normal in the body frame (3,), the (4,) contact
-        flags and the centre of mass (3,) in the body frame, m.
+        (n, d, contact, com): the floor's normal in the body frame (3,) and offset (the
+        floor is n·x = d, so −d is how far below the body's origin it lies, m), the (4,)
+        contact flags and the centre of mass (3,) in the body frame, m.
+
+    Raises:
+        ValueError: when no three feet span a plane under the body.
     """
     q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)
     feet = feet_in_body(model, q)
     com = centre_of_mass_model(model, dict(zip(model.legs, q, strict=True)))
-    n, _, contact = rest_plane(feet, com)
-    return n, contact, com
+    n, d, contact = rest_plane(feet, com)
+    return n, d, contact, com
 
 
 def implied_tilt_deg(model: Quadruped, q: np.ndarray) -> float:

@@ -162,3 +162,23 @@ def test_over_the_emulator_the_legs_carry_the_body_too(capsys):
     assert e["servo2"] == max(e["servo1"], e["servo2"], e["servo3"])  # the weight's servo
     assert 0.3 < r["body_tilt_mean_deg"] < 10.0 and r["body_tilt_deg"] < 15.0
     assert r["eq41_samples"] >= 30
+
+
+def test_when_the_servos_let_go_the_body_sits_down_and_the_legs_carry_nothing():
+    model = load_robot("quadruped")
+    q0 = Walker(plan_gait(GaitSpec())).state().q
+    backend = QuadrupedSimBackend(model, q0=q0, dt=2e-3)
+    backend.sync(0.02)
+    assert backend.body.forces.sum() == pytest.approx(total_mass(model) * G)
+    backend.set_torque(False)
+    for k in range(2, 100):
+        backend.sync(0.02 * k)
+    assert backend.body.forces.sum() == 0.0 and not backend.body.contact.any()
+    # the legs hang under their own weight (hip pitch down, never flipped over the top)
+    q = backend.read().position.reshape(4, 3)
+    assert np.all(q[:, 1] > 0.5)
+    backend.set_torque(True)  # and standing up again takes the weight back
+    for k in range(100, 250):
+        backend.write(q0, np.full(12, 2.0))
+        backend.sync(0.02 * k)
+    assert backend.body.forces.sum() == pytest.approx(total_mass(model) * G)
