@@ -28,7 +28,7 @@ from control.backend import GoalLimits, JointState
 from hardware.plant import Plant
 from hardware.servo_spec import AX12A
 from hardware.sim_backend import SimBackend
-from kinematics.body_statics import contact_forces, feet_in_body, rest_pose, tilt_deg
+from kinematics.body_statics import contact_forces, rest_pose, tilt_deg
 from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS, QuadrupedGeometry, foot_in_tibia
 from kinematics.validate import scalar, vector
@@ -36,7 +36,7 @@ from kinematics.validate import scalar, vector
 #: Joints per leg.
 LEG_JOINTS = 3
 G = 9.81  #: m/s²
-LOAD_STEP = 0.004  #: s between renewals of the body's load on the legs
+LOAD_STEP = 0.01  #: s between renewals of the body's load on the legs
 BELLY_RAMP = 0.01  #: m over which the body's underside takes its weight off the feet
 
 
@@ -93,7 +93,7 @@ class BodyOnLegs:
         f = np.zeros(len(self.plants))
         holding = all(servo.regs.torque_enable for plant in self.plants for servo in plant.servos)
         try:
-            n, d, contact, com = rest_pose(self.model, q)
+            n, d, contact, feet, com = rest_pose(self.model, q)
         except ValueError:  # no three feet under the body
             contact = np.zeros(len(f), dtype=bool)
         if not holding:  # a servo let go (torque off, e-stop, overload): the body sits down
@@ -105,7 +105,6 @@ class BodyOnLegs:
         if share <= 0.0:
             self.contact, self.forces, self.tilt_deg = np.zeros(len(f), dtype=bool), f, 0.0
             return
-        feet = feet_in_body(self.model, q)
         f[contact] = contact_forces(feet[contact], com, share * self.weight, n)
         for i in np.flatnonzero(f > 0.0):
             self.plants[i].push(f[i] * n, link=LEG_JOINTS - 1, point=self._feet_points[i],

@@ -30,7 +30,6 @@ import math
 import numpy as np
 
 from kinematics.model import Quadruped
-from kinematics.stability import centre_of_mass_model
 
 #: A foot within this distance of the rest plane touches the floor, m.
 CONTACT_TOL = 1e-3
@@ -130,30 +129,46 @@ def contact_forces(feet: np.ndarray, com: np.ndarray, weight: float, n: np.ndarr
     return float(weight) * shares
 
 
+def feet_and_com(model: Quadruped, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Feet (4, 3) and centre of mass (3,) in the body frame for the joint angles ``q`` (12,)
+    rad (legs in order), m: one pass over each leg's link poses.
+
+    The centre of mass is :func:`kinematics.stability.centre_of_mass_model`'s (the body's
+    own at the body origin).
+    """
+    q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)
+    feet = np.empty((len(model.legs), 3))
+    total, moment = model.body_mass, np.zeros(3)
+    for i, (chain, qi) in enumerate(zip(model.legs.values(), q, strict=True)):
+        poses = chain.base_pose @ chain.link_poses(qi)
+        feet[i] = (poses[-1] @ chain.tip)[:3, 3]
+        for pose, link in zip(poses, chain.links, strict=True):
+            moment += link.mass * (pose[:3, :3] @ link.com + pose[:3, 3])
+            total += link.mass
+    return feet, moment / total
+
+
 def feet_in_body(model: Quadruped, q: np.ndarray) -> np.ndarray:
     """(4, 3) feet in the body frame for the (12,) joint angles ``q`` (legs in order), m."""
-    q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)
-    return np.array([(chain.base_pose @ chain.fk(qi))[:3, 3]
-                     for chain, qi in zip(model.legs.values(), q, strict=True)])
+    return feet_and_com(model, q)[0]
 
 
 def rest_pose(model: Quadruped, q: np.ndarray
-              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
     """How the body rests on the floor with the legs at ``q`` (12,) rad.
 
     Returns:
-        (n, d, contact, com): the floor's normal in the body frame (3,) and offset (the
-        floor is n·x = d, so −d is how far below the body's origin it lies, m), the (4,)
-        contact flags and the centre of mass (3,) in the body frame, m.
+        (n, d, contact, feet, com): the floor's normal in the body frame (3,) and offset
+        (the floor is n·x = d, so −d is how far below the body's origin it lies, m), the
+        (4,) contact flags, the feet (4, 3) and the centre of mass (3,) in the body
+        frame, m.
 
     Raises:
         ValueError: when no three feet span a plane under the body.
     """
-    q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)
-    feet = feet_in_body(model, q)
-    com = centre_of_mass_model(model, dict(zip(model.legs, q, strict=True)))
+    feet, com = feet_and_com(model, q)
     n, d, contact = rest_plane(feet, com)
-    return n, d, contact, com
+    return n, d, contact, feet, com
 
 
 def implied_tilt_deg(model: Quadruped, q: np.ndarray) -> float:
@@ -170,5 +185,5 @@ def tilt_deg(n: np.ndarray) -> float:
     return math.degrees(math.acos(float(np.clip(n[2], -1.0, 1.0))))
 
 
-__all__ = ["CONTACT_TOL", "rest_plane", "contact_forces", "tilt_deg", "feet_in_body",
-           "rest_pose", "implied_tilt_deg"]
+__all__ = ["CONTACT_TOL", "rest_plane", "contact_forces", "tilt_deg", "feet_and_com",
+           "feet_in_body", "rest_pose", "implied_tilt_deg"]
