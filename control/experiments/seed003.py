@@ -95,7 +95,8 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
         ValueError: the servos faulted or gave no walking samples.
     """
     model = load_robot("quadruped")
-    assert isinstance(model, Quadruped)
+    if not isinstance(model, Quadruped):
+        raise ValueError("robot: the quadruped's URDF did not load as a quadruped")
     plan = plan_gait(GaitSpec(gait=gait, params=params or SineParams()))
     walker = Walker(plan)
     kw = {"q0": walker.state().q, "dt": SIM_DT} if not realtime else {}
