@@ -143,3 +143,12 @@ def test_no_reading_of_table_4_1_reproduces_all_three_figures(capsys):
 def test_thesis_readings_refuses_an_unknown_reading(capsys):
     assert main(["experiment", "thesis-readings", "--reading", "nope"]) == 2
     assert "unknown reading 'nope'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("preset,lag", [("thesis Table 4.1", 19.5), ("thesis conclusion", 21.1)])
+def test_thesis_presets_pd_lag_is_what_the_teach_tab_says(capsys, preset, lag):
+    from app.lessons.compliance_teach import THESIS_PRESET_PD_LAG_DEG
+
+    r = run_json(capsys, "thesis-line", "--controller", "pd", "--preset", preset, "--push", "0")
+    assert max(r["max_angle_error_deg"]) == pytest.approx(lag, abs=0.1)
+    assert THESIS_PRESET_PD_LAG_DEG[preset] == lag

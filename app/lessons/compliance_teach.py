@@ -249,16 +249,24 @@ def chapter4_markdown(ch4: Chapter4, names: list[str] | tuple[str, ...]) -> str:
     ])
 
 
+#: PD loop's free-run lag on the 1.28 s line (max θ_cmd − θ, degrees) per thesis preset,
+#: from ``armlab experiment thesis-line --controller pd --preset NAME``.
+THESIS_PRESET_PD_LAG_DEG = {"thesis Table 4.1": 19.5, "thesis conclusion": 21.1}
+
+
 def thesis_preset_note(params: Params) -> str:
     """What a student must know when a thesis preset is chosen ("" otherwise).
 
-    Figures from ``armlab experiment thesis-readings`` (docs/compliance.md).
+    Figures from ``armlab experiment thesis-line`` and ``thesis-readings``
+    (docs/compliance.md).
     """
     name = next((k for k, v in PRESETS.items() if v == params and k.startswith("thesis")), None)
     if name is None:
         return ""
-    return (f"**{name}: chapter 4 does not reproduce here.** Read in SI, Kp 3.8 and Kv 0.2 "
-            "make the PD loop lag 19.5° on the 1.28 s line (thesis: under 6°). No reading of "
+    lag = THESIS_PRESET_PD_LAG_DEG.get(name)
+    lag_text = f" make the PD loop lag {lag:g}° on the 1.28 s line" if lag else ""
+    return (f"**{name}: chapter 4 does not reproduce here.** Read in SI, Kp {params.kp:g} and "
+            f"Kv {params.kv:g}{lag_text} (thesis: under 6°). No reading of "
             "the thesis's units reproduces all three of its figures (`armlab experiment "
             "thesis-readings`): gains per control period diverge (pole radius 1.45); Kv per "
             "period with torque in kgf·cm gives PD 3.5° and 54.7° under the push, but no "
