@@ -63,7 +63,6 @@ class BodyOnLegs:
         tilt_deg: the body's tilt at the last :meth:`load`, degrees.
         contact: (4,) which feet touched the floor then.
         forces: (4,) the floor's normal force on each foot then, N.
-        max_tilt_deg: the largest tilt since :meth:`reset_max`.
     """
 
     def __init__(self, model: Quadruped, plants: Sequence[Plant], *,
@@ -76,7 +75,6 @@ class BodyOnLegs:
                            else scalar("mass", mass, nonnegative=True))
         self._feet_points = [foot_in_tibia(leg) for leg in LEGS]
         self.tilt_deg = 0.0
-        self.max_tilt_deg = 0.0
         self.contact = np.ones(len(self.plants), dtype=bool)
         self.forces = np.zeros(len(self.plants))
 
@@ -98,8 +96,8 @@ class BodyOnLegs:
             contact = np.zeros(len(f), dtype=bool)
         if not holding:  # a servo let go (torque off, e-stop, overload): the body sits down
             contact = np.zeros(len(f), dtype=bool)
-        # The underside takes the weight over as the floor comes up to it (belly contact
-        # over BELLY_RAMP): torque off, the robot sits down on its body, legs unloaded.
+        # The underside takes the weight over as the floor comes up to it (within
+        # BELLY_RAMP of the underside): a robot squatting that low sits on its body.
         share = 0.0 if not contact.any() else float(np.clip((-d - self.belly) / BELLY_RAMP,
                                                             0.0, 1.0))
         if share <= 0.0:
@@ -111,11 +109,6 @@ class BodyOnLegs:
                                 duration=duration)
         self.contact, self.forces = contact, f
         self.tilt_deg = tilt_deg(n)
-        self.max_tilt_deg = max(self.max_tilt_deg, self.tilt_deg)
-
-    def reset_max(self) -> None:
-        """Start a new :attr:`max_tilt_deg`."""
-        self.max_tilt_deg = self.tilt_deg
 
 
 class QuadrupedSimBackend(GoalLimits):
