@@ -5,19 +5,20 @@ from __future__ import annotations
 from typing import Any
 
 from control.backend import Backend
-from kinematics.model import SerialChain
+from kinematics.model import Quadruped, SerialChain
 
 KINDS = ("sim", "serial")
 
 
-def make_backend(kind: str, model: SerialChain, *, port: str | None = None,
+def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None = None,
                  baud: int | None = None, **kw: Any) -> Backend:
     """Open the backend ``kind`` for ``model``.
 
     Args:
         kind: "sim" (simulated arm and servos, the default of the lab) or "serial"
             (Dynamixel servos, real or emulated, on a serial port).
-        model: the robot's serial chain.
+        model: the robot's serial chain, or the quadruped (12 servos; "sim" gives
+            ``hardware.quadruped_sim.QuadrupedSimBackend``, its legs carrying the body).
         port, baud: serial port and bit rate (for "serial" only).
         **kw: passed to the backend's constructor (e.g. ``q0``, ``specs``, ``dt`` for "sim").
 
@@ -28,6 +29,10 @@ def make_backend(kind: str, model: SerialChain, *, port: str | None = None,
     if kind == "sim":
         if port is not None or baud is not None:
             raise ValueError("the sim backend takes no port or baud (those are for serial)")
+        if isinstance(model, Quadruped):
+            from hardware.quadruped_sim import QuadrupedSimBackend
+
+            return QuadrupedSimBackend(model, **kw)
         from hardware.sim_backend import SimBackend
 
         return SimBackend(model, **kw)

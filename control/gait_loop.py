@@ -9,9 +9,10 @@ Every period (20 ms by default) the loop thread
    seed 003 §4.1 compares), the stability margin, the body pose, the stance flags and
    the feet on the floor;
 4. advances the walker by ``speed × period`` cycles and sends the new joint goals,
-   with moving speeds that reach them within about a period;
-5. on a simulated backend (``Pushable``), puts the body's weight on the stance feet:
-   the floor's reaction, shared equally, pushes each one up for one period.
+   with moving speeds that reach them within about a period.
+
+The body's weight is the plant's business: the simulated legs and the emulator
+carry it themselves (``hardware.quadruped_sim.BodyOnLegs``), as real legs do.
 
 Without a backend (no servos) the loop only plays the walker, so the lesson still
 shows the gait. One writer: the loop thread owns walker, backend and record; the UI
@@ -27,10 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.backend import Backend, BackendError, Pushable
+from control.backend import Backend, BackendError
 from control.periodic import RowRing, Ticker
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
-from kinematics.quadruped import LEGS, foot_in_tibia
 
 #: Record layout: name -> number of columns (t first).
 COLUMNS: dict[str, int] = {"t": 1, "walking": 1, "phase": 1, "q_cmd": 12, "q": 12,
@@ -84,15 +84,13 @@ class GaitLoop:
         period: control period, s.
         realtime: pace by the wall clock (False: as fast as possible, for tests).
         speed: gait speed, cycles/s.
-        body_weight: N the stance feet carry on a Pushable (simulated) backend; None or 0:
-            no load.
         to_servo: (..., 12) joint angles -> (..., 12) horn angles from the servo centre, rad
             (a joint map's ``to_servo``; it must broadcast over rows); default identity.
         history_s: seconds of record kept.
     """
 
     def __init__(self, walker: Walker, backend: Backend | None, *, period: float = 0.02,
-                 realtime: bool = True, speed: float = 0.5, body_weight: float | None = None,
+                 realtime: bool = True, speed: float = 0.5,
                  to_servo: Callable[[np.ndarray], np.ndarray] | None = None,
                  history_s: float = 20.0, tick_s: float = 0.01,
                  max_catch_up: float = 0.1) -> None:
@@ -102,7 +100,6 @@ class GaitLoop:
         self.backend = backend
         self.period = float(period)
         self.realtime = realtime
-        self.body_weight = float(body_weight or 0.0)
         self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
         self._speed = self._check_speed(speed)
         self._ring = RowRing(sum(COLUMNS.values()), seconds=history_s, period=self.period)
@@ -271,27 +268,12 @@ class GaitLoop:
             speed = np.clip(1.5 * np.abs(goal - prev) / self.period, MIN_SPEED, MAX_SPEED)
             try:
                 self.backend.write(goal, speed)
-                self._load_feet(state)
             except (BackendError, OSError) as exc:
                 self._fail(f"writing the servos failed: {exc}")
             except ValueError as exc:
                 self._fail(f"goal refused: {exc}")
         self._last_goal = goal.copy()
         self.status = self._make_status()
-
-    def _load_feet(self, state: WalkState) -> None:
-        """The floor's reaction on the stance feet (simulated legs only)."""
-        backend = self.backend
-        if self.body_weight <= 0 or not isinstance(backend, Pushable):
-            return
-        down = np.flatnonzero(state.stance)
-        if len(down) == 0:
-            return
-        geom = self.walker.plan.geom
-        share = np.array([0.0, 0.0, self.body_weight / len(down)])
-        for i in down:
-            backend.push(share, link=3 * int(i) + 2, point=foot_in_tibia(LEGS[int(i)], geom),
-                         duration=self.period)
 
     def _record(self, t: float, state: WalkState, q_meas: np.ndarray) -> None:
         row = np.concatenate([[t, float(self._walking and self._ramp_done(t)), state.phase],

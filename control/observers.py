@@ -13,7 +13,9 @@ or, after subtracting the known gravity and friction, the external torque
 alone (reaction-torque observer, eq. 2.37).
 
 Defaults are the thesis's gripper gearmotor (§2.4: 6 V, 5:1, 2 oz·in and 1.6 A
-at stall -> K_t = 0.0441 N·m/A at the output); the finger inertia is an
+at stall, both at the gearbox output -> K_t = 2 oz·in / 1.6 A = 8.83e-3 N·m/A
+at the output, :data:`kinematics.hand.GRIPPER_KT`; the 5:1 ratio is already in
+the stall torque and is not applied again); the finger inertia is an
 assumption (not in the thesis).
 """
 
@@ -26,9 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.compliance import lpf
-
-OZ_IN = 0.00706155  #: N·m per ounce-inch
-GRIPPER_KT = 2.0 * OZ_IN / 1.6 * 5.0  #: N·m/A at the gear output (thesis §2.4)
+from kinematics.hand import GRIPPER_KT
 
 
 @dataclass(frozen=True)

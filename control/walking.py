@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinematics.body_statics import implied_tilt_deg
 from kinematics.gait import (
     CRAWL_SEQUENCE,
     GaitCycle,
@@ -33,6 +34,7 @@ from kinematics.gait import (
     trot,
     walk,
 )
+from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS, QuadrupedGeometry, leg_to_body
 from kinematics.stability import centre_of_mass, stability_margin, support_polygon
 from kinematics.validate import scalar
@@ -373,3 +375,10 @@ def mean_angle_error_pct(commanded_deg: np.ndarray, actual_deg: np.ndarray) -> f
     """
     e = angle_error_pct(commanded_deg, actual_deg)
     return float(np.mean(np.abs(e))) if e.size else math.nan
+
+
+def walking_tilts_deg(model: Quadruped, snap: dict[str, np.ndarray]) -> np.ndarray:
+    """(M,) body tilt (degrees) the reported angles imply, over a gait-loop snapshot's walking
+    samples with finite readings (:func:`kinematics.body_statics.implied_tilt_deg`)."""
+    ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q"]), axis=1)
+    return np.array([implied_tilt_deg(model, q) for q in snap["q"][ok]])

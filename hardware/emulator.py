@@ -41,6 +41,7 @@ from hardware.control_table import (
 )
 from hardware.joint_map import default_joint_map
 from hardware.plant import Plant
+from hardware.quadruped_sim import BodyOnLegs
 from hardware.servo import ServoRegisters
 from hardware.servo_spec import RETURN_DELAY_UNIT, baud_from_value, value_from_baud
 from kinematics.model import Quadruped, SerialChain
@@ -531,11 +532,15 @@ class PlantPhysics:
     overload bit come back from its report.
     """
 
-    def __init__(self, plants: Sequence[Plant], slots: Sequence[tuple[int, int]]):
+    def __init__(self, plants: Sequence[Plant], slots: Sequence[tuple[int, int]], *,
+                 load: Callable[[float], None] | None = None):
         self.plants = list(plants)
         self.slots = list(slots)
+        self.load = load  #: puts outside loads on the plants up to t (the quadruped's body)
 
     def advance_to(self, t: float) -> None:
+        if self.load is not None:
+            self.load(t)
         for plant in self.plants:
             plant.advance_to(t)
 
@@ -588,7 +593,10 @@ def emulated_network(model: SerialChain | Quadruped, *, ids: Sequence[int] | Non
     positions = [plants[p].servos[j].present_position() for p, j in slots]
     servos = make_servos([table] * len(slots), jmap.ids, baud_value=value_from_baud(baud),
                          positions=positions)
-    physics = PlantPhysics(plants, slots)
+    load = None
+    if isinstance(model, Quadruped):  # the legs carry the body, as in QuadrupedSimBackend
+        load = BodyOnLegs(model, plants).load
+    physics = PlantPhysics(plants, slots, load=load)
     for s in servos:
         physics.apply(s)
         physics.report(s)

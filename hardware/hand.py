@@ -25,9 +25,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinematics.hand import (
-    OZ_IN,
+    GEARMOTOR_GEAR_RATIO,
+    GEARMOTOR_STALL_CURRENT,
+    GEARMOTOR_STALL_TORQUE,
     FingerGeometry,
     motor_torque,
+    torque_constant,
 )
 from kinematics.validate import scalar, vector
 
@@ -64,9 +67,9 @@ class DCMotor:
         voltage: float = 6.0,
         free_speed_rpm: float = 6000.0,
         free_current: float = 0.120,
-        stall_current: float = 1.600,
-        stall_torque: float = 2.0 * OZ_IN,
-        gear_ratio: float = 5.0,
+        stall_current: float = GEARMOTOR_STALL_CURRENT,
+        stall_torque: float = GEARMOTOR_STALL_TORQUE,
+        gear_ratio: float = GEARMOTOR_GEAR_RATIO,
         inductance: float = 0.5e-3,
         rotor_inertia: float = 5.0e-9,
     ) -> DCMotor:
@@ -94,7 +97,7 @@ class DCMotor:
         """
         omega0 = free_speed_rpm * RPM
         r = voltage / stall_current
-        kt = stall_torque / stall_current
+        kt = torque_constant(stall_torque, stall_current)
         ke = (voltage - r * free_current) / omega0
         b = kt * free_current / omega0
         return cls(

@@ -7,7 +7,8 @@ CHK = ~(ID + LEN + INST + ΣP) & 0xFF; a status packet has the error byte in
 place of INST. Pure functions on bytes, no I/O: the bus, the emulator and the
 tests share them.
 
-Thesis example (goal position 0x252 = 207.9° to servo 1)::
+Thesis example (goal position 0x252 = 594 × 300°/1023 = 174.2° to servo 1; the thesis
+prints 207.9°, which is not what 0x252 means on a 300°, 10-bit servo)::
 
     >>> write(1, 30, bytes([0x52, 0x02])).hex(" ")
     'ff ff 01 05 03 1e 52 02 84'

@@ -117,6 +117,11 @@ class ServoSpec:
         return (int(raw) & 0x3FF) / 1023.0 * self.stall_torque
 
 
+#: Stall torque 2.6 N·m: the ROBOTIS e-manual's SI figure (12 V, 2.4 A). The thesis prints
+#: 26 kgf·cm = 2.55 N·m, the same datasheet value given to two figures in kgf·cm (25.5 to
+#: 26.5 kgf·cm, i.e. 2.50 to 2.60 N·m, holds 2.6). The lab keeps 2.6 so that Present Load
+#: decodes as ROBOTIS defines it (1023 = stall); in kgf·cm the thesis's torques differ by
+#: 2 %, below the ~1.5 kgf·cm torque error chapter 4 reports.
 RX24F = ServoSpec(
     name="RX-24F", model_number=24, stall_torque=2.6, no_load_speed=126 * RPM,
     gear_ratio=193.0, default_baud_value=34, temperature_limit=80, max_voltage=19.0,

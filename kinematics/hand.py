@@ -23,6 +23,26 @@ import numpy as np
 
 OZ_IN = 0.0070615518  #: 1 oz·in in N·m
 
+#: The gripper gearmotor's datasheet (thesis §2.4), all figures at the 5:1 gearbox output.
+GEARMOTOR_STALL_TORQUE = 2.0 * OZ_IN  #: N·m (2 oz·in)
+GEARMOTOR_STALL_CURRENT = 1.6  #: A
+GEARMOTOR_GEAR_RATIO = 5.0  #: already inside the stall torque above: do not apply it again
+
+
+def torque_constant(stall_torque: float, stall_current: float) -> float:
+    """Thesis eq. 2.29 at stall: K_t = tau_stall / I_stall, N·m/A.
+
+    At stall the rotor does not turn, so there is neither back-EMF nor
+    viscous friction and all the current makes torque. The datasheet's stall
+    torque is measured at the gearbox output, so this K_t is the output-side
+    constant with the gear ratio already in it. Example: 2 oz·in / 1.6 A =
+    0.014123 / 1.6 = 8.827e-3 N·m/A (:data:`GRIPPER_KT`).
+    """
+    return stall_torque / stall_current
+
+
+GRIPPER_KT = torque_constant(GEARMOTOR_STALL_TORQUE, GEARMOTOR_STALL_CURRENT)  #: N·m/A, output side
+
 
 @dataclass(frozen=True)
 class FingerGeometry:

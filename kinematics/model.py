@@ -385,6 +385,7 @@ ROBOT_FILES = {
 RECEPTIONIST_PRESETS = {
     "18.5/25": "receptionist_arm.urdf",  # appendix code (default)
     "18.5/18.5": "receptionist_arm_18_5.urdf",  # specification list
+    "17/25": "receptionist_arm_17_25.urdf",  # the FK text of eq. 3.13
 }
 
 

@@ -10,7 +10,7 @@ from kinematics import Quadruped, URDFError, load_robot
 from kinematics.fk import fk, fk_and_jacobian, jacobian
 from kinematics.model import ROBOT_FILES, ROBOTS_DIR
 
-PRESETS = [("18.5/25", 0.185, 0.25), ("18.5/18.5", 0.185, 0.185)]
+PRESETS = [("18.5/25", 0.185, 0.25), ("18.5/18.5", 0.185, 0.185), ("17/25", 0.17, 0.25)]
 
 
 def thesis_position(t1, t0, t2, L1, L2):

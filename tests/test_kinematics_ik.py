@@ -24,7 +24,7 @@ from kinematics.ik import (
 from kinematics.model import ROBOT_FILES, ROBOTS_DIR
 
 TOL = 1e-4  # 0.1 mm
-PRESETS = ["18.5/25", "18.5/18.5"]
+PRESETS = ["18.5/25", "18.5/18.5", "17/25"]
 
 
 def _chains():

@@ -17,7 +17,8 @@ def thesis_fk(t1: float, t0: float, t2: float, L1: float, L2: float) -> np.ndarr
 
 
 @pytest.mark.parametrize("preset,lengths", [("18.5/25", (0.185, 0.25)),
-                                             ("18.5/18.5", (0.185, 0.185))])
+                                             ("18.5/18.5", (0.185, 0.185)),
+                                             ("17/25", (0.17, 0.25))])
 def test_fk_equals_thesis_eq_3_13(preset, lengths):
     model = load_robot("receptionist_arm", preset=preset)
     rng = np.random.default_rng(1)

@@ -12,6 +12,7 @@ import io
 import math
 import time
 import urllib.request
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from app.wsclient import HeadlessClient
 from control.params import DEFAULT, PRESETS, loop_stability
 
 KP = "Kp (1/s²)"
+FF = "Feed-forward θ̈_cmd"
 
 
 @pytest.fixture
@@ -74,6 +76,14 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     client.wait_for(lambda: client.find(KP).value == pytest.approx(3.8), what="Kp slider 3.8")
     client.wait_for(lambda: client.find("Kv (1/s)").value == pytest.approx(0.2), what="Kv 0.2")
     client.wait_for(lambda: client.find("Law").value.startswith("2.26"), what="law 2.26")
+    # the thesis has no feed-forward: its switch shows off, and it can be turned on
+    client.wait_for(lambda: client.find(FF).value is False, what="feed-forward off")
+    wait_for(lambda: "chapter 4 does not reproduce" in lab.lesson.equations.content, 5.0,
+             "the Teach tab's note on Table 4.1")
+    client.set_value(FF, True)
+    wait_for(lambda: loop.params.feedforward, 5.0, "feed-forward on in the loop")
+    assert loop.params == replace(t41, feedforward=True)
+    client.wait_for(lambda: client.find("Preset").value == "(custom)", what="preset (custom)")
 
 
 def test_unstable_gains_warn_before_run(lab, client):
@@ -101,6 +111,27 @@ def test_run_thesis_line_fills_the_plots(lab, client):
 
     client.wait_for(lambda: sweep() > 40.0, 10.0, "a 40°+ sweep in the angle chart")
     assert "max |θ_cmd − θ|" in lab.lesson.last_run_text
+
+
+def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
+    loop, lesson = loop_of(lab), lab.lesson
+    for pushed in (False, True):
+        client.click("Run thesis line")
+        wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
+        if pushed:
+            client.set_value("Direction", "against the line (−y)")
+            client.set_value("Push force (N)", 4.0)
+            client.set_value("Duration (s)", 2.0)
+            client.click("Push")
+        wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+        wait_for(lambda p=pushed: (lesson.chapter4.pushed if p else lesson.chapter4.free)
+                 is not None, 10.0, "the run's figures")
+    ch4 = lesson.chapter4
+    # the compliant arm falls far behind its command under the push (the thesis: > 15°)
+    assert ch4.pushed[2] > ch4.free[2] + 5.0
+    assert ch4.yield_deg is not None and ch4.yield_deg[2] > 3.0
+    text = lesson.last_run_text
+    assert "free: θ1" in text and "pushed" in text and "yield" in text
 
 
 def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):

@@ -10,9 +10,12 @@ import pytest
 from app.inputs import check_number
 from app.lessons.compliance_servos import ServoHealth, advice
 from app.lessons.compliance_teach import (
+    Chapter4,
     LiveValues,
+    chapter4_markdown,
     design_table,
     equations_markdown,
+    thesis_preset_note,
 )
 from app.plots import decimate, fill_gaps
 from control import metrics
@@ -105,6 +108,9 @@ def test_equations_show_live_numbers_in_degrees_and_the_law_in_use():
     assert "PD reference loop (2.20)" in pd and "θ_env" not in pd.split("External")[0]
     literal = equations_markdown(PRESETS["thesis Table 4.1"], live)
     assert "2.26 (thesis literal)" in literal and "K_env θ_env" in literal
+    # the default's feed-forward is written into the law; the thesis preset has none
+    assert "+ θ̈_cmd  (feed-forward: not in the thesis)" in md
+    assert "feed-forward" not in literal
 
 
 def test_servo_advice_names_the_fault_and_what_to_do():
@@ -113,3 +119,24 @@ def test_servo_advice_names_the_fault_and_what_to_do():
     tips = " ".join(advice(h))
     assert "free it, then press Reset" in tips and "8.1 V" in tips and "72 °C" in tips
     assert advice(ServoHealth(1, "theta1", 12.0, 35.0, 0, True)) == []
+
+
+def test_chapter4_panel_names_each_figure_for_what_it_is():
+    ch4 = Chapter4(free=np.array([1.0, 0.0, 2.7]), pushed=np.array([4.7, 0.0, 16.2]),
+                   yield_deg=np.array([7.3, 0.0, 11.4]))
+    text = chapter4_markdown(ch4, ("θ1", "θ0", "θ2"))
+    lines = text.splitlines()
+    assert "free: θ1 1.0°, θ0 0.0°, θ2 2.7°" in lines[1]
+    assert "θ2 16.2°" in lines[2] and "over 15° on servo 3" in lines[2]
+    assert "θ2 11.4°" in lines[3] and "different quantity" in lines[3]
+    assert chapter4_markdown(Chapter4(), ("a", "b", "c")).count("—") == 3
+
+
+def test_a_thesis_preset_says_chapter_4_does_not_reproduce():
+    for name, lag in (("thesis Table 4.1", "Kv 0.2 make the PD loop lag 19.5°"),
+                      ("thesis conclusion", "Kv 0.02 make the PD loop lag 21.1°")):
+        note = thesis_preset_note(PRESETS[name])
+        assert note.startswith(f"**{name}: chapter 4 does not reproduce here.**")
+        assert lag in note and "thesis-readings" in note
+    assert thesis_preset_note(PRESETS["well-damped default"]) == ""
+    assert thesis_preset_note(Params(kp=3.8, kv=0.2)) == ""  # custom gains: no note

@@ -39,7 +39,14 @@ from app.lessons.compliance_controls import GainControls
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
 from app.lessons.compliance_servos import safe_health_html
-from app.lessons.compliance_teach import design_table, equations_markdown, latest_values
+from app.lessons.compliance_teach import (
+    Chapter4,
+    chapter4_markdown,
+    design_table,
+    equations_markdown,
+    latest_values,
+    thesis_preset_note,
+)
 from control.backend import Backend, Pushable
 from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring, Stop
 from control.loop import ControlLoop, LoopStatus
@@ -101,6 +108,7 @@ class Experiment:
     q1: float = 0.0
     label: str = ""
     done: bool = False
+    pushed: bool = False  #: line only: a push or drag happened while it ran
 
 
 @dataclass
@@ -138,6 +146,8 @@ class ComplianceLesson(LessonBase):
         self.measured_pd: Measured | None = None
         self.measured_env: Measured | None = None
         self.last_run_text = ""
+        self.chapter4 = Chapter4()
+        self._free_q: np.ndarray | None = None  #: θ of the last free line run, from its start
         self._drag_anchor: np.ndarray | None = None
         self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
@@ -195,6 +205,7 @@ class ComplianceLesson(LessonBase):
             self.rig = self._make_rig(preset, self.gains.params)
             self.experiment = None
             self.run_start = None
+            self.chapter4, self._free_q = Chapter4(), None
 
     # ================================================================== GUI
 
@@ -248,8 +259,9 @@ class ComplianceLesson(LessonBase):
         with gui.add_folder("Arm and display", expand_by_default=False):
             self.links = gui.add_dropdown("Link lengths (cm)", tuple(RECEPTIONIST_PRESETS),
                                           initial_value="18.5/25",
-                                          hint="L1/L2: the appendix code (18.5/25) or the "
-                                               "specification list (18.5/18.5)")
+                                          hint="L1/L2: the appendix code (18.5/25), the "
+                                               "specification list (18.5/18.5) or the FK "
+                                               "text of eq. 3.13 (17/25)")
             self.links.on_update(lambda e: guarded(
                 e, lambda: self.set_link_preset(str(self.links.value))))
             self.show_ghost = gui.add_checkbox("Show command (ghost)", True)
@@ -347,6 +359,8 @@ class ComplianceLesson(LessonBase):
         rig.loop.post(Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
                            duration=duration))
         self._push = (force, t0 + duration)
+        if self._mark_line_pushed():
+            return
         self.run_start, self.run_label = t0, "push"
         self.experiment = Experiment("push", t0, ready_at=t0 + duration, label=(
             f"push of {self._push_force.value:g} N {self.push_dir.value} for {duration:g} s"))
@@ -386,8 +400,16 @@ class ComplianceLesson(LessonBase):
         self._drag_anchor = anchor
         rig.loop.post(Spring(anchor, stiffness=k, link=rig.model.n - 1,
                              point=rig.model.tip[:3, 3]))
-        if phase == "start":
+        if phase == "start" and not self._mark_line_pushed():
             self.run_start, self.run_label = self._now(), "hand drag"
+
+    def _mark_line_pushed(self) -> bool:
+        """A push or drag during a line run makes it a pushed run (chapter 4); True if so."""
+        exp = self.experiment
+        if exp is None or exp.kind != "line" or exp.done:
+            return False
+        exp.pushed = True
+        return True
 
     def csv_bytes(self) -> tuple[str, bytes]:
         """(file name, CSV) of the last run: from its start (or the last 10 s) to now."""
@@ -493,7 +515,8 @@ class ComplianceLesson(LessonBase):
         live = latest_values(snap, j, joint_label(self.plots.labels[j]))
         eq = equations_markdown(params, live, torque_unit=self.plots.unit,
                                 mode=st.controller)
-        set_content(self.equations, eq)
+        note = thesis_preset_note(params)
+        set_content(self.equations, f"{note}\n\n{eq}" if note else eq)
         set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
         set_content(self.last_run_md, self.last_run_text)
 
@@ -505,11 +528,22 @@ class ComplianceLesson(LessonBase):
             if st.t < exp.t0 + 0.1 or st.trajectory is not None:
                 return
             exp.done = True
-            err = line_errors(rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2), t0=exp.t0) * DEG
-            names = ", ".join(f"{joint_label(n)} {e:.1f}°" for n, e in
-                              zip(rig.model.joint_names, err, strict=True))
-            self.last_run_text = (f"**Last run** (thesis line): max |θ_cmd − θ| = {names} "
-                                  "(thesis: 6° to 20° without the PD loop, under 6° with it)")
+            snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
+            err = line_errors(snap, t0=exp.t0) * DEG
+            q = snap["q"][snap["t"] >= exp.t0]
+            ch4 = self.chapter4
+            if exp.pushed:
+                free_q = self._free_q
+                yld = None
+                if free_q is not None and free_q.shape[1] == q.shape[1]:
+                    m = min(len(q), len(free_q))
+                    yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
+                self.chapter4 = Chapter4(ch4.free, err, yld)
+            else:
+                self._free_q = q
+                self.chapter4 = Chapter4(err, ch4.pushed, None)
+            self.last_run_text = chapter4_markdown(
+                self.chapter4, [joint_label(n) for n in rig.model.joint_names])
             return
         if st.t < exp.ready_at:
             return

@@ -38,8 +38,8 @@ def slider_label(name: str) -> str:
 
 
 class GainControls:
-    """Sliders for every numeric field of :class:`Params`, the compliance switch, the law
-    and the preset picker.
+    """Sliders for every numeric field of :class:`Params`, the compliance and feed-forward
+    switches, the law and the preset picker.
 
     Args:
         gui: where to add them (inside the caller's tab/folder context).
@@ -63,6 +63,11 @@ class GainControls:
         self.compliance = gui.add_checkbox("Compliance on", params.compliance,
                                            hint="Off: plain PD loop (eq. 2.20); on: the arm "
                                                 "yields to outside torque (eq. 2.6/2.7)")
+        self.feedforward = gui.add_checkbox(
+            "Feed-forward θ̈_cmd", params.feedforward,
+            hint="Not in the thesis: adds the commanded acceleration to θ̈_ref so the "
+                 "reference follows the moving command; off = the thesis's loop (eq. 2.3 "
+                 "lags a moving command). On in the lab's default, off in the thesis presets")
         self.law = gui.add_dropdown("Law", tuple(LAW_LABELS[k] for k in LAWS),
                                     initial_value=LAW_LABELS[params.law],
                                     hint="2.6 offsets the reference by θ_env; 2.26 (as printed "
@@ -94,6 +99,10 @@ class GainControls:
         @self.compliance.on_update
         def _(event: viser.GuiEvent) -> None:
             self._set_other(event, compliance=bool(self.compliance.value))
+
+        @self.feedforward.on_update
+        def _(event: viser.GuiEvent) -> None:
+            self._set_other(event, feedforward=bool(self.feedforward.value))
 
         @self.law.on_update
         def _(event: viser.GuiEvent) -> None:
@@ -143,6 +152,7 @@ class GainControls:
             g.value = v  # first, so the slider's callback sees no change
             g.handle.value = v
         self.compliance.value = params.compliance
+        self.feedforward.value = params.feedforward
         self.law.value = LAW_LABELS[params.law]
         self.preset.value = _preset_of(params)
 

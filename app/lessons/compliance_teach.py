@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control import metrics
-from control.params import Params
+from control.params import PRESETS, Params
 from control.response import Measured
 from kinematics.units import KGF_CM_PER_NM
 
@@ -109,6 +109,11 @@ def torque_text(nm: float, unit: str) -> str:
     return f"{nm * KGF_CM_PER_NM:+.2f} kgf·cm" if unit == "kgf·cm" else f"{nm:+.3f} N·m"
 
 
+def _ff(p: Params) -> str:
+    """The feed-forward term when it is on (the thesis's law has none)."""
+    return " + θ̈_cmd  (feed-forward: not in the thesis)" if p.feedforward else ""
+
+
 def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: str = "N·m",
                        mode: str = "compliance") -> str:
     """The control law in use with the newest numbers of one joint (angles in degrees)."""
@@ -119,7 +124,7 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
         out.append("**No position controller**: θ_ref = θ_cmd (RMRC angles sent as they are).")
     elif effective == "pd":
         out.append("**PD reference loop (2.20)**  \n"
-                   "θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇)")
+                   "θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇)" + _ff(p))
         if live is not None:
             e = (live.q_cmd - live.q) * DEG
             out.append(f"{live.joint}: Kp (θ_cmd − θ) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
@@ -127,10 +132,10 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
     else:
         if p.law == "2.26":
             out.append("**Compliance, law 2.26 (thesis literal)**  \nθ̈_ref = Kp (θ_cmd − θ − "
-                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env")
+                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env" + _ff(p))
         else:
             out.append("**Compliance, law 2.6**  \nθ̈_ref = Kp (θ_cmd − θ − θ_env) + "
-                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env")
+                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env" + _ff(p))
         out.append("**Environment (2.7)**  \nM_env θ̈_env + D_env θ̇_env + K_env θ_env = "
                    f"K_f τ_ext  with M_env {p.m_env:.3g}, D_env {p.d_env:.3g}, "
                    f"K_env {p.k_env:.3g}, K_f {p.k_f:.3g}")
@@ -155,3 +160,63 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
     out.append(f"**Integration**: θ̇_ref += T θ̈_ref, θ_ref += T θ̇_ref, T = {p.period * 1e3:.3g} ms "
                "(θ_ref, θ̇_ref go to the servos as Goal Position and Moving Speed)")
     return "\n\n".join(out)
+
+
+@dataclass(frozen=True)
+class Chapter4:
+    """The thesis's chapter-4 figures of the last line runs (degrees, per joint, or None).
+
+    Attributes:
+        free: max |θ_cmd − θ| of the last run without a push (fig. 4.2/4.4).
+        pushed: max |θ_cmd − θ| of the last run with a push or drag (fig. 4.9/4.12).
+        yield_deg: max |θ_pushed − θ_free|: how far the push moved each joint
+            compared with the last free run. Not the thesis's metric.
+    """
+
+    free: np.ndarray | None = None
+    pushed: np.ndarray | None = None
+    yield_deg: np.ndarray | None = None
+
+
+def chapter4_markdown(ch4: Chapter4, names: list[str] | tuple[str, ...]) -> str:
+    """The thesis's metric (command minus actual) for free and pushed runs, yield apart."""
+
+    def per_joint(x: np.ndarray | None) -> str:
+        if x is None:
+            return "—"
+        return ", ".join(f"{n} {v:.1f}°" for n, v in zip(names, x, strict=True))
+
+    return "\n".join([
+        "**Chapter 4's metric**: max |θ_cmd − θ| over the last thesis-line run",
+        f"- free: {per_joint(ch4.free)} (thesis: 6° to over 20° without the PD loop, under "
+        "6° with it)",
+        f"- pushed (push or drag during the run): {per_joint(ch4.pushed)} (thesis, "
+        "compliance on: over 15° on servo 3)",
+        f"- yield under the push, pushed − free run (a different quantity): "
+        f"{per_joint(ch4.yield_deg)}",
+    ])
+
+
+#: PD loop's free-run lag on the 1.28 s line (max θ_cmd − θ, degrees) per thesis preset,
+#: from ``armlab experiment thesis-line --controller pd --preset NAME``.
+THESIS_PRESET_PD_LAG_DEG = {"thesis Table 4.1": 19.5, "thesis conclusion": 21.1}
+
+
+def thesis_preset_note(params: Params) -> str:
+    """What a student must know when a thesis preset is chosen ("" otherwise).
+
+    Figures from ``armlab experiment thesis-line`` and ``thesis-readings``
+    (docs/compliance.md).
+    """
+    name = next((k for k, v in PRESETS.items() if v == params and k.startswith("thesis")), None)
+    if name is None:
+        return ""
+    lag = THESIS_PRESET_PD_LAG_DEG.get(name)
+    lag_text = f" make the PD loop lag {lag:g}° on the 1.28 s line" if lag else ""
+    return (f"**{name}: chapter 4 does not reproduce here.** Read in SI, Kp {params.kp:g} and "
+            f"Kv {params.kv:g}{lag_text} (thesis: under 6°). No reading of "
+            "the thesis's units reproduces all three of its figures (`armlab experiment "
+            "thesis-readings`): gains per control period diverge (pole radius 1.45); Kv per "
+            "period with torque in kgf·cm gives PD 3.5° and 54.7° under the push, but no "
+            "reading can move the no-controller run (4.6° here, thesis 6° to over 20°), "
+            "which uses no gains at all. See docs/compliance.md.")

@@ -54,6 +54,7 @@ from control.walking import (
     Walker,
     angle_error_pct,
     plan_gait,
+    walking_tilts_deg,
 )
 from hardware.quadruped_sim import QuadrupedSimBackend
 from kinematics.gait import SineParams
@@ -98,12 +99,6 @@ SERVO_NAMES = ("servo 1 (hip yaw θ1)", "servo 2 (hip pitch θ2)", "servo 3 (kne
 def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
     """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
     return QuadrupedLesson(server, ctx)
-
-
-def total_mass(model: Quadruped) -> float:
-    """Body plus every leg link, kg."""
-    return model.body_mass + sum(link.mass for chain in model.legs.values()
-                                 for link in chain.links)
 
 
 def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
@@ -153,8 +148,7 @@ class QuadrupedLesson(LessonBase):
         to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
         self.loop = GaitLoop(
             walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
-            realtime=ctx.realtime, speed=0.5, body_weight=total_mass(model) * 9.81,
-            to_servo=to_servo)
+            realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
         with self.opening(self.backend.close if self.backend is not None else None):
             self._build_gui()
             self.scene = QuadrupedScene(server, model, root="/quadruped")
@@ -401,8 +395,10 @@ class QuadrupedLesson(LessonBase):
                   f"</b> ({verdict})</div>"))
 
     def _update_servo_table(self) -> None:
+        tilts = walking_tilts_deg(self.model, self.loop.snapshot(10.0))
         set_content(self.servo_table, servo_markdown(
-            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend))
+            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend,
+            tilts=tilts))
 
     # ================================================================== lifetime
 
@@ -414,8 +410,9 @@ class QuadrupedLesson(LessonBase):
                           self.scene.remove, self._gui.remove_all)
 
 
-def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str) -> str:
-    """The eq. 4.1 table (servo tab)."""
+def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str,
+                   tilts: np.ndarray | None = None) -> str:
+    """The eq. 4.1 table (servo tab), and the body tilt the servos' angles imply."""
     head = ("**Commanded vs servo angle, seed 003 eq. 4.1**: %Error = (servo angle − "
             "computed angle) / computed angle × 100, angles as the servo counts them (IK "
             "angle + its 150° set point); the servo's feedback is read one period after the "
@@ -431,9 +428,14 @@ def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: st
         rows.append(f"| {leg} | " + " | ".join(f"{v:.2f} %" for v in per_joint[i]) + " |")
     rows.append("| **mean** | " + " | ".join(f"**{v:.2f} %**" for v in per_servo) + " |")
     src = "simulated AX-12A (legs loaded by the body's weight)" if where == "sim" else "serial"
+    tilt = ""
+    if tilts is not None and len(tilts):
+        tilt = (f"\n\n**Body tilt** the servos' angles imply on flat ground: mean "
+                f"**{float(np.mean(tilts)):.1f}°**, max {float(np.max(tilts)):.1f}° (paper: "
+                "3.6–5.7°): the body leans onto a swing foot, less as the loaded legs give way.")
     return "\n".join([head, "",
                       f"Lab, last 10 s ({err['samples']} samples, {src}): "
-                      f"mean **{err['mean_pct']:.3f} %**", "", *rows])
+                      f"mean **{err['mean_pct']:.3f} %**", "", *rows]) + tilt
 
 
 TEACH = """\

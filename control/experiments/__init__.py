@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 #: The modules of this package that define experiments (adding one: add its name here).
-MODULES: tuple[str, ...] = ("hand", "observers", "seed002", "seed003", "seed004", "thesis")
+MODULES: tuple[str, ...] = ("hand", "observers", "seed002", "seed003", "seed004", "thesis",
+                            "thesis_readings")
 
 
 def option(default: Any, help: str, *, choices: Sequence[Any] | None = None,

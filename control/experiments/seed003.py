@@ -3,19 +3,32 @@
 Foot positions from the sine pattern of seed 003 Table 1.1 (trot) or a statically
 stable crawl, joint angles from the leg IK (eq. 3.1-3.9), the body walked across the
 floor so that the stance feet stay put, and the static stability margin of every sample.
+
+Then (``--cycles`` > 0) the gait walks on 12 servos: simulated AX-12A legs carrying the
+body (default), or servos on ``--backend serial --port`` (the emulator's legs carry it
+too). From the servos' reports come seed 003's two figures: the eq. 4.1 error
+(commanded vs reported angle, per servo number and overall; the seed: 1.201 %, servo 2
+worst) and the body's tilt that the deflected legs imply on flat ground (the seed:
+3.6–5.7°, :func:`kinematics.body_statics.implied_tilt_deg`).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
-from control.experiments import Experiment, option
+from control.experiments import BackendOptions, Experiment, option
+from control.gait_loop import STAND_UP_S, GaitLoop
+from control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
 from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
+from kinematics.model import Quadruped, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
+
+SIM_DT = 2e-3  #: plant step of the simulated legs, s
 
 
 def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples: int = 36,
@@ -68,11 +81,68 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
     }
 
 
+def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams | None = None,
+                   *, cycles: float = 2.0, speed: float = 0.5, period: float = 0.02,
+                   realtime: bool = False) -> dict[str, Any]:
+    """Walk ``cycles`` gait cycles on the 12 servos ``backend_factory(model, q0=...)`` opens.
+
+    Returns:
+        {"eq41_error_pct": {"servo1", "servo2", "servo3", "overall"}, "body_tilt_deg" (max),
+        "body_tilt_mean_deg", "eq41_samples"}: eq. 4.1 over the walking samples (mean |%| per
+        servo number in the legs, and over all 12), and the tilt the reported angles imply.
+
+    Raises:
+        ValueError: the servos faulted or gave no walking samples.
+    """
+    model = load_robot("quadruped")
+    if not isinstance(model, Quadruped):
+        raise ValueError("robot: the quadruped's URDF did not load as a quadruped")
+    plan = plan_gait(GaitSpec(gait=gait, params=params or SineParams()))
+    walker = Walker(plan)
+    kw = {"q0": walker.state().q, "dt": SIM_DT} if not realtime else {}
+    backend = backend_factory(model, **kw)
+    to_servo = getattr(getattr(backend, "map", None), "to_servo", None)
+    loop = GaitLoop(walker, backend, period=period, realtime=realtime, speed=speed,
+                    to_servo=to_servo, history_s=STAND_UP_S + cycles / speed + 5.0)
+    try:
+        loop.go(plan)
+        duration = STAND_UP_S + cycles / speed + 2 * period
+        if realtime:
+            loop.start()
+            end = time.monotonic() + 3 * duration + 10.0
+            while loop.status.t < duration and not loop.status.fault:
+                if time.monotonic() > end:
+                    raise ValueError("the servos did not keep up with the gait loop")
+                time.sleep(0.02)
+            loop.shutdown(torque_off=True)
+        else:
+            loop.run_for(duration)
+        if loop.status.fault:
+            raise ValueError(f"the servos stopped: {loop.status.fault}")
+        err = loop.angle_error(None)
+        if err is None:
+            raise ValueError("no walking samples were read from the servos")
+        tilt = walking_tilts_deg(model, loop.snapshot())
+    finally:
+        if loop.status.running:
+            loop.shutdown(torque_off=True)
+        backend.close()
+    per = err["per_servo_pct"]
+    return {
+        "eq41_error_pct": {"servo1": round(float(per[0]), 4), "servo2": round(float(per[1]), 4),
+                           "servo3": round(float(per[2]), 4),
+                           "overall": round(float(err["mean_pct"]), 4)},
+        "body_tilt_deg": round(float(tilt.max()), 3),
+        "body_tilt_mean_deg": round(float(tilt.mean()), 3),
+        "eq41_samples": int(err["samples"]),
+    }
+
+
 _D = SineParams()
 
 
 @dataclass(frozen=True)
-class GaitOptions:
+class GaitOptions(BackendOptions):
     """Options of ``seed003-gait`` (lengths in cm, as the seed gives them)."""
 
     gait: Literal["trot", "crawl"] = option("trot", "trot (default) or crawl")
@@ -84,12 +154,20 @@ class GaitOptions:
     samples: int = option(36, "samples per cycle")
     right_direction: Literal[0, 1] = option(
         0, "direction index of the right legs (trot; 1 turns right)")
+    cycles: float = option(2.0, "gait cycles walked on the servos for eq. 4.1 and the body "
+                           "tilt (0: the planned cycle only)")
 
 
-def _run(options: GaitOptions) -> dict[str, Any]:
+def _run(options: GaitOptions, *, backend_factory: Any) -> dict[str, Any]:
     o = options
     params = SineParams(A=o.A / 100, B=o.B / 100, C=o.C / 100, D=o.D / 100, alpha_deg=o.alpha)
-    return gait_cycle(o.gait, params, samples=o.samples, right_direction=o.right_direction)
+    if not (math.isfinite(o.cycles) and 0.0 <= o.cycles <= 20.0):
+        raise ValueError(f"--cycles must be in [0, 20], got {o.cycles}")
+    out = gait_cycle(o.gait, params, samples=o.samples, right_direction=o.right_direction)
+    if o.cycles > 0:
+        out.update(walk_on_servos(backend_factory, o.gait, params, cycles=o.cycles,
+                                  realtime=o.backend != "sim"))
+    return out
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -107,9 +185,11 @@ def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 EXPERIMENTS = (
     Experiment(
         name="seed003-gait",
-        help="seed 003: one cycle of the quadruped's trot or crawl (feet, joints, margin)",
+        help="seed 003: one cycle of the quadruped's trot or crawl (feet, joints, margin), "
+             "then walked on servos: eq. 4.1 error and body tilt",
         options=GaitOptions,
         run=_run,
         rows=_rows,
+        needs=("backend_factory",),
     ),
 )

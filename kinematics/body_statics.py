@@ -1,0 +1,189 @@
+"""The quadruped's body resting on its feet: floor plane, contact forces, tilt (quasi-static).
+
+Seed 003 reports 3.6–5.7° of body tilt on flat ground and a 1.201 % servo error
+(eq. 4.1), both caused by the servos giving way under the robot's weight. This
+module holds the statics of that, as pure functions of the feet's positions in the
+body frame (from the joint angles the servos actually hold) and the centre of mass:
+
+1. :func:`rest_plane`: the floor seen from the body. A rigid body on point feet rests
+   on a face of the feet's lower convex hull, the one whose contact polygon holds the
+   centre of mass (the body is free to tilt until that holds). Standing on a trot's
+   diagonal, the centre of mass is off the support line, so the body tips about it
+   until the swing foot on that side touches: three contacts.
+2. :func:`contact_forces`: the floor's normal force on each contact foot, from force
+   and moment balance (three feet: exact; four: least-norm; two: the lever rule).
+3. :func:`tilt_deg`: the angle between the floor's normal and the body's z axis.
+
+The servos' compliance enters through the feet's positions: a loaded leg's servos
+give way (J^T f on each joint against its compliance margin, slope and punch; see
+``hardware.quadruped_sim``), the foot rises in the body frame, and the plane
+through the deflected contact feet is the body's pose.
+
+Frames: body frame x forward, y left, z up; feet (4, 3) in ``LEGS`` order, m.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from kinematics.model import Quadruped
+
+#: A foot within this distance of the rest plane touches the floor, m.
+CONTACT_TOL = 1e-3
+
+
+def _plane(p: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Unit normal n (n_z > 0) and offset d of the plane n·x = d through three points."""
+    n = np.cross(p[1] - p[0], p[2] - p[0])
+    norm = float(np.linalg.norm(n))
+    if norm < 1e-12 or abs(n[2]) < 0.5 * norm:  # degenerate, or steeper than 60°
+        return None
+    n = n / norm * math.copysign(1.0, n[2])
+    return n, float(n @ p[0])
+
+
+def _in_triangle(c: np.ndarray, tri: np.ndarray, n: np.ndarray) -> bool:
+    """Whether ``c`` projected along ``n`` falls inside the triangle ``tri`` (3, 3)."""
+    s = [float(n @ np.cross(tri[(k + 1) % 3] - tri[k], c - tri[k])) for k in range(3)]
+    return min(s) >= -1e-12 or max(s) <= 1e-12
+
+
+def rest_plane(feet: np.ndarray, com: np.ndarray, *, tol: float = CONTACT_TOL
+               ) -> tuple[np.ndarray, float, np.ndarray]:
+    """The floor plane the body rests on, and which feet touch it.
+
+    Args:
+        feet: (4, 3) feet in the body frame, m.
+        com: (3,) centre of mass in the body frame, m.
+
+    Returns:
+        (n, d, contact): the floor's unit normal n (3,) pointing up into the body, its
+        offset d (the floor is n·x = d), and the (4,) bool contact flags. Among the
+        planes through three feet with every foot on or above it (a face of the
+        feet's lower hull), the one whose triangle holds the centre of mass seen
+        along the body's z axis (else along the face's normal); if none does (the
+        robot would fall over), the least tilted such face.
+    """
+    feet = np.asarray(feet, dtype=float)
+    faces: list[tuple[np.ndarray, float, np.ndarray]] = []
+    for tri in itertools.combinations(range(len(feet)), 3):
+        pl = _plane(feet[list(tri)])
+        if pl is None:
+            continue
+        n, d = pl
+        if np.any(feet @ n < d - tol):  # a foot below this plane: not a resting face
+            continue
+        faces.append((n, d, feet[list(tri)]))
+    if not faces:
+        raise ValueError("feet: no three feet span a plane under the body")
+    chosen: tuple[np.ndarray, float] | None = None
+    # The side the centre of mass lies on with the body level decides which way it tips
+    # (a body that leans is held there too: its centre of mass moves with the lean).
+    for axis in (np.array([0.0, 0.0, 1.0]), None):
+        for n, d, tri in faces:
+            if _in_triangle(com, tri, n if axis is None else axis):
+                chosen = (n, d)
+                break
+        if chosen is not None:
+            break
+    if chosen is None:  # it would fall over: the least tilted face
+        n, d, _ = max(faces, key=lambda f: float(f[0][2]))
+        chosen = (n, d)
+    n, d = chosen
+    return n, d, np.abs(feet @ n - d) <= tol
+
+
+def contact_forces(feet: np.ndarray, com: np.ndarray, weight: float, n: np.ndarray
+                   ) -> np.ndarray:
+    """Normal force (N) of the floor on each of ``feet`` (k, 3) that carry ``weight`` N.
+
+    Force balance along n and moment balance about the axes in the floor plane, with the
+    centre of mass ``com`` (3,) projected along n. Two feet: the lever rule along their
+    line; three: the exact solution; four: the least-norm one. Negative shares (centre
+    of mass outside the feet) are clipped to 0 and the rest renormalised.
+    """
+    feet = np.asarray(feet, dtype=float)
+    k = len(feet)
+    if k == 0:
+        return np.zeros(0)
+    if k == 1:
+        return np.array([float(weight)])
+    # coordinates in the floor plane
+    e1 = np.cross(n, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    uv = np.stack([(feet - com) @ e1, (feet - com) @ e2])  # (2, k)
+    if k == 2:
+        a, b = uv[:, 0], uv[:, 1]
+        ab = b - a
+        s = float(np.clip(-(a @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0))
+        shares = np.array([1.0 - s, s])
+    else:
+        A = np.vstack([np.ones(k), uv])
+        shares = np.linalg.lstsq(A, np.array([1.0, 0.0, 0.0]), rcond=None)[0]
+        shares = np.clip(shares, 0.0, None)
+        shares /= shares.sum()
+    return float(weight) * shares
+
+
+def feet_and_com(model: Quadruped, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Feet (4, 3) and centre of mass (3,) in the body frame for the joint angles ``q`` (12,)
+    rad (legs in order), m: one pass over each leg's link poses.
+
+    The centre of mass is :func:`kinematics.stability.centre_of_mass_model`'s (the body's
+    own at the body origin).
+    """
+    q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)
+    feet = np.empty((len(model.legs), 3))
+    total, moment = model.body_mass, np.zeros(3)
+    for i, (chain, qi) in enumerate(zip(model.legs.values(), q, strict=True)):
+        poses = chain.base_pose @ chain.link_poses(qi)
+        feet[i] = (poses[-1] @ chain.tip)[:3, 3]
+        for pose, link in zip(poses, chain.links, strict=True):
+            moment += link.mass * (pose[:3, :3] @ link.com + pose[:3, 3])
+            total += link.mass
+    return feet, moment / total
+
+
+def feet_in_body(model: Quadruped, q: np.ndarray) -> np.ndarray:
+    """(4, 3) feet in the body frame for the (12,) joint angles ``q`` (legs in order), m."""
+    return feet_and_com(model, q)[0]
+
+
+def rest_pose(model: Quadruped, q: np.ndarray
+              ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
+    """How the body rests on the floor with the legs at ``q`` (12,) rad.
+
+    Returns:
+        (n, d, contact, feet, com): the floor's normal in the body frame (3,) and offset
+        (the floor is n·x = d, so −d is how far below the body's origin it lies, m), the
+        (4,) contact flags, the feet (4, 3) and the centre of mass (3,) in the body
+        frame, m.
+
+    Raises:
+        ValueError: when no three feet span a plane under the body.
+    """
+    feet, com = feet_and_com(model, q)
+    n, d, contact = rest_plane(feet, com)
+    return n, d, contact, feet, com
+
+
+def implied_tilt_deg(model: Quadruped, q: np.ndarray) -> float:
+    """The body's tilt (degrees) that the legs at ``q`` (12,) rad imply on flat ground.
+
+    With the angles the servos report, this is the tilt their giving way causes
+    (seed 003: 3.6–5.7° on flat ground).
+    """
+    return tilt_deg(rest_pose(model, q)[0])
+
+
+def tilt_deg(n: np.ndarray) -> float:
+    """Tilt of the body, degrees: the angle between the floor's normal and body z."""
+    return math.degrees(math.acos(float(np.clip(n[2], -1.0, 1.0))))
+
+
+__all__ = ["CONTACT_TOL", "rest_plane", "contact_forces", "tilt_deg", "feet_and_com",
+           "feet_in_body", "rest_pose", "implied_tilt_deg"]
