@@ -48,14 +48,29 @@ def chart_x_ranges(page: Any) -> list[tuple[float | None, float | None, float, f
                                chart.data[0][0], chart.data[0][chart.data[0].length - 1]])""")]
 
 
+#: ms a browser screenshot may take: software WebGL on a loaded 2-core machine draws a
+#: frame in seconds, and a screenshot waits for one (Playwright's default is 30 s)
+SCREENSHOT_TIMEOUT_MS = 120_000
+
+
+def view_png(page: Any, box: dict[str, float]) -> bytes:
+    """PNG of the page area ``box`` (x, y, width, height in CSS px), as the page shows it.
+
+    Clips the page rather than screenshotting the canvas element, which first waits for
+    the element to be "stable" across animation frames (slow under load)."""
+    return page.screenshot(clip=box, timeout=SCREENSHOT_TIMEOUT_MS, animations="disabled")
+
+
 def wait_for(predicate: Callable[[], object], timeout: float = 30.0,
-             what: str = "condition") -> None:
-    """Poll ``predicate`` every 20 ms until true; AssertionError after ``timeout`` s."""
+             what: str | Callable[[], str] = "condition", *, every: float = 0.02) -> None:
+    """Poll ``predicate`` every ``every`` s until true; AssertionError after ``timeout`` s
+    naming ``what`` (a callable is asked then, to say what was seen)."""
     deadline = time.monotonic() + timeout
     while not predicate():
         if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.02)
+            said = what() if callable(what) else what
+            raise AssertionError(f"timed out after {timeout} s waiting for {said}")
+        time.sleep(every)
 
 
 @contextmanager

@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import csv
 import io
-import time
 
 import numpy as np
 import pytest
-from _helpers import chart_x_ranges, expected_console, wait_for
+from _helpers import chart_x_ranges, expected_console, view_png, wait_for
 
 from control.params import DEFAULT
 
@@ -38,7 +37,12 @@ def page(browser, lab, tmp_path_factory):
 
 
 def test_page_loads_without_console_errors(page):
-    time.sleep(2.0)  # a few frames of updates
+    # a few frames of updates: 20 animation frames of the page
+    page.evaluate("""() => new Promise(done => {
+        let n = 0;
+        const frame = () => (++n >= 20 ? done() : requestAnimationFrame(frame));
+        requestAnimationFrame(frame);
+    })""")
     errors = [(k, t) for k, t in page.console_log
               if k in ("error", "pageerror") and not expected_console(t)]
     assert errors == []
@@ -46,22 +50,34 @@ def test_page_loads_without_console_errors(page):
 
 
 def test_3d_view_renders_the_arm(page):
+    from PIL import Image
+
     canvases = page.locator("canvas")
     sizes = [(i, canvases.nth(i).bounding_box()) for i in range(canvases.count())]
     i, box = max(((i, b) for i, b in sizes if b), key=lambda ib: ib[1]["width"] * ib[1]["height"])
     assert box["width"] > 500 and box["height"] > 800  # the view between the two panels
     shot = page.shots / "scene.png"
-    canvases.nth(i).screenshot(path=str(shot))
-    from PIL import Image
 
-    img = np.asarray(Image.open(shot).convert("RGB")).astype(int)
-    assert img.std() > 10  # not a blank canvas
-    # The URDF's colours: the blue upper arm (38, 89, 191) and orange forearm (242, 140, 38),
-    # lit and shaded, so look for pixels near those hues.
-    r, g, b = img[..., 0], img[..., 1], img[..., 2]
-    orange = (r > 150) & (g > 70) & (g < 170) & (b < 90)
-    blue = (b > 120) & (r < 90) & (g < 140)
-    assert orange.sum() > 200 and blue.sum() > 200, (orange.sum(), blue.sum())
+    def arm_pixels() -> tuple[float, int, int]:
+        """(grey spread, orange pixels, blue pixels) of the 3D view now."""
+        shot.write_bytes(view_png(page, box))
+        img = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+        # The URDF's colours: the blue upper arm (38, 89, 191) and orange forearm
+        # (242, 140, 38), lit and shaded, so look for pixels near those hues.
+        r, g, b = img[..., 0], img[..., 1], img[..., 2]
+        orange = (r > 150) & (g > 70) & (g < 170) & (b < 90)
+        blue = (b > 120) & (r < 90) & (g < 140)
+        return float(img.std()), int(orange.sum()), int(blue.sum())
+
+    seen: list[tuple[float, int, int]] = []  # the meshes load in their own time
+
+    def drawn() -> bool:
+        seen.append(arm_pixels())
+        spread, orange, blue = seen[-1]
+        return spread > 10 and orange > 200 and blue > 200  # not blank; both links
+
+    wait_for(drawn, 180, lambda: f"the arm's blue and orange links in the 3D view (grey "
+             f"spread, orange, blue pixels: {seen[-3:]})", every=0.5)
 
 
 def _labelled(page, label: str):  # noqa: ANN001, ANN202
@@ -194,7 +210,14 @@ def test_dragging_the_hand_with_the_mouse_pulls_the_arm(page, lab):
     lesson = lab.lesson
     loop, model = lesson.rig.loop, lesson.rig.model
     _back_to_the_default_gains(page, loop)
-    time.sleep(1.0)  # the arm settles at home
+
+    def settled() -> bool:  # the arm at rest at home: under 0.5° of motion in 0.5 s
+        q = loop.recorder.snapshot(0.5)["q"]
+        if len(q) < 10 or not np.all(np.isfinite(q)):
+            return False
+        return bool(np.all(np.ptp(q, axis=0) < np.radians(0.5)))
+
+    wait_for(settled, 60, "the arm to settle at home")
     q0 = loop.recorder.snapshot(0.1)["q"][-1]
     tip = model.base_pose @ model.fk(q0)  # hand (grab sphere centre), world frame
     x, y = _on_screen(page, lab, tip[:3, 3])

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _helpers import chart_x_ranges, expected_console, wait_for
+from _helpers import chart_x_ranges, expected_console, view_png, wait_for
 
 from app.lessons import all_lessons, lesson_order
 
@@ -47,7 +47,7 @@ def view_pixels(page) -> np.ndarray:
     x0, y0, x1, y1 = VIEW
     clip = {"x": box["x"] + x0 * box["width"], "y": box["y"] + y0 * box["height"],
             "width": (x1 - x0) * box["width"], "height": (y1 - y0) * box["height"]}
-    png = page.screenshot(clip=clip)
+    png = view_png(page, clip)
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
 
 
@@ -68,10 +68,7 @@ def switch(page, lab, name: str, title: str) -> None:
     """Pick ``title`` in the page's Lesson select, as a person does."""
     page.get_by_label("Lesson").first.click()
     page.get_by_role("option", name=title, exact=True).click()
-    deadline = time.monotonic() + 60
-    while lab.lesson_name != name:
-        assert time.monotonic() < deadline, f"the lab never opened {name}"
-        time.sleep(0.05)
+    wait_for(lambda: lab.lesson_name == name, 60, f"the lab to open {name}")
 
 
 def settled_view(page, previous: np.ndarray | None, *, timeout: float = 40.0) -> np.ndarray:

@@ -191,13 +191,18 @@ class IKAccuracyLesson:
 
         @self.gizmo.on_update  # a page's drag only: setting the position from Python is silent
         def _(event: viser.TransformControlsEvent) -> None:
+            # viser runs callbacks in a thread pool: read the gizmo under the lock, so the
+            # positions solved follow the order the lock is taken in (a position read
+            # before waiting could be older than one already solved)
             if event.client is None:
                 return
-            p = np.asarray(self.gizmo.position, dtype=float)
-            try:
-                self.set_target(float(p[0]), float(p[1]), client=event.client, dragging=True)
-            except ValueError as exc:
-                notify(event.client, "Target refused", str(exc))
+            with self._lock:
+                p = np.asarray(self.gizmo.position, dtype=float)
+                try:
+                    self.set_target(float(p[0]), float(p[1]), client=event.client,
+                                    dragging=True)
+                except ValueError as exc:
+                    notify(event.client, "Target refused", str(exc))
 
         # from above the near edge of the board, the arm left of the control panel
         aim(self.server, position=(0.15, -0.12, 0.33), look_at=(0.13, 0.10, 0.0))
