@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEVSTAMP := $(VENV)/.installed-dev
 
-.PHONY: run test lint bench clean
+.PHONY: run test test-fast lint bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,10 @@ run: $(STAMP)
 
 test: $(DEVSTAMP)
 	$(BIN)/python -m pytest -q
+
+# the edit-test loop: no browser, nothing on the wall clock (make test runs everything)
+test-fast: $(DEVSTAMP)
+	$(BIN)/python -m pytest -q -m "not browser and not realtime"
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .

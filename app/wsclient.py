@@ -123,7 +123,7 @@ class HeadlessClient:
 
     # -- lifetime -----------------------------------------------------------------
 
-    def connect(self, timeout: float = 10.0) -> HeadlessClient:
+    def connect(self, timeout: float = 30.0) -> HeadlessClient:
         """Connect and introduce itself with a camera message; returns self."""
         self._thread.start()
         if not self._connected.wait(timeout):
@@ -267,7 +267,7 @@ class HeadlessClient:
                        "owner": ""})
         self.send({"type": "TransformControlsDragEndMessage", "name": name, "owner": ""})
 
-    def wait_notification(self, title: str, timeout: float = 5.0) -> str:
+    def wait_notification(self, title: str, timeout: float = 30.0) -> str:
         """Body of the first notification titled ``title`` (waits for it; TimeoutError
         listing the notifications seen otherwise)."""
         deadline = time.monotonic() + timeout
@@ -281,7 +281,7 @@ class HeadlessClient:
                                        f"{self.notifications}")
             time.sleep(0.02)
 
-    def wait_for(self, predicate: Callable[[], bool], timeout: float = 10.0,
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = 60.0,
                  what: str = "condition") -> None:
         """Poll ``predicate`` until true (TimeoutError naming ``what`` otherwise)."""
         deadline = time.monotonic() + timeout

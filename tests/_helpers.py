@@ -89,7 +89,7 @@ def served_lesson(build: Callable[[viser.ViserServer, LessonContext], Any],
 
 
 @contextmanager
-def client_of(server: viser.ViserServer, *, timeout: float = 10.0) -> Iterator[HeadlessClient]:
+def client_of(server: viser.ViserServer, *, timeout: float = 30.0) -> Iterator[HeadlessClient]:
     """A headless client of ``server``, returned once the server has registered it."""
     before = set(server.get_clients())
     with HeadlessClient(f"ws://127.0.0.1:{server.get_port()}").connect(timeout) as client:

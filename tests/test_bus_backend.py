@@ -17,6 +17,8 @@ from hardware.joint_map import JointMap, JointServo, load_joint_map
 from hardware.servo_spec import RX24F
 from kinematics.model import load_robot
 
+pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
+
 MARGIN = 0.1  # s of reply timeout: generous, the test machine is shared
 
 ARM = load_robot("receptionist_arm")

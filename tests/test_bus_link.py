@@ -6,16 +6,18 @@ import json
 import os
 import subprocess
 import sys
-import time
 
 import pytest
 import serial
 from _emulator import ROOT, emulator
+from _helpers import wait_for
 
 from hardware import protocol1 as p1
 from hardware.bus import Bus, NoReply, PortError, ftdi_latency_check
 from hardware.control_table import AX12A_TABLE, RX24F_TABLE
 from hardware.scan import scan
+
+pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 
 
 @pytest.fixture(scope="module")
@@ -248,8 +250,8 @@ def test_reg_write_waits_for_action(emu):
     with Bus(emu.port) as bus:
         bus.transact(p1.reg_write(3, 25, b"\x01"), reply=True)
         assert bus.read(3, "led") == 0 and bus.read(3, "registered") == 1
-        bus.action()
-        time.sleep(0.01)
-        assert bus.read(3, "led") == 1 and bus.read(3, "registered") == 0
+        bus.action()  # broadcast, no reply: the next transaction reads what it did
+        wait_for(lambda: bus.read(3, "led") == 1, 30, "the registered LED write to act")
+        assert bus.read(3, "registered") == 0
         status = bus.transact(p1.action(3), reply=True)  # nothing registered
         assert status is not None and status.error & p1.ErrorBits.INSTRUCTION

@@ -23,6 +23,8 @@ from hardware.servo_spec import RX24F
 from hardware.sim_backend import SimBackend
 from kinematics.model import load_robot
 
+pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
+
 ARM = load_robot("receptionist_arm")
 PRE = 2.0  # s to bring the arm from hanging (q = 0) to the line's start before the run
 #: counts outside the one-period band. The compliance loop feeds the quantised load back,

@@ -228,6 +228,7 @@ def test_recorder_snapshot_window_and_csv():
     assert len(lines) == 3 + len(loop.recorder.snapshot(0.1)["t"])
 
 
+@pytest.mark.realtime
 def test_real_time_thread_paces_and_a_reader_can_snapshot_meanwhile():
     loop = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=True)
     loop.start()

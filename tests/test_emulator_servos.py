@@ -14,6 +14,8 @@ from hardware.emulator import emulated_network
 from hardware.scan import scan
 from kinematics.model import load_robot
 
+pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
+
 ARM = load_robot("receptionist_arm")
 
 

@@ -171,7 +171,7 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     # The leg picker puts another leg's servos on the joint charts.
     with client_of(lesson.server) as client:
         client.set_value(lesson.leg_picker, "LH")
-        wait_for(lambda: lesson._leg == "LH", timeout=5.0)
+        wait_for(lambda: lesson._leg == "LH", timeout=30.0)
     lesson._plot_frame(False)
     assert lesson.joint_plots[1].handle.title.startswith("Leg LH: servo 2")
     assert all(p.updates >= 1 for p in lesson.joint_plots)
@@ -198,6 +198,7 @@ def test_an_unreachable_pose_is_refused_with_the_reason(lesson):
         assert lesson.params.D == pytest.approx(0.09)
 
 
+@pytest.mark.realtime
 def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
     with emulator("--robot", "redundant_planar", "--servo", "AX-12A") as emu:
         with served_lesson(build, LessonContext(robot="quadruped", backend="serial",
@@ -210,27 +211,18 @@ def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
             walk_for(handle, 0.3)
             assert handle.servo_error() is None
             url = f"http://127.0.0.1:{handle.server.get_port()}"
-            with urllib.request.urlopen(url, timeout=5) as reply:
+            with urllib.request.urlopen(url, timeout=30) as reply:
                 assert reply.status == 200
 
 
+@pytest.mark.realtime
 def test_twelve_emulated_servos_walk_over_the_serial_bus():
     with emulator("--robot", "quadruped") as emu:
         with served_lesson(build, LessonContext(robot="quadruped", backend="serial",
                                                 port=emu.port, realtime=True)) as handle:
             assert handle.backend is not None and handle.backend.n == 12
             handle.walk("forward")
-            try:
-                walk_for(handle, 0.4)
-            except AssertionError:
-                # A machine too busy for the emulator's real-time physics makes a reply
-                # late: the backend switches torque off and the lesson says so. Reset
-                # (what the user does) must bring the 12 servos back.
-                fault = handle.loop.status.fault
-                assert "servos" in fault, fault
-                handle.reset()
-                handle.walk("forward")
-                walk_for(handle, 0.4)
+            walk_for(handle, 0.4)
             err = handle.servo_error(None)
             assert err is not None and err["samples"] >= 5, err
             # Loose: the emulator's physics runs on the wall clock in another process, so a

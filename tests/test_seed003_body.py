@@ -143,6 +143,7 @@ def test_cli_reports_eq41_and_tilt():
     assert r["body_tilt_mean_deg"] == pytest.approx(3.96, abs=0.5)
 
 
+@pytest.mark.realtime
 def test_over_the_emulator_the_legs_carry_the_body_too(capsys):
     """``seed003-gait --backend serial`` on the emulator's 12 AX-12A: the same cause shows.
 

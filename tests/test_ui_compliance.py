@@ -21,6 +21,8 @@ from _helpers import wait_for
 from app.wsclient import HeadlessClient
 from control.params import DEFAULT, PRESETS, loop_stability
 
+pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
+
 KP = "Kp (1/s²)"
 FF = "Feed-forward θ̈_cmd"
 
@@ -49,7 +51,7 @@ def hand(lab, q: np.ndarray) -> np.ndarray:  # noqa: ANN001
 
 def test_page_loads_on_loopback(lab):
     assert lab.url.startswith("http://127.0.0.1:")
-    with urllib.request.urlopen(lab.url, timeout=5) as reply:
+    with urllib.request.urlopen(lab.url, timeout=30) as reply:
         assert reply.status == 200
         assert b"<html" in reply.read(2000).lower()
 
@@ -57,13 +59,13 @@ def test_page_loads_on_loopback(lab):
 def test_slider_changes_the_loop_params_at_the_next_period(lab, client):
     loop = loop_of(lab)
     client.set_value(KP, 12.5)
-    wait_for(lambda: loop.params.kp == 12.5, 5.0, "Kp to reach the loop")
+    wait_for(lambda: loop.params.kp == 12.5, 30.0, "Kp to reach the loop")
     assert lab.lesson.gains.params.kp == 12.5
     # The period is applied at a period boundary: status.period_ms shows the
     # parameters in force, and it changes within a couple of periods.
     steps0 = loop.status.steps
     client.set_value("period (ms)", 20.0)
-    wait_for(lambda: abs(loop.status.period_ms - 20.0) < 1e-9, 5.0, "the 20 ms period")
+    wait_for(lambda: abs(loop.status.period_ms - 20.0) < 1e-9, 30.0, "the 20 ms period")
     assert loop.status.steps - steps0 <= 60  # under a second even on a loaded machine
     assert loop.params.period == pytest.approx(0.020)
 
@@ -72,7 +74,7 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     loop = loop_of(lab)
     client.set_value("Preset", "thesis Table 4.1")
     t41 = PRESETS["thesis Table 4.1"]
-    wait_for(lambda: loop.params == t41, 5.0, "Table 4.1 in the loop")
+    wait_for(lambda: loop.params == t41, 30.0, "Table 4.1 in the loop")
     client.wait_for(lambda: client.find(KP).value == pytest.approx(3.8), what="Kp slider 3.8")
     client.wait_for(lambda: client.find("Kv (1/s)").value == pytest.approx(0.2), what="Kv 0.2")
     client.wait_for(lambda: client.find("Law").value.startswith("2.26"), what="law 2.26")
@@ -81,7 +83,7 @@ def test_preset_sets_every_slider_and_the_loop(lab, client):
     wait_for(lambda: "chapter 4 does not reproduce" in lab.lesson.equations.content, 5.0,
              "the Teach tab's note on Table 4.1")
     client.set_value(FF, True)
-    wait_for(lambda: loop.params.feedforward, 5.0, "feed-forward on in the loop")
+    wait_for(lambda: loop.params.feedforward, 30.0, "feed-forward on in the loop")
     assert loop.params == replace(t41, feedforward=True)
     client.wait_for(lambda: client.find("Preset").value == "(custom)", what="preset (custom)")
 
@@ -90,15 +92,15 @@ def test_unstable_gains_warn_before_run(lab, client):
     warning = lab.lesson.warning
     assert not warning.visible
     client.set_value("Kv (1/s)", 0.05)  # Kp 20, Kv 0.05: ζp = 0.006
-    wait_for(lambda: warning.visible, 5.0, "the stability warning")
+    wait_for(lambda: warning.visible, 30.0, "the stability warning")
     assert "badly damped" in warning.content
 
 
 def test_run_thesis_line_fills_the_plots(lab, client):
     loop = loop_of(lab)
     client.click("Run thesis line")
-    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
-    wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run to start")
+    wait_for(lambda: loop.status.trajectory is None, 60.0, "the run to end")
     # The page got the joint-angle chart (θ2 shown by default) with the elbow's 53° sweep.
     def sweep() -> float:
         for e in client.gui.values():
@@ -109,7 +111,7 @@ def test_run_thesis_line_fills_the_plots(lab, client):
                     return float(np.ptp(data[1]))  # command series, degrees
         return 0.0
 
-    client.wait_for(lambda: sweep() > 40.0, 10.0, "a 40°+ sweep in the angle chart")
+    client.wait_for(lambda: sweep() > 40.0, 60.0, "a 40°+ sweep in the angle chart")
     assert "max |θ_cmd − θ|" in lab.lesson.last_run_text
 
 
@@ -117,15 +119,15 @@ def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
     loop, lesson = loop_of(lab), lab.lesson
     for pushed in (False, True):
         client.click("Run thesis line")
-        wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run to start")
+        wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run to start")
         if pushed:
             client.set_value("Direction", "against the line (−y)")
             client.set_value("Push force (N)", 4.0)
             client.set_value("Duration (s)", 2.0)
             client.click("Push")
-        wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+        wait_for(lambda: loop.status.trajectory is None, 60.0, "the run to end")
         wait_for(lambda p=pushed: (lesson.chapter4.pushed if p else lesson.chapter4.free)
-                 is not None, 10.0, "the run's figures")
+                 is not None, 60.0, "the run's figures")
     ch4 = lesson.chapter4
     # the compliant arm falls far behind its command under the push (the thesis: > 15°)
     assert ch4.pushed[2] > ch4.free[2] + 5.0
@@ -138,7 +140,8 @@ def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
     loop = loop_of(lab)
 
     def push_and_measure() -> tuple[float, float, float]:
-        time.sleep(0.5)
+        t_rest = loop.status.t + 0.5
+        wait_for(lambda: loop.status.t > t_rest, 30.0, "half a second at rest")
         before = loop.recorder.snapshot(0.3)
         rest = float(np.max(np.abs(before["tau_ext"][-5:])))
         q0 = before["q"][-1].copy()
@@ -147,17 +150,17 @@ def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
         client.set_value("Duration (s)", 2.0)
         client.click("Push")
         t_end = loop.status.t + 2.0
-        wait_for(lambda: loop.status.t > t_end - 0.1, 10.0, "the push to run")
+        wait_for(lambda: loop.status.t > t_end - 0.1, 60.0, "the push to run")
         snap = loop.recorder.snapshot(0.3)
         tau = float(np.max(np.abs(snap["tau_ext"][-5:])))
         dy = float(hand(lab, snap["q"][-1])[1] - hand(lab, q0)[1])  # along the push (−y)
-        wait_for(lambda: loop.status.t > t_end + 1.5, 10.0, "the arm to settle")
+        wait_for(lambda: loop.status.t > t_end + 1.5, 60.0, "the arm to settle")
         return rest, tau, -dy
 
     rest, tau_on, yield_on = push_and_measure()
     assert tau_on > 0.2 and tau_on > 4 * rest  # N·m: 4 N at ~12 cm lever
     client.set_value("Compliance on", False)
-    wait_for(lambda: not loop.params.compliance, 5.0, "compliance off")
+    wait_for(lambda: not loop.params.compliance, 30.0, "compliance off")
     _, tau_off, yield_off = push_and_measure()
     assert tau_off > 0.2
     # With compliance the hand gives way by centimetres; the PD loop holds it.
@@ -175,14 +178,14 @@ def test_dragging_the_hand_pulls_the_arm_with_a_spring(lab, client):
     anchor = (base @ np.append(p0 + np.array([0.0, -0.06, 0.0]), 1.0))[:3]
     client.drag(grab, "start", start=start, end=anchor)
     client.drag(grab, "update", start=start, end=anchor)
-    wait_for(lambda: lesson._drag_anchor is not None, 5.0, "the spring")
+    wait_for(lambda: lesson._drag_anchor is not None, 30.0, "the spring")
     t0 = loop.status.t
-    wait_for(lambda: loop.status.t > t0 + 1.5, 10.0, "1.5 s of pulling")
+    wait_for(lambda: loop.status.t > t0 + 1.5, 60.0, "1.5 s of pulling")
     p1 = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
     assert p0[1] - p1[1] > 0.01  # pulled more than 1 cm towards the hand's anchor
     assert lesson.rig.scene.force.visible  # the red arrow shows the pull
     client.drag(grab, "end", start=start, end=anchor)
-    wait_for(lambda: lesson._drag_anchor is None, 5.0, "the spring to let go")
+    wait_for(lambda: lesson._drag_anchor is None, 30.0, "the spring to let go")
 
 
 def test_estop_switches_torque_off_and_reset_restores(lab, client):
@@ -190,12 +193,12 @@ def test_estop_switches_torque_off_and_reset_restores(lab, client):
     plant = lab.lesson.rig.backend.plant
     assert all(r.torque_enable for r in plant.reports())
     client.click("E-STOP")
-    wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 5.0, "the e-stop")
+    wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 30.0, "the e-stop")
     assert not any(r.torque_enable for r in plant.reports())
     client.wait_for(lambda: any("E-STOPPED" in str(e.props.get("content", ""))
-                                for e in client.gui.values()), 5.0, "the E-STOPPED banner")
+                                for e in client.gui.values()), 30.0, "the E-STOPPED banner")
     client.click("Reset")
-    wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 5.0, "torque back on")
+    wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 30.0, "torque back on")
     assert all(r.torque_enable for r in plant.reports())
 
 
@@ -205,15 +208,15 @@ def test_bad_typed_value_is_refused_with_a_notification(lab, client, bad):
     kp = loop.params.kp
     n0 = len(client.notifications)
     client.set_value(KP, bad)
-    client.wait_for(lambda: len(client.notifications) > n0, 5.0, "a notification")
+    client.wait_for(lambda: len(client.notifications) > n0, 30.0, "a notification")
     title, body = client.notifications[-1]
     assert title == "Value refused" and "Kp" in body
-    client.wait_for(lambda: client.find(KP).value == pytest.approx(kp), 5.0, "Kp put back")
+    client.wait_for(lambda: client.find(KP).value == pytest.approx(kp), 30.0, "Kp put back")
     assert loop.params.kp == kp and math.isfinite(lab.lesson.gains.params.kp)
     # The server goes on serving and taking good values.
     client.set_value(KP, kp + 1.0)
-    wait_for(lambda: loop.params.kp == kp + 1.0, 5.0, "a good value after the bad one")
-    with urllib.request.urlopen(lab.url, timeout=5) as reply:
+    wait_for(lambda: loop.params.kp == kp + 1.0, 30.0, "a good value after the bad one")
+    with urllib.request.urlopen(lab.url, timeout=30) as reply:
         assert reply.status == 200
 
 
@@ -231,7 +234,7 @@ def test_garbage_message_does_not_kill_the_server(lab, client):
     client.set_value(KP, "not a number")  # viser cannot even cast it
     client.send({"type": "NoSuchMessage", "x": 1})  # viser drops this client's connection
     steps = loop.status.steps
-    wait_for(lambda: loop.status.steps > steps + 10, 5.0, "the loop to keep running")
+    wait_for(lambda: loop.status.steps > steps + 10, 30.0, "the loop to keep running")
     with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as other:
         other.wait_for(lambda: any(e.label == KP for e in other.gui.values()),
                        what="a fresh page")
@@ -243,33 +246,33 @@ def test_disconnect_mid_run_and_mid_drag_leaves_the_server_healthy(lab, client):
     c2 = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
     c2.wait_for(lambda: any(e.label == "Push" for e in c2.gui.values()), what="GUI")
     c2.click("Run thesis line")
-    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run")
+    wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run")
     grab = lesson.rig.scene.hand.name
     p = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
     world = lesson.rig.model.base_pose @ np.append(p, 1.0)
     pull = world[:3] + np.array([0.0, 0.0, 0.05])
     c2.drag(grab, "start", start=tuple(world[:3]), end=tuple(pull))
     c2.drag(grab, "update", start=tuple(world[:3]), end=tuple(pull))
-    wait_for(lambda: lesson._drag_anchor is not None, 5.0, "the spring to attach")
+    wait_for(lambda: lesson._drag_anchor is not None, 30.0, "the spring to attach")
     c2.close()  # the tab closes mid-run, mid-drag
-    wait_for(lambda: lesson._drag_anchor is None, 5.0, "the spring to be released")
+    wait_for(lambda: lesson._drag_anchor is None, 30.0, "the spring to be released")
     steps = loop.status.steps
-    wait_for(lambda: loop.status.steps > steps + 20, 5.0, "the loop to keep running")
+    wait_for(lambda: loop.status.steps > steps + 20, 30.0, "the loop to keep running")
     assert loop.status.fault is None and loop.status.running
     frames = lesson.publisher.stats.pose_frames
-    wait_for(lambda: lesson.publisher.stats.pose_frames > frames + 5, 5.0, "the publisher")
+    wait_for(lambda: lesson.publisher.stats.pose_frames > frames + 5, 30.0, "the publisher")
     assert lesson.publisher.stats.errors == 0
     b0 = client.bytes_received
-    client.wait_for(lambda: client.bytes_received > b0, 5.0, "updates to the other page")
+    client.wait_for(lambda: client.bytes_received > b0, 30.0, "updates to the other page")
 
 
 def test_csv_download_has_the_parameters_and_the_rows(lab, client):
     loop = loop_of(lab)
     client.click("Run thesis line")
-    wait_for(lambda: loop.status.trajectory is not None, 5.0, "the run")
-    wait_for(lambda: loop.status.trajectory is None, 20.0, "the run to end")
+    wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run")
+    wait_for(lambda: loop.status.trajectory is None, 60.0, "the run to end")
     client.click("Download the last run (CSV)")
-    client.wait_for(lambda: client.downloads, 10.0, "the CSV download")
+    client.wait_for(lambda: client.downloads, 60.0, "the CSV download")
     name, data = next(iter(client.downloads.items()))
     assert name.endswith(".csv") and "thesis-line" in name
     text = data.decode()
@@ -289,7 +292,7 @@ def test_csv_download_has_the_parameters_and_the_rows(lab, client):
 def test_share_request_is_refused(lab, client):
     n0 = len(client.notifications)
     client.send({"type": "ShareUrlRequest"})
-    client.wait_for(lambda: len(client.notifications) > n0, 5.0, "the refusal")
+    client.wait_for(lambda: len(client.notifications) > n0, 30.0, "the refusal")
     assert client.notifications[-1][0] == "Sharing is off"
     assert lab.server._share_tunnel is None
     assert client.theme is not None and client.theme["show_share_button"] is False
@@ -309,7 +312,7 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
     assert m.peak_time_s is None or 0.4 < m.peak_time_s < 1.6
     client.wait_for(lambda: any(
         "PD measured on: step of θ2" in str(e.props.get("_markdown", e.props.get("content", "")))
-        for e in client.gui.values()), 10.0, "the measured column on the page")
+        for e in client.gui.values()), 60.0, "the measured column on the page")
 
 
 def test_link_length_preset_rebuilds_the_arm(lab, client):
@@ -320,11 +323,11 @@ def test_link_length_preset_rebuilds_the_arm(lab, client):
          "the 18.5/18.5 arm")
     assert lesson.rig.model.tip[0, 3] == pytest.approx(0.185)
     assert not old_loop.status.running
-    wait_for(lambda: lesson.rig.loop.status.active, 10.0, "the new loop to hold")
+    wait_for(lambda: lesson.rig.loop.status.active, 60.0, "the new loop to hold")
     client.set_value("Link lengths (cm)", "18.5/25")
     wait_for(lambda: lesson.rig is not None and lesson.rig.preset == "18.5/25", 20.0,
          "the 18.5/25 arm back")
-    wait_for(lambda: lesson.rig.loop.status.active, 10.0, "the loop to hold")
+    wait_for(lambda: lesson.rig.loop.status.active, 60.0, "the loop to hold")
 
 
 def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client):
@@ -338,14 +341,14 @@ def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client):
     try:
         loop_stability.cache_clear()
         client.set_value("Kv (1/s)", 4.5)
-        wait_for(lambda: loop.params.kv == 4.5, 5.0, "Kv 4.5 in the loop")
+        wait_for(lambda: loop.params.kv == 4.5, 30.0, "Kv 4.5 in the loop")
         steps = loop.status.steps
-        wait_for(lambda: loop.status.steps > steps + 3, 5.0, "the swap")
+        wait_for(lambda: loop.status.steps > steps + 3, 30.0, "the swap")
         assert loop_stability.cache_info().misses == 1
         assert len(applied) == 1
         # Back to the default by the slider: the picker shows the preset, nothing re-applies.
         client.set_value("Kv (1/s)", DEFAULT.kv)
-        wait_for(lambda: loop.params == DEFAULT, 5.0, "the default again")
+        wait_for(lambda: loop.params == DEFAULT, 30.0, "the default again")
         client.wait_for(lambda: client.find("Preset").value == "well-damped default",
                         what="the picker to show the preset")
         assert len(applied) == 2

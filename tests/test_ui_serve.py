@@ -18,6 +18,8 @@ from _emulator import emulator
 
 from hardware import protocol1 as p1
 
+pytestmark = pytest.mark.realtime  # `armlab serve` processes on the wall clock
+
 ROOT = Path(__file__).resolve().parents[1]
 START_TIMEOUT = 60.0  # s: a loaded 2-core machine
 
