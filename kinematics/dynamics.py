@@ -8,431 +8,119 @@ Equation of motion::
 
     tau = M(q) qdd + C(q, qd) qd + g(q) - J(q)^T f_ext          (rnea computes the right side)
 
-Model/data separation follows Pinocchio: the :class:`~kinematics.model.SerialChain`
-is never changed; the per-model constants live in a :class:`DynamicsModel`, built once
-by :func:`dynamics_model` and memoised in the model instance's ``__dict__`` (the way
-``functools.cached_property`` does; no field of the model changes). A DynamicsModel
-holds straight-line float code generated from the chain: the RNEA recursion of eq.
-2.41–2.50 unrolled joint by joint, with every product by a structural zero or one of
-the model (axis components, frame offsets, inertia entries) folded away. That keeps
-one RNEA call on a 3-joint arm in the microseconds without numpy overhead on tiny
-arrays. The generated source is kept in ``DynamicsModel.source`` for inspection.
+Two implementations of one recursion:
 
-The thesis's simplified closed forms of §3.4 (rods, I = m L²/3) are in
-:func:`thesis_closed_form`, for comparison only (see docs/dynamics.md).
+- :func:`newton_euler` is the text to read beside the thesis: one commented step per
+  equation, plain numpy over the chain. It is the test oracle.
+- :func:`rnea` and the functions after it run the same recursion as straight-line code
+  generated once per chain (``kinematics._rnea_codegen``), fast enough for the plant's
+  1 kHz RK4; tests/test_dynamics.py checks it equals :func:`newton_euler` to 1e-12 on
+  every shipped robot.
+
+Points on links (their Jacobians, forces there) are in :mod:`kinematics.points`; the
+thesis's simplified closed forms of §3.4 in :mod:`kinematics.thesis_dynamics`.
 """
 
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
+from kinematics._rnea_codegen import DynamicsModel, dynamics_model
 from kinematics.model import SerialChain
+from kinematics.points import link_frames, point_jacobian6
+from kinematics.transforms import rot_axis
 from kinematics.validate import matrix, vector
 
-Sym = float | str | tuple[float, str]  # generated-code scalar: constant, name, or k * name
-Vec = list[Sym]
-
-_ZERO_TOL = 1e-14
+__all__ = ["DynamicsModel", "dynamics_model", "newton_euler", "rnea", "gravity_torques",
+           "bias_torques", "mass_matrix", "forward_dynamics", "kinetic_energy",
+           "potential_energy"]
 
 
 # ---------------------------------------------------------------------------
-# A tiny straight-line code emitter with constant folding
+# The recursion as the thesis writes it (the teaching text and the test oracle)
 
 
-class _Emitter:
-    """Emits Python assignments; folds constants so structural zeros cost nothing."""
+def newton_euler(model: SerialChain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
+                 gravity: np.ndarray | None = None) -> np.ndarray:
+    """Inverse dynamics by the recursive Newton–Euler equations, written out as the thesis
+    gives them (eq. 2.41–2.50) and read joint by joint.
 
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-        self._count = 0
+    Frame i is link i's frame (the child of joint i); ``R`` = parent <- child rotation and
+    ``p`` = the child origin in the parent frame, both from the joint's origin and its
+    motion. Every vector of link i is expressed in frame i. Gravity enters as an upward
+    acceleration of the base (the usual trick): the base "accelerates" at -g, so every
+    link's inertial force carries its weight.
 
-    def new(self, expr: str, prefix: str = "t") -> str:
-        name = f"{prefix}{self._count}"
-        self._count += 1
-        self.lines.append(f"{name} = {expr}")
-        return name
+    Args:
+        model: the chain (n joints, revolute or prismatic).
+        q, qd, qdd: (n,) joint positions, velocities, accelerations.
+        gravity: (3,) m/s², base frame; default ``model.gravity``.
 
-    def lin(self, terms: Sequence[tuple[float, Sym, Sym]]) -> Sym:
-        """Sum of k * x * y over ``terms`` (k constant), folded; emits at most one line.
+    Returns:
+        (n,) joint torques tau = M qdd + C qd + g(q) (N·m, or N for prismatic).
 
-        A lone scaled variable k * x is returned unemitted as ``(k, x)`` and folded into
-        whatever uses it (so a sign or a constant factor costs no statement of its own).
-        """
-        const = 0.0
-        parts: dict[str, float] = {}
-        for k, x, y in terms:
-            k = float(k)
-            names = []
-            for f in (x, y):
-                if isinstance(f, tuple):
-                    k *= f[0]
-                    names.append(f[1])
-                elif isinstance(f, str):
-                    names.append(f)
-                else:
-                    k *= f
-            if abs(k) < _ZERO_TOL:
-                continue
-            if not names:
-                const += k
-            else:
-                key = "*".join(sorted(names))
-                parts[key] = parts.get(key, 0.0) + k
-        parts = {f: k for f, k in parts.items() if abs(k) >= _ZERO_TOL}
-        if abs(const) < _ZERO_TOL:
-            const = 0.0
-        if not parts:
-            return const
-        if len(parts) == 1 and const == 0.0:
-            ((f, k),) = parts.items()
-            if "*" not in f:
-                return f if k == 1.0 else (k, f)
-        text = ""
-        for f, k in parts.items():
-            if k == 1.0:
-                term = f"+ {f}"
-            elif k == -1.0:
-                term = f"- {f}"
-            elif k < 0:
-                term = f"- {-k!r}*{f}"
-            else:
-                term = f"+ {k!r}*{f}"
-            text += " " + term
-        if const:
-            text += f" + {const!r}" if const > 0 else f" - {-const!r}"
-        text = text.strip()
-        if text.startswith("+ "):
-            text = text[2:]
-        elif text.startswith("- "):
-            text = "-" + text[2:]
-        return self.new(text)
-
-    def add(self, *xs: Sym) -> Sym:
-        return self.lin([(1.0, x, 1.0) for x in xs])
-
-    def mul(self, x: Sym, y: Sym) -> Sym:
-        return self.lin([(1.0, x, y)])
-
-    def vadd(self, *vs: Vec) -> Vec:
-        return [self.add(*(v[i] for v in vs)) for i in range(3)]
-
-    def vscale(self, s: Sym, v: Vec) -> Vec:
-        return [self.mul(s, v[i]) for i in range(3)]
-
-    def cross(self, a: Vec, b: Vec) -> Vec:
-        return [
-            self.lin([(1.0, a[1], b[2]), (-1.0, a[2], b[1])]),
-            self.lin([(1.0, a[2], b[0]), (-1.0, a[0], b[2])]),
-            self.lin([(1.0, a[0], b[1]), (-1.0, a[1], b[0])]),
-        ]
-
-    def dot(self, a: Vec, b: Vec) -> Sym:
-        return self.lin([(1.0, a[i], b[i]) for i in range(3)])
-
-    def matvec(self, R: list[Vec], v: Vec) -> Vec:
-        return [self.lin([(1.0, R[i][j], v[j]) for j in range(3)]) for i in range(3)]
-
-    def matTvec(self, R: list[Vec], v: Vec) -> Vec:
-        return [self.lin([(1.0, R[j][i], v[j]) for j in range(3)]) for i in range(3)]
-
-    def const_matvec(self, A: np.ndarray, v: Vec) -> Vec:
-        return [self.lin([(A[i, j], v[j], 1.0) for j in range(3)]) for i in range(3)]
-
-
-def _snap(x: float) -> float:
-    x = float(x)
-    if abs(x) < _ZERO_TOL:
-        return 0.0
-    for one in (1.0, -1.0):
-        if abs(x - one) < _ZERO_TOL:
-            return one
-    return x
-
-
-def _cvec(v: np.ndarray) -> Vec:
-    return [_snap(x) for x in v]
-
-
-@dataclass
-class _Joints:
-    """Symbolic joint transforms: R[i] (parent <- child rotation), P[i] (child origin in parent)."""
-
-    R: list[list[Vec]]
-    P: list[Vec]
-
-
-def _emit_transforms(em: _Emitter, model: SerialChain, q: list[str]) -> _Joints:
-    """Joint transforms origin_i · motion_i(q_i) as symbols (sin/cos emitted once per joint)."""
-    Rs: list[list[Vec]] = []
-    Ps: list[Vec] = []
-    for i, joint in enumerate(model.joints):
-        R0 = joint.origin[:3, :3]
-        p0 = joint.origin[:3, 3]
-        a = joint.axis
-        if joint.kind == "prismatic":
-            Rs.append([_cvec(R0[r]) for r in range(3)])
-            ra = R0 @ a
-            Ps.append([em.lin([(p0[r], 1.0, 1.0), (ra[r], q[i], 1.0)]) for r in range(3)])
-            continue
-        # Rot(a, q) = c (I - a a^T) + s [a]x + a a^T  (Rodrigues), premultiplied by R0.
-        K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-        A = R0 @ (np.eye(3) - np.outer(a, a))
-        B = R0 @ K
-        C = R0 @ np.outer(a, a)
-        s = em.new(f"_sin({q[i]})", "s")
-        c = em.new(f"_cos({q[i]})", "c")
-        Rs.append([[em.lin([(_snap(A[r, k]), c, 1.0), (_snap(B[r, k]), s, 1.0),
-                            (_snap(C[r, k]), 1.0, 1.0)]) for k in range(3)] for r in range(3)])
-        Ps.append(_cvec(p0))
-    return _Joints(Rs, Ps)
-
-
-def _emit_rnea(em: _Emitter, model: SerialChain, tf: _Joints, qd: Sequence[Sym],
-               qdd: Sequence[Sym], g: Vec) -> list[Sym]:
-    """Thesis eq. 2.41–2.50 unrolled: forward velocity/acceleration pass, backward force pass.
-
-    Quantities are in each link's own frame. Gravity enters as a base acceleration -g.
-    Constant inputs (0.0, 1.0) fold away. Returns the n joint torques.
+    Slow (numpy on 3-vectors, a few hundred µs); :func:`rnea` is the same sum, fast.
     """
     n = model.n
-    zero: Vec = [0.0, 0.0, 0.0]
-    w, dw, a = zero, zero, [em.lin([(-1.0, gi, 1.0)]) for gi in g]
-    W: list[Vec] = []
-    F: list[Vec] = []
-    N: list[Vec] = []
-    for i in range(n):
-        joint, link = model.joints[i], model.links[i]
-        R, P = tf.R[i], tf.P[i]
-        ax = _cvec(joint.axis)
-        # Eq. 2.46 (revolute) / 2.47 (prismatic): acceleration of this joint's origin,
-        # first in the parent frame, then rotated into the child frame.
-        a_par = em.vadd(a, em.cross(dw, P), em.cross(w, em.cross(w, P)))
-        w_par = em.matTvec(R, w)  # parent omega in child frame
+    q, qd, qdd = (vector(name, v, n) for name, v in (("q", q), ("qd", qd), ("qdd", qdd)))
+    g = model.gravity if gravity is None else vector("gravity", gravity, 3)
+    R: list[np.ndarray] = []  # parent <- link i
+    p: list[np.ndarray] = []  # link i's origin in the parent frame
+    for joint, qi in zip(model.joints, q, strict=True):
+        R0, p0 = joint.origin[:3, :3], joint.origin[:3, 3]  # the joint's frame at q = 0
+        if joint.kind == "prismatic":  # a slide along the axis
+            R.append(R0)
+            p.append(p0 + R0 @ (qi * joint.axis))
+        else:  # a turn about the axis
+            R.append(R0 @ rot_axis(joint.axis, qi))
+            p.append(p0)
+
+    # Outward pass: velocities and accelerations from the base to the tip.
+    w = np.zeros(3)       # ω of the parent, in the parent frame (the base does not turn)
+    dw = np.zeros(3)      # ω̇ of the parent
+    dv = -np.asarray(g)   # v̇ of the parent's origin: the base "accelerates" against gravity
+    F: list[np.ndarray] = []  # inertial force of each link at its centre of mass (frame i)
+    N: list[np.ndarray] = []  # inertial moment of each link about its centre of mass
+    for i, (joint, link) in enumerate(zip(model.joints, model.links, strict=True)):
+        Rt = R[i].T  # link i <- parent
+        z = joint.axis  # ẑ_i: the joint axis, in frame i
+        # eq. 2.46: the acceleration of link i's origin, carried out from the parent's
+        # origin along p (the thesis prints "- ω × ω × p"; the centripetal term is +)
+        dv = Rt @ (dv + np.cross(dw, p[i]) + np.cross(w, np.cross(w, p[i])))
         if joint.kind == "prismatic":
-            w_i = w_par  # eq. 2.42
-            dw_i = em.matTvec(R, dw)  # eq. 2.44
-            a_i = em.vadd(em.matTvec(R, a_par), em.vscale(qdd[i], ax),
-                          em.vscale(em.mul(2.0, qd[i]), em.cross(w_i, ax)))
+            w_new = Rt @ w  # eq. 2.42: a slide does not turn the link
+            dw_new = Rt @ dw  # eq. 2.44
+            # eq. 2.47: the slide's own acceleration and its Coriolis term
+            dv = dv + qdd[i] * z + 2.0 * np.cross(w_new, qd[i] * z)
         else:
-            w_i = em.vadd(w_par, em.vscale(qd[i], ax))  # eq. 2.41
-            dw_i = em.vadd(em.matTvec(R, dw), em.cross(w_par, em.vscale(qd[i], ax)),
-                           em.vscale(qdd[i], ax))  # eq. 2.43
-            a_i = em.matTvec(R, a_par)
-        w, dw, a = w_i, dw_i, a_i
-        W.append(w)
-        if link.mass == 0.0 and not np.any(link.inertia):
-            F.append(zero)
-            N.append(zero)
-            continue
-        c = _cvec(link.com)
-        # Eq. 2.48: acceleration of the centre of mass; eq. 2.49-2.50: Newton and Euler.
-        a_c = em.vadd(a, em.cross(dw, c), em.cross(w, em.cross(w, c)))
-        F.append(em.vscale(_snap(link.mass), a_c))
-        Ic = link.inertia
-        Iw = em.const_matvec(Ic, w)
-        N.append(em.vadd(em.const_matvec(Ic, dw), em.cross(w, Iw)))
-    # Backward pass: force f_i and moment n_i that link i-1 exerts on link i (at its origin).
-    tau: list[Sym] = [0.0] * n
-    f_next: Vec = zero
-    n_next: Vec = zero
+            w_new = Rt @ w + qd[i] * z  # eq. 2.41
+            # eq. 2.43: the parent's ω̇, the turning of the joint axis, the joint's own θ̈
+            dw_new = Rt @ dw + np.cross(Rt @ w, qd[i] * z) + qdd[i] * z
+        w, dw = w_new, dw_new
+        c = link.com  # p_cm: the centre of mass in frame i
+        dv_cm = np.cross(dw, c) + np.cross(w, np.cross(w, c)) + dv  # eq. 2.48
+        F.append(link.mass * dv_cm)  # eq. 2.49: Newton
+        N.append(link.inertia @ dw + np.cross(w, link.inertia @ w))  # eq. 2.50: Euler
+
+    # Inward pass: the force f and moment m that each link's parent exerts on it, from
+    # the tip to the base (Craig eq. 6.51–6.53, which §3.4 applies by hand), and the
+    # joint torque as the moment's (or force's) component along the joint axis.
+    tau = np.zeros(n)
+    f = np.zeros(3)  # f_{i+1}: what link i exerts on link i+1 (frame i+1)
+    m = np.zeros(3)
     for i in range(n - 1, -1, -1):
-        c = _cvec(model.links[i].com)
         if i + 1 < n:
-            Rn, Pn = tf.R[i + 1], tf.P[i + 1]
-            f_par = em.matvec(Rn, f_next)
-            n_par = em.matvec(Rn, n_next)
-            f_i = em.vadd(F[i], f_par)
-            n_i = em.vadd(N[i], n_par, em.cross(c, F[i]), em.cross(Pn, f_par))
+            f_child = R[i + 1] @ f  # link i+1's load, into frame i
+            m_child = R[i + 1] @ m + np.cross(p[i + 1], f_child)
         else:
-            f_i = F[i]
-            n_i = em.vadd(N[i], em.cross(c, F[i]))
-        ax = _cvec(model.joints[i].axis)
-        tau[i] = em.dot(f_i if model.joints[i].kind == "prismatic" else n_i, ax)
-        f_next, n_next = f_i, n_i
+            f_child = m_child = np.zeros(3)
+        f = F[i] + f_child
+        m = N[i] + m_child + np.cross(model.links[i].com, F[i])
+        z = model.joints[i].axis
+        tau[i] = f @ z if model.joints[i].kind == "prismatic" else m @ z
     return tau
-
-
-def _fmt(x: Sym) -> str:
-    if isinstance(x, tuple):
-        return f"({x[0]!r}*{x[1]})"
-    return repr(x) if isinstance(x, float) else x
-
-
-def _prune(lines: list[str], out: Sequence[Sym]) -> list[str]:
-    """Drop assignments whose target nothing later reads (dead code)."""
-    live = set()
-    for x in out:
-        live |= set(re.findall(r"[A-Za-z_]\w*", _fmt(x)))
-    kept = []
-    for line in reversed(lines):
-        target, expr = line.split(" = ", 1)
-        if target in live:
-            kept.append(line)
-            live |= set(re.findall(r"[A-Za-z_]\w*", expr))
-    return kept[::-1]
-
-
-def _ldl_solve(em: _Emitter, Mx: list[list[Sym]], b: list[Sym]) -> list[Sym]:
-    """Unrolled LDL^T solve of the symmetric positive definite M x = b."""
-    n = len(b)
-    L: list[list[Sym]] = [[0.0] * n for _ in range(n)]
-    D: list[Sym] = [0.0] * n
-    rD: list[Sym] = [0.0] * n
-    for j in range(n):
-        D[j] = em.lin([(1.0, Mx[j][j], 1.0)]
-                      + [(-1.0, em.mul(L[j][k], L[j][k]), D[k]) for k in range(j)])
-        if isinstance(D[j], float) and D[j] <= 0.0:
-            raise ValueError("mass matrix is singular: a joint moves no mass")
-        rD[j] = em.new(f"1.0 / {_fmt(D[j])}")
-        for i in range(j + 1, n):
-            s = em.lin([(1.0, Mx[i][j], 1.0)]
-                       + [(-1.0, em.mul(L[i][k], L[j][k]), D[k]) for k in range(j)])
-            L[i][j] = em.mul(s, rD[j])
-    y: list[Sym] = [0.0] * n
-    for i in range(n):
-        y[i] = em.lin([(1.0, b[i], 1.0)] + [(-1.0, L[i][k], y[k]) for k in range(i)])
-    z = [em.mul(y[i], rD[i]) for i in range(n)]
-    x: list[Sym] = [0.0] * n
-    for i in range(n - 1, -1, -1):
-        x[i] = em.lin([(1.0, z[i], 1.0)] + [(-1.0, L[k][i], x[k]) for k in range(i + 1, n)])
-    return x
-
-
-def _function(name: str, args: list[str], em: _Emitter, unpack: dict[str, list[str]],
-              out: Sequence[Sym]) -> str:
-    lines = [f"def {name}({', '.join(args)}):"]
-    for arg, names in unpack.items():
-        if names:
-            lines.append(f"    {', '.join(names)}, = {arg}")
-    lines += [f"    {line}" for line in _prune(em.lines, out)]
-    lines.append(f"    return ({', '.join(_fmt(x) for x in out)}{',' if len(out) == 1 else ''})")
-    return "\n".join(lines)
-
-
-@dataclass(frozen=True)
-class DynamicsModel:
-    """Compiled per-model constants (the "model" half of Pinocchio's model/data pair).
-
-    Every function takes and returns plain float sequences (no validation; the public
-    functions below validate):
-
-    - ``rnea(q, qd, qdd, g) -> (n,)``: inverse dynamics, gravity g (3,) base frame.
-    - ``bias(q, qd, g) -> (n,)``: C(q, qd) qd + g(q).
-    - ``mass(q) -> (n*n,)``: M(q) row-major.
-    - ``fd(q, qd, tau, g, armature) -> (n,)``: qdd = (M + diag(armature))^-1 (tau - bias).
-    - ``frames(q) -> (12 n,)``: per link R (9, row-major) then p (3), base <- link.
-
-    Attributes:
-        n: number of joints.
-        revolute: per joint, True when revolute/continuous.
-        axes: per joint the unit axis (3,) in its link frame.
-        source: the generated Python code.
-    """
-
-    n: int
-    revolute: tuple[bool, ...]
-    axes: tuple[tuple[float, float, float], ...]
-    source: str
-    rnea: Callable[..., tuple[float, ...]]
-    bias: Callable[..., tuple[float, ...]]
-    mass: Callable[..., tuple[float, ...]]
-    fd: Callable[..., tuple[float, ...]]
-    frames: Callable[..., tuple[float, ...]]
-
-
-def _build(model: SerialChain) -> DynamicsModel:
-    n = model.n
-    q = [f"q{i}" for i in range(n)]
-    qd = [f"qd{i}" for i in range(n)]
-    qdd = [f"qdd{i}" for i in range(n)]
-    tau_in = [f"tau{i}" for i in range(n)]
-    arm = [f"arm{i}" for i in range(n)]
-    gv: Vec = ["g0", "g1", "g2"]
-    sources = []
-
-    em = _Emitter()
-    tf = _emit_transforms(em, model, q)
-    out = _emit_rnea(em, model, tf, qd, qdd, gv)
-    sources.append(_function("rnea", ["q", "qd", "qdd", "g"], em,
-                             {"q": q, "qd": qd, "qdd": qdd, "g": gv}, out))
-
-    em = _Emitter()
-    tf = _emit_transforms(em, model, q)
-    out = _emit_rnea(em, model, tf, qd, [0.0] * n, gv)
-    sources.append(_function("bias", ["q", "qd", "g"], em, {"q": q, "qd": qd, "g": gv}, out))
-
-    def mass_columns(em: _Emitter, tf: _Joints) -> list[list[Sym]]:
-        Mx: list[list[Sym]] = [[0.0] * n for _ in range(n)]
-        for k in range(n):
-            e = [1.0 if i == k else 0.0 for i in range(n)]
-            col = _emit_rnea(em, model, tf, [0.0] * n, e, [0.0, 0.0, 0.0])
-            for i in range(k, n):
-                Mx[i][k] = col[i]
-                Mx[k][i] = col[i]
-        return Mx
-
-    em = _Emitter()
-    tf = _emit_transforms(em, model, q)
-    Mx = mass_columns(em, tf)
-    sources.append(_function("mass", ["q"], em, {"q": q}, [Mx[i][j] for i in range(n)
-                                                           for j in range(n)]))
-
-    em = _Emitter()
-    tf = _emit_transforms(em, model, q)
-    h = _emit_rnea(em, model, tf, qd, [0.0] * n, gv)
-    Mx = mass_columns(em, tf)
-    Ma = [[em.add(Mx[i][j], arm[i]) if i == j else Mx[i][j] for j in range(n)]
-          for i in range(n)]
-    rhs = [em.lin([(1.0, tau_in[i], 1.0), (-1.0, h[i], 1.0)]) for i in range(n)]
-    out = _ldl_solve(em, Ma, rhs)
-    sources.append(_function("fd", ["q", "qd", "tau", "g", "armature"], em,
-                             {"q": q, "qd": qd, "tau": tau_in, "g": gv, "armature": arm}, out))
-
-    em = _Emitter()
-    tf = _emit_transforms(em, model, q)
-    Rb: list[Vec] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-    pb: Vec = [0.0, 0.0, 0.0]
-    frames_out: list[Sym] = []
-    for i in range(n):
-        pb = em.vadd(pb, em.matvec(Rb, tf.P[i]))
-        Rb = [[em.lin([(1.0, Rb[r][k], tf.R[i][k][c]) for k in range(3)]) for c in range(3)]
-              for r in range(3)]
-        frames_out += [Rb[r][c] for r in range(3) for c in range(3)] + list(pb)
-    sources.append(_function("frames", ["q"], em, {"q": q}, frames_out))
-
-    source = "\n\n".join(sources) + "\n"
-    namespace: dict[str, object] = {"_sin": math.sin, "_cos": math.cos}
-    exec(compile(source, f"<dynamics of {model.name}>", "exec"), namespace)  # noqa: S102
-    return DynamicsModel(
-        n=n,
-        revolute=tuple(j.kind != "prismatic" for j in model.joints),
-        axes=tuple(tuple(float(x) for x in j.axis) for j in model.joints),
-        source=source,
-        rnea=namespace["rnea"],  # type: ignore[arg-type]
-        bias=namespace["bias"],  # type: ignore[arg-type]
-        mass=namespace["mass"],  # type: ignore[arg-type]
-        fd=namespace["fd"],  # type: ignore[arg-type]
-        frames=namespace["frames"],  # type: ignore[arg-type]
-    )
-
-
-_CACHE_KEY = "_armlab_dynamics_model"
-
-
-def dynamics_model(model: SerialChain) -> DynamicsModel:
-    """The compiled :class:`DynamicsModel` of ``model``, built on first use and memoised."""
-    cached = model.__dict__.get(_CACHE_KEY)
-    if cached is None:
-        if not isinstance(model, SerialChain):
-            raise ValueError(f"model must be a SerialChain, got {type(model).__name__}")
-        cached = _build(model)
-        model.__dict__[_CACHE_KEY] = cached  # the fields of the frozen model stay untouched
-    return cached
 
 
 # ---------------------------------------------------------------------------
@@ -461,11 +149,11 @@ def _external_torques(model: SerialChain, q: list[float], f_ext: object) -> np.n
     """J^T f_ext: joint torques (n,) of wrenches (n, 6) [force N, moment N·m about the link
     origin], base frame, one row per link, acting on the robot."""
     W = matrix("f_ext", f_ext, (model.n, 6))
-    frames = _link_frames(model, q)
+    frames = link_frames(model, q)
     out = np.zeros(model.n)
     for i, (_, o_i) in enumerate(frames):
         if np.any(W[i]):
-            out += _point_jacobian6(model, frames, i, o_i).T @ W[i]
+            out += point_jacobian6(model, frames, i, o_i).T @ W[i]
     return out
 
 
@@ -551,62 +239,6 @@ def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.
     return np.array(qdd)
 
 
-def point_position(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray) -> np.ndarray:
-    """(3,) base-frame position of ``point`` (3,) m given in link ``link``'s frame."""
-    R, p = _link_frames(model, _floats("q", q, model.n))[_link_index(model, link)]
-    return R @ vector("point", point, 3) + p
-
-
-def point_jacobian(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray) -> np.ndarray:
-    """Linear Jacobian (3, n) of a point fixed on a link, base frame.
-
-    Column j <= link is z_j × (p - o_j) for a revolute joint, z_j for a prismatic one
-    (thesis eq. 3.14-3.15 applied to any point); columns of later joints are zero.
-    A force F (base frame) at that point acts on the joints as J^T F.
-    """
-    k = _link_index(model, link)
-    frames = _link_frames(model, _floats("q", q, model.n))
-    R, o = frames[k]
-    return _point_jacobian6(model, frames, k, R @ vector("point", point, 3) + o)[:3]
-
-
-def point_force_torques(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray,
-                        force: np.ndarray) -> np.ndarray:
-    """(n,) joint torques J^T F of a force (3,) N, base frame, at a point (3,) of a link."""
-    return point_jacobian(model, q, link, point).T @ vector("force", force, 3)
-
-
-def _link_index(model: SerialChain, link: int) -> int:
-    if isinstance(link, bool) or not isinstance(link, int | np.integer) or not (
-            0 <= int(link) < model.n):
-        raise ValueError(f"link must be an index 0..{model.n - 1}, got {link!r}")
-    return int(link)
-
-
-def _link_frames(model: SerialChain, q: list[float]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per link (R (3, 3), origin (3,)), base <- link, from one call of the generated code."""
-    fr = dynamics_model(model).frames(q)
-    return [(np.array(fr[12 * i: 12 * i + 9]).reshape(3, 3), np.array(fr[12 * i + 9: 12 * i + 12]))
-            for i in range(model.n)]
-
-
-def _point_jacobian6(model: SerialChain, frames: list[tuple[np.ndarray, np.ndarray]], link: int,
-                     p: np.ndarray) -> np.ndarray:
-    """(6, n) Jacobian of the base-frame point p (3,) riding on ``link``: linear rows
-    z_j × (p - o_j) (revolute) or z_j (prismatic), angular rows z_j (revolute), j <= link."""
-    J = np.zeros((6, model.n))
-    for j in range(link + 1):
-        Rj, oj = frames[j]
-        joint = model.joints[j]
-        z = Rj @ joint.axis
-        if joint.kind == "prismatic":
-            J[:3, j] = z
-        else:
-            J[:3, j] = np.cross(z, p - oj)
-            J[3:, j] = z
-    return J
-
-
 def kinetic_energy(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
                    armature: np.ndarray | None = None) -> float:
     """½ qdᵀ (M(q) + diag(armature)) qd, J."""
@@ -623,78 +255,7 @@ def potential_energy(model: SerialChain, q: np.ndarray, *,
     g = np.array(_gravity(model, gravity))
     qv = _floats("q", q, model.n)
     V = 0.0
-    for link, (R, p) in zip(model.links, _link_frames(model, qv), strict=True):
+    for link, (R, p) in zip(model.links, link_frames(model, qv), strict=True):
         if link.mass:
             V -= link.mass * float(g @ (R @ link.com + p))
     return V
-
-
-# ---------------------------------------------------------------------------
-# Thesis §3.4 closed forms (comparison only)
-
-
-def thesis_closed_form(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
-                       lengths: tuple[float, float] = (0.185, 0.25),
-                       masses: tuple[float, float] = (0.176, 0.19), g: float = 9.81,
-                       literal: bool = False) -> np.ndarray:
-    """Servo torques of the receptionist arm by the thesis's simplified §3.4 equations.
-
-    Thesis eq. 3.28 (servo 1, theta0 about y), 3.31 (servo 2, theta1 about z) and 3.36
-    (servo 3, theta2 about z), with links as rods (centre of mass mid-link, I = m L²/3),
-    gravity g along +x, and the joint force F21 from eq. 3.34: m2 a_C2 = F21 + m2 g.
-    Each printed equation "I θ̈ = moment" is read as Euler's law about the joint with
-    the servo torque added, so the servo torque is tau = I θ̈ - moment.
-
-    Args:
-        q, qd, qdd: (3,) in the model's chain order [theta1, theta0, theta2].
-        lengths: (L1, L2) m; masses: (m1, m2) kg; g: m/s².
-        literal: keep the printed typos: 3.31's moment has both terms with the sign of
-            -(r × F)_z, and 3.36 uses (z_B - z_C2) where (y_B - y_C2) is meant. By
-            default both are fixed.
-
-    Returns:
-        (3,) torques in chain order [theta1, theta0, theta2], N·m.
-
-    What this leaves out, compared with :func:`rnea` (docs/dynamics.md): the moment
-    link 2 passes to link 1 through the elbow (only the force F21 is carried), the
-    rotation of the joint axes (moments are taken about the fixed world y and z axes),
-    link 1's Coriolis/gyroscopic terms, and 3.36 applies I = m L²/3 about the centre of
-    mass with θ̈2 alone instead of the absolute angular acceleration.
-    """
-    t1, t0, t2 = vector("q", q, 3)
-    d1, d0, d2 = vector("qd", qd, 3)
-    a1, a0, a2 = vector("qdd", qdd, 3)
-    L1, L2 = lengths
-    m1, m2 = masses
-    c0, s0, c1, s1 = math.cos(t0), math.sin(t0), math.cos(t1), math.sin(t1)
-    Rz1 = np.array([[c1, -s1, 0.0], [s1, c1, 0.0], [0.0, 0.0, 1.0]])
-    Ry0 = np.array([[c0, 0.0, s0], [0.0, 1.0, 0.0], [-s0, 0.0, c0]])
-    R1 = Rz1 @ Ry0
-    ez, ey = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
-    u1 = R1[:, 0]
-    u2 = R1 @ np.array([math.cos(t2), math.sin(t2), 0.0])
-    C1, B = 0.5 * L1 * u1, L1 * u1
-    C2 = B + 0.5 * L2 * u2
-    # Angular velocities/accelerations of the links (world frame), then a_C2.
-    y1 = Rz1 @ ey
-    w1 = d1 * ez + d0 * y1
-    al1 = a1 * ez + a0 * y1 + np.cross(d1 * ez, d0 * y1)
-    z2 = R1 @ ez
-    w2 = w1 + d2 * z2
-    al2 = al1 + a2 * z2 + np.cross(w1, d2 * z2)
-    aB = np.cross(al1, B) + np.cross(w1, np.cross(w1, B))
-    r = C2 - B
-    aC2 = aB + np.cross(al2, r) + np.cross(w2, np.cross(w2, r))
-    F21 = m2 * aC2 - m2 * np.array([g, 0.0, 0.0])  # eq. 3.34
-    xc1, yc1, zc1 = C1
-    xB, yB, zB = B
-    xC2, yC2, zC2 = C2
-    moment0 = m1 * g * zc1 + F21[2] * xB - F21[0] * zB  # eq. 3.28
-    moment1 = m1 * g * yc1 + F21[1] * xB - F21[0] * yB  # eq. 3.31 as printed
-    if not literal:
-        moment1 = -moment1  # (r_C1 × G1 + r_B × (-F21))_z
-    lever = (zB - zC2) if literal else (yB - yC2)
-    moment2 = F21[1] * (xB - xC2) - F21[0] * lever  # eq. 3.36
-    I1 = m1 * L1**2 / 3.0
-    I2 = m2 * L2**2 / 3.0
-    return np.array([I1 * a1 - moment1, I1 * a0 - moment0, I2 * a2 - moment2])

@@ -14,15 +14,14 @@ from kinematics.dynamics import (
     gravity_torques,
     kinetic_energy,
     mass_matrix,
-    point_force_torques,
-    point_jacobian,
-    point_position,
+    newton_euler,
     potential_energy,
     rnea,
-    thesis_closed_form,
 )
 from kinematics.fk import link_poses
 from kinematics.model import chain_from_urdf
+from kinematics.points import point_force_torques, point_jacobian, point_position
+from kinematics.thesis_dynamics import thesis_closed_form
 
 # The thesis's arm: L1 = 18.5 cm, L2 = 25 cm, m1 = 176 g, m2 = 190 g, g = 9.81.
 L1, L2, M1, M2, G = 0.185, 0.25, 0.176, 0.19, 9.81
@@ -233,6 +232,62 @@ def test_compiled_model_is_built_once_and_readable():
     q, qd, qdd = np.array([0.3, -0.7, 1.1]), np.array([0.5, -1.2, 2.0]), np.array([1, 2, -3.0])
     got = np.array(namespace["rnea"](q, qd, qdd, arm.gravity), dtype=float)
     np.testing.assert_allclose(got, rnea(arm, q, qd, qdd), rtol=1e-12, atol=1e-12)
+
+
+def shipped_chains() -> list[tuple[str, object]]:
+    """Every serial chain the lab ships: each URDF in kinematics/robots (a quadruped's four
+    legs). The hand's fingers are planar tendon linkages (kinematics/hand.py), not chains."""
+    from kinematics.model import ROBOTS_DIR, Quadruped
+
+    out = []
+    for path in sorted(ROBOTS_DIR.glob("*.urdf")):
+        model = load_robot(path)
+        if isinstance(model, Quadruped):
+            out += [(f"{path.stem}:{leg}", chain) for leg, chain in model.legs.items()]
+        else:
+            out.append((path.stem, model))
+    return out
+
+
+@pytest.mark.parametrize("name,chain", shipped_chains(), ids=[n for n, _ in shipped_chains()])
+def test_generated_rnea_equals_the_readable_recursion_on_every_shipped_robot(name, chain):
+    """The fast path (generated code) and :func:`newton_euler` (the teaching text): one
+    recursion, so equal to round-off at random states (and at rest, gravity alone)."""
+    rng = np.random.default_rng(7)
+    n = chain.n
+    for _ in range(25):
+        q = rng.uniform(-np.pi, np.pi, n)
+        qd, qdd = rng.normal(0.0, 3.0, n), rng.normal(0.0, 20.0, n)
+        np.testing.assert_allclose(rnea(chain, q, qd, qdd), newton_euler(chain, q, qd, qdd),
+                                   rtol=0, atol=1e-12, err_msg=name)
+    q = rng.uniform(-1, 1, n)
+    np.testing.assert_allclose(gravity_torques(chain, q),
+                               newton_euler(chain, q, np.zeros(n), np.zeros(n)),
+                               rtol=0, atol=1e-12, err_msg=name)
+    assert np.any(np.abs(newton_euler(chain, q, np.zeros(n), np.ones(n))) > 1e-6), name
+
+
+def test_readable_recursion_on_a_prismatic_joint_and_a_tilted_gravity(tmp_path):
+    """A slide carried by a turning joint: the Coriolis term 2 ω × ḋ (eq. 2.47) and the
+    prismatic rows (eq. 2.42, 2.44) agree with the generated code."""
+    path = tmp_path / "arm_slide.urdf"
+    link = ('<inertial><origin xyz="0.05 0.01 0"/><mass value="{m}"/><inertia ixx="2e-3" '
+            'iyy="3e-3" izz="4e-3" ixy="1e-4" ixz="0" iyz="-2e-4"/></inertial>')
+    path.write_text(f"""<?xml version="1.0"?>
+<robot name="arm_slide"><link name="base"/>
+  <link name="a">{link.format(m=1.5)}</link><link name="b">{link.format(m=0.7)}</link>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0 0 0.1" rpy="0.2 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
+  <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/>
+    <origin xyz="0.2 0 0" rpy="0 0.3 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.3" effort="50" velocity="1"/></joint></robot>""")
+    chain = chain_from_urdf(path)
+    g = np.array([1.0, -2.0, -9.5])
+    for q, qd, qdd in [([0.4, 0.1], [1.5, -0.3], [2.0, 0.7]), ([-1.2, 0.25], [0, 0.5], [0, 0])]:
+        np.testing.assert_allclose(rnea(chain, q, qd, qdd, gravity=g),
+                                   newton_euler(chain, q, qd, qdd, gravity=g),
+                                   rtol=0, atol=1e-12)
 
 
 # -- thesis §3.4 closed forms against RNEA (docs/dynamics.md) ---------------------------

@@ -8,7 +8,8 @@ from hardware.servo import IDEAL, ServoRegisters
 from hardware.servo_spec import RX24F
 from hardware.sim_backend import thesis_registers
 from kinematics import load_robot
-from kinematics.dynamics import point_force_torques, point_position, potential_energy
+from kinematics.dynamics import potential_energy
+from kinematics.points import point_force_torques, point_position
 
 
 @pytest.fixture(scope="module")
