@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.backend import Backend, BackendError
-from control.periodic import RowRing, Ticker
+from control.periodic import Pacer, RingBuffer
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
 
 #: Record layout: name -> number of columns (t first).
@@ -102,11 +102,11 @@ class GaitLoop:
         self.realtime = realtime
         self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
         self._speed = self._check_speed(speed)
-        self._ring = RowRing(sum(COLUMNS.values()), seconds=history_s, period=self.period)
+        self._ring = RingBuffer(sum(COLUMNS.values()), RingBuffer.rows_for(history_s, self.period))
         self._commands: deque[Command] = deque()
-        self._ticker = Ticker(self._period, period=self.period, name="armlab-gait",
-                              realtime=realtime, tick_s=tick_s, max_catch_up=max_catch_up,
-                              idle_s=0.002, on_exit=self._stopped)
+        self._pacer = Pacer(self._period, period=self.period, name="armlab-gait",
+                            realtime=realtime, batch_s=tick_s, max_catch_up=max_catch_up,
+                            idle_s=0.002, on_exit=self._stopped)
         self._t = 0.0
         self._walking = False
         self._stopping = False
@@ -186,7 +186,7 @@ class GaitLoop:
             if loop.backend is not None:
                 loop.backend.estop()
         self.post(apply)
-        if not self._ticker.running and self.backend is not None:
+        if not self._pacer.running and self.backend is not None:
             try:
                 self.backend.estop()
             except (BackendError, OSError, ValueError):
@@ -203,11 +203,11 @@ class GaitLoop:
 
     def start(self) -> None:
         """Start the loop thread."""
-        self._ticker.start()
+        self._pacer.start()
 
     def shutdown(self, *, torque_off: bool = True) -> None:
         """Stop the thread (waits for the current tick); torque off by default."""
-        self._ticker.stop(timeout=3.0)
+        self._pacer.stop(timeout=3.0)
         if torque_off and self.backend is not None:
             try:
                 self.backend.estop()
@@ -218,7 +218,7 @@ class GaitLoop:
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
-        self._ticker.run_for(seconds)
+        self._pacer.run_for(seconds)
 
     def _stopped(self, _error: Exception | None) -> None:
         self.status = self._make_status()
@@ -291,7 +291,7 @@ class GaitLoop:
             gait=spec.gait, speed=self._speed,
             servos=self.backend is not None and not self._fault, torque_on=self._torque,
             standing_up=self._ramp is not None and self._t - self._ramp[1] < STAND_UP_S,
-            fault=self._fault, running=self._ticker.running)
+            fault=self._fault, running=self._pacer.running)
 
     # --- reading (any thread) ------------------------------------------------------------
 

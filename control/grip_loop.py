@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.grip import N_FINGERS, GraspTrace, GripController, HandPlant, grasp_figures
-from control.periodic import RowRing, Ticker
+from control.periodic import Pacer, RingBuffer
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
 COLUMNS: dict[str, str] = {
@@ -73,12 +73,13 @@ class GripLoop:
         self.controller = controller
         self.realtime = realtime
         self.dt = controller.dt
-        self._ring = RowRing(1 + N_FINGERS * len(COLUMNS), seconds=history_s, period=self.dt)
+        self._ring = RingBuffer(1 + N_FINGERS * len(COLUMNS),
+                                RingBuffer.rows_for(history_s, self.dt))
         self._commands: deque[Command] = deque()
-        self._ticker = Ticker(self._period, period=self.dt, name="armlab-grip",
-                              realtime=realtime, tick_s=tick_s, max_catch_up=max_catch_up,
-                              idle_s=0.0005, catch=(ValueError, RuntimeError, FloatingPointError),
-                              on_exit=self._stopped)
+        self._pacer = Pacer(self._period, period=self.dt, name="armlab-grip",
+                            realtime=realtime, batch_s=tick_s, max_catch_up=max_catch_up,
+                            idle_s=0.0005, catch=(ValueError, RuntimeError, FloatingPointError),
+                            on_exit=self._stopped)
         self._current = plant.step(np.zeros(N_FINGERS), self.dt)
         self._closed_at: float | None = None
         self.status = GripStatus(t=plant.t, modes=controller.modes)
@@ -103,17 +104,17 @@ class GripLoop:
     # --- the loop ------------------------------------------------------------------
     def start(self) -> None:
         """Start the loop thread."""
-        self._ticker.start()
+        self._pacer.start()
 
     def shutdown(self) -> None:
         """Stop the thread (waits for the current tick); the motors are left at 0 V."""
-        self._ticker.stop(timeout=2.0)
+        self._pacer.stop(timeout=2.0)
         self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False,
                                  self.status.fault)
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
-        self._ticker.run_for(seconds)
+        self._pacer.run_for(seconds)
 
     def _stopped(self, error: Exception | None) -> None:
         fault = "" if error is None else f"the hand loop stopped: {error}"
@@ -131,7 +132,7 @@ class GripLoop:
             ctl.force_cap, plant.finger_angle,
         ])
         self._ring.append(row)
-        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._ticker.running)
+        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._pacer.running)
 
     # --- reading (any thread) --------------------------------------------------------
     def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:

@@ -29,8 +29,6 @@ import math
 import queue
 import sys
 import threading
-import time
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +48,7 @@ from control.commands import (
 )
 from control.compliance import MODES, ComplianceController, ControllerState, Mode
 from control.params import DEFAULT, Params, loop_stability, stability_warning
+from control.periodic import Pacer
 from control.recorder import Recorder
 from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
 from kinematics.dynamics import rnea
@@ -83,7 +82,9 @@ class LoopStatus:
         period_mean_ms: mean measured period (paced runs; None headless).
         jitter_p50_ms, jitter_p99_ms, jitter_max_ms: lateness of period starts
             over the last 1000 periods (paced runs; None headless).
-        overruns: periods started more than one period late.
+        overruns: period starts so late that periods were skipped.
+        skipped, skipped_recent: periods skipped (wall time dropped rather than run in a
+            burst), in all and in the last 10 s.
         warning: :func:`control.params.stability_warning` of the current parameters.
     """
 
@@ -105,6 +106,8 @@ class LoopStatus:
     jitter_max_ms: float | None
     overruns: int
     warning: str | None
+    skipped: int = 0
+    skipped_recent: int = 0
 
 
 class _Fault(Exception):
@@ -180,11 +183,8 @@ class ControlLoop:
         self._backend_ok = True
         self._fault: str | None = None
         self._message = ""
-        self._lateness: deque[float] = deque(maxlen=1000)
-        self._periods: deque[float] = deque(maxlen=1000)
-        self._overruns = 0
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        self._pacer = Pacer(self._tick, period=params.period, name="armlab-control",
+                            realtime=realtime)
         self._warning = stability_warning(params)
 
     # ------------------------------------------------------------------ public API
@@ -226,30 +226,28 @@ class ControlLoop:
     @property
     def status(self) -> LoopStatus:
         """A consistent snapshot (cheap; safe from any thread)."""
+        pace = self._pacer.stats()
         with self._lock:
-            lat = np.array(self._lateness) if self._lateness else None
-            per = np.array(self._periods) if self._periods else None
             traj, progress = None, 0.0
             if self._traj is not None:
                 traj = self._traj.name or "trajectory"
                 d = self._traj.duration
                 progress = 1.0 if d <= 0 else min(1.0, max(0.0, (self._t - self._traj_t0) / d))
             return LoopStatus(
-                running=self._thread is not None and self._thread.is_alive(),
+                running=self._pacer.alive,
                 active=self._active, torque_on=self._torque_on, estopped=self._estopped,
                 fault=self._fault, message=self._message, t=self._t, steps=self._k,
                 controller=self.controller.mode, trajectory=traj, progress=progress,
                 period_ms=self._params.period * 1e3,
-                period_mean_ms=None if per is None else float(per.mean() * 1e3),
-                jitter_p50_ms=None if lat is None else float(np.percentile(lat, 50) * 1e3),
-                jitter_p99_ms=None if lat is None else float(np.percentile(lat, 99) * 1e3),
-                jitter_max_ms=None if lat is None else float(lat.max() * 1e3),
-                overruns=self._overruns, warning=self._warning,
+                period_mean_ms=pace.interval_mean_ms, jitter_p50_ms=pace.late_p50_ms,
+                jitter_p99_ms=pace.late_p99_ms, jitter_max_ms=pace.late_max_ms,
+                overruns=pace.overruns, skipped=pace.skipped,
+                skipped_recent=pace.skipped_recent, warning=self._warning,
             )
 
     def step(self) -> None:
         """Run one period now (headless use; do not mix with a running thread)."""
-        if self._thread is not None and self._thread.is_alive():
+        if self._pacer.alive:
             raise RuntimeError("the loop thread is running; post commands instead of step()")
         self._tick()
 
@@ -269,48 +267,18 @@ class ControlLoop:
         (``sys.setswitchinterval``; the default 5 ms lets a busy UI thread hold the
         GIL for 5 ms while a period is due).
         """
-        if self._thread is not None and self._thread.is_alive():
+        if self._pacer.alive:
             return
         if self.realtime:
             sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL))
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="armlab-control", daemon=True)
-        self._thread.start()
+        self._pacer.start()
 
     def shutdown(self, *, torque_off: bool = False, timeout: float = 2.0) -> None:
         """Stop the thread (finishing the current period); optionally switch torque off."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout)
+        self._pacer.stop(timeout)
         if torque_off and self._backend_ok:
             self._safe_estop()
             self._torque_on = False
-
-    # ------------------------------------------------------------------ thread
-
-    def _run(self) -> None:
-        next_t = time.perf_counter()
-        last_start: float | None = None
-        while not self._stop.is_set():
-            period = self._params.period
-            if self.realtime:
-                _sleep_until(next_t, self._stop)
-                if self._stop.is_set():
-                    break
-            start = time.perf_counter()
-            if self.realtime:
-                late = start - next_t
-                with self._lock:
-                    self._lateness.append(max(0.0, late))
-                    if last_start is not None:
-                        self._periods.append(start - last_start)
-                if late > period:
-                    with self._lock:
-                        self._overruns += 1
-                    next_t = start  # re-anchor: never try to catch up a burst of periods
-            last_start = start
-            self._tick()
-            next_t += self._params.period
 
     # ------------------------------------------------------------------ one period
 
@@ -416,6 +384,7 @@ class ControlLoop:
             old, self._params, self._warning = self._params, new, warning
         if new.period != old.period:
             self.recorder.resize(self._capacity(new.period))
+            self._pacer.period = new.period
 
     def _capacity(self, period: float) -> int:
         return max(2, int(math.ceil(self.history_s / period)) + 1)
@@ -559,16 +528,3 @@ class ControlLoop:
         qdd = (qd - self._qd_cmd_prev) / period
         self._hold = q1
         return q1.copy(), qd, qdd
-
-
-def _sleep_until(deadline: float, stop: threading.Event) -> None:
-    """Sleep to ``deadline`` (perf_counter s): coarse sleep, then a short spin for precision."""
-    while True:
-        left = deadline - time.perf_counter()
-        if left <= 0 or stop.is_set():
-            return
-        if left > 0.002:
-            time.sleep(left - 0.0015)
-        elif left > 0.0002:
-            time.sleep(0)
-        # else spin the last 0.2 ms

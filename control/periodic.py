@@ -1,15 +1,20 @@
-"""What the batched loops share (``control.gait_loop``, ``control.grip_loop``): the thread
-that runs their periods and the ring-buffer record the UI reads.
+"""What every loop of the lab shares: one pacer for its periods and one ring buffer for its
+record (``control.loop.ControlLoop``, ``control.gait_loop.GaitLoop``,
+``control.grip_loop.GripLoop``).
 
-:class:`Ticker` runs one period of loop time per ``step()`` call. Real time: each tick
-(``tick_s``, 10 ms) it runs the periods that are due on the wall clock, never more than
-``max_catch_up`` s of them at once (a stalled machine skips time rather than racing).
-Not real time (tests, headless): a tick's worth of periods after another, as fast as it
-can. ``control.loop.ControlLoop`` paces differently (one period per wake-up, with jitter
-statistics) and does not use it.
+:class:`Pacer` runs one period of loop time per ``step()`` call, in its own thread or
+now. Real time: it wakes every ``batch_s`` of wall time (one period when ``batch_s`` is
+the period, as the arm's control loop does) and runs the periods that are due, never
+more than ``max_catch_up`` s of them at once: a stalled machine skips time, counted in
+:attr:`PaceStats.skipped`, rather than racing through a burst of late periods. It
+measures how late each wake-up was (jitter) and the time between wake-ups. Not real time
+(tests, headless): batches of periods back to back, as fast as the machine goes.
 
-:class:`RowRing` keeps the newest rows of a fixed width, column 0 the time in s: one
-writer appends, any thread takes a copy.
+:class:`RingBuffer` keeps the newest rows of a fixed width, column 0 the time in s: one
+writer appends in place (no allocation per period), any thread takes a copy of the last
+seconds (found by bisection on time), thinned if asked.
+
+(``control.recorder.Recorder`` is a RingBuffer with a named column per signal.)
 """
 
 from __future__ import annotations
@@ -17,56 +22,96 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 
-class Ticker:
+@dataclass(frozen=True)
+class PaceStats:
+    """How well a real-time pacer kept time (None before the first wake-ups).
+
+    Attributes:
+        late_p50_ms, late_p99_ms, late_max_ms: lateness of wake-ups (jitter), ms.
+        interval_mean_ms: mean wall time between wake-ups, ms.
+        overruns: wake-ups so late that periods had to be skipped.
+        skipped: periods skipped in all.
+        skipped_recent: periods skipped in the last ``recent_s`` s of wall time.
+    """
+
+    late_p50_ms: float | None
+    late_p99_ms: float | None
+    late_max_ms: float | None
+    interval_mean_ms: float | None
+    overruns: int
+    skipped: int
+    skipped_recent: int
+
+
+class Pacer:
     """Calls ``step()`` once per ``period`` s of loop time, in a daemon thread or now.
 
     Args:
         step: one period of the owner's loop.
-        period: s.
+        period: s (the owner may change :attr:`period` from ``step``; the pacer then
+            re-anchors its clock at the next wake-up).
         name: the thread's name.
         realtime: pace by the wall clock (False: as fast as possible).
-        tick_s: wall time between batches of periods, s.
-        max_catch_up: most loop time run in one tick, s.
+        batch_s: wall time between wake-ups, s (default: one period).
+        max_catch_up: most loop time run at one wake-up, s (default: one batch).
         idle_s: pause between batches when not real time, s.
         catch: exceptions of ``step`` that end the thread (passed to ``on_exit``).
         on_exit: called in the thread as it ends, with the caught exception or None.
+        recent_s: the window of :attr:`PaceStats.skipped_recent`, s.
     """
 
     def __init__(self, step: Callable[[], None], *, period: float, name: str,
-                 realtime: bool = True, tick_s: float = 0.01, max_catch_up: float = 0.1,
-                 idle_s: float = 0.002, catch: tuple[type[Exception], ...] = (),
-                 on_exit: Callable[[Exception | None], None] | None = None) -> None:
+                 realtime: bool = True, batch_s: float | None = None,
+                 max_catch_up: float | None = None, idle_s: float = 0.002,
+                 catch: tuple[type[Exception], ...] = (),
+                 on_exit: Callable[[Exception | None], None] | None = None,
+                 recent_s: float = 10.0) -> None:
         self.step = step
-        self.period = period
+        self.period = float(period)
         self.name = name
         self.realtime = realtime
-        self.tick_s = tick_s
+        self.batch_s = batch_s
         self.max_catch_up = max_catch_up
         self.idle_s = idle_s
         self.catch = catch
         self.on_exit = on_exit
+        self.recent_s = recent_s
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+        self._late: deque[float] = deque(maxlen=1000)
+        self._intervals: deque[float] = deque(maxlen=1000)
+        self._skips: deque[tuple[float, int]] = deque(maxlen=1000)  # (wall time, periods)
+        self._overruns = 0
+        self._skipped = 0
 
     @property
     def running(self) -> bool:
         """A thread was started and not stopped since."""
         return self._thread is not None
 
+    @property
+    def alive(self) -> bool:
+        """The thread is running now (False after it ended on its own)."""
+        return self._thread is not None and self._thread.is_alive()
+
     def start(self) -> None:
         """Start the thread (nothing when it runs)."""
-        if self._thread is not None:
+        if self.alive:
             return
+        self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=self.name, daemon=True)
         self._thread.start()
 
     def stop(self, timeout: float) -> None:
-        """Stop the thread, waiting up to ``timeout`` s for the current tick (not when
+        """Stop the thread, waiting up to ``timeout`` s for the current batch (not when
         called from the thread itself)."""
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
@@ -75,69 +120,183 @@ class Ticker:
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
-        if self._thread is not None:
+        if self.alive:
             raise RuntimeError("run_for: the loop thread is running")
         for _ in range(max(1, round(seconds / self.period))):
             self.step()
 
+    def stats(self) -> PaceStats:
+        """The lateness and skips measured so far (real time only)."""
+        with self._lock:
+            late = np.array(self._late) if self._late else None
+            gaps = np.array(self._intervals) if self._intervals else None
+            since = time.perf_counter() - self.recent_s
+            recent = sum(k for t, k in self._skips if t >= since)
+            return PaceStats(
+                late_p50_ms=None if late is None else float(np.percentile(late, 50) * 1e3),
+                late_p99_ms=None if late is None else float(np.percentile(late, 99) * 1e3),
+                late_max_ms=None if late is None else float(late.max() * 1e3),
+                interval_mean_ms=None if gaps is None else float(gaps.mean() * 1e3),
+                overruns=self._overruns, skipped=self._skipped, skipped_recent=recent)
+
     def _run(self) -> None:
         error: Exception | None = None
         try:
-            self._tick_until_stopped()
+            if self.realtime:
+                self._pace_until_stopped()
+            else:
+                while not self._stop.is_set():
+                    for _ in range(self._per_wake()):
+                        self.step()
+                    self._stop.wait(self.idle_s)
         except self.catch as exc:
             error = exc
         if self.on_exit is not None:
             self.on_exit(error)
 
-    def _tick_until_stopped(self) -> None:
-        start = time.perf_counter()
-        done = 0
-        per_tick = max(1, round(self.tick_s / self.period))
-        limit = max(1, round(self.max_catch_up / self.period))
+    def _per_wake(self) -> int:
+        batch = self.period if self.batch_s is None else self.batch_s
+        return max(1, round(batch / self.period))
+
+    def _pace_until_stopped(self) -> None:
+        period = self.period
+        start = time.perf_counter()  # the wall time of period 0 of this anchor
+        done = 0  # periods run since the anchor
+        last_wake: float | None = None
         while not self._stop.is_set():
-            if self.realtime:
-                due = int((time.perf_counter() - start) / self.period) - done
+            per_wake = self._per_wake()
+            wake_at = start + (done + per_wake - 1) * period
+            sleep_until(wake_at, self._stop)
+            if self._stop.is_set():
+                break
+            now = time.perf_counter()
+            due = int((now - start) / period) + 1 - done  # periods whose start has passed
+            limit = max(per_wake, round((self.max_catch_up or per_wake * period) / period))
+            with self._lock:
+                self._late.append(max(0.0, now - wake_at))
+                if last_wake is not None:
+                    self._intervals.append(now - last_wake)
                 if due > limit:  # fell behind: skip wall time, do not race
-                    start += (due - limit) * self.period
+                    self._overruns += 1
+                    self._skipped += due - limit
+                    self._skips.append((now, due - limit))
+                    start += (due - limit) * period
                     due = limit
-            else:
-                due = per_tick
+            last_wake = now
             for _ in range(due):
                 self.step()
             done += due
-            self._stop.wait(self.tick_s if self.realtime else self.idle_s)
+            if self.period != period:  # the owner changed its period: a new anchor
+                period, start, done = self.period, time.perf_counter(), 0
 
 
-class RowRing:
-    """The newest rows of ``width`` floats (NaN until written); column 0 is time, s.
+def sleep_until(deadline: float, stop: threading.Event) -> None:
+    """Sleep to ``deadline`` (perf_counter s): coarse sleep, then a short spin for precision;
+    returns early when ``stop`` is set."""
+    while True:
+        left = deadline - time.perf_counter()
+        if left <= 0 or stop.is_set():
+            return
+        if left > 0.002:
+            time.sleep(left - 0.0015)
+        elif left > 0.0002:
+            time.sleep(0)
+        # else spin the last 0.2 ms
+
+
+class RingBuffer:
+    """The newest ``capacity`` rows of ``width`` floats; column 0 is time, s (increasing).
 
     Args:
         width: floats per row.
-        seconds: how much history to keep, s.
-        period: s between rows (keeps ``max(2, ceil(seconds / period))`` rows).
+        capacity: rows kept (>= 2); e.g. ``rows_for(seconds, period)``.
     """
 
-    def __init__(self, width: int, *, seconds: float, period: float) -> None:
-        self.capacity = max(2, math.ceil(seconds / period))
-        self._rows = np.full((self.capacity, width), np.nan)
-        self._count = 0  # rows ever written
+    def __init__(self, width: int, capacity: int) -> None:
+        if capacity < 2:
+            raise ValueError(f"capacity must be >= 2 rows, got {capacity}")
+        self.width = int(width)
         self._lock = threading.Lock()
+        self._data = np.full((capacity, self.width), np.nan)
+        self._head = 0  # next row to write
+        self._count = 0  # rows kept (<= capacity)
+
+    @staticmethod
+    def rows_for(seconds: float, period: float) -> int:
+        """Rows that hold ``seconds`` of one row per ``period``."""
+        return max(2, math.ceil(seconds / period))
+
+    @property
+    def capacity(self) -> int:
+        return self._data.shape[0]
+
+    def __len__(self) -> int:
+        return self._count
+
+    def write(self, fill: Callable[[np.ndarray], object]) -> None:
+        """Add a row by ``fill(row)``: the oldest row, cleared to NaN, filled in place under
+        the lock (the writer's fast path: no allocation per period, no torn reads)."""
+        with self._lock:
+            row = self._data[self._head]
+            row.fill(np.nan)
+            fill(row)
+            self._head = (self._head + 1) % self.capacity
+            self._count = min(self._count + 1, self.capacity)
 
     def append(self, row: np.ndarray) -> None:
         """Write ``row`` (width,) over the oldest one."""
         with self._lock:
-            self._rows[self._count % self.capacity] = row
-            self._count += 1
+            self._data[self._head] = row
+            self._head = (self._head + 1) % self.capacity
+            self._count = min(self._count + 1, self.capacity)
 
-    def rows(self, window_s: float | None = None) -> np.ndarray:
-        """(m, width) copy, oldest first: the last ``window_s`` s (None: all kept)."""
+    def clear(self) -> None:
         with self._lock:
-            n = min(self._count, self.capacity)
-            if self._count <= self.capacity:
-                rows = self._rows[:n].copy()
+            self._head = self._count = 0
+
+    def resize(self, capacity: int) -> None:
+        """Change the number of rows kept, keeping the newest ones."""
+        if capacity < 2:
+            raise ValueError(f"capacity must be >= 2 rows, got {capacity}")
+        with self._lock:
+            keep = self._ordered()[-capacity:]
+            self._data = np.full((capacity, self.width), np.nan)
+            self._data[: len(keep)] = keep
+            self._count = len(keep)
+            self._head = len(keep) % capacity
+
+    def rows(self, window_s: float | None = None, *, max_points: int | None = None
+             ) -> np.ndarray:
+        """(m, width) copy, oldest first: the last ``window_s`` s (None: all kept), thinned
+        evenly to about ``max_points`` rows (the newest kept) when given."""
+        with self._lock:
+            if window_s is None or self._count == 0:
+                data = self._ordered()
             else:
-                k = self._count % self.capacity
-                rows = np.concatenate([self._rows[k:], self._rows[:k]])
-        if window_s is not None and n:
-            rows = rows[rows[:, 0] >= rows[-1, 0] - window_s]
-        return rows
+                newest = self._data[(self._head - 1) % self.capacity, 0]
+                lo, hi = 1, self._count  # rows newer than newest - window_s: bisect on time
+                while lo < hi:
+                    mid = (lo + hi + 1) // 2
+                    if self._data[(self._head - mid) % self.capacity, 0] >= newest - window_s:
+                        lo = mid
+                    else:
+                        hi = mid - 1
+                data = self._last(lo)
+        if max_points is not None and len(data) > max_points > 0:
+            step = math.ceil(len(data) / max_points)
+            data = data[(len(data) - 1) % step:: step]
+        return data
+
+    def _ordered(self) -> np.ndarray:
+        """Rows oldest first (caller holds the lock); a copy."""
+        if self._count < self.capacity:
+            return self._data[: self._count].copy()
+        return np.concatenate([self._data[self._head:], self._data[: self._head]])
+
+    def _last(self, rows: int) -> np.ndarray:
+        """The newest ``rows`` rows, oldest first (caller holds the lock); a copy."""
+        rows = min(rows, self._count)
+        start = self._head - rows
+        if start >= 0:
+            return self._data[start: self._head].copy()
+        return np.concatenate([self._data[start:], self._data[: self._head]])

@@ -24,13 +24,12 @@ q_env      θ_env, the environment state of eq. 2.7, rad
 from __future__ import annotations
 
 import io
-import math
-import threading
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from control.params import Params
+from control.periodic import RingBuffer
 
 SIGNALS: tuple[str, ...] = ("q_cmd", "q_ref", "q", "error", "qd_ref", "load", "tau_load",
                             "tau_dyn", "tau_ext", "q_env")
@@ -39,7 +38,8 @@ UNITS = {"q_cmd": "rad", "q_ref": "rad", "q": "rad", "error": "rad", "qd_ref": "
 
 
 class Recorder:
-    """Ring buffers holding the last ``capacity`` periods of every signal.
+    """The last ``capacity`` periods of every signal: a :class:`~control.periodic.RingBuffer`
+    with one named column per joint and signal.
 
     Args:
         n: number of joints.
@@ -48,8 +48,6 @@ class Recorder:
     """
 
     def __init__(self, n: int, capacity: int, joint_names: Sequence[str] | None = None) -> None:
-        if capacity < 2:
-            raise ValueError(f"capacity must be >= 2 rows, got {capacity}")
         self.n = n
         self.joint_names = tuple(joint_names) if joint_names else tuple(f"j{i}" for i in range(n))
         self._cols = {"t": slice(0, 1)}
@@ -57,59 +55,32 @@ class Recorder:
         for name in SIGNALS:
             self._cols[name] = slice(c, c + n)
             c += n
-        self._width = c
-        self._lock = threading.Lock()
-        self._data = np.full((capacity, c), np.nan)
-        self._head = 0  # next row to write
-        self._count = 0
+        self._ring = RingBuffer(c, capacity)
 
     @property
     def capacity(self) -> int:
-        return self._data.shape[0]
+        return self._ring.capacity
 
     def __len__(self) -> int:
-        return self._count
+        return len(self._ring)
 
     def append(self, t: float, signals: Mapping[str, np.ndarray]) -> None:
         """Add one row: ``t`` s and each signal (n,) (missing ones are NaN)."""
-        with self._lock:
-            row = self._data[self._head]  # written in place: no allocation per period
-            row.fill(np.nan)
+        cols = self._cols
+
+        def fill(row: np.ndarray) -> None:
             row[0] = t
             for name, value in signals.items():
-                row[self._cols[name]] = value
-            self._head = (self._head + 1) % self.capacity
-            self._count = min(self._count + 1, self.capacity)
+                row[cols[name]] = value
+
+        self._ring.write(fill)
 
     def clear(self) -> None:
-        with self._lock:
-            self._head = self._count = 0
+        self._ring.clear()
 
     def resize(self, capacity: int) -> None:
         """Change the number of rows kept, keeping the newest ones."""
-        if capacity < 2:
-            raise ValueError(f"capacity must be >= 2 rows, got {capacity}")
-        with self._lock:
-            rows = self._ordered()
-            keep = rows[-capacity:]
-            self._data = np.full((capacity, self._width), np.nan)
-            self._data[: len(keep)] = keep
-            self._count = len(keep)
-            self._head = len(keep) % capacity
-
-    def _ordered(self) -> np.ndarray:
-        """Rows oldest first (caller holds the lock); a copy."""
-        if self._count < self.capacity:
-            return self._data[: self._count].copy()
-        return np.concatenate([self._data[self._head:], self._data[: self._head]])
-
-    def _last(self, rows: int) -> np.ndarray:
-        """The newest ``rows`` rows, oldest first (caller holds the lock); a copy."""
-        rows = min(rows, self._count)
-        start = self._head - rows
-        if start >= 0:
-            return self._data[start: self._head].copy()
-        return np.concatenate([self._data[start:], self._data[: self._head]])
+        self._ring.resize(capacity)
 
     def snapshot(self, window_s: float | None = None, *,
                  max_points: int | None = None) -> dict[str, np.ndarray]:
@@ -122,23 +93,7 @@ class Recorder:
         Returns:
             {"t": (m,), signal: (m, n), ...}, oldest first; safe to keep and modify.
         """
-        with self._lock:
-            if window_s is None or self._count == 0:
-                data = self._ordered()
-            else:
-                newest = self._data[(self._head - 1) % self.capacity, 0]
-                # rows are one period apart: find how many fall in the window
-                lo, hi = 1, self._count
-                while lo < hi:  # binary search on time, newest rows backwards
-                    mid = (lo + hi + 1) // 2
-                    if self._data[(self._head - mid) % self.capacity, 0] >= newest - window_s:
-                        lo = mid
-                    else:
-                        hi = mid - 1
-                data = self._last(lo)
-        if max_points is not None and len(data) > max_points > 0:
-            step = math.ceil(len(data) / max_points)
-            data = data[(len(data) - 1) % step:: step]
+        data = self._ring.rows(window_s, max_points=max_points)
         out = {"t": data[:, 0]}
         for name in SIGNALS:
             out[name] = data[:, self._cols[name]]

@@ -506,6 +506,9 @@ class ComplianceLesson(LessonBase):
         msg = ""
         if st.message and not st.fault and st.message != state:
             msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
+        if st.skipped_recent:  # the machine could not keep up: say so, do not hide it
+            msg += (f"<div style='color:#a15c00;font-size:0.85em'>late: {st.skipped_recent} "
+                    "periods skipped in the last 10 s</div>")
         set_content(self.status, status_html(
             state, color, f"{where} · {torque} · t = {st.t:.0f} s · T = {st.period_ms:.0f} ms"
             f"{hand}", extra=msg))

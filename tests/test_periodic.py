@@ -1,0 +1,66 @@
+"""The one pacer and the one ring buffer every loop of the lab shares (control/periodic.py)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from _helpers import wait_for
+
+from control.periodic import Pacer, RingBuffer
+
+
+def test_ring_keeps_the_newest_rows_and_finds_a_window_by_time():
+    ring = RingBuffer(2, 5)
+    assert len(ring) == 0 and ring.rows().shape == (0, 2)
+    for k in range(8):  # wraps: rows 3..7 are kept
+        ring.append(np.array([0.125 * k, k]))
+    np.testing.assert_allclose(ring.rows()[:, 1], [3, 4, 5, 6, 7])
+    np.testing.assert_allclose(ring.rows(0.25)[:, 1], [5, 6, 7])  # t >= 0.875 - 0.25
+    np.testing.assert_allclose(ring.rows(max_points=2)[:, 1], [4, 7])  # every 3rd, newest kept
+    ring.write(lambda row: row.__setitem__(0, 1.0))  # filled in place, the rest NaN
+    last = ring.rows()[-1]
+    assert last[0] == 1.0 and np.isnan(last[1])
+    ring.resize(3)
+    np.testing.assert_allclose(ring.rows()[:, 0], [0.75, 0.875, 1.0])
+    assert ring.capacity == 3 and RingBuffer.rows_for(1.0, 0.016) == 63
+    with pytest.raises(ValueError, match=">= 2"):
+        RingBuffer(2, 1)
+
+
+def test_pacer_runs_periods_headless_and_in_batches():
+    calls: list[int] = []
+    pacer = Pacer(lambda: calls.append(1), period=0.001, name="t", realtime=False,
+                  batch_s=0.01)
+    pacer.run_for(0.25)
+    assert len(calls) == 250
+    pacer.start()
+    wait_for(lambda: len(calls) > 400, 30, "batches of periods")
+    pacer.stop(timeout=5)
+    assert not pacer.alive and pacer.stats().skipped == 0
+
+
+@pytest.mark.realtime
+def test_a_stalled_period_skips_time_instead_of_racing_and_says_so():
+    """A period that takes 60 ms at a 5 ms period: the pacer drops the periods it missed
+    (counted) instead of running them in a burst, and goes on at its pace."""
+    stall = {"left": 1}
+    starts: list[float] = []
+
+    def step() -> None:
+        starts.append(time.perf_counter())
+        if len(starts) == 20 and stall["left"]:
+            stall["left"] = 0
+            time.sleep(0.06)
+
+    pacer = Pacer(step, period=0.005, name="t", realtime=True)
+    pacer.start()
+    wait_for(lambda: len(starts) > 60, 60, "periods after the stall")
+    pacer.stop(timeout=5)
+    stats = pacer.stats()
+    assert stats.overruns >= 1 and stats.skipped >= 8  # >= 11 periods were due at once
+    assert stats.skipped_recent == stats.skipped  # all within the last 10 s
+    assert stats.late_p50_ms is not None and stats.interval_mean_ms is not None
+    gaps = np.diff(starts[19:23])  # after the stall: one period, not a burst of catch-ups
+    assert gaps[0] >= 0.06 and np.all(gaps[1:] > 0.002)
