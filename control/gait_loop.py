@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from control.backend import Backend, BackendError
+from control.commands import EStop, Reset
 from control.periodic import Pacer, RingBuffer
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
 
@@ -41,7 +42,49 @@ MAX_SPEED = 6.0
 #: Seconds to rise from where the servos are to the standing pose before walking.
 STAND_UP_S = 1.5
 
-Command = Callable[["GaitLoop"], None]
+@dataclass(frozen=True)
+class Walk:
+    """Walk ``plan`` (a direction or a gait): at once when standing, else from the next
+    cycle boundary."""
+
+    plan: GaitPlan
+
+
+@dataclass(frozen=True)
+class SetPlan:
+    """Use ``plan`` from the next cycle boundary (at once when standing)."""
+
+    plan: GaitPlan
+
+
+@dataclass(frozen=True)
+class StopWalking:
+    """Walk on until all four feet stand, then stop there."""
+
+
+@dataclass(frozen=True)
+class SetSpeed:
+    """Gait speed, cycles/s (0.05..3)."""
+
+    speed: float
+
+    def __post_init__(self) -> None:
+        v = float(self.speed)
+        if not (math.isfinite(v) and 0.05 <= v <= 3.0):
+            raise ValueError(f"gait speed must be 0.05..3 cycles/s, got {self.speed}")
+        object.__setattr__(self, "speed", v)
+
+
+@dataclass(frozen=True)
+class SetInPlace:
+    """Walk in place (body held at the origin) or across the floor; back to the origin."""
+
+    in_place: bool
+
+
+#: What the gait loop takes (``control.commands.Reset`` and ``EStop`` as the arm's loop).
+Command = Walk | SetPlan | StopWalking | SetSpeed | SetInPlace | Reset | EStop
+COMMANDS = (Walk, SetPlan, StopWalking, SetSpeed, SetInPlace, Reset, EStop)
 
 
 @dataclass(frozen=True)
@@ -101,7 +144,7 @@ class GaitLoop:
         self.period = float(period)
         self.realtime = realtime
         self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
-        self._speed = self._check_speed(speed)
+        self._speed = SetSpeed(speed).speed  # validates
         self._ring = RingBuffer(sum(COLUMNS.values()), RingBuffer.rows_for(history_s, self.period))
         self._commands: deque[Command] = deque()
         self._pacer = Pacer(self._period, period=self.period, name="armlab-gait",
@@ -122,57 +165,39 @@ class GaitLoop:
     # --- commands (any thread) ---------------------------------------------------------
 
     def post(self, command: Command) -> None:
-        """Run ``command(loop)`` in the loop thread before its next period."""
+        """Apply ``command`` in the loop thread before its next period.
+
+        Raises:
+            ValueError: not one of :data:`COMMANDS`.
+        """
+        if not isinstance(command, COMMANDS):
+            raise ValueError(f"not a gait-loop command: {type(command).__name__}")
         self._commands.append(command)
 
     def go(self, plan: GaitPlan) -> None:
-        """Walk ``plan`` (a direction or a gait): at once when standing, else from the next
-        cycle boundary."""
-        def apply(loop: GaitLoop) -> None:
-            loop.walker.set_plan(plan, now=not loop._walking)
-            loop._walking, loop._stopping, loop._rest_at = True, False, None
-        self.post(apply)
+        """Post :class:`Walk`."""
+        self.post(Walk(plan))
 
     def set_plan(self, plan: GaitPlan) -> None:
-        """Use ``plan`` from the next cycle boundary (at once when standing)."""
-        self.post(lambda loop: loop.walker.set_plan(plan, now=not loop._walking))
+        """Post :class:`SetPlan`."""
+        self.post(SetPlan(plan))
 
     def stop(self) -> None:
-        """Walk on until all four feet stand, then stop there."""
-        def apply(loop: GaitLoop) -> None:
-            if loop._walking:
-                loop._stopping = True
-                loop._rest_at = loop.walker.phase + loop.walker.next_rest()
-        self.post(apply)
+        """Post :class:`StopWalking`."""
+        self.post(StopWalking())
 
     def set_speed(self, speed: float) -> None:
-        """Gait speed, cycles/s (0.05..3)."""
-        v = self._check_speed(speed)
-        self.post(lambda loop: setattr(loop, "_speed", v))
+        """Post :class:`SetSpeed` (ValueError outside 0.05..3 cycles/s)."""
+        self.post(SetSpeed(speed))
 
     def set_in_place(self, in_place: bool) -> None:
-        """Walk in place (body held at the origin) or across the floor; back to the origin."""
-        def apply(loop: GaitLoop) -> None:
-            loop.walker.in_place = bool(in_place)
-            loop.walker.reset()
-        self.post(apply)
+        """Post :class:`SetInPlace`."""
+        self.post(SetInPlace(bool(in_place)))
 
     def reset(self) -> None:
         """Stop, back to the origin at phase 0; torque on again and stand up (after an
         e-stop or a fault)."""
-        def apply(loop: GaitLoop) -> None:
-            loop._walking = loop._stopping = False
-            loop._rest_at = None
-            loop.walker.reset()
-            if loop.backend is not None:
-                try:
-                    loop.backend.set_torque(True)
-                    loop._torque = True
-                    loop._fault = ""
-                    loop._ramp = None  # set from the next reading
-                except (BackendError, OSError, ValueError) as exc:
-                    loop._fail(f"torque on failed: {exc}")
-        self.post(apply)
+        self.post(Reset())
 
     def estop(self) -> None:
         """Torque off at the next period (from any thread; never raises) and stop walking.
@@ -180,24 +205,47 @@ class GaitLoop:
         The loop thread sends it (one writer on the bus); without a running thread it is
         sent from here.
         """
-        def apply(loop: GaitLoop) -> None:
-            loop._walking = loop._stopping = False
-            loop._torque = False
-            if loop.backend is not None:
-                loop.backend.estop()
-        self.post(apply)
+        self.post(EStop())
         if not self._pacer.running and self.backend is not None:
             try:
                 self.backend.estop()
             except (BackendError, OSError, ValueError):
                 pass
 
-    @staticmethod
-    def _check_speed(speed: float) -> float:
-        v = float(speed)
-        if not (math.isfinite(v) and 0.05 <= v <= 3.0):
-            raise ValueError(f"gait speed must be 0.05..3 cycles/s, got {speed}")
-        return v
+    def _apply(self, command: Command) -> None:
+        """One command, in the loop thread."""
+        match command:
+            case Walk(plan):
+                self.walker.set_plan(plan, now=not self._walking)
+                self._walking, self._stopping, self._rest_at = True, False, None
+            case SetPlan(plan):
+                self.walker.set_plan(plan, now=not self._walking)
+            case StopWalking():
+                if self._walking:
+                    self._stopping = True
+                    self._rest_at = self.walker.phase + self.walker.next_rest()
+            case SetSpeed(speed):
+                self._speed = speed
+            case SetInPlace(in_place):
+                self.walker.in_place = in_place
+                self.walker.reset()
+            case Reset():
+                self._walking = self._stopping = False
+                self._rest_at = None
+                self.walker.reset()
+                if self.backend is not None:
+                    try:
+                        self.backend.set_torque(True)
+                        self._torque = True
+                        self._fault = ""
+                        self._ramp = None  # set from the next reading
+                    except (BackendError, OSError, ValueError) as exc:
+                        self._fail(f"torque on failed: {exc}")
+            case EStop():
+                self._walking = self._stopping = False
+                self._torque = False
+                if self.backend is not None:
+                    self.backend.estop()
 
     # --- the loop ------------------------------------------------------------------------
 
@@ -232,7 +280,7 @@ class GaitLoop:
 
     def _period(self) -> None:
         while self._commands:
-            self._commands.popleft()(self)
+            self._apply(self._commands.popleft())
         self._t += self.period
         t = self._t
         q_meas = np.full(12, np.nan)

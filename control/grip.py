@@ -95,6 +95,9 @@ class HandPlant(Protocol):
         ...
     @property
     def t(self) -> float: ...
+    def set_object(self, obj: object) -> None:
+        """Put ``obj`` (the simulator's object, or None) between the fingers."""
+        ...
     @property
     def contact_force(self) -> np.ndarray:
         """(3,) N, the true fingertip forces (for the figures; the controller never reads it)."""

@@ -14,12 +14,17 @@ runs a tick's worth of periods after another as fast as it can.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from control.grip import N_FINGERS, GraspTrace, GripController, HandPlant, grasp_figures
+from control.grip import (
+    N_FINGERS,
+    GraspTrace,
+    GripController,
+    HandPlant,
+    grasp_figures,
+)
 from control.periodic import Pacer, RingBuffer
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
@@ -32,7 +37,40 @@ COLUMNS: dict[str, str] = {
     "angle": "rad",  # true finger angle
 }
 
-Command = Callable[[HandPlant, GripController], None]
+@dataclass(frozen=True)
+class CloseHand:
+    """Grasp: close with the force limit (:meth:`GripLoop.last_grasp` measures from it)."""
+
+
+@dataclass(frozen=True)
+class OpenHand:
+    """Release: open the fingers."""
+
+
+@dataclass(frozen=True)
+class MotorsOff:
+    """Motors at 0 V now (the springs open the hand): the hand's E-STOP."""
+
+
+@dataclass(frozen=True)
+class SetGripParams:
+    """Change the grasp's force limit (N) and/or approach speed (m/s) from the next period
+    (None: keep; applied on the parameters in force then, so changes posted together
+    compose)."""
+
+    force_limit: float | None = None
+    approach_speed: float | None = None
+
+
+@dataclass(frozen=True)
+class SetObject:
+    """Put ``obj`` (the plant's object type, or None) between the fingers."""
+
+    obj: object
+
+
+Command = CloseHand | OpenHand | MotorsOff | SetGripParams | SetObject
+COMMANDS = (CloseHand, OpenHand, MotorsOff, SetGripParams, SetObject)
 
 
 @dataclass(frozen=True)
@@ -86,20 +124,38 @@ class GripLoop:
 
     # --- commands (any thread) -----------------------------------------------------
     def post(self, command: Command) -> None:
-        """Run ``command(plant, controller)`` in the loop thread before its next period."""
+        """Apply ``command`` in the loop thread before its next period.
+
+        Raises:
+            ValueError: not one of :data:`COMMANDS`.
+        """
+        if not isinstance(command, COMMANDS):
+            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
         self._commands.append(command)
 
     def close_hand(self) -> None:
         """Post a grasp (close with the force limit); :meth:`last_grasp` measures from it."""
-        self.post(self._close)
-
-    def _close(self, plant: HandPlant, controller: GripController) -> None:
-        controller.close()
-        self._closed_at = plant.t
+        self.post(CloseHand())
 
     def open_hand(self) -> None:
         """Post a release."""
-        self.post(lambda _p, c: c.open())
+        self.post(OpenHand())
+
+    def _apply(self, command: Command, plant: HandPlant, ctl: GripController) -> None:
+        match command:
+            case CloseHand():
+                ctl.close()
+                self._closed_at = plant.t
+            case OpenHand():
+                ctl.open()
+            case MotorsOff():
+                ctl.stop()
+            case SetGripParams(force, speed):
+                changes = {"force_limit": force, "approach_speed": speed}
+                ctl.set_params(replace(ctl.params, **{k: v for k, v in changes.items()
+                                                      if v is not None}))
+            case SetObject(obj):
+                plant.set_object(obj)
 
     # --- the loop ------------------------------------------------------------------
     def start(self) -> None:
@@ -124,7 +180,7 @@ class GripLoop:
     def _period(self) -> None:
         plant, ctl = self.plant, self.controller
         while self._commands:
-            self._commands.popleft()(plant, ctl)
+            self._apply(self._commands.popleft(), plant, ctl)
         volts = ctl.update(self._current)
         self._current = plant.step(volts, self.dt)
         row = np.concatenate([

@@ -181,3 +181,20 @@ def test_a_very_light_grip_is_still_held_and_the_first_touch_stays_small():
     fig = grasp_figures(trace, 0.05)
     assert fig["steady_force_N"] == pytest.approx(0.05, rel=0.10)
     assert fig["peak_force_N"] <= 0.12
+
+
+def test_the_hand_loop_takes_typed_commands_that_compose():
+    """Two parameter changes posted before a period both apply; a closure is refused."""
+    from control.grip_loop import CloseHand, GripLoop, SetGripParams
+
+    plant = make_hand(size=0.06, stiffness=1000.0)
+    controller = GripController(GripModel.of(plant), GripParams(force_limit=1.0))
+    loop = GripLoop(plant, controller, realtime=False)
+    loop.post(SetGripParams(force_limit=0.6))
+    loop.post(SetGripParams(approach_speed=0.02))
+    loop.post(CloseHand())
+    loop.run_for(0.01)
+    assert controller.params.force_limit == 0.6 and controller.params.approach_speed == 0.02
+    assert loop.status.modes[0] != "idle"
+    with pytest.raises(ValueError, match="not a hand-loop command"):
+        loop.post(lambda _p, c: c.open())

@@ -27,7 +27,7 @@ from app.lessons._common import LessonBase, close_in_turn, guarded, set_content,
 from app.lessons.hand_scene import HandScene
 from app.plots import COLORS, LivePlot, SeriesSpec
 from control.grip import GripController, GripModel, GripParams
-from control.grip_loop import GripLoop
+from control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
 from hardware.hand import MAX_STIFFNESS, GraspObject, HandSim, check_object, make_hand
 
 NAME = "hand"
@@ -174,20 +174,20 @@ class HandLesson(LessonBase):
 
     def estop(self) -> None:
         """Motors off (the springs open the hand); never raises."""
-        self.loop.post(lambda _p, c: c.stop())
+        self.loop.post(MotorsOff())
 
     def set_force_limit(self, force: float) -> None:
         """New grip-force limit F, N (applied at the loop's next period). ValueError to refuse."""
         replace(self.controller.params, force_limit=force)  # validates
         if force > self.model.max_force():
             raise ValueError(f"force limit must be <= {self.model.max_force():.2f} N")
-        self.loop.post(lambda _p, c: c.set_params(replace(c.params, force_limit=force)))
+        self.loop.post(SetGripParams(force_limit=force))
 
     def set_approach_speed(self, cm_per_s: float) -> None:
         """Fingertip approach speed, cm/s."""
         v = cm_per_s / 100.0
         replace(self.controller.params, approach_speed=v)  # validates
-        self.loop.post(lambda _p, c: c.set_params(replace(c.params, approach_speed=v)))
+        self.loop.post(SetGripParams(approach_speed=v))
 
     def set_object(self, *, size_cm: float | None = None,
                    stiffness: float | None = None) -> None:
@@ -203,7 +203,7 @@ class HandLesson(LessonBase):
             if size != self.obj.size and any(m != "idle" for m in self.loop.status.modes):
                 raise ValueError("open the hand before changing the object's size")
             self.obj = obj
-            self.loop.post(lambda _p, _c: self.plant.set_object(obj))
+            self.loop.post(SetObject(obj))
             self.scene.set_object(obj.size, obj.stiffness)
 
     # ================================================================== publishing
