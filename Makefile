@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEVSTAMP := $(VENV)/.installed-dev
 
-.PHONY: run test test-fast lint bench clean
+.PHONY: run test test-fast lint bench bench-peers clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,11 @@ lint: $(DEVSTAMP)
 
 bench: $(STAMP)
 	$(BIN)/armlab bench
+
+# armlab's figures beside MuJoCo's and Pinocchio's (installs the optional bench extra)
+bench-peers: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[bench]'
+	$(BIN)/armlab bench --peers
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

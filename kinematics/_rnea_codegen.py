@@ -317,6 +317,8 @@ class DynamicsModel:
     - ``mass(q) -> (n*n,)``: M(q) row-major.
     - ``fd(q, qd, tau, g, armature) -> (n,)``: qdd = (M + diag(armature))^-1 (tau - bias).
     - ``frames(q) -> (12 n,)``: per link R (9, row-major) then p (3), base <- link.
+    - ``tip(q) -> (16 + 6 n,)``: the end effector's pose (4, 4) row-major, base frame,
+      then the geometric Jacobian (6, n) row-major (rows: linear, then angular).
 
     Attributes:
         n: number of joints.
@@ -334,6 +336,7 @@ class DynamicsModel:
     mass: Callable[..., tuple[float, ...]]
     fd: Callable[..., tuple[float, ...]]
     frames: Callable[..., tuple[float, ...]]
+    tip: Callable[..., tuple[float, ...]]
 
 
 def _build(model: SerialChain) -> DynamicsModel:
@@ -396,6 +399,42 @@ def _build(model: SerialChain) -> DynamicsModel:
         frames_out += [Rb[r][c] for r in range(3) for c in range(3)] + list(pb)
     sources.append(_function("frames", ["q"], em, {"q": q}, frames_out))
 
+    # The end effector's pose and geometric Jacobian (thesis eq. 3.13, 3.17), base frame:
+    # column i = [z_i × (p_e − o_i); z_i] (revolute) or [z_i; 0] (prismatic).
+    em = _Emitter()
+    tf = _emit_transforms(em, model, q)
+    Rb = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    pb = [0.0, 0.0, 0.0]
+    zs: list[Vec] = []
+    origins: list[Vec] = []
+    for i, joint in enumerate(model.joints):
+        R0 = joint.origin[:3, :3]
+        pb = em.vadd(pb, em.matvec(Rb, tf.P[i]) if joint.kind != "prismatic"
+                     else em.matvec(Rb, _cvec(joint.origin[:3, 3])))
+        R_joint0 = [[em.lin([(1.0, Rb[r][k], _snap(R0[k, c])) for k in range(3)])
+                     for c in range(3)] for r in range(3)]  # base <- joint frame at q = 0
+        z = em.matvec(R_joint0, _cvec(joint.axis))
+        if joint.kind == "prismatic":
+            pb = em.vadd(pb, em.vscale(q[i], z))
+        zs.append(z)
+        origins.append(pb)
+        Rb = [[em.lin([(1.0, Rb[r][k], tf.R[i][k][c]) for k in range(3)]) for c in range(3)]
+              for r in range(3)]
+    tip_R, tip_p = model.tip[:3, :3], model.tip[:3, 3]
+    pe = em.vadd(pb, em.matvec(Rb, _cvec(tip_p)))
+    Re = [[em.lin([(1.0, Rb[r][k], _snap(tip_R[k, c])) for k in range(3)]) for c in range(3)]
+          for r in range(3)]
+    cols: list[list[Sym]] = []
+    for joint, z, o in zip(model.joints, zs, origins, strict=True):
+        if joint.kind == "prismatic":
+            cols.append(list(z) + [0.0, 0.0, 0.0])
+        else:
+            d = [em.lin([(1.0, pe[r], 1.0), (-1.0, o[r], 1.0)]) for r in range(3)]
+            cols.append(list(em.cross(z, d)) + list(z))
+    pose = [x for r in range(3) for x in (*Re[r], pe[r])] + [0.0, 0.0, 0.0, 1.0]
+    tip_out = pose + [col[r] for r in range(6) for col in cols]
+    sources.append(_function("tip", ["q"], em, {"q": q}, tip_out))
+
     source = "\n\n".join(sources) + "\n"
     namespace: dict[str, object] = {"_sin": math.sin, "_cos": math.cos}
     exec(compile(source, f"<dynamics of {model.name}>", "exec"), namespace)  # noqa: S102
@@ -409,6 +448,7 @@ def _build(model: SerialChain) -> DynamicsModel:
         mass=namespace["mass"],  # type: ignore[arg-type]
         fd=namespace["fd"],  # type: ignore[arg-type]
         frames=namespace["frames"],  # type: ignore[arg-type]
+        tip=namespace["tip"],  # type: ignore[arg-type]
     )
 
 

@@ -138,7 +138,8 @@ def damped_inverse(J: np.ndarray, damping: float) -> np.ndarray:
 
 def inverse_error(J: np.ndarray, J_inv: np.ndarray, dX: np.ndarray) -> float:
     """error = |(I - J J^-1) dX| (thesis eq. 3.21), in the units of dX (m)."""
-    return float(np.linalg.norm(dX - J @ (J_inv @ dX)))
+    r = dX - J @ (J_inv @ dX)
+    return math.sqrt(float(r @ r))
 
 
 def halved_step(
@@ -163,7 +164,7 @@ def joint_update(
     q: np.ndarray, J_inv: np.ndarray, dX: np.ndarray, lower: np.ndarray, upper: np.ndarray
 ) -> np.ndarray:
     """theta = theta + J^-1 dX (thesis eq. 3.22), clipped into the joint limits; (n,)."""
-    return np.clip(q + J_inv @ dX, lower, upper)
+    return np.minimum(np.maximum(q + J_inv @ dX, lower), upper)
 
 
 def singularity_ratio(J: np.ndarray) -> float:
@@ -172,7 +173,7 @@ def singularity_ratio(J: np.ndarray) -> float:
     0 at a singular configuration; for a square J it is |det J| / |J|_F^n.
     """
     m = J.shape[0]
-    norm = float(np.sqrt(np.sum(J * J)))
+    norm = math.sqrt(float(np.vdot(J, J)))
     if norm == 0.0:
         return 0.0
     if J.shape[0] == J.shape[1]:
@@ -245,8 +246,11 @@ def _count(name: str, value: object, *, minimum: int) -> int:
 def _evaluate(p: _Problem, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Task error dX (m,), task Jacobian (m, n) and |dX| at q (n,)."""
     T, J6 = fk_and_jacobian(p.model, q, check=False)
-    dX = p.target - T[p.rows, 3]
-    return dX, J6[p.rows], float(np.linalg.norm(dX))
+    if p.rows == [0, 1, 2]:  # position: contiguous rows, no fancy indexing
+        dX, J = p.target - T[:3, 3], J6[:3]
+    else:
+        dX, J = p.target - T[p.rows, 3], J6[p.rows]
+    return dX, J, math.sqrt(float(dX @ dX))
 
 
 #: Outcome of one iterative run: (q, error m, iterations, why it stopped).
@@ -369,9 +373,14 @@ def reach_bound(model: SerialChain) -> float:
     The sum of the fixed offsets between joints and to the tool, plus the stroke of any
     prismatic joint: no pose puts the end effector farther than this from the first joint.
     """
-    offsets = [np.linalg.norm(j.origin[:3, 3]) for j in model.joints[1:]]
-    strokes = [max(abs(j.lower), abs(j.upper)) for j in model.joints if j.kind == "prismatic"]
-    return float(sum(offsets) + sum(strokes) + np.linalg.norm(model.tip[:3, 3]))
+    cached = model.__dict__.get("_armlab_reach_bound")  # memoised like dynamics_model
+    if cached is None:
+        offsets = [np.linalg.norm(j.origin[:3, 3]) for j in model.joints[1:]]
+        strokes = [max(abs(j.lower), abs(j.upper)) for j in model.joints
+                   if j.kind == "prismatic"]
+        cached = float(sum(offsets) + sum(strokes) + np.linalg.norm(model.tip[:3, 3]))
+        model.__dict__["_armlab_reach_bound"] = cached
+    return cached
 
 
 def restart_poses(model: SerialChain, count: int) -> np.ndarray:
@@ -420,9 +429,11 @@ def _nearest_first(p: _Problem, poses: np.ndarray) -> np.ndarray:
 def _solve(p: _Problem, run: Callable[[np.ndarray], _Run], restarts: int) -> IKResult:
     """Run from q0, then (unless the target is beyond reach) from restart poses; keep the best."""
     q, err, total, why = run(p.q0)
-    shoulder = p.model.joints[0].origin[:3, 3][p.rows]
-    bound = reach_bound(p.model)
-    beyond = float(np.linalg.norm(p.target - shoulder)) - bound
+    beyond = 0.0
+    if err > p.tol:  # missed: is the target beyond reach, or worth other start poses?
+        bound = reach_bound(p.model)
+        shoulder = p.model.joints[0].origin[:3, 3][p.rows]
+        beyond = float(np.linalg.norm(p.target - shoulder)) - bound
     if err > p.tol and beyond > p.tol:
         why = (f"the target is {beyond * 1e3:.4g} mm beyond the arm's reach "
                f"({bound * 1e3:.4g} mm)")

@@ -8,7 +8,7 @@ import pytest
 
 from kinematics import Quadruped, URDFError, load_robot
 from kinematics.fk import fk, fk_and_jacobian, jacobian
-from kinematics.model import ROBOT_FILES, ROBOTS_DIR
+from kinematics.model import ROBOT_FILES, ROBOTS_DIR, chain_from_urdf
 
 PRESETS = [("18.5/25", 0.185, 0.25), ("18.5/18.5", 0.185, 0.185), ("17/25", 0.17, 0.25)]
 
@@ -180,3 +180,32 @@ def test_well_formed_temp_urdf_loads(tmp_path):
     """The fixture above is valid without the defect, so each failure is the defect's."""
     chain = load_robot(_urdf(tmp_path, '<link name="base"/><link name="arm"/>' + GOOD_JOINT))
     assert chain.n == 1 and chain.joint_names == ("j1",)
+
+
+def test_fk_and_jacobian_of_a_slide_carried_by_a_turning_joint(tmp_path):
+    """A prismatic joint (z_i; 0 column) behind a tilted revolute one: the generated
+    one-pass FK equals the 4x4 product and its Jacobian the finite differences."""
+    path = tmp_path / "slide.urdf"
+    path.write_text("""<?xml version="1.0"?>
+<robot name="slide"><link name="base"/><link name="a"/><link name="b"/><link name="tip"/>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0 0.05 0.1" rpy="0.2 0 0.4"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
+  <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/>
+    <origin xyz="0.2 0 0" rpy="0 0.3 0"/><axis xyz="0.6 0 0.8"/>
+    <limit lower="0" upper="0.3" effort="50" velocity="1"/></joint>
+  <joint name="wrist" type="fixed"><parent link="b"/><child link="tip"/>
+    <origin xyz="0.05 0.02 0" rpy="0.1 0 0"/></joint></robot>""")
+    chain = chain_from_urdf(path)
+    h = 1e-6
+    for q in ([0.4, 0.1], [-1.2, 0.25]):
+        q = np.array(q)
+        T, J = fk_and_jacobian(chain, q)
+        np.testing.assert_allclose(chain.link_poses(q)[-1] @ chain.tip, T, atol=1e-14)
+        for i in range(2):
+            dq = np.zeros(2)
+            dq[i] = h
+            lin = (chain.fk(q + dq)[:3, 3] - chain.fk(q - dq)[:3, 3]) / (2 * h)
+            np.testing.assert_allclose(J[:3, i], lin, atol=1e-8)
+            np.testing.assert_allclose(J[3:, i], _angular_fd(chain, q, i, h), atol=1e-8)
+        assert np.allclose(J[3:, 1], 0.0)  # a slide does not turn the hand

@@ -1,18 +1,21 @@
 """Benchmarks for ``armlab bench``.
 
-Each module here defines ``run(quick: bool) -> dict[str, float]`` returning
-named figures (medians, in the unit the name ends with). ``armlab bench --json``
-merges them into one flat object. Timings are medians over repeats; the
-machines are shared, so no test ever asserts on them.
+Each module named in :data:`BENCHES` defines ``run(quick: bool) -> dict[str, float]``
+returning named figures (medians, in the unit the name ends with). ``armlab bench
+--json`` merges them into one flat object. Timings are medians over repeats; the
+machines are shared, so no test ever asserts on them. ``peers`` (armlab beside MuJoCo
+and Pinocchio) runs only with ``--peers``: it needs the optional ``bench`` extra.
 """
 
 from __future__ import annotations
 
 import importlib
-import pkgutil
 import statistics
 import time
 from collections.abc import Callable
+
+#: The bench modules ``armlab bench`` runs (adding one: add its name here).
+BENCHES: tuple[str, ...] = ("bus", "control", "dynamics", "hand", "kinematics", "seeds", "ui")
 
 
 def median_us(fn: Callable[[], object], *, repeat: int = 2000, warmup: int = 50) -> float:
@@ -27,12 +30,21 @@ def median_us(fn: Callable[[], object], *, repeat: int = 2000, warmup: int = 50)
     return statistics.median(samples) / 1000.0
 
 
-def run_all(quick: bool = False, only: str | None = None) -> dict[str, float]:
-    """Run every bench module (or the one named ``only``) and merge the figures."""
+def run_all(quick: bool = False, only: str | None = None,
+            peers: bool = False) -> dict[str, float]:
+    """Run every bench of :data:`BENCHES` (or the one named ``only``; with ``peers``, the
+    peer comparison too) and merge the figures.
+
+    Raises:
+        ValueError: ``only`` names no bench.
+    """
+    names = list(BENCHES) + (["peers"] if peers else [])
+    if only is not None:
+        if only not in BENCHES and only != "peers":
+            raise ValueError(f"--only: no bench {only!r}; known: {', '.join(BENCHES)}, peers")
+        names = [only]
     figures: dict[str, float] = {}
-    for info in pkgutil.iter_modules(__path__):
-        if only and info.name != only:
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
+    for name in names:
+        module = importlib.import_module(f"{__name__}.{name}")
         figures.update(module.run(quick))
     return figures

@@ -17,10 +17,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one flat JSON object")
     parser.add_argument("--quick", action="store_true", help="fewer repeats (rougher figures)")
     parser.add_argument("--only", metavar="GROUP", help="run one group (a module of app.benches)")
+    parser.add_argument("--peers", action="store_true",
+                        help="also run MuJoCo and Pinocchio on the same URDF and print armlab's "
+                             "figures beside theirs (needs the optional bench extra)")
 
 
 def run(args: argparse.Namespace) -> int:
-    figures = run_all(quick=args.quick, only=args.only)
+    if args.peers or args.only == "peers":
+        from app.benches.peers import INSTALL, missing
+
+        if missing():
+            print(f"armlab bench --peers needs {', '.join(missing())}: {INSTALL}",
+                  file=sys.stderr)
+            return 2
+    try:
+        figures = run_all(quick=args.quick, only=args.only, peers=args.peers)
+    except ValueError as exc:
+        print(f"armlab bench: {exc}", file=sys.stderr)
+        return 2
     if args.json:
         json.dump(figures, sys.stdout)
         sys.stdout.write("\n")

@@ -1,0 +1,151 @@
+"""armlab beside its peers (``armlab bench --peers``): MuJoCo and Pinocchio on the same URDF.
+
+Everything runs in this process, on ``kinematics/robots/receptionist_arm.urdf`` (the
+thesis arm, three joints), armlab's figure measured in the same run as the peer's:
+
+- ``peer_rnea_us`` / ``armlab_rnea_us``: one inverse-dynamics call (``pinocchio.rnea``
+  / ``kinematics.dynamics.rnea``) at the same q, q̇, q̈; their torques agree to 1e-9.
+- ``peer_ik_us`` / ``armlab_rmrc_us``: one position IK solve to 0.1 mm from q = 0 to
+  the same 16 targets (``app.benches.kinematics.rmrc_targets``): Pinocchio's damped
+  least-squares loop (forwardKinematics, frame Jacobian, ``(J Jᵀ + λI)⁻¹``, integrate;
+  λ = 1e-6, full steps, at most 200 iterations, no joint limits) against armlab's RMRC
+  (thesis eq. 3.16–3.22, which keeps the joint limits). ``peer_ik_solved`` is the share
+  of targets the Pinocchio loop reached.
+- ``peer_plant_steps_per_s`` / ``armlab_plant_steps_per_s``: 1 ms steps per CPU second
+  of a simulated arm whose servos hold a goal: MuJoCo's RK4 with a Python position-servo
+  law (PD on the joint, clipped at the RX-24F's stall torque) written into
+  ``qfrc_applied`` before each ``mj_step``, against armlab's plant (its own RK4 and the
+  RX-24F servo model, ``hardware.plant``).
+- ``ratio_*``: armlab's time over the peer's (below 1: armlab is faster).
+
+The peers are an optional extra (``pip install -e '.[bench]'``: ``mujoco`` and ``pin``),
+never a dependency of the lab.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import time
+from typing import Any
+
+import numpy as np
+
+from app.benches import median_us
+from app.benches.kinematics import rmrc_targets
+from hardware.servo_spec import RX24F
+from hardware.sim_backend import SimBackend
+from kinematics import load_robot
+from kinematics.dynamics import rnea
+from kinematics.ik import rmrc
+
+INSTALL = "pip install -e '.[bench]'  (MuJoCo and Pinocchio, for armlab bench --peers)"
+TOL = 1e-4  #: m, the IK tolerance of both solvers
+
+
+def missing() -> list[str]:
+    """The peer packages that cannot be imported here."""
+    out = []
+    for module, package in (("mujoco", "mujoco"), ("pinocchio", "pin")):
+        try:
+            __import__(module)
+        except ImportError:
+            out.append(package)
+    return out
+
+
+def mujoco_model(urdf_path: str) -> Any:
+    """The URDF as a MuJoCo model: visuals dropped, massless links (joint frames) given a
+    negligible mass (MuJoCo needs one), RK4 at 1 ms; gravity -z in the URDF's world."""
+    import mujoco
+
+    text = open(urdf_path).read()
+    text = re.sub(r"<(visual|collision)>.*?</\1>", "", text, flags=re.S)
+    compiler = ('<mujoco><compiler discardvisual="true" fusestatic="false" '
+                'boundmass="1e-9" boundinertia="1e-12"/></mujoco>')
+    text = re.sub(r"(<robot[^>]*>)", r"\1" + compiler, text, count=1)
+    model = mujoco.MjModel.from_xml_string(text)
+    model.opt.timestep = 1e-3
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    return model
+
+
+def pinocchio_ik(model: Any, data: Any, frame: int, target: np.ndarray, q0: np.ndarray
+                 ) -> tuple[np.ndarray, bool]:
+    """Pinocchio's damped least-squares position IK: (q, reached within ``TOL``)."""
+    import pinocchio as pin
+
+    q = q0.copy()
+    for _ in range(200):
+        pin.forwardKinematics(model, data, q)
+        pin.updateFramePlacement(model, data, frame)
+        err = data.oMf[frame].translation - target
+        if np.linalg.norm(err) < TOL:
+            return q, True
+        J = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+        v = -J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), err)
+        q = pin.integrate(model, q, v)
+    return q, False
+
+
+def _cpu_rate(step: Any, steps: int, batches: int) -> float:
+    """Median calls of ``step`` per second of this thread's CPU time."""
+    rates = []
+    for _ in range(batches):
+        t0 = time.thread_time()
+        for _ in range(steps):
+            step()
+        rates.append(steps / (time.thread_time() - t0))
+    return float(np.median(rates))
+
+
+def run(quick: bool) -> dict[str, float]:
+    """The peer figures beside armlab's (see the module's docstring)."""
+    import mujoco
+    import pinocchio as pin
+
+    arm = load_robot("receptionist_arm")
+    path = str(arm.urdf_path)
+    repeat = 500 if quick else 5000
+    q, qd, qdd = np.array([0.3, 0.5, 0.8]), np.array([0.4, -0.2, 0.6]), np.array([1.0, 2, 3])
+
+    pm = pin.buildModelFromUrdf(path)
+    pd = pm.createData()
+    tau_pin = pin.rnea(pm, pd, q, qd, qdd)
+    if not np.allclose(tau_pin, rnea(arm, q, qd, qdd), atol=1e-9):
+        raise RuntimeError("Pinocchio and armlab disagree on the same URDF's torques")
+    out: dict[str, float] = {
+        "peer_rnea_us": median_us(lambda: pin.rnea(pm, pd, q, qd, qdd), repeat=repeat),
+        "armlab_rnea_us": median_us(lambda: rnea(arm, q, qd, qdd), repeat=repeat),
+    }
+
+    targets = rmrc_targets(arm)
+    world = [(arm.base_pose @ np.append(p, 1.0))[:3] for p in targets]  # Pinocchio's frame
+    frame = pm.getFrameId("hand")
+    q0 = arm.neutral()
+    solved = [pinocchio_ik(pm, pd, frame, w, q0)[1] for w in world]
+    cycle_w, cycle_t = itertools.cycle(world), itertools.cycle(targets)
+    out["peer_ik_us"] = median_us(lambda: pinocchio_ik(pm, pd, frame, next(cycle_w), q0),
+                                  repeat=repeat // 10)
+    out["armlab_rmrc_us"] = median_us(lambda: rmrc(arm, next(cycle_t), q0),
+                                      repeat=repeat // 10)
+    out["peer_ik_solved"] = float(np.mean(solved))
+
+    mm = mujoco_model(path)
+    md = mujoco.MjData(mm)
+    goal, stall = np.array([0.5, 0.8, 1.0]), RX24F.stall_torque
+
+    def mujoco_step() -> None:  # a position servo per joint, then one RK4 step
+        md.qfrc_applied[:] = np.clip(8.0 * (goal - md.qpos) - 0.2 * md.qvel, -stall, stall)
+        mujoco.mj_step(mm, md)
+
+    backend = SimBackend(arm, q0=[0.0, 0.3, 0.3])
+    backend.write(goal, np.full(3, 1.5))
+    steps, batches = (1000, 3) if quick else (5000, 7)
+    out["peer_plant_steps_per_s"] = _cpu_rate(mujoco_step, steps, batches)
+    out["armlab_plant_steps_per_s"] = _cpu_rate(backend.plant.step, steps, batches)
+
+    out["ratio_rnea"] = out["armlab_rnea_us"] / out["peer_rnea_us"]
+    out["ratio_ik"] = out["armlab_rmrc_us"] / out["peer_ik_us"]
+    out["ratio_plant"] = out["peer_plant_steps_per_s"] / out["armlab_plant_steps_per_s"]
+    return out

@@ -1,0 +1,66 @@
+"""``armlab bench --peers``: armlab beside MuJoCo and Pinocchio on the same URDF."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from kinematics import load_robot
+from kinematics.dynamics import rnea
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_without_the_extra_peers_says_how_to_install_it_in_one_line():
+    """The peers are optional: where they cannot be imported, one line and exit 2."""
+    hide = ("import sys; sys.modules['mujoco'] = None; sys.modules['pinocchio'] = None; "
+            "from app.cli import main; sys.exit(main(['bench', '--peers', '--quick']))")
+    run = subprocess.run([sys.executable, "-c", hide], cwd=ROOT, capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pip install -e '.[bench]'" in lines[0], run.stderr
+    assert "mujoco" in lines[0] and "pin" in lines[0]
+
+
+def test_an_unknown_bench_group_is_named(capsys):
+    assert main(["bench", "--only", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "no bench 'nope'" in err and "kinematics" in err
+
+
+def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
+    pytest.importorskip("pinocchio")
+    mujoco = pytest.importorskip("mujoco")
+    import pinocchio as pin
+
+    from app.benches.peers import mujoco_model, pinocchio_ik, run
+
+    arm = load_robot("receptionist_arm")
+    q, qd, qdd = np.array([0.3, -0.5, 1.1]), np.array([0.4, -0.2, 0.6]), np.array([1.0, 2, 3])
+    mm = mujoco_model(str(arm.urdf_path))
+    md = mujoco.MjData(mm)
+    md.qpos[:], md.qvel[:], md.qacc[:] = q, qd, qdd
+    mujoco.mj_inverse(mm, md)
+    # the same physics (MuJoCo's bound mass on the massless joint link is 1e-9 kg)
+    np.testing.assert_allclose(md.qfrc_inverse, rnea(arm, q, qd, qdd), atol=1e-6)
+    pm = pin.buildModelFromUrdf(str(arm.urdf_path))
+    pd = pm.createData()
+    np.testing.assert_allclose(pin.rnea(pm, pd, q, qd, qdd), rnea(arm, q, qd, qdd), atol=1e-9)
+    target = arm.fk(q)[:3, 3]
+    q_ik, reached = pinocchio_ik(pm, pd, pm.getFrameId("hand"),
+                                 (arm.base_pose @ np.append(target, 1.0))[:3], arm.neutral())
+    assert reached and np.linalg.norm(arm.fk(q_ik)[:3, 3] - target) < 1e-4
+
+    figures = run(quick=True)
+    for key in ("peer_rnea_us", "armlab_rnea_us", "peer_ik_us", "armlab_rmrc_us",
+                "peer_plant_steps_per_s", "armlab_plant_steps_per_s", "ratio_rnea",
+                "ratio_ik", "ratio_plant"):
+        assert math.isfinite(figures[key]) and figures[key] > 0, key
+    assert figures["peer_ik_solved"] == 1.0
