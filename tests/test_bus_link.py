@@ -255,3 +255,30 @@ def test_reg_write_waits_for_action(emu):
         assert bus.read(3, "registered") == 0
         status = bus.transact(p1.action(3), reply=True)  # nothing registered
         assert status is not None and status.error & p1.ErrorBits.INSTRUCTION
+
+
+def test_emulator_keeps_its_name_across_a_restart_through_link(tmp_path):
+    """``--link PATH``: a symlink to the pty, replaced by the next emulator (a by-id name
+    survives a re-plug the same way), removed at exit; a file is never overwritten."""
+    link = tmp_path / "by-id" / "usb-armlab-emulator"
+    link.parent.mkdir()
+    ports = []
+    for _ in range(2):  # the second emulator is "the same device, plugged in again"
+        with emulator("--link", str(link)) as emu:
+            assert os.readlink(link) == emu.port
+            ports.append(emu.port)
+            with Bus(str(link)) as bus:
+                assert bus.identify(1) is RX24F_TABLE  # the servos answer by the name
+            code, _ = emu.stop()
+            assert code == 0
+        assert not os.path.lexists(link)  # gone with its emulator
+    stale = tmp_path / "stale"
+    os.symlink("/dev/null", stale)  # an earlier emulator killed -9 left its link
+    with emulator("--link", str(stale)) as emu:
+        assert os.readlink(stale) == emu.port
+    plain = tmp_path / "a-file"
+    plain.write_text("keep me")
+    out = subprocess.run([sys.executable, "-m", "app", "emulate", "--link", str(plain)],
+                         cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and plain.read_text() == "keep me"
+    assert "exists and is not a symlink" in out.stderr and len(out.stderr.splitlines()) == 1

@@ -3,6 +3,10 @@
 The first line printed is ``port: /dev/pts/N`` (flushed): point ``armlab scan``,
 ``armlab serve --backend serial`` or any protocol-1.0 client at it. Serves until
 SIGINT or SIGTERM, then exits cleanly.
+
+``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
+earlier emulator left), so the emulator keeps its name across restarts, as a
+``/dev/serial/by-id/...`` path does across re-plugs; the link goes when it exits.
 """
 
 from __future__ import annotations
@@ -68,6 +72,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "programs, like a device; needs root, else ignored)")
     parser.add_argument("--log", metavar="FILE",
                         help="write one line per received (rx) and sent (tx) packet")
+    parser.add_argument("--link", metavar="PATH",
+                        help="also make PATH a symlink to the pseudo-terminal (replaced on "
+                             "restart, like a /dev/serial/by-id name)")
+
+
+def make_link(link: str, target: str) -> None:
+    """Point the symlink ``link`` at ``target``, replacing a symlink already there
+    (atomically: a reader sees the old or the new device, never none).
+
+    Raises:
+        ValueError: ``link`` exists and is not a symlink (never overwrite a file).
+    """
+    if os.path.lexists(link) and not os.path.islink(link):
+        raise ValueError(f"--link {link}: exists and is not a symlink; choose another path")
+    tmp = f"{link}.{os.getpid()}.tmp"
+    os.symlink(target, tmp)
+    os.replace(tmp, link)
+
+
+def remove_link(link: str, target: str) -> None:
+    """Remove the symlink ``link`` if it still points at ``target`` (a newer emulator's
+    link is left alone)."""
+    try:
+        if os.path.islink(link) and os.readlink(link) == target:
+            os.unlink(link)
+    except OSError:
+        pass
 
 
 def run(args: argparse.Namespace) -> int:
@@ -89,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
     log = open(args.log, "w") if args.log else None
     emu = PtyEmulator(network, pace=args.pace, faults=faults, echo=args.echo, log=log)
     try:
+        if args.link:
+            make_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
@@ -100,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     finally:
+        if args.link:
+            remove_link(args.link, emu.path)
         emu.close()
         if log is not None:
             log.close()
