@@ -7,8 +7,10 @@ switch between lessons. The E-STOP button belongs to the lab, not to a lesson,
 so it stays at the top of the control panel whatever lesson is open.
 
 Security: the server binds to loopback unless told otherwise (a robot must not
-be commandable from the whole network by default) and never opens the share
-tunnel (it needs the internet and would expose the robot).
+be commandable from the whole network by default), never opens the share
+tunnel (it needs the internet and would expose the robot), and its websocket is
+behind :mod:`app.gate`: only the lab's own page, opened from the URL with the
+token, gets the robot's state and controls.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dataclasses import dataclass, replace
 import viser
 
 from app.camera import show_initial_view
+from app.gate import Gate, check_token, gated, new_token
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
 
 #: Label at the top of the control panel.
@@ -69,6 +72,7 @@ class ServeOptions:
         lesson: lesson name (None: the first lesson for the robot).
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
+        token: the access token the page's URL carries (None: a new random one).
     """
 
     robot: str = "receptionist_arm"
@@ -79,8 +83,11 @@ class ServeOptions:
     http_port: int = 8080
     lesson: str | None = None
     realtime: bool = True
+    token: str | None = None
 
     def __post_init__(self) -> None:
+        if self.token is not None:
+            check_token(self.token)
         if self.backend not in ("sim", "serial"):
             raise ValueError(f"backend: expected 'sim' or 'serial', got {self.backend!r}")
         if self.backend == "serial" and not self.port:
@@ -98,7 +105,8 @@ class Lab:
 
     Attributes:
         server: the :class:`LabServer`.
-        url: ``http://HOST:PORT`` the page is served at.
+        token: the access token (:mod:`app.gate`).
+        url: ``http://HOST:PORT/?token=TOKEN``: the page, with the token that opens it.
         lesson: handle of the open lesson (None while switching).
     """
 
@@ -112,8 +120,10 @@ class Lab:
         sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL))
         self._lock = threading.RLock()
         self._closed = False
+        self.token = options.token or new_token()
+        self.gate = Gate(self.token)
         # viser prints a banner on construction; the CLI prints its own url line.
-        with contextlib.redirect_stdout(io.StringIO()):
+        with contextlib.redirect_stdout(io.StringIO()), gated(self.gate):
             self.server = LabServer(host=options.host, port=options.http_port,
                                     label=PANEL_LABEL, verbose=verbose)
         try:
@@ -122,7 +132,7 @@ class Lab:
             # Docked, the controls never cover the 3D view: the camera frames the arm in
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
-            self.url = f"http://{options.host}:{self.server.get_port()}"
+            self.url = f"http://{options.host}:{self.server.get_port()}/?token={self.token}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)

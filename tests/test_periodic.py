@@ -62,5 +62,8 @@ def test_a_stalled_period_skips_time_instead_of_racing_and_says_so():
     assert stats.overruns >= 1 and stats.skipped >= 8  # >= 11 periods were due at once
     assert stats.skipped_recent == stats.skipped  # all within the last 10 s
     assert stats.late_p50_ms is not None and stats.interval_mean_ms is not None
-    gaps = np.diff(starts[19:23])  # after the stall: one period, not a burst of catch-ups
-    assert gaps[0] >= 0.06 and np.all(gaps[1:] > 0.002)
+    resumed = starts[20]  # the first period after the stall (60 ms after the stalled one)
+    assert resumed - starts[19] >= 0.06
+    # no burst of catch-up periods: in the 20 ms after it, at most what the clock allows
+    # (4 periods, +1 for phase); a burst would run the 11 missed periods at once
+    assert sum(resumed < t <= resumed + 0.02 for t in starts) <= 5

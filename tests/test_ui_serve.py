@@ -10,8 +10,10 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.parse
 import urllib.request
 from pathlib import Path
+from urllib.parse import parse_qs
 
 import pytest
 from _emulator import emulator
@@ -60,9 +62,10 @@ def test_serve_prints_a_loopback_url_on_a_free_port_and_stops_on_ctrl_c():
         port = taken.getsockname()[1]
         proc, url = start_serve("--http-port", str(port))
         try:
-            host, got = url.removeprefix("http://").rsplit(":", 1)
-            assert host == "127.0.0.1"
-            assert int(got) != port  # the taken port was skipped
+            parts = urllib.parse.urlsplit(url)  # http://127.0.0.1:PORT/?token=TOKEN
+            assert parts.scheme == "http" and parts.hostname == "127.0.0.1"
+            assert parts.port != port  # the taken port was skipped
+            assert parts.path == "/" and len(parse_qs(parts.query)["token"][0]) >= 16
             with urllib.request.urlopen(url, timeout=10) as reply:
                 assert reply.status == 200
         finally:

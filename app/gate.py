@@ -1,0 +1,167 @@
+"""The gate in front of the lab's websocket: only the lab's own page, holding the token,
+gets the robot's state and controls.
+
+viser has no credential and no Origin check: any web page open in the teacher's
+browser could open ``ws://127.0.0.1:8080`` and drive the arm (cross-site websocket
+hijacking). The lab therefore prints ``url: http://HOST:PORT/?token=TOKEN`` (a random
+token per start, as Jupyter does) and this gate checks every websocket upgrade before
+viser sees it, answering HTTP 403 (no state is ever sent) unless
+
+- the request presents the token: ``?token=`` on the websocket URL (scripts, the
+  headless client) or the ``armlab_token`` cookie, which the lab sets on the page it
+  serves for a URL with the right token (``HttpOnly; SameSite=Strict``: another
+  site's page never sends it); and
+- its ``Origin``, when there is one (every browser sends it), is the lab's own: the
+  scheme and the ``Host`` the request was made to.
+
+Static files (the page's JavaScript, fonts) stay public; they hold nothing of the
+robot. The hook: viser builds its ``websockets`` server inside ``ViserServer``'s
+start-up with its own ``process_request`` (the static files); :func:`gated` wraps that
+function, for the one server created inside it, through a stand-in for the
+``websockets`` name in ``viser.infra._infra`` (nothing else in the process changes).
+Check it again when viser's version moves: tests/test_gate.py does.
+"""
+
+from __future__ import annotations
+
+import hmac
+import http
+import secrets
+import threading
+import types
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+import websockets.asyncio.server
+import websockets.datastructures
+import websockets.exceptions
+from websockets.datastructures import Headers
+from websockets.http11 import Request, Response
+
+COOKIE = "armlab_token"
+_TOKEN_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_")
+
+
+def new_token() -> str:
+    """A random token (128 bits, URL-safe)."""
+    return secrets.token_urlsafe(16)
+
+
+def check_token(token: str) -> str:
+    """``token`` if it can stand in a URL and a cookie unquoted (8-128 of A-Z a-z 0-9 - _).
+
+    Raises:
+        ValueError: naming what is wrong.
+    """
+    if not isinstance(token, str) or not 8 <= len(token) <= 128 or set(token) - _TOKEN_CHARS:
+        raise ValueError("token: use 8 to 128 letters, digits, '-' or '_'")
+    return token
+
+
+class Gate:
+    """Who may open the lab's websocket (see the module docstring).
+
+    Args:
+        token: the secret the page's URL carries.
+    """
+
+    def __init__(self, token: str) -> None:
+        self.token = check_token(token)
+        self.refused = 0  #: upgrades answered 403
+        self._lock = threading.Lock()
+
+    def _matches(self, presented: str | None) -> bool:
+        return presented is not None and hmac.compare_digest(presented.encode(),
+                                                             self.token.encode())
+
+    def presented_in_query(self, request: Request) -> bool:
+        """The request's URL carries the right ``?token=``."""
+        values = parse_qs(urlsplit(request.path).query).get("token", [])
+        return any(self._matches(v) for v in values)
+
+    def presented_in_cookie(self, request: Request) -> bool:
+        """The request carries the right ``armlab_token`` cookie."""
+        for header in request.headers.get_all("Cookie"):
+            for part in header.split(";"):
+                name, _, value = part.strip().partition("=")
+                if name == COOKIE and self._matches(value):
+                    return True
+        return False
+
+    def refusal(self, request: Request) -> str | None:
+        """Why a websocket upgrade is refused, or None to let it through."""
+        origin = request.headers.get("Origin")
+        host = request.headers.get("Host", "")
+        if origin is not None and origin not in (f"http://{host}", f"https://{host}"):
+            return f"origin {origin[:100]!r} is not the lab's own page"
+        if not (self.presented_in_query(request) or self.presented_in_cookie(request)):
+            return "no valid token: open the URL armlab serve printed"
+        return None
+
+    def wrap(self, inner: Callable[[Any, Request], Response | None] | None
+             ) -> Callable[[Any, Request], Response | None]:
+        """``process_request`` for the websockets server: this gate, then ``inner``
+        (viser's static files)."""
+
+        def process_request(connection: Any, request: Request) -> Response | None:
+            if request.headers.get("Upgrade", "").lower() == "websocket":
+                why = self.refusal(request)
+                if why is not None:
+                    with self._lock:
+                        self.refused += 1
+                    body = f"403 Forbidden: {why}\n".encode()
+                    return Response(http.HTTPStatus.FORBIDDEN, "Forbidden",
+                                    Headers({"Content-Type": "text/plain; charset=utf-8",
+                                             "Content-Length": str(len(body))}), body)
+                return inner(connection, request) if inner is not None else None
+            response = inner(connection, request) if inner is not None else None
+            if response is not None and self.presented_in_query(request):
+                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; Path=/; HttpOnly; "
+                                                   "SameSite=Strict")
+            return response
+
+        return process_request
+
+
+_install_lock = threading.Lock()
+_next_gate: Gate | None = None
+
+
+def _gated_serve(handler: Any, *args: Any, process_request: Any = None, **kwargs: Any) -> Any:
+    """``websockets.asyncio.server.serve`` with the pending gate in front (if any)."""
+    gate = _next_gate
+    if gate is not None:
+        process_request = gate.wrap(process_request)
+    return websockets.asyncio.server.serve(handler, *args, process_request=process_request,
+                                           **kwargs)
+
+
+def _install() -> None:
+    """Give ``viser.infra._infra`` a ``websockets`` whose ``serve`` is :func:`_gated_serve`
+    (once; every other name is the real module's)."""
+    from viser.infra import _infra
+
+    if getattr(_infra.websockets, "armlab_gate", False):
+        return
+    server = types.SimpleNamespace(**vars(websockets.asyncio.server))
+    server.serve = _gated_serve
+    _infra.websockets = types.SimpleNamespace(  # type: ignore[attr-defined]
+        asyncio=types.SimpleNamespace(server=server),
+        datastructures=websockets.datastructures, exceptions=websockets.exceptions,
+        armlab_gate=True)
+
+
+@contextmanager
+def gated(gate: Gate) -> Iterator[None]:
+    """Put ``gate`` in front of the ``viser.ViserServer`` constructed inside this block
+    (the constructor starts its websockets server before it returns)."""
+    global _next_gate
+    with _install_lock:
+        _install()
+        _next_gate = gate
+        try:
+            yield
+        finally:
+            _next_gate = None
