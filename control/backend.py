@@ -95,8 +95,13 @@ class Backend(Protocol):
         """Switch every servo's torque on or off."""
         ...
 
-    def estop(self) -> None:
-        """Torque off everywhere now (broadcast on a bus); must not raise."""
+    def estop(self) -> bool:
+        """Torque off everywhere now (broadcast on a bus); must not raise.
+
+        Returns:
+            True when the torque-off went out (on a bus: written to the wire), False when
+            it could not be sent (the link is gone: the servos may still hold torque).
+        """
         ...
 
     def close(self) -> None:

@@ -85,6 +85,8 @@ class LoopStatus:
         overruns: period starts so late that periods were skipped.
         skipped, skipped_recent: periods skipped (wall time dropped rather than run in a
             burst), in all and in the last 10 s.
+        torque_off_unsent: the last torque-off (E-STOP, fault) could not be sent: the
+            servos may still hold torque (retried once a second until it goes out).
         warning: :func:`control.params.stability_warning` of the current parameters.
     """
 
@@ -108,6 +110,7 @@ class LoopStatus:
     warning: str | None
     skipped: int = 0
     skipped_recent: int = 0
+    torque_off_unsent: bool = False
 
 
 class _Fault(Exception):
@@ -183,6 +186,8 @@ class ControlLoop:
         self._backend_ok = True
         self._fault: str | None = None
         self._message = ""
+        self._torque_unsent = False  # the last torque-off could not be sent
+        self._unsent_retry_t = 0.0
         self._pacer = Pacer(self._tick, period=params.period, name="armlab-control",
                             realtime=realtime)
         self._warning = stability_warning(params)
@@ -243,6 +248,7 @@ class ControlLoop:
                 jitter_p99_ms=pace.late_p99_ms, jitter_max_ms=pace.late_max_ms,
                 overruns=pace.overruns, skipped=pace.skipped,
                 skipped_recent=pace.skipped_recent, warning=self._warning,
+                torque_off_unsent=self._torque_unsent,
             )
 
     def step(self) -> None:
@@ -276,8 +282,7 @@ class ControlLoop:
     def shutdown(self, *, torque_off: bool = False, timeout: float = 2.0) -> None:
         """Stop the thread (finishing the current period); optionally switch torque off."""
         self._pacer.stop(timeout)
-        if torque_off and self._backend_ok:
-            self._safe_estop()
+        if torque_off and self._backend_ok and self._safe_estop():
             self._torque_on = False
 
     # ------------------------------------------------------------------ one period
@@ -308,7 +313,11 @@ class ControlLoop:
             except queue.Empty:
                 break
         p, t = self._params, self._t
+        if self._torque_unsent and t >= self._unsent_retry_t:  # the link may be back
+            self._safe_estop()
         if not self._backend_ok:  # the link failed: touch nothing until a Reset
+            if any(isinstance(c, EStop) for c in cmds):  # still try, and say what came of it
+                self._apply(EStop(), None)  # type: ignore[arg-type]
             if any(isinstance(c, Reset) for c in cmds):
                 self._backend_ok, self._state = True, None
                 self._clear_fault()
@@ -406,20 +415,26 @@ class ControlLoop:
             self._active = True
 
     def _fail(self, why: str) -> None:
-        self._safe_estop()
+        sent = self._safe_estop()
         with self._lock:
             if self._fault is None:
                 self._fault = why
                 self._message = why
             self._active = False
-            self._torque_on = False
+            self._torque_on = self._torque_on and not sent
 
-    def _safe_estop(self) -> None:
+    def _safe_estop(self) -> bool:
+        """Torque off through the backend; False (and :attr:`LoopStatus.torque_off_unsent`)
+        when it could not be sent. A later period tries again (once a second) until it
+        goes out."""
         try:
-            self.backend.estop()
-        except Exception as exc:  # estop must not raise; note it and go on
-            with self._lock:
-                self._message = f"e-stop failed too ({exc}); switch the servo power off"
+            sent = self.backend.estop() is not False
+        except Exception:  # estop must not raise; a raise is a torque-off not sent
+            sent = False
+        with self._lock:
+            self._torque_unsent = not sent
+            self._unsent_retry_t = self._t + 1.0
+        return sent
 
     def _note(self, msg: str) -> None:
         with self._lock:
@@ -439,12 +454,14 @@ class ControlLoop:
             self._start(meas)
             return
         if isinstance(cmd, EStop):
-            self._safe_estop()
+            sent = self._safe_estop()
             with self._lock:
                 self._estopped = True
                 self._active = False
-                self._torque_on = False
-                self._message = "e-stop: torque off; Reset to go on"
+                self._torque_on = not sent and self._torque_on
+                self._message = ("e-stop: torque off; Reset to go on" if sent else
+                                 "e-stop: torque off could not be sent; switch the servo "
+                                 "power off")
             return
         if isinstance(cmd, SetController):
             self.controller.mode = cmd.mode

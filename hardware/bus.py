@@ -123,6 +123,15 @@ def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | No
     )
 
 
+WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
+PTY_MARGIN = 0.060  #: s on a pseudo-terminal (the emulator: a process, not a wire)
+
+
+def is_pty(port: str) -> bool:
+    """``port`` is (a link to) a pseudo-terminal, e.g. ``armlab emulate``'s /dev/pts/N."""
+    return os.path.realpath(port).startswith("/dev/pts/")
+
+
 def open_port(port: str, baud: float, *, exclusive: bool = True) -> serial.Serial:
     """Open ``port`` 8N1 at ``baud``; :class:`PortError` with the fix for the usual failures."""
     try:
@@ -155,7 +164,9 @@ class Bus:
         port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
         baud: bit/s (1 000 000 in the thesis).
         retries: extra attempts after a timeout or a broken reply (bounded).
-        timeout_margin: s added to the computed wire time of each reply; raised to the
+        timeout_margin: s added to the computed wire time of each reply (None: 20 ms
+            on a serial adapter, 60 ms on a pseudo-terminal, whose "servos" are a process
+            on this computer that answers when the scheduler lets it); raised to the
             adapter's FTDI latency timer + 5 ms where that is longer (a 16 ms timer
             would otherwise time out every reply).
         echo: the adapter echoes what it sends (half-duplex TTL with TX and RX tied).
@@ -174,10 +185,12 @@ class Bus:
     """
 
     def __init__(self, port: str, baud: float = 1_000_000, *, retries: int = 2,
-                 timeout_margin: float = 0.020, echo: bool = False, rs485: bool = False,
+                 timeout_margin: float | None = None, echo: bool = False, rs485: bool = False,
                  table: ControlTable = RX24F_TABLE, exclusive: bool = True):
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
+        if timeout_margin is None:
+            timeout_margin = PTY_MARGIN if is_pty(port) else WIRE_MARGIN
         if not timeout_margin > 0:
             raise ValueError(f"timeout_margin must be > 0 s, got {timeout_margin}")
         self.port = port

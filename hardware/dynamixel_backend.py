@@ -72,7 +72,7 @@ class DynamixelBackend(GoalLimits):
                  joint_map: JointMap | str | Path | None = None, from_baud: float | None = None,
                  configure: bool = True, torque_limit: float = 1.0,
                  status_return_level: int = THESIS_STATUS_RETURN_LEVEL,
-                 retries: int = 2, timeout_margin: float = 0.020, echo: bool = False,
+                 retries: int = 2, timeout_margin: float | None = None, echo: bool = False,
                  rs485: bool = False):
         if not 0.0 <= torque_limit <= 1.0:
             raise ValueError(f"torque_limit: a fraction 0..1 of max torque, got {torque_limit}")
@@ -103,6 +103,7 @@ class DynamixelBackend(GoalLimits):
         self.status_return_level_setting = int(status_return_level)
         self.configuration: list[str] = []
         self.estops = 0
+        self._estop_unsent = False  # the last torque-off could not be written
         self._torque = False
         self._shutdown = np.zeros(self.map.n, dtype=bool)
         self._closed = False
@@ -233,16 +234,27 @@ class DynamixelBackend(GoalLimits):
         address, data = self.table.encode("torque_enable", on)
         self._guard(self.bus.sync_write, address, len(data), {i: data for i in ids})
 
-    def estop(self) -> None:
-        """Broadcast torque off now; never raises (the link may be gone)."""
+    def estop(self) -> bool:
+        """Broadcast torque off now; never raises (the link may be gone).
+
+        Returns:
+            True once the packet was written to the port; False when it could not be (the
+            servos' torque is then unknown: the caller must say so, not "torque off").
+        """
         self.estops += 1
-        self._torque = False
         try:
             self.bus.transact(p1.write(p1.BROADCAST_ID, *self.table.encode("torque_enable", 0)),
                               reply=False)
-            log.warning("e-stop: broadcast torque off sent")
         except (BusError, OSError, ValueError) as exc:
-            log.error("e-stop: torque off could not be sent (%s)", exc)
+            if not self._estop_unsent:  # one line per outage, not one per retry
+                log.error("e-stop: torque off could not be sent (%s)", exc)
+            self._estop_unsent = True
+            return False
+        self._torque = False
+        log.warning("e-stop: broadcast torque off sent%s",
+                    " (the link is back)" if self._estop_unsent else "")
+        self._estop_unsent = False
+        return True
 
     def close(self) -> None:
         if not self._closed:

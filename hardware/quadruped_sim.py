@@ -190,10 +190,9 @@ class QuadrupedSimBackend(GoalLimits):
             for leg in self.legs:
                 leg.set_torque(on)
 
-    def estop(self) -> None:
-        """Torque off on all 12 servos now; never raises."""
-        for leg in self.legs:
-            leg.estop()
+    def estop(self) -> bool:
+        """Torque off on all 12 servos now; never raises. Returns True."""
+        return all([leg.estop() for leg in self.legs])
 
     def close(self) -> None:
         with self._lock:

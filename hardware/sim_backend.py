@@ -156,11 +156,12 @@ class SimBackend(GoalLimits):
                     servo.regs.torque_limit = limit
                 servo.regs.torque_enable = int(bool(on))
 
-    def estop(self) -> None:
-        """Torque off everywhere now; never raises."""
+    def estop(self) -> bool:
+        """Torque off everywhere now; never raises. Returns True (nothing can be lost)."""
         with self._lock:
             for servo in self.plant.servos:
                 servo.regs.torque_enable = 0
+        return True
 
     def close(self) -> None:
         """Release the backend; later calls raise BackendError (torque left as it is)."""

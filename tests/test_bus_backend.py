@@ -186,3 +186,53 @@ def test_wrong_model_and_missing_servo_are_named():
         assert isinstance(e.value.__cause__, NoReply)
         with Bus(emu.port):  # the failed backends released the port
             pass
+
+
+def test_a_torque_off_that_cannot_be_sent_is_never_reported_as_sent():
+    """The link dies under a running lab: the fault's torque-off and a later E-STOP cannot
+    reach the servos, so the status says so (a red line: switch the servo power off) and
+    never "torque off"; the log says the same."""
+    import signal
+
+    from _helpers import wait_for
+
+    from app.server import Lab, ServeOptions
+    from app.wsclient import HeadlessClient
+    from control.commands import EStop
+
+    with emulator() as emu:
+        with Lab(ServeOptions(backend="serial", port=emu.port, http_port=0)) as lab, \
+                HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+            loop = lab.lesson.rig.loop
+
+            def status_line() -> str:  # what the page shows at the top of the panel
+                return " ".join(str(e.props.get("content", "")) for e in page.gui.values()
+                                if "●" in str(e.props.get("content", "")))
+
+            wait_for(lambda: loop.status.active and loop.status.torque_on, 60, "torque on")
+            wait_for(lambda: "torque on" in status_line(), 60, "the status on the page")
+            emu.stop(signal.SIGKILL)  # the adapter pulled out
+            wait_for(lambda: loop.status.fault is not None, 60, "the lost link's fault")
+            wait_for(lambda: loop.status.torque_off_unsent, 60, "the unsent torque-off")
+            loop.post(EStop())
+            wait_for(lambda: loop.status.estopped, 60, "the E-STOP")
+            st = loop.status
+            assert st.torque_off_unsent and st.torque_on  # not claimed off
+            assert "could not be sent" in st.message
+            wait_for(lambda: "Torque off could not be sent: switch the servo power off"
+                     in status_line(), 60, lambda: f"the red status line ({status_line()!r})")
+            assert "torque unknown" in status_line()
+            assert "· torque off ·" not in status_line()
+    assert lab.lesson is None  # closed cleanly, nothing raised
+
+
+def test_estop_reports_whether_the_packet_went_out():
+    with emulator() as emu:
+        b = DynamixelBackend(ARM, emu.port, timeout_margin=MARGIN)
+        try:
+            b.set_torque(True)
+            assert b.estop() is True
+            b.bus.close()  # the port is gone
+            assert b.estop() is False
+        finally:
+            b.close()

@@ -69,7 +69,7 @@ def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model(
     from hardware.bus import WrongModel
 
     with emulator("--ids", "4,9,200", "--servo", "AX-12A", "--robot", "receptionist_arm") as emu:
-        found = scan(emu.port, (1_000_000,))
+        found = scan(emu.port, (1_000_000,), margin=0.05)  # a process answers, not a wire
         with Bus(emu.port) as bus:
             assert bus.identify(4) is AX12A_TABLE
             with pytest.raises(WrongModel, match="servo 9 is a AX-12A .*expected a RX-24F"):
@@ -114,7 +114,8 @@ def test_dropped_and_corrupted_replies_are_retried_and_counted():
 
 def test_late_replies_do_not_confuse_the_next_transaction():
     args = ("--delay", "0.3", "--delay-time", "0.03", "--seed", "3")
-    with emulator(*args) as emu, Bus(emu.port, retries=8) as bus:
+    # a wire's 20 ms margin: the 30 ms delayed replies arrive after the timeout
+    with emulator(*args) as emu, Bus(emu.port, retries=8, timeout_margin=0.020) as bus:
         for _ in range(15):  # alternate lengths and IDs: a stale reply never matches
             assert bus.read(1, "model_number") == 24
             assert bus.read(3, "id") == 3

@@ -124,11 +124,12 @@ def test_target_outside_the_workspace_gives_one_clear_message(lesson):
         client.move_gizmo(lesson.gizmo.name, [(0.20, 0.10, 0.0), (0.26, 0.12, 0.0),
                                               (0.27, 0.12, 0.0), (0.28, 0.12, 0.0)])
         wait_for(lambda: shown(lesson, 28.0, 12.0))
-        # the server notifies before it updates the readout, on the same socket: once the
-        # client holds that readout it holds every notification of the drag
+        # the notification goes to the dragging client's own queue, the readout to every
+        # page: the two may arrive in either order, so wait for both
+        client.wait_notification("Outside the workspace", timeout=60.0)
         readout = lesson.readout._impl.uuid
         client.wait_for(lambda: "(28.00, 12.00) cm" in str(
-            client.gui[readout].props.get("content", "")), 30.0, "the readout on the client")
+            client.gui[readout].props.get("content", "")), 60.0, "the readout on the client")
         titles = [t for t, _ in client.notifications]
         assert titles.count("Outside the workspace") == 1
         assert "outside the workspace" in lesson.readout.content

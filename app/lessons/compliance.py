@@ -487,7 +487,9 @@ class ComplianceLesson(LessonBase):
         self._measure(status, rig)
 
     def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
-        if st.estopped:
+        if st.torque_off_unsent:  # never claim a torque-off that did not reach the servos
+            state, color = "Torque off could not be sent: switch the servo power off", "#b00020"
+        elif st.estopped:
             state, color = "E-STOPPED: torque off (press Reset)", "#b00020"
         elif st.fault:
             state, color = f"stopped: {st.fault}", "#b00020"
@@ -497,7 +499,8 @@ class ComplianceLesson(LessonBase):
             state, color = f"running {st.trajectory} ({100 * st.progress:.0f} %)", "#1f5eea"
         else:
             state, color = "holding", "#2e7d32"
-        torque = "torque on" if st.torque_on else "torque off"
+        torque = ("torque unknown (the torque-off was not sent)" if st.torque_off_unsent
+                  else "torque on" if st.torque_on else "torque off")
         where = "simulated arm" if not self.hardware else f"servos on {self.ctx.port}"
         hand = ""
         if self._hand is not None:  # from the latest pose frame (at most 1/30 s old)

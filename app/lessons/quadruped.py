@@ -85,9 +85,6 @@ GAIT_SLIDERS: dict[str, tuple[str, float, float, float, str, float]] = {
     "alpha": ("α heading (°)", 45.0, 135.0, 5.0, "alpha_deg", 1.0),
 }
 SPEED_RANGE = (0.05, 1.5)
-#: Extra seconds to wait for a servo's reply (12 reads a period; an emulator in another
-#: process on a busy machine can answer late, a real servo within microseconds).
-SERIAL_TIMEOUT_MARGIN = 0.03
 #: Plant step and servo tick of the simulated legs, s (eq. 4.1 figures agree with 1 ms
 #: to 0.01 %, at half the cost).
 SIM_DT = 2e-3
@@ -111,8 +108,8 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
     if ctx.backend == "sim":
         return QuadrupedSimBackend(model, q0=q0, dt=SIM_DT), ""
     try:
-        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,  # type: ignore[arg-type]
-                               timeout_margin=SERIAL_TIMEOUT_MARGIN)
+        # the reply timeout is the bus's own (hardware.bus: a wire's or an emulator's)
+        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)  # type: ignore[arg-type]
     except (BackendError, ValueError, OSError) as exc:
         return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs RF, LF, RH, LH, "
                       f"each hip yaw, hip pitch, knee) on {ctx.port}: {exc}. Connect them (or "
