@@ -29,6 +29,7 @@ import math
 import queue
 import sys
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -381,7 +382,7 @@ class ControlLoop:
                      q_env=st.q_env)
 
     def _record(self, t: float, **signals: np.ndarray) -> None:
-        self.recorder.append(t, signals)
+        self.recorder.append(t, signals, wall=time.time() if self._pacer.alive else math.nan)
 
     def _swap_params(self) -> None:
         with self._lock:

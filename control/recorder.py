@@ -7,7 +7,9 @@ that is held only for one array copy, so neither side waits on the other.
 Signals (SI, joint order of the model), each (m,) for ``t`` and (m, n) otherwise:
 
 =========  ==================================================================
-t          loop time, s
+t          loop time, s (periods × period: skipped periods leave no gap here)
+wall       wall-clock time of the period, s since the epoch (NaN headless; a gap
+           here beside a regular ``t`` shows periods the machine skipped)
 q_cmd      θ_cmd, the commanded trajectory (RMRC), rad
 q_ref      θ_ref, the goal sent to the servos (after clamping), rad
 q          θ, the position the servos report, rad
@@ -24,6 +26,7 @@ q_env      θ_env, the environment state of eq. 2.7, rad
 from __future__ import annotations
 
 import io
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -50,8 +53,8 @@ class Recorder:
     def __init__(self, n: int, capacity: int, joint_names: Sequence[str] | None = None) -> None:
         self.n = n
         self.joint_names = tuple(joint_names) if joint_names else tuple(f"j{i}" for i in range(n))
-        self._cols = {"t": slice(0, 1)}
-        c = 1
+        self._cols = {"t": slice(0, 1), "wall": slice(1, 2)}
+        c = 2
         for name in SIGNALS:
             self._cols[name] = slice(c, c + n)
             c += n
@@ -64,12 +67,15 @@ class Recorder:
     def __len__(self) -> int:
         return len(self._ring)
 
-    def append(self, t: float, signals: Mapping[str, np.ndarray]) -> None:
-        """Add one row: ``t`` s and each signal (n,) (missing ones are NaN)."""
+    def append(self, t: float, signals: Mapping[str, np.ndarray], *,
+               wall: float = math.nan) -> None:
+        """Add one row: loop time ``t`` s, the wall clock ``wall`` s (epoch) and each signal
+        (n,) (missing ones are NaN)."""
         cols = self._cols
 
         def fill(row: np.ndarray) -> None:
             row[0] = t
+            row[1] = wall
             for name, value in signals.items():
                 row[cols[name]] = value
 
@@ -91,10 +97,11 @@ class Recorder:
             max_points: keep at most about this many rows (evenly thinned, newest kept).
 
         Returns:
-            {"t": (m,), signal: (m, n), ...}, oldest first; safe to keep and modify.
+            {"t": (m,), "wall": (m,), signal: (m, n), ...}, oldest first; safe to keep
+            and modify.
         """
         data = self._ring.rows(window_s, max_points=max_points)
-        out = {"t": data[:, 0]}
+        out = {"t": data[:, 0], "wall": data[:, 1]}
         for name in SIGNALS:
             out[name] = data[:, self._cols[name]]
         return out
@@ -107,11 +114,11 @@ class Recorder:
         buf.write("# armlab recording (SI units)\n")
         if params is not None:
             buf.write("# " + ", ".join(f"{k}={v}" for k, v in params.as_dict().items()) + "\n")
-        cols = ["t_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
-                          for s in SIGNALS for j in self.joint_names]
+        cols = ["t_s", "wall_time_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
+                                         for s in SIGNALS for j in self.joint_names]
         buf.write(",".join(cols) + "\n")
-        table = np.column_stack([snap["t"]] + [snap[s] for s in SIGNALS]) if len(snap["t"]) \
-            else np.zeros((0, len(cols)))
-        for row in table:
-            buf.write(",".join("" if np.isnan(v) else f"{v:.6g}" for v in row) + "\n")
+        signals = np.column_stack([snap[s] for s in SIGNALS]) if len(snap["t"]) else []
+        for t, wall, row in zip(snap["t"], snap["wall"], signals, strict=True):
+            buf.write(",".join([f"{t:.6g}", "" if np.isnan(wall) else f"{wall:.4f}"]
+                               + ["" if np.isnan(v) else f"{v:.6g}" for v in row]) + "\n")
         return buf.getvalue()

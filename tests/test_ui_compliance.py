@@ -283,8 +283,12 @@ def test_csv_download_has_the_parameters_and_the_rows(lab, client):
                                                  if not ln.startswith("#")))))
     cols = rows[0]
     assert cols[0] == "t_s" and "q_cmd_theta2_rad" in cols and "tau_ext_theta1_Nm" in cols
+    assert cols[1] == "wall_time_s"  # beside the period count: skipped periods show as gaps
     body = np.array([[float(v) if v else np.nan for v in r] for r in rows[1:]])
     assert len(body) > 70  # the 1.28 s line at 16 ms is 81 rows, plus its approach
+    t, wall = body[:, 0], body[:, 1]
+    assert np.all(np.diff(wall) > 0) and abs(wall[-1] - time.time()) < 600
+    assert wall[-1] - wall[0] >= 0.9 * (t[-1] - t[0])  # wall time never runs short of t
     q2 = body[:, cols.index("q_cmd_theta2_rad")]
     assert np.degrees(np.nanmax(q2) - np.nanmin(q2)) > 40.0
 
