@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import viser
 
 from app.camera import show_initial_view
+from app.gate import Gate, install, new_token
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
 
 #: Label at the top of the control panel.
@@ -69,6 +70,8 @@ class ServeOptions:
         lesson: lesson name (None: the first lesson for the robot).
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
+        token: the secret the websocket asks for (None: a random one, new at
+            each start; see ``app.gate``).
     """
 
     robot: str = "receptionist_arm"
@@ -79,6 +82,7 @@ class ServeOptions:
     http_port: int = 8080
     lesson: str | None = None
     realtime: bool = True
+    token: str | None = None
 
     def __post_init__(self) -> None:
         if self.backend not in ("sim", "serial"):
@@ -98,7 +102,9 @@ class Lab:
 
     Attributes:
         server: the :class:`LabServer`.
-        url: ``http://HOST:PORT`` the page is served at.
+        base_url: ``http://HOST:PORT`` the page is served at (no token).
+        token: the websocket's secret (``app.gate``).
+        url: ``http://HOST:PORT/?token=TOKEN``: the page, let in by the gate.
         lesson: handle of the open lesson (None while switching).
     """
 
@@ -117,12 +123,16 @@ class Lab:
             self.server = LabServer(host=options.host, port=options.http_port,
                                     label=PANEL_LABEL, verbose=verbose)
         try:
+            self.token = options.token or new_token()
+            self.gate = Gate(self.token)
+            install(self.server, self.gate)
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
             # Docked, the controls never cover the 3D view: the camera frames the arm in
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
-            self.url = f"http://{options.host}:{self.server.get_port()}"
+            self.base_url = f"http://{options.host}:{self.server.get_port()}"
+            self.url = f"{self.base_url}/?token={self.token}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)

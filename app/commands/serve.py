@@ -27,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--http-port", type=int, default=8080,
                         help="first port to try (default 8080; the next free one if taken)")
     parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
+    parser.add_argument("--token", help="secret the page must present (default: a random one, "
+                                        "new at each start, printed in the url)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
-                           lesson=args.lesson)
+                           lesson=args.lesson, token=args.token)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
