@@ -26,6 +26,7 @@ import viser
 
 from app.camera import show_initial_view
 from app.gate import Gate, install, new_token
+from app.inputs import UpdateScreen
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
 
 #: Label at the top of the control panel.
@@ -126,6 +127,7 @@ class Lab:
             self.token = options.token or new_token()
             self.gate = Gate(self.token)
             install(self.server, self.gate)
+            self.screen = UpdateScreen(self.server)
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
             # Docked, the controls never cover the 3D view: the camera frames the arm in
