@@ -58,7 +58,9 @@ def test_serve_prints_a_loopback_url_on_a_free_port_and_stops_on_ctrl_c():
         port = taken.getsockname()[1]
         proc, url = start_serve("--http-port", str(port))
         try:
-            host, got = url.removeprefix("http://").rsplit(":", 1)
+            base, token = url.split("/?token=")
+            assert len(token) >= 32  # a random token, new at each start (app/gate.py)
+            host, got = base.removeprefix("http://").rsplit(":", 1)
             assert host == "127.0.0.1"
             assert int(got) != port  # the taken port was skipped
             with urllib.request.urlopen(url, timeout=10) as reply:
