@@ -91,6 +91,9 @@ class DynamixelBackend(GoalLimits):
         self.status_return_level_setting = int(status_return_level)
         self.configuration: list[str] = []
         self.estops = 0
+        #: the last torque-off write (e-stop or set_torque(False)) could not be sent:
+        #: the servos may still hold torque; the lab shows a red banner until it can.
+        self.torque_off_unsent = False
         self._torque = False
         self._shutdown = np.zeros(self.map.n, dtype=bool)
         self._closed = False
@@ -203,17 +206,25 @@ class DynamixelBackend(GoalLimits):
             self._shutdown[:] = False
         else:
             self._guard(self.bus.sync_write, 24, 1, {i: b"\x00" for i in ids})
+            self.torque_off_unsent = False
         self._torque = bool(on)
 
     def estop(self) -> None:
-        """Broadcast torque off now; never raises (the link may be gone)."""
+        """Broadcast torque off now; never raises (the link may be gone).
+
+        Torque counts as off only once the write went out; if it could not be
+        sent, :attr:`torque_off_unsent` says so (and the torque state is kept).
+        """
         self.estops += 1
-        self._torque = False
         try:
             self.bus.transact(p1.write(p1.BROADCAST_ID, 24, b"\x00"), reply=False)
-            log.warning("e-stop: broadcast torque off sent")
         except (BusError, OSError, ValueError) as exc:
+            self.torque_off_unsent = True
             log.error("e-stop: torque off could not be sent (%s)", exc)
+            return
+        self._torque = False
+        self.torque_off_unsent = False
+        log.warning("e-stop: broadcast torque off sent")
 
     def close(self) -> None:
         if not self._closed:

@@ -68,6 +68,8 @@ HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance 
         "line, push or drag the hand and watch the arm yield.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 0
+#: Status when an e-stop's torque-off write could not go out (the link is gone).
+UNSENT_BANNER = "Torque off could not be sent: switch the servo power off"
 
 DEG = 180.0 / math.pi
 #: Push directions offered, in the shoulder (thesis) frame: x = gravity, y = along the line.
@@ -509,6 +511,9 @@ class ComplianceLesson:
         else:
             state, color = "holding", "#2e7d32"
         torque = "torque on" if st.torque_on else "torque off"
+        if getattr(rig.backend, "torque_off_unsent", False):  # never claim what did not happen
+            state, color = UNSENT_BANNER, "#b00020"
+            torque = "torque state unknown"
         where = "simulated arm" if not self.hardware else f"servos on {self.ctx.port}"
         hand = ""
         if self._hand is not None:  # from the latest pose frame (at most 1/30 s old)
@@ -540,6 +545,9 @@ class ComplianceLesson:
             exp.done = True
             snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
             keep = snap["t"] >= exp.t0
+            if not keep.any():  # the loop stopped before recording the run
+                self.last_run_text = "**Last run** (thesis line): no samples (the loop stopped)"
+                return
             err = np.nanmax(np.abs(snap["error"][keep]), axis=0) * DEG
             names = ", ".join(f"{joint_label(n)} {e:.1f}°" for n, e in
                               zip(rig.model.joint_names, err, strict=True))

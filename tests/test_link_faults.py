@@ -1,0 +1,30 @@
+"""Faults told as they are: an e-stop over a dead serial link (real pty to the emulator)."""
+
+from __future__ import annotations
+
+import signal
+
+from _emulator import emulator
+
+from hardware.dynamixel_backend import DynamixelBackend
+from kinematics.model import load_robot
+
+ARM = load_robot("receptionist_arm")
+
+
+def test_estop_over_a_dead_link_does_not_claim_torque_off(tmp_path):
+    with emulator(log_dir=tmp_path) as emu:
+        b = DynamixelBackend(ARM, emu.port, timeout_margin=0.1)
+        try:
+            b.configure()
+            b.set_torque(True)
+            assert b.read().torque_on[0]
+            b.estop()  # link alive: sent, torque off
+            assert not b.torque_off_unsent and not any(b.read().torque_on)
+            b.set_torque(True)
+            emu.stop(signal.SIGKILL)  # the link dies mid-run
+            b.estop()  # never raises
+            assert b.torque_off_unsent  # the lab shows the red banner
+            assert b._torque  # and nothing claims the torque went off
+        finally:
+            b.close()
