@@ -20,6 +20,7 @@ shutdown come from the simulated firmware (``hardware.servo``).
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import random
@@ -353,6 +354,26 @@ class EmulatorStats:
     wrong_baud: int = 0
     slipped: float = 0.0
     lost_bytes: int = 0
+
+
+def point_link(link: str, target: str) -> None:
+    """Make ``link`` a symlink to ``target``, replacing what is there (atomically).
+
+    A restarted emulator keeps its name this way, as a ``/dev/serial/by-id``
+    path survives a re-plug.
+    """
+    tmp = f"{link}.{os.getpid()}.tmp"
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+    os.symlink(target, tmp)
+    os.replace(tmp, link)
+
+
+def drop_link(link: str, target: str) -> None:
+    """Remove symlink ``link`` if it still points to ``target`` (a newer emulator's stays)."""
+    with contextlib.suppress(OSError):
+        if os.readlink(link) == target:
+            os.unlink(link)
 
 
 @dataclass

@@ -28,3 +28,27 @@ def test_estop_over_a_dead_link_does_not_claim_torque_off(tmp_path):
             assert b._torque  # and nothing claims the torque went off
         finally:
             b.close()
+
+
+def test_emulator_link_keeps_its_name_across_a_restart(tmp_path):
+    import os
+
+    link = str(tmp_path / "serial-by-id-arm")
+    with emulator("--link", link) as first:
+        assert os.readlink(link) == first.port
+        b = DynamixelBackend(ARM, link, timeout_margin=0.1)  # opened by the stable name
+        try:
+            assert b.configure()
+        finally:
+            b.close()
+        first.stop(signal.SIGKILL)  # died hard: the stale link stays until replaced
+        assert os.path.islink(link)
+        with emulator("--link", link) as second:
+            assert os.readlink(link) == second.port  # replaced on restart
+            b = DynamixelBackend(ARM, link, timeout_margin=0.1)
+            try:
+                assert b.configure()
+            finally:
+                b.close()
+            second.stop(signal.SIGTERM)
+        assert not os.path.lexists(link)  # a clean stop removes its own link

@@ -13,7 +13,7 @@ import signal
 import sys
 
 from app.commands.scan import _ids
-from hardware.emulator import Faults, PtyEmulator, emulated_network
+from hardware.emulator import Faults, PtyEmulator, drop_link, emulated_network, point_link
 from hardware.servo_spec import value_from_baud
 from kinematics.model import load_robot
 
@@ -66,6 +66,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--nice", type=int, default=-10,
                         help="scheduling priority to ask for (default -10: ahead of ordinary "
                         "programs, like a device; needs root, else ignored)")
+    parser.add_argument("--link", metavar="PATH",
+                        help="also make PATH a symlink to the pseudo-terminal, replaced on "
+                        "restart (a stable name, like a /dev/serial/by-id path)")
     parser.add_argument("--log", metavar="FILE",
                         help="write one line per received (rx) and sent (tx) packet")
 
@@ -89,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
     log = open(args.log, "w") if args.log else None
     emu = PtyEmulator(network, pace=args.pace, faults=faults, echo=args.echo, log=log)
     try:
+        if args.link:
+            point_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
@@ -100,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     finally:
+        if args.link:
+            drop_link(args.link, emu.path)
         emu.close()
         if log is not None:
             log.close()
