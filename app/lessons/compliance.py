@@ -331,6 +331,10 @@ class ComplianceLesson:
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
+        fault = rig.loop.status.fault
+        if fault is not None:  # a stopped loop would take the command and do nothing
+            raise ValueError(f"nothing happened: the control loop is stopped ({fault}); "
+                             "press Reset first")
         t0 = self._now()
         rig.loop.post(RunTrajectory(rig.line))
         self.run_start, self.run_label = t0, "thesis line"
