@@ -25,6 +25,7 @@ import viser
 
 from app.backends import make_backend
 from app.inputs import guarded_slider
+from app.late import LateWindow
 from app.lessons import LessonContext
 from app.lessons._common import (
     LessonGui,
@@ -145,6 +146,7 @@ class ComplianceLesson:
         self._gui = LessonGui(server.gui)
         self._last_teach = 0.0
         self._last_servos = 0.0
+        self._late = LateWindow()
         self.experiment: Experiment | None = None
         self.run_start: float | None = None  #: loop time the last run started (CSV)
         self.run_label = "recording"
@@ -524,8 +526,11 @@ class ComplianceLesson:
             p = self._hand * 100
             hand = f" · hand ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) cm"
         msg = ""
+        self._late.add(time.monotonic(), st.overruns)
+        if late := self._late.text():
+            msg = f"<div style='color:#b00020;font-size:0.85em'>{esc(late)}</div>"
         if st.message and not st.fault and st.message != state:
-            msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
+            msg += f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
         set_content(self.status, status_html(
             state, color, f"{where} · {torque} · t = {st.t:.0f} s · T = {st.period_ms:.0f} ms"
             f"{hand}", extra=msg))
