@@ -7,7 +7,8 @@ that is held only for one array copy, so neither side waits on the other.
 Signals (SI, joint order of the model), each (m,) for ``t`` and (m, n) otherwise:
 
 =========  ==================================================================
-t          loop time, s
+t          loop time, s (periods × period)
+wall       wall-clock time of the row, s since the epoch (CSV wall_time_s)
 q_cmd      θ_cmd, the commanded trajectory (RMRC), rad
 q_ref      θ_ref, the goal sent to the servos (after clamping), rad
 q          θ, the position the servos report, rad
@@ -26,6 +27,7 @@ from __future__ import annotations
 import io
 import math
 import threading
+import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -52,8 +54,8 @@ class Recorder:
             raise ValueError(f"capacity must be >= 2 rows, got {capacity}")
         self.n = n
         self.joint_names = tuple(joint_names) if joint_names else tuple(f"j{i}" for i in range(n))
-        self._cols = {"t": slice(0, 1)}
-        c = 1
+        self._cols = {"t": slice(0, 1), "wall": slice(1, 2)}
+        c = 2
         for name in SIGNALS:
             self._cols[name] = slice(c, c + n)
             c += n
@@ -76,6 +78,7 @@ class Recorder:
             row = self._data[self._head]  # written in place: no allocation per period
             row.fill(np.nan)
             row[0] = t
+            row[1] = time.time()  # wall clock beside the period count: skipped periods show
             for name, value in signals.items():
                 row[self._cols[name]] = value
             self._head = (self._head + 1) % self.capacity
@@ -139,7 +142,7 @@ class Recorder:
         if max_points is not None and len(data) > max_points > 0:
             step = math.ceil(len(data) / max_points)
             data = data[(len(data) - 1) % step:: step]
-        out = {"t": data[:, 0]}
+        out = {"t": data[:, 0], "wall": data[:, 1]}
         for name in SIGNALS:
             out[name] = data[:, self._cols[name]]
         return out
@@ -152,11 +155,12 @@ class Recorder:
         buf.write("# armlab recording (SI units)\n")
         if params is not None:
             buf.write("# " + ", ".join(f"{k}={v}" for k, v in params.as_dict().items()) + "\n")
-        cols = ["t_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
+        cols = ["t_s", "wall_time_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
                           for s in SIGNALS for j in self.joint_names]
         buf.write(",".join(cols) + "\n")
-        table = np.column_stack([snap["t"]] + [snap[s] for s in SIGNALS]) if len(snap["t"]) \
-            else np.zeros((0, len(cols)))
+        table = np.column_stack([snap["t"], snap["wall"]] + [snap[s] for s in SIGNALS]) \
+            if len(snap["t"]) else np.zeros((0, len(cols)))
         for row in table:
-            buf.write(",".join("" if np.isnan(v) else f"{v:.6g}" for v in row) + "\n")
+            buf.write(",".join("" if np.isnan(v) else (f"{v:.6f}" if k == 1 else f"{v:.6g}")
+                               for k, v in enumerate(row)) + "\n")
         return buf.getvalue()

@@ -224,7 +224,7 @@ def test_recorder_snapshot_window_and_csv():
     csv = loop.recorder.to_csv(Params(), window_s=0.1)
     lines = csv.splitlines()
     assert "kp=20.0" in lines[1] and "law=2.6" in lines[1]
-    assert lines[2].startswith("t_s,q_cmd_theta1_rad")
+    assert lines[2].startswith("t_s,wall_time_s,q_cmd_theta1_rad")
     assert len(lines) == 3 + len(loop.recorder.snapshot(0.1)["t"])
 
 
