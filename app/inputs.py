@@ -116,6 +116,9 @@ def guarded_slider(gui: viser.GuiApi, label: str, *, name: str, lo: float, hi: f
 
 #: s: a client hears about (and the log tells of) refusals of one control at most this often.
 REFUSAL_INTERVAL = 1.0
+#: s: one control takes a client's value at most this often (about one control period);
+#: values arriving faster are coalesced, the latest wins.
+COALESCE_INTERVAL = 0.016
 #: characters: longest text a text or dropdown input takes.
 MAX_TEXT = 10_000
 #: characters: longest log line the screen writes.
@@ -205,6 +208,9 @@ class UpdateScreen:
         self._last: dict[tuple[Any, str], float] = {}
         self.refused = 0
         self.dropped = 0
+        self.coalesced = 0  #: values replaced by a later one before they were applied
+        self._applied_at: dict[str, float] = {}
+        self._pending: dict[str, tuple[Any, Any]] = {}
         iface = self._gui._websock_interface
         self._inner = self._gui._handle_gui_updates
         iface.unregister_handler(GuiUpdateMessage, self._inner)
@@ -232,7 +238,7 @@ class UpdateScreen:
             return
         why = why_bad_value(handle, updates["value"])
         if why is None:
-            await self._inner(client_id, message)
+            await self._coalesce(uuid, client_id, message)
             return
         self.refused += 1
         label = str(handle.label)[:40]
@@ -241,3 +247,19 @@ class UpdateScreen:
                       f"({self.refused} refused so far)")
             client = self._server.get_clients().get(client_id)
             notify(client, "Value refused", f"{label}: {why}; kept {_brief(handle.value)}.")
+
+    async def _coalesce(self, uuid: str, client_id: Any, message: Any) -> None:
+        """Apply now, or (within :data:`COALESCE_INTERVAL` of the last) keep only the latest."""
+        import asyncio
+
+        if uuid in self._pending:
+            self.coalesced += 1
+            self._pending[uuid] = (client_id, message)
+            return
+        wait = self._applied_at.get(uuid, -math.inf) + COALESCE_INTERVAL - self._clock()
+        if wait > 0:
+            self._pending[uuid] = (client_id, message)
+            await asyncio.sleep(wait)
+            client_id, message = self._pending.pop(uuid)
+        self._applied_at[uuid] = self._clock()
+        await self._inner(client_id, message)

@@ -124,3 +124,17 @@ def test_fuzzed_updates_to_every_control_are_refused_quietly(lesson, capfd):
         assert len(err) < 100_000
         assert "Traceback" not in err
         assert all(len(line) <= 200 for line in err.splitlines() if line.startswith("armlab:"))
+
+
+def test_a_burst_of_updates_is_coalesced_and_the_latest_wins():
+    with Lab(ServeOptions(http_port=0, realtime=False)) as lab:
+        with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+            page.wait_for(lambda: any(e.label == "Push force (N)" for e in page.gui.values()),
+                          what="the slider")
+            handle = next(h for h in lab.server.gui._gui_input_handle_from_uuid.values()
+                          if h.label == "Push force (N)")
+            values = [1.5, 2.5] * 100 + [3.0]
+            for v in values:
+                page.set_value("Push force (N)", v)
+            page.wait_for(lambda: handle.value == values[-1], what="the latest value")
+            assert lab.screen.coalesced > 0
