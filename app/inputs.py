@@ -112,3 +112,154 @@ def guarded_slider(gui: viser.GuiApi, label: str, *, name: str, lo: float, hi: f
     handle = gui.add_slider(label, min=lo, max=hi, step=step, initial_value=initial, hint=hint,
                             visible=visible)
     return GuardedNumber(handle, name=name, lo=lo, hi=hi, apply=apply, lock=lock)
+
+
+#: s: a client hears about (and the log tells of) refusals of one control at most this often.
+REFUSAL_INTERVAL = 1.0
+#: s: one control takes a client's value at most this often (about one control period);
+#: values arriving faster are coalesced, the latest wins.
+COALESCE_INTERVAL = 0.016
+#: characters: longest text a text or dropdown input takes.
+MAX_TEXT = 10_000
+#: characters: longest log line the screen writes.
+MAX_LOG_LINE = 200
+
+
+def _brief(value: Any) -> str:
+    """A short description of a client value, safe to log (a 10 MB string stays short)."""
+    text = repr(value) if not isinstance(value, (str, list, dict, tuple)) or len(value) < 20 \
+        else f"{type(value).__name__} of length {len(value)}"
+    return text[:40]
+
+
+def _is_number(v: Any) -> bool:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    return abs(v) < 1e300 if isinstance(v, int) else math.isfinite(v)
+
+
+def _check_scalar(v: Any, current: Any, lo: Any, hi: Any) -> str | None:
+    if isinstance(current, bool):
+        return None if isinstance(v, bool) else f"{_brief(v)} is not true/false"
+    if isinstance(current, (int, float)):
+        if not _is_number(v):
+            return f"{_brief(v)} is not a finite number"
+        if isinstance(current, int) and not isinstance(v, int) and not float(v).is_integer():
+            return f"{_brief(v)} is not a whole number"
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            return f"{v:g} is outside [{lo}, {hi}]"
+        return None
+    if isinstance(current, str):
+        if not isinstance(v, str) or len(v) > MAX_TEXT:
+            return f"{_brief(v)} is not a text of at most {MAX_TEXT} characters"
+        return None
+    return f"{_brief(v)} is not accepted here"
+
+
+def why_bad_value(handle: Any, value: Any) -> str | None:
+    """Why ``value`` from a client cannot go into input ``handle`` (None: it can).
+
+    Checks the type as well as the range: a bool is not a number, a string is
+    not a number, a list is not a vector of another length; a dropdown or button
+    group takes only one of its options.
+    """
+    current = handle.value
+    lo, hi = getattr(handle, "min", None), getattr(handle, "max", None)
+    if isinstance(current, tuple):
+        if not isinstance(value, (list, tuple)) or len(value) != len(current):
+            return f"{_brief(value)} is not a list of {len(current)} values"
+        for i, (v, c) in enumerate(zip(value, current, strict=True)):
+            why = _check_scalar(v, c, lo[i] if isinstance(lo, tuple) else lo,
+                                hi[i] if isinstance(hi, tuple) else hi)
+            if why is not None:
+                return f"item {i}: {why}"
+        return None
+    options = getattr(handle, "options", None)
+    why = _check_scalar(value, current, lo, hi)
+    if why is None and options is not None and value not in options:
+        return f"{_brief(value)} is not one of the choices"
+    return why
+
+
+class UpdateScreen:
+    """Checks every GUI update a client sends before viser or the lab acts on it.
+
+    Installed in front of viser's own handler of ``GuiUpdateMessage``. An update
+    to an unknown control, or of a property other than ``value``, is dropped
+    and counted; a value that fails :func:`why_bad_value` is refused: the client
+    gets one notification per control per :data:`REFUSAL_INTERVAL`, the log one
+    line of at most :data:`MAX_LOG_LINE` characters at the same rate.
+
+    Attributes:
+        refused: values refused so far. dropped: updates dropped so far.
+    """
+
+    def __init__(self, server: viser.ViserServer, *, log: Callable[[str], None] | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
+        import sys
+        import time
+
+        from viser._messages import GuiUpdateMessage
+
+        self._server = server
+        self._gui = server.gui
+        self._log = log or (lambda line: print(line, file=sys.stderr, flush=True))
+        self._clock = clock or time.monotonic
+        self._last: dict[tuple[Any, str], float] = {}
+        self.refused = 0
+        self.dropped = 0
+        self.coalesced = 0  #: values replaced by a later one before they were applied
+        self._applied_at: dict[str, float] = {}
+        self._pending: dict[str, tuple[Any, Any]] = {}
+        iface = self._gui._websock_interface
+        self._inner = self._gui._handle_gui_updates
+        iface.unregister_handler(GuiUpdateMessage, self._inner)
+        iface.register_handler(GuiUpdateMessage, self._screen)
+
+    def _due(self, key: tuple[Any, str]) -> bool:
+        now = self._clock()
+        if now - self._last.get(key, -math.inf) < REFUSAL_INTERVAL:
+            return False
+        self._last[key] = now
+        return True
+
+    def _say(self, line: str) -> None:
+        self._log(line[:MAX_LOG_LINE])
+
+    async def _screen(self, client_id: Any, message: Any) -> None:
+        uuid = message.uuid if isinstance(message.uuid, str) else repr(message.uuid)[:40]
+        handle = self._gui._gui_input_handle_from_uuid.get(uuid)
+        updates = message.updates
+        if handle is None or not isinstance(updates, dict) or set(updates) != {"value"}:
+            self.dropped += 1
+            if self._due((None, "dropped")):
+                self._say(f"armlab: dropped {self.dropped} update(s) of unknown controls or "
+                          f"properties so far (last: control {uuid[:40]!r})")
+            return
+        why = why_bad_value(handle, updates["value"])
+        if why is None:
+            await self._coalesce(uuid, client_id, message)
+            return
+        self.refused += 1
+        label = str(handle.label)[:40]
+        if self._due((client_id, uuid)):
+            self._say(f"armlab: refused {label} from client {client_id}: {why} "
+                      f"({self.refused} refused so far)")
+            client = self._server.get_clients().get(client_id)
+            notify(client, "Value refused", f"{label}: {why}; kept {_brief(handle.value)}.")
+
+    async def _coalesce(self, uuid: str, client_id: Any, message: Any) -> None:
+        """Apply now, or (within :data:`COALESCE_INTERVAL` of the last) keep only the latest."""
+        import asyncio
+
+        if uuid in self._pending:
+            self.coalesced += 1
+            self._pending[uuid] = (client_id, message)
+            return
+        wait = self._applied_at.get(uuid, -math.inf) + COALESCE_INTERVAL - self._clock()
+        if wait > 0:
+            self._pending[uuid] = (client_id, message)
+            await asyncio.sleep(wait)
+            client_id, message = self._pending.pop(uuid)
+        self._applied_at[uuid] = self._clock()
+        await self._inner(client_id, message)

@@ -28,6 +28,7 @@ import viser
 
 from app.camera import show_initial_view
 from app.gate import Gate, check_token, gated, new_token
+from app.inputs import UpdateScreen
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
 
 #: Label at the top of the control panel.
@@ -106,6 +107,7 @@ class Lab:
     Attributes:
         server: the :class:`LabServer`.
         token: the access token (:mod:`app.gate`).
+        base_url: ``http://HOST:PORT`` (no token).
         url: ``http://HOST:PORT/?token=TOKEN``: the page, with the token that opens it.
         lesson: handle of the open lesson (None while switching).
     """
@@ -127,12 +129,14 @@ class Lab:
             self.server = LabServer(host=options.host, port=options.http_port,
                                     label=PANEL_LABEL, verbose=verbose)
         try:
+            self.screen = UpdateScreen(self.server)  # every client value checked first
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
             # Docked, the controls never cover the 3D view: the camera frames the arm in
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
-            self.url = f"http://{options.host}:{self.server.get_port()}/?token={self.token}"
+            self.base_url = f"http://{options.host}:{self.server.get_port()}"
+            self.url = f"{self.base_url}/?token={self.token}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)

@@ -88,7 +88,7 @@ class HeadlessClient:
     """A fake browser connected to a viser server (runs its own asyncio thread).
 
     Args:
-        url: ``ws://host:port``.
+        url: ``ws://host:port``; for the lab, ``ws://host:port/?token=T`` (``app.gate``).
         on_message: called (in the client's thread) with each decoded message and the
             receive time (``time.perf_counter()``).
 

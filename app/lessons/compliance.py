@@ -68,6 +68,8 @@ HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance 
         "line, push or drag the hand and watch the arm yield.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 0
+#: Status when an e-stop's torque-off write could not go out (the link is gone).
+UNSENT_BANNER = "Torque off could not be sent: switch the servo power off"
 
 DEG = 180.0 / math.pi
 #: Push directions offered, in the shoulder (thesis) frame: x = gravity, y = along the line.
@@ -326,6 +328,10 @@ class ComplianceLesson(LessonBase):
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
+        fault = rig.loop.status.fault
+        if fault is not None:  # a stopped loop would take the command and do nothing
+            raise ValueError(f"nothing happened: the control loop is stopped ({fault}); "
+                             "press Reset first")
         t0 = self._now()
         rig.loop.post(RunTrajectory(rig.line))
         self.run_start, self.run_label = t0, "thesis line"
@@ -488,7 +494,7 @@ class ComplianceLesson(LessonBase):
 
     def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
         if st.torque_off_unsent:  # never claim a torque-off that did not reach the servos
-            state, color = "Torque off could not be sent: switch the servo power off", "#b00020"
+            state, color = UNSENT_BANNER, "#b00020"
         elif st.estopped:
             state, color = "E-STOPPED: torque off (press Reset)", "#b00020"
         elif st.fault:
@@ -535,6 +541,9 @@ class ComplianceLesson(LessonBase):
                 return
             exp.done = True
             snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
+            if not np.any(snap["t"] >= exp.t0):  # the loop stopped before recording the run
+                self.last_run_text = "**Last run** (thesis line): no samples (the loop stopped)"
+                return
             err = line_errors(snap, t0=exp.t0) * DEG
             q = snap["q"][snap["t"] >= exp.t0]
             ch4 = self.chapter4
