@@ -26,6 +26,7 @@ import viser
 
 from app.camera import show_initial_view
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
+from app.theme import PageStyle
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -69,6 +70,7 @@ class ServeOptions:
         lesson: lesson name (None: the first lesson for the robot).
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
+        projector: start with large text (the panel's "Projector" switch).
     """
 
     robot: str = "receptionist_arm"
@@ -79,6 +81,7 @@ class ServeOptions:
     http_port: int = 8080
     lesson: str | None = None
     realtime: bool = True
+    projector: bool = False
 
     def __post_init__(self) -> None:
         if self.backend not in ("sim", "serial"):
@@ -146,6 +149,17 @@ class Lab:
             order=-90.0, visible=len(ordered) > 1,
             hint="Switch to another lesson (stops the current one)")
         self.lesson_dropdown.on_update(self._on_lesson_picked)
+        self.page_style = PageStyle(gui, projector=self.options.projector, order=-80.0,
+                                    on_change=lambda _on: self._reopen())
+
+    def _reopen(self) -> None:
+        """Re-open the current lesson (its charts take the new text size)."""
+        with self._lock:
+            if self._closed or self.lesson is None:
+                return
+            self.lesson.close()
+            self.lesson = None
+            self._open(self.lesson_name)
 
     def _on_lesson_picked(self, event: viser.GuiEvent) -> None:
         name = self._by_title.get(str(self.lesson_dropdown.value))

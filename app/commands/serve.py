@@ -27,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--http-port", type=int, default=8080,
                         help="first port to try (default 8080; the next free one if taken)")
     parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
+    parser.add_argument("--projector", action="store_true",
+                        help="large text for a classroom projector (the panel's Projector switch)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
-                           lesson=args.lesson)
+                           lesson=args.lesson, projector=args.projector)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
