@@ -30,6 +30,15 @@ from app import theme
 #: Colours used for command / reference / actual / extra series (readable on a projector).
 COLORS = ("#1f5eea", "#e8820c", "#222222", "#c2185b", "#2e7d32", "#6a1b9a")
 
+#: Dash patterns (px on, px off) for lines of one kind sharing a chart (finger 1, 2, 3;
+#: servo 1, 2, 3): they differ in pattern as well as colour, for colour-blind readers.
+DASHES: tuple[tuple[int, ...] | None, ...] = (None, (10, 4), (2, 3), (12, 3, 2, 3))
+
+
+def dash(i: int) -> tuple[int, ...] | None:
+    """The dash pattern of the i-th line of a kind (0: solid)."""
+    return DASHES[i % len(DASHES)]
+
 
 def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
              points: int) -> tuple[np.ndarray, list[np.ndarray]]:
