@@ -107,3 +107,56 @@ def test_normal_text_is_at_least_13px_and_the_switch_enlarges_it(browser, lab):
     finally:
         pg.close()
         lab.page_style.set(False)
+
+
+def _label_height(pg, label) -> float:
+    """Screen height (px) of a 3D scene label: the rows that change when it is hidden."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    canvas = pg.locator("canvas").first
+
+    def shot():
+        return np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("L")).astype(int)
+
+    label.visible = True
+    wait_for(lambda: shot() is not None, 10.0, "a screenshot")
+    with_label = shot()
+    label.visible = False
+    rows: list[int] = []
+
+    def changed():
+        diff = np.abs(shot() - with_label) > 40
+        # the label is the band of changed columns holding the most changed pixels (the
+        # arm may also move a little between screenshots); its height is that band's
+        xs = np.flatnonzero(diff.sum(axis=0) >= 1)
+        if xs.size == 0:
+            return False
+        bands = np.split(xs, np.flatnonzero(np.diff(xs) > 25) + 1)
+        best = max(bands, key=lambda g: diff[:, g].sum())
+        ys = np.flatnonzero(diff[:, best].sum(axis=1) >= 6)  # text rows, not a thin line
+        lines = np.split(ys, np.flatnonzero(np.diff(ys) > 3) + 1)
+        text = max(lines, key=lambda g: diff[g][:, best].sum())
+        rows[:] = [int(text[0]), int(text[-1])]
+        return True
+
+    try:
+        wait_for(changed, 60.0, "the label to disappear")
+    finally:
+        label.visible = True
+    return float(rows[-1] - rows[0] + 1)
+
+
+@pytest.mark.parametrize("projector", [False, True])
+def test_scene_label_height(browser, projector, request):
+    from app.server import Lab, ServeOptions
+
+    with Lab(ServeOptions(http_port=0, projector=projector)) as lab:
+        pg = _open(browser, lab.url)
+        try:
+            h = _label_height(pg, lab.lesson.rig.scene.path_label)
+        finally:
+            pg.close()
+    assert (24.0 if projector else 16.0) <= h <= 60.0, h
