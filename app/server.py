@@ -26,7 +26,7 @@ import viser
 
 from app.camera import show_initial_view
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
-from app.theme import PageStyle
+from app.theme import PageStyle, set_projector
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -238,6 +238,7 @@ class Lab:
             if lesson is not None:
                 lesson.close()
         finally:
+            set_projector(False)  # charts built later (another lab in this process) are normal
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
 
