@@ -12,7 +12,8 @@ from __future__ import annotations
 import re
 
 import pytest
-from _helpers import client_of, wait_for
+from _browser_style import chart_props
+from _helpers import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
 
@@ -40,16 +41,12 @@ SMALLEST_TEXT_JS = """() => {
 
 def _tick_fonts(server) -> list[float]:
     """px of every uPlot axis font the page was sent."""
-    with client_of(server) as client:
-        def charts():
-            return [e for e in client.gui.values() if e.kind == "GuiUplotMessage"]
-        wait_for(lambda: len(charts()) > 0, 60.0, "the charts to arrive")
-        sizes = []
-        for chart in charts():
-            for axis in chart.props.get("axes") or ():
-                m = re.search(r"(\d+(?:\.\d+)?)px", str(axis.get("font", "")))
-                sizes.append(float(m.group(1)) if m else 10.0)  # uPlot's default is 10 px
-        return sizes
+    sizes = []
+    for chart in chart_props(server):
+        for axis in chart.get("axes") or ():
+            m = re.search(r"(\d+(?:\.\d+)?)px", str(axis.get("font", "")))
+            sizes.append(float(m.group(1)) if m else 10.0)  # uPlot's default is 10 px
+    return sizes
 
 
 def _open(browser, url):

@@ -11,24 +11,20 @@ from __future__ import annotations
 import re
 
 import pytest
-from _helpers import client_of, served_lesson, wait_for
+from _browser_style import chart_props
+from _helpers import served_lesson
 
 from app.lessons import LessonContext, hand, quadruped, redundancy
 
 
 def _series_by_chart(server, pattern: str) -> list[list[dict]]:
     """Per chart, the series whose label matches ``pattern``."""
-    with client_of(server) as client:
-        def charts():
-            return [e for e in client.gui.values() if e.kind == "GuiUplotMessage"]
-        wait_for(lambda: len(charts()) > 0, 60.0, "the charts to arrive")
-        out = []
-        for chart in charts():
-            lines = [s for s in chart.props["series"][1:]
-                     if re.fullmatch(pattern, str(s.get("label", "")))]
-            if len(lines) > 1:
-                out.append(lines)
-        return out
+    out = []
+    for chart in chart_props(server):
+        lines = [s for s in chart["series"][1:] if re.fullmatch(pattern, str(s.get("label", "")))]
+        if len(lines) > 1:
+            out.append(lines)
+    return out
 
 
 @pytest.mark.parametrize(("module", "robot", "pattern"), [
