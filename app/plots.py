@@ -25,8 +25,19 @@ import numpy as np
 import viser
 import viser.uplot
 
+from app import theme
+
 #: Colours used for command / reference / actual / extra series (readable on a projector).
 COLORS = ("#1f5eea", "#e8820c", "#222222", "#c2185b", "#2e7d32", "#6a1b9a")
+
+#: Dash patterns (px on, px off) for lines of one kind sharing a chart (finger 1, 2, 3;
+#: servo 1, 2, 3): they differ in pattern as well as colour, for colour-blind readers.
+DASHES: tuple[tuple[int, ...] | None, ...] = (None, (10, 4), (2, 3), (12, 3, 2, 3))
+
+
+def dash(i: int) -> tuple[int, ...] | None:
+    """The dash pattern of the i-th line of a kind (0: solid)."""
+    return DASHES[i % len(DASHES)]
 
 
 def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
@@ -155,11 +166,16 @@ class LivePlot:
         self.points = points
         self.n_series = len(series)
         scales: dict = {"x": fixed_x(-window_s, 0.0), "y": {"auto": True}}
-        axes: list = [{"label": "t − now (s)", "size": 34},
-                      {"label": y_label, "scale": "y", "size": 52}]
+        font, label_font = theme.chart_font(), theme.chart_font(bold=True)
+        big = theme.projector()
+        axes: list = [{"label": "t − now (s)", "size": 48 if big else 34,
+                       "font": font, "labelFont": label_font},
+                      {"label": y_label, "scale": "y", "size": 80 if big else 52,
+                       "font": font, "labelFont": label_font}]
         if y2_label is not None:
             scales["y2"] = {"auto": True}
-            axes.append({"label": y2_label, "scale": "y2", "side": 1, "size": 52,
+            axes.append({"label": y2_label, "scale": "y2", "side": 1,
+                         "size": 80 if big else 52, "font": font, "labelFont": label_font,
                          "grid": {"show": False}})
         # Start with the window's x extent and flat zero lines.
         empty = (np.array([-window_s, 0.0]), *(np.zeros(2) for _ in range(self.n_series)))

@@ -30,6 +30,7 @@ from app.camera import show_initial_view
 from app.gate import Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
 from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
+from app.theme import PageStyle, set_projector
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -74,6 +75,7 @@ class ServeOptions:
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
         token: the access token the page's URL carries (None: a new random one).
+        projector: start with large text (the panel's "Projector" switch).
     """
 
     robot: str = "receptionist_arm"
@@ -85,6 +87,7 @@ class ServeOptions:
     lesson: str | None = None
     realtime: bool = True
     token: str | None = None
+    projector: bool = False
 
     def __post_init__(self) -> None:
         if self.token is not None:
@@ -160,6 +163,17 @@ class Lab:
             order=-90.0, visible=len(ordered) > 1,
             hint="Switch to another lesson (stops the current one)")
         self.lesson_dropdown.on_update(self._on_lesson_picked)
+        self.page_style = PageStyle(gui, projector=self.options.projector, order=-80.0,
+                                    on_change=lambda _on: self._reopen())
+
+    def _reopen(self) -> None:
+        """Re-open the current lesson (its charts take the new text size)."""
+        with self._lock:
+            if self._closed or self.lesson is None:
+                return
+            self.lesson.close()
+            self.lesson = None
+            self._open(self.lesson_name)
 
     def _on_lesson_picked(self, event: viser.GuiEvent) -> None:
         name = self._by_title.get(str(self.lesson_dropdown.value))
@@ -238,6 +252,7 @@ class Lab:
             if lesson is not None:
                 lesson.close()
         finally:
+            set_projector(False)  # charts built later (another lab in this process) are normal
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
 

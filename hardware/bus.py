@@ -125,6 +125,8 @@ def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | No
 
 WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
 PTY_MARGIN = 0.060  #: s on a pseudo-terminal (the emulator: a process, not a wire)
+WIRE_RETRIES = 2  #: extra attempts after a lost or broken reply on a serial adapter
+PTY_RETRIES = 5  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.3 s
 
 
 def is_pty(port: str) -> bool:
@@ -163,7 +165,8 @@ class Bus:
     Args:
         port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
         baud: bit/s (1 000 000 in the thesis).
-        retries: extra attempts after a timeout or a broken reply (bounded).
+        retries: extra attempts after a timeout or a broken reply (bounded; None: 2 on a
+            serial adapter, 5 on a pseudo-terminal).
         timeout_margin: s added to the computed wire time of each reply (None: 20 ms
             on a serial adapter, 60 ms on a pseudo-terminal, whose "servos" are a process
             on this computer that answers when the scheduler lets it); raised to the
@@ -184,9 +187,11 @@ class Bus:
         return_delay: each ID's return delay setting (2 µs units).
     """
 
-    def __init__(self, port: str, baud: float = 1_000_000, *, retries: int = 2,
+    def __init__(self, port: str, baud: float = 1_000_000, *, retries: int | None = None,
                  timeout_margin: float | None = None, echo: bool = False, rs485: bool = False,
                  table: ControlTable = RX24F_TABLE, exclusive: bool = True):
+        if retries is None:
+            retries = PTY_RETRIES if is_pty(port) else WIRE_RETRIES
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
         if timeout_margin is None:

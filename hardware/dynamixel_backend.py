@@ -72,7 +72,8 @@ class DynamixelBackend(GoalLimits):
                  joint_map: JointMap | str | Path | None = None, from_baud: float | None = None,
                  configure: bool = True, torque_limit: float = 1.0,
                  status_return_level: int = THESIS_STATUS_RETURN_LEVEL,
-                 retries: int = 2, timeout_margin: float | None = None, echo: bool = False,
+                 retries: int | None = None, timeout_margin: float | None = None,
+                 echo: bool = False,
                  rs485: bool = False):
         if not 0.0 <= torque_limit <= 1.0:
             raise ValueError(f"torque_limit: a fraction 0..1 of max torque, got {torque_limit}")

@@ -89,10 +89,13 @@ def served_lesson(build: Callable[[viser.ViserServer, LessonContext], Any],
 
 
 @contextmanager
-def client_of(server: viser.ViserServer, *, timeout: float = 30.0) -> Iterator[HeadlessClient]:
-    """A headless client of ``server``, returned once the server has registered it."""
+def client_of(server: viser.ViserServer, *, timeout: float = 30.0,
+              token: str | None = None) -> Iterator[HeadlessClient]:
+    """A headless client of ``server`` (presenting ``token`` for a gated lab, app.gate),
+    returned once the server has registered it."""
     before = set(server.get_clients())
-    with HeadlessClient(f"ws://127.0.0.1:{server.get_port()}").connect(timeout) as client:
+    query = f"/?token={token}" if token else ""
+    with HeadlessClient(f"ws://127.0.0.1:{server.get_port()}{query}").connect(timeout) as client:
         client.wait_for(lambda: bool(set(server.get_clients()) - before), timeout,
                         "the server to register the client")
         yield client

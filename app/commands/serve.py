@@ -29,6 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
     parser.add_argument("--token", help="access token the page's URL carries (default: a new "
                                         "random one at each start)")
+    parser.add_argument("--projector", action="store_true",
+                        help="large text for a classroom projector (the panel's Projector switch)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
 
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
-                           lesson=args.lesson, token=args.token)
+                           lesson=args.lesson, token=args.token,
+                           projector=args.projector)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

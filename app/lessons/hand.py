@@ -25,7 +25,7 @@ from app.inputs import guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import LessonBase, close_in_turn, guarded, set_content, status_html
 from app.lessons.hand_scene import HandScene
-from app.plots import COLORS, LivePlot, SeriesSpec
+from app.plots import COLORS, LivePlot, SeriesSpec, dash
 from control.grip import GripController, GripModel, GripParams
 from control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
 from hardware.hand import MAX_STIFFNESS, GraspObject, HandSim, check_object, make_hand
@@ -152,12 +152,13 @@ class HandLesson(LessonBase):
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
             # line at F rather than an auto-zoomed band around it
             self.current_plot = LivePlot(gui, title="Motor current (measured)", y_label="A",
-                                         series=(*(SeriesSpec(f"finger {i + 1}", c)
+                                         series=(*(SeriesSpec(f"finger {i + 1}", c, dash(i))
                                                    for i, c in enumerate(FINGER_COLORS)),
                                                  SeriesSpec("0", ZERO_RGB)), **kw)
             self.force_plot = LivePlot(
                 gui, title="Fingertip force", y_label="N", series=(
-                    *(SeriesSpec(f"finger {i + 1}", c) for i, c in enumerate(FINGER_COLORS)),
+                    *(SeriesSpec(f"finger {i + 1}", c, dash(i))
+                      for i, c in enumerate(FINGER_COLORS)),
                     SeriesSpec("limit F", COLORS[3], (6, 4)),
                     SeriesSpec("from current (finger 1)", COLORS[2], (2, 3)),
                     SeriesSpec("0", ZERO_RGB)), **kw)

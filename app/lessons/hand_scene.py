@@ -14,6 +14,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
+from app import theme
 from app.camera import aim
 from kinematics.hand import FingerGeometry, tip_positions
 
@@ -78,7 +79,7 @@ class HandScene:
                                        colors=LIMIT_RGB, shaft_radius=0.0015, head_radius=0.004,
                                        head_length=0.008, visible=False)
         self.label = scene.add_label(f"{root}/label", "", position=(0.0, 0.0, 0.12),
-                                     font_screen_scale=0.8)
+                                     font_screen_scale=theme.label_scale())
         # looking at a point right of the palm, so the hand clears the control panel
         aim(server, position=(0.17, -0.16, 0.16), look_at=(0.03, 0.025, 0.035))
 

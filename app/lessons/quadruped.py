@@ -43,7 +43,7 @@ from app.lessons._common import (
     warning_html,
 )
 from app.lessons.quadruped_scene import QuadrupedScene
-from app.plots import COLORS, LivePlot, SeriesSpec, rebuild_plots
+from app.plots import COLORS, LivePlot, SeriesSpec, dash, rebuild_plots
 from control.backend import Backend, BackendError
 from control.gait_loop import GaitLoop, GaitStatus
 from control.walking import (
@@ -240,7 +240,7 @@ class QuadrupedLesson(LessonBase):
                                             SeriesSpec("0", "#999999", (4, 4))), **kw)
             self.error_plot = LivePlot(gui, title="Eq. 4.1 |servo − commanded| / commanded",
                                        y_label="%", order=21.0, series=tuple(
-                                           SeriesSpec(f"servo {j + 1}", COLORS[j + 3])
+                                           SeriesSpec(f"servo {j + 1}", COLORS[j + 3], dash(j))
                                            for j in range(3)), **kw)
         self._build_joint_charts()
 

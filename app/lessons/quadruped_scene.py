@@ -20,6 +20,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
+from app import theme
 from app.arm_view import ArmView
 from app.camera import aim, connected
 from control.walking import GaitPlan, WalkState
@@ -96,7 +97,8 @@ class QuadrupedScene:
         self.margin_line = scene.add_line_segments(f"{root}/margin",
                                                    np.zeros((1, 2, 3), np.float32),
                                                    STABLE_RGB, thickness=0.004)
-        self.margin_label = scene.add_label(f"{root}/margin_label", "", font_screen_scale=0.8,
+        self.margin_label = scene.add_label(f"{root}/margin_label", "",
+                                            font_screen_scale=theme.label_scale(),
                                             anchor="bottom-left")
         self.stable: bool | None = None
         self._followed: np.ndarray | None = None

@@ -30,6 +30,12 @@ LIMIT_COLOR = "#777777"
 BAND_FILL = "rgba(46, 125, 50, 0.10)"
 
 
+#: Mode -> dash pattern: mode 1 vs bounded (blue vs purple) and 2 vs 4 (drawn on top
+#: of each other) are told apart by pattern, not only by colour.
+MODE_DASHES: dict[str, tuple[int, ...] | None] = {
+    "1": None, "2": None, "3": (2, 3), "4": (6, 4), "bounded": (12, 3, 2, 3)}
+
+
 class RunPlot:
     """A uPlot chart of whole runs against their time, 0..``duration`` s.
 
@@ -87,9 +93,9 @@ class RedundancyPlots:
                  duration: float = 2.0) -> None:
         self.model = model
         self.modes = modes
-        # Mode 4 dashed: it runs exactly on top of mode 2 (docs/redundancy.md).
-        lines = tuple(SeriesSpec(f"mode {m}", MODE_COLORS[m], (6, 4) if m == "4" else None)
-                      for m in modes)
+        # Mode 4 dashed: it runs exactly on top of mode 2 (docs/redundancy.md); every
+        # mode differs from the others in dash pattern or colour hue family.
+        lines = tuple(SeriesSpec(f"mode {m}", MODE_COLORS[m], MODE_DASHES[m]) for m in modes)
         limits = (SeriesSpec("lower limit", LIMIT_COLOR, (6, 4)),
                   SeriesSpec("upper limit", LIMIT_COLOR, (6, 4)))
         n = len(modes)

@@ -23,6 +23,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
+from app import theme
 from app.arm_view import ArmView
 from app.camera import aim
 from kinematics.model import SerialChain
@@ -155,9 +156,10 @@ class RedundancyScene:
             scene.add_line_segments(f"{b}/circle", closed_segments(circle), CIRCLE_RGB,
                                     thickness=0.006)
             scene.add_label(f"{b}/title", MODE_LABELS[mode], position=(-0.55, 1.08, 0.0),
-                            font_screen_scale=0.8, anchor="bottom-left")
+                            font_screen_scale=theme.label_scale(), anchor="bottom-left")
             status = scene.add_label(f"{b}/status", "", position=(-0.55, 1.0, 0.0),
-                                     font_screen_scale=0.65, anchor="bottom-left")
+                                     font_screen_scale=theme.label_scale(),
+                                     anchor="bottom-left")
             light = tuple(int(0.45 * c + 0.55 * 255) for c in rgb)
             sticks = scene.add_line_segments(f"{b}/sticks", np.zeros((1, 2, 3), np.float32),
                                              light, thickness=0.004, visible=False)

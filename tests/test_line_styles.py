@@ -1,0 +1,56 @@
+"""Lines of one kind sharing a chart differ in dash pattern as well as colour.
+
+Read from the chart configuration a page receives (a headless client of the
+real lesson server): quadruped servo 1/2/3, hand finger 1/2/3 and the
+redundancy lesson's modes, whose colours alone are hard to tell apart for
+colour-blind readers (magenta vs green, blue vs purple).
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from _browser_style import chart_props
+from _helpers import served_lesson
+
+from app.lessons import LessonContext, hand, quadruped, redundancy
+
+
+def _series_by_chart(server, pattern: str) -> list[list[dict]]:
+    """Per chart, the series whose label matches ``pattern``."""
+    out = []
+    for chart in chart_props(server):
+        lines = [s for s in chart["series"][1:] if re.fullmatch(pattern, str(s.get("label", "")))]
+        if len(lines) > 1:
+            out.append(lines)
+    return out
+
+
+@pytest.mark.parametrize(("module", "robot", "pattern"), [
+    (quadruped, "quadruped", r"servo \d"),
+    (hand, "receptionist_arm", r"finger \d"),
+    (redundancy, "redundant_planar", r"mode \w+"),
+])
+def test_lines_of_one_kind_differ_in_dash(module, robot, pattern):
+    servers = []
+
+    def build(server, ctx):
+        servers.append(server)
+        return module.build(server, ctx)
+
+    with served_lesson(build, LessonContext(robot=robot, realtime=False)):
+        charts = _series_by_chart(servers[0], pattern)
+    assert charts, "no chart with two or more such lines"
+    for lines in charts:
+        styles = [(s["stroke"], tuple(s.get("dash") or ())) for s in lines]
+        dashes = [d for _, d in styles]
+        # mode 1 and 2 (blue, orange) may both be solid; any two lines of like hue may not
+        assert len(set(styles)) == len(styles)
+        if pattern != r"mode \w+":
+            assert len(set(dashes)) == len(dashes), styles
+        else:
+            by_label = {s["label"]: tuple(s.get("dash") or ()) for s in lines}
+            assert by_label["mode 1"] != by_label.get("mode bounded", ()) or \
+                "mode bounded" not in by_label
+            assert len(set(dashes)) >= len(dashes) - 1, styles
