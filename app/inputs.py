@@ -191,7 +191,8 @@ class UpdateScreen:
     line of at most :data:`MAX_LOG_LINE` characters at the same rate.
 
     Attributes:
-        refused: values refused so far. dropped: updates dropped so far.
+        screened: updates seen so far. refused: values refused so far. dropped: updates
+            dropped so far.
     """
 
     def __init__(self, server: viser.ViserServer, *, log: Callable[[str], None] | None = None,
@@ -206,6 +207,7 @@ class UpdateScreen:
         self._log = log or (lambda line: print(line, file=sys.stderr, flush=True))
         self._clock = clock or time.monotonic
         self._last: dict[tuple[Any, str], float] = {}
+        self.screened = 0
         self.refused = 0
         self.dropped = 0
         self.coalesced = 0  #: values replaced by a later one before they were applied
@@ -227,6 +229,13 @@ class UpdateScreen:
         self._log(line[:MAX_LOG_LINE])
 
     async def _screen(self, client_id: Any, message: Any) -> None:
+        """Screen one update (counted in :attr:`screened` once it is dealt with)."""
+        try:
+            await self._screen_one(client_id, message)
+        finally:
+            self.screened += 1
+
+    async def _screen_one(self, client_id: Any, message: Any) -> None:
         uuid = message.uuid if isinstance(message.uuid, str) else repr(message.uuid)[:40]
         handle = self._gui._gui_input_handle_from_uuid.get(uuid)
         updates = message.updates
