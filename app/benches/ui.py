@@ -141,8 +141,8 @@ class _Instrumented:
         recorder = loop.recorder
         append = recorder.append
 
-        def timed_append(t: float, signals: dict) -> None:
-            append(t, signals)
+        def timed_append(*args: object, **kwargs: object) -> None:  # any signature
+            append(*args, **kwargs)
             self._stamp = time.monotonic()
 
         recorder.append = timed_append  # the loop looks the method up each period
@@ -183,6 +183,13 @@ class _Instrumented:
         v = self.loop.status.jitter_p99_ms
         return float("nan") if v is None else float(v)
 
+    def check(self) -> None:
+        """Raise if the loop stopped during the bench: its figures would describe an idle
+        arm, not the lab at work."""
+        st = self.loop.status
+        if st.fault is not None or not st.active:
+            raise RuntimeError(f"the control loop stopped during the UI bench: {st.fault}")
+
     def close(self) -> None:
         self.hold()
         self.lab.close()
@@ -204,6 +211,7 @@ def run(quick: bool) -> dict[str, float]:
         ten_thread.start()
         jitter10 = lab.jitter_p99(window + 1.5)
         ten_thread.join()
+        lab.check()
     finally:
         lab.close()
     return {
