@@ -9,12 +9,16 @@ and every page stay consistent and nothing downstream ever sees it.
 
 from __future__ import annotations
 
+import asyncio
 import math
+import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
 import viser
+from viser._messages import GuiUpdateMessage
 
 
 def check_number(value: Any, *, name: str, lo: float, hi: float) -> float:
@@ -197,11 +201,6 @@ class UpdateScreen:
 
     def __init__(self, server: viser.ViserServer, *, log: Callable[[str], None] | None = None,
                  clock: Callable[[], float] | None = None) -> None:
-        import sys
-        import time
-
-        from viser._messages import GuiUpdateMessage
-
         self._server = server
         self._gui = server.gui
         self._log = log or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -259,8 +258,6 @@ class UpdateScreen:
 
     async def _coalesce(self, uuid: str, client_id: Any, message: Any) -> None:
         """Apply now, or (within :data:`COALESCE_INTERVAL` of the last) keep only the latest."""
-        import asyncio
-
         if uuid in self._pending:
             self.coalesced += 1
             self._pending[uuid] = (client_id, message)

@@ -127,17 +127,21 @@ class Pacer:
 
     def stats(self) -> PaceStats:
         """The lateness and skips measured so far (real time only)."""
-        with self._lock:
+        with self._lock:  # copy only: the loop's thread takes this lock every wake-up
             late = np.array(self._late) if self._late else None
             gaps = np.array(self._intervals) if self._intervals else None
-            since = time.perf_counter() - self.recent_s
-            recent = sum(k for t, k in self._skips if t >= since)
-            return PaceStats(
-                late_p50_ms=None if late is None else float(np.percentile(late, 50) * 1e3),
-                late_p99_ms=None if late is None else float(np.percentile(late, 99) * 1e3),
-                late_max_ms=None if late is None else float(late.max() * 1e3),
-                interval_mean_ms=None if gaps is None else float(gaps.mean() * 1e3),
-                overruns=self._overruns, skipped=self._skipped, skipped_recent=recent)
+            skips = tuple(self._skips)
+            overruns, skipped = self._overruns, self._skipped
+        since = time.perf_counter() - self.recent_s
+        p50 = p99 = top = None
+        if late is not None:
+            p50, p99 = (float(v) * 1e3 for v in np.percentile(late, (50, 99)))
+            top = float(late.max() * 1e3)
+        return PaceStats(
+            late_p50_ms=p50, late_p99_ms=p99, late_max_ms=top,
+            interval_mean_ms=None if gaps is None else float(gaps.mean() * 1e3),
+            overruns=overruns, skipped=skipped,
+            skipped_recent=sum(k for t, k in skips if t >= since))
 
     def _run(self) -> None:
         error: Exception | None = None

@@ -23,15 +23,13 @@ thesis's simplified closed forms of §3.4 in :mod:`kinematics.thesis_dynamics`.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from kinematics._rnea_codegen import DynamicsModel, dynamics_model
 from kinematics.model import SerialChain
 from kinematics.points import link_frames, point_jacobian6
 from kinematics.transforms import rot_axis
-from kinematics.validate import matrix, vector
+from kinematics.validate import floats, matrix, vector
 
 __all__ = ["DynamicsModel", "dynamics_model", "newton_euler", "rnea", "gravity_torques",
            "bias_torques", "mass_matrix", "forward_dynamics", "kinetic_energy",
@@ -127,22 +125,10 @@ def newton_euler(model: SerialChain, q: np.ndarray, qd: np.ndarray, qdd: np.ndar
 # Public functions (validated numpy in, numpy out)
 
 
-def _floats(name: str, value: object, n: int) -> list[float]:
-    """Fast validation of a small vector; falls back to ``validate.vector`` for the message."""
-    try:
-        vals = [float(v) for v in value]  # type: ignore[attr-defined]
-    except (TypeError, ValueError):
-        vals = []
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
-        vector(name, value, n)  # raises with a clear message
-        raise ValueError(f"{name} must be {n} finite numbers")
-    return vals
-
-
 def _gravity(model: SerialChain, gravity: object) -> list[float]:
     if gravity is None:
         return [float(x) for x in model.gravity]
-    return _floats("gravity", gravity, 3)
+    return floats("gravity", gravity, 3)
 
 
 def _external_torques(model: SerialChain, q: list[float], f_ext: object) -> np.ndarray:
@@ -176,8 +162,8 @@ def rnea(model: SerialChain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
     """
     n = model.n
     dyn = dynamics_model(model)
-    qv = _floats("q", q, n)
-    tau = dyn.rnea(qv, _floats("qd", qd, n), _floats("qdd", qdd, n), _gravity(model, gravity))
+    qv = floats("q", q, n)
+    tau = dyn.rnea(qv, floats("qd", qd, n), floats("qdd", qdd, n), _gravity(model, gravity))
     out = np.array(tau)
     if f_ext is not None:
         out -= _external_torques(model, qv, f_ext)
@@ -188,7 +174,7 @@ def gravity_torques(model: SerialChain, q: np.ndarray, *,
                     gravity: np.ndarray | None = None) -> np.ndarray:
     """(n,) g(q): the joint torques that hold the chain still at q (RNEA with qd = qdd = 0)."""
     n = model.n
-    return np.array(dynamics_model(model).bias(_floats("q", q, n), [0.0] * n,
+    return np.array(dynamics_model(model).bias(floats("q", q, n), [0.0] * n,
                                                _gravity(model, gravity)))
 
 
@@ -196,7 +182,7 @@ def bias_torques(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
                  gravity: np.ndarray | None = None) -> np.ndarray:
     """(n,) C(q, qd) qd + g(q): Coriolis, centrifugal and gravity torques (RNEA, qdd = 0)."""
     n = model.n
-    return np.array(dynamics_model(model).bias(_floats("q", q, n), _floats("qd", qd, n),
+    return np.array(dynamics_model(model).bias(floats("q", q, n), floats("qd", qd, n),
                                                _gravity(model, gravity)))
 
 
@@ -204,7 +190,7 @@ def mass_matrix(model: SerialChain, q: np.ndarray) -> np.ndarray:
     """(n, n) joint-space inertia M(q), symmetric positive definite; column k = RNEA with
     qdd = e_k, qd = 0, no gravity."""
     n = model.n
-    return np.array(dynamics_model(model).mass(_floats("q", q, n))).reshape(n, n)
+    return np.array(dynamics_model(model).mass(floats("q", q, n))).reshape(n, n)
 
 
 def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, *,
@@ -223,15 +209,15 @@ def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.
         (n,) qdd.
     """
     n = model.n
-    qv = _floats("q", q, n)
-    tv = _floats("tau", tau, n)
+    qv = floats("q", q, n)
+    tv = floats("tau", tau, n)
     if f_ext is not None:
         tv = (np.array(tv) + _external_torques(model, qv, f_ext)).tolist()
-    arm = [0.0] * n if armature is None else _floats("armature", armature, n)
+    arm = [0.0] * n if armature is None else floats("armature", armature, n)
     if any(a < 0 for a in arm):
         raise ValueError(f"armature must be >= 0, got {arm}")
     try:
-        qdd = dynamics_model(model).fd(qv, _floats("qd", qd, n), tv, _gravity(model, gravity),
+        qdd = dynamics_model(model).fd(qv, floats("qd", qd, n), tv, _gravity(model, gravity),
                                        arm)
     except ZeroDivisionError:
         raise ValueError("mass matrix is singular at this q (a joint moves no inertia); "
@@ -253,7 +239,7 @@ def potential_energy(model: SerialChain, q: np.ndarray, *,
                      gravity: np.ndarray | None = None) -> float:
     """-Σ m_i g·c_i: gravitational potential energy relative to the base origin, J."""
     g = np.array(_gravity(model, gravity))
-    qv = _floats("q", q, model.n)
+    qv = floats("q", q, model.n)
     V = 0.0
     for link, (R, p) in zip(model.links, link_frames(model, qv), strict=True):
         if link.mass:

@@ -11,16 +11,12 @@ import numpy as np
 
 from kinematics._rnea_codegen import dynamics_model
 from kinematics.model import SerialChain
-from kinematics.validate import vector
-
-
-def _floats(name: str, value: object, n: int) -> list[float]:
-    return [float(x) for x in vector(name, value, n)]
+from kinematics.validate import floats, vector
 
 
 def point_position(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray) -> np.ndarray:
     """(3,) base-frame position of ``point`` (3,) m given in link ``link``'s frame."""
-    R, p = link_frames(model, _floats("q", q, model.n))[_link_index(model, link)]
+    R, p = link_frames(model, floats("q", q, model.n))[_link_index(model, link)]
     return R @ vector("point", point, 3) + p
 
 
@@ -32,7 +28,7 @@ def point_jacobian(model: SerialChain, q: np.ndarray, link: int, point: np.ndarr
     A force F (base frame) at that point acts on the joints as J^T F.
     """
     k = _link_index(model, link)
-    frames = link_frames(model, _floats("q", q, model.n))
+    frames = link_frames(model, floats("q", q, model.n))
     R, o = frames[k]
     return point_jacobian6(model, frames, k, R @ vector("point", point, 3) + o)[:3]
 

@@ -8,6 +8,8 @@ Every public function that takes arrays from a caller runs them through
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -27,6 +29,23 @@ def vector(name: str, value: object, size: int | None = None) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {arr.tolist()}")
     return arr
+
+
+def floats(name: str, value: object, size: int) -> list[float]:
+    """:func:`vector` for the hot paths: ``value`` as a list of ``size`` finite floats,
+    without building an array (a generated-code call takes lists).
+
+    Raises:
+        ValueError: as :func:`vector` does, naming ``name``.
+    """
+    try:
+        vals = [float(v) for v in value]  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        vals = []
+    if len(vals) != size or not all(math.isfinite(v) for v in vals):
+        vector(name, value, size)  # raises with the clear message
+        raise ValueError(f"{name} must be {size} finite numbers")
+    return vals
 
 
 def matrix(name: str, value: object, shape: tuple[int, int]) -> np.ndarray:
