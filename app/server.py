@@ -25,7 +25,14 @@ from dataclasses import dataclass, replace
 import viser
 
 from app.camera import show_initial_view
-from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
+from app.lessons import (
+    LessonContext,
+    LessonHandle,
+    all_lessons,
+    default_lesson,
+    lesson_order,
+    works_with,
+)
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -69,6 +76,8 @@ class ServeOptions:
         lesson: lesson name (None: the first lesson for the robot).
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
+        tip_link, package_paths, joint_map: for a robot given as a URDF file (see
+            :class:`app.lessons.LessonContext`).
     """
 
     robot: str = "receptionist_arm"
@@ -79,6 +88,9 @@ class ServeOptions:
     http_port: int = 8080
     lesson: str | None = None
     realtime: bool = True
+    tip_link: str | None = None
+    package_paths: tuple[str, ...] = ()
+    joint_map: str | None = None
 
     def __post_init__(self) -> None:
         if self.backend not in ("sim", "serial"):
@@ -163,14 +175,16 @@ class Lab:
     def _context(self) -> LessonContext:
         o = self.options
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
-                             realtime=o.realtime)
+                             realtime=o.realtime, tip_link=o.tip_link,
+                             package_paths=tuple(o.package_paths), joint_map=o.joint_map)
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
         ctx = self._context()
         if o_robots := getattr(module, "ROBOTS", ()):
-            if ctx.robot not in o_robots:
-                ctx = replace(ctx, robot=o_robots[0])
+            if not works_with(module, ctx.robot):  # the URDF options belong to the robot
+                ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
+                              joint_map=None)
         self.lesson = module.build(self.server, ctx)
         self.lesson_name = name
 
