@@ -252,7 +252,10 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
         raise ValueError("no servo answered: nothing to write a map from")
     for f in servos:
         if f.model == "unknown":
-            table_for(f.model_number)  # raises, listing the known models
+            try:
+                table_for(f.model_number)
+            except ValueError as exc:  # the message lists the known models
+                raise ValueError(f"servo ID {f.servo_id}: {exc}") from None
     models = {f.model for f in servos}
     if len(models) > 1:
         raise ValueError("servos of several models answered ("
