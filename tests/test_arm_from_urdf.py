@@ -119,3 +119,41 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
                 assert lesson.loop.status.fault is None
         finally:
             lab.close()
+
+
+def test_dragging_the_hand_target_moves_open_manipulator_x_there():
+    """The IK target drag on the shipped OpenManipulator-X, simulated, through the page."""
+    from app.lessons import LessonContext
+    from app.lessons.arm import build
+    from tests._helpers import served_lesson
+
+    with served_lesson(build, LessonContext(robot="open_manipulator_x")) as lesson:
+        model = lesson.model
+
+        def hand() -> np.ndarray:
+            snap = lesson.loop.recorder.snapshot(0.1)
+            return model.fk(snap["q"][-1])[:3, 3] if len(snap["t"]) else np.full(3, np.nan)
+
+        wait_for(lambda: np.all(np.isfinite(hand())), 30.0, "the loop's first period")
+        start = hand()
+        goal = start + np.array([-0.06, 0.05, -0.04])
+        with client_of(lesson.server) as client:
+            client.move_gizmo("/arm_target_base/target",
+                              [tuple(start + f * (goal - start)) for f in (0.3, 0.6, 1.0)])
+            wait_for(lambda: np.linalg.norm(hand() - goal) < 0.003, 60.0,
+                     "the hand to reach the dragged target")
+        assert lesson.loop.status.fault is None
+
+
+def test_teach_tab_names_default_and_narrowed_limits():
+    from app.lessons.arm import limits_markdown
+
+    model = load_robot(DATA / "mobile_manipulator.urdf", tip_link="tcp_link")
+    half = math.radians(150.0)  # an AX-12A's range narrows the ±180° default and ±3 rad
+    lower = np.maximum(model.lower, -half)
+    upper = np.minimum(model.upper, half)
+    rows = limits_markdown(model, lower, upper).splitlines()[2:]
+    assert rows[0] == "| shoulder_pan_joint | -143.2 | +143.2 | URDF |"
+    assert rows[2] == ("| elbow_joint | -150.0 | +150.0 | default ±180° (continuous, "
+                       "no limit) |")
+    assert rows[3] == "| wrist_joint | -150.0 | +150.0 | URDF narrowed to the servo |"
