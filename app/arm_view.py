@@ -10,15 +10,26 @@ nothing (viser skips an unchanged pose).
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+import trimesh
 import viser
 import viser.transforms as vtf
+import yourdfpy
 from viser.extras import ViserUrdf
 
 from kinematics.model import Quadruped, SerialChain
+from kinematics.urdf import resolve_resource, warn_missing_once
+
+#: Colour of a link drawn without its mesh (collision shape or capsule).
+FALLBACK_RGB = (150, 150, 160)
+#: Radius of the capsule drawn between joint frames for a link with no usable shape (m).
+CAPSULE_RADIUS = 0.015
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -47,6 +58,10 @@ class ArmView:
     Attributes:
         root: the root frame handle (move or hide the whole robot with it).
         link_frames: URDF link name -> scene frame handle.
+        drawn_as: for every link with a <visual>: "visual" (its own shapes),
+            "collision" (a mesh was missing: its collision shapes) or "capsule" (a
+            mesh was missing and no collision shape could be drawn either). Each
+            missing mesh is warned about once (``kinematics.urdf.MissingMeshWarning``).
     """
 
     def __init__(self, server: viser.ViserServer, model: SerialChain | Quadruped, *, root: str,
@@ -55,8 +70,20 @@ class ArmView:
             raise ValueError("model: has no urdf_path to draw")
         self.model = model
         self.root = server.scene.add_frame(root, show_axes=False)
-        self._urdf = ViserUrdf(server, Path(model.urdf_path), root_node_name=root,
-                               mesh_color_override=color)
+        urdf_path = Path(model.urdf_path)
+        package_paths = tuple(getattr(model, "package_paths", ()))
+        missing: set[str] = set()
+
+        def find(fname: str) -> str:
+            found = resolve_resource(fname, urdf_path=urdf_path, package_paths=package_paths)
+            if found is None:
+                missing.add(fname)
+                return fname
+            return str(found)
+
+        with _quiet_yourdfpy():  # its own "can't find" lines would repeat ours
+            parsed = yourdfpy.URDF.load(urdf_path, filename_handler=find)
+        self._urdf = ViserUrdf(server, parsed, root_node_name=root, mesh_color_override=color)
         # Places the fixed joints once (moving ones are set by set_q below).
         self._urdf.update_cfg(np.zeros(len(self._urdf._urdf.actuated_joint_names)))
         # ViserUrdf keeps one frame per URDF joint, named after the joint's child link.
@@ -66,6 +93,8 @@ class ArmView:
         for frame in frames:
             by_child[frame.name.rsplit("/", 1)[-1]] = frame
         self.link_frames: dict[str, viser.SceneNodeHandle] = by_child
+        self.drawn_as = self._draw_fallbacks(server, root, urdf_path, package_paths, missing,
+                                             color)
         # (frame, origin (4, 4), origin quaternion, unit axis, joint type) per moving joint.
         self._moving: list[tuple[viser.SceneNodeHandle, np.ndarray, np.ndarray, np.ndarray,
                                  str]] = []
@@ -99,9 +128,101 @@ class ArmView:
     def remove(self) -> None:
         self.root.remove()
 
+    def _draw_fallbacks(self, server: viser.ViserServer, root: str, urdf_path: Path,
+                        package_paths: tuple[Path, ...], missing: set[str],
+                        color: tuple[float, float, float, float] | None) -> dict[str, str]:
+        """Draw every link whose visual mesh is missing from its collision shapes, else
+        as a capsule from its frame to each child joint; never leave it invisible."""
+        robot = self._urdf._urdf.robot
+        rgb = FALLBACK_RGB if color is None else tuple(int(255 * c) for c in color[:3])
+        opacity = None if color is None or len(color) < 4 else color[3]
+        drawn: dict[str, str] = {}
+        for link in robot.links:
+            if not link.visuals:
+                continue
+            lost = [v.geometry.mesh.filename for v in link.visuals
+                    if v.geometry is not None and v.geometry.mesh is not None
+                    and v.geometry.mesh.filename in missing]
+            if not lost:
+                drawn[link.name] = "visual"
+                continue
+            for fname in lost:
+                warn_missing_once(fname, urdf_path=urdf_path, link=link.name)
+            if len(lost) < len(link.visuals):
+                drawn[link.name] = "visual"  # some of its own shapes are drawn
+                continue
+            frame = self.link_frames.get(link.name)
+            parent = frame.name if frame is not None else f"{root}/visual"
+            shapes = [m for c in link.collisions
+                      if (m := _shape(c.geometry, c.origin, urdf_path, package_paths)) is not None]
+            kind = "collision"
+            if not shapes:
+                shapes, kind = _capsules(robot, link.name), "capsule"
+            mesh = trimesh.util.concatenate(shapes)
+            server.scene.add_mesh_simple(f"{parent}/fallback_{kind}", mesh.vertices, mesh.faces,
+                                         color=rgb, opacity=opacity)
+            drawn[link.name] = kind
+        return drawn
+
 
 def _joint_names(model: SerialChain | Quadruped) -> tuple[str, ...]:
     """Joint names in the order of ``q``: a chain's, or every leg's of a quadruped."""
     if isinstance(model, Quadruped):
         return tuple(name for leg in model.legs.values() for name in leg.joint_names)
     return model.joint_names
+
+
+@contextlib.contextmanager
+def _quiet_yourdfpy() -> Iterator[None]:
+    logger = logging.getLogger("yourdfpy")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def _shape(geometry: yourdfpy.Geometry | None, origin: np.ndarray | None, urdf_path: Path,
+           package_paths: tuple[Path, ...]) -> trimesh.Trimesh | None:
+    """A collision element as a mesh in its link's frame (None: nothing drawable)."""
+    if geometry is None:
+        return None
+    if geometry.box is not None:
+        mesh = trimesh.creation.box(extents=geometry.box.size)
+    elif geometry.cylinder is not None:
+        mesh = trimesh.creation.cylinder(radius=geometry.cylinder.radius,
+                                         height=geometry.cylinder.length)
+    elif geometry.sphere is not None:
+        mesh = trimesh.creation.icosphere(radius=geometry.sphere.radius, subdivisions=2)
+    elif geometry.mesh is not None:
+        found = resolve_resource(geometry.mesh.filename, urdf_path=urdf_path,
+                                 package_paths=package_paths)
+        if found is None:
+            return None
+        mesh = trimesh.load(found, force="mesh")
+        if geometry.mesh.scale is not None:
+            mesh.apply_scale(geometry.mesh.scale)
+    else:
+        return None
+    if origin is not None:
+        mesh.apply_transform(origin)
+    return mesh
+
+
+def _capsules(robot: yourdfpy.Robot, link: str) -> list[trimesh.Trimesh]:
+    """Capsules from ``link``'s frame to each child joint's origin (a ball for a leaf)."""
+    out = []
+    for joint in robot.joints:
+        if joint.parent != link or joint.origin is None:
+            continue
+        end = np.asarray(joint.origin, dtype=float)[:3, 3]
+        length = float(np.linalg.norm(end))
+        if length < 1e-6:
+            continue
+        T = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], end / length)
+        T[:3, 3] = end / 2
+        out.append(trimesh.creation.capsule(height=length, radius=CAPSULE_RADIUS, transform=T))
+    if not out:
+        out.append(trimesh.creation.icosphere(radius=2 * CAPSULE_RADIUS, subdivisions=2))
+    return out

@@ -29,7 +29,14 @@ import viser
 from app.camera import show_initial_view
 from app.gate import Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
-from app.lessons import LessonContext, LessonHandle, all_lessons, default_lesson, lesson_order
+from app.lessons import (
+    LessonContext,
+    LessonHandle,
+    all_lessons,
+    default_lesson,
+    lesson_order,
+    works_with,
+)
 from app.theme import PageStyle, set_projector
 
 #: Label at the top of the control panel.
@@ -76,6 +83,8 @@ class ServeOptions:
             possible, for tests).
         token: the access token the page's URL carries (None: a new random one).
         projector: start with large text (the panel's "Projector" switch).
+        tip_link, package_paths, joint_map: for a robot given as a URDF file (see
+            :class:`app.lessons.LessonContext`).
     """
 
     robot: str = "receptionist_arm"
@@ -88,6 +97,9 @@ class ServeOptions:
     realtime: bool = True
     token: str | None = None
     projector: bool = False
+    tip_link: str | None = None
+    package_paths: tuple[str, ...] = ()
+    joint_map: str | None = None
 
     def __post_init__(self) -> None:
         if self.token is not None:
@@ -191,14 +203,16 @@ class Lab:
     def _context(self) -> LessonContext:
         o = self.options
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
-                             realtime=o.realtime)
+                             realtime=o.realtime, tip_link=o.tip_link,
+                             package_paths=tuple(o.package_paths), joint_map=o.joint_map)
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
         ctx = self._context()
         if o_robots := getattr(module, "ROBOTS", ()):
-            if ctx.robot not in o_robots:
-                ctx = replace(ctx, robot=o_robots[0])
+            if not works_with(module, ctx.robot):  # the URDF options belong to the robot
+                ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
+                              joint_map=None)
         self.lesson = module.build(self.server, ctx)
         self.lesson_name = name
 

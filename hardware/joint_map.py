@@ -7,9 +7,12 @@ TOML file (angles in degrees for people), or by default from the robot model:
 the thesis's left arm IDs 1, 3, 5 (thesis §2.3, "Set ID") for the receptionist
 arm, 1..12 in leg order RF, LF, RH, LH for the quadruped, 1..n otherwise.
 
-Example ``arm.toml``::
+Example ``arm.toml`` (``armlab scan --write-map`` drafts one from the servos
+that answer; ``protocol`` and ``baud`` record what they answered with)::
 
     servo = "RX-24F"
+    protocol = 1.0
+    baud = 1000000
     [[joints]]
     name = "theta1"
     id = 1
@@ -24,14 +27,22 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hardware.control_table import table_for
 from hardware.servo_spec import ServoSpec
 from kinematics.model import Joint, Quadruped, SerialChain
+
+if TYPE_CHECKING:
+    from hardware.scan import Found
+
+#: Dynamixel protocol versions a joint map may name that this lab drives.
+PROTOCOLS = (1.0,)
 
 THESIS_LEFT_ARM_IDS = (1, 3, 5)
 THESIS_RIGHT_ARM_IDS = (2, 4, 6)
@@ -175,8 +186,16 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
         data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"joint map {path}: {exc}") from None
+    protocol = data.get("protocol", 1.0)
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"joint map {path}: protocol {protocol!r} is not one this lab drives; "
+                         f"known: {', '.join(map(str, PROTOCOLS))}")
     joints = robot_joints(model)
-    base = default_joint_map(model, servo=data.get("servo"))
+    try:
+        base = default_joint_map(model, servo=data.get("servo"))
+    except ValueError as exc:
+        raise ValueError(f"joint map {path}: {exc}") from None
+    half = base.spec.position_range / 2
     by_name = {j.name: j for j in base.joints}
     entries = data.get("joints")
     if not isinstance(entries, list):
@@ -199,6 +218,13 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
             )
         except (TypeError, ValueError) as exc:
             raise ValueError(f"joint map {path}: joint {name}: {exc}") from None
+        js = given[name]
+        for which, value in (("lower", js.lower), ("upper", js.upper)):
+            if abs(value) > half + 1e-9:
+                raise ValueError(
+                    f"joint map {path}: joint {name!r} (servo ID {js.servo_id}, {base.servo}): "
+                    f"{which} limit {math.degrees(value):+.1f} deg is outside the servo's "
+                    f"range ±{math.degrees(half):.1f} deg")
     missing = [j.name for j in joints if j.name not in given]
     if missing:
         raise ValueError(f"joint map {path}: no servo for joint(s) {', '.join(missing)}")
@@ -206,3 +232,67 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
         return JointMap(base.servo, tuple(given[j.name] for j in joints))
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+
+
+def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) -> str:
+    """TOML text of a joint map for the servos that answered a scan.
+
+    Servos go to joints in ascending ID order (chain order, base first); limits are
+    the servos' own CW/CCW angle limits (sign +1, offset 0), narrowed to the
+    model's joint limits when ``model`` is given. With ``model`` (the
+    robot's URDF) joints take its names, and a servo count that differs from its
+    joint count is refused naming the joint without a servo or the servo without a joint.
+
+    Raises:
+        ValueError: nothing answered, a model the lab does not know (the message lists
+            the known ones), servos of mixed models, or the count mismatch above.
+    """
+    servos = sorted(found, key=lambda f: f.servo_id)
+    if not servos:
+        raise ValueError("no servo answered: nothing to write a map from")
+    for f in servos:
+        if f.model == "unknown":
+            try:
+                table_for(f.model_number)
+            except ValueError as exc:  # the message lists the known models
+                raise ValueError(f"servo ID {f.servo_id}: {exc}") from None
+    models = {f.model for f in servos}
+    if len(models) > 1:
+        raise ValueError("servos of several models answered ("
+                         + ", ".join(f"ID {f.servo_id}: {f.model}" for f in servos)
+                         + "); a map drives one model: scan the arm's servos only (--ids)")
+    names = [f"joint{i + 1}" for i in range(len(servos))]
+    if model is not None:
+        names = list(model.joint_names)
+        if len(servos) < len(names):
+            raise ValueError(
+                f"joint {names[len(servos)]!r} of {model.name} has no servo: "
+                f"{len(names)} joints, but only servo ID(s) "
+                f"{', '.join(str(f.servo_id) for f in servos)} answered")
+        if len(servos) > len(names):
+            raise ValueError(
+                f"servo ID {servos[len(names)].servo_id} has no joint: {model.name} has "
+                f"{len(names)} joints ({', '.join(names)}) but {len(servos)} servos answered")
+    bauds = {f.baud for f in servos}
+    lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe.",
+             f'servo = "{servos[0].model}"', "protocol = 1.0",
+             f"baud = {int(min(bauds))}", ""]
+    for i, (name, f) in enumerate(zip(names, servos, strict=True)):
+        wheel = f.cw_limit == f.ccw_limit == 0
+        lo, hi = f.cw_limit_deg, f.ccw_limit_deg
+        if model is not None and not wheel:  # never wider than the URDF allows
+            lo = max(lo, math.degrees(model.joints[i].lower))
+            hi = min(hi, math.degrees(model.joints[i].upper))
+            if lo >= hi:
+                raise ValueError(
+                    f"joint {name!r} (servo ID {f.servo_id}): the URDF's limits and the "
+                    f"servo's angle limits {f.cw_limit_deg:+.1f}..{f.ccw_limit_deg:+.1f} deg "
+                    "do not overlap")
+        lines += ["[[joints]]", f'name = "{name}"', f"id = {f.servo_id}", "sign = 1",
+                  "offset_deg = 0.0"]
+        if wheel:
+            lines.append("# this servo is in wheel mode (angle limits 0): set its limits first")
+        else:
+            lines += [f"lower_deg = {lo:.3f}", f"upper_deg = {hi:.3f}"]
+        lines.append("")
+    return "\n".join(lines)

@@ -25,6 +25,10 @@ from kinematics.transforms import homogeneous, rpy_matrix
 ROBOTS_DIR = Path(__file__).with_name("robots")
 #: Gravity in the URDF's root frame (the viewer's world: z up).
 WORLD_GRAVITY = np.array([0.0, 0.0, -9.81])
+#: Limit (rad, either way) a continuous joint gets when its file states none.
+CONTINUOUS_LIMIT = np.pi
+#: Joint types a chain can move along; "floating"/"planar" joints are read but never driven.
+_DRIVABLE = ("revolute", "continuous", "prismatic")
 
 
 class URDFError(ValueError):
@@ -43,6 +47,8 @@ class Joint:
     upper: float
     velocity: float
     effort: float
+    #: True when the file gave no limits (a continuous joint): ±CONTINUOUS_LIMIT was used.
+    limit_default: bool = False
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,8 @@ class SerialChain:
         gravity: (3,) gravity in the base frame, m/s^2.
         urdf_path: file the model came from (for the 3D viewer).
         link_names: URDF link name of each moving body (the viewer's frames).
+        package_paths: extra folders where ``package://NAME/...`` meshes are looked
+            for (after the URDF's own folder and its parents).
     """
 
     name: str
@@ -78,6 +86,7 @@ class SerialChain:
     gravity: np.ndarray
     urdf_path: Path | None = None
     link_names: tuple[str, ...] = field(default=())
+    package_paths: tuple[Path, ...] = field(default=())
 
     @property
     def n(self) -> int:
@@ -156,6 +165,10 @@ class _UJoint:
     upper: float
     velocity: float
     effort: float
+    limit_default: bool = False
+    #: Why this joint cannot be driven as part of a chain (None: it can). Only a
+    #: joint on the chosen chain is refused for it; joints off the chain are ignored.
+    problem: str | None = None
 
 
 def _floats(text: str | None, n: int, default: float, where: str) -> np.ndarray:
@@ -201,39 +214,63 @@ def _parse_link(el: ET.Element, where: str) -> Link:
     return Link(name, mass, T[:3, 3].copy(), R @ I @ R.T)
 
 
+def _limit_value(lim: ET.Element, key: str, where: str) -> float | None:
+    text = lim.get(key)
+    return None if text is None else float(_floats(text, 1, 0.0, f"{where} limit {key}")[0])
+
+
 def _parse_joint(el: ET.Element, where: str) -> _UJoint:
+    """One <joint>. Malformed numbers fail the file; what only stops the joint from
+    being driven (its type, a missing <limit>, a zero axis, ``mimic``) is kept in
+    ``problem`` and raised only if the joint lies on the chosen chain."""
     name = el.get("name", "")
     kind = el.get("type", "")
-    if kind not in ("revolute", "continuous", "prismatic", "fixed"):
-        raise URDFError(f"{where}: joint {name!r} has unsupported type {kind!r}")
     parent, child = el.find("parent"), el.find("child")
     if parent is None or child is None:
         raise URDFError(f"{where}: joint {name!r} needs <parent> and <child>")
-    axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None,
-                   3, 0.0, f"{where} joint {name!r} axis")
-    if el.find("axis") is None:
-        axis = np.array([1.0, 0.0, 0.0])
-    if kind != "fixed":
+    here = f"{where} joint {name!r}"
+    axis_el = el.find("axis")
+    axis = (_floats(axis_el.get("xyz"), 3, 0.0, here + " axis") if axis_el is not None
+            else np.array([1.0, 0.0, 0.0]))
+    problem = None
+    if kind not in (*_DRIVABLE, "fixed", "floating", "planar"):
+        problem = f"has unsupported type {kind!r}"
+    elif kind in ("floating", "planar"):
+        problem = f"is {kind}: the lab drives revolute joints only"
+    elif kind != "fixed":
         norm = np.linalg.norm(axis)
         if norm < 1e-9:
-            raise URDFError(f"{where}: joint {name!r} has a zero axis")
-        axis = axis / norm
+            problem = "has a zero axis"
+        else:
+            axis = axis / norm
     lim = el.find("limit")
-    lower, upper = (-np.pi, np.pi) if kind == "continuous" else (0.0, 0.0)
+    lower = upper = 0.0
     velocity, effort = np.inf, np.inf
+    limit_default = False
     if lim is not None:
-        if kind != "continuous":
-            lower = float(lim.get("lower", lower))
-            upper = float(lim.get("upper", upper))
-        velocity = float(lim.get("velocity", velocity))
-        effort = float(lim.get("effort", effort))
+        lo, hi = _limit_value(lim, "lower", here), _limit_value(lim, "upper", here)
+        v, e = _limit_value(lim, "velocity", here), _limit_value(lim, "effort", here)
+        velocity = velocity if v is None else v
+        effort = effort if e is None else e
+        if kind == "continuous" and (lo is None or hi is None or lo >= hi):
+            lo = hi = None  # a continuous joint's <limit> often carries only effort/velocity
+        lower = 0.0 if lo is None else lo
+        upper = 0.0 if hi is None else hi
+        if kind == "continuous" and lo is None:
+            lower, upper, limit_default = -CONTINUOUS_LIMIT, CONTINUOUS_LIMIT, True
     elif kind in ("revolute", "prismatic"):
-        raise URDFError(f"{where}: {kind} joint {name!r} needs a <limit>")
+        problem = problem or f"is {kind} and needs a <limit>"
+    elif kind == "continuous":
+        lower, upper, limit_default = -CONTINUOUS_LIMIT, CONTINUOUS_LIMIT, True
     if lower > upper:
-        raise URDFError(f"{where}: joint {name!r} has lower limit {lower} > upper {upper}")
+        problem = problem or f"has lower limit {lower} > upper {upper}"
+    mimic = el.find("mimic")
+    if mimic is not None and kind in _DRIVABLE:
+        problem = problem or (f"mimics joint {mimic.get('joint', '?')!r}: it is not driven "
+                              "on its own (name a tip_link before it)")
     return _UJoint(name, kind, parent.get("link", ""), child.get("link", ""),
-                   _origin(el.find("origin"), f"{where} joint {name!r}"), axis,
-                   lower, upper, velocity, effort)
+                   _origin(el.find("origin"), here), axis,
+                   lower, upper, velocity, effort, limit_default, problem)
 
 
 def _lump(a: Link, b: Link, T_ab: np.ndarray) -> Link:
@@ -293,8 +330,8 @@ def _read_tree(path: Path) -> _Tree:
     return _Tree(path, links, joints, children, roots[0])
 
 
-def _chain_to(tree: _Tree, leaf: str, name: str) -> SerialChain:
-    """Build the serial chain from the tree root to ``leaf``."""
+def _path_to(tree: _Tree, leaf: str) -> list[_UJoint]:
+    """Joints from the tree root down to ``leaf``."""
     path: list[_UJoint] = []
     link = leaf
     while link in tree.joints:
@@ -302,9 +339,30 @@ def _chain_to(tree: _Tree, leaf: str, name: str) -> SerialChain:
         path.append(j)
         link = j.parent
     path.reverse()
-    movable = [i for i, j in enumerate(path) if j.kind != "fixed"]
+    return path
+
+
+def _drivable(j: _UJoint) -> bool:
+    return j.kind in _DRIVABLE and j.problem is None
+
+
+def _chain_to(tree: _Tree, leaf: str, name: str,
+              package_paths: tuple[Path, ...] = ()) -> SerialChain:
+    """Build the serial chain from the tree root to ``leaf``.
+
+    Joints off this path are never looked at. On it, fixed joints are folded in; a
+    floating or planar joint before the first moving joint (a mobile base) is taken
+    at its zero pose; any other joint that cannot be driven raises, naming it.
+    """
+    path = _path_to(tree, leaf)
+    movable = [i for i, j in enumerate(path) if j.kind in _DRIVABLE]
     if not movable:
         raise URDFError(f"{tree.path}: no movable joint between {tree.root!r} and {leaf!r}")
+    for i, j in enumerate(path):
+        folded_base = i < movable[0] and j.kind in ("fixed", "floating", "planar")
+        if j.problem is not None and not folded_base:
+            raise URDFError(f"{tree.path}: joint {j.name!r} on the chain to {leaf!r} "
+                            f"{j.problem}")
     base_pose = np.eye(4)
     for j in path[: movable[0]]:
         base_pose = base_pose @ j.origin
@@ -319,38 +377,71 @@ def _chain_to(tree: _Tree, leaf: str, name: str) -> SerialChain:
             links[-1] = _lump(links[-1], tree.links[j.child], pending)
             continue
         joints.append(Joint(j.name, j.kind, pending @ j.origin if joints else j.origin,
-                            j.axis, j.lower, j.upper, j.velocity, j.effort))
+                            j.axis, j.lower, j.upper, j.velocity, j.effort, j.limit_default))
         links.append(tree.links[j.child])
         names.append(j.child)
         pending = np.eye(4)
     R = base_pose[:3, :3]
     return SerialChain(name=name, joints=tuple(joints), links=tuple(links),
                        base_pose=base_pose, tip=pending, gravity=R.T @ WORLD_GRAVITY,
-                       urdf_path=tree.path, link_names=tuple(names))
+                       urdf_path=tree.path, link_names=tuple(names),
+                       package_paths=tuple(Path(p) for p in package_paths))
 
 
 def _leaves(tree: _Tree) -> list[str]:
     return [name for name, kids in tree.children.items() if not kids and name != tree.root]
 
 
-def chain_from_urdf(path: str | Path, *, tip_link: str | None = None) -> SerialChain:
+def _default_tip(tree: _Tree) -> str:
+    """The only leaf, or else the leaf below the most revolute joints among those
+    reached through revolute, continuous and fixed joints only (a camera or base link
+    has none; a gripper finger's path has a prismatic or mimic joint). Two leaves
+    tying need ``tip_link``."""
+    leaves = _leaves(tree)
+    if len(leaves) == 1:
+        return leaves[0]
+    depth: dict[str, int] = {}
+    for leaf in leaves:
+        path = _path_to(tree, leaf)
+        first = next((i for i, j in enumerate(path) if j.kind in _DRIVABLE), len(path))
+        arm = path[first:]
+        if all(j.kind == "fixed" or (j.kind in ("revolute", "continuous") and j.problem is None)
+               for j in arm):
+            depth[leaf] = sum(j.kind != "fixed" for j in arm)
+    best = max(depth.values(), default=0)
+    tips = [leaf for leaf, d in depth.items() if d == best]
+    if len(tips) != 1 or best == 0:
+        raise URDFError(f"{tree.path}: not a serial chain (leaf links {leaves}); "
+                        "name the end effector with tip_link (--tip-link LINK)")
+    return tips[0]
+
+
+def chain_from_urdf(path: str | Path, *, tip_link: str | None = None,
+                    package_paths: tuple[str | Path, ...] = ()) -> SerialChain:
     """Parse a URDF file into a :class:`SerialChain` from its root to ``tip_link``.
 
-    Without ``tip_link`` the URDF must have exactly one leaf link.
+    Without ``tip_link`` the chain ends at the file's only leaf link, or else at the
+    leaf below the most revolute joints whose path has no prismatic, mimic or
+    floating joint (an error naming the leaves when two tie).
+    Joints off the chain are ignored whatever their type.
+
+    Args:
+        path: the .urdf file.
+        tip_link: the end-effector link.
+        package_paths: folders to look in for ``package://NAME/...`` meshes (the
+            viewer's; the URDF's own folder and its parents are always tried).
 
     Raises:
-        URDFError: naming the file and the reason when it is malformed.
+        URDFError: naming the file and the reason when it is malformed, or naming the
+            joint on the chain that cannot be driven.
     """
     tree = _read_tree(Path(path))
-    leaves = _leaves(tree)
     if tip_link is None:
-        if len(leaves) != 1:
-            raise URDFError(f"{path}: not a serial chain (leaf links {leaves}); name tip_link")
-        tip_link = leaves[0]
+        tip_link = _default_tip(tree)
     elif tip_link not in tree.links:
-        raise URDFError(f"{path}: no link named {tip_link!r}")
+        raise URDFError(f"{path}: no link named {tip_link!r}; links: {', '.join(tree.links)}")
     name = ET.parse(path).getroot().get("name", Path(path).stem)
-    return _chain_to(tree, tip_link, name)
+    return _chain_to(tree, tip_link, name, tuple(Path(p) for p in package_paths))
 
 
 LEG_NAMES = ("RF", "LF", "RH", "LH")
@@ -379,6 +470,7 @@ ROBOT_FILES = {
     "redundant_planar": "redundant_planar.urdf",
     "planar_servo_arm": "planar_servo_arm.urdf",
     "quadruped": "quadruped.urdf",
+    "open_manipulator_x": "open_manipulator_x.urdf",
 }
 
 #: Thesis link-length presets (cm) for the receptionist arm -> URDF file.
@@ -389,14 +481,19 @@ RECEPTIONIST_PRESETS = {
 }
 
 
-def load_robot(name_or_path: str | Path, *, preset: str | None = None) -> SerialChain | Quadruped:
+def load_robot(name_or_path: str | Path, *, preset: str | None = None,
+               tip_link: str | None = None,
+               package_paths: tuple[str | Path, ...] = ()) -> SerialChain | Quadruped:
     """Load a robot by name (see ``ROBOT_FILES``) or from a URDF path.
 
     Args:
         name_or_path: "receptionist_arm", "redundant_planar", "planar_servo_arm",
-            "quadruped", or a path to a .urdf file.
+            "quadruped", "open_manipulator_x", or a path to a .urdf file.
         preset: for "receptionist_arm", a key of ``RECEPTIONIST_PRESETS``
             (link lengths in cm, "18.5/25" by default).
+        tip_link: for a URDF path, the end-effector link: the chain runs from the
+            file's root to it (see :func:`chain_from_urdf` for the default).
+        package_paths: for a URDF path, extra folders holding ``package://`` meshes.
 
     Raises:
         ValueError: for an unknown name (the message lists the known ones) or preset.
@@ -414,13 +511,13 @@ def load_robot(name_or_path: str | Path, *, preset: str | None = None) -> Serial
         path = ROBOTS_DIR / fname
         if text == "quadruped":
             return quadruped_from_urdf(path)
-        return chain_from_urdf(path)
+        return chain_from_urdf(path, tip_link=tip_link)
     if text.endswith(".urdf") or Path(text).exists():
         path = Path(text)
         if not path.exists():
             raise URDFError(f"{path}: no such file")
         tree = _read_tree(path)
-        if all(f"{leg}_foot" in tree.links for leg in LEG_NAMES):
+        if tip_link is None and all(f"{leg}_foot" in tree.links for leg in LEG_NAMES):
             return quadruped_from_urdf(path)
-        return chain_from_urdf(path)
+        return chain_from_urdf(path, tip_link=tip_link, package_paths=package_paths)
     raise ValueError(f"unknown robot {text!r}; known robots: {', '.join(ROBOT_FILES)}")

@@ -43,9 +43,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=0.010, metavar="S",
                         help="s to wait beyond wire time for each reply (default 0.010)")
     parser.add_argument("--json", action="store_true", help="print the servos as JSON")
+    parser.add_argument("--write-map", metavar="MAP.toml",
+                        help="draft a joint map from the servos that answered (IDs in chain "
+                        "order, model, protocol, baud, their angle limits) and write it here")
+    parser.add_argument("--robot", metavar="PATH.urdf",
+                        help="with --write-map: the arm's URDF (robot name or file); the map "
+                        "takes its joint names and must match its joint count")
+    parser.add_argument("--tip-link", metavar="LINK", help="with --robot: the end-effector link")
 
 
 def run(args: argparse.Namespace) -> int:
+    model = None
+    if args.robot is not None:
+        if args.write_map is None:
+            raise ValueError("--robot is for --write-map (it names the map's joints)")
+        from kinematics.model import SerialChain, load_robot
+
+        model = load_robot(args.robot, tip_link=args.tip_link)
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"--robot: {args.robot} is not a serial arm")
     bauds = list(COMMON_BAUDS) if args.all_bauds else (args.baud or list(DEFAULT_BAUDS))
     for b in bauds:
         if not b > 0:
@@ -77,6 +93,14 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if tty:
         print("\r" + " " * 40 + "\r", end="", file=sys.stderr)
+    if args.write_map is not None:
+        from hardware.joint_map import draft_joint_map
+
+        text = draft_joint_map(found, model)  # ValueError names the joint and the servo
+        with open(args.write_map, "w") as out:
+            out.write(text)
+        print(f"wrote {args.write_map}: {len(found)} servo(s); check signs and offsets "
+              "with the arm held safe before serving", file=sys.stderr)
     if args.json:
         json.dump([asdict(f) for f in found], sys.stdout)
         sys.stdout.write("\n")

@@ -15,7 +15,16 @@ HELP = ("serve the browser lab: the arm in 3D, gain sliders, live plots "
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="receptionist_arm",
-                        help="robot to load (default receptionist_arm)")
+                        help="robot to load: a name (default receptionist_arm) or an arm's "
+                        "URDF file (any serial chain of 1-7 revolute joints)")
+    parser.add_argument("--tip-link", metavar="LINK",
+                        help="with a URDF: the end-effector link (default: the leaf below the "
+                        "most revolute joints)")
+    parser.add_argument("--package-path", action="append", default=[], metavar="DIR",
+                        help="with a URDF: a folder holding its package:// meshes (repeatable)")
+    parser.add_argument("--joint-map", metavar="MAP.toml",
+                        help="with --backend serial: which servo drives which joint "
+                        "(armlab scan --write-map drafts one)")
     parser.add_argument("--backend", choices=("sim", "serial"), default="sim",
                         help="sim: simulated arm and servos (default); serial: Dynamixel bus")
     parser.add_argument("--port", metavar="DEV",
@@ -39,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
                            lesson=args.lesson, token=args.token,
-                           projector=args.projector)
+                           projector=args.projector, tip_link=args.tip_link,
+                           package_paths=tuple(args.package_path), joint_map=args.joint_map)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

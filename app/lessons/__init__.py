@@ -6,6 +6,7 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
 - ``TITLE``: what the lesson switcher shows;
 - ``HELP``: one paragraph for the page and ``--help``;
 - ``ROBOTS``: robot names the lesson works with (first = its default robot);
+  ``ANY_URDF`` in it means any ``.urdf`` file given as the robot;
 - ``ORDER`` (optional, default 100): place in the switcher; for a robot the
   lesson with the smallest ``ORDER`` listing it opens first;
 - ``build(server: viser.ViserServer, ctx: LessonContext) -> LessonHandle``:
@@ -31,7 +32,7 @@ from typing import Protocol, runtime_checkable
 import viser
 
 #: The lesson modules of this package (adding a lesson: add its module name here).
-LESSONS: tuple[str, ...] = ("compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
+LESSONS: tuple[str, ...] = ("arm", "compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,9 @@ class LessonContext:
         port: serial device for "serial".
         baud: serial baud rate (None: the backend's default).
         realtime: run loops against the wall clock (False: as fast as possible).
+        tip_link: for a URDF robot, its end-effector link (None: the file's default).
+        package_paths: folders holding the URDF's ``package://`` meshes.
+        joint_map: joint map file for "serial" (None: the robot's default map).
     """
 
     robot: str = "receptionist_arm"
@@ -51,6 +55,19 @@ class LessonContext:
     port: str | None = None
     baud: int | None = None
     realtime: bool = True
+    tip_link: str | None = None
+    package_paths: tuple[str, ...] = ()
+    joint_map: str | None = None
+
+
+#: In a lesson's ``ROBOTS``: it works with any serial arm given as a ``.urdf`` file.
+ANY_URDF = "*.urdf"
+
+
+def works_with(module: ModuleType, robot: str) -> bool:
+    """Whether lesson ``module`` lists ``robot`` (or ``ANY_URDF`` and robot is a .urdf)."""
+    robots = getattr(module, "ROBOTS", ())
+    return robot in robots or (ANY_URDF in robots and robot.lower().endswith(".urdf"))
 
 
 @runtime_checkable
@@ -93,7 +110,7 @@ def default_lesson(robot: str) -> str:
     """
     lessons = all_lessons()
     for module in sorted(lessons.values(), key=lesson_order):
-        if robot in getattr(module, "ROBOTS", ()):
+        if works_with(module, robot):
             return module.NAME
     robots = sorted({r for m in lessons.values() for r in getattr(m, "ROBOTS", ())})
     raise ValueError(f"robot: no lesson for {robot!r}; lessons exist for {', '.join(robots)}")

@@ -1,0 +1,210 @@
+"""Lesson: your own arm from its URDF — joint sliders, a draggable hand target, compliance.
+
+Any serial chain of 1 to 7 revolute joints (``armlab serve --robot PATH.urdf
+--tip-link LINK``, or the shipped ``open_manipulator_x``) runs the thesis's
+compliance controller (eq. 2.6/2.20, :mod:`control.compliance`) through the same
+:class:`~control.loop.ControlLoop` as the receptionist arm, on the simulated arm
+or on Dynamixel servos (``--backend serial --joint-map MAP.toml``). A slider per
+joint moves that joint (minimum-jerk approach, degrees in the page, limits from
+the URDF narrowed to the servos'); dragging the hand target makes the loop follow
+it by resolved-motion rate control (position only, so a 4+ joint arm is redundant
+for it). The Teach tab lists every joint's limits and says which come from a
+stated default (a continuous joint whose file gives none).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import viser
+import viser.transforms as vtf
+
+from app.arm_view import ArmView
+from app.backends import make_backend
+from app.lessons import ANY_URDF, LessonContext
+from app.lessons._common import LessonBase, close_in_turn, esc, set_content, status_html
+from control.commands import EStop, Reset, RunTrajectory, SetTarget
+from control.loop import ControlLoop
+from control.params import DEFAULT
+from control.trajectory import hold
+from kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
+
+NAME = "arm"
+TITLE = "Your arm: joints and hand target (any URDF)"
+HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the loop follows it "
+        "by resolved-motion rate control) and the compliance controller holding the pose. "
+        "Limits come from the file; the Teach tab lists them.")
+ROBOTS = ("open_manipulator_x", ANY_URDF)
+ORDER = 50
+MAX_JOINTS = 7
+#: s a slider's goal is held after the smooth approach (the loop then keeps it).
+SLIDER_HOLD_S = 0.2
+
+
+def build(server: viser.ViserServer, ctx: LessonContext) -> ArmLesson:
+    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    return ArmLesson(server, ctx)
+
+
+def check_servo_arm(model: SerialChain) -> None:
+    """Refuse a chain the lab cannot drive as a servo arm, naming the joint.
+
+    Raises:
+        ValueError: not 1..7 joints, or a prismatic joint on the chain.
+    """
+    if not 1 <= model.n <= MAX_JOINTS:
+        raise ValueError(f"robot {model.name}: {model.n} joints on the chain "
+                         f"({', '.join(model.joint_names)}); the lab drives 1 to {MAX_JOINTS} "
+                         "(pick another --tip-link)")
+    for j in model.joints:
+        if j.kind == "prismatic":
+            raise ValueError(f"robot {model.name}: joint {j.name!r} is prismatic; the lab "
+                             "drives revolute joints only (pick a --tip-link before it)")
+
+
+def limits_markdown(model: SerialChain, lower: np.ndarray, upper: np.ndarray) -> str:
+    """The Teach tab's table: each joint's limits in degrees and where they come from."""
+    rows = ["| joint | lower ° | upper ° | from |", "|---|---|---|---|"]
+    for j, lo, hi in zip(model.joints, lower, upper, strict=True):
+        if j.limit_default:
+            source = f"default ±{math.degrees(CONTINUOUS_LIMIT):.0f}° (continuous, no limit)"
+        elif lo > j.lower + 1e-9 or hi < j.upper - 1e-9:
+            source = "URDF narrowed to the servo"
+        else:
+            source = "URDF"
+        rows.append(f"| {esc(j.name)} | {math.degrees(lo):+.1f} | {math.degrees(hi):+.1f} | "
+                    f"{source} |")
+    return "\n".join(rows)
+
+
+class ArmLesson(LessonBase):
+    """The any-arm lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+
+    Attributes:
+        model: the chain from the URDF.
+        loop: the control loop (compliance controller).
+        sliders: one slider per joint, degrees.
+    """
+
+    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+                 pose_hz: float = 30.0) -> None:
+        super().__init__(server, ctx)
+        model = load_robot(ctx.robot, tip_link=ctx.tip_link, package_paths=ctx.package_paths)
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"robot: {ctx.robot} is not a serial arm")
+        check_servo_arm(model)
+        self.model = model
+        extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
+        self.backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **extra)
+        with self.opening(self.backend.close):
+            self.loop = ControlLoop(model, self.backend, DEFAULT, controller="compliance",
+                                    realtime=ctx.realtime)
+            self.view = ArmView(server, model, root="/arm")
+            self._build_scene()
+            self._build_gui()
+        self.loop.start()
+        self.publish(pose=self._pose_frame, plots=self._status_frame, pose_hz=pose_hz,
+                     plot_hz=min(pose_hz, 10.0))
+
+    # ================================================================== scene and GUI
+
+    def _build_scene(self) -> None:
+        base = self.model.base_pose
+        q0 = self.model.neutral()
+        hand = self.model.fk(q0)[:3, 3]
+        scene = self.server.scene
+        self.base = scene.add_frame("/arm_target_base", show_axes=False,
+                                    position=base[:3, 3],
+                                    wxyz=_wxyz(base[:3, :3]))
+        self.target = scene.add_transform_controls(
+            "/arm_target_base/target", scale=0.08, disable_rotations=True, depth_test=False,
+            position=hand)
+        scene.add_icosphere("/arm_target_base/target/dot", radius=0.008, color=(250, 160, 0))
+
+        @self.target.on_update
+        def _(event: viser.TransformControlsEvent) -> None:
+            if event.client is None:
+                return
+            self.set_target(np.asarray(self.target.position, dtype=float))
+
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        self.status = self._gui.add_status()
+        tabs = self._gui.add(gui.add_tab_group(order=-70.0))
+        lower, upper = self.loop.lower, self.loop.upper
+        with tabs.add_tab("Joints", viser.Icon.ADJUSTMENTS):
+            self.sliders = []
+            for i, j in enumerate(self.model.joints):
+                lo, hi = math.degrees(lower[i]), math.degrees(upper[i])
+                start = float(np.clip(0.0, lo, hi))
+                slider = gui.add_slider(f"{j.name} °", min=lo, max=hi, step=0.5,
+                                        initial_value=start,
+                                        hint=f"Joint {j.name}: {lo:+.1f}° .. {hi:+.1f}°")
+                slider.on_update(self._on_slider)
+                self.sliders.append(slider)
+            reset = gui.add_button("Reset (after E-STOP or a fault)")
+            reset.on_click(lambda _e: self.loop.post(Reset()))
+        with tabs.add_tab("Teach", viser.Icon.SCHOOL):
+            gui.add_markdown(
+                f"**{esc(self.model.name)}**: {self.model.n} joints "
+                f"({esc(', '.join(self.model.joint_names))}), tip "
+                f"{esc(self._tip_name())}. The compliance controller (thesis eq. 2.6, 2.20) "
+                "holds each joint; dragging the orange target moves the hand by "
+                "resolved-motion rate control (Δq = J⁺ Δx, position only).")
+            self.limits = gui.add_markdown(limits_markdown(self.model, lower, upper))
+
+    def _tip_name(self) -> str:
+        return self.ctx.tip_link or "the file's default tip"
+
+    # ================================================================== actions
+
+    def _on_slider(self, event: viser.GuiEvent) -> None:
+        q = np.radians([float(s.value) for s in self.sliders])
+        self.move_to(q)
+
+    def move_to(self, q: np.ndarray) -> None:
+        """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits."""
+        q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
+        self.loop.post(RunTrajectory(hold(q, SLIDER_HOLD_S), approach=True))
+
+    def set_target(self, xyz: np.ndarray) -> None:
+        """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
+        self.loop.post(SetTarget(xyz))
+
+    def _pose_frame(self) -> None:
+        snap = self.loop.recorder.snapshot(0.05)
+        if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
+            self.view.set_q(snap["q"][-1])
+
+    def _status_frame(self, force: bool) -> None:
+        st = self.loop.status
+        state = ("fault" if st.fault else "e-stop" if st.estopped else
+                 "holding" if st.active else "starting")
+        color = "#b00020" if st.fault or st.estopped else "#2e7d32"
+        detail = esc(st.fault or st.message or f"backend {self.ctx.backend}, loop t {st.t:.1f} s")
+        set_content(self.status, status_html(state, color, detail))
+
+    # ================================================================== lifetime
+
+    def estop(self) -> None:
+        """Torque off now (the lab's E-STOP button); never raises."""
+        try:
+            self.loop.post(EStop())
+        finally:
+            try:
+                self.backend.estop()
+            except Exception:  # an E-STOP must never raise
+                pass
+
+    def close(self) -> None:
+        """Stop the publisher and the loop (torque off), close the servos, remove GUI and
+        scene."""
+        if self.mark_closed():
+            close_in_turn(self.publisher.close, lambda: self.loop.shutdown(torque_off=True),
+                          self.backend.close, self.view.remove, self.base.remove,
+                          self._gui.remove_all)
+
+
+def _wxyz(R: np.ndarray) -> np.ndarray:
+    return vtf.SO3.from_matrix(R).wxyz
