@@ -2,6 +2,8 @@
 
 Time is bounded: an absent ID costs one ping timeout (wire time + margin), so a
 scan takes at most about ``len(bauds) · 254 · timeout`` (see :func:`scan_time_bound`).
+On a pseudo-terminal (the emulator: a process that a busy machine can hold back,
+not a wire) each ID gets a longer margin and a second ping, so no servo is missed.
 """
 
 from __future__ import annotations
@@ -11,13 +13,16 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from hardware import protocol1 as p1
-from hardware.bus import Bus, BusError, NoReply, reply_timeout
+from hardware.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
 from hardware.control_table import TABLES
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
 COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)
 DEFAULT_BAUDS = (1_000_000, 57_600)
 ALL_IDS = range(0, p1.MAX_ID + 1)
+#: s beyond wire time a ping waits on a serial adapter (a servo answers within its
+#: return delay, 0.5 ms at the thesis's setting).
+WIRE_SCAN_MARGIN = 0.010
 
 
 @dataclass(frozen=True)
@@ -49,10 +54,20 @@ class Found:
     error: int
 
 
-def scan_time_bound(bauds: Sequence[float], ids: Iterable[int], margin: float) -> float:
+def ping_policy(port: str, margin: float | None = None) -> tuple[float, int]:
+    """(margin s, pings per ID) for ``port``: ``margin`` (default :data:`WIRE_SCAN_MARGIN`)
+    and one ping on a serial adapter; at least the bus's PTY margin and two pings on a
+    pseudo-terminal."""
+    if is_pty(port):
+        return max(margin or 0.0, PTY_MARGIN), 2
+    return (WIRE_SCAN_MARGIN if margin is None else margin), 1
+
+
+def scan_time_bound(bauds: Sequence[float], ids: Iterable[int], margin: float,
+                    tries: int = 1) -> float:
     """Upper bound of a scan's time in s, if no servo answers (a PING is 6 + 6 bytes)."""
     n = len(list(ids))
-    return sum(n * reply_timeout(6, 6, b, 254, margin) for b in bauds)
+    return sum(n * tries * reply_timeout(6, 6, b, 254, margin) for b in bauds)
 
 
 def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] = ALL_IDS,
@@ -64,7 +79,7 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
         port: serial device.
         bauds: bit/s to try, in order.
         ids: IDs to ping (default 0..253).
-        margin: s of timeout beyond wire time for each ping.
+        margin: s of timeout beyond wire time for each ping (None: :func:`ping_policy`'s).
         progress: called as ``progress(baud, servo_id, n_found)`` before each ping.
 
     Raises:
@@ -74,6 +89,7 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     found: list[Found] = []
     if not bauds:
         raise ValueError("bauds: give at least one baud rate")
+    margin, tries = ping_policy(port, margin)
     with Bus(port, bauds[0], retries=2, timeout_margin=margin) as bus:
         for baud in bauds:
             bus.set_baud(baud)
@@ -81,7 +97,7 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
                 if progress is not None:
                     progress(baud, servo_id, len(found))
                 try:
-                    status = bus.ping(servo_id, tries=1)
+                    status = bus.ping(servo_id, tries=tries)
                 except NoReply:
                     continue
                 found.append(_describe(bus, servo_id, baud, status))

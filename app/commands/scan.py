@@ -9,7 +9,14 @@ import time
 from dataclasses import asdict
 
 from hardware.bus import BusError
-from hardware.scan import ALL_IDS, COMMON_BAUDS, DEFAULT_BAUDS, scan, scan_time_bound
+from hardware.scan import (
+    ALL_IDS,
+    COMMON_BAUDS,
+    DEFAULT_BAUDS,
+    ping_policy,
+    scan,
+    scan_time_bound,
+)
 
 NAME = "scan"
 HELP = "ping servo IDs 0..253 at each baud and list ID, model, firmware, baud, angle limits"
@@ -40,8 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"try every usual rate ({', '.join(map(str, COMMON_BAUDS))})")
     parser.add_argument("--ids", type=_ids, default=list(ALL_IDS),
                         help="IDs to ping, e.g. 1,3,5 or 0-20 (default 0-253)")
-    parser.add_argument("--timeout", type=float, default=0.010, metavar="S",
-                        help="s to wait beyond wire time for each reply (default 0.010)")
+    parser.add_argument("--timeout", type=float, default=None, metavar="S",
+                        help="s to wait beyond wire time for each reply (default 0.010; on a "
+                        "pseudo-terminal, the emulator, 0.060 and a second ping)")
     parser.add_argument("--json", action="store_true", help="print the servos as JSON")
     parser.add_argument("--write-map", metavar="MAP.toml",
                         help="draft a joint map from the servos that answered (IDs in chain "
@@ -66,9 +74,9 @@ def run(args: argparse.Namespace) -> int:
     for b in bauds:
         if not b > 0:
             raise ValueError(f"--baud must be > 0, got {b:g}")
-    if not args.timeout > 0:
+    if args.timeout is not None and not args.timeout > 0:
         raise ValueError(f"--timeout must be > 0 s, got {args.timeout}")
-    bound = scan_time_bound(bauds, args.ids, args.timeout)
+    bound = scan_time_bound(bauds, args.ids, *ping_policy(args.port, args.timeout))
     tty = sys.stderr.isatty()
     print(f"scanning {args.port}: {len(args.ids)} IDs at {len(bauds)} baud rate(s), "
           f"at most {bound:.1f} s", file=sys.stderr)
