@@ -8,7 +8,6 @@ SimBackend; the emulated arm's angles must follow the simulated ones.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import re
 import time
@@ -110,10 +109,12 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
     assert np.allclose(e["t"][:n], s["t"][:n])
     qe, qs = e["q"][:n], s["q"][:n]
     assert np.any(np.abs(qs[-1] - qs[0]) > 0.5)  # the arm really travelled the line
-    # band: the simulated angles k periods earlier, now and k periods later, ± tolerance.
-    # k = 1 on a quiet machine; if every attempt stalled, a stall of s seconds shifts the
-    # emulated arm's clock by up to s, so the band widens to cover it (still a comparison)
-    k = max(1, math.ceil(stall / params.period - 1e-9))
+    if stall > params.period:
+        pytest.skip(f"in {ATTEMPTS} runs the shared machine stalled the real-time loop or the "
+                    f"emulator by at least {stall * 1e3:.0f} ms, more than the "
+                    f"{params.period * 1e3:.0f} ms period: no fair comparison")
+    # band: the simulated angles one period earlier, now and one period later, ± tolerance
+    k = 1
     m = n - 2 * k
     window = np.stack([qs[j : j + m] for j in range(2 * k + 1)])
     outside = np.maximum(window.min(axis=0) - qe[k : k + m], qe[k : k + m] - window.max(axis=0))
