@@ -47,6 +47,7 @@ class Item:
         unit: how :meth:`ControlTable.to_si` converts it ("position", "speed_limit",
             "present_speed", "load", "torque", "voltage", "celsius", "delay", "baud",
             or "" for plain numbers).
+        signed: the bytes hold a two's-complement value (X-series velocities, currents).
     """
 
     name: str
@@ -58,6 +59,7 @@ class Item:
     hi: int
     default: int | None
     unit: str = ""
+    signed: bool = False
 
     @property
     def addresses(self) -> range:
@@ -154,17 +156,18 @@ class ControlTable:
             raise ValueError(
                 f"{name}: {value} outside {item.lo}..{item.hi} on the {self.name}"
             )
-        return item.address, value.to_bytes(item.size, "little")
+        return item.address, value.to_bytes(item.size, "little", signed=item.signed)
 
     def decode(self, name: str, data: bytes) -> int:
         """Raw value of item ``name`` from the bytes read at its address."""
         item = self.item(name)
-        return int.from_bytes(bytes(data[: item.size]), "little")
+        return int.from_bytes(bytes(data[: item.size]), "little", signed=item.signed)
 
     def value_at(self, memory: bytes | bytearray, name: str) -> int:
         """Raw value of item ``name`` in a whole-table image ``memory`` (addresses 0..49)."""
         item = self.item(name)
-        return int.from_bytes(bytes(memory[item.address : item.address + item.size]), "little")
+        return int.from_bytes(bytes(memory[item.address : item.address + item.size]), "little",
+                              signed=item.signed)
 
     def defaults(self, *, firmware: int = 0, servo_id: int = 1, present_position: int = 512,
                  baud_value: int | None = None) -> bytearray:
