@@ -110,6 +110,22 @@ class Backend(Protocol):
 
 
 @runtime_checkable
+class Reconnectable(Protocol):
+    """A backend on a link that can be lost and found again (servos on a serial port)."""
+
+    def reconnect(self) -> list[str]:
+        """Open the same device path again, find and configure the servos, torque off.
+
+        Returns:
+            The configuration lines (as the first opening logged them).
+
+        Raises:
+            BackendError: the device or a servo is still missing (nothing changed).
+        """
+        ...
+
+
+@runtime_checkable
 class Pushable(Protocol):
     """A backend whose world can be pushed (the simulator). Hardware is pushed by a hand."""
 

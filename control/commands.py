@@ -90,6 +90,12 @@ class Reset:
 
 
 @dataclass(frozen=True)
+class Reconnect:
+    """After a lost link: open the backend's link again now (the loop also tries once a
+    second) and configure the servos; torque stays off until Reset."""
+
+
+@dataclass(frozen=True)
 class SetTarget:
     """Follow a (draggable) hand target by RMRC: ``xyz`` (3,) m, base frame; None stops."""
 
@@ -111,5 +117,7 @@ class SetController:
             raise ValueError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
 
 
-Command = RunTrajectory | Stop | Push | Spring | EStop | Reset | SetTarget | SetController
-COMMANDS = (RunTrajectory, Stop, Push, Spring, EStop, Reset, SetTarget, SetController)
+Command = (RunTrajectory | Stop | Push | Spring | EStop | Reset | Reconnect | SetTarget
+           | SetController)
+COMMANDS = (RunTrajectory, Stop, Push, Spring, EStop, Reset, Reconnect, SetTarget,
+            SetController)

@@ -20,7 +20,10 @@ servo's limit (gains unstable for this arm and period), a joint lagging its
 reference by more than ``max_lag`` for ``lag_time`` (blocked, or an oscillation
 growing), a servo error or a ``BackendError`` stops the controller: torque goes
 off (``backend.estop()``), ``status.fault`` says why, nothing escapes the
-thread; ``Reset`` starts again from where the arm is.
+thread; ``Reset`` starts again from where the arm is. A lost link (a
+``BackendError``) is retried once a second on a backend that can reconnect
+(:class:`~control.backend.Reconnectable`), or at once on ``Reconnect``; the link
+found again is configured and left torque-off until ``Reset``.
 """
 
 from __future__ import annotations
@@ -34,12 +37,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.backend import Backend, BackendError, JointState, Pushable
+from control.backend import Backend, BackendError, JointState, Pushable, Reconnectable
 from control.commands import (
     COMMANDS,
     Command,
     EStop,
     Push,
+    Reconnect,
     Reset,
     RunTrajectory,
     SetController,
@@ -88,6 +92,8 @@ class LoopStatus:
             burst), in all and in the last 10 s.
         torque_off_unsent: the last torque-off (E-STOP, fault) could not be sent: the
             servos may still hold torque (retried once a second until it goes out).
+        link_down: the backend's link failed and is not back (retried once a second on a
+            backend that can reconnect); Reset and Run do nothing until it is.
         warning: :func:`control.params.stability_warning` of the current parameters.
     """
 
@@ -112,6 +118,7 @@ class LoopStatus:
     skipped: int = 0
     skipped_recent: int = 0
     torque_off_unsent: bool = False
+    link_down: bool = False
 
 
 class _Fault(Exception):
@@ -189,6 +196,8 @@ class ControlLoop:
         self._message = ""
         self._torque_unsent = False  # the last torque-off could not be sent
         self._unsent_retry_t = 0.0
+        self._reconnect_t = 0.0  # loop time of the next automatic reconnection attempt
+        self._await_reset = False  # a link found again stays torque-off until a Reset
         self._pacer = Pacer(self._tick, period=params.period, name="armlab-control",
                             realtime=realtime)
         self._warning = stability_warning(params)
@@ -249,7 +258,7 @@ class ControlLoop:
                 jitter_p99_ms=pace.late_p99_ms, jitter_max_ms=pace.late_max_ms,
                 overruns=pace.overruns, skipped=pace.skipped,
                 skipped_recent=pace.skipped_recent, warning=self._warning,
-                torque_off_unsent=self._torque_unsent,
+                torque_off_unsent=self._torque_unsent, link_down=not self._backend_ok,
             )
 
     def step(self) -> None:
@@ -316,19 +325,19 @@ class ControlLoop:
         p, t = self._params, self._t
         if self._torque_unsent and t >= self._unsent_retry_t:  # the link may be back
             self._safe_estop()
-        if not self._backend_ok:  # the link failed: touch nothing until a Reset
-            if any(isinstance(c, EStop) for c in cmds):  # still try, and say what came of it
-                self._apply(EStop(), None)  # type: ignore[arg-type]
-            if any(isinstance(c, Reset) for c in cmds):
-                self._backend_ok, self._state = True, None
-                self._clear_fault()
+        if not self._backend_ok and not self._link_back(t, cmds):
             return
         self.backend.sync(t)
         meas = self.backend.read()
         q, qd, load = (np.asarray(meas.position, dtype=float),
                        np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
-        started = self._state is None or any(isinstance(c, Reset) for c in cmds)
+        reset = any(isinstance(c, Reset) for c in cmds)
+        started = self._state is None or reset
         if self._state is None:
+            if self._await_reset and not reset:  # watch the arm, command nothing
+                self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
+                return
+            self._await_reset = False
             self._start(meas)
         for cmd in cmds:
             self._apply(cmd, meas)
@@ -380,6 +389,38 @@ class ControlLoop:
         self._record(t, q_cmd=q_cmd, q_ref=goal, q=q, error=q_cmd - q, qd_ref=qd_ref,
                      load=load, tau_load=st.tau_lpf, tau_dyn=tau_dyn, tau_ext=st.tau_ext,
                      q_env=st.q_env)
+
+    def _link_back(self, t: float, cmds: list[Command]) -> bool:
+        """With the link failed: try to get it back (a :class:`Reconnectable` backend once a
+        second or on Reconnect; any other on Reset). True when this period may go on (only
+        for a Reset: a link found again otherwise stays torque-off until one)."""
+        reset = any(isinstance(c, Reset) for c in cmds)
+        if any(isinstance(c, EStop) for c in cmds):  # still try, and say what came of it
+            self._apply(EStop(), None)  # type: ignore[arg-type]
+        if isinstance(self.backend, Reconnectable):
+            asked = reset or any(isinstance(c, Reconnect) for c in cmds)
+            if not (asked or t >= self._reconnect_t):
+                return False
+            self._reconnect_t = t + 1.0
+            try:
+                self.backend.reconnect()
+            except BackendError as exc:
+                if asked:
+                    self._note(f"{'Reset' if reset else 'Reconnect'}: nothing happened, the "
+                               f"link is still down ({exc}); the lab retries every second")
+                return False
+            self._safe_estop()  # torque off, and a pending unsent torque-off is now sent
+            with self._lock:
+                self._backend_ok, self._state, self._torque_on = True, None, False
+                self._await_reset = True
+                self._fault = self._message = ("link back: servos configured again, torque "
+                                               "off; press Reset to hold the arm")
+            return reset
+        if reset:  # e.g. a simulator's error: start again from its state
+            with self._lock:
+                self._backend_ok, self._state = True, None
+            return True
+        return False
 
     def _record(self, t: float, **signals: np.ndarray) -> None:
         self.recorder.append(t, signals, wall=time.time() if self._pacer.alive else math.nan)

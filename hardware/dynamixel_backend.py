@@ -18,6 +18,7 @@ Implements ``control.backend.Backend`` over a :class:`~hardware.bus.Bus`:
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from pathlib import Path
@@ -111,10 +112,10 @@ class DynamixelBackend(GoalLimits):
         self._sync_t0: float | None = None
         #: s, the most a ``sync(t)`` came after its time (the loop or the OS stalled)
         self.late_max = 0.0
+        self._bus_options = {"retries": retries, "timeout_margin": timeout_margin,
+                             "echo": echo, "rs485": rs485, "table": self.table}
         try:
-            self.bus = Bus(port, from_baud or baud, retries=retries,
-                           timeout_margin=timeout_margin, echo=echo, rs485=rs485,
-                           table=self.table)
+            self.bus = Bus(port, from_baud or baud, **self._bus_options)
         except BusError as exc:
             raise BackendError(str(exc)) from exc
         try:
@@ -261,6 +262,42 @@ class DynamixelBackend(GoalLimits):
         if not self._closed:
             self._closed = True
             self.bus.close()
+
+    def reconnect(self) -> list[str]:
+        """After a lost link: open the same device path again (a ``/dev/serial/by-id`` name
+        or ``armlab emulate --link`` survives a re-plug or a restart), find the servos,
+        read their limits, run the configuration sequence again and broadcast torque off.
+
+        Returns:
+            The configuration lines.
+
+        Raises:
+            BackendError: the device or a servo is still missing (the old bus stays closed).
+        """
+        port = self.bus.port
+        with contextlib.suppress(OSError, BusError):
+            self.bus.close()
+        try:
+            bus = Bus(port, self.baud, **self._bus_options)
+        except BusError as exc:
+            raise BackendError(str(exc)) from exc
+        self.bus = bus
+        try:
+            self._find_servos()
+            self._lower, self._upper = self._limits()
+            lines = self.configure()
+            self._sync_torque(self.map.ids, 0)
+        except BusError as exc:
+            bus.close()
+            raise BackendError(str(exc)) from exc
+        except BackendError:
+            bus.close()
+            raise
+        self._torque = False
+        self._estop_unsent = False
+        self._shutdown[:] = False
+        log.warning("link to %s back: servos configured again, torque off", port)
+        return lines
 
     # -- set-up -------------------------------------------------------------
 

@@ -38,7 +38,7 @@ from app.lessons._common import (
 from app.lessons.compliance_controls import GainControls
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
-from app.lessons.compliance_servos import safe_health_html
+from app.lessons.compliance_servos import LinkMonitor, safe_health_html
 from app.lessons.compliance_teach import (
     Chapter4,
     chapter4_markdown,
@@ -48,7 +48,16 @@ from app.lessons.compliance_teach import (
     thesis_preset_note,
 )
 from control.backend import Backend, Pushable
-from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring, Stop
+from control.commands import (
+    EStop,
+    Push,
+    Reconnect,
+    Reset,
+    RunTrajectory,
+    SetTarget,
+    Spring,
+    Stop,
+)
 from control.loop import ControlLoop, LoopStatus
 from control.params import DEFAULT, Params, loop_stability, stability_warning
 from control.response import Measured, line_errors, measure_push, measure_step, plan_step
@@ -142,6 +151,7 @@ class ComplianceLesson(LessonBase):
         self.hardware = ctx.backend != "sim"
         self._last_teach = 0.0
         self._last_servos = 0.0
+        self._link = LinkMonitor()
         self.experiment: Experiment | None = None
         self.run_start: float | None = None  #: loop time the last run started (CSV)
         self.run_label = "recording"
@@ -241,9 +251,14 @@ class ComplianceLesson(LessonBase):
                               hint="Stop the motion and hold where the command is")
         reset = gui.add_button("Reset", icon=viser.Icon.REFRESH,
                                hint="After an E-STOP or a fault: torque on, hold where the arm is")
+        self.reconnect_button = gui.add_button(
+            "Reconnect", color="orange", icon=viser.Icon.PLUG, visible=False,
+            hint="The link to the servos is down: open the port again now (the lab also "
+                 "tries once a second); torque stays off until Reset")
         run.on_click(lambda e: guarded(e, self.run_line))
         stop.on_click(lambda e: guarded(e, self.stop))
         reset.on_click(lambda e: guarded(e, self.reset))
+        self.reconnect_button.on_click(lambda e: guarded(e, self.reconnect))
         with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
             self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
             self._step_size = guarded_slider(
@@ -328,19 +343,34 @@ class ComplianceLesson(LessonBase):
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
-        fault = rig.loop.status.fault
-        if fault is not None:  # a stopped loop would take the command and do nothing
-            raise ValueError(f"nothing happened: the control loop is stopped ({fault}); "
-                             "press Reset first")
+        self._check_running(rig)
         t0 = self._now()
         rig.loop.post(RunTrajectory(rig.line))
         self.run_start, self.run_label = t0, "thesis line"
         self.experiment = Experiment("line", t0, ready_at=math.inf, label="thesis line")
         rig.scene.set_target(THESIS_LINE_END)
 
+    @staticmethod
+    def _check_running(rig: Rig) -> None:
+        """ValueError saying why nothing would happen when the loop is stopped (a stopped
+        loop would take a command and do nothing)."""
+        st = rig.loop.status
+        if st.link_down:
+            raise ValueError(f"nothing happened: the link to the servos is down ({st.fault}); "
+                             "the lab retries every second (or press Reconnect)")
+        if st.fault is not None:
+            raise ValueError(f"nothing happened: the control loop is stopped ({st.fault}); "
+                             "press Reset first")
+        if st.estopped:
+            raise ValueError("nothing happened: E-STOP is in force; press Reset first")
+
     def run_step(self) -> None:
         """Step one joint's command by the chosen angle (measures the PD loop)."""
-        loop = self._loop()
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        self._check_running(rig)
+        loop = rig.loop
         label = str(self.step_joint.value)
         plan = plan_step(loop.recorder.snapshot(0.2), joint=("θ1", "θ0", "θ2").index(label),
                          step=math.radians(self._step_size.value), lower=loop.lower,
@@ -375,9 +405,24 @@ class ComplianceLesson(LessonBase):
         self._loop().post(Stop())
 
     def reset(self) -> None:
+        """Clear a fault or E-STOP: torque on, hold. ValueError (shown to the person) while
+        the link to the servos is down: nothing can be reset then."""
         loop = self._loop()
+        st = loop.status
+        if st.link_down:
+            loop.post(Reconnect())
+            raise ValueError(f"nothing happened: the link to the servos is down ({st.fault}); "
+                             "trying to reconnect now (the lab also tries once a second); "
+                             "press Reset again once the status says the link is back")
         loop.post(Reset())
         self._push = None
+
+    def reconnect(self) -> None:
+        """Open the servos' port again now (after a lost link); torque stays off."""
+        loop = self._loop()
+        if not loop.status.link_down:
+            raise ValueError("nothing to do: the link to the servos is up")
+        loop.post(Reconnect())
 
     def estop(self) -> None:
         """Torque off now (the loop applies it at its next period); never raises."""
@@ -493,6 +538,8 @@ class ComplianceLesson(LessonBase):
         self._measure(status, rig)
 
     def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
+        if self.reconnect_button.visible != st.link_down:
+            self.reconnect_button.visible = st.link_down
         if st.torque_off_unsent:  # never claim a torque-off that did not reach the servos
             state, color = UNSENT_BANNER, "#b00020"
         elif st.estopped:
@@ -515,6 +562,9 @@ class ComplianceLesson(LessonBase):
         msg = ""
         if st.message and not st.fault and st.message != state:
             msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
+        link = self._link.warning(getattr(rig.backend, "stats", None), time.monotonic())
+        if link is not None:  # retries hold the arm; a link that needs many is told
+            msg += f"<div style='color:#a15c00;font-size:0.85em'>{esc(link)}</div>"
         if st.skipped_recent:  # the machine could not keep up: say so, do not hide it
             msg += (f"<div style='color:#a15c00;font-size:0.85em'>late: {st.skipped_recent} "
                     "periods skipped in the last 10 s</div>")

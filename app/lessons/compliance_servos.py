@@ -26,6 +26,11 @@ ERROR_ADVICE: dict[ErrorBits, str] = {
     ErrorBits.INSTRUCTION: "an unknown instruction: check that nothing else talks on the bus",
 }
 VOLTAGE_RANGE = (9.0, 12.6)  #: V, RX-24F operating range
+#: fraction of packets sent again (a reply late, lost or broken) above which the status
+#: line warns that the link is unreliable
+RETRY_WARN = 0.05
+#: s of bus traffic the warning looks back over
+RETRY_WINDOW_S = 10.0
 HOT_C = 70.0  #: °C, warn above (RX-24F shuts down at its 80 °C limit)
 
 
@@ -116,6 +121,33 @@ def health_html(servos: list[ServoHealth], link: str, *, error: str | None = Non
             "<table style='width:100%;border-collapse:collapse;text-align:left'>"
             "<tr><th>ID</th><th>joint</th><th>V</th><th>°C</th><th>errors</th>"
             "<th>torque</th></tr>" + "".join(rows) + "</table>" + tip_html + "</div>")
+
+
+class LinkMonitor:
+    """How many packets the bus had to send again lately (a reply late, lost or broken):
+    retries keep the arm held, but a link that needs many is told, not hidden."""
+
+    def __init__(self) -> None:
+        self._marks: list[tuple[float, int, int]] = []  # (time, transactions, retries)
+
+    def warning(self, stats: object, now: float) -> str | None:
+        """A sentence when over :data:`RETRY_WARN` of the last :data:`RETRY_WINDOW_S` s of
+        packets were sent again; None otherwise (or for a backend without bus counters)."""
+        sent, again = getattr(stats, "transactions", None), getattr(stats, "retries", None)
+        if sent is None or again is None:
+            return None
+        self._marks.append((now, int(sent), int(again)))
+        while len(self._marks) > 2 and self._marks[1][0] <= now - RETRY_WINDOW_S:
+            self._marks.pop(0)
+        _, sent0, again0 = self._marks[0]
+        if sent - sent0 < 20:
+            return None
+        frac = (again - again0) / (sent - sent0)
+        if frac <= RETRY_WARN:
+            return None
+        return (f"link unreliable: {100 * frac:.0f} % of packets sent again in the last "
+                f"{RETRY_WINDOW_S:.0f} s (replies late, lost or broken): check the cable, "
+                "the adapter's latency timer and the baud")
 
 
 def safe_health_html(backend: Backend, joint_names: tuple[str, ...]) -> str:
