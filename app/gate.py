@@ -26,8 +26,11 @@ from __future__ import annotations
 
 import hmac
 import http
+import math
 import secrets
+import sys
 import threading
+import time
 import types
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -138,13 +141,63 @@ def _gated_serve(handler: Any, *args: Any, process_request: Any = None, **kwargs
                                            **kwargs)
 
 
+class MessageDrops:
+    """Client messages dropped before viser's handlers because they could not be read
+    (an unknown type, a missing or malformed field, a text frame): counted, one log line
+    per :attr:`interval` s at most, of at most 200 characters.
+
+    Attributes:
+        count: messages dropped so far (every lab of this process).
+    """
+
+    def __init__(self, *, interval: float = 1.0) -> None:
+        self.count = 0
+        self.interval = interval
+        self._last = -math.inf
+        self._lock = threading.Lock()
+
+    def note(self, exc: BaseException) -> None:
+        with self._lock:
+            self.count += 1
+            now = time.monotonic()
+            if now - self._last < self.interval:
+                return
+            self._last = now
+            count = self.count
+        line = (f"armlab: dropped {count} unreadable client message(s) so far (last: "
+                f"{type(exc).__name__}: {exc})")
+        print(line[:200], file=sys.stderr, flush=True)
+
+
+#: the drops of this process (read by tests and the fuzz bench)
+DROPS = MessageDrops()
+
+
+async def _screened_consumer(websocket: Any, handle_message: Callable[[Any], None],
+                             message_class: Any) -> None:
+    """viser's per-connection receive loop, with a message it cannot read dropped and
+    counted (:data:`DROPS`) instead of ending the connection with a traceback."""
+    while True:
+        raw = await websocket.recv()
+        try:
+            if not isinstance(raw, bytes):
+                raise TypeError("a text frame")
+            message = message_class.deserialize(raw)
+        except Exception as exc:  # anything a client can send must not end the server's loop
+            DROPS.note(exc)
+            continue
+        handle_message(message)
+
+
 def _install() -> None:
     """Give ``viser.infra._infra`` a ``websockets`` whose ``serve`` is :func:`_gated_serve`
-    (once; every other name is the real module's)."""
+    and a receive loop that screens what it cannot read (once; every other name is the
+    real module's)."""
     from viser.infra import _infra
 
     if getattr(_infra.websockets, "armlab_gate", False):
         return
+    _infra._message_consumer = _screened_consumer  # type: ignore[attr-defined]
     server = types.SimpleNamespace(**vars(websockets.asyncio.server))
     server.serve = _gated_serve
     _infra.websockets = types.SimpleNamespace(  # type: ignore[attr-defined]

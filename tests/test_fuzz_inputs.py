@@ -17,7 +17,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from app.gate import DROPS
 from app.inputs import UpdateScreen, why_bad_value
+from app.lessons.compliance_controls import slider_label
 from app.lessons import all_lessons
 from app.server import Lab, ServeOptions
 from app.wsclient import HeadlessClient
@@ -144,3 +146,31 @@ def test_a_burst_of_updates_is_coalesced_and_the_latest_wins():
                 page.set_value("Push force (N)", v)
             page.wait_for(lambda: handle.value == values[-1], what="the latest value")
             assert lab.screen.coalesced > 0
+
+
+#: messages viser cannot read: an unknown type, no type, missing or malformed fields, junk
+UNREADABLE = [{"type": "NoSuchMessage", "x": 1}, {"nope": 1}, {"type": "GuiUpdateMessage"},
+              [1, 2, 3], "a string", 42, {"type": 5}, {"type": "GuiUpdateMessage",
+                                                        "uuid": None, "updates": None}]
+
+
+def test_unreadable_messages_are_dropped_counted_and_the_page_keeps_working(capfd):
+    with Lab(ServeOptions(http_port=0, realtime=False)) as lab:
+        with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+            page.wait_for(lambda: any(e.label == "E-STOP" for e in page.gui.values()),
+                          what="the page")
+            capfd.readouterr()
+            before = DROPS.count
+            for _ in range(50):
+                for message in UNREADABLE:
+                    page.send(message)
+            page.wait_for(lambda: DROPS.count + lab.screen.dropped - before >= 50 * 4,
+                          what="the drops")
+            # the same connection still works: a refused value's notification comes back
+            n = len(page.notifications)
+            page.set_value(slider_label("kp"), "not a number")
+            page.wait_for(lambda: len(page.notifications) > n, what="a reply on this page")
+        err = capfd.readouterr().err
+    assert "Traceback" not in err
+    drop_lines = [line for line in err.splitlines() if "unreadable client message" in line]
+    assert 1 <= len(drop_lines) <= 10 and all(len(line) <= 200 for line in drop_lines)
