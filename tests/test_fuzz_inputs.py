@@ -19,8 +19,8 @@ from hypothesis import strategies as st
 
 from app.gate import DROPS
 from app.inputs import UpdateScreen, why_bad_value
-from app.lessons.compliance_controls import slider_label
 from app.lessons import all_lessons
+from app.lessons.compliance_controls import slider_label
 from app.server import Lab, ServeOptions
 from app.wsclient import HeadlessClient
 
