@@ -41,7 +41,7 @@ def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(less
         assert f"{rs.figures[mode]['mean_manipulability']:.3f}" in table
     # The paper's findings, seen on the ghosts at t = 1 s: mode 1 has joints 2 and 3
     # outside their limits (red dots), the limit-keeping modes do not.
-    lesson.show(1.0)
+    lesson.hold_at(1.0)  # the publisher then shows the same instant
     assert lesson.scene.views["1"].outside == (False, True, True)
     for mode in ("2", "4", "bounded"):
         assert lesson.scene.views[mode].outside == (False, False, False)
@@ -62,7 +62,7 @@ def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(less
 def test_k_a_slider_changes_the_redundant_ghost(lesson):
     if lesson.results is None:
         lesson.run(wait=True)
-    lesson.show(1.0)
+    lesson.hold_at(1.0)  # the publisher then shows the same instant
     before_3 = lesson.ghost_q("3")
     before_1 = lesson.ghost_q("1")
     with client_of(lesson.server) as client:
@@ -73,7 +73,7 @@ def test_k_a_slider_changes_the_redundant_ghost(lesson):
         assert "press Run" in lesson.status.content
         client.click(lesson.run_button)
         wait_for(lambda: lesson.results.k_a == 0.0 and not lesson.computing, timeout=60.0)
-    lesson.show(1.0)
+    lesson.hold_at(1.0)  # the publisher then shows the same instant
     # Without the gradient term eq. 4 is plain J⁺ẋ: ghost 3 now moves like ghost 1.
     assert np.linalg.norm(lesson.ghost_q("3") - before_3) > 0.05
     np.testing.assert_allclose(lesson.ghost_q("3"), before_1, atol=1e-9)

@@ -313,11 +313,17 @@ class RedundancyLesson(LessonBase):
     def reset(self) -> None:
         """Stop the playback and put every arm back at θ(0)."""
         with self._lock:
-            self._play_start = None
-            self._paused_t = 0.0
             self.scene.clear()
             self._shown_k = -1
-            self.show(0.0)
+            self.hold_at(0.0)
+
+    def hold_at(self, t: float) -> None:
+        """Stop the playback at time ``t`` s of the runs and show that instant (the pages
+        keep showing it until the next Run)."""
+        with self._lock:
+            self._play_start = None
+            self._paused_t = float(t)
+            self.show(t)
 
     def playhead(self) -> float:
         """Time of the runs shown now, s (0 before a run; stops at the end)."""
