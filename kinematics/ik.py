@@ -48,7 +48,7 @@ import numpy as np
 
 from kinematics.fk import fk_and_jacobian
 from kinematics.model import SerialChain
-from kinematics.validate import scalar, vector
+from kinematics.validate import floats, scalar
 
 #: |det J| / |J|_F^m below this counts as singular (scale-free; 0 at a singularity).
 SINGULAR_RATIO = 1e-6
@@ -133,7 +133,10 @@ def damped_inverse(J: np.ndarray, damping: float) -> np.ndarray:
     Finite for every J when ``damping`` (lambda, in the units of J's entries: m/rad) > 0.
     """
     m = J.shape[0]
-    return J.T @ np.linalg.inv(J @ J.T + (damping * damping) * np.eye(m))
+    A = J @ J.T
+    A[np.diag_indices(m)] += damping * damping
+    # symmetric positive definite: det > 0, so the closed form of eq. 3.20 holds (2 x 2, 3 x 3)
+    return J.T @ (jacobian_inverse(A) if m <= 3 else np.linalg.inv(A))
 
 
 def inverse_error(J: np.ndarray, J_inv: np.ndarray, dX: np.ndarray) -> float:
@@ -228,8 +231,8 @@ def _problem(model: object, target: object, q0: object, tol: object, max_iter: o
     return _Problem(
         model=model,
         rows=dims,
-        target=vector("target", target, len(dims)),
-        q0=vector("q0", q0, model.n),
+        target=np.array(floats("target", target, len(dims))),
+        q0=np.array(floats("q0", q0, model.n)),
         tol=scalar("tol", tol, positive=True),
         max_iter=_count("max_iter", max_iter, minimum=1),
         lower=model.lower,

@@ -99,13 +99,21 @@ class SerialChain:
 
     @property
     def lower(self) -> np.ndarray:
-        """(n,) lower joint limits (rad or m)."""
-        return np.array([j.lower for j in self.joints])
+        """(n,) lower joint limits (rad or m); a fresh copy (IK reads it every solve)."""
+        return self._limits()[0].copy()
 
     @property
     def upper(self) -> np.ndarray:
-        """(n,) upper joint limits (rad or m)."""
-        return np.array([j.upper for j in self.joints])
+        """(n,) upper joint limits (rad or m); a fresh copy."""
+        return self._limits()[1].copy()
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        cached = self.__dict__.get("_armlab_limits")  # frozen: memoised like reach_bound
+        if cached is None:
+            cached = (np.array([j.lower for j in self.joints], dtype=float),
+                      np.array([j.upper for j in self.joints], dtype=float))
+            self.__dict__["_armlab_limits"] = cached
+        return cached
 
     def neutral(self) -> np.ndarray:
         """(n,) zeros clipped into the limits."""
