@@ -5,6 +5,8 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
 - ``NAME``: short id (``"compliance"``), used by ``armlab serve --lesson``;
 - ``TITLE``: what the lesson switcher shows;
 - ``HELP``: one paragraph for the page and ``--help``;
+- ``TRY``: the first action, one sentence with the control's label in bold, shown
+  under the status line ("Press **Run thesis line** ...");
 - ``ROBOTS``: robot names the lesson works with (first = its default robot);
   ``ANY_URDF`` in it means any ``.urdf`` file given as the robot;
 - ``ORDER`` (optional, default 100): place in the switcher; for a robot the
@@ -85,6 +87,7 @@ class LessonModule(Protocol):
     NAME: str
     TITLE: str
     HELP: str
+    TRY: str
     ROBOTS: tuple[str, ...]
 
     def build(self, server: viser.ViserServer, ctx: LessonContext) -> LessonHandle: ...

@@ -54,9 +54,14 @@ class LessonGui:
         self._handles.append(handle)
         return handle
 
-    def add_status(self) -> viser.GuiHtmlHandle:
-        """Add an empty status line at the top of the control panel (see :func:`status_html`)."""
-        return self.add(self.gui.add_html("", order=STATUS_ORDER))
+    def add_status(self, *, try_this: str | None = None) -> viser.GuiHtmlHandle:
+        """Add an empty status line at the top of the control panel (see :func:`status_html`)
+        and, under it, the lesson's "Try this" line: its first action, one sentence."""
+        status = self.add(self.gui.add_html("", order=STATUS_ORDER))
+        if try_this:
+            self.try_this = self.add(self.gui.add_markdown(f"**Try this:** {try_this}",
+                                                           order=STATUS_ORDER + 0.5))
+        return status
 
     @contextmanager
     def chart_panel(self, tab: str, *,

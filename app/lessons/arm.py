@@ -35,6 +35,8 @@ TITLE = "Your arm: joints and hand target (any URDF)"
 HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the loop follows it "
         "by resolved-motion rate control) and the compliance controller holding the pose. "
         "Limits come from the file; the Teach tab lists them.")
+#: The first action, shown under the status line.
+TRY = ("Move a joint slider a few degrees, then drag the orange target: the hand follows it.")
 ROBOTS = ("open_manipulator_x", ANY_URDF)
 ORDER = 50
 MAX_JOINTS = 7
@@ -130,7 +132,7 @@ class ArmLesson(LessonBase):
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._gui.add_status()
+        self.status = self._gui.add_status(try_this=TRY)
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         lower, upper = self.loop.lower, self.loop.upper
         with tabs.add_tab("Joints", viser.Icon.ADJUSTMENTS):

@@ -75,6 +75,9 @@ TITLE = "Compliance control (thesis ch. 2–4)"
 HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance controller: "
         "tune Kp, Kv and the virtual environment (M_env, D_env, K_env, K_f), run the 20 cm "
         "line, push or drag the hand and watch the arm yield.")
+#: The first action, shown under the status line.
+TRY = ("Press **Run thesis line** (Run tab), then push the hand while it runs (Push "
+       "tab; by hand on real servos): the arm gives way and comes back.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 0
 #: Status when an e-stop's torque-off write could not go out (the link is gone).
@@ -223,7 +226,7 @@ class ComplianceLesson(LessonBase):
 
     def _build_gui(self, params: Params) -> None:
         gui = self.server.gui
-        self.status = self._gui.add_status()
+        self.status = self._gui.add_status(try_this=TRY)
         self.warning = self._gui.add(gui.add_html("", order=-79.0, visible=False))
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):

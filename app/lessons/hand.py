@@ -37,6 +37,9 @@ HELP = ("The receptionist robot's three-finger hand: each finger is pulled by a 
         "object of chosen size and stiffness: it stops closing when the current says each "
         "finger holds the object with the force limit F, a compliant grasp. Watch the motor "
         "currents and the finger forces.")
+#: The first action, shown under the status line.
+TRY = ("Press **Close (grasp)**: each finger stops when its current says it holds the "
+       "object with F.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 30
 
@@ -103,7 +106,7 @@ class HandLesson(LessonBase):
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._gui.add_status()
+        self.status = self._gui.add_status(try_this=TRY)
         folder = self._gui.add(gui.add_folder("Hand", order=-70.0))
         with folder:
             self.close_button = gui.add_button(

@@ -44,6 +44,8 @@ HELP = ("The paper's planar arm with three 0–180° hobby servos: drag the targ
         "and see the closed-form IK, the elbow branch, the servo ranges on the joints (red when "
         "a solution leaves them) and the error that whole-degree servo commands make. Run the "
         "paper's Table 1 and compare its computed and measured columns with the lab's.")
+#: The first action, shown under the status line.
+TRY = ("Drag the target in the arm's plane, then press **Run the paper's table**.")
 ROBOTS = ("planar_servo_arm",)
 ORDER = 20
 
@@ -212,10 +214,10 @@ class IKAccuracyLesson:
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.readout = self._gui.add_status()
+        self.readout = self._gui.add_status(try_this=TRY)
         folder = self._gui.add(gui.add_folder("Target and solution", order=-70.0))
         with folder:
-            gui.add_markdown("Drag the orange target in the arm's plane, or type it.")
+            gui.add_markdown("Drag the target in the arm's plane, or type it.")
             lim = TARGET_LIMIT_CM
             self.x_input = gui.add_number("Target X (cm)", initial_value=self.target[0] * 100,
                                           min=-lim, max=lim, step=0.1)

@@ -71,6 +71,8 @@ HELP = ("The seed 003 quadruped walks by the sine pattern (A step length, B foot
         "because each half-step is quick). The crawl "
         "lifts one leg at a time after shifting the body over the other three: its margin "
         "stays positive. The servo tab gives the paper's eq. 4.1 error (paper: 1.201 %).")
+#: The first action, shown under the status line.
+TRY = ("Press **Forward** and watch the stability margin while two legs swing.")
 ROBOTS = ("quadruped",)
 ORDER = 30
 
@@ -159,7 +161,7 @@ class QuadrupedLesson(LessonBase):
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._gui.add_status()
+        self.status = self._gui.add_status(try_this=TRY)
         warning = (warning_html("Servos not available", self.servo_message)
                    if self.servo_message else "")
         self.warning = self._gui.add(gui.add_html(warning, order=-79.0,

@@ -56,6 +56,8 @@ HELP = ("A redundant planar 3R arm draws the paper's circle five ways side by si
         "manipulability gradient k_a ∇w; both) and a bounded method that guarantees the "
         "limits. Watch the joints leave their limits (red dots), the manipulability ellipse "
         "and the charts; change k_a and K and run again.")
+#: The first action, shown under the status line.
+TRY = ("Press **Run the circle** and watch which arms leave their joint limits (red dots).")
 ROBOTS = ("redundant_planar",)
 ORDER = 20
 
@@ -198,7 +200,7 @@ class RedundancyLesson(LessonBase):
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self.status = self._gui.add_status()
+        self.status = self._gui.add_status(try_this=TRY)
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
             self.run_button = gui.add_button(

@@ -1,0 +1,31 @@
+"""The first minute: every lesson tells a newcomer what to do first, under its status line,
+on the page itself (what a browser receives), naming a control that is really there."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from app.lessons import all_lessons
+from app.server import Lab, ServeOptions
+from app.wsclient import HeadlessClient
+
+
+@pytest.mark.parametrize("name", sorted(all_lessons()))
+def test_every_lesson_shows_a_try_this_line_naming_a_real_control(name):
+    with Lab(ServeOptions(http_port=0, lesson=name, realtime=False)) as lab, \
+            HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+        def try_line() -> str | None:
+            for el in list(page.gui.values()):
+                content = str(el.props.get("_markdown") or "")
+                if content.startswith("**Try this:**"):
+                    return content
+            return None
+
+        page.wait_for(lambda: try_line() is not None, timeout=60, what="the Try this line")
+        text = try_line()
+        assert len(text) > len("**Try this:**") + 20
+        labels = {str(el.label) for el in page.gui.values() if el.label}
+        for bold in re.findall(r"\*\*(.+?)\*\*", text)[1:]:  # each control it names exists
+            assert bold in labels, (bold, sorted(labels))
