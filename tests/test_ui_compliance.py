@@ -150,6 +150,9 @@ def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):
         client.set_value("Duration (s)", 2.0)
         client.click("Push")
         t_end = loop.status.t + 2.0
+        # while it acts, the status line says so (not "holding")
+        wait_for(lambda: "pushing 4 N" in str(lab.lesson.status.content), 30.0,
+                 "the status to say pushing")
         wait_for(lambda: loop.status.t > t_end - 0.1, 60.0, "the push to run")
         snap = loop.recorder.snapshot(0.3)
         tau = float(np.max(np.abs(snap["tau_ext"][-5:])))

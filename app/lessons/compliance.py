@@ -555,6 +555,10 @@ class ComplianceLesson(LessonBase):
             state, color = f"running {st.trajectory} ({100 * st.progress:.0f} %)", "#1f5eea"
         else:
             state, color = "holding", "#2e7d32"
+        push = self._push
+        if st.active and push is not None and len(snap["t"]) and snap["t"][-1] <= push[1]:
+            state += (f" · pushing {np.linalg.norm(push[0]):.3g} N "
+                      f"({push[1] - snap['t'][-1]:.1f} s left)")
         torque = ("torque unknown (the torque-off was not sent)" if st.torque_off_unsent
                   else "torque on" if st.torque_on else "torque off")
         where = "simulated arm" if not self.hardware else f"servos on {self.ctx.port}"
