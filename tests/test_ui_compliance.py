@@ -320,6 +320,11 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
     client.wait_for(lambda: any(
         "PD measured on: step of θ2" in str(e.props.get("_markdown", e.props.get("content", "")))
         for e in client.gui.values()), 60.0, "the measured column on the page")
+    # and beside the Step button, without another click: its Tp and %OS
+    client.wait_for(lambda: any(
+        str(e.props.get("_markdown", "")).startswith("**Measured** (step of θ2")
+        and "Tp " in str(e.props["_markdown"]) and "%OS " in str(e.props["_markdown"])
+        for e in client.gui.values()), 60.0, "the figures beside the Step button")
 
 
 def test_link_length_preset_rebuilds_the_arm(lab, client):

@@ -45,6 +45,7 @@ from app.lessons.compliance_teach import (
     design_table,
     equations_markdown,
     latest_values,
+    measured_line,
     thesis_preset_note,
 )
 from control.backend import Backend, Pushable
@@ -262,7 +263,7 @@ class ComplianceLesson(LessonBase):
         stop.on_click(lambda e: guarded(e, self.stop))
         reset.on_click(lambda e: guarded(e, self.reset))
         self.reconnect_button.on_click(lambda e: guarded(e, self.reconnect))
-        with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=False):
+        with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=True):
             self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
             self._step_size = guarded_slider(
                 gui, "Step (°)", name="step", lo=-30.0, hi=30.0, step=1.0, initial=-20.0,
@@ -272,6 +273,7 @@ class ComplianceLesson(LessonBase):
                                   hint="Step one joint's command; the Teach tab compares the "
                                        "response with eq. 2.16–2.19")
             step.on_click(lambda e: guarded(e, self.run_step))
+            self.step_result = gui.add_markdown("")  # the figures of the last step, here
         self.download = gui.add_button("Download the last run (CSV)", icon=viser.Icon.DOWNLOAD,
                                        hint="Time, every plotted signal (SI) and the "
                                             "parameters in the header")
@@ -310,6 +312,7 @@ class ComplianceLesson(LessonBase):
         push = gui.add_button("Push", icon=viser.Icon.HAND_FINGER, visible=not self.hardware,
                               hint="Push the hand with this force for this long")
         push.on_click(lambda e: guarded(e, self.push))
+        self.push_result = gui.add_markdown("")  # the figures of the last push, here
 
     # ================================================================== actions
 
@@ -625,10 +628,12 @@ class ComplianceLesson(LessonBase):
             if exp.kind == "step":
                 self.measured_pd = measure_step(snap, t0=exp.t0, joint=exp.joint, q0=exp.q0,
                                                 q1=exp.q1, what=exp.label)
+                set_content(self.step_result, measured_line(self.measured_pd))
             elif exp.kind == "push":
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
                     joint_labels=[joint_label(n) for n in rig.model.joint_names])
+                set_content(self.push_result, measured_line(self.measured_env))
         except ValueError as exc:
             self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"
 

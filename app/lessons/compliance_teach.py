@@ -28,6 +28,15 @@ def _f(x: float | None, fmt: str = ".3g", unit: str = "") -> str:
     return f"{x:{fmt}}{(' ' + unit) if unit else ''}"
 
 
+def measured_line(m: Measured) -> str:
+    """One line of what a step or push measured, shown beside the button that made it."""
+    parts = [f"Tp {_f(m.peak_time_s, unit='s')}", f"%OS {_f(m.overshoot_pct, '.2g', '%')}",
+             f"Ts {_f(m.settling_time_s, unit='s')}"]
+    if m.static_gain is not None:
+        parts.append(f"C_f {_f(m.static_gain, unit='rad/N·m')}")
+    return f"**Measured** ({m.what}): " + ", ".join(parts) + " (Teach tab: beside the formulas)"
+
+
 def design_table(params: Params, pd: Measured | None, env: Measured | None) -> str:
     """Markdown table: formula figures (2.11–2.19) beside the measured ones."""
     wp = metrics.pd_natural_frequency(params.kp) if params.kp > 0 else float("nan")
