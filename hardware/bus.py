@@ -124,9 +124,9 @@ def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | No
 
 
 WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
-PTY_MARGIN = 0.060  #: s on a pseudo-terminal (the emulator: a process, not a wire)
+PTY_MARGIN = 0.100  #: s on a pseudo-terminal (the emulator: a process, not a wire)
 WIRE_RETRIES = 2  #: extra attempts after a lost or broken reply on a serial adapter
-PTY_RETRIES = 5  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.3 s
+PTY_RETRIES = 8  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.5 s or more
 
 
 def is_pty(port: str) -> bool:
@@ -166,9 +166,9 @@ class Bus:
         port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
         baud: bit/s (1 000 000 in the thesis).
         retries: extra attempts after a timeout or a broken reply (bounded; None: 2 on a
-            serial adapter, 5 on a pseudo-terminal).
+            serial adapter, 8 on a pseudo-terminal).
         timeout_margin: s added to the computed wire time of each reply (None: 20 ms
-            on a serial adapter, 60 ms on a pseudo-terminal, whose "servos" are a process
+            on a serial adapter, 100 ms on a pseudo-terminal, whose "servos" are a process
             on this computer that answers when the scheduler lets it); raised to the
             adapter's FTDI latency timer + 5 ms where that is longer (a 16 ms timer
             would otherwise time out every reply).
@@ -182,6 +182,8 @@ class Bus:
         stats: :class:`BusStats` counters.
         notes: one-line remarks from opening (latency timer, RS-485 not applicable).
         errors: last error byte reported by each servo ID.
+        late_ids: IDs whose status packet came while the bus waited for another servo's
+            (a late reply: the scan pings them again).
         tables: control table of each identified servo ID.
         status_return_level: what each ID answers (2 = everything, 1 = READ only).
         return_delay: each ID's return delay setting (2 µs units).
@@ -206,6 +208,7 @@ class Bus:
         self.stats = BusStats()
         self.notes: list[str] = []
         self.errors: dict[int, p1.ErrorBits] = {}
+        self.late_ids: set[int] = set()
         self.tables: dict[int, ControlTable] = {}
         self.status_return_level: dict[int, int] = {}
         self.return_delay: dict[int, int] = {}
@@ -359,6 +362,7 @@ class Bus:
                 if status.servo_id != request[2] or len(raw) != reply_length:
                     log.debug("stray packet %s waiting for %s", raw.hex(" "), request.hex(" "))
                     self.stats.corrupt += 1
+                    self.late_ids.add(status.servo_id)
                     continue
                 self.stats.replies += 1
                 return status
@@ -369,6 +373,29 @@ class Bus:
         if not echo_only:
             log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
         return None
+
+    def collect_late(self, seconds: float) -> set[int]:
+        """Listen ``seconds`` for status packets no request waits for (replies the machine
+        held back past their timeout); their IDs join :attr:`late_ids`, which is returned."""
+        parser = p1.PacketParser()
+        deadline = time.monotonic() + seconds
+        with self._lock:
+            while (left := deadline - time.monotonic()) > 0:
+                try:
+                    ready, _, _ = select.select([self._fd], [], [], left)
+                    if not ready:
+                        break
+                    chunk = os.read(self._fd, 512)
+                except InterruptedError:
+                    continue
+                except OSError as exc:
+                    raise self._lost(exc) from None
+                if not chunk:
+                    raise self._lost("device returned no data")
+                self.stats.bytes_in += len(chunk)
+                for raw in parser.feed(chunk):
+                    self.late_ids.add(p1.decode_status(raw).servo_id)
+        return self.late_ids
 
     # -- instructions -------------------------------------------------------
 

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from hardware import protocol1 as p1
-from hardware.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
+from hardware.bus import Bus, BusError, NoReply, is_pty, reply_timeout
 from hardware.control_table import TABLES
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
@@ -23,6 +23,9 @@ ALL_IDS = range(0, p1.MAX_ID + 1)
 #: s beyond wire time a ping waits on a serial adapter (a servo answers within its
 #: return delay, 0.5 ms at the thesis's setting).
 WIRE_SCAN_MARGIN = 0.010
+#: s a ping waits on a pseudo-terminal (the emulator answers within microseconds unless the
+#: machine holds it back; each ID is pinged twice there)
+PTY_SCAN_MARGIN = 0.060
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,7 @@ def ping_policy(port: str, margin: float | None = None) -> tuple[float, int]:
     and one ping on a serial adapter; at least the bus's PTY margin and two pings on a
     pseudo-terminal."""
     if is_pty(port):
-        return max(margin or 0.0, PTY_MARGIN), 2
+        return max(margin or 0.0, PTY_SCAN_MARGIN), 2
     return (WIRE_SCAN_MARGIN if margin is None else margin), 1
 
 
@@ -93,14 +96,29 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     with Bus(port, bauds[0], retries=2, timeout_margin=margin) as bus:
         for baud in bauds:
             bus.set_baud(baud)
+            bus.late_ids.clear()
+            here: list[Found] = []
+            missed = []
             for servo_id in ids:
                 if progress is not None:
-                    progress(baud, servo_id, len(found))
+                    progress(baud, servo_id, len(found) + len(here))
                 try:
                     status = bus.ping(servo_id, tries=tries)
                 except NoReply:
+                    missed.append(servo_id)
                     continue
-                found.append(_describe(bus, servo_id, baud, status))
+                here.append(_describe(bus, servo_id, baud, status))
+            # a servo whose answer came late (the machine held the reply back) answered
+            # all the same: ask it again, with the bus's own retries
+            if missed:
+                bus.collect_late(tries * margin + 0.1)  # the last IDs' answers may be coming
+            for servo_id in sorted(bus.late_ids.intersection(missed)):
+                try:
+                    status = bus.ping(servo_id)
+                except NoReply:
+                    continue
+                here.append(_describe(bus, servo_id, baud, status))
+            found += sorted(here, key=lambda f: f.servo_id)
     return found
 
 

@@ -59,6 +59,7 @@ def test_thesis_configuration_then_read_and_one_sync_write_per_cycle(tmp_path):
             goal = np.array([0.4, 0.3, 0.6])
             b.read()  # a round trip: every earlier packet has reached the emulator's log
             seen = len(emu.packets("rx"))
+            retries = b.stats.retries
             for _ in range(40):
                 b.sync(0.0)  # hardware: no-op
                 b.write(goal, np.full(3, 3.0))
@@ -67,7 +68,9 @@ def test_thesis_configuration_then_read_and_one_sync_write_per_cycle(tmp_path):
             cycle = emu.packets("rx")[seen:]
             reads = [p for p in cycle if p[4] == p1.Instruction.READ]
             syncs = [p for p in cycle if p[4] == p1.Instruction.SYNC_WRITE]
-            assert len(reads) == 3 * 40 and len(syncs) == 40
+            # one READ per servo and cycle (and one more for each retry: a stalled machine),
+            # one SYNC_WRITE per cycle (no reply, never retried)
+            assert len(reads) == 3 * 40 + b.stats.retries - retries and len(syncs) == 40
             assert {p for p in reads} == {p1.read(i, 36, 6) for i in (1, 3, 5)}
             assert all(len(p) == 23 for p in syncs)
             state = b.read()

@@ -283,3 +283,12 @@ def test_emulator_keeps_its_name_across_a_restart_through_link(tmp_path):
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and plain.read_text() == "keep me"
     assert "exists and is not a symlink" in out.stderr and len(out.stderr.splitlines()) == 1
+
+
+def test_scan_finds_servos_whose_every_answer_comes_late():
+    """Every reply 0.15 s late (a machine holding the emulator back): each ping's answer
+    arrives while the scan already pings the next ID; the scan asks those servos again."""
+    with emulator("--ids", "4,9,11", "--servo", "AX-12A", "--robot", "redundant_planar",
+                  "--delay", "1.0", "--delay-time", "0.15") as emu:
+        found = scan(emu.port, (1_000_000,), ids=range(0, 12))
+    assert [f.servo_id for f in found] == [4, 9, 11]
