@@ -339,19 +339,9 @@ class Bus:
         while True:
             # past the deadline still look once (timeout 0): a client the OS paused
             # must not miss a reply that came in time
-            left = max(0.0, deadline - time.monotonic())
-            try:
-                ready, _, _ = select.select([self._fd], [], [], left)
-                if not ready:
-                    break
-                chunk = os.read(self._fd, 512)
-            except InterruptedError:
-                continue
-            except OSError as exc:
-                raise self._lost(exc) from None
-            if not chunk:
-                raise self._lost("device returned no data")
-            self.stats.bytes_in += len(chunk)
+            chunk = self._read_chunk(max(0.0, deadline - time.monotonic()))
+            if chunk is None:
+                break
             for raw in parser.feed(chunk):
                 if echo_pending and raw == request:
                     echo_pending = False
@@ -374,6 +364,24 @@ class Bus:
             log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
         return None
 
+    def _read_chunk(self, timeout: float) -> bytes | None:
+        """The bytes that arrive within ``timeout`` s (None: none did); :class:`LinkLost`
+        when the device is gone."""
+        while True:
+            try:
+                ready, _, _ = select.select([self._fd], [], [], timeout)
+                if not ready:
+                    return None
+                chunk = os.read(self._fd, 512)
+            except InterruptedError:
+                continue
+            except OSError as exc:
+                raise self._lost(exc) from None
+            if not chunk:
+                raise self._lost("device returned no data")
+            self.stats.bytes_in += len(chunk)
+            return chunk
+
     def collect_late(self, seconds: float) -> set[int]:
         """Listen ``seconds`` for status packets no request waits for (replies the machine
         held back past their timeout); their IDs join :attr:`late_ids`, which is returned."""
@@ -381,18 +389,9 @@ class Bus:
         deadline = time.monotonic() + seconds
         with self._lock:
             while (left := deadline - time.monotonic()) > 0:
-                try:
-                    ready, _, _ = select.select([self._fd], [], [], left)
-                    if not ready:
-                        break
-                    chunk = os.read(self._fd, 512)
-                except InterruptedError:
-                    continue
-                except OSError as exc:
-                    raise self._lost(exc) from None
-                if not chunk:
-                    raise self._lost("device returned no data")
-                self.stats.bytes_in += len(chunk)
+                chunk = self._read_chunk(left)
+                if chunk is None:
+                    break
                 for raw in parser.feed(chunk):
                     self.late_ids.add(p1.decode_status(raw).servo_id)
         return self.late_ids

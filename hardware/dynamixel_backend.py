@@ -114,8 +114,18 @@ class DynamixelBackend(GoalLimits):
         self.late_max = 0.0
         self._bus_options = {"retries": retries, "timeout_margin": timeout_margin,
                              "echo": echo, "rs485": rs485, "table": self.table}
+        if not configure and from_baud is not None and from_baud != baud:
+            raise ValueError("from_baud needs configure=True to switch the servos' baud")
+        self._open(port, from_baud or baud, configure=configure, from_baud=from_baud)
+        self._t0 = time.monotonic()
+
+    def _open(self, port: str, baud: float, *, configure: bool,
+              from_baud: float | None = None) -> None:
+        """Open the bus on ``port`` at ``baud``, find the servos, read their limits and (if
+        asked) configure them; on any failure the bus is closed again and a bus error
+        becomes one BackendError."""
         try:
-            self.bus = Bus(port, from_baud or baud, **self._bus_options)
+            self.bus = Bus(port, baud, **self._bus_options)
         except BusError as exc:
             raise BackendError(str(exc)) from exc
         try:
@@ -123,15 +133,12 @@ class DynamixelBackend(GoalLimits):
             self._lower, self._upper = self._limits()
             if configure:
                 self.configure(from_baud=from_baud)
-            elif from_baud is not None and from_baud != baud:
-                raise ValueError("from_baud needs configure=True to switch the servos' baud")
         except BusError as exc:
             self.bus.close()
             raise BackendError(str(exc)) from exc
         except BaseException:
             self.bus.close()
             raise
-        self._t0 = time.monotonic()
 
     # -- Backend protocol ---------------------------------------------------
 
@@ -277,27 +284,17 @@ class DynamixelBackend(GoalLimits):
         port = self.bus.port
         with contextlib.suppress(OSError, BusError):
             self.bus.close()
+        self._open(port, self.baud, configure=True)
         try:
-            bus = Bus(port, self.baud, **self._bus_options)
-        except BusError as exc:
-            raise BackendError(str(exc)) from exc
-        self.bus = bus
-        try:
-            self._find_servos()
-            self._lower, self._upper = self._limits()
-            lines = self.configure()
             self._sync_torque(self.map.ids, 0)
-        except BusError as exc:
-            bus.close()
-            raise BackendError(str(exc)) from exc
         except BackendError:
-            bus.close()
+            self.bus.close()
             raise
         self._torque = False
         self._estop_unsent = False
         self._shutdown[:] = False
         log.warning("link to %s back: servos configured again, torque off", port)
-        return lines
+        return self.configuration
 
     # -- set-up -------------------------------------------------------------
 
