@@ -1,0 +1,554 @@
+"""N simulated arms of one model stepped together: :class:`hardware.plant.Plant`, numpy over arms.
+
+A classroom gives every student a private arm of the same model (``receptionist_arm``:
+three RX-24F). Instead of N ``Plant`` objects stepped by a Python loop each, one
+:class:`BatchedPlant` keeps every arm's state in arrays and runs each step's
+arithmetic once for all arms. The semantics are those of N independent ``Plant``
+s (tests/test_batched_plant.py checks q, qd to 1e-9 and the raw report words exactly):
+
+1. every servo's firmware ticks (:meth:`BatchedPlant._tick`, the vectorised
+   :meth:`hardware.servo.ServoModel.update`, thesis §2.3): the 10-bit Present Position,
+   the set-point moved towards Goal Position at Moving Speed, the compliance curve
+   (margin, punch, slope, Torque Limit; thesis Table 2.4 / Gambar 2.20) giving the
+   PWM duty held over the step, wheel mode, the overload alarm with Alarm Shutdown;
+2. (q, qd) is integrated by classical RK4 with ``qdd = forward_dynamics(q, qd, tau)``
+   (thesis eq. 2.41–2.50 inverted; :mod:`kinematics.batched_dynamics` runs the float
+   path's generated code over arrays), tau = motor line at the held duty
+   (stall torque · duty − back-EMF · omega) − gear friction (viscous + tanh-smoothed
+   Coulomb) + joint stops + pushes (J^T F, held over the step).
+
+Layout: the public arrays are arm-major, (N, n) (arm, joint), in *row order*; inside,
+every array is joint-major (n, N) so that one joint of all arms is a contiguous row
+for the generated code. Arms are named by a stable integer **id** that
+:meth:`add_arm` returns; rows are the arms in the order they joined. Storage is
+exact-size: :meth:`add_arm` appends a column and :meth:`remove_arm` deletes one
+(both reallocate, O(N n), microseconds; rows after a removed arm move up by one, ids
+never change). ``arm_ids`` maps rows to ids.
+
+Left out of ``Plant`` (say so where it matters): the spring and the wall (a hand
+dragging, a plane to press on) and :meth:`Plant.truth` / energies; the servo params
+(rotor, friction, overload time), directions and stops are one set for all arms;
+Coulomb friction uses ``numpy.tanh``, which may differ from ``math.tanh`` in the last
+bit (hence "to 1e-9", not bit-equal, in the test).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import fields
+
+import numpy as np
+
+from hardware.plant import JointStops
+from hardware.servo import (
+    _SLOPE_STEPS,
+    ERROR_ANGLE_LIMIT,
+    ERROR_OVERLOAD,
+    ServoParams,
+    ServoRegisters,
+    ServoReport,
+)
+from hardware.servo_spec import DIRECTION_BIT, ServoSpec
+from kinematics.batched_dynamics import batched_dynamics
+from kinematics.model import SerialChain
+from kinematics.validate import scalar, vector
+
+#: The registers the firmware acts on, held per (joint, arm) as int64 arrays.
+REGISTERS: tuple[str, ...] = tuple(f.name for f in fields(ServoRegisters))
+_SLOPES = np.array(_SLOPE_STEPS, dtype=np.int64)
+_STOPS = JointStops()  #: Plant's default stops
+
+#: Firmware state per (joint, arm): name -> dtype (see ServoModel's private fields).
+_STATE: dict[str, type] = {
+    "q": np.float64, "qd": np.float64, "present": np.int64, "setpoint": np.float64,
+    "velocity": np.float64, "enabled": np.bool_, "duty": np.float64, "stall": np.float64,
+    "overload": np.bool_, "shutdown": np.bool_, "angle_error": np.bool_, "moving": np.bool_,
+    "drive": np.float64, "damping": np.float64, "push_tau": np.float64,
+}
+
+
+def signed_words(units: np.ndarray) -> np.ndarray:
+    """:func:`hardware.servo_spec.signed_word` elementwise: signed register units -> words
+    (magnitude 0..1023 rounded half to even, bit 10 set when negative and non-zero)."""
+    a = np.abs(units)
+    mag = np.where(a >= 1023.0, 1023.0, np.rint(a)).astype(np.int64)
+    return mag | np.where((units < 0) & (mag != 0), DIRECTION_BIT, 0)
+
+
+class BatchedPlant:
+    """N arms + servos of one model, stepped together at a fixed ``dt``.
+
+    Args:
+        model: the serial chain (n joints).
+        spec: the servo of every joint (one :class:`ServoSpec` for all, or one per joint).
+        n_arms: arms to start with, all at ``q0`` with ``registers`` (more: :meth:`add_arm`).
+        dt: step and firmware tick, s (<= 0.01).
+        q0: (n,) the starting arms' joint positions (default neutral), at rest.
+        directions: (n,) +1/-1 servo = direction · joint (default +1).
+        params: :class:`ServoParams` for every joint or one per joint.
+        registers: the starting arms' registers, one :class:`ServoRegisters` per joint
+            (copied per arm; default factory values, goal at the start, torque off).
+        stops: joint-limit stops (None for none).
+    """
+
+    def __init__(self, model: SerialChain, spec: ServoSpec | Sequence[ServoSpec],
+                 n_arms: int = 0, *, dt: float = 1e-3, q0: np.ndarray | None = None,
+                 directions: Sequence[float] | None = None,
+                 params: ServoParams | Sequence[ServoParams] | None = None,
+                 registers: Sequence[ServoRegisters] | None = None,
+                 stops: JointStops | None = _STOPS) -> None:
+        n = model.n
+        self.model = model
+        self.n = n
+        self.dt = scalar("dt", dt, positive=True)
+        if self.dt > 0.01:
+            raise ValueError(f"dt must be <= 0.01 s for a stable servo loop, got {dt}")
+        if isinstance(n_arms, bool) or not isinstance(n_arms, int | np.integer) or n_arms < 0:
+            raise ValueError(f"n_arms must be an integer >= 0, got {n_arms!r}")
+        specs = [spec] * n if isinstance(spec, ServoSpec) else list(spec)
+        if len(specs) != n:
+            raise ValueError(f"spec must name {n} servos, got {len(specs)}")
+        self.specs = tuple(specs)
+        if params is None or isinstance(params, ServoParams):
+            plist = [params or ServoParams()] * n
+        else:
+            plist = list(params)
+            if len(plist) != n:
+                raise ValueError(f"params must have {n} entries, got {len(plist)}")
+        self.params = tuple(plist)
+        dirs = [1.0] * n if directions is None else [
+            float(d) for d in vector("directions", directions, n)]
+        if any(d not in (1.0, -1.0) for d in dirs):
+            raise ValueError(f"directions must be +1 or -1, got {dirs}")
+        self.directions = tuple(dirs)
+        self.stops = stops
+        self._dyn = batched_dynamics(model)
+
+        def col(values: Sequence[float]) -> np.ndarray:
+            return np.array(values, dtype=float).reshape(n, 1)
+
+        self._dir = col(dirs)
+        self._cpr = col([1.0 / s.position_unit for s in specs])  # counts per rad
+        self._cpsu = col([s.speed_unit / s.position_unit for s in specs])  # counts per unit·s
+        self._speed_unit = col([s.speed_unit for s in specs])
+        self._stall_torque = col([s.stall_torque for s in specs])
+        self._backemf = col([s.stall_torque / s.no_load_speed for s in specs])
+        self._viscous = col([p.viscous_friction for p in plist])
+        self._coulomb = col([p.coulomb_friction for p in plist])
+        self._rvs = col([1.0 / p.friction_speed for p in plist])
+        self._has_coulomb = any(p.coulomb_friction for p in plist)
+        self._stall_speed = col([p.stall_speed for p in plist])
+        self._overload_time = col([p.overload_time for p in plist])
+        self._voltage = [int(round(p.voltage * 10)) for p in plist]
+        self._temperature = [int(round(p.temperature)) for p in plist]
+        self._armature = [p.rotor_inertia for p in plist]
+        self._gravity = [float(x) for x in model.gravity]
+        self._lower = col([float(x) for x in model.lower])
+        self._upper = col([float(x) for x in model.upper])
+        if not all(self._dyn.revolute):
+            raise ValueError("model: BatchedPlant supports revolute joints only")
+        self._axes = self._dyn.axes
+        self._k = 0
+        self._next_id = 0
+        self._ids = np.zeros(0, dtype=np.int64)
+        self._s = {k: np.zeros((n, 0), dtype=t) for k, t in _STATE.items()}
+        self._r = {k: np.zeros((n, 0), dtype=np.int64) for k in REGISTERS}
+        # pushes, one row each: arm row, link, force (3,), point (3,), until (s)
+        self._p_row = np.zeros(0, dtype=np.int64)
+        self._p_link = np.zeros(0, dtype=np.int64)
+        self._p_force = np.zeros((0, 3))
+        self._p_point = np.zeros((0, 3))
+        self._p_until = np.zeros(0)
+        for _ in range(int(n_arms)):
+            self.add_arm(q0=q0, registers=registers)
+
+    # -- arms ---------------------------------------------------------------------
+
+    @property
+    def n_arms(self) -> int:
+        """N, the number of arms."""
+        return int(self._ids.size)
+
+    @property
+    def arm_ids(self) -> np.ndarray:
+        """(N,) the id of the arm in each row."""
+        return self._ids.copy()
+
+    def row(self, arm: int) -> int:
+        """The row of arm id ``arm``; ValueError naming ``arm`` when there is no such arm."""
+        if isinstance(arm, bool) or not isinstance(arm, int | np.integer):
+            raise ValueError(f"arm must be an arm id (int), got {arm!r}")
+        rows = np.flatnonzero(self._ids == int(arm))
+        if rows.size == 0:
+            raise ValueError(f"arm {arm!r} is not in this plant (ids: {self._ids.tolist()})")
+        return int(rows[0])
+
+    def add_arm(self, *, q0: np.ndarray | None = None, qd0: np.ndarray | None = None,
+                registers: Sequence[ServoRegisters] | None = None) -> int:
+        """A new arm at ``q0`` (n,) rad (default neutral) moving at ``qd0`` (default rest),
+        its servos as a fresh ``Plant``'s would be (``registers``: one per joint, copied;
+        default factory values with the goal at the start, torque off). Returns its id."""
+        n = self.n
+        q = self.model.neutral() if q0 is None else vector("q0", q0, n)
+        qd = np.zeros(n) if qd0 is None else vector("qd0", qd0, n)
+        if registers is not None and len(registers) != n:
+            raise ValueError(f"registers must have {n} entries, got {len(registers)}")
+        angle = [d * float(x) for d, x in zip(self.directions, q, strict=True)]
+        present = [s.position_to_raw(a) for s, a in zip(self.specs, angle, strict=True)]
+        new: dict[str, list[object]] = {k: [0] * n for k in _STATE}
+        new["q"], new["qd"] = [float(x) for x in q], [float(x) for x in qd]
+        new["present"] = present
+        new["setpoint"] = [float(p) for p in present]
+        new["velocity"] = [0.0] * n
+        for k, v in new.items():
+            self._s[k] = np.concatenate(
+                [self._s[k], np.array(v, dtype=_STATE[k]).reshape(n, 1)], axis=1)
+        regs = [registers[i] if registers is not None else
+                ServoRegisters(goal_position=present[i]) for i in range(n)]
+        for k in REGISTERS:
+            self._r[k] = np.concatenate(
+                [self._r[k], np.array([int(getattr(r, k)) for r in regs],
+                                      dtype=np.int64).reshape(n, 1)], axis=1)
+        arm = self._next_id
+        self._next_id += 1
+        self._ids = np.append(self._ids, arm)
+        return arm
+
+    def remove_arm(self, arm: int) -> None:
+        """Remove arm id ``arm`` and its pushes; the rows after it move up by one."""
+        r = self.row(arm)
+        for d in (self._s, self._r):
+            for k in d:
+                d[k] = np.delete(d[k], r, axis=1)
+        self._ids = np.delete(self._ids, r)
+        keep = self._p_row != r
+        self._drop_pushes(keep)
+        self._p_row = np.where(self._p_row > r, self._p_row - 1, self._p_row)
+
+    # -- state ----------------------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        """Simulated time of every arm, s."""
+        return self._k * self.dt
+
+    @property
+    def q(self) -> np.ndarray:
+        """(N, n) true joint positions, rad (a copy)."""
+        return self._s["q"].T.copy()
+
+    @property
+    def qd(self) -> np.ndarray:
+        """(N, n) true joint velocities, rad/s (a copy)."""
+        return self._s["qd"].T.copy()
+
+    def set_state(self, arm: int, q: np.ndarray, qd: np.ndarray | None = None) -> None:
+        """Put arm ``arm`` at ``q`` (n,) with velocity ``qd`` (default rest); time goes on."""
+        r = self.row(arm)
+        self._s["q"][:, r] = vector("q", q, self.n)
+        self._s["qd"][:, r] = 0.0 if qd is None else vector("qd", qd, self.n)
+
+    # -- registers (what a WRITE packet does) -----------------------------------------
+
+    def registers(self, arm: int) -> tuple[ServoRegisters, ...]:
+        """Arm ``arm``'s registers, one :class:`ServoRegisters` per joint (a snapshot)."""
+        r = self.row(arm)
+        return tuple(ServoRegisters(**{k: int(self._r[k][i, r]) for k in REGISTERS})
+                     for i in range(self.n))
+
+    def register(self, name: str) -> np.ndarray:
+        """(N, n) the values of register ``name`` (a copy)."""
+        if name not in self._r:
+            raise ValueError(f"name must be a register ({', '.join(REGISTERS)}), got {name!r}")
+        return self._r[name].T.copy()
+
+    def set_registers(self, arm: int, joint: int | None = None, **values: int) -> None:
+        """Write registers (raw ints, e.g. ``goal_position=600``) of arm ``arm``: joint
+        ``joint``, or every joint when None. The firmware acts on them at the next tick."""
+        r = self.row(arm)
+        j = slice(None) if joint is None else self._link(joint, "joint")
+        for k, v in values.items():
+            if k not in self._r:
+                raise ValueError(f"{k} is not a register ({', '.join(REGISTERS)})")
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not 0 <= v <= 0xFFFF:
+                raise ValueError(f"{k} must be a raw register value 0..65535, got {v!r}")
+            self._r[k][j, r] = int(v)
+
+    def write_registers(self, name: str, values: np.ndarray,
+                        rows: np.ndarray | None = None) -> None:
+        """Vectorised WRITE: register ``name`` := ``values`` (N, n) raw ints, or (len(rows), n)
+        for the arm rows ``rows`` only (e.g. Goal Position and Moving Speed of every arm)."""
+        if name not in self._r:
+            raise ValueError(f"name must be a register ({', '.join(REGISTERS)}), got {name!r}")
+        v = np.asarray(values)
+        cols = slice(None) if rows is None else np.asarray(rows, dtype=np.int64)
+        want = (self.n_arms if rows is None else len(np.atleast_1d(cols)), self.n)
+        if v.shape != want or not np.issubdtype(v.dtype, np.integer):
+            raise ValueError(f"values must be integers of shape {want}, got {v.dtype} {v.shape}")
+        if v.size and (v.min() < 0 or v.max() > 0xFFFF):
+            raise ValueError("values must be raw register values 0..65535")
+        self._r[name][:, cols] = v.T
+
+    def set_goals(self, goal_position: np.ndarray, moving_speed: np.ndarray | None = None,
+                  ) -> None:
+        """Goal Position (N, n) raw and optionally Moving Speed (N, n) raw of every arm."""
+        self.write_registers("goal_position", goal_position)
+        if moving_speed is not None:
+            self.write_registers("moving_speed", moving_speed)
+
+    def set_torque_enable(self, on: np.ndarray | bool, rows: np.ndarray | None = None) -> None:
+        """Torque Enable of every joint of every arm (or of ``rows``): ``on`` a bool or
+        (N,) / (len(rows),) bools."""
+        cols = slice(None) if rows is None else np.asarray(rows, dtype=np.int64)
+        self._r["torque_enable"][:, cols] = np.asarray(on, dtype=bool).astype(np.int64)
+
+    # -- external forces (base frame) --------------------------------------------------
+
+    def push(self, arm: int, force_base: np.ndarray, *, link: int, point: np.ndarray,
+             duration: float) -> None:
+        """Apply ``force_base`` (3,) N, base frame, at ``point`` (3,) m in link ``link``'s
+        frame of arm ``arm`` for ``duration`` s from now (Plant.push; pushes add up)."""
+        r = self.row(arm)
+        f = vector("force_base", force_base, 3)
+        p = vector("point", point, 3)
+        k = self._link(link, "link")
+        d = scalar("duration", duration, nonnegative=True)
+        self._p_row = np.append(self._p_row, r)
+        self._p_link = np.append(self._p_link, k)
+        self._p_force = np.vstack([self._p_force, f])
+        self._p_point = np.vstack([self._p_point, p])
+        self._p_until = np.append(self._p_until, self.t + d)
+
+    def clear_forces(self, arm: int | None = None) -> None:
+        """Remove the pushes of arm ``arm`` (every arm's when None)."""
+        if arm is None:
+            self._drop_pushes(np.zeros(self._p_row.size, dtype=bool))
+        else:
+            self._drop_pushes(self._p_row != self.row(arm))
+
+    def _drop_pushes(self, keep: np.ndarray) -> None:
+        self._p_row, self._p_link = self._p_row[keep], self._p_link[keep]
+        self._p_force, self._p_point = self._p_force[keep], self._p_point[keep]
+        self._p_until = self._p_until[keep]
+
+    def _link(self, link: int, name: str) -> int:
+        if isinstance(link, bool) or not isinstance(link, int | np.integer) or not (
+                0 <= int(link) < self.n):
+            raise ValueError(f"{name} must be an index 0..{self.n - 1}, got {link!r}")
+        return int(link)
+
+    # -- stepping ---------------------------------------------------------------------
+
+    def step(self) -> None:
+        """Advance every arm one ``dt``: firmware tick, then RK4 (Plant.step, over arms)."""
+        s = self._s
+        dt = self.dt
+        q, qd = s["q"], s["qd"]
+        self._tick(q, qd)
+        if self._p_row.size:
+            self._update_pushes(q)
+        deriv = self._derivative(q)
+        k1 = deriv(q, qd)
+        h = 0.5 * dt
+        q2 = q + h * qd
+        v2 = qd + h * k1
+        k2 = deriv(q2, v2)
+        q3 = q + h * v2
+        v3 = qd + h * k2
+        k3 = deriv(q3, v3)
+        q4 = q + dt * v3
+        v4 = qd + dt * k3
+        k4 = deriv(q4, v4)
+        sx = dt / 6.0
+        s["q"] = q + sx * (qd + 2.0 * (v2 + v3) + v4)
+        s["qd"] = qd + sx * (k1 + 2.0 * (k2 + k3) + k4)
+        self._k += 1
+        if not np.all(np.isfinite(s["qd"])):
+            bad = self._ids[~np.all(np.isfinite(s["qd"]), axis=0)].tolist()
+            raise FloatingPointError(f"arms {bad} diverged at t = {self.t:.3f} s")
+
+    def advance_to(self, t: float) -> int:
+        """Step until the plant time reaches ``t`` s (to within dt/2); returns the steps."""
+        target = scalar("t", t)
+        steps = 0
+        while (self._k + 0.5) * self.dt <= target:
+            self.step()
+            steps += 1
+        return steps
+
+    def _derivative(self, q0: np.ndarray):  # noqa: ANN202 - a closure over this step
+        """qdd(q, qd) (n, N) for this step: duties and pushes held, the rest re-evaluated."""
+        s = self._s
+        drive = self._dir * s["drive"]
+        damp = s["damping"] + self._viscous
+        coulomb = self._has_coulomb
+        cf, rvs = self._coulomb, self._rvs
+        push = s["push_tau"] if self._p_row.size else None
+        stops = None
+        if self.stops is not None:  # per arm, as Plant: only near a limit this step
+            near = (q0 < self._lower + 0.05) | (q0 > self._upper - 0.05)
+            if near.any():
+                stops = np.any(near, axis=0)
+        fd, g, arm = self._dyn.fd, self._gravity, self._armature
+
+        def deriv(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+            tau = drive - damp * qd
+            if coulomb:
+                tau = tau - cf * np.tanh(qd * rvs)
+            if stops is not None:
+                tau = tau + np.where(stops, self._stop_torques(q, qd), 0.0)
+            if push is not None:
+                tau = tau + push
+            return fd(q, qd, tau, g, arm)
+
+        return deriv
+
+    def _stop_torques(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """(n, N) joint-stop torques: spring beyond a limit, damping going further."""
+        st = self.stops
+        assert st is not None
+        k, c = st.stiffness, st.damping
+        lo, hi = self._lower, self._upper
+        below = k * (lo - q) - np.where(qd < 0, c * qd, 0.0)
+        above = k * (hi - q) - np.where(qd > 0, c * qd, 0.0)
+        return np.where(q < lo, below, np.where(q > hi, above, 0.0))
+
+    def _update_pushes(self, q: np.ndarray) -> None:
+        """Drop expired pushes; J^T F of the rest at the step's start (held over the step)."""
+        now = self.t
+        keep = self._p_until > now + 1e-12
+        if not keep.all():
+            self._drop_pushes(keep)
+        tau = np.zeros_like(q)
+        self._s["push_tau"] = tau
+        if not self._p_row.size:
+            return
+        rows, links = self._p_row, self._p_link
+        fr = self._dyn.frames(q[:, rows])  # (12 n, P)
+        P = rows.size
+        idx = np.arange(P)
+        o = 12 * links
+        px, py, pz = self._p_point.T
+        f0, f1, f2 = self._p_force.T
+        p = [fr[o, idx] * px + fr[o + 1, idx] * py + fr[o + 2, idx] * pz + fr[o + 9, idx],
+             fr[o + 3, idx] * px + fr[o + 4, idx] * py + fr[o + 5, idx] * pz + fr[o + 10, idx],
+             fr[o + 6, idx] * px + fr[o + 7, idx] * py + fr[o + 8, idx] * pz + fr[o + 11, idx]]
+        for j in range(self.n):
+            a = self._axes[j]
+            b = 12 * j
+            z = (fr[b] * a[0] + fr[b + 1] * a[1] + fr[b + 2] * a[2],
+                 fr[b + 3] * a[0] + fr[b + 4] * a[1] + fr[b + 5] * a[2],
+                 fr[b + 6] * a[0] + fr[b + 7] * a[1] + fr[b + 8] * a[2])
+            rx, ry, rz = p[0] - fr[b + 9], p[1] - fr[b + 10], p[2] - fr[b + 11]
+            c0, c1, c2 = z[1] * rz - z[2] * ry, z[2] * rx - z[0] * rz, z[0] * ry - z[1] * rx
+            contrib = np.where(j <= links, c0 * f0 + c1 * f1 + c2 * f2, 0.0)
+            np.add.at(tau[j], rows, contrib)  # in push order, as Plant's loop adds them
+
+    def _tick(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """One firmware tick of every servo (ServoModel.update over (n, N); thesis §2.3)."""
+        s, r, dt = self._s, self._r, self.dt
+        angle = self._dir * q
+        velocity = self._dir * qd
+        s["velocity"] = velocity
+        present = np.rint(512.0 + angle * self._cpr)
+        present = np.clip(present, 0.0, 1023.0).astype(np.int64)
+        s["present"] = present
+        torque_limit = r["torque_limit"] & 0x3FF
+        shutdown, overload, stall = s["shutdown"], s["overload"], s["stall"]
+        te = r["torque_enable"] != 0
+        recovered = shutdown & (torque_limit > 0) & te
+        if recovered.any():  # Torque Limit and Torque Enable written again
+            shutdown = shutdown & ~recovered
+            overload = overload & ~recovered
+            stall = np.where(recovered, 0.0, stall)
+        enabled = te & ~shutdown
+        sp = np.where(enabled & ~s["enabled"], present.astype(float), s["setpoint"])
+        cw, ccw = r["cw_angle_limit"] & 0x3FF, r["ccw_angle_limit"] & 0x3FF
+        goal = r["goal_position"] & 0x3FF
+        wheel = (cw == 0) & (ccw == 0)
+        # joint mode: the set-point moves towards the goal at Moving Speed
+        target = np.where(goal < cw, cw, np.where(goal > ccw, ccw, goal)).astype(float)
+        raw_speed = r["moving_speed"] & 0x3FF
+        step = raw_speed * self._cpsu * dt
+        up, down = sp + step, sp - step
+        moved = np.where(sp < target, np.where(up < target, up, target),
+                         np.where(down > target, down, target))
+        moved = np.where(sp == target, sp, moved)
+        sp = np.where(~enabled, present.astype(float), np.where(raw_speed == 0, target, moved))
+        # the compliance curve (hardware.servo.compliance_duty)
+        rsp = np.rint(sp).astype(np.int64)
+        error = rsp - present
+        pos = error > 0
+        margin = np.where(pos, r["ccw_compliance_margin"], r["cw_compliance_margin"])
+        slope = np.where(pos, r["ccw_compliance_slope"], r["cw_compliance_slope"])
+        err = np.abs(error)
+        punch = np.minimum(r["punch"], torque_limit)
+        level = punch + (err - margin) * (torque_limit - punch) / _SLOPES[slope & 0xFF]
+        duty = np.where(level > torque_limit, torque_limit, level) / 1023.0
+        duty = np.where(rsp < present, -duty, duty)
+        on = enabled & (torque_limit > 0) & (err > margin)
+        duty = np.where(on, duty, 0.0)
+        moving = (sp != target) | (np.abs(velocity) > self._speed_unit)
+        angle_error = ~((cw <= goal) & (goal <= ccw))
+        if wheel.any():  # wheel mode: Moving Speed is the PWM duty
+            wspeed = r["moving_speed"] & 0x7FF
+            wduty = np.minimum(wspeed & 0x3FF, torque_limit) / 1023.0
+            wduty = np.where(wspeed & DIRECTION_BIT != 0, -wduty, wduty)
+            duty = np.where(wheel, np.where(enabled, wduty, 0.0), duty)
+            sp = np.where(wheel, present.astype(float), sp)
+            moving = np.where(wheel, wspeed & 0x3FF != 0, moving)
+            angle_error = angle_error & ~wheel
+        # overload: full duty (at Torque Limit) without moving for overload_time
+        full = (torque_limit > 0) & (np.abs(duty) * 1023.0 >= torque_limit - 0.5)
+        check = full | (stall != 0.0)
+        if check.any():
+            stall = np.where(check, np.where(full & (np.abs(velocity) < self._stall_speed),
+                                             stall + dt, 0.0), stall)
+            overload = np.where(check, shutdown | (stall > self._overload_time), overload)
+            trip = check & overload & ~shutdown & (r["alarm_shutdown"] & ERROR_OVERLOAD != 0)
+            if trip.any():  # Alarm Shutdown: torque off, Torque Limit 0 until written again
+                shutdown = shutdown | trip
+                r["torque_enable"] = np.where(trip, 0, r["torque_enable"])
+                r["torque_limit"] = np.where(trip, 0, r["torque_limit"])
+                enabled = enabled & ~trip
+                duty = np.where(trip, 0.0, duty)
+        s["shutdown"], s["overload"], s["stall"] = shutdown, overload, stall
+        s["enabled"], s["setpoint"], s["duty"] = enabled, sp, duty
+        s["moving"], s["angle_error"] = moving, angle_error
+        nz = duty != 0.0
+        s["drive"] = np.where(nz, duty * self._stall_torque, 0.0)
+        s["damping"] = np.where(nz, self._backemf, 0.0)
+
+    # -- what the servos report ----------------------------------------------------------
+
+    def present_position(self) -> np.ndarray:
+        """(N, n) Present Position words 0..1023 (the last tick's 10-bit reading)."""
+        return self._s["present"].T.copy()
+
+    def present_speed(self) -> np.ndarray:
+        """(N, n) Present Speed words (0.111 rpm units, bit 10 = CW)."""
+        return signed_words(self._s["velocity"] / self._speed_unit).T
+
+    def present_load(self) -> np.ndarray:
+        """(N, n) Present Load words (the duty, 0..1023 of full torque, bit 10 = CW)."""
+        return signed_words(self._s["duty"] * 1023.0).T
+
+    def error(self) -> np.ndarray:
+        """(N, n) status error bytes (angle limit, overload)."""
+        return (np.where(self._s["angle_error"], ERROR_ANGLE_LIMIT, 0)
+                | np.where(self._s["overload"], ERROR_OVERLOAD, 0)).T
+
+    def moving(self) -> np.ndarray:
+        """(N, n) Moving register (0/1)."""
+        return self._s["moving"].astype(np.int64).T
+
+    def reports(self, arm: int) -> tuple[ServoReport, ...]:
+        """Arm ``arm``'s servo reports in joint order, as ``Plant.reports()`` gives them."""
+        r = self.row(arm)
+        pos, spd, load = self.present_position(), self.present_speed(), self.present_load()
+        err, mov = self.error(), self.moving()
+        return tuple(ServoReport(
+            position=int(pos[r, i]), speed=int(spd[r, i]), load=int(load[r, i]),
+            voltage=self._voltage[i], temperature=self._temperature[i], moving=int(mov[r, i]),
+            error=int(err[r, i]), torque_enable=int(self._r["torque_enable"][i, r]),
+            torque_limit=int(self._r["torque_limit"][i, r])) for i in range(self.n))

@@ -1,0 +1,146 @@
+"""The batched plant equals N single plants (issue 16 item 3): q, qd to 1e-9, raw words exactly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hardware.batched_plant import BatchedPlant
+from hardware.plant import Plant
+from hardware.servo_spec import RX24F
+from hardware.sim_backend import thesis_registers
+from kinematics import load_robot
+from kinematics.batched_dynamics import batched_dynamics
+from kinematics.dynamics import dynamics_model
+
+MODEL = load_robot("receptionist_arm")
+N = 5
+Q0 = [np.array([0.0, 0.3, 0.3]), np.array([0.2, -0.4, 1.0]), np.array([-0.5, 0.8, -0.6]),
+      np.array([1.0, 0.1, 0.2]), np.array([0.0, 1.4, 2.5])]  # the last one driven into its stops
+GOALS = [(0.5, 0.8, 1.0), (-0.3, 0.2, 0.4), (0.0, 0.0, 0.0), (1.2, -0.5, -1.0), (0.1, 2.0, 2.9)]
+SPEEDS = [(1.5, 1.5, 1.5), (0.0, 0.0, 0.0), (3.0, 0.5, 8.0), (0.2, 2.0, 0.0), (1.0, 1.0, 1.0)]
+#: per arm: (start step, force (3,) N, link, point (3,), duration s)
+PUSHES = [(100, (0.0, 5.0, 0.0), 2, (0.2, 0.0, 0.0), 0.3),
+          (250, (3.0, 0.0, -2.0), 1, (0.1, 0.0, 0.0), 0.2),
+          (400, (0.0, -4.0, 1.0), 2, (0.0, 0.0, 0.05), 0.5),
+          (50, (-2.0, 2.0, 2.0), 0, (0.0, 0.05, 0.0), 0.1),
+          (600, (0.0, 3.0, 0.0), 2, (0.15, 0.0, 0.0), 0.2)]
+
+
+def _registers(i: int) -> list:
+    """Thesis registers with a different goal, speed, gains and torque per arm (arm 2 off)."""
+    regs = []
+    for j in range(3):
+        r = thesis_registers(RX24F, goal=RX24F.position_to_raw(GOALS[i][j]), cw_limit=0,
+                             ccw_limit=1023, torque_on=i != 2)
+        r.moving_speed = RX24F.speed_to_raw(SPEEDS[i][j]) if SPEEDS[i][j] else 0
+        r.cw_compliance_margin = r.ccw_compliance_margin = i % 3
+        r.cw_compliance_slope, r.ccw_compliance_slope = 16 << (i % 3), 32 << (j % 2)
+        r.punch = 32 + 20 * i
+        r.torque_limit = 1023 - 150 * i
+        regs.append(r)
+    return regs
+
+
+def _pair() -> tuple[list[Plant], BatchedPlant]:
+    singles = [Plant(MODEL, RX24F, q0=Q0[i], registers=_registers(i)) for i in range(N)]
+    batch = BatchedPlant(MODEL, RX24F)
+    for i in range(N):
+        assert batch.add_arm(q0=Q0[i], registers=_registers(i)) == i
+    return singles, batch
+
+
+def _words(plant: Plant) -> np.ndarray:
+    return np.array([(r.position, r.speed, r.load, r.error, r.moving, r.torque_enable,
+                      r.torque_limit) for r in plant.reports()])
+
+
+def _batch_words(batch: BatchedPlant, arm: int) -> np.ndarray:
+    return np.array([(r.position, r.speed, r.load, r.error, r.moving, r.torque_enable,
+                      r.torque_limit) for r in batch.reports(arm)])
+
+
+def test_generated_dynamics_over_arms_equal_the_float_path() -> None:
+    rng = np.random.default_rng(3)
+    q, qd, tau = (rng.uniform(-2.5, 2.5, (3, 40)) for _ in range(3))
+    g, arm = [float(x) for x in MODEL.gravity], [3e-3] * 3
+    fd = batched_dynamics(MODEL).fd(q, qd, tau, g, arm)
+    one = dynamics_model(MODEL)
+    ref = np.array([one.fd(list(q[:, k]), list(qd[:, k]), list(tau[:, k]), g, arm)
+                    for k in range(40)]).T
+    assert np.array_equal(fd, ref)
+
+
+def test_batched_plant_equals_n_single_plants_over_one_second() -> None:
+    singles, batch = _pair()
+    worst = 0.0
+    for k in range(1000):
+        for i, (start, f, link, point, duration) in enumerate(PUSHES):
+            if k == start:
+                singles[i].push(np.array(f), link=link, point=np.array(point),
+                                duration=duration)
+                batch.push(i, np.array(f), link=link, point=np.array(point), duration=duration)
+        if k == 700:  # a goal write mid-run, arm 1 only, as SimBackend.write does
+            singles[1].servos[0].regs.goal_position = 300
+            batch.set_registers(1, 0, goal_position=300)
+        for p in singles:
+            p.step()
+        batch.step()
+        q, qd = batch.q, batch.qd
+        for i, p in enumerate(singles):
+            worst = max(worst, float(np.max(np.abs(q[i] - p.q))),
+                        float(np.max(np.abs(qd[i] - p.qd))))
+            assert np.array_equal(_batch_words(batch, i), _words(p)), (k, i)
+    assert worst <= 1e-9
+    assert batch.t == pytest.approx(singles[0].t)
+    moved = np.abs(batch.q - np.array(Q0))
+    assert np.all(moved.max(axis=1) > 0.05)  # every arm really moved (torque off: it fell)
+
+
+def test_adding_and_removing_an_arm_leaves_the_others_unchanged() -> None:
+    _, ref = _pair()
+    _, batch = _pair()
+    for k in range(300):
+        if k == 100:
+            extra = batch.add_arm(q0=np.array([0.3, 0.3, 0.3]), registers=_registers(4))
+            batch.push(extra, np.array([0.0, 9.0, 0.0]), link=2, point=np.zeros(3),
+                       duration=0.5)
+            batch.remove_arm(1)
+            ref.remove_arm(1)
+        if k == 200:
+            batch.remove_arm(extra)
+        ref.step()
+        batch.step()
+    assert batch.arm_ids.tolist() == [0, 2, 3, 4]
+    assert np.array_equal(batch.q, ref.q)
+    assert np.array_equal(batch.qd, ref.qd)
+    assert np.array_equal(batch.present_position(), ref.present_position())
+
+
+def test_vectorised_goal_writes_reach_the_servos() -> None:
+    batch = BatchedPlant(MODEL, RX24F, 3, registers=_registers(0))
+    goals = np.full((3, 3), 600, dtype=np.int64)
+    batch.set_goals(goals, np.full((3, 3), 0, dtype=np.int64))
+    batch.set_torque_enable(np.array([True, False, True]))
+    batch.advance_to(0.3)
+    assert batch.register("goal_position").tolist() == goals.tolist()
+    pos = batch.present_position()
+    assert np.all(np.abs(pos[[0, 2]] - 600) < 30) and np.all(np.abs(pos[1] - 600) > 30)
+
+
+def test_bad_input_raises_naming_the_argument() -> None:
+    batch = BatchedPlant(MODEL, RX24F, 2)
+    with pytest.raises(ValueError, match="force_base"):
+        batch.push(0, np.array([np.nan, 0.0, 0.0]), link=1, point=np.zeros(3), duration=0.1)
+    with pytest.raises(ValueError, match="link"):
+        batch.push(0, np.ones(3), link=3, point=np.zeros(3), duration=0.1)
+    with pytest.raises(ValueError, match="arm"):
+        batch.push(2, np.ones(3), link=0, point=np.zeros(3), duration=0.1)
+    with pytest.raises(ValueError, match="arm"):
+        batch.remove_arm(-1)
+    with pytest.raises(ValueError, match="duration"):
+        batch.push(0, np.ones(3), link=0, point=np.zeros(3), duration=-1.0)
+    with pytest.raises(ValueError, match="values"):
+        batch.set_goals(np.zeros((3, 3), dtype=np.int64))
+    with pytest.raises(ValueError, match="n_arms"):
+        BatchedPlant(MODEL, RX24F, -1)
