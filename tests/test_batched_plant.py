@@ -5,10 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from control.backend import JointState
+from control.batched import BatchedController, BatchedGains, BatchedState
+from control.compliance import ComplianceController, ControllerState
+from control.loop import ControlLoop
+from control.params import Params
 from hardware.batched_plant import BatchedPlant
+from hardware.batched_sim import ClassroomSim
 from hardware.plant import Plant
 from hardware.servo_spec import RX24F
-from hardware.sim_backend import thesis_registers
+from hardware.sim_backend import SimBackend, thesis_registers
 from kinematics import load_robot
 from kinematics.batched_dynamics import batched_dynamics
 from kinematics.dynamics import dynamics_model
@@ -144,3 +150,63 @@ def test_bad_input_raises_naming_the_argument() -> None:
         batch.set_goals(np.zeros((3, 3), dtype=np.int64))
     with pytest.raises(ValueError, match="n_arms"):
         BatchedPlant(MODEL, RX24F, -1)
+
+
+# -- the batched controller and the class step -------------------------------------------
+
+PARAMS = [Params(), Params(kp=40.0, kv=9.0, k_env=8.0, feedforward=False),
+          Params(kp=10.0, kv=3.0, compliance=False), Params(kp=30.0, law="2.26", k_f=1.0),
+          Params(kp=20.0, kv=6.0, alpha=0.2, m_env=0.5, d_env=3.0)]
+
+
+def test_batched_controller_equals_compliance_controller_per_arm() -> None:
+    rng = np.random.default_rng(7)
+    lower, upper = MODEL.lower, MODEL.upper
+    one = ComplianceController(lower, upper, 3.0)
+    batch = BatchedController(lower, upper, 3.0)
+    q0 = rng.uniform(-1.0, 1.0, (N, 3))
+    states = [ControllerState.at_rest(q0[i]) for i in range(N)]
+    bstate = BatchedState.at_rest(q0)
+    gains = BatchedGains.of(PARAMS)
+    for _ in range(50):
+        args = [rng.uniform(-1.5, 1.5, (N, 3)) for _ in range(7)]  # cmd x3, q, qd, load, tau
+        q_ref, qd_ref = batch.step(gains, bstate, *args)
+        for i in range(N):
+            meas = JointState(0.0, args[3][i], args[4][i], args[5][i], (0,) * 3, (True,) * 3)
+            r, rd = one.step(PARAMS[i], states[i], args[0][i], args[1][i], args[2][i], meas,
+                             args[6][i])
+            assert np.max(np.abs(q_ref[i] - r)) <= 1e-9
+            assert np.max(np.abs(qd_ref[i] - rd)) <= 1e-9
+            for name in ("q_env", "qdd_ref", "tau_lpf", "tau_ext"):
+                assert np.max(np.abs(getattr(bstate, name)[i] - getattr(states[i], name))) \
+                    <= 1e-9
+
+
+def test_class_step_equals_control_loops_on_sim_backends() -> None:
+    sim = ClassroomSim(MODEL)
+    loops = []
+    for i in range(N):
+        q0 = np.clip(Q0[i], sim.lower, sim.upper)
+        loops.append(ControlLoop(MODEL, SimBackend(MODEL, q0=q0), PARAMS[i], realtime=False))
+        assert sim.add_arm(q0=q0, params=PARAMS[i]) == i
+    worst = 0.0
+    for k in range(63):  # 1 s of 16 ms periods
+        for i, (start, f, link, point, duration) in enumerate(PUSHES):
+            if k == start // 16:
+                loops[i].backend.plant.push(np.array(f), link=link, point=np.array(point),
+                                            duration=duration)
+                sim.plant.push(i, np.array(f), link=link, point=np.array(point),
+                               duration=duration)
+        for loop in loops:
+            loop.step()
+        sim.step()
+        q = sim.plant.q
+        for i, loop in enumerate(loops):
+            assert loop.status.fault is None
+            worst = max(worst, float(np.max(np.abs(q[i] - loop.backend.plant.q))))
+            regs = sim.plant.registers(i)
+            for j, servo in enumerate(loop.backend.plant.servos):
+                assert regs[j].goal_position == servo.regs.goal_position, (k, i, j)
+                assert regs[j].moving_speed == servo.regs.moving_speed, (k, i, j)
+    assert worst <= 1e-9
+    assert not sim.faulted.any()
