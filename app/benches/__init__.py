@@ -15,8 +15,8 @@ import time
 from collections.abc import Callable
 
 #: The bench modules ``armlab bench`` runs (adding one: add its name here).
-BENCHES: tuple[str, ...] = ("bus", "control", "dynamics", "flood", "hand", "kinematics", "seeds",
-                            "ui")
+BENCHES: tuple[str, ...] = ("bus", "classroom", "control", "dynamics", "flood", "hand",
+                            "kinematics", "seeds", "ui")
 
 
 def median_us(fn: Callable[[], object], *, repeat: int = 2000, warmup: int = 50) -> float:
