@@ -414,35 +414,41 @@ class BatchedPlant:
         return np.where(q < lo, below, np.where(q > hi, above, 0.0))
 
     def _update_pushes(self, q: np.ndarray) -> None:
-        """Drop expired pushes; J^T F of the rest at the step's start (held over the step)."""
+        """Drop expired pushes; J^T F of the rest at the step's start (held over the step).
+
+        Per push (P of them, on the arms' rows ``_p_row``): the point's base-frame position
+        p = R_link · point + o_link and, for every joint j <= link, the column
+        z_j × (p − o_j) of its Jacobian (thesis eq. 3.17), dotted with F; the columns of
+        one arm's pushes add up in the order they were given (as Plant's loop)."""
         now = self.t
         keep = self._p_until > now + 1e-12
         if not keep.all():
             self._drop_pushes(keep)
-        tau = np.zeros_like(q)
-        self._s["push_tau"] = tau
+        n_arms = q.shape[1]
         if not self._p_row.size:
+            self._s["push_tau"] = np.zeros_like(q)
             return
         rows, links = self._p_row, self._p_link
-        fr = self._dyn.frames(q[:, rows])  # (12 n, P)
         P = rows.size
-        idx = np.arange(P)
-        o = 12 * links
+        fr = self._dyn.frames(q[:, rows]).reshape(self.n, 12, P)  # per link R (9), o (3)
+        lf = fr[links, :, np.arange(P)].T  # (12, P): the pushed link's frame
         px, py, pz = self._p_point.T
         f0, f1, f2 = self._p_force.T
-        p = [fr[o, idx] * px + fr[o + 1, idx] * py + fr[o + 2, idx] * pz + fr[o + 9, idx],
-             fr[o + 3, idx] * px + fr[o + 4, idx] * py + fr[o + 5, idx] * pz + fr[o + 10, idx],
-             fr[o + 6, idx] * px + fr[o + 7, idx] * py + fr[o + 8, idx] * pz + fr[o + 11, idx]]
+        p0 = lf[0] * px + lf[1] * py + lf[2] * pz + lf[9]
+        p1 = lf[3] * px + lf[4] * py + lf[5] * pz + lf[10]
+        p2 = lf[6] * px + lf[7] * py + lf[8] * pz + lf[11]
+        tau = np.empty_like(q)
         for j in range(self.n):
-            a = self._axes[j]
-            b = 12 * j
-            z = (fr[b] * a[0] + fr[b + 1] * a[1] + fr[b + 2] * a[2],
-                 fr[b + 3] * a[0] + fr[b + 4] * a[1] + fr[b + 5] * a[2],
-                 fr[b + 6] * a[0] + fr[b + 7] * a[1] + fr[b + 8] * a[2])
-            rx, ry, rz = p[0] - fr[b + 9], p[1] - fr[b + 10], p[2] - fr[b + 11]
-            c0, c1, c2 = z[1] * rz - z[2] * ry, z[2] * rx - z[0] * rz, z[0] * ry - z[1] * rx
+            a0, a1, a2 = self._axes[j]
+            b = fr[j]
+            z0 = b[0] * a0 + b[1] * a1 + b[2] * a2
+            z1 = b[3] * a0 + b[4] * a1 + b[5] * a2
+            z2 = b[6] * a0 + b[7] * a1 + b[8] * a2
+            rx, ry, rz = p0 - b[9], p1 - b[10], p2 - b[11]
+            c0, c1, c2 = z1 * rz - z2 * ry, z2 * rx - z0 * rz, z0 * ry - z1 * rx
             contrib = np.where(j <= links, c0 * f0 + c1 * f1 + c2 * f2, 0.0)
-            np.add.at(tau[j], rows, contrib)  # in push order, as Plant's loop adds them
+            tau[j] = np.bincount(rows, weights=contrib, minlength=n_arms)  # in push order
+        self._s["push_tau"] = tau
 
     def _tick(self, q: np.ndarray, qd: np.ndarray) -> None:
         """One firmware tick of every servo (ServoModel.update over (n, N); thesis §2.3)."""
