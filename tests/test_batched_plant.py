@@ -13,6 +13,7 @@ from control.params import Params
 from hardware.batched_plant import BatchedPlant
 from hardware.batched_sim import ClassroomSim
 from hardware.plant import Plant
+from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD
 from hardware.servo_spec import RX24F
 from hardware.sim_backend import SimBackend, thesis_registers
 from kinematics import load_robot
@@ -210,3 +211,45 @@ def test_class_step_equals_control_loops_on_sim_backends() -> None:
                 assert regs[j].moving_speed == servo.regs.moving_speed, (k, i, j)
     assert worst <= 1e-9
     assert not sim.faulted.any()
+
+
+def test_overload_shutdown_wheel_mode_and_angle_limit_as_single_plants() -> None:
+    """Firmware corners: an arm held in its stop at Torque Limit trips the overload alarm
+    (Alarm Shutdown) and recovers when Torque Limit and Torque Enable are written again;
+    an arm in wheel mode (CW = CCW angle limit 0); a goal outside the angle limits."""
+    def regs(i: int) -> list:
+        out = []
+        for j in range(3):
+            r = thesis_registers(RX24F, goal=1000 if j == 1 else 512, cw_limit=0,
+                                 ccw_limit=1023)
+            if i == 0:
+                r.torque_limit = 400
+            elif i == 1 and j == 0:
+                r.cw_angle_limit = r.ccw_angle_limit = 0
+                r.moving_speed = 300 | 1024
+            elif i == 2:
+                r.cw_angle_limit, r.ccw_angle_limit = 300, 700
+            out.append(r)
+        return out
+
+    q0 = np.array([0.0, 1.4, 0.0])
+    singles = [Plant(MODEL, RX24F, q0=q0, registers=regs(i)) for i in range(3)]
+    batch = BatchedPlant(MODEL, RX24F)
+    for i in range(3):
+        batch.add_arm(q0=q0, registers=regs(i))
+    tripped = False
+    for k in range(2600):
+        if k == 2400:  # the user recovers arm 0's servos
+            for servo in singles[0].servos:
+                servo.regs.torque_limit, servo.regs.torque_enable = 400, 1
+            batch.set_registers(0, torque_limit=400, torque_enable=1)
+        for p in singles:
+            p.step()
+        batch.step()
+        for i, p in enumerate(singles):
+            assert np.array_equal(_batch_words(batch, i), _words(p)), (k, i)
+        tripped = tripped or bool(batch.reports(0)[1].error & ERROR_OVERLOAD)
+    assert tripped
+    assert np.max(np.abs(batch.q - np.array([p.q for p in singles]))) <= 1e-9
+    assert np.max(np.abs(batch.qd - np.array([p.qd for p in singles]))) <= 1e-9
+    assert batch.reports(2)[1].error & ERROR_ANGLE_LIMIT  # goal 1000 outside CCW limit 700
