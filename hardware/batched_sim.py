@@ -76,6 +76,7 @@ class ClassroomSim:
         self.state = BatchedState.at_rest(np.zeros((0, n)))
         self._cmd = np.zeros((0, n))
         self._started = np.zeros(0, dtype=bool)
+        self._commanded = np.zeros(0, dtype=bool)  # a command given before the first period
         self.faulted = np.zeros(0, dtype=bool)
         self._k = 0
 
@@ -105,6 +106,7 @@ class ClassroomSim:
         self.state = self.state.append(BatchedState.at_rest(q.reshape(1, n)))
         self._cmd = np.vstack([self._cmd, q.reshape(1, n)])
         self._started = np.append(self._started, False)
+        self._commanded = np.append(self._commanded, False)
         self.faulted = np.append(self.faulted, False)
         return arm
 
@@ -117,6 +119,7 @@ class ClassroomSim:
         self.state = self.state.delete(r)
         self._cmd = np.delete(self._cmd, r, axis=0)
         self._started = np.delete(self._started, r)
+        self._commanded = np.delete(self._commanded, r)
         self.faulted = np.delete(self.faulted, r)
 
     def set_params(self, arm: int, params: Params) -> None:
@@ -126,14 +129,17 @@ class ClassroomSim:
         self._gains = BatchedGains.of(self._params)
 
     def set_command(self, arm: int, q_cmd: np.ndarray) -> None:
-        """Arm ``arm`` holds ``q_cmd`` (n,) rad (clamped into the limits) from now on."""
-        self._cmd[self.plant.row(arm)] = np.clip(vector("q_cmd", q_cmd, self.model.n),
-                                                 self.lower, self.upper)
+        """Arm ``arm`` holds ``q_cmd`` (n,) rad (clamped into the limits) from now on (given
+        before the arm's first period, it replaces the hold of where the arm starts)."""
+        r = self.plant.row(arm)
+        self._cmd[r] = np.clip(vector("q_cmd", q_cmd, self.model.n), self.lower, self.upper)
+        self._commanded[r] = True
 
     def reset(self, arm: int) -> None:
         """Arm ``arm`` holds where it is at its next period, torque on, fault cleared."""
         r = self.plant.row(arm)
         self._started[r] = False
+        self._commanded[r] = False
         self.faulted[r] = False
 
     def _check_params(self, params: Params) -> None:
@@ -177,7 +183,7 @@ class ClassroomSim:
             rows = np.flatnonzero(fresh)
             hold = np.clip(q[rows], self.lower, self.upper)
             self.state.put(rows, BatchedState.at_rest(hold, load[rows]))
-            self._cmd[rows] = hold
+            self._cmd[rows] = np.where(self._commanded[rows, None], self._cmd[rows], hold)
             limit = self.plant.register("torque_limit")[rows]  # SimBackend.set_torque(True)
             self.plant.write_registers("torque_limit", np.where(limit == 0, 1023, limit), rows)
             self.plant.set_torque_enable(True, rows)

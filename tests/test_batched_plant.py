@@ -253,3 +253,47 @@ def test_overload_shutdown_wheel_mode_and_angle_limit_as_single_plants() -> None
     assert np.max(np.abs(batch.q - np.array([p.q for p in singles]))) <= 1e-9
     assert np.max(np.abs(batch.qd - np.array([p.qd for p in singles]))) <= 1e-9
     assert batch.reports(2)[1].error & ERROR_ANGLE_LIMIT  # goal 1000 outside CCW limit 700
+
+
+def test_a_student_joining_leaving_or_failing_leaves_the_others_unchanged() -> None:
+    def start() -> ClassroomSim:
+        sim = ClassroomSim(MODEL)
+        for i in range(3):
+            sim.add_arm(q0=np.clip(Q0[i], sim.lower, sim.upper), params=PARAMS[i])
+        return sim
+
+    ref, sim = start(), start()
+    for k in range(40):
+        if k == 5:
+            wild = sim.add_arm(q0=np.array([-2.0, 0.3, 0.3]), params=Params(kp=200.0, kv=0.0))
+            gone = sim.add_arm(params=PARAMS[4])
+            sim.set_command(wild, np.array([2.5, 0.3, 0.3]))  # hard gains, a big step
+        if k == 20:
+            sim.remove_arm(gone)
+        if k == 10:
+            for s in (ref, sim):
+                s.set_command(1, np.array([-0.2, 0.4, 0.6]))
+        ref.step()
+        sim.step()
+    assert sim.plant.arm_ids.tolist() == [0, 1, 2, 3]
+    assert sim.faulted.tolist() == [False, False, False, True]  # the wild arm, alone
+    assert sim.plant.register("torque_enable")[3].tolist() == [0, 0, 0]
+    assert np.array_equal(sim.plant.q[:3], ref.plant.q)
+    sim.reset(wild)
+    sim.step()
+    assert not sim.faulted.any() and sim.plant.register("torque_enable")[3].tolist() == [1] * 3
+
+
+def test_class_bad_input_raises_naming_the_argument() -> None:
+    sim = ClassroomSim(MODEL)
+    arm = sim.add_arm()
+    with pytest.raises(ValueError, match="params"):
+        sim.add_arm(params=Params(period=0.01))
+    with pytest.raises(ValueError, match="q_cmd"):
+        sim.set_command(arm, np.array([np.nan, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="arm"):
+        sim.set_command(arm + 1, np.zeros(3))
+    with pytest.raises(ValueError, match="q0"):
+        sim.add_arm(q0=np.zeros(2))
+    with pytest.raises(ValueError, match="params"):
+        BatchedGains.of([Params(), Params(period=0.02)])
