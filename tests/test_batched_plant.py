@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.classroom_sim import ClassroomSim
 from control.backend import JointState
 from control.batched import BatchedController, BatchedGains, BatchedState
 from control.compliance import ComplianceController, ControllerState
 from control.loop import ControlLoop
 from control.params import Params
 from hardware.batched_plant import BatchedPlant
-from hardware.batched_sim import ClassroomSim
 from hardware.plant import Plant
 from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD
 from hardware.servo_spec import RX24F

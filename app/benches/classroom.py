@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
+from app.classroom_sim import ClassroomSim
 from control.params import Params
-from hardware.batched_sim import ClassroomSim
 from kinematics import load_robot
 
 SIZES = (50, 100, 200)

@@ -1,8 +1,10 @@
 """A class of private simulated arms: one :class:`BatchedPlant` + one :class:`BatchedController`.
 
-The glue between the batched controller (``control.batched``) and the batched plant,
-which is what :class:`control.loop.ControlLoop` over a :class:`hardware.sim_backend.SimBackend`
-does for one arm, done for N arms in one pass. One :meth:`ClassroomSim.step` is one
+The glue between the batched controller (``control.batched``) and the batched plant
+(``hardware.batched_plant``); it lives in ``app`` because it joins the two (control never
+imports hardware, hardware imports only ``control.backend`` of control). It does what
+:class:`control.loop.ControlLoop` over a :class:`hardware.sim_backend.SimBackend` does for
+one arm, for N arms in one pass. One :meth:`ClassroomSim.step` is one
 control period T of every arm (``ControlLoop._period``):
 
 1. the plant integrates up to the period's start (``SimBackend.sync``: T / dt plant steps);
