@@ -275,19 +275,28 @@ class BatchedPlant:
             self._r[k][j, r] = int(v)
 
     def write_registers(self, name: str, values: np.ndarray,
-                        rows: np.ndarray | None = None) -> None:
+                        rows: Sequence[int] | None = None) -> None:
         """Vectorised WRITE: register ``name`` := ``values`` (N, n) raw ints, or (len(rows), n)
         for the arm rows ``rows`` only (e.g. Goal Position and Moving Speed of every arm)."""
         if name not in self._r:
             raise ValueError(f"name must be a register ({', '.join(REGISTERS)}), got {name!r}")
         v = np.asarray(values)
-        cols = slice(None) if rows is None else np.asarray(rows, dtype=np.int64)
-        want = (self.n_arms if rows is None else len(np.atleast_1d(cols)), self.n)
+        cols = self._rows(rows)
+        want = (self.n_arms if rows is None else int(np.size(cols)), self.n)
         if v.shape != want or not np.issubdtype(v.dtype, np.integer):
             raise ValueError(f"values must be integers of shape {want}, got {v.dtype} {v.shape}")
         if v.size and (v.min() < 0 or v.max() > 0xFFFF):
             raise ValueError("values must be raw register values 0..65535")
         self._r[name][:, cols] = v.T
+
+    def set_goal(self, arm: int, goal_position: Sequence[int],
+                 moving_speed: Sequence[int] | None = None) -> None:
+        """Goal Position (n,) raw and optionally Moving Speed (n,) raw of arm ``arm`` (what
+        ``SimBackend.write`` writes for one arm)."""
+        r = self.row(arm)
+        self.write_registers("goal_position", np.asarray(goal_position).reshape(1, -1), [r])
+        if moving_speed is not None:
+            self.write_registers("moving_speed", np.asarray(moving_speed).reshape(1, -1), [r])
 
     def set_goals(self, goal_position: np.ndarray, moving_speed: np.ndarray | None = None,
                   ) -> None:
@@ -296,11 +305,26 @@ class BatchedPlant:
         if moving_speed is not None:
             self.write_registers("moving_speed", moving_speed)
 
-    def set_torque_enable(self, on: np.ndarray | bool, rows: np.ndarray | None = None) -> None:
-        """Torque Enable of every joint of every arm (or of ``rows``): ``on`` a bool or
-        (N,) / (len(rows),) bools."""
-        cols = slice(None) if rows is None else np.asarray(rows, dtype=np.int64)
-        self._r["torque_enable"][:, cols] = np.asarray(on, dtype=bool).astype(np.int64)
+    def set_torque_enable(self, on: np.ndarray | bool, rows: Sequence[int] | None = None,
+                          ) -> None:
+        """Torque Enable of every joint of every arm (or of the arm rows ``rows``): ``on`` one
+        bool, or (N,) / (len(rows),) bools, one per arm."""
+        cols = self._rows(rows)
+        count = self.n_arms if rows is None else int(np.size(cols))
+        flags = np.asarray(on)
+        if flags.dtype != np.bool_ or flags.shape not in ((), (count,)):
+            raise ValueError(f"on must be a bool or ({count},) bools, got {flags.dtype} "
+                             f"{flags.shape}")
+        self._r["torque_enable"][:, cols] = flags.astype(np.int64)
+
+    def _rows(self, rows: Sequence[int] | None) -> slice | np.ndarray:
+        if rows is None:
+            return slice(None)
+        r = np.asarray(rows)
+        if r.ndim != 1 or (r.size and (not np.issubdtype(r.dtype, np.integer)
+                                       or r.min() < 0 or r.max() >= self.n_arms)):
+            raise ValueError(f"rows must be row indices 0..{self.n_arms - 1}, got {rows!r}")
+        return r.astype(np.int64)
 
     # -- external forces (base frame) --------------------------------------------------
 

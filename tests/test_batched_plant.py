@@ -297,3 +297,20 @@ def test_class_bad_input_raises_naming_the_argument() -> None:
         sim.add_arm(q0=np.zeros(2))
     with pytest.raises(ValueError, match="params"):
         BatchedGains.of([Params(), Params(period=0.02)])
+
+
+def test_per_arm_writes_and_an_empty_class() -> None:
+    batch = BatchedPlant(MODEL, RX24F, 2, registers=_registers(0))
+    batch.set_goal(1, [100, 200, 300], [5, 6, 7])
+    assert batch.registers(1)[2].goal_position == 300 and batch.registers(1)[0].moving_speed == 5
+    assert batch.registers(0)[2].goal_position != 300
+    with pytest.raises(ValueError, match="rows"):
+        batch.write_registers("goal_position", np.zeros((1, 3), dtype=np.int64), [2])
+    with pytest.raises(ValueError, match="on"):
+        batch.set_torque_enable(np.array([1, 0]))
+    with pytest.raises(ValueError, match="name"):
+        batch.register("goal")
+    empty = ClassroomSim(MODEL)
+    empty.step()
+    empty.step()
+    assert empty.plant.q.shape == (0, 3) and empty.t == pytest.approx(0.032)
