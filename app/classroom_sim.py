@@ -18,9 +18,11 @@ control period T of every arm (``ControlLoop._period``):
 
 Each arm holds a command ``θ_cmd`` (:meth:`set_command`; θ̇_cmd = θ̈_cmd = 0), as the
 loop's hold (no trajectories or targets here). The loop's run-time checks become a
-per-arm fault: a non-finite goal, a reference acceleration above ``max_accel`` or a
-reference speed at the joint's limit switches that arm's torque off (``faulted``)
-until :meth:`reset`. Not batched: the lag check, trajectories, RMRC targets, recording.
+per-arm fault: a servo error, a non-finite goal, a reference acceleration above
+``max_accel``, a reference speed at the joint's limit or a joint lagging its reference by
+more than ``max_lag`` for ``lag_time`` switches that arm's torque off (``faulted``,
+:meth:`fault` says why) until :meth:`reset`. Not batched: trajectories, RMRC targets,
+recording, e-stop of the whole class.
 """
 
 from __future__ import annotations
@@ -53,12 +55,14 @@ class ClassroomSim:
         spec: every joint's servo (default RX-24F).
         dt: plant step, s. period: control period T, s (a multiple of dt; default the
             default Params' 16 ms); every arm's Params must have it.
-        params: ServoParams of every joint. max_accel: rad/s², as ControlLoop's.
+        params: ServoParams of every joint.
+        max_accel, max_lag, lag_time: the run-time checks, as ControlLoop's.
     """
 
     def __init__(self, model: SerialChain, spec: ServoSpec = RX24F, *, dt: float = 1e-3,
                  period: float = DEFAULT.period, params: ServoParams | None = None,
-                 max_accel: float = 500.0) -> None:
+                 max_accel: float = 500.0, max_lag: float = 0.5,
+                 lag_time: float = 0.5) -> None:
         n = model.n
         self.model = model
         self.spec = spec
@@ -70,6 +74,8 @@ class ClassroomSim:
         vel = np.array([j.velocity for j in model.joints], dtype=float)
         self.max_speed = np.where(np.isfinite(vel) & (vel > 0), vel, DEFAULT_MAX_SPEED)
         self.max_accel = float(max_accel)
+        self.max_lag = float(max_lag)
+        self.lag_time = float(lag_time)
         self.controller = BatchedController(self.lower, self.upper, self.max_speed)
         self._ends = [sorted(spec.position_to_raw(x) for x in (self.lower[i], self.upper[i]))
                       for i in range(n)]
@@ -79,7 +85,9 @@ class ClassroomSim:
         self._cmd = np.zeros((0, n))
         self._started = np.zeros(0, dtype=bool)
         self._commanded = np.zeros(0, dtype=bool)  # a command given before the first period
-        self.faulted = np.zeros(0, dtype=bool)
+        self.faulted = np.zeros(0, dtype=bool)  #: (N,) torque off by a fault until a reset
+        self._why: list[str] = []
+        self._lag = np.zeros(0)  # s each arm has lagged its reference by more than max_lag
         self._k = 0
 
     @property
@@ -110,6 +118,8 @@ class ClassroomSim:
         self._started = np.append(self._started, False)
         self._commanded = np.append(self._commanded, False)
         self.faulted = np.append(self.faulted, False)
+        self._why.append("")
+        self._lag = np.append(self._lag, 0.0)
         return arm
 
     def remove_arm(self, arm: int) -> None:
@@ -123,6 +133,8 @@ class ClassroomSim:
         self._started = np.delete(self._started, r)
         self._commanded = np.delete(self._commanded, r)
         self.faulted = np.delete(self.faulted, r)
+        del self._why[r]
+        self._lag = np.delete(self._lag, r)
 
     def set_params(self, arm: int, params: Params) -> None:
         """Arm ``arm``'s gains from the next period on."""
@@ -189,7 +201,12 @@ class ClassroomSim:
             limit = self.plant.register("torque_limit")[rows]  # SimBackend.set_torque(True)
             self.plant.write_registers("torque_limit", np.where(limit == 0, 1023, limit), rows)
             self.plant.set_torque_enable(True, rows)
+            self._lag[rows] = 0.0
             self._started[rows] = True
+        # a servo error (overload...) stops an arm, except in the period that (re)starts it
+        errors = np.any(self.plant.error() != 0, axis=1) & ~fresh & ~self.faulted
+        if errors.any():
+            self._fail(np.flatnonzero(errors), "a servo reports an error (overload?)")
         live = np.flatnonzero(~self.faulted)
         if live.size:
             self._control(live, q, qd, load)
@@ -210,17 +227,38 @@ class ClassroomSim:
                                              load, tau_dyn)
         if not all_rows:
             st.put(rows, sub)
+        # ControlLoop's run-time checks, per arm
         bad = ~(np.all(np.isfinite(q_ref), axis=1) & np.all(np.isfinite(qd_ref), axis=1)
                 & np.all(np.isfinite(sub.qdd_ref), axis=1))
-        bad |= np.max(np.abs(np.nan_to_num(sub.qdd_ref, nan=np.inf)), axis=1) > self.max_accel
-        bad |= np.any(np.abs(qd_ref) >= self.max_speed * (1.0 - 1e-9), axis=1)
-        if bad.any():  # the loop's fault: torque off, nothing written, until a reset
-            self.faulted[rows[bad]] = True
-            self.plant.set_torque_enable(False, rows[bad])
-        ok = ~bad
+        self._fail(rows[bad], "the controller produced a non-finite goal")
+        hard = np.max(np.abs(np.nan_to_num(sub.qdd_ref, nan=np.inf)), axis=1) > self.max_accel
+        self._fail(rows[hard & ~bad], f"reference acceleration above {self.max_accel:g} rad/s²")
+        bad |= hard
+        fast = np.any(np.abs(qd_ref) >= self.max_speed * (1.0 - 1e-9), axis=1)
+        self._fail(rows[fast & ~bad], "reference speed at the servo's limit")
+        bad |= fast
+        lagging = np.any(np.abs(q_ref - q) > self.max_lag, axis=1)
+        self._lag[rows] = np.where(lagging & ~bad, self._lag[rows] + self.period, 0.0)
+        late = self._lag[rows] > self.lag_time
+        self._fail(rows[late], f"a joint more than {np.degrees(self.max_lag):.0f}° from its "
+                   f"reference for {self.lag_time:g} s")
+        ok = ~(bad | late)
         goal = np.clip(q_ref[ok], self.lower, self.upper)
         speed = np.minimum(np.abs(qd_ref[ok]), self.max_speed)
         self.write(goal, speed, rows[ok])
+
+    def _fail(self, rows: np.ndarray, why: str) -> None:
+        """The loop's fault for arm rows ``rows``: torque off, no more goals until a reset."""
+        if rows.size:
+            self.faulted[rows] = True
+            for r in rows.tolist():
+                self._why[r] = why
+            self.plant.set_torque_enable(False, rows)
+
+    def fault(self, arm: int) -> str | None:
+        """Why arm ``arm`` stopped (torque off until :meth:`reset`), or None."""
+        r = self.plant.row(arm)
+        return self._why[r] if self.faulted[r] else None
 
     def gains(self, arm: int) -> Params:
         """Arm ``arm``'s Params."""

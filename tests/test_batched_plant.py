@@ -277,6 +277,7 @@ def test_a_student_joining_leaving_or_failing_leaves_the_others_unchanged() -> N
         sim.step()
     assert sim.plant.arm_ids.tolist() == [0, 1, 2, 3]
     assert sim.faulted.tolist() == [False, False, False, True]  # the wild arm, alone
+    assert "acceleration" in (sim.fault(wild) or "")
     assert sim.plant.register("torque_enable")[3].tolist() == [0, 0, 0]
     assert np.array_equal(sim.plant.q[:3], ref.plant.q)
     sim.reset(wild)
