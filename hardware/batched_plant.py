@@ -4,7 +4,8 @@ A classroom gives every student a private arm of the same model (``receptionist_
 three RX-24F). Instead of N ``Plant`` objects stepped by a Python loop each, one
 :class:`BatchedPlant` keeps every arm's state in arrays and runs each step's
 arithmetic once for all arms. The semantics are those of N independent ``Plant``
-s (tests/test_batched_plant.py checks q, qd to 1e-9 and the raw report words exactly):
+objects (tests/test_batched_plant.py checks q, qd to 1e-9 and every raw report word
+exactly, at every step):
 
 1. every servo's firmware ticks (:meth:`BatchedPlant._tick`, the vectorised
    :meth:`hardware.servo.ServoModel.update`, thesis §2.3): the 10-bit Present Position,
@@ -23,7 +24,9 @@ for the generated code. Arms are named by a stable integer **id** that
 :meth:`add_arm` returns; rows are the arms in the order they joined. Storage is
 exact-size: :meth:`add_arm` appends a column and :meth:`remove_arm` deletes one
 (both reallocate, O(N n), microseconds; rows after a removed arm move up by one, ids
-never change). ``arm_ids`` maps rows to ids.
+never change). ``arm_ids`` maps rows to ids. All arms share one clock t = k·dt; an arm
+added later starts at the current t. Forces and points are in the model's base frame,
+as in ``Plant``.
 
 Left out of ``Plant`` (say so where it matters): the spring and the wall (a hand
 dragging, a plane to press on) and :meth:`Plant.truth` / energies; the servo params
@@ -41,12 +44,12 @@ import numpy as np
 
 from hardware.plant import JointStops
 from hardware.servo import (
-    _SLOPE_STEPS,
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
     ServoParams,
     ServoRegisters,
     ServoReport,
+    effective_slope,
 )
 from hardware.servo_spec import DIRECTION_BIT, ServoSpec
 from kinematics.batched_dynamics import batched_dynamics
@@ -55,7 +58,7 @@ from kinematics.validate import scalar, vector
 
 #: The registers the firmware acts on, held per (joint, arm) as int64 arrays.
 REGISTERS: tuple[str, ...] = tuple(f.name for f in fields(ServoRegisters))
-_SLOPES = np.array(_SLOPE_STEPS, dtype=np.int64)
+_SLOPES = np.array([effective_slope(v) for v in range(256)], dtype=np.int64)  # Table 2.4
 _STOPS = JointStops()  #: Plant's default stops
 
 #: Firmware state per (joint, arm): name -> dtype (see ServoModel's private fields).

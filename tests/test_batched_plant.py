@@ -13,7 +13,7 @@ from control.loop import ControlLoop
 from control.params import Params
 from hardware.batched_plant import BatchedPlant
 from hardware.plant import Plant
-from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD
+from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD, IDEAL, ServoParams
 from hardware.servo_spec import RX24F
 from hardware.sim_backend import SimBackend, thesis_registers
 from kinematics import load_robot
@@ -322,3 +322,21 @@ def test_per_arm_writes_and_an_empty_class() -> None:
     empty.step()
     empty.step()
     assert empty.plant.q.shape == (0, 3) and empty.t == pytest.approx(0.032)
+
+
+def test_directions_and_servo_params_per_joint_as_single_plants() -> None:
+    dirs = (-1.0, 1.0, -1.0)
+    params = (IDEAL, ServoParams(coulomb_friction=0.1, viscous_friction=0.02),
+              ServoParams(rotor_inertia=1e-3, friction_speed=0.05))
+    singles = [Plant(MODEL, RX24F, q0=Q0[i], registers=_registers(i), directions=dirs,
+                     params=params) for i in range(3)]
+    batch = BatchedPlant(MODEL, RX24F, directions=dirs, params=params)
+    for i in range(3):
+        batch.add_arm(q0=Q0[i], registers=_registers(i))
+    for _ in range(300):
+        for p in singles:
+            p.step()
+        batch.step()
+        assert np.array_equal(_all_words(batch), np.array([_words(p) for p in singles]))
+    assert np.max(np.abs(batch.q - np.array([p.q for p in singles]))) <= 1e-9
+    assert np.max(np.abs(batch.qd - np.array([p.qd for p in singles]))) <= 1e-9
