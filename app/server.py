@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import socket
 import sys
 import threading
 import time
@@ -27,6 +28,7 @@ from dataclasses import dataclass, replace
 import viser
 
 from app.camera import show_initial_view
+from app.classroom import Roles, address_of, new_passcode, qr_svg
 from app.gate import Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
 from app.lessons import (
@@ -45,6 +47,13 @@ PANEL_LABEL = "armlab"
 #: default 5 ms would let the web server's message encoding delay a control period
 #: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
 GIL_SWITCH_INTERVAL = 0.0005
+
+
+#: the role line of a page that follows the teacher
+FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
+                 "E-STOP works for everyone.")
+#: the role line of the presenter's page
+PRESENTER_TEXT = "**You present.** Your changes move the shared arm."
 
 
 class LabServer(viser.ViserServer):
@@ -83,6 +92,8 @@ class ServeOptions:
             possible, for tests).
         token: the access token the page's URL carries (None: a new random one).
         projector: start with large text (the panel's "Projector" switch).
+        classroom: roles (:mod:`app.classroom`): only a page that typed the passcode
+            changes the shared arm; every page may press E-STOP.
         tip_link, package_paths, joint_map: for a robot given as a URDF file (see
             :class:`app.lessons.LessonContext`).
     """
@@ -97,6 +108,7 @@ class ServeOptions:
     realtime: bool = True
     token: str | None = None
     projector: bool = False
+    classroom: bool = False
     tip_link: str | None = None
     package_paths: tuple[str, ...] = ()
     joint_map: str | None = None
@@ -112,6 +124,29 @@ class ServeOptions:
             raise ValueError(f"http_port: expected 0..65535, got {self.http_port}")
 
 
+#: host names that mean "every interface": the printed URL then names this machine's
+#: address on the network, the one students type
+WILDCARD_HOSTS = ("0.0.0.0", "::", "")
+
+
+def lan_address() -> str:
+    """This machine's address on its network (the interface of its default route).
+
+    Connecting a UDP socket only picks the route; no packet is sent. "127.0.0.1" when
+    the machine has no route.
+    """
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.connect(("192.0.2.1", 9))  # TEST-NET-1: never reached, only routed
+            return str(probe.getsockname()[0])
+        except OSError:
+            return "127.0.0.1"
+
+
+def _url_host(host: str) -> str:
+    return f"[{host}]" if ":" in host else host
+
+
 class Lab:
     """The running lab: server, E-STOP, lesson switcher and the open lesson.
 
@@ -122,8 +157,13 @@ class Lab:
     Attributes:
         server: the :class:`LabServer`.
         token: the access token (:mod:`app.gate`).
-        base_url: ``http://HOST:PORT`` (no token).
-        url: ``http://HOST:PORT/?token=TOKEN``: the page, with the token that opens it.
+        base_url: ``http://HOST:PORT`` (no token); HOST is this machine's network address
+            when the lab listens on every interface.
+        url: ``base_url/?token=TOKEN``: the page, with the token that opens it (what
+            students type or scan).
+        local_url: the same page through loopback (what this process itself loads).
+        roles: presenters and followers (:class:`app.classroom.Roles`), with
+            ``options.classroom`` only; None otherwise.
         lesson: handle of the open lesson (None while switching).
     """
 
@@ -150,8 +190,18 @@ class Lab:
             # Docked, the controls never cover the 3D view: the camera frames the arm in
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
-            self.base_url = f"http://{options.host}:{self.server.get_port()}"
+            port = self.server.get_port()
+            wildcard = options.host in WILDCARD_HOSTS
+            shown = lan_address() if wildcard else options.host
+            local = ("::1" if options.host == "::" else "127.0.0.1") if wildcard else options.host
+            self.base_url = f"http://{_url_host(shown)}:{port}"
             self.url = f"{self.base_url}/?token={self.token}"
+            self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
+            self.roles: Roles | None = None
+            if options.classroom:
+                self.roles = Roles(self.server, new_passcode())
+                self.server.on_client_connect(self._welcome)
+                self.server.on_client_disconnect(self._goodbye)
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)
@@ -167,7 +217,9 @@ class Lab:
         self.estop_button = gui.add_button(
             "E-STOP", color="red", icon=viser.Icon.HAND_STOP,
             hint="Torque off on every servo now. Press Reset to go on.", order=-100.0)
-        self.estop_button.on_click(lambda _event: self.estop())
+        self.estop_button.on_click(lambda event: self.estop(by=event.client))
+        if self.roles is not None:
+            self.roles.open(self.estop_button)
         ordered = sorted(self._lessons.values(), key=lesson_order)
         self._by_title = {m.TITLE: m.NAME for m in ordered}
         self.lesson_dropdown = gui.add_dropdown(
@@ -233,12 +285,60 @@ class Lab:
                 self.lesson_dropdown.value = self._lessons[previous].TITLE
                 raise
 
-    def estop(self) -> None:
-        """Torque off now through the open lesson; never raises."""
+    def estop(self, *, by: viser.ClientHandle | None = None) -> None:
+        """Torque off now through the open lesson; never raises. In a classroom the
+        presenters are told which page (``by``) pressed it."""
         lesson = self.lesson
         stop = getattr(lesson, "estop", None)
         if stop is not None:
             stop()
+        if self.roles is not None and by is not None:
+            who = self.roles.name(by.client_id)
+            clients = self.server.get_clients()
+            for cid in self.roles.presenters():
+                if (client := clients.get(cid)) is not None:
+                    client.add_notification("E-STOP", f"pressed by {who}; press Reset to go on.",
+                                            color="red", auto_close_seconds=15.0)
+
+    # -- classroom -----------------------------------------------------------------
+
+    def _welcome(self, client: viser.ClientHandle) -> None:
+        """A page joined the classroom: its role line, Passcode and name fields (its own)."""
+        roles = self.roles
+        assert roles is not None
+        gui = client.gui
+        role = gui.add_markdown(FOLLOWER_TEXT, order=-97.0)
+        code = gui.add_text("Passcode", "", order=-96.0,
+                            hint="The teacher types the passcode armlab serve printed")
+        name = gui.add_text("Your name", "", order=-95.0,
+                            hint="Shown to the teacher (e.g. when you press E-STOP)")
+        name.on_update(lambda _e: roles.set_name(client.client_id, name.value))
+
+        def on_code(_event: viser.GuiEvent) -> None:
+            typed = code.value
+            if len(typed.strip()) < len(roles.passcode):
+                return  # still typing
+            why = roles.try_passcode(client.client_id, typed,
+                                     key=address_of(self.server, client.client_id))
+            code.value = ""
+            if why is not None:
+                client.add_notification("Passcode refused", why, color="red",
+                                        auto_close_seconds=8.0)
+                return
+            code.remove()
+            role.content = PRESENTER_TEXT
+            with gui.add_folder("Students join", order=-94.0, expand_by_default=False):
+                gui.add_html(f"<div style='text-align:center'>{qr_svg(self.url)}"
+                             f"<div style='font-size:0.85em;word-break:break-all'>"
+                             f"{self.url}</div></div>")
+            client.add_notification("You present", "You now change the shared arm.",
+                                    color="green", auto_close_seconds=5.0)
+
+        code.on_update(on_code)
+
+    def _goodbye(self, client: viser.ClientHandle) -> None:
+        if self.roles is not None:
+            self.roles.forget(client.client_id)
 
     # -- lifetime ---------------------------------------------------------------
 
@@ -247,12 +347,12 @@ class Lab:
         deadline = time.monotonic() + timeout
         while True:
             try:
-                with urllib.request.urlopen(self.url, timeout=2.0) as reply:
+                with urllib.request.urlopen(self.local_url, timeout=2.0) as reply:
                     if reply.status == 200:
                         return
             except (urllib.error.URLError, OSError) as exc:
                 if time.monotonic() > deadline:
-                    raise OSError(f"the page at {self.url} does not load: {exc}") from None
+                    raise OSError(f"the page at {self.local_url} does not load: {exc}") from None
             time.sleep(0.05)
 
     def close(self) -> None:

@@ -114,3 +114,38 @@ def test_serial_lab_switches_torque_off_when_stopped(tmp_path):
         packets = emu.packets("rx")
     assert packets, "the lab never talked to the servos"
     assert _torque_off_packets(packets[-20:]), "the last packets do not switch torque off"
+
+
+def _next_line(proc: subprocess.Popen) -> str:
+    """The next stdout line (printed with the url line: a blocking read; the test's
+    timeout bounds it). No select here: the url line's read may have buffered it."""
+    return proc.stdout.readline()
+
+
+def test_classroom_prints_the_network_url_then_the_passcode():
+    proc, url = start_serve("--classroom", "--host", "0.0.0.0", "--http-port", "0")
+    try:
+        line = _next_line(proc)
+        assert line.startswith("passcode: "), line  # the line right after the url
+        passcode = line.split(" ", 1)[1].strip()
+        parts = urllib.parse.urlsplit(url)  # http://LAN-ADDRESS:PORT/?token=TOKEN
+        assert parts.hostname != "0.0.0.0"
+        socket.inet_aton(parts.hostname)  # an address a student can type
+        assert len(passcode) >= 6 and passcode.isalnum()
+        token = parse_qs(parts.query)["token"][0]
+        # tests talk to loopback only: the same server through 127.0.0.1
+        local = f"http://127.0.0.1:{parts.port}/?token={token}"
+        with urllib.request.urlopen(local, timeout=10) as reply:
+            assert reply.status == 200
+    finally:
+        code, out, err = stop(proc)
+    assert code == 0, err
+    assert "without --classroom" not in err
+
+
+def test_listening_on_the_network_without_classroom_warns():
+    proc, url = start_serve("--host", "0.0.0.0", "--http-port", "0")
+    code, out, err = stop(proc)
+    assert code == 0, err
+    assert "without --classroom: every browser with the URL then controls the arm" in err
+    assert "passcode" not in out

@@ -38,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
     parser.add_argument("--token", help="access token the page's URL carries (default: a new "
                                         "random one at each start)")
+    parser.add_argument("--classroom", action="store_true",
+                        help="roles for a class: only a page that types the passcode printed "
+                        "after the url changes the shared arm; every page may press E-STOP")
     parser.add_argument("--projector", action="store_true",
                         help="large text for a classroom projector (the panel's Projector switch)")
 
@@ -48,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
                            lesson=args.lesson, token=args.token,
-                           projector=args.projector, tip_link=args.tip_link,
+                           projector=args.projector, classroom=args.classroom,
+                           tip_link=args.tip_link,
                            package_paths=tuple(args.package_path), joint_map=args.joint_map)
     stop = threading.Event()
 
@@ -60,10 +64,12 @@ def run(args: argparse.Namespace) -> int:
         lab = Lab(options)
         try:
             lab.wait_until_loadable()
-            if options.host not in ("127.0.0.1", "localhost", "::1"):
-                print(f"warning: listening on {options.host}: anyone who can reach this "
-                      "computer can command the robot", file=sys.stderr, flush=True)
+            if options.host not in ("127.0.0.1", "localhost", "::1") and lab.roles is None:
+                print(f"warning: listening on {options.host} without --classroom: every "
+                      "browser with the URL then controls the arm", file=sys.stderr, flush=True)
             print(f"url: {lab.url}", flush=True)
+            if lab.roles is not None:
+                print(f"passcode: {lab.roles.passcode}", flush=True)
             while not stop.wait(0.5):
                 pass
             print("stopping: control loop shut down, torque off", flush=True)

@@ -1,0 +1,93 @@
+"""A classroom in real Chromium: a teacher's page and a student's page (two browser
+contexts, as two machines would be) on one lab served with roles (app/classroom.py)."""
+
+from __future__ import annotations
+
+import pytest
+from _helpers import wait_for
+
+from app.server import Lab, ServeOptions
+
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
+
+KP = "Kp (1/s²)"
+
+
+@pytest.fixture(scope="module")
+def classroom():
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        yield lab
+
+
+def _open(browser, lab: Lab):  # noqa: ANN001, ANN202
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    page.goto(lab.local_url)
+    page.get_by_role("button", name="Run thesis line").wait_for(timeout=90_000)
+    page.get_by_text("Following the teacher").first.wait_for(timeout=60_000)
+    return context, page
+
+
+def _labelled(page, label: str):  # noqa: ANN001, ANN202
+    target = page.locator("label", has_text=label).first.get_attribute("for")
+    return page.locator(f"[id='{target}']")
+
+
+def _text_field(page, label: str):  # noqa: ANN001, ANN202
+    """The text input in the row labelled ``label`` (viser's text rows carry no input id)."""
+    return page.locator(f"xpath=//label[normalize-space()='{label}']"
+                        "/ancestor::div[.//input][1]//input").first
+
+
+def test_teacher_and_student_pages(browser, classroom):
+    lab = classroom
+    loop = lab.lesson.rig.loop
+    teacher_ctx, teacher = _open(browser, lab)
+    student_ctx, student = _open(browser, lab)
+    try:
+        # A wrong passcode is refused with a message; the right one makes a presenter.
+        _text_field(teacher, "Passcode").fill("WRONGCOD")
+        teacher.get_by_text("that is not the passcode").first.wait_for(timeout=60_000)
+        _text_field(teacher, "Passcode").fill(lab.roles.passcode)
+        teacher.get_by_text("You present.").first.wait_for(timeout=60_000)
+        wait_for(lambda: len(lab.roles.presenters()) == 1, 30, "one presenter")
+        assert teacher.locator("label", has_text="Passcode").count() == 0
+
+        # The student moves the shared Kp slider: refused, told, and put back on the page.
+        kp0 = loop.params.kp
+        student.get_by_role("tab", name="Gains").click()
+        thumb = _labelled(student, KP).locator("[role=slider]")
+        thumb.focus()
+        for _ in range(5):
+            student.keyboard.press("ArrowRight")
+        student.get_by_text("Only the presenter changes the shared arm").first.wait_for(
+            timeout=60_000)
+        wait_for(lambda: float(thumb.get_attribute("aria-valuenow")) == pytest.approx(kp0), 60,
+                 "the student's slider back at the shared value")
+        assert loop.params.kp == kp0
+
+        # The teacher's move of the same slider reaches the shared arm.
+        teacher.get_by_role("tab", name="Gains").click()
+        t_thumb = _labelled(teacher, KP).locator("[role=slider]")
+        t_thumb.focus()
+        teacher.keyboard.press("ArrowRight")
+        wait_for(lambda: loop.params.kp == pytest.approx(kp0 + 0.1), 60, "the teacher's Kp")
+
+        # Any page may press E-STOP: the student's stops the shared arm; the teacher is
+        # told who; only the teacher's Reset goes through.
+        _text_field(student, "Your name").fill("Ayu")
+        wait_for(lambda: "Ayu" in [lab.roles.name(c) for c in lab.server.get_clients()], 60,
+                 "the student's name")
+        student.get_by_role("button", name="E-STOP").click()
+        wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 60, "the e-stop")
+        teacher.get_by_text("pressed by Ayu").first.wait_for(timeout=60_000)
+        student.get_by_role("tab", name="Run").click()
+        student.get_by_role("button", name="Reset").click()
+        wait_for(lambda: lab.roles.refused >= 2, 60, "the student's Reset refused")
+        assert loop.status.estopped
+        teacher.get_by_role("tab", name="Run").click()
+        teacher.get_by_role("button", name="Reset").click()
+        wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 60, "reset")
+    finally:
+        teacher_ctx.close()
+        student_ctx.close()

@@ -1,0 +1,163 @@
+"""Roles in a classroom (app/classroom.py): only the presenter changes the shared arm.
+
+The server refuses, it does not merely hide: these tests send what a hand-made
+websocket client would (app/wsclient.py speaks the page's protocol) to a real lab on
+a free loopback port.
+"""
+
+from __future__ import annotations
+
+import pytest
+from _helpers import wait_for
+
+from app.classroom import (
+    PASSCODE_ALPHABET,
+    PASSCODE_LENGTH,
+    Guesses,
+    new_passcode,
+    normal_passcode,
+    qr_svg,
+)
+from app.server import Lab, ServeOptions
+from app.wsclient import HeadlessClient
+from control.params import DEFAULT
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_passcodes_are_random_and_readable():
+    codes = {new_passcode() for _ in range(50)}
+    assert len(codes) == 50
+    for code in codes:
+        assert len(code) == PASSCODE_LENGTH >= 6 and set(code) <= set(PASSCODE_ALPHABET)
+    assert not set("O0I1l") & set(PASSCODE_ALPHABET)  # nothing to mistake on a projector
+    assert normal_passcode(" abcd-efgh ") == "ABCDEFGH"
+
+
+def test_wrong_guesses_are_slowed_down_and_a_right_one_clears_them():
+    clock = FakeClock()
+    g = Guesses(free=3, base=1.0, cap=8.0, clock=clock)
+    assert [g.wrong("10.0.0.7") for _ in range(3)] == [0.0, 0.0, 0.0]
+    assert g.wait_left("10.0.0.7") == 0.0
+    assert [g.wrong("10.0.0.7") for _ in range(5)] == [1.0, 2.0, 4.0, 8.0, 8.0]  # capped
+    assert g.wait_left("10.0.0.7") == pytest.approx(8.0)
+    assert g.wait_left("10.0.0.8") == 0.0  # another address is not held back
+    clock.t += 8.0
+    assert g.wait_left("10.0.0.7") == 0.0
+    g.right("10.0.0.7")
+    assert g.wrong("10.0.0.7") == 0.0  # counting starts again
+
+
+def test_qr_code_is_an_svg_of_the_url():
+    svg = qr_svg("http://192.168.1.20:8080/?token=abcdefgh12345678")
+    assert svg.lstrip().startswith("<svg") and "</svg>" in svg and "path" in svg
+
+
+@pytest.fixture(scope="module")
+def classroom():
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        yield lab
+
+
+def _page(lab: Lab) -> HeadlessClient:
+    page = HeadlessClient(lab.local_url.replace("http://", "ws://")).connect()
+    page.wait_for(lambda: _has(page, "Passcode") and _has(page, "Kp (1/s²)"), 60.0,
+                  "the Passcode field and the Kp slider")
+    return page
+
+
+def _has(page: HeadlessClient, label: str) -> bool:
+    return any(e.label == label for e in page.gui.values())
+
+
+def test_a_student_cannot_change_the_shared_arm_the_presenter_can(classroom):
+    lab = classroom
+    loop = lab.lesson.rig.loop
+    kp0 = loop.params.kp
+    with _page(lab) as student, _page(lab) as teacher:
+        # A forged update of the shared Kp slider, as a hand-made websocket message:
+        # refused, with one message, and the student's slider shows the server's value.
+        student.set_value("Kp (1/s²)", kp0 + 7.0)
+        body = student.wait_notification("Only the presenter changes the shared arm")
+        assert "Passcode" in body
+        student.wait_for(lambda: student.find("Kp (1/s²)").value == pytest.approx(kp0), 30.0,
+                         "the student's slider put back")
+        # Run, the lesson switcher and a drag in the shared scene are refused as well.
+        student.click("Run thesis line")
+        student.set_value("Lesson", "no matter")
+        student.move_gizmo(lab.lesson.rig.scene.target.name, [(0.3, 0.0, 0.5)])
+        wait_for(lambda: lab.roles.refused >= 4, 30, "four refusals")
+        assert loop.params.kp == kp0 and lab.lesson_name == "compliance"
+        assert loop.status.trajectory is None
+
+        # A wrong passcode is refused with a message; the right one makes a presenter.
+        teacher.set_value("Passcode", "WRONGCOD")
+        assert "not the passcode" in teacher.wait_notification("Passcode refused")
+        teacher.set_value("Passcode", lab.roles.passcode.lower())
+        teacher.wait_notification("You present")
+        teacher.wait_for(lambda: not _has(teacher, "Passcode"), 30.0, "the field gone")
+        teacher.wait_for(lambda: _has_html(teacher, "<svg"), 30.0, "the QR code")
+        teacher.set_value("Kp (1/s²)", kp0 + 7.0)
+        wait_for(lambda: loop.params.kp == pytest.approx(kp0 + 7.0), 30, "the presenter's Kp")
+        # Still refused from the student after that.
+        student.set_value("Kp (1/s²)", kp0 + 1.0)
+        wait_for(lambda: lab.roles.refused >= 5, 30, "the student refused again")
+        assert loop.params.kp == pytest.approx(kp0 + 7.0)
+        teacher.set_value("Kp (1/s²)", DEFAULT.kp)
+        wait_for(lambda: loop.params.kp == pytest.approx(DEFAULT.kp), 30, "Kp back")
+
+
+def _has_html(page: HeadlessClient, text: str) -> bool:
+    return any(text in str(e.props.get("content", "")) for e in page.gui.values())
+
+
+def test_a_students_estop_stops_the_shared_arm_and_the_presenter_sees_who(classroom):
+    lab = classroom
+    with _page(lab) as teacher, _page(lab) as student:
+        teacher.set_value("Passcode", lab.roles.passcode)
+        teacher.wait_notification("You present")
+        student.set_value("Your name", "Ayu")
+        wait_for(lambda: "Ayu" in [lab.roles.name(c) for c in lab.server.get_clients()], 30,
+                 "the student's name")
+        student.click("E-STOP")
+        wait_for(lambda: lab.lesson.rig.loop.status.estopped, 30, "the shared arm stopped")
+        assert "Ayu" in teacher.wait_notification("E-STOP")
+        # Only a presenter resets.
+        student.click("Reset")
+        wait_for(lambda: lab.roles.refused >= 1, 30, "the student's Reset refused")
+        assert lab.lesson.rig.loop.status.estopped
+        teacher.click("Reset")
+        wait_for(lambda: not lab.lesson.rig.loop.status.estopped, 30, "the presenter's Reset")
+
+
+def test_guesses_from_one_address_are_slowed_down():
+    with Lab(ServeOptions(http_port=0, classroom=True, lesson="ik_accuracy")) as lab:
+        # a wait no loaded machine outlasts
+        lab.roles.guesses = Guesses(free=3, base=600.0, cap=600.0)
+        with HeadlessClient(lab.local_url.replace("http://", "ws://")).connect() as page:
+            page.wait_for(lambda: _has(page, "Passcode"), 60.0, "the Passcode field")
+
+            def refusals() -> list[str]:
+                return [b for t, b in page.notifications if t == "Passcode refused"]
+
+            for i in range(4):  # one guess at a time, as a person types them
+                page.set_value("Passcode", f"BADCODE{i}")
+                page.wait_for(lambda n=i + 1: len(refusals()) == n, 30.0, f"refusal {i + 1}")
+            assert "next try in 600 s" in refusals()[-1] and "next try" not in refusals()[-2]
+            page.set_value("Passcode", lab.roles.passcode)  # right, but too soon: not compared
+            page.wait_for(lambda: len(refusals()) == 5, 30.0, "the right code refused: too soon")
+            assert "try again in" in refusals()[-1]
+            assert lab.roles.presenters() == ()
+
+
+def test_without_classroom_there_are_no_roles(lab):
+    assert lab.roles is None
+    with HeadlessClient(lab.local_url.replace("http://", "ws://")).connect() as page:
+        page.wait_for(lambda: _has(page, "Kp (1/s²)"), 60.0, "the Kp slider")
+        assert not _has(page, "Passcode")
