@@ -28,8 +28,9 @@ never change). ``arm_ids`` maps rows to ids. All arms share one clock t = k·dt;
 added later starts at the current t. Forces and points are in the model's base frame,
 as in ``Plant``.
 
-Left out of ``Plant`` (say so where it matters): the spring and the wall (a hand
-dragging, a plane to press on) and :meth:`Plant.truth` / energies; the servo params
+Per arm, as ``Plant``: pushes (held over a step), a spring (a hand dragging) and a wall
+(a plane to press on), both re-evaluated at each RK stage. Left out of ``Plant`` (say
+so where it matters): :meth:`Plant.truth` / energies; the servo params
 (rotor, friction, overload time), directions and stops are one set for all arms;
 Coulomb friction uses ``numpy.tanh``, which may differ from ``math.tanh`` in the last
 bit (hence "to 1e-9", not bit-equal, in the test).
@@ -60,6 +61,16 @@ from kinematics.validate import scalar, vector
 REGISTERS: tuple[str, ...] = tuple(f.name for f in fields(ServoRegisters))
 _SLOPES = np.array([effective_slope(v) for v in range(256)], dtype=np.int64)  # Table 2.4
 _STOPS = JointStops()  #: Plant's default stops
+
+#: The spring and the wall per arm: name -> (leading shape, dtype); arrays (*shape, N).
+_FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
+    "spring_on": ((), np.bool_), "spring_anchor": ((3,), np.float64),
+    "spring_k": ((), np.float64), "spring_c": ((), np.float64),
+    "spring_link": ((), np.int64), "spring_point": ((3,), np.float64),
+    "wall_on": ((), np.bool_), "wall_origin": ((3,), np.float64),
+    "wall_normal": ((3,), np.float64), "wall_k": ((), np.float64),
+    "wall_c": ((), np.float64), "wall_link": ((), np.int64), "wall_point": ((3,), np.float64),
+}
 
 #: Firmware state per (joint, arm): name -> dtype (see ServoModel's private fields).
 _STATE: dict[str, type] = {
@@ -162,6 +173,8 @@ class BatchedPlant:
         self._p_force = np.zeros((0, 3))
         self._p_point = np.zeros((0, 3))
         self._p_until = np.zeros(0)
+        self._f = {k: np.zeros((*shape, 0), dtype=t) for k, (shape, t) in _FIELDS.items()}
+        self._tip = tuple(float(x) for x in model.tip[:3, 3])
         for _ in range(int(n_arms)):
             self.add_arm(q0=q0, registers=registers)
 
@@ -212,17 +225,21 @@ class BatchedPlant:
             self._r[k] = np.concatenate(
                 [self._r[k], np.array([int(getattr(r, k)) for r in regs],
                                       dtype=np.int64).reshape(n, 1)], axis=1)
+        for k, (shape, t) in _FIELDS.items():
+            self._f[k] = np.concatenate([self._f[k], np.zeros((*shape, 1), dtype=t)], axis=-1)
         arm = self._next_id
         self._next_id += 1
         self._ids = np.append(self._ids, arm)
         return arm
 
     def remove_arm(self, arm: int) -> None:
-        """Remove arm id ``arm`` and its pushes; the rows after it move up by one."""
+        """Remove arm id ``arm``, its pushes, spring and wall; the rows after it move up."""
         r = self.row(arm)
         for d in (self._s, self._r):
             for k in d:
                 d[k] = np.delete(d[k], r, axis=1)
+        for k in self._f:
+            self._f[k] = np.delete(self._f[k], r, axis=-1)
         self._ids = np.delete(self._ids, r)
         keep = self._p_row != r
         self._drop_pushes(keep)
@@ -346,12 +363,73 @@ class BatchedPlant:
         self._p_point = np.vstack([self._p_point, p])
         self._p_until = np.append(self._p_until, self.t + d)
 
+    def set_spring(self, arm: int, anchor_base: np.ndarray | None, *, stiffness: float,
+                   link: int, point: np.ndarray, damping: float = 0.0) -> None:
+        """Pull ``point`` (3,) m on ``link`` of arm ``arm`` towards ``anchor_base`` (3,) m,
+        base frame, with ``stiffness`` N/m and ``damping`` N·s/m (Plant.set_spring; a hand
+        dragging); None releases it. Re-evaluated at each RK stage."""
+        r = self.row(arm)
+        f = self._f
+        if anchor_base is None:
+            f["spring_on"][r] = False
+            return
+        k = scalar("stiffness", stiffness, nonnegative=True)
+        c = scalar("damping", damping, nonnegative=True)
+        anchor = vector("anchor_base", anchor_base, 3)
+        li = self._link(link, "link")
+        pt = vector("point", point, 3)
+        f["spring_anchor"][:, r], f["spring_point"][:, r] = anchor, pt
+        f["spring_k"][r], f["spring_c"][r], f["spring_link"][r] = k, c, li
+        f["spring_on"][r] = True
+
+    def set_wall(self, arm: int, origin_base: np.ndarray | None,
+                 normal_base: np.ndarray | None = None, *, stiffness: float = 5000.0,
+                 damping: float = 30.0, link: int | None = None,
+                 point: np.ndarray | None = None) -> None:
+        """A plane arm ``arm`` can press on (Plant.set_wall); None removes it.
+
+        Args:
+            arm: the arm id.
+            origin_base: (3,) m, a point of the plane, base frame.
+            normal_base: (3,) the plane's normal towards the free side, base frame.
+            stiffness: N/m of penetration; damping: N·s/m in contact (never pulls).
+            link, point: the contact point (3,) m on the arm (default the end effector;
+                a link without a point: its origin).
+        """
+        r = self.row(arm)
+        f = self._f
+        if origin_base is None:
+            f["wall_on"][r] = False
+            return
+        if normal_base is None:
+            raise ValueError("normal_base is needed with a wall origin")
+        nrm = vector("normal_base", normal_base, 3)
+        length = float(np.linalg.norm(nrm))
+        if length < 1e-9:
+            raise ValueError("normal_base must not be zero")
+        k = scalar("stiffness", stiffness, positive=True)
+        c = scalar("damping", damping, nonnegative=True)
+        li = self.n - 1 if link is None else self._link(link, "link")
+        pt = np.array(self._tip) if point is None else vector("point", point, 3)
+        if point is None and link is not None and li != self.n - 1:
+            pt = np.zeros(3)
+        f["wall_origin"][:, r] = vector("origin_base", origin_base, 3)
+        f["wall_normal"][:, r] = nrm / length
+        f["wall_k"][r], f["wall_c"][r], f["wall_link"][r] = k, c, li
+        f["wall_point"][:, r] = pt
+        f["wall_on"][r] = True
+
     def clear_forces(self, arm: int | None = None) -> None:
-        """Remove the pushes of arm ``arm`` (every arm's when None)."""
+        """Remove the pushes, spring and wall of arm ``arm`` (every arm's when None)."""
         if arm is None:
             self._drop_pushes(np.zeros(self._p_row.size, dtype=bool))
+            self._f["spring_on"][:] = False
+            self._f["wall_on"][:] = False
         else:
-            self._drop_pushes(self._p_row != self.row(arm))
+            r = self.row(arm)
+            self._drop_pushes(self._p_row != r)
+            self._f["spring_on"][r] = False
+            self._f["wall_on"][r] = False
 
     def _drop_pushes(self, keep: np.ndarray) -> None:
         self._p_row, self._p_link = self._p_row[keep], self._p_link[keep]
@@ -417,6 +495,7 @@ class BatchedPlant:
             if near.any():
                 stops = np.any(near, axis=0)
         fd, g, arm = self._dyn.fd, self._gravity, self._armature
+        f_rows = np.flatnonzero(self._f["spring_on"] | self._f["wall_on"])
 
         def deriv(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             tau = drive - damp * qd
@@ -426,6 +505,8 @@ class BatchedPlant:
                 tau = tau + np.where(stops, self._stop_torques(q, qd), 0.0)
             if push is not None:
                 tau = tau + push
+            if f_rows.size:
+                tau[:, f_rows] += self._field_torques(q[:, f_rows], qd[:, f_rows], f_rows)
             return fd(q, qd, tau, g, arm)
 
         return deriv
@@ -439,6 +520,59 @@ class BatchedPlant:
         below = k * (lo - q) - np.where(qd < 0, c * qd, 0.0)
         above = k * (hi - q) - np.where(qd > 0, c * qd, 0.0)
         return np.where(q < lo, below, np.where(q > hi, above, 0.0))
+
+    def _points(self, fr: np.ndarray, links: np.ndarray, points: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Base-frame positions (3, P) of link points and their Jacobian columns (n, 3, P).
+
+        ``fr`` (n, 12, P): the frames of the P arms (per link R (9), o (3)); ``links`` (P,)
+        the link of each point, ``points`` (3, P) in its frame. Column j of point k is
+        z_j × (p − o_j) (thesis eq. 3.17) for j <= links[k], zero beyond."""
+        P = links.size
+        lf = fr[links, :, np.arange(P)].T  # (12, P): each point's link frame
+        px, py, pz = points
+        p = np.array([lf[0] * px + lf[1] * py + lf[2] * pz + lf[9],
+                      lf[3] * px + lf[4] * py + lf[5] * pz + lf[10],
+                      lf[6] * px + lf[7] * py + lf[8] * pz + lf[11]])
+        cols = np.empty((self.n, 3, P))
+        for j in range(self.n):
+            a0, a1, a2 = self._axes[j]
+            b = fr[j]
+            z0 = b[0] * a0 + b[1] * a1 + b[2] * a2
+            z1 = b[3] * a0 + b[4] * a1 + b[5] * a2
+            z2 = b[6] * a0 + b[7] * a1 + b[8] * a2
+            rx, ry, rz = p[0] - b[9], p[1] - b[10], p[2] - b[11]
+            on = j <= links
+            cols[j, 0] = np.where(on, z1 * rz - z2 * ry, 0.0)
+            cols[j, 1] = np.where(on, z2 * rx - z0 * rz, 0.0)
+            cols[j, 2] = np.where(on, z0 * ry - z1 * rx, 0.0)
+        return p, cols
+
+    def _field_torques(self, q: np.ndarray, qd: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(n, R) J^T F of the spring and the wall of the arm rows ``rows`` at (q, qd) (n, R)
+        (Plant._field_torques per arm: spring k (anchor − p) − c v; wall max(0, −k d − c v_n)
+        along the normal when the point is d < 0 behind the plane)."""
+        f = self._f
+        fr = self._dyn.frames(q).reshape(self.n, 12, rows.size)
+        tau = np.zeros_like(q)
+        for kind in ("spring", "wall"):
+            on = f[f"{kind}_on"][rows]
+            if not on.any():
+                continue
+            p, cols = self._points(fr, f[f"{kind}_link"][rows], f[f"{kind}_point"][:, rows])
+            v = np.einsum("jrp,jp->rp", cols, qd)  # (3, R) the point's velocity
+            if kind == "spring":
+                force = (f["spring_k"][rows] * (f["spring_anchor"][:, rows] - p)
+                         - f["spring_c"][rows] * v)
+            else:
+                nrm = f["wall_normal"][:, rows]
+                depth = np.sum((p - f["wall_origin"][:, rows]) * nrm, axis=0)
+                vn = np.sum(v * nrm, axis=0)
+                mag = np.maximum(0.0, -f["wall_k"][rows] * depth - f["wall_c"][rows] * vn)
+                force = np.where(depth < 0.0, mag, 0.0) * nrm
+            force = np.where(on, force, 0.0)
+            tau += np.einsum("jrp,rp->jp", cols, force)
+        return tau
 
     def _update_pushes(self, q: np.ndarray) -> None:
         """Drop expired pushes; J^T F of the rest at the step's start (held over the step).

@@ -340,3 +340,76 @@ def test_directions_and_servo_params_per_joint_as_single_plants() -> None:
         assert np.array_equal(_all_words(batch), np.array([_words(p) for p in singles]))
     assert np.max(np.abs(batch.q - np.array([p.q for p in singles]))) <= 1e-9
     assert np.max(np.abs(batch.qd - np.array([p.qd for p in singles]))) <= 1e-9
+
+
+def test_spring_and_wall_per_arm_as_single_plants() -> None:
+    """Arm 0 dragged by a spring (damped), arm 1 pressing a wall, arm 3 both, the rest free;
+    the spring moved, the wall removed and put back mid-run, as Plant.set_spring/set_wall."""
+    singles, batch = _pair()
+    tip = MODEL.fk(Q0[1])[:3, 3]
+    normal = np.array([0.0, 0.3, 1.0])
+    wall_origin = tip + 0.01 * normal / np.linalg.norm(normal)  # the tip starts 1 cm inside
+    worst = 0.0
+    for k in range(600):
+        if k == 0:
+            for who, obj in ((0, singles[0]), (3, singles[3])):
+                args = (np.array([0.2, 0.1, -0.1]),)
+                kw = {"stiffness": 80.0, "link": 2, "point": np.array([0.25, 0.0, 0.0]),
+                      "damping": 2.0}
+                obj.set_spring(*args, **kw)
+                batch.set_spring(who, *args, **kw)
+            for who in (1, 3):
+                singles[who].set_wall(wall_origin, normal)
+                batch.set_wall(who, wall_origin, normal)
+            singles[4].set_wall(np.zeros(3), np.array([1.0, 0.0, 0.0]), link=1,
+                                stiffness=800.0, damping=5.0)
+            batch.set_wall(4, np.zeros(3), np.array([1.0, 0.0, 0.0]), link=1,
+                           stiffness=800.0, damping=5.0)
+        if k == 200:
+            singles[0].set_spring(np.array([0.0, -0.2, 0.1]), stiffness=50.0, link=1,
+                                  point=np.array([0.1, 0.0, 0.0]))
+            batch.set_spring(0, np.array([0.0, -0.2, 0.1]), stiffness=50.0, link=1,
+                             point=np.array([0.1, 0.0, 0.0]))
+            singles[1].set_wall(None)
+            batch.set_wall(1, None)
+        if k == 300:
+            singles[1].set_wall(wall_origin, normal, stiffness=2000.0)
+            batch.set_wall(1, wall_origin, normal, stiffness=2000.0)
+        if k == 400:
+            singles[3].clear_forces()
+            batch.clear_forces(3)
+            singles[0].set_spring(None, stiffness=0.0, link=0, point=np.zeros(3))
+            batch.set_spring(0, None, stiffness=0.0, link=0, point=np.zeros(3))
+        for p in singles:
+            p.step()
+        batch.step()
+        worst = max(worst,
+                    float(np.max(np.abs(batch.q - np.array([p.q for p in singles])))),
+                    float(np.max(np.abs(batch.qd - np.array([p.qd for p in singles])))))
+        assert np.array_equal(_all_words(batch), np.array([_words(p) for p in singles])), k
+    assert worst <= 1e-9
+    # the fields did something: the same arms without them end elsewhere
+    _, free = _pair()
+    for _ in range(600):
+        free.step()
+    moved = np.max(np.abs(batch.q - free.q), axis=1)
+    assert np.all(moved[[0, 1, 3]] > 1e-3) and moved[2] == 0.0
+
+
+def test_spring_and_wall_go_with_their_arm() -> None:
+    batch = BatchedPlant(MODEL, RX24F, 3)
+    batch.set_spring(1, np.array([0.1, 0.1, 0.1]), stiffness=50.0, link=2, point=np.zeros(3))
+    batch.set_wall(2, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    batch.remove_arm(0)
+    single = Plant(MODEL, RX24F)
+    single.set_spring(np.array([0.1, 0.1, 0.1]), stiffness=50.0, link=2, point=np.zeros(3))
+    for _ in range(50):
+        batch.step()
+        single.step()
+    assert np.max(np.abs(batch.q[0] - single.q)) <= 1e-9
+    with pytest.raises(ValueError, match="normal_base"):
+        batch.set_wall(1, np.zeros(3))
+    with pytest.raises(ValueError, match="stiffness"):
+        batch.set_spring(1, np.zeros(3), stiffness=-1.0, link=0, point=np.zeros(3))
+    with pytest.raises(ValueError, match="arm 0"):
+        batch.set_wall(0, None)
