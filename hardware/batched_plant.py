@@ -253,6 +253,11 @@ class BatchedPlant:
         return self._k * self.dt
 
     @property
+    def steps(self) -> int:
+        """Steps taken since the plant was made (t = steps · dt)."""
+        return self._k
+
+    @property
     def q(self) -> np.ndarray:
         """(N, n) true joint positions, rad (a copy)."""
         return self._s["q"].T.copy()
@@ -710,12 +715,17 @@ class BatchedPlant:
         return self._s["moving"].astype(np.int64).T
 
     def reports(self, arm: int) -> tuple[ServoReport, ...]:
-        """Arm ``arm``'s servo reports in joint order, as ``Plant.reports()`` gives them."""
+        """Arm ``arm``'s servo reports in joint order, as ``Plant.reports()`` gives them
+        (its column only: O(n), whatever N)."""
         r = self.row(arm)
-        pos, spd, load = self.present_position(), self.present_speed(), self.present_load()
-        err, mov = self.error(), self.moving()
+        s, regs = self._s, self._r
+        spd = signed_words(s["velocity"][:, r] / self._speed_unit[:, 0])
+        load = signed_words(s["duty"][:, r] * 1023.0)
+        err = (np.where(s["angle_error"][:, r], ERROR_ANGLE_LIMIT, 0)
+               | np.where(s["overload"][:, r], ERROR_OVERLOAD, 0))
         return tuple(ServoReport(
-            position=int(pos[r, i]), speed=int(spd[r, i]), load=int(load[r, i]),
-            voltage=self._voltage[i], temperature=self._temperature[i], moving=int(mov[r, i]),
-            error=int(err[r, i]), torque_enable=int(self._r["torque_enable"][i, r]),
-            torque_limit=int(self._r["torque_limit"][i, r])) for i in range(self.n))
+            position=int(s["present"][i, r]), speed=int(spd[i]), load=int(load[i]),
+            voltage=self._voltage[i], temperature=self._temperature[i],
+            moving=int(s["moving"][i, r]), error=int(err[i]),
+            torque_enable=int(regs["torque_enable"][i, r]),
+            torque_limit=int(regs["torque_limit"][i, r])) for i in range(self.n))

@@ -18,7 +18,7 @@ from control.backend import BackendError, GoalLimits, JointState
 from hardware import protocol1 as p1
 from hardware.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
 from hardware.plant import Plant
-from hardware.servo import ServoParams, ServoRegisters
+from hardware.servo import ServoParams, ServoRegisters, ServoReport
 from hardware.servo_spec import RX24F, ServoSpec
 from kinematics.model import SerialChain
 from kinematics.validate import scalar, vector
@@ -35,6 +35,62 @@ def thesis_registers(spec: ServoSpec, *, goal: int, cw_limit: int, ccw_limit: in
         moving_speed=0, torque_limit=1023, max_torque=1023, punch=32, cw_angle_limit=cw_limit,
         ccw_angle_limit=ccw_limit,
     )
+
+
+def servo_limits(model: SerialChain, specs: Sequence[ServoSpec], directions: Sequence[float],
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) (n,) rad: the model's joint limits intersected with each servo's 300°
+    range (seen through its direction). ValueError when a joint's do not overlap."""
+    lower, upper = [], []
+    for i, (spec, d) in enumerate(zip(specs, directions, strict=True)):
+        lo_s, hi_s = spec.raw_to_position(0), spec.raw_to_position(1023)
+        lo_j, hi_j = (lo_s, hi_s) if d > 0 else (-hi_s, -lo_s)
+        lower.append(max(float(model.lower[i]), lo_j))
+        upper.append(min(float(model.upper[i]), hi_j))
+    lo, hi = np.array(lower), np.array(upper)
+    if np.any(lo > hi):
+        raise ValueError("a joint's limits do not overlap its servo's 300° range")
+    return lo, hi
+
+
+def sim_registers(specs: Sequence[ServoSpec], directions: Sequence[float], lower: np.ndarray,
+                  upper: np.ndarray, q0: np.ndarray, *, torque_on: bool = True,
+                  ) -> list[ServoRegisters]:
+    """Per joint the registers a simulated arm starts with: :func:`thesis_registers` with the
+    CW/CCW Angle Limits at ``lower``/``upper`` (n,) rad and the goal at ``q0`` (n,) rad
+    clamped into them."""
+    regs = []
+    for i, (spec, d) in enumerate(zip(specs, directions, strict=True)):
+        ends = sorted(spec.position_to_raw(d * x) for x in (lower[i], upper[i]))
+        goal = spec.position_to_raw(d * float(np.clip(q0[i], lower[i], upper[i])))
+        regs.append(thesis_registers(spec, goal=goal, cw_limit=ends[0], ccw_limit=ends[1],
+                                     torque_on=torque_on))
+    return regs
+
+
+def decode_reports(reports: Sequence[ServoReport], specs: Sequence[ServoSpec],
+                   directions: Sequence[float], t: float) -> JointState:
+    """The servos' raw reports (one per joint) as the controller sees them: positions rad,
+    speeds rad/s, loads N·m (n,) each, through each servo's conversions and direction."""
+    pos, vel, load = [], [], []
+    for r, spec, d in zip(reports, specs, directions, strict=True):
+        pos.append(d * spec.raw_to_position(r.position))
+        vel.append(d * spec.raw_to_present_speed(r.speed))
+        load.append(d * spec.raw_to_load(r.load))
+    return JointState(t=t, position=np.array(pos), velocity=np.array(vel),
+                      load=np.array(load), errors=tuple(r.error for r in reports),
+                      torque_on=tuple(bool(r.torque_enable) for r in reports),
+                      alarms=tuple(p1.error_names(r.error) for r in reports))
+
+
+def raw_goals(specs: Sequence[ServoSpec], directions: Sequence[float], position: np.ndarray,
+              speed: np.ndarray) -> tuple[list[int], list[int]]:
+    """Checked goals (n,) rad and speeds (n,) rad/s as Goal Position and Moving Speed words
+    (speeds as magnitudes, 1..1023 units: never 0, "no limit")."""
+    goals = [spec.position_to_raw(d * x)
+             for spec, d, x in zip(specs, directions, position, strict=True)]
+    speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(specs, speed, strict=True)]
+    return goals, speeds
 
 
 class SimBackend(GoalLimits):
@@ -67,25 +123,10 @@ class SimBackend(GoalLimits):
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
         dirs = [1.0] * n if directions is None else [float(d) for d in directions]
-        lower, upper = [], []
-        for i in range(n):
-            spec = spec_list[i]
-            lo_s, hi_s = spec.raw_to_position(0), spec.raw_to_position(1023)
-            lo_j, hi_j = (lo_s, hi_s) if dirs[i] > 0 else (-hi_s, -lo_s)
-            lower.append(max(float(model.lower[i]), lo_j))
-            upper.append(min(float(model.upper[i]), hi_j))
-        self._lower = np.array(lower)
-        self._upper = np.array(upper)
-        if np.any(self._lower > self._upper):
-            raise ValueError("a joint's limits do not overlap its servo's 300° range")
+        self._lower, self._upper = servo_limits(model, spec_list, dirs)
         q_start = model.neutral() if q0 is None else vector("q0", q0, n)
-        regs = []
-        for i in range(n):
-            spec = spec_list[i]
-            ends = sorted(spec.position_to_raw(dirs[i] * x) for x in (lower[i], upper[i]))
-            goal = spec.position_to_raw(dirs[i] * float(np.clip(q_start[i], lower[i], upper[i])))
-            regs.append(thesis_registers(spec, goal=goal, cw_limit=ends[0], ccw_limit=ends[1],
-                                         torque_on=torque_on))
+        regs = sim_registers(spec_list, dirs, self._lower, self._upper, q_start,
+                             torque_on=torque_on)
         self.plant = Plant(model, spec_list, dt=dt, q0=q0, directions=dirs, params=params,
                            registers=regs)
         self.specs = tuple(spec_list)
@@ -114,16 +155,7 @@ class SimBackend(GoalLimits):
             self._check_open()
             reports = self.plant.reports()
             t = self.plant.t
-        pos, vel, load = [], [], []
-        for i, r in enumerate(reports):
-            spec, d = self.specs[i], self.directions[i]
-            pos.append(d * spec.raw_to_position(r.position))
-            vel.append(d * spec.raw_to_present_speed(r.speed))
-            load.append(d * spec.raw_to_load(r.load))
-        return JointState(t=t, position=np.array(pos), velocity=np.array(vel),
-                          load=np.array(load), errors=tuple(r.error for r in reports),
-                          torque_on=tuple(bool(r.torque_enable) for r in reports),
-                          alarms=tuple(p1.error_names(r.error) for r in reports))
+        return decode_reports(reports, self.specs, self.directions, t)
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving Speed.
@@ -137,9 +169,7 @@ class SimBackend(GoalLimits):
     def write_checked(self, position: np.ndarray, speed: np.ndarray) -> None:
         """:meth:`write` of goals already checked and clamped (``checked_goal``), e.g. a
         slice of a bigger backend's goals."""
-        goals = [spec.position_to_raw(d * x)
-                 for spec, d, x in zip(self.specs, self.directions, position, strict=True)]
-        speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(self.specs, speed, strict=True)]
+        goals, speeds = raw_goals(self.specs, self.directions, position, speed)
         with self._lock:
             self._check_open()
             for servo, g, v in zip(self.plant.servos, goals, speeds, strict=True):

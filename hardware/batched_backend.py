@@ -1,0 +1,152 @@
+"""``BatchedArmBackend``: the :class:`control.backend.Backend` protocol over one arm of a
+:class:`hardware.batched_plant.BatchedPlant` (a student's private arm in a class).
+
+It is :class:`hardware.sim_backend.SimBackend` for one arm (by its id) of a plant that
+many arms share: the same joint limits and goal clamping (:class:`GoalLimits`), the same
+raw words written and read and the same decoding (:func:`~hardware.sim_backend.raw_goals`,
+:func:`~hardware.sim_backend.decode_reports`), the same torque, e-stop, close and push
+semantics. One difference: :meth:`BatchedArmBackend.sync` does not step the plant. A
+shared clock (:class:`control.periodic.SharedClock`) steps the whole plant once per
+``dt`` and runs each arm's control period when it is due, so the plant is already at the
+loop's time; ``sync`` only records it.
+
+Every method that touches the plant holds the ``lock`` given (the one the clock's
+thread holds while it steps), so a UI thread may e-stop or push an arm at any time.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from control.backend import BackendError, GoalLimits, JointState
+from hardware.batched_plant import BatchedPlant
+from hardware.sim_backend import decode_reports, raw_goals, servo_limits, sim_registers
+from kinematics.validate import scalar, vector
+
+
+def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
+                torque_on: bool = True) -> int:
+    """Add an arm to ``plant`` configured as a fresh :class:`SimBackend`'s (thesis
+    registers, Angle Limits at the joint limits, goal at ``q0`` (n,) rad, default
+    neutral; torque on unless ``torque_on`` is False). Returns its id."""
+    lower, upper = servo_limits(plant.model, plant.specs, plant.directions)
+    q = plant.model.neutral() if q0 is None else vector("q0", q0, plant.n)
+    regs = sim_registers(plant.specs, plant.directions, lower, upper, q, torque_on=torque_on)
+    return plant.add_arm(q0=q, registers=regs)
+
+
+class BatchedArmBackend(GoalLimits):
+    """Arm id ``arm`` of ``plant`` behind the ``Backend`` and ``Pushable`` protocols.
+
+    Args:
+        plant: the shared plant (the caller adds the arm first, e.g. :func:`add_sim_arm`,
+            and removes it after :meth:`close`).
+        arm: the arm's id in ``plant``.
+        lock: held around every use of the plant (the shared clock holds it while it
+            steps).
+
+    The torque limits restored by ``set_torque(True)`` after an overload shutdown are
+    the arm's Torque Limit registers when the backend is made. Time (``read().t``) is
+    the plant's time since the backend was made.
+    """
+
+    def __init__(self, plant: BatchedPlant, arm: int, *, lock: threading.RLock) -> None:
+        self.plant = plant
+        self.arm = int(arm)
+        self.specs = plant.specs
+        self.directions = plant.directions
+        self._lock = lock
+        self._lower, self._upper = servo_limits(plant.model, plant.specs, plant.directions)
+        with lock:
+            self._torque_limits = tuple(r.torque_limit for r in plant.registers(self.arm))
+            self._k0 = plant.steps
+        self._t = 0.0
+        self._closed = False
+
+    # -- Backend protocol ---------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.plant.n
+
+    @property
+    def t(self) -> float:
+        """The loop time of the last :meth:`sync`, s."""
+        return self._t
+
+    def sync(self, t: float) -> None:
+        """Record the loop time ``t`` s; the shared clock has stepped the plant to it."""
+        t = scalar("t", t)
+        with self._lock:
+            self._check_open()
+            self._t = t
+
+    def read(self) -> JointState:
+        """Every joint as its servo reports it (decoded raw words, quantised)."""
+        with self._lock:
+            self._check_open()
+            reports = self.plant.reports(self.arm)
+            t = (self.plant.steps - self._k0) * self.plant.dt
+        return decode_reports(reports, self.specs, self.directions, t)
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving
+        Speed words (:meth:`SimBackend.write`: clamped; bad input raises, nothing written)."""
+        self.write_checked(*self.checked_goal(position, speed))
+
+    def write_checked(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """:meth:`write` of goals already checked and clamped (``checked_goal``)."""
+        goals, speeds = raw_goals(self.specs, self.directions, position, speed)
+        with self._lock:
+            self._check_open()
+            self.plant.set_goal(self.arm, goals, speeds)
+
+    def set_torque(self, on: bool) -> None:
+        """Torque Enable on every servo; switching on restores a Torque Limit an overload
+        shutdown set to 0 (as :meth:`SimBackend.set_torque`)."""
+        with self._lock:
+            self._check_open()
+            regs = self.plant.registers(self.arm)
+            for j, (r, limit) in enumerate(zip(regs, self._torque_limits, strict=True)):
+                if on and r.torque_limit == 0:
+                    self.plant.set_registers(self.arm, j, torque_limit=limit)
+            self.plant.set_registers(self.arm, torque_enable=int(bool(on)))
+
+    def estop(self) -> bool:
+        """Torque off on every servo of this arm now; never raises. True (nothing can be
+        lost; an arm already removed from the plant holds no torque either)."""
+        with self._lock:
+            try:
+                self.plant.set_registers(self.arm, torque_enable=0)
+            except ValueError:  # the owner removed the arm
+                pass
+        return True
+
+    def close(self) -> None:
+        """Release the backend; later calls raise BackendError (the arm stays in the plant,
+        its torque as it is: the owner removes it)."""
+        with self._lock:
+            self._closed = True
+
+    # -- Pushable -----------------------------------------------------------------
+
+    def push(self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float) -> None:
+        """Apply ``force`` (3,) N, base frame, at ``point`` (3,) m in link ``link``'s frame
+        for ``duration`` s of simulated time from now."""
+        with self._lock:
+            self.plant.push(self.arm, force, link=link, point=point, duration=duration)
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with
+        ``stiffness`` N/m; None releases it."""
+        with self._lock:
+            self.plant.set_spring(self.arm, anchor, stiffness=stiffness, link=link,
+                                  point=point)
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise BackendError("the simulated arm is closed; open a new backend")
