@@ -53,7 +53,7 @@ from control.commands import (
 )
 from control.compliance import MODES, ComplianceController, ControllerState, Mode
 from control.params import DEFAULT, Params, loop_stability, stability_warning
-from control.periodic import Pacer
+from control.periodic import DrivenPacer, Pacer, SharedClock
 from control.recorder import Recorder
 from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
 from kinematics.dynamics import rnea
@@ -139,12 +139,17 @@ class ControlLoop:
         max_lag, lag_time: a joint farther than ``max_lag`` rad from its reference for
             ``lag_time`` s is a fault (blocked, overloaded, or an oscillation growing).
         target_speed: m/s, hand speed when following a ``SetTarget``.
+        clock: run the periods on this :class:`SharedClock` (with other loops and the world
+            it steps) instead of a thread of the loop's own; ``start``/``shutdown`` attach
+            and detach the loop. The backend's ``sync`` then finds its world already at
+            the loop's time (e.g. ``hardware.batched_backend.BatchedArmBackend``).
     """
 
     def __init__(self, model: SerialChain, backend: Backend, params: Params | None = None, *,
                  controller: Mode = "compliance", realtime: bool = True,
                  history_s: float = 20.0, max_accel: float = 500.0, max_lag: float = 0.5,
-                 lag_time: float = 0.5, target_speed: float = TARGET_SPEED) -> None:
+                 lag_time: float = 0.5, target_speed: float = TARGET_SPEED,
+                 clock: SharedClock | None = None) -> None:
         if not isinstance(backend, Backend):
             raise ValueError(f"backend must implement control.backend.Backend, got "
                              f"{type(backend).__name__}")
@@ -198,8 +203,10 @@ class ControlLoop:
         self._unsent_retry_t = 0.0
         self._reconnect_t = 0.0  # loop time of the next automatic reconnection attempt
         self._await_reset = False  # a link found again stays torque-off until a Reset
-        self._pacer = Pacer(self._tick, period=params.period, name="armlab-control",
-                            realtime=realtime)
+        self._pacer: Pacer | DrivenPacer = (
+            Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime)
+            if clock is None else
+            clock.pacer(self._tick, period=params.period, name="armlab-control"))
         self._warning = stability_warning(params)
 
     # ------------------------------------------------------------------ public API

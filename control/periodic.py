@@ -15,6 +15,11 @@ writer appends in place (no allocation per period), any thread takes a copy of t
 seconds (found by bisection on time), thinned if asked.
 
 (``control.recorder.Recorder`` is a RingBuffer with a named column per signal.)
+
+:class:`SharedClock` steps one world (e.g. a class's ``BatchedPlant``) and the loops
+attached to it in lockstep, in one thread: each loop gets a :class:`DrivenPacer` from
+:meth:`SharedClock.pacer` in place of its own :class:`Pacer` (same interface as the
+loops use it) and runs its periods when the world's time reaches them.
 """
 
 from __future__ import annotations
@@ -304,3 +309,215 @@ class RingBuffer:
         if start >= 0:
             return self._data[start: self._head].copy()
         return np.concatenate([self._data[start:], self._data[: self._head]])
+
+
+class DrivenPacer:
+    """A :class:`Pacer` whose periods a :class:`SharedClock` runs (made by
+    :meth:`SharedClock.pacer`; the interface loops use: ``start``, ``stop``, ``alive``,
+    ``running``, ``period``, ``stats``).
+
+    Started at clock step k0, its periods are due at local times 0, P, 2P, ... (``period``
+    read after each period, so a change made in ``step`` counts from the next due time).
+    Period m is run at the first clock step k with (k − k0 + 0.5)·dt > its local time,
+    before the world steps: the world is then where ``Plant.advance_to`` of that time
+    would have put a plant of its own. Started again after a stop, it goes on from its
+    next local time (due at once).
+
+    Attributes:
+        errors: exceptions ``step`` raised (the clock went on); last_error: the latest.
+    """
+
+    def __init__(self, clock: SharedClock, step: Callable[[], None], *, period: float,
+                 name: str) -> None:
+        self.step = step
+        self.period = float(period)
+        self.name = name
+        self.errors = 0
+        self.last_error: Exception | None = None
+        self._clock = clock
+        self._attached = False
+        self._k0 = 0  # clock step of local time 0
+        self._t_next = 0.0  # local time of the next period, s
+        self._last_wall: float | None = None
+        self._intervals: deque[float] = deque(maxlen=1000)
+
+    @property
+    def running(self) -> bool:
+        """Attached to the clock (started and not stopped)."""
+        return self._attached
+
+    @property
+    def alive(self) -> bool:
+        """Attached and the clock's thread is running (False headless: as a stepped loop)."""
+        return self._attached and self._clock.alive
+
+    def start(self) -> None:
+        """Attach to the clock: the next period is due at the clock's current step."""
+        with self._clock.lock:
+            if self._attached:
+                return
+            dt = self._clock.dt
+            m = max(0, int(self._t_next / dt) - 1)  # the first m with (m + 0.5) dt > t_next
+            while (m + 0.5) * dt <= self._t_next:
+                m += 1
+            self._k0 = self._clock.steps - m
+            self._last_wall = None
+            self._attached = True
+            self._clock._attach(self)
+
+    def stop(self, timeout: float) -> None:
+        """Detach from the clock; returns after the clock's current tick (waiting up to
+        ``timeout`` s for it)."""
+        self._attached = False
+        lock = self._clock.lock
+        if lock.acquire(timeout=max(0.0, float(timeout))):
+            try:
+                self._clock._detach(self)
+            finally:
+                lock.release()
+
+    def run_for(self, seconds: float) -> None:
+        """Not for a driven pacer: its periods run when the clock's time reaches them."""
+        raise RuntimeError(f"{self.name}: driven by a shared clock; use SharedClock.run_for")
+
+    def stats(self) -> PaceStats:
+        """Lateness, overruns and skips of the clock's wake-ups (the whole class's: skips in
+        this loop's periods), mean wall time between this loop's periods (real time)."""
+        base = self._clock.stats()
+        gaps = tuple(self._intervals)
+        scale = self._clock.dt / self.period
+        return PaceStats(
+            late_p50_ms=base.late_p50_ms, late_p99_ms=base.late_p99_ms,
+            late_max_ms=base.late_max_ms,
+            interval_mean_ms=float(np.mean(gaps) * 1e3) if gaps else None,
+            overruns=base.overruns, skipped=round(base.skipped * scale),
+            skipped_recent=round(base.skipped_recent * scale))
+
+    def _due(self, k: int) -> bool:
+        return self._attached and (k - self._k0 + 0.5) * self._clock.dt > self._t_next
+
+    def _fire(self) -> None:
+        """One period (in the clock's thread, the lock held); never raises."""
+        if self._clock.realtime and self._clock.alive:
+            now = time.perf_counter()
+            if self._last_wall is not None:
+                self._intervals.append(now - self._last_wall)
+            self._last_wall = now
+        try:
+            self.step()
+        except Exception as exc:  # one loop's failure must not stop the class
+            self.errors += 1
+            self.last_error = exc
+        self._t_next += self.period
+
+
+class SharedClock:
+    """One thread stepping a world by ``dt`` and the loops attached to it in lockstep.
+
+    Per tick, holding ``lock``: every attached :class:`DrivenPacer` whose period is due
+    runs it (in the order they were started), then ``step()`` advances the world one
+    ``dt`` and the clock's time by ``dt``. An exception of ``step`` is counted
+    (:attr:`errors`, :attr:`last_error`) and the clock goes on; so is one of a period.
+
+    Args:
+        step: one world step of ``dt`` (e.g. ``BatchedPlant.step``).
+        dt: s per tick.
+        realtime: pace ticks by the wall clock (a :class:`Pacer` of period ``dt``); False:
+            as fast as possible.
+        lock: held around each tick (default a new RLock; share it with whatever else
+            touches the world, e.g. the backends).
+        name: the thread's name.
+        batch_s: wall time between wake-ups when real time, s (ticks due run together).
+        max_catch_up: most world time run at one wake-up, s (beyond: skipped).
+    """
+
+    def __init__(self, step: Callable[[], None], *, dt: float, realtime: bool = True,
+                 lock: threading.RLock | None = None, name: str = "armlab-class",
+                 batch_s: float = 0.008, max_catch_up: float = 0.05) -> None:
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.step = step
+        self.dt = float(dt)
+        self.realtime = realtime
+        self.lock = threading.RLock() if lock is None else lock
+        self.name = name
+        self.errors = 0
+        self.last_error: Exception | None = None
+        self._k = 0
+        self._pacers: list[DrivenPacer] = []
+        self._ticking = False
+        self._pacer = Pacer(self._tick, period=self.dt, name=name, realtime=realtime,
+                            batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up)
+
+    @property
+    def steps(self) -> int:
+        """Ticks run (t = steps · dt)."""
+        return self._k
+
+    @property
+    def t(self) -> float:
+        """The clock's time, s."""
+        return self._k * self.dt
+
+    @property
+    def alive(self) -> bool:
+        """The clock's thread is running."""
+        return self._pacer.alive
+
+    @property
+    def loops(self) -> int:
+        """Pacers attached."""
+        return len(self._pacers)
+
+    def pacer(self, step: Callable[[], None], *, period: float, name: str) -> DrivenPacer:
+        """A pacer for a loop on this clock (runs nothing until its ``start()``)."""
+        return DrivenPacer(self, step, period=period, name=name)
+
+    def start(self) -> None:
+        """Start the clock's thread (nothing when it runs)."""
+        self._pacer.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop the thread after its current batch (the pacers stay attached)."""
+        self._pacer.stop(timeout)
+
+    def run_for(self, seconds: float) -> None:
+        """Run ``seconds`` of ticks now in the calling thread (headless; tests, benches)."""
+        if self._pacer.alive:
+            raise RuntimeError("run_for: the clock's thread is running")
+        for _ in range(round(float(seconds) / self.dt)):
+            self._tick()
+
+    def stats(self) -> PaceStats:
+        """The clock's wake-up lateness and skips (its ticks; real time only)."""
+        return self._pacer.stats()
+
+    def _attach(self, pacer: DrivenPacer) -> None:
+        if pacer not in self._pacers:
+            self._pacers.append(pacer)
+
+    def _detach(self, pacer: DrivenPacer) -> None:
+        if not self._ticking and pacer in self._pacers:  # in a tick: the tick drops it
+            self._pacers.remove(pacer)
+
+    def _tick(self) -> None:
+        with self.lock:
+            k = self._k
+            i = 0
+            self._ticking = True
+            try:
+                while i < len(self._pacers):  # a pacer started in a period runs this tick too
+                    p = self._pacers[i]
+                    while p._due(k):
+                        p._fire()
+                    i += 1
+            finally:
+                self._ticking = False
+                self._pacers = [p for p in self._pacers if p._attached]
+            try:
+                self.step()
+            except Exception as exc:  # e.g. one arm diverged: the others go on
+                self.errors += 1
+                self.last_error = exc
+            finally:
+                self._k += 1

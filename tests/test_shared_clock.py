@@ -1,0 +1,236 @@
+"""Private arms of a class on one SharedClock over one BatchedPlant (issue 16 item 2) equal
+ControlLoops each on its own SimBackend: recorders and plant states to 1e-9."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from control.backend import Backend, BackendError, Pushable
+from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring
+from control.loop import ControlLoop
+from control.params import Params
+from control.periodic import SharedClock
+from control.trajectory import minimum_jerk, thesis_line
+from hardware.batched_backend import BatchedArmBackend, add_sim_arm
+from hardware.batched_plant import BatchedPlant
+from hardware.servo_spec import RX24F
+from hardware.sim_backend import SimBackend
+from kinematics import load_robot
+
+MODEL = load_robot("receptionist_arm")
+DT = 1e-3
+LINE = thesis_line(MODEL)
+Q0 = [LINE.q[0], np.array([0.2, 0.5, 0.8]), np.array([-0.3, 0.4, 0.6])]
+PARAMS = [Params(), Params(kp=15.0, kv=4.0, k_env=30.0, period=0.010),
+          Params(d_env=10.0, k_f=2.0, period=0.020)]
+Action = Callable[[ControlLoop], object]
+#: per arm: loop period index -> actions run just before that period
+EVENTS: list[dict[int, list[Action]]] = [
+    {3: [lambda lp: lp.post(RunTrajectory(LINE))],
+     40: [lambda lp: lp.post(Push(np.array([0.0, 4.0, 0.0]), 2, np.zeros(3), 0.2))],
+     80: [lambda lp: lp.set_params(Params(period=0.012))]},
+    {10: [lambda lp: lp.post(Spring(np.array([0.15, 0.1, 0.1]), 30.0, 2,
+                                    np.array([0.25, 0.0, 0.0])))],
+     90: [lambda lp: lp.post(Spring(np.array([0.1, 0.2, 0.0]), 40.0, 1, np.zeros(3)))],
+     150: [lambda lp: lp.post(Spring(None, 0.0, 2, np.zeros(3)))]},
+    {2: [lambda lp: lp.post(RunTrajectory(minimum_jerk(Q0[2], np.array([0.3, 0.1, 0.9]),
+                                                       0.4)))],
+     30: [lambda lp: lp.post(EStop())],
+     45: [lambda lp: lp.post(Reset())],
+     60: [lambda lp: lp.post(SetTarget(np.array([0.05, 0.15, 0.2])))]},
+]
+
+
+def _class(n: int = 3) -> tuple[BatchedPlant, SharedClock, list[ControlLoop]]:
+    plant = BatchedPlant(MODEL, RX24F, dt=DT)
+    lock = threading.RLock()
+    clock = SharedClock(plant.step, dt=DT, realtime=False, lock=lock)
+    loops = [_join(plant, clock, i) for i in range(n)]
+    return plant, clock, loops
+
+
+def _join(plant: BatchedPlant, clock: SharedClock, i: int) -> ControlLoop:
+    arm = add_sim_arm(plant, q0=Q0[i])
+    backend = BatchedArmBackend(plant, arm, lock=clock.lock)  # type: ignore[arg-type]
+    loop = ControlLoop(MODEL, backend, PARAMS[i], realtime=False, clock=clock)
+    loop.start()
+    return loop
+
+
+def _run(clock: SharedClock, loops: dict[int, ControlLoop], seconds: float,
+         done: set[tuple[int, int]]) -> None:
+    """``seconds`` of class time, one tick at a time, each arm's events before its period."""
+    for _ in range(round(seconds / DT)):
+        for i, lp in loops.items():
+            k = lp.status.steps
+            if (i, k) not in done:
+                done.add((i, k))
+                for act in EVENTS[i].get(k, []):
+                    act(lp)
+        clock.run_for(DT)
+
+
+def _alone(i: int, periods: int) -> ControlLoop:
+    """Arm i on its own SimBackend, ``periods`` periods headless, the same events."""
+    loop = ControlLoop(MODEL, SimBackend(MODEL, q0=Q0[i]), PARAMS[i], realtime=False)
+    for k in range(periods):
+        for act in EVENTS[i].get(k, []):
+            act(loop)
+        loop.step()
+    return loop
+
+
+def _same_record(a: ControlLoop, b: ControlLoop) -> None:
+    ra, rb = a.recorder._ring.rows(), b.recorder._ring.rows()
+    assert ra.shape == rb.shape
+    np.testing.assert_allclose(ra, rb, rtol=0.0, atol=1e-9, equal_nan=True)
+
+
+def test_class_on_a_shared_clock_equals_loops_on_their_own_sim_backends() -> None:
+    plant, clock, loops = _class()
+    _run(clock, dict(enumerate(loops)), 2.0, set())
+    assert clock.t == pytest.approx(2.0) and clock.errors == 0
+    for i, lp in enumerate(loops):
+        st = lp.status
+        ref = _alone(i, st.steps)
+        assert st.steps == ref.status.steps and st.t == ref.status.t
+        assert st.fault is None and ref.status.fault is None, (st.fault, ref.status.fault)
+        assert st.running is False  # headless: nothing ran in a thread
+        _same_record(lp, ref)
+        sim = ref.backend
+        assert isinstance(sim, SimBackend)
+        sim.plant.advance_to(clock.t)
+        assert np.max(np.abs(plant.q[i] - sim.plant.q)) <= 1e-9
+        assert np.max(np.abs(plant.qd[i] - sim.plant.qd)) <= 1e-9
+    assert loops[0].params.period == 0.012  # the period change took effect
+    assert loops[1].status.steps == 200 and loops[2].status.steps == 100
+    for lp in loops:  # every arm really moved (arm 1 by the spring alone)
+        q = lp.recorder.snapshot()["q"]
+        assert np.max(np.nanmax(q, axis=0) - np.nanmin(q, axis=0)) > 0.05
+
+
+def test_an_arm_joining_or_leaving_leaves_the_others_unchanged() -> None:
+    _, ref_clock, ref = _class(2)
+    _run(ref_clock, dict(enumerate(ref)), 1.2, set())
+    plant, clock, loops = _class(2)
+    done: set[tuple[int, int]] = set()
+    _run(clock, dict(enumerate(loops)), 0.4, done)
+    third = _join(plant, clock, 2)  # joins at 0.4 s: its loop time starts at 0
+    every = {0: loops[0], 1: loops[1], 2: third}
+    _run(clock, every, 0.4, done)
+    loops[1].shutdown()  # detached at 0.8 s: its arm stays, its loop stops
+    stopped_at = loops[1].status.steps
+    _run(clock, {0: loops[0], 2: third}, 0.4, done)
+    assert loops[1].status.steps == stopped_at and clock.loops == 2
+    _same_record(loops[0], ref[0])
+    t = third.recorder.snapshot()["t"]
+    assert t[0] == 0.0 and third.status.steps == 40  # 0.8 s at 20 ms
+    alone = _alone(2, third.status.steps)
+    _same_record(third, alone)
+    first = ref[1].recorder._ring.rows()[:stopped_at]
+    np.testing.assert_allclose(loops[1].recorder._ring.rows(), first, atol=1e-9,
+                               equal_nan=True)
+    loops[1].start()  # attached again: goes on from its next period at once
+    _run(clock, every, 0.05, done)
+    assert loops[1].status.steps == stopped_at + 5
+
+
+def test_a_failing_period_or_world_step_leaves_the_clock_and_other_arms_running() -> None:
+    _, ref_clock, ref = _class(2)
+    _run(ref_clock, dict(enumerate(ref)), 0.5, set())
+    plant, clock, loops = _class(2)
+
+    def boom() -> None:
+        raise RuntimeError("a bad period")
+
+    bad = clock.pacer(boom, period=0.005, name="bad")
+    bad.start()
+    broken = add_sim_arm(plant, q0=Q0[1])
+
+    class Broken(BatchedArmBackend):
+        def read(self):  # noqa: ANN202
+            raise KeyError("inside one arm's read")
+
+    lp = ControlLoop(MODEL, Broken(plant, broken, lock=clock.lock), realtime=False,  # type: ignore[arg-type]
+                     clock=clock)
+    lp.start()
+    _run(clock, dict(enumerate(loops)), 0.5, set())
+    assert bad.errors == 100 and isinstance(bad.last_error, RuntimeError)
+    assert lp.status.fault is not None and "KeyError" in lp.status.fault
+    for a, b in zip(loops, ref, strict=True):
+        _same_record(a, b)
+    # a world step that raises is counted; the clock goes on
+    calls = []
+
+    def step() -> None:
+        calls.append(1)
+        if len(calls) == 3:
+            raise FloatingPointError("arm 7 diverged")
+
+    other = SharedClock(step, dt=DT, realtime=False)
+    other.run_for(0.01)
+    assert len(calls) == 10 and other.errors == 1 and other.steps == 10
+
+
+def test_batched_arm_backend_is_a_sim_backend_for_one_arm() -> None:
+    plant = BatchedPlant(MODEL, RX24F, dt=DT)
+    lock = threading.RLock()
+    arm = add_sim_arm(plant, q0=Q0[1])
+    be = BatchedArmBackend(plant, arm, lock=lock)  # type: ignore[arg-type]
+    sim = SimBackend(MODEL, q0=Q0[1])
+    assert isinstance(be, Backend) and isinstance(be, Pushable)
+    assert np.array_equal(be.lower, sim.lower) and np.array_equal(be.upper, sim.upper)
+    assert list(plant.registers(arm)) == [s.regs for s in sim.plant.servos]
+    for b in (be, sim):
+        b.write(np.array([5.0, 0.2, -9.0]), np.array([1.0, 0.0, 2.0]))  # clamped
+    with pytest.raises(ValueError, match="position"):
+        be.write(np.array([np.nan, 0.0, 0.0]), np.ones(3))
+    for k in range(300):
+        if k == 100:
+            for b in (be, sim):
+                b.push(np.array([0.0, 3.0, 1.0]), link=2, point=np.zeros(3), duration=0.05)
+                b.set_spring(np.array([0.1, 0.1, 0.1]), stiffness=40.0, link=1,
+                             point=np.zeros(3))
+        if k == 200:
+            assert be.estop() is True and sim.estop() is True
+        plant.step()
+        be.sync((k + 1) * DT)
+        sim.sync((k + 1) * DT)
+        a, b = be.read(), sim.read()
+        assert a.t == b.t and a.errors == b.errors and a.torque_on == b.torque_on
+        for x, y in ((a.position, b.position), (a.velocity, b.velocity), (a.load, b.load)):
+            assert np.array_equal(x, y), k
+    be.set_torque(True)
+    assert all(r.torque_enable == 1 for r in plant.registers(arm))
+    be.close()
+    with pytest.raises(BackendError):
+        be.write(np.zeros(3), np.ones(3))
+    with pytest.raises(BackendError):
+        be.read()
+    assert be.estop() is True and plant.n_arms == 1  # close removes nothing
+    plant.remove_arm(arm)
+    assert be.estop() is True  # never raises, even with the arm gone
+
+
+def test_the_clock_thread_runs_attached_loops_and_stops() -> None:
+    plant, clock, loops = _class(2)
+    clock.start()
+    try:
+        assert clock.alive and loops[0].status.running
+        with pytest.raises(RuntimeError):
+            loops[0].step()
+        with pytest.raises(RuntimeError):
+            clock.run_for(0.1)
+        deadline = time.monotonic() + 10.0
+        while loops[1].status.steps < 20 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert loops[1].status.steps >= 20
+    finally:
+        clock.stop()
+    assert not clock.alive and not loops[0].status.running
+    assert plant.steps == clock.steps
