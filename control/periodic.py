@@ -25,6 +25,7 @@ loops use it) and runs its periods when the world's time reaches them.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from collections import deque
@@ -340,6 +341,7 @@ class DrivenPacer:
         self._t_next = 0.0  # local time of the next period, s
         self._last_wall: float | None = None
         self._intervals: deque[float] = deque(maxlen=1000)
+        self._stats_lock = threading.Lock()  # the clock appends, a UI thread copies
 
     @property
     def running(self) -> bool:
@@ -384,7 +386,8 @@ class DrivenPacer:
         """Lateness, overruns and skips of the clock's wake-ups (the whole class's: skips in
         this loop's periods), mean wall time between this loop's periods (real time)."""
         base = self._clock.stats()
-        gaps = tuple(self._intervals)
+        with self._stats_lock:
+            gaps = tuple(self._intervals)
         scale = self._clock.dt / self.period
         return PaceStats(
             late_p50_ms=base.late_p50_ms, late_p99_ms=base.late_p99_ms,
@@ -401,7 +404,8 @@ class DrivenPacer:
         if self._clock.realtime and self._clock.alive:
             now = time.perf_counter()
             if self._last_wall is not None:
-                self._intervals.append(now - self._last_wall)
+                with self._stats_lock:
+                    self._intervals.append(now - self._last_wall)
             self._last_wall = now
         try:
             self.step()
@@ -417,7 +421,8 @@ class SharedClock:
     Per tick, holding ``lock``: every attached :class:`DrivenPacer` whose period is due
     runs it (in the order they were started), then ``step()`` advances the world one
     ``dt`` and the clock's time by ``dt``. An exception of ``step`` is counted
-    (:attr:`errors`, :attr:`last_error`) and the clock goes on; so is one of a period.
+    (:attr:`errors`, :attr:`last_error`), passed to ``on_error`` and the clock goes on
+    (a period's exception is counted on its pacer; a ControlLoop catches its own).
 
     Args:
         step: one world step of ``dt`` (e.g. ``BatchedPlant.step``).
@@ -429,11 +434,15 @@ class SharedClock:
         name: the thread's name.
         batch_s: wall time between wake-ups when real time, s (ticks due run together).
         max_catch_up: most world time run at one wake-up, s (beyond: skipped).
+        on_error: called with an exception of ``step`` (in the clock's thread, ``lock``
+            held), e.g. to put a diverged arm back (``BatchedPlant.step`` raises
+            FloatingPointError naming the arms after stepping every arm).
     """
 
     def __init__(self, step: Callable[[], None], *, dt: float, realtime: bool = True,
                  lock: threading.RLock | None = None, name: str = "armlab-class",
-                 batch_s: float = 0.008, max_catch_up: float = 0.05) -> None:
+                 batch_s: float = 0.008, max_catch_up: float = 0.05,
+                 on_error: Callable[[Exception], None] | None = None) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
         self.step = step
@@ -443,6 +452,7 @@ class SharedClock:
         self.name = name
         self.errors = 0
         self.last_error: Exception | None = None
+        self.on_error = on_error
         self._k = 0
         self._pacers: list[DrivenPacer] = []
         self._ticking = False
@@ -474,7 +484,10 @@ class SharedClock:
         return DrivenPacer(self, step, period=period, name=name)
 
     def start(self) -> None:
-        """Start the clock's thread (nothing when it runs)."""
+        """Start the clock's thread (nothing when it runs). Real time: lowers the
+        interpreter's thread switch interval to 1 ms, as a paced ControlLoop does."""
+        if self.realtime:
+            sys.setswitchinterval(min(sys.getswitchinterval(), 0.001))
         self._pacer.start()
 
     def stop(self, timeout: float = 2.0) -> None:
@@ -519,5 +532,10 @@ class SharedClock:
             except Exception as exc:  # e.g. one arm diverged: the others go on
                 self.errors += 1
                 self.last_error = exc
+                if self.on_error is not None:
+                    try:
+                        self.on_error(exc)
+                    except Exception as again:  # the clock must not die of its handler
+                        self.last_error = again
             finally:
                 self._k += 1

@@ -56,7 +56,7 @@ def _class(n: int = 3) -> tuple[BatchedPlant, SharedClock, list[ControlLoop]]:
 
 def _join(plant: BatchedPlant, clock: SharedClock, i: int) -> ControlLoop:
     arm = add_sim_arm(plant, q0=Q0[i])
-    backend = BatchedArmBackend(plant, arm, lock=clock.lock)  # type: ignore[arg-type]
+    backend = BatchedArmBackend(plant, arm, lock=clock.lock)
     loop = ControlLoop(MODEL, backend, PARAMS[i], realtime=False, clock=clock)
     loop.start()
     return loop
@@ -156,7 +156,7 @@ def test_a_failing_period_or_world_step_leaves_the_clock_and_other_arms_running(
         def read(self):  # noqa: ANN202
             raise KeyError("inside one arm's read")
 
-    lp = ControlLoop(MODEL, Broken(plant, broken, lock=clock.lock), realtime=False,  # type: ignore[arg-type]
+    lp = ControlLoop(MODEL, Broken(plant, broken, lock=clock.lock), realtime=False,
                      clock=clock)
     lp.start()
     _run(clock, dict(enumerate(loops)), 0.5, set())
@@ -172,16 +172,18 @@ def test_a_failing_period_or_world_step_leaves_the_clock_and_other_arms_running(
         if len(calls) == 3:
             raise FloatingPointError("arm 7 diverged")
 
-    other = SharedClock(step, dt=DT, realtime=False)
+    seen: list[Exception] = []
+    other = SharedClock(step, dt=DT, realtime=False, on_error=seen.append)
     other.run_for(0.01)
     assert len(calls) == 10 and other.errors == 1 and other.steps == 10
+    assert isinstance(seen[0], FloatingPointError) and other.last_error is seen[0]
 
 
 def test_batched_arm_backend_is_a_sim_backend_for_one_arm() -> None:
     plant = BatchedPlant(MODEL, RX24F, dt=DT)
     lock = threading.RLock()
     arm = add_sim_arm(plant, q0=Q0[1])
-    be = BatchedArmBackend(plant, arm, lock=lock)  # type: ignore[arg-type]
+    be = BatchedArmBackend(plant, arm, lock=lock)
     sim = SimBackend(MODEL, q0=Q0[1])
     assert isinstance(be, Backend) and isinstance(be, Pushable)
     assert np.array_equal(be.lower, sim.lower) and np.array_equal(be.upper, sim.upper)

@@ -92,7 +92,7 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
     loops = []
     for _ in range(n_arms):
         q = q0 + rng.uniform(-0.2, 0.2, 3)
-        backend = BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)  # type: ignore[arg-type]
+        backend = BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)
         params = Params(kp=float(rng.uniform(10.0, 25.0)), kv=float(rng.uniform(3.0, 7.0)),
                         k_env=float(rng.uniform(8.0, 30.0)), period=0.016)
         loop = ControlLoop(model, backend, params, realtime=False, clock=clock)
