@@ -1,9 +1,10 @@
 """The control loop: one period = read the servos, run the controller, write goals, record.
 
 ``ControlLoop`` runs at the fixed period ``params.period`` either in its own
-thread paced by the wall clock (``start()`` / ``shutdown()``) or stepped as fast
-as possible by the caller (``step()``, ``run_for(seconds)``) for headless runs
-and tests. Backend time is the loop's own clock k·T, so a simulated arm gives
+thread paced by the wall clock (``start()`` / ``shutdown()``), on a
+:class:`~control.periodic.SharedClock` with other loops and the world it steps
+(``clock=``; a class's private arms), or stepped as fast as possible by the caller
+(``step()``, ``run_for(seconds)``) for headless runs and tests. Backend time is the loop's own clock k·T, so a simulated arm gives
 the same numbers paced or not.
 
 One writer per piece of state: only the loop touches the backend and the

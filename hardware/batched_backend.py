@@ -12,6 +12,17 @@ loop's time; ``sync`` only records it.
 
 Every method that touches the plant holds the ``lock`` given (the one the clock's
 thread holds while it steps), so a UI thread may e-stop or push an arm at any time.
+
+An arm's life (the owner's part)::
+
+    arm = add_sim_arm(plant, q0=q0, lock=lock)
+    loop = ControlLoop(model, BatchedArmBackend(plant, arm, lock=lock), params, clock=clock)
+    loop.start()                 # attached: its periods run on the clock
+    ...
+    loop.shutdown()              # detached after the clock's current tick
+    loop.backend.close()
+    with lock:
+        plant.remove_arm(arm)
 """
 
 from __future__ import annotations
@@ -27,14 +38,18 @@ from kinematics.validate import scalar, vector
 
 
 def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
-                torque_on: bool = True) -> int:
+                torque_on: bool = True, lock: threading.RLock | None = None) -> int:
     """Add an arm to ``plant`` configured as a fresh :class:`SimBackend`'s (thesis
     registers, Angle Limits at the joint limits, goal at ``q0`` (n,) rad, default
-    neutral; torque on unless ``torque_on`` is False). Returns its id."""
+    neutral; torque on unless ``torque_on`` is False), holding ``lock`` when given (the
+    clock's, while it may be stepping). Returns its id."""
     lower, upper = servo_limits(plant.model, plant.specs, plant.directions)
     q = plant.model.neutral() if q0 is None else vector("q0", q0, plant.n)
     regs = sim_registers(plant.specs, plant.directions, lower, upper, q, torque_on=torque_on)
-    return plant.add_arm(q0=q, registers=regs)
+    if lock is None:
+        return plant.add_arm(q0=q, registers=regs)
+    with lock:
+        return plant.add_arm(q0=q, registers=regs)
 
 
 class BatchedArmBackend(GoalLimits):

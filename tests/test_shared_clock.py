@@ -55,7 +55,7 @@ def _class(n: int = 3) -> tuple[BatchedPlant, SharedClock, list[ControlLoop]]:
 
 
 def _join(plant: BatchedPlant, clock: SharedClock, i: int) -> ControlLoop:
-    arm = add_sim_arm(plant, q0=Q0[i])
+    arm = add_sim_arm(plant, q0=Q0[i], lock=clock.lock)
     backend = BatchedArmBackend(plant, arm, lock=clock.lock)
     loop = ControlLoop(MODEL, backend, PARAMS[i], realtime=False, clock=clock)
     loop.start()
