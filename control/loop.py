@@ -4,8 +4,8 @@
 thread paced by the wall clock (``start()`` / ``shutdown()``), on a
 :class:`~control.periodic.SharedClock` with other loops and the world it steps
 (``clock=``; a class's private arms), or stepped as fast as possible by the caller
-(``step()``, ``run_for(seconds)``) for headless runs and tests. Backend time is the loop's own clock k·T, so a simulated arm gives
-the same numbers paced or not.
+(``step()``, ``run_for(seconds)``) for headless runs and tests. Backend time is
+the loop's own clock k·T, so a simulated arm gives the same numbers paced or not.
 
 One writer per piece of state: only the loop touches the backend and the
 controller. Other threads
