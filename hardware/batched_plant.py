@@ -319,9 +319,16 @@ class BatchedPlant:
         """Goal Position (n,) raw and optionally Moving Speed (n,) raw of arm ``arm`` (what
         ``SimBackend.write`` writes for one arm)."""
         r = self.row(arm)
-        self.write_registers("goal_position", np.asarray(goal_position).reshape(1, -1), [r])
-        if moving_speed is not None:
-            self.write_registers("moving_speed", np.asarray(moving_speed).reshape(1, -1), [r])
+        for name, values in (("goal_position", goal_position), ("moving_speed", moving_speed)):
+            if values is None:
+                continue
+            v = list(values)  # checked in Python: this runs every period of every arm
+            if len(v) != self.n or not all(
+                    isinstance(x, int | np.integer) and not isinstance(x, bool)
+                    and 0 <= x <= 0xFFFF for x in v):
+                raise ValueError(f"{name} must be {self.n} raw register values 0..65535, "
+                                 f"got {values!r}")
+            self._r[name][:, r] = v
 
     def set_goals(self, goal_position: np.ndarray, moving_speed: np.ndarray | None = None,
                   ) -> None:
