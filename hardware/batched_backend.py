@@ -33,6 +33,7 @@ import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
 from hardware.batched_plant import BatchedPlant
+from hardware.servo import ServoReport
 from hardware.sim_backend import decode_reports, raw_goals, servo_limits, sim_registers
 from kinematics.validate import scalar, vector
 
@@ -52,6 +53,47 @@ def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
         return plant.add_arm(q0=q, registers=regs)
 
 
+class ArmOfPlant:
+    """One arm of a :class:`BatchedPlant` read as a :class:`~hardware.plant.Plant` is by
+    the lab's panels (``SimBackend.plant``: the Servos panel calls ``reports()``); every
+    read holds ``lock``.
+
+    Attributes:
+        batch: the shared plant. arm: the arm's id.
+    """
+
+    def __init__(self, batch: BatchedPlant, arm: int, lock: threading.RLock) -> None:
+        self.batch = batch
+        self.arm = arm
+        self._lock = lock
+
+    @property
+    def n(self) -> int:
+        return self.batch.n
+
+    @property
+    def t(self) -> float:
+        """The shared plant's time, s."""
+        return self.batch.t
+
+    @property
+    def q(self) -> np.ndarray:
+        """(n,) the arm's true joint positions, rad."""
+        with self._lock:
+            return self.batch.q[self.batch.row(self.arm)]
+
+    @property
+    def qd(self) -> np.ndarray:
+        """(n,) the arm's true joint velocities, rad/s."""
+        with self._lock:
+            return self.batch.qd[self.batch.row(self.arm)]
+
+    def reports(self) -> tuple[ServoReport, ...]:
+        """The arm's servo reports in joint order (raw words)."""
+        with self._lock:
+            return self.batch.reports(self.arm)
+
+
 class BatchedArmBackend(GoalLimits):
     """Arm id ``arm`` of ``plant`` behind the ``Backend`` and ``Pushable`` protocols.
 
@@ -62,13 +104,19 @@ class BatchedArmBackend(GoalLimits):
         lock: held around every use of the plant (the shared clock holds it while it
             steps).
 
+    Attributes:
+        batch: the shared :class:`BatchedPlant`.
+        plant: this arm of it as the panels read ``SimBackend.plant`` (:class:`ArmOfPlant`:
+            ``reports()``, ``q``, ``qd``, ``t``).
+
     The torque limits restored by ``set_torque(True)`` after an overload shutdown are
     the arm's Torque Limit registers when the backend is made. Time (``read().t``) is
     the plant's time since the backend was made.
     """
 
     def __init__(self, plant: BatchedPlant, arm: int, *, lock: threading.RLock) -> None:
-        self.plant = plant
+        self.batch = plant
+        self.plant = ArmOfPlant(plant, int(arm), lock)
         self.arm = int(arm)
         self.specs = plant.specs
         self.directions = plant.directions
@@ -85,7 +133,7 @@ class BatchedArmBackend(GoalLimits):
     @property
     def n(self) -> int:
         """Number of joints."""
-        return self.plant.n
+        return self.batch.n
 
     @property
     def t(self) -> float:
@@ -103,8 +151,8 @@ class BatchedArmBackend(GoalLimits):
         """Every joint as its servo reports it (decoded raw words, quantised)."""
         with self._lock:
             self._check_open()
-            reports = self.plant.reports(self.arm)
-            t = (self.plant.steps - self._k0) * self.plant.dt
+            reports = self.batch.reports(self.arm)
+            t = (self.batch.steps - self._k0) * self.batch.dt
         return decode_reports(reports, self.specs, self.directions, t)
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
@@ -117,25 +165,25 @@ class BatchedArmBackend(GoalLimits):
         goals, speeds = raw_goals(self.specs, self.directions, position, speed)
         with self._lock:
             self._check_open()
-            self.plant.set_goal(self.arm, goals, speeds)
+            self.batch.set_goal(self.arm, goals, speeds)
 
     def set_torque(self, on: bool) -> None:
         """Torque Enable on every servo; switching on restores a Torque Limit an overload
         shutdown set to 0 (as :meth:`SimBackend.set_torque`)."""
         with self._lock:
             self._check_open()
-            regs = self.plant.registers(self.arm)
+            regs = self.batch.registers(self.arm)
             for j, (r, limit) in enumerate(zip(regs, self._torque_limits, strict=True)):
                 if on and r.torque_limit == 0:
-                    self.plant.set_registers(self.arm, j, torque_limit=limit)
-            self.plant.set_registers(self.arm, torque_enable=int(bool(on)))
+                    self.batch.set_registers(self.arm, j, torque_limit=limit)
+            self.batch.set_registers(self.arm, torque_enable=int(bool(on)))
 
     def estop(self) -> bool:
         """Torque off on every servo of this arm now; never raises. True (nothing can be
         lost; an arm already removed from the plant holds no torque either)."""
         with self._lock:
             try:
-                self.plant.set_registers(self.arm, torque_enable=0)
+                self.batch.set_registers(self.arm, torque_enable=0)
             except ValueError:  # the owner removed the arm
                 pass
         return True
@@ -152,14 +200,14 @@ class BatchedArmBackend(GoalLimits):
         """Apply ``force`` (3,) N, base frame, at ``point`` (3,) m in link ``link``'s frame
         for ``duration`` s of simulated time from now."""
         with self._lock:
-            self.plant.push(self.arm, force, link=link, point=point, duration=duration)
+            self.batch.push(self.arm, force, link=link, point=point, duration=duration)
 
     def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
                    point: np.ndarray) -> None:
         """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with
         ``stiffness`` N/m; None releases it."""
         with self._lock:
-            self.plant.set_spring(self.arm, anchor, stiffness=stiffness, link=link,
+            self.batch.set_spring(self.arm, anchor, stiffness=stiffness, link=link,
                                   point=point)
 
     def _check_open(self) -> None:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from app.lessons.compliance_servos import read_health
 from control.backend import Backend, BackendError, Pushable
 from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring
 from control.loop import ControlLoop
@@ -209,6 +210,10 @@ def test_batched_arm_backend_is_a_sim_backend_for_one_arm() -> None:
             assert np.array_equal(x, y), k
     be.set_torque(True)
     assert all(r.torque_enable == 1 for r in plant.registers(arm))
+    # what the Servos panel reads of a simulated backend's ``plant``
+    health, line = read_health(be, MODEL.joint_names)
+    assert [h.torque_on for h in health] == [True] * 3 and line.startswith("simulated")
+    assert be.plant.reports() == plant.reports(arm) and np.array_equal(be.plant.q, plant.q[0])
     be.close()
     with pytest.raises(BackendError):
         be.write(np.zeros(3), np.ones(3))
