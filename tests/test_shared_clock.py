@@ -241,3 +241,46 @@ def test_the_clock_thread_runs_attached_loops_and_stops() -> None:
         clock.stop()
     assert not clock.alive and not loops[0].status.running
     assert plant.steps == clock.steps
+
+
+def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
+    """Any period (not a multiple of dt), a period change from inside a period, a pacer
+    started later (its time starts at 0), pacers of one tick in the order started."""
+    clock = SharedClock(lambda: None, dt=DT, realtime=False)
+    fired: list[tuple[str, int, float]] = []
+
+    def make(name: str, period: float, change_at: int | None = None):  # noqa: ANN202
+        local = {"t": 0.0, "k": 0}
+
+        def step() -> None:
+            fired.append((name, clock.steps, local["t"]))
+            local["k"] += 1
+            if local["k"] == change_at:
+                pacer.period = 0.0037
+            local["t"] += pacer.period
+
+        pacer = clock.pacer(step, period=period, name=name)
+        return pacer
+
+    a = make("a", 0.0025, change_at=10)
+    b = make("b", 0.016)
+    a.start()
+    b.start()
+    clock.run_for(0.05)
+    c = make("c", 0.007)
+    c.start()
+    start_c = clock.steps
+    clock.run_for(0.1)
+    for name, offset in (("a", 0), ("b", 0), ("c", start_c)):
+        k = 0
+        for _, step, t in (f for f in fired if f[0] == name):
+            while (k + 0.5) * DT <= t:  # Plant.advance_to(t) of a plant of its own
+                k += 1
+            assert step - offset == k, (name, t)
+    first = [f[0] for f in fired if f[1] == 0]
+    assert first == ["a", "b"] and sum(f[0] == "a" for f in fired) > 40
+    assert fired[-1][1] < clock.steps
+    b.stop(timeout=1.0)
+    n_b = sum(f[0] == "b" for f in fired)
+    clock.run_for(0.05)
+    assert sum(f[0] == "b" for f in fired) == n_b and clock.loops == 2
