@@ -267,6 +267,13 @@ class BatchedPlant:
         """(N, n) true joint velocities, rad/s (a copy)."""
         return self._s["qd"].T.copy()
 
+    def diverged(self) -> np.ndarray:
+        """(k,) ids of the arms whose q or qd is not finite (after :meth:`step` raised
+        FloatingPointError: put them back with :meth:`set_state` or remove them)."""
+        bad = ~(np.all(np.isfinite(self._s["q"]), axis=0)
+                & np.all(np.isfinite(self._s["qd"]), axis=0))
+        return self._ids[bad].copy()
+
     def set_state(self, arm: int, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """Put arm ``arm`` at ``q`` (n,) with velocity ``qd`` (default rest); time goes on."""
         r = self.row(arm)

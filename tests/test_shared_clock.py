@@ -284,3 +284,25 @@ def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
     n_b = sum(f[0] == "b" for f in fired)
     clock.run_for(0.05)
     assert sum(f[0] == "b" for f in fired) == n_b and clock.loops == 2
+
+
+def test_a_diverged_arm_is_put_back_by_on_error_and_the_others_go_on() -> None:
+    _, ref_clock, ref = _class(2)
+    _run(ref_clock, dict(enumerate(ref)), 0.3, set())
+    plant = BatchedPlant(MODEL, RX24F, dt=DT)
+    put_back: list[int] = []
+
+    def on_error(exc: Exception) -> None:
+        assert isinstance(exc, FloatingPointError)
+        for arm in plant.diverged():
+            plant.set_state(int(arm), MODEL.neutral())
+            put_back.append(int(arm))
+
+    clock = SharedClock(plant.step, dt=DT, realtime=False, on_error=on_error)
+    loops = [_join(plant, clock, i) for i in range(2)]
+    with np.errstate(all="ignore"):
+        wild = plant.add_arm(qd0=np.array([1e308, 0.0, 0.0]))
+        _run(clock, dict(enumerate(loops)), 0.3, set())
+    assert put_back == [wild] and clock.errors == 1 and plant.diverged().size == 0
+    for a, b in zip(loops, ref, strict=True):
+        _same_record(a, b)
