@@ -330,6 +330,8 @@ class DrivenPacer:
 
     def __init__(self, clock: SharedClock, step: Callable[[], None], *, period: float,
                  name: str) -> None:
+        if not (isinstance(period, int | float) and math.isfinite(period) and period > 0):
+            raise ValueError(f"period must be a positive number of seconds, got {period!r}")
         self.step = step
         self.period = float(period)
         self.name = name
@@ -412,6 +414,12 @@ class DrivenPacer:
         except Exception as exc:  # one loop's failure must not stop the class
             self.errors += 1
             self.last_error = exc
+        if not (math.isfinite(self.period) and self.period > 0):  # would never end the tick
+            self.errors += 1
+            self.last_error = ValueError(f"{self.name}: period set to {self.period!r}; "
+                                         "detached from the clock")
+            self._attached = False
+            return
         self._t_next += self.period
 
 

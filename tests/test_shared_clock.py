@@ -284,6 +284,11 @@ def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
     n_b = sum(f[0] == "b" for f in fired)
     clock.run_for(0.05)
     assert sum(f[0] == "b" for f in fired) == n_b and clock.loops == 2
+    c.period = 0.0  # a period that would never end a tick: that pacer is detached
+    clock.run_for(0.02)
+    assert clock.loops == 1 and not c.running and isinstance(c.last_error, ValueError)
+    with pytest.raises(ValueError, match="period"):
+        clock.pacer(lambda: None, period=0.0, name="zero")
 
 
 def test_a_diverged_arm_is_put_back_by_on_error_and_the_others_go_on() -> None:
