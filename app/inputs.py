@@ -194,15 +194,23 @@ class UpdateScreen:
     gets one notification per control per :data:`REFUSAL_INTERVAL`, the log one
     line of at most :data:`MAX_LOG_LINE` characters at the same rate.
 
+    Args:
+        server: the lab's server (notifications go to its pages).
+        gui: a page's own GUI (``client.gui``, a private lesson's controls) to screen
+            instead of the server's; updates of controls it does not hold are then left to
+            the server's screen, neither dropped nor counted.
+
     Attributes:
         screened: updates seen so far. refused: values refused so far. dropped: updates
             dropped so far.
     """
 
-    def __init__(self, server: viser.ViserServer, *, log: Callable[[str], None] | None = None,
+    def __init__(self, server: viser.ViserServer, *, gui: viser.GuiApi | None = None,
+                 log: Callable[[str], None] | None = None,
                  clock: Callable[[], float] | None = None) -> None:
         self._server = server
-        self._gui = server.gui
+        self._gui = server.gui if gui is None else gui
+        self._own_only = gui is not None
         self._log = log or (lambda line: print(line, file=sys.stderr, flush=True))
         self._clock = clock or time.monotonic
         self._last: dict[tuple[Any, str], float] = {}
@@ -238,6 +246,8 @@ class UpdateScreen:
         uuid = message.uuid if isinstance(message.uuid, str) else repr(message.uuid)[:40]
         handle = self._gui._gui_input_handle_from_uuid.get(uuid)
         updates = message.updates
+        if handle is None and self._own_only:
+            return  # the server's screen deals with it
         if handle is None or not isinstance(updates, dict) or set(updates) != {"value"}:
             self.dropped += 1
             if self._due((None, "dropped")):

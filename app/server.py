@@ -24,11 +24,12 @@ import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, replace
+from types import ModuleType
 
 import viser
 
 from app.camera import show_initial_view
-from app.classroom import Roles, address_of, new_passcode, qr_svg
+from app.classroom import Roles
 from app.gate import Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
 from app.lessons import (
@@ -39,6 +40,7 @@ from app.lessons import (
     lesson_order,
     works_with,
 )
+from app.room import Room
 from app.theme import PageStyle, set_projector
 
 #: Label at the top of the control panel.
@@ -47,13 +49,6 @@ PANEL_LABEL = "armlab"
 #: default 5 ms would let the web server's message encoding delay a control period
 #: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
 GIL_SWITCH_INTERVAL = 0.0005
-
-
-#: the role line of a page that follows the teacher
-FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
-                 "E-STOP works for everyone.")
-#: the role line of the presenter's page
-PRESENTER_TEXT = "**You present.** Your changes move the shared arm."
 
 
 class LabServer(viser.ViserServer):
@@ -162,7 +157,7 @@ class Lab:
         url: ``base_url/?token=TOKEN``: the page, with the token that opens it (what
             students type or scan).
         local_url: the same page through loopback (what this process itself loads).
-        roles: presenters and followers (:class:`app.classroom.Roles`), with
+        room: the classroom's pages, roles and private arms (:class:`app.room.Room`), with
             ``options.classroom`` only; None otherwise.
         lesson: handle of the open lesson (None while switching).
     """
@@ -197,11 +192,7 @@ class Lab:
             self.base_url = f"http://{_url_host(shown)}:{port}"
             self.url = f"{self.base_url}/?token={self.token}"
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
-            self.roles: Roles | None = None
-            if options.classroom:
-                self.roles = Roles(self.server, new_passcode())
-                self.server.on_client_connect(self._welcome)
-                self.server.on_client_disconnect(self._goodbye)
+            self.room: Room | None = Room(self) if options.classroom else None
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)
@@ -252,7 +243,8 @@ class Lab:
 
     # -- lessons ----------------------------------------------------------------
 
-    def _context(self) -> LessonContext:
+    def lesson_context(self) -> LessonContext:
+        """What the lab's lessons are built for (from its options)."""
         o = self.options
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
                              realtime=o.realtime, tip_link=o.tip_link,
@@ -260,13 +252,15 @@ class Lab:
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
-        ctx = self._context()
+        ctx = self.lesson_context()
         if o_robots := getattr(module, "ROBOTS", ()):
             if not works_with(module, ctx.robot):  # the URDF options belong to the robot
                 ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
                               joint_map=None)
         self.lesson = module.build(self.server, ctx)
         self.lesson_name = name
+        if self.room is not None:
+            self.room.lesson_changed()
 
     def switch(self, name: str) -> None:
         """Close the open lesson and open lesson ``name``."""
@@ -292,53 +286,22 @@ class Lab:
         stop = getattr(lesson, "estop", None)
         if stop is not None:
             stop()
-        if self.roles is not None and by is not None:
-            who = self.roles.name(by.client_id)
-            clients = self.server.get_clients()
-            for cid in self.roles.presenters():
-                if (client := clients.get(cid)) is not None:
-                    client.add_notification("E-STOP", f"pressed by {who}; press Reset to go on.",
-                                            color="red", auto_close_seconds=15.0)
+        if self.room is not None and by is not None:
+            private = self.room.private_lesson(by.client_id)
+            if private is not None:
+                private.estop()  # the student's own arm too
+            who = self.room.roles.name(by.client_id)
+            self.room.tell_presenters("E-STOP", f"pressed by {who}; press Reset to go on.")
 
-    # -- classroom -----------------------------------------------------------------
+    @property
+    def roles(self) -> Roles | None:
+        """Presenters and followers (classroom only; None otherwise)."""
+        return None if self.room is None else self.room.roles
 
-    def _welcome(self, client: viser.ClientHandle) -> None:
-        """A page joined the classroom: its role line, Passcode and name fields (its own)."""
-        roles = self.roles
-        assert roles is not None
-        gui = client.gui
-        role = gui.add_markdown(FOLLOWER_TEXT, order=-97.0)
-        code = gui.add_text("Passcode", "", order=-96.0,
-                            hint="The teacher types the passcode armlab serve printed")
-        name = gui.add_text("Your name", "", order=-95.0,
-                            hint="Shown to the teacher (e.g. when you press E-STOP)")
-        name.on_update(lambda _e: roles.set_name(client.client_id, name.value))
-
-        def on_code(_event: viser.GuiEvent) -> None:
-            typed = code.value
-            if len(typed.strip()) < len(roles.passcode):
-                return  # still typing
-            why = roles.try_passcode(client.client_id, typed,
-                                     key=address_of(self.server, client.client_id))
-            code.value = ""
-            if why is not None:
-                client.add_notification("Passcode refused", why, color="red",
-                                        auto_close_seconds=8.0)
-                return
-            code.remove()
-            role.content = PRESENTER_TEXT
-            with gui.add_folder("Students join", order=-94.0, expand_by_default=False):
-                gui.add_html(f"<div style='text-align:center'>{qr_svg(self.url)}"
-                             f"<div style='font-size:0.85em;word-break:break-all'>"
-                             f"{self.url}</div></div>")
-            client.add_notification("You present", "You now change the shared arm.",
-                                    color="green", auto_close_seconds=5.0)
-
-        code.on_update(on_code)
-
-    def _goodbye(self, client: viser.ClientHandle) -> None:
-        if self.roles is not None:
-            self.roles.forget(client.client_id)
+    @property
+    def lesson_module(self) -> ModuleType:
+        """The module of the open lesson."""
+        return self._lessons[self.lesson_name]
 
     # -- lifetime ---------------------------------------------------------------
 
@@ -363,6 +326,8 @@ class Lab:
             self._closed = True
             lesson, self.lesson = self.lesson, None
         try:
+            if self.room is not None:
+                self.room.close()
             if lesson is not None:
                 lesson.close()
         finally:

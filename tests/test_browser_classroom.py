@@ -7,6 +7,7 @@ import pytest
 from _helpers import wait_for
 
 from app.server import Lab, ServeOptions
+from control.params import DEFAULT
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
 
@@ -29,7 +30,9 @@ def _open(browser, lab: Lab):  # noqa: ANN001, ANN202
 
 
 def _labelled(page, label: str):  # noqa: ANN001, ANN202
-    target = page.locator("label", has_text=label).first.get_attribute("for")
+    """The shown control labelled ``label`` (a page showing its own arm keeps the shared
+    lesson's controls, hidden)."""
+    target = page.locator("label:visible", has_text=label).first.get_attribute("for")
     return page.locator(f"[id='{target}']")
 
 
@@ -91,3 +94,54 @@ def test_teacher_and_student_pages(browser, classroom):
     finally:
         teacher_ctx.close()
         student_ctx.close()
+
+
+def _pick(page, label: str, option: str) -> None:  # noqa: ANN001
+    page.get_by_label(label).first.click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def test_my_arm_use_these_gains_and_reload(browser, classroom):
+    lab = classroom
+    shared = lab.lesson.rig.loop
+    teacher_ctx, teacher = _open(browser, lab)
+    student_ctx, student = _open(browser, lab)
+    try:
+        _text_field(teacher, "Passcode").fill(lab.roles.passcode)
+        teacher.get_by_text("You present.").first.wait_for(timeout=60_000)
+        _text_field(student, "Your name").fill("Budi")
+
+        # "My arm": the student's own lesson, on the student's page only.
+        _pick(student, "View", "My arm")
+        wait_for(lambda: len(lab.room.private_lessons()) == 1, 90, "the student's own lesson")
+        ((sid, mine),) = lab.room.private_lessons().items()
+        student.get_by_text("My arm.").first.wait_for(timeout=60_000)
+        kp_shared = shared.params.kp
+        student.get_by_role("tab", name="Gains").click()
+        thumb = _labelled(student, KP).locator("[role=slider]")
+        thumb.focus()
+        for _ in range(5):
+            student.keyboard.press("ArrowRight")
+        wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp_shared + 0.5), 60,
+                 "the student's own Kp")
+        assert shared.params.kp == kp_shared  # the teacher's arm did not move
+
+        # The presenter's overview lists the student; "Use these gains" copies them.
+        teacher.get_by_text("Budi").first.wait_for(timeout=60_000)
+        _pick(teacher, "Student", f"Budi (#{sid})")
+        teacher.get_by_role("button", name="Use these gains").click()
+        wait_for(lambda: shared.params.kp == pytest.approx(kp_shared + 0.5), 60,
+                 "the shared arm at the student's Kp")
+
+        # A reload of the student's page returns to the same arm, gains kept.
+        loop = mine.rig.loop
+        student.reload()
+        wait_for(lambda: any(lesson.rig is not None and lesson.rig.loop is loop
+                             for lesson in lab.room.private_lessons().values()), 90,
+                 "the same private arm after the reload")
+        student.get_by_text("My arm.").first.wait_for(timeout=60_000)
+        assert loop.params.kp == pytest.approx(kp_shared + 0.5)
+    finally:
+        teacher_ctx.close()
+        student_ctx.close()
+    lab.lesson.gains.set_params(DEFAULT)

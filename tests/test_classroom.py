@@ -161,3 +161,65 @@ def test_without_classroom_there_are_no_roles(lab):
     with HeadlessClient(lab.local_url.replace("http://", "ws://")).connect() as page:
         page.wait_for(lambda: _has(page, "Kp (1/s²)"), 60.0, "the Kp slider")
         assert not _has(page, "Passcode")
+
+
+def _joined(lab: Lab) -> tuple[HeadlessClient, int]:
+    """A page of ``lab`` and its client id."""
+    before = set(lab.server.get_clients())
+    page = _page(lab)
+    page.wait_for(lambda: bool(set(lab.server.get_clients()) - before), 30.0, "the client")
+    (cid,) = set(lab.server.get_clients()) - before
+    return page, cid
+
+
+def test_my_arm_is_private(classroom):
+    lab = classroom
+    shared = lab.lesson.rig.loop
+    kp_shared = shared.params.kp
+    a, a_id = _joined(lab)
+    b, b_id = _joined(lab)
+    with a, b:
+        a.set_value("View", "My arm")
+        b.set_value("View", "My arm")
+        wait_for(lambda: lab.room.private_lesson(a_id) is not None
+                 and lab.room.private_lesson(b_id) is not None, 60, "two private lessons")
+        mine, theirs = lab.room.private_lesson(a_id), lab.room.private_lesson(b_id)
+        assert mine.rig.loop is not theirs.rig.loop is not shared
+        wait_for(lambda: mine.rig.loop.status.running and mine.rig.loop.status.t > 0.2, 60,
+                 "the private loop running")
+        # Student A's own Kp slider moves A's arm only.
+        a.set_value(mine.gains.sliders["kp"].handle, kp_shared + 9.0)
+        wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp_shared + 9.0), 30,
+                 "A's Kp")
+        assert theirs.rig.loop.params.kp == kp_shared and shared.params.kp == kp_shared
+        # A forged update of the shared slider from A's page is still refused.
+        refused = lab.roles.refused
+        a.set_value(lab.lesson.gains.sliders["kp"].handle, kp_shared + 3.0)
+        wait_for(lambda: lab.roles.refused > refused, 30, "the forged update refused")
+        assert shared.params.kp == kp_shared
+        # A's step test runs on A's arm (its recorder), not the shared one.
+        mine.run_step()
+        wait_for(lambda: mine.rig.loop.status.trajectory is not None, 30, "A's step running")
+        assert shared.status.trajectory is None and theirs.rig.loop.status.trajectory is None
+        # Back to following: the private lesson closes, the arm is kept for the seat.
+        a.set_value("View", "Follow the teacher")
+        wait_for(lambda: lab.room.private_lesson(a_id) is None, 30, "A following again")
+        assert lab.room.sandboxes.n_arms == 2
+    wait_for(lambda: not lab.room.private_lesson(b_id), 30, "B's page gone")
+
+
+def test_a_full_class_says_so():
+    from app.sandboxes import Sandboxes
+
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        lab.room._sandboxes = Sandboxes(max_arms=1)
+        a, a_id = _joined(lab)
+        b, b_id = _joined(lab)
+        with a, b:
+            a.set_value("View", "My arm")
+            wait_for(lambda: lab.room.private_lesson(a_id) is not None, 60, "A's own lesson")
+            b.set_value("View", "My arm")
+            assert "the class is full" in b.wait_notification("The class is full")
+            b.wait_for(lambda: b.find("View").value == "Follow the teacher", 30.0,
+                       "B back to following")
+            assert lab.room.private_lesson(b_id) is None

@@ -13,7 +13,9 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
   lesson with the smallest ``ORDER`` listing it opens first;
 - ``build(server: viser.ViserServer, ctx: LessonContext) -> LessonHandle``:
   adds the lesson's GUI and scene to ``server`` and starts whatever runs
-  behind it (a control loop), returning a handle.
+  behind it (a control loop), returning a handle;
+- ``PRIVATE`` (optional, default False): the lesson can be built on one page
+  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm ("My arm").
 
 The handle's ``close()`` stops what runs (loop shut down, hardware torque
 off) and removes everything the lesson added, so another lesson can be
@@ -29,9 +31,16 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
+import numpy as np
 import viser
+
+if TYPE_CHECKING:
+    from control.backend import Backend
+    from control.loop import ControlLoop
+    from control.params import Params
+    from kinematics.model import SerialChain
 
 #: The lesson modules of this package (adding a lesson: add its module name here).
 LESSONS: tuple[str, ...] = ("arm", "compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
@@ -50,6 +59,8 @@ class LessonContext:
         tip_link: for a URDF robot, its end-effector link (None: the file's default).
         package_paths: folders holding the URDF's ``package://`` meshes.
         joint_map: joint map file for "serial" (None: the robot's default map).
+        arms: a student's private arm (:class:`ArmSource`): the lesson drives it instead
+            of opening a backend and a loop of its own (None: the shared arm).
     """
 
     robot: str = "receptionist_arm"
@@ -60,6 +71,21 @@ class LessonContext:
     tip_link: str | None = None
     package_paths: tuple[str, ...] = ()
     joint_map: str | None = None
+    arms: ArmSource | None = None
+
+
+class ArmSource(Protocol):
+    """Where a private lesson gets its arm (``app.sandboxes.Seat``): kept across the
+    lesson's closing, so a reload of the page finds the same arm."""
+
+    def kept(self) -> tuple[str, Params] | None:
+        """(link preset, gains) of the arm already there, or None."""
+        ...
+
+    def arm_for(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
+                history_s: float) -> tuple[Backend, ControlLoop]:
+        """The arm for ``preset`` (the kept one, or a new one at ``q0``), its loop running."""
+        ...
 
 
 #: In a lesson's ``ROBOTS``: it works with any serial arm given as a ``.urdf`` file.

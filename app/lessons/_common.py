@@ -76,6 +76,11 @@ class LessonGui:
         panel.dock_left()
         panel.set_width(width)
 
+    @property
+    def handles(self) -> tuple[Any, ...]:
+        """The kept top-level elements (status, tabs, charts panel, ...), oldest first."""
+        return tuple(self._handles)
+
     def remove_all(self) -> None:
         """Remove every kept element from the page, newest first."""
         for handle in reversed(self._handles):
@@ -120,6 +125,10 @@ class LessonBase:
         self.publisher = Publisher(self.server, pose=pose, plots=plots, pose_hz=pose_hz,
                                    plot_hz=plot_hz)
         self.publisher.start()
+
+    def gui_handles(self) -> tuple[Any, ...]:
+        """The lesson's top-level GUI elements (hiding them hides the whole lesson panel)."""
+        return self._gui.handles
 
     def mark_closed(self) -> bool:
         """Mark the lesson closed; True the first time (the caller tears it down), then False."""

@@ -97,6 +97,10 @@ PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
 HISTORY_S = 30.0  #: seconds the recorder keeps (the CSV of a run comes from it)
 
 
+#: a student's page can hold a private copy of this lesson (``ctx.arms``)
+PRIVATE = True
+
+
 def build(server: viser.ViserServer, ctx: LessonContext) -> ComplianceLesson:
     """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
     return ComplianceLesson(server, ctx)
@@ -168,9 +172,12 @@ class ComplianceLesson(LessonBase):
         self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
         self.rig: Rig | None = None
+        params = DEFAULT
+        if ctx.arms is not None and (kept := ctx.arms.kept()) is not None:
+            link_preset, params = kept  # a reload: the student's arm as they left it
         with self.opening():
-            self._build_gui(DEFAULT)
-            self.rig = self._make_rig(link_preset, DEFAULT)
+            self._build_gui(params, link_preset)
+            self.rig = self._make_rig(link_preset, params)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
                      plot_hz=plot_hz)
 
@@ -181,6 +188,13 @@ class ComplianceLesson(LessonBase):
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {self.ctx.robot} is not a serial arm")
         line = thesis_line(model)
+        if self.ctx.arms is not None:  # a student's arm: its loop runs in the class's thread
+            backend, loop = self.ctx.arms.arm_for(model, params, preset=preset, q0=line.q[0],
+                                                  history_s=HISTORY_S)
+            scene = ComplianceScene(
+                self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
+                root="/compliance", on_target=self._on_target, on_drag_hand=self._on_drag)
+            return Rig(preset, model, backend, loop, scene, line)
         extra = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # start on the line
         backend = make_backend(self.ctx.backend, model, port=self.ctx.port, baud=self.ctx.baud,
                                **extra)
@@ -198,6 +212,9 @@ class ComplianceLesson(LessonBase):
         return Rig(preset, model, backend, loop, scene, line)
 
     def _close_rig(self, rig: Rig) -> None:
+        if self.ctx.arms is not None:  # the student's arm lives on for a reload; the page
+            rig.scene.remove()  # leaves, or another preset replaces it (arm_for)
+            return
         try:
             rig.loop.shutdown(torque_off=True)
             rig.backend.estop()  # again, even after a link fault stopped the loop; never raises
@@ -225,13 +242,13 @@ class ComplianceLesson(LessonBase):
 
     # ================================================================== GUI
 
-    def _build_gui(self, params: Params) -> None:
+    def _build_gui(self, params: Params, link_preset: str) -> None:
         gui = self.server.gui
         self.status = self._gui.add_status(try_this=TRY)
         self.warning = self._gui.add(gui.add_html("", order=-79.0, visible=False))
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
-            self._build_run_tab(gui)
+            self._build_run_tab(gui, link_preset)
         with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
             self.gains = GainControls(gui, params, apply=self._apply_params)
         with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
@@ -247,7 +264,7 @@ class ComplianceLesson(LessonBase):
                                     default_joint=2)
         self._show_warning(params, unstable=loop_stability(params).unstable)
 
-    def _build_run_tab(self, gui: viser.GuiApi) -> None:
+    def _build_run_tab(self, gui: viser.GuiApi, link_preset: str) -> None:
         run = gui.add_button("Run thesis line", color="green", icon=viser.Icon.PLAYER_PLAY,
                              hint="The hand moves 20 cm along y in 1.28 s (thesis ch. 4), "
                                   "after a smooth approach to the start")
@@ -280,7 +297,7 @@ class ComplianceLesson(LessonBase):
         self.download.on_click(lambda e: send_download(e, self.csv_bytes))
         with gui.add_folder("Arm and display", expand_by_default=False):
             self.links = gui.add_dropdown("Link lengths (cm)", tuple(RECEPTIONIST_PRESETS),
-                                          initial_value="18.5/25",
+                                          initial_value=link_preset,
                                           hint="L1/L2: the appendix code (18.5/25), the "
                                                "specification list (18.5/18.5) or the FK "
                                                "text of eq. 3.13 (17/25)")

@@ -1,0 +1,47 @@
+"""One browser page standing in for the server a lesson is built on (a private arm).
+
+A lesson adds its controls to ``server.gui``, its scene to ``server.scene``, sends its
+frames inside ``server.atomic()`` and asks ``server.get_clients()`` whether anyone
+watches. :class:`Page` offers the same for one page (viser's client-scoped GUI and
+scene), so the same lesson code builds a private copy on one student's page: its
+controls reach only that page, and its scene nodes, named as the shared lesson's,
+*shadow* the shared ones there (viser draws a page's own node in place of the server's
+of the same name). ``initial_camera`` is the page's own camera: a lesson that sets
+where a new page looks from moves this page's view.
+"""
+
+from __future__ import annotations
+
+from contextlib import AbstractContextManager
+
+import viser
+
+
+class Page:
+    """A lesson's "server" that is one page (:class:`viser.ClientHandle`).
+
+    Attributes:
+        client: the page.
+        gui, scene: its own GUI and scene (seen by this page only).
+        initial_camera: its camera (setting position/look_at moves the page's view).
+    """
+
+    def __init__(self, client: viser.ClientHandle) -> None:
+        self.client = client
+        self.gui = client.gui
+        self.scene = client.scene
+        self.initial_camera = client.camera
+
+    def atomic(self) -> AbstractContextManager[None]:
+        """Group the messages sent inside the block; the page applies them together."""
+        return self.client.atomic()
+
+    def flush(self) -> None:
+        """Send what is buffered for the page now."""
+        self.client.flush()
+
+    def get_clients(self) -> dict[int, viser.ClientHandle]:
+        """The one page, or nothing once it has left."""
+        connected = self.client._viser_server.get_clients()  # type: ignore[attr-defined]
+        cid = self.client.client_id
+        return {cid: self.client} if cid in connected else {}

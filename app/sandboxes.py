@@ -1,0 +1,213 @@
+"""Every student's private arm ("My arm"): one batched plant, one thread, one loop per arm.
+
+A class of students each gets a simulated thesis arm of their own. The arms of one
+link-length preset live in one :class:`hardware.batched_plant.BatchedPlant` (numpy
+over arms); one :class:`control.periodic.SharedClock` thread steps every plant at
+1 kHz and, in the same thread, each arm's :class:`control.loop.ControlLoop` when its
+period is due. A loop is the lesson's own (commands, trajectories, the step test,
+pushes, drags, recording, faults) over a :class:`hardware.batched_backend.BatchedArmBackend`:
+one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
+lesson's arm, not a lookalike, and a hundred of them cost one thread.
+
+A seat is found again by its key (a random id the page keeps in its browser's
+localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
+recording. A seat whose page left longer ago is freed; a class already holding
+:data:`MAX_ARMS` arms refuses a new one with :class:`ClassFull`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from control.backend import Backend
+from control.loop import ControlLoop
+from control.params import Params
+from control.periodic import SharedClock
+from hardware.batched_backend import BatchedArmBackend, add_sim_arm
+from hardware.batched_plant import BatchedPlant
+from hardware.servo_spec import RX24F
+from kinematics.model import SerialChain
+
+#: private arms one lab holds at most (the issue's default)
+MAX_ARMS = 200
+#: s a seat whose page left is kept for a reload
+IDLE_S = 600.0
+#: s between two looks for seats to free
+SWEEP_S = 15.0
+#: plant step, s (as the shared arm's SimBackend)
+DT = 1e-3
+
+
+class ClassFull(ValueError):
+    """No private arm left: the class holds :data:`MAX_ARMS` already."""
+
+
+@dataclass
+class _Arm:
+    preset: str
+    arm: int
+    backend: BatchedArmBackend
+    loop: ControlLoop
+
+
+class Seat:
+    """One student's place in the class: the arm a private lesson drives.
+
+    Implements :class:`app.lessons.ArmSource` for the lesson.
+    """
+
+    def __init__(self, owner: Sandboxes, key: str) -> None:
+        self.key = key
+        self._owner = owner
+        self.arm: _Arm | None = None
+        self.left_at: float | None = None  #: monotonic time its page left (None: open)
+
+    def kept(self) -> tuple[str, Params] | None:
+        """(preset, gains) of the arm this seat already has, or None."""
+        arm = self.arm
+        return None if arm is None else (arm.preset, arm.loop.params)
+
+    def arm_for(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
+                history_s: float) -> tuple[Backend, ControlLoop]:
+        """The seat's arm for ``preset``: the one it has, or a new one at ``q0`` with
+        ``params`` (replacing an arm of another preset). Its loop is running."""
+        return self._owner._arm_for(self, model, params, preset=preset, q0=q0,
+                                    history_s=history_s)
+
+
+class Sandboxes:
+    """The private arms of one lab (see the module docstring).
+
+    Args:
+        max_arms: arms at most (:class:`ClassFull` beyond).
+        idle_s: s a seat whose page left is kept.
+        realtime: step against the wall clock (False: as fast as possible, for tests).
+        clock: monotonic seconds for the idle times (tests pass a fake one).
+    """
+
+    def __init__(self, *, max_arms: int = MAX_ARMS, idle_s: float = IDLE_S,
+                 realtime: bool = True, clock: Callable[[], float] = time.monotonic) -> None:
+        self.max_arms = int(max_arms)
+        self.idle_s = float(idle_s)
+        self._now = clock
+        self._lock = threading.RLock()
+        self._plants: dict[str, BatchedPlant] = {}
+        self._seats: dict[str, Seat] = {}
+        self.clock = SharedClock(self._step, dt=DT, realtime=realtime, lock=self._lock,
+                                 name="armlab-class")
+        self.clock.start()
+        self._stop = threading.Event()
+        self._sweeper = threading.Thread(target=self._sweep_often, name="armlab-seats",
+                                         daemon=True)
+        self._sweeper.start()
+
+    def _step(self) -> None:
+        for plant in self._plants.values():
+            plant.step()
+
+    @property
+    def n_arms(self) -> int:
+        """Private arms held now."""
+        with self._lock:
+            return sum(1 for s in self._seats.values() if s.arm is not None)
+
+    def has(self, key: str) -> bool:
+        """Whether a seat of ``key`` is kept (its page open, or left less than
+        :attr:`idle_s` s ago)."""
+        with self._lock:
+            return key in self._seats
+
+    def kept_params(self, key: str) -> Params | None:
+        """The gains of ``key``'s arm, or None (no seat or no arm)."""
+        with self._lock:
+            seat = self._seats.get(key)
+            kept = None if seat is None else seat.kept()
+        return None if kept is None else kept[1]
+
+    def loop_of(self, key: str) -> ControlLoop | None:
+        """The loop of ``key``'s arm, or None."""
+        with self._lock:
+            seat = self._seats.get(key)
+            return None if seat is None or seat.arm is None else seat.arm.loop
+
+    def seat(self, key: str) -> Seat:
+        """The seat of ``key`` (kept since its page left, or new); its page is open again.
+
+        Raises:
+            ClassFull: a new seat, and :attr:`max_arms` arms are held.
+        """
+        with self._lock:
+            seat = self._seats.get(key)
+            if seat is None:
+                if self.n_arms >= self.max_arms:
+                    raise ClassFull(f"the class is full: {self.max_arms} private arms are in use; "
+                                    "follow the teacher's arm")
+                seat = self._seats[key] = Seat(self, key)
+            seat.left_at = None
+            return seat
+
+    def leave(self, key: str) -> None:
+        """The page of ``key`` left: its arm is kept :attr:`idle_s` s for a reload."""
+        with self._lock:
+            seat = self._seats.get(key)
+            if seat is not None:
+                seat.left_at = self._now()
+
+    def sweep(self) -> int:
+        """Free the seats whose page left more than :attr:`idle_s` s ago; returns how many."""
+        now = self._now()
+        with self._lock:
+            gone = [s for s in self._seats.values()
+                    if s.left_at is not None and now - s.left_at > self.idle_s]
+            for seat in gone:
+                del self._seats[seat.key]
+                self._free(seat)
+        return len(gone)
+
+    def _sweep_often(self) -> None:
+        while not self._stop.wait(SWEEP_S):
+            self.sweep()
+
+    def _arm_for(self, seat: Seat, model: SerialChain, params: Params, *, preset: str,
+                 q0: np.ndarray, history_s: float) -> tuple[Backend, ControlLoop]:
+        with self._lock:
+            if seat.arm is not None and seat.arm.preset == preset:
+                return seat.arm.backend, seat.arm.loop
+            self._free(seat)
+            plant = self._plants.get(preset)
+            if plant is None:
+                plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
+            arm = add_sim_arm(plant, q0=q0, lock=self._lock)
+            try:
+                backend = BatchedArmBackend(plant, arm, lock=self._lock)
+                loop = ControlLoop(model, backend, params, controller="compliance",
+                                   history_s=history_s, clock=self.clock)
+            except BaseException:
+                plant.remove_arm(arm)
+                raise
+            seat.arm = _Arm(preset, arm, backend, loop)
+            loop.start()
+            return backend, loop
+
+    def _free(self, seat: Seat) -> None:
+        arm, seat.arm = seat.arm, None
+        if arm is None:
+            return
+        arm.loop.shutdown(torque_off=True)
+        arm.backend.close()
+        self._plants[arm.preset].remove_arm(arm.arm)
+
+    def close(self) -> None:
+        """Stop the class: every loop, the clock, the sweeper."""
+        self._stop.set()
+        with self._lock:
+            seats = list(self._seats.values())
+            self._seats.clear()
+        for seat in seats:
+            self._free(seat)
+        self.clock.stop()
