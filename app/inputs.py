@@ -246,8 +246,8 @@ class UpdateScreen:
         uuid = message.uuid if isinstance(message.uuid, str) else repr(message.uuid)[:40]
         handle = self._gui._gui_input_handle_from_uuid.get(uuid)
         updates = message.updates
-        if handle is None and self._own_only:
-            return  # the server's screen deals with it
+        if handle is None and (self._own_only or self._page_owns(client_id, uuid)):
+            return  # the other screen (the server's, or the page's own) deals with it
         if handle is None or not isinstance(updates, dict) or set(updates) != {"value"}:
             self.dropped += 1
             if self._due((None, "dropped")):
@@ -265,6 +265,12 @@ class UpdateScreen:
                       f"({self.refused} refused so far)")
             client = self._server.get_clients().get(client_id)
             notify(client, "Value refused", f"{label}: {why}; kept {_brief(handle.value)}.")
+
+    def _page_owns(self, client_id: Any, uuid: str) -> bool:
+        """Whether ``uuid`` is a control of the sending page's own GUI (``client.gui``)."""
+        client = self._server.get_clients().get(client_id)
+        gui = getattr(client, "gui", None)
+        return gui is not None and uuid in gui._gui_input_handle_from_uuid
 
     async def _coalesce(self, uuid: str, client_id: Any, message: Any) -> None:
         """Apply now, or (within :data:`COALESCE_INTERVAL` of the last) keep only the latest."""

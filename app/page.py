@@ -12,9 +12,16 @@ where a new page looks from moves this page's view.
 
 from __future__ import annotations
 
+import warnings
 from contextlib import AbstractContextManager
 
 import viser
+
+# A page may leave while its own lesson is sending a frame; viser then warns once per
+# code line that the message "will never be delivered". Nothing is wrong: the lesson is
+# closed right after (app.room), so the warning only fills the log.
+warnings.filterwarnings("ignore", message=r"Queued a \w+ on a closed connection",
+                        category=UserWarning)
 
 
 class Page:

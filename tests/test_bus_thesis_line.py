@@ -62,10 +62,15 @@ class _SimAfter:
 
 #: runs through the emulator before giving up on a quiet enough machine
 ATTEMPTS = 3
+#: s: a loop held back this long falls behind its reference past the loop's lag limit
+#: (ControlLoop.lag_time) and stops with a tracking fault: the machine's doing, not the code's
+STALL_FAULT_S = 0.5
 
 
 def _emulated_run(params, start):
-    """One thesis-line run through a fresh emulator; returns (run, worst stall in s)."""
+    """One thesis-line run through a fresh emulator; returns (run, worst stall in s), the
+    run None when the loop stopped on a fault after a stall longer than its lag limit
+    (the shared machine held it back: the arm fell behind its reference)."""
     nice = os.getpriority(os.PRIO_PROCESS, 0)
     with emulator() as emu:
         # generous retries: a stall of the shared machine must show as lateness, not a fault
@@ -78,6 +83,8 @@ def _emulated_run(params, start):
         try:
             emu_run = run_line(ARM, lambda model, **kw: serial, params, controller="compliance")
         except ValueError as exc:  # the loop stopped on a fault
+            if serial.late_max > STALL_FAULT_S:
+                return None, serial.late_max
             raise AssertionError(f"the run through the emulator failed (loop late by up to "
                                  f"{serial.late_max * 1e3:.0f} ms): {exc}") from None
         finally:
@@ -96,8 +103,11 @@ def test_thesis_line_through_the_emulator_matches_the_simulator():
     start = plan.q[0]
     for _ in range(ATTEMPTS):
         emu_run, stall = _emulated_run(params, start)
-        if stall <= params.period:
+        if emu_run is not None and stall <= params.period:
             break
+    if emu_run is None:
+        pytest.skip(f"in {ATTEMPTS} runs the shared machine stalled the real-time loop by at "
+                    f"least {stall * 1e3:.0f} ms: it stopped on a tracking fault")
     sim = SimBackend(ARM)  # hanging at q = 0, the same pre-positioning in simulated time
     sim.write(start, np.full(3, 2.0))
     sim.sync(PRE)

@@ -199,8 +199,8 @@ def test_my_arm_is_private(classroom):
         assert shared.params.kp == kp_shared
         # A's step test runs on A's arm (its recorder), not the shared one.
         mine.run_step()
-        wait_for(lambda: mine.rig.loop.status.trajectory is not None, 30, "A's step running")
-        assert shared.status.trajectory is None and theirs.rig.loop.status.trajectory is None
+        wait_for(lambda: mine.measured_pd is not None, 60, "A's step measured (Tp, %OS, Ts)")
+        assert lab.lesson.measured_pd is None and theirs.measured_pd is None
         # Back to following: the private lesson closes, the arm is kept for the seat.
         a.set_value("View", "Follow the teacher")
         wait_for(lambda: lab.room.private_lesson(a_id) is None, 30, "A following again")

@@ -1,38 +1,37 @@
-"""Classroom figures: how many private compliance-lesson arms one core keeps in real time.
+"""Classroom figures: private compliance-lesson arms per core, and a room of 30 pages.
 
 Figures:
     sandboxes_realtime_per_core: arms (``receptionist_arm``, three RX-24F each) that one
-        core steps at 1 kHz in real time with the batched plant, the class step (read,
-        decode, Newton–Euler, compliance law, goal writes) and the controller at the
-        lesson's 16 ms period included: N · 1e-3 s / (wall time per simulated ms) for the
-        largest N of (50, 100, 200). Every arm has its own gains and command step, and a
-        tenth of them are being pushed.
-    sandboxes_realtime_per_core_1ms_loop: the same with the controller every 1 ms
-        (period 0.001 s, the worst case a student can pick).
-    classroom_step_us_n50 / _n100 / _n200: wall µs per simulated ms (plant tick, RK4 and
-        the period's controller share) of the whole class of N arms.
-    sandboxes_loops_realtime_per_core: the same with what "My arm" runs: every arm its own
+        core keeps at 1 kHz in real time as "My arm" runs them: every arm its own
         :class:`~control.loop.ControlLoop` (compliance, 16 ms: commands, trajectory,
         recorder, run-time checks) over a :class:`~hardware.batched_backend.BatchedArmBackend`,
         all on one :class:`~control.periodic.SharedClock` over one BatchedPlant at 1 ms
-        (headless: ``SharedClock.run_for`` of 2 s of class time, 0.5 s quick): N · 1e-3 s /
-        (wall time per simulated ms) for the largest N of (50, 100); a tenth of the arms
-        play a step trajectory, a tenth are pushed.
+        (headless: ``SharedClock.run_for`` of 2 s of class time, 0.5 s quick):
+        N · 1e-3 s / (wall time per simulated ms) for the largest N of (50, 100); a tenth
+        of the arms play a step trajectory, a tenth are pushed.
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
+    classroom_30_pose_hz: a lab served with ``--classroom`` and 30 pages (headless
+        clients in another process), each showing "My arm" and its arm playing the thesis
+        line again and again while the shared arm does too: the lowest rate of own-arm
+        pose frames any page receives.
+    classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
+        ``_max``: the most any page received).
+    classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
+    classroom_30_rss_growth_pct: the server process's memory growth over the run, from
+        the moment all 30 private arms exist.
+    (120 s of the room, 20 s with ``--quick``.)
 
-Median of repeats, ``time.perf_counter``, one thread; the machine is shared, so these are
-figures, never asserted by a test.
+Median of repeats, ``time.perf_counter``; the machine is shared, so these are figures,
+never asserted by a test.
 """
 
 from __future__ import annotations
 
-import statistics
 import threading
 import time
 
 import numpy as np
 
-from app.classroom_sim import ClassroomSim
 from control.commands import Push, RunTrajectory
 from control.loop import ControlLoop
 from control.params import Params
@@ -43,40 +42,7 @@ from hardware.batched_plant import BatchedPlant
 from hardware.servo_spec import RX24F
 from kinematics import load_robot
 
-SIZES = (50, 100, 200)
 LOOP_SIZES = (50, 100)
-
-
-def class_of(n_arms: int, *, period: float = 0.016, seed: int = 0) -> ClassroomSim:
-    """A class of ``n_arms`` arms, each with its own gains and a step in its command."""
-    model = load_robot("receptionist_arm")
-    rng = np.random.default_rng(seed)
-    sim = ClassroomSim(model, period=period)
-    q0 = np.array([0.0, 0.3, 0.3])
-    for _ in range(n_arms):
-        params = Params(kp=float(rng.uniform(10.0, 40.0)), kv=float(rng.uniform(3.0, 9.0)),
-                        k_env=float(rng.uniform(8.0, 30.0)), period=period)
-        sim.add_arm(q0=q0 + rng.uniform(-0.2, 0.2, 3), params=params)
-    sim.step()  # every arm holds where it is
-    for arm in sim.plant.arm_ids:
-        sim.set_command(int(arm), q0 + rng.uniform(-0.3, 0.3, 3))
-    return sim
-
-
-def ms_cost(sim: ClassroomSim, *, repeat: int) -> float:
-    """Median wall seconds per simulated ms of ``sim`` (one period timed at a time), with a
-    tenth of the arms under a push."""
-    ids = sim.plant.arm_ids
-    samples = []
-    for k in range(repeat):
-        for arm in ids[k % 10::10]:
-            sim.plant.push(int(arm), np.array([0.0, 3.0, 0.0]), link=2,
-                           point=np.array([0.1, 0.0, 0.0]), duration=sim.period)
-        t0 = time.perf_counter()
-        sim.step()
-        samples.append(time.perf_counter() - t0)
-    ticks = sim.period / sim.plant.dt
-    return statistics.median(samples[repeat // 5:]) / ticks
 
 
 def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
@@ -113,19 +79,73 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
     return wall / (seconds / plant.dt)
 
 
+def _rss_bytes() -> int:
+    """Resident memory of this process (Linux /proc), bytes."""
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    raise OSError("no VmRSS in /proc/self/status")
+
+
+def room_of_30(*, seconds: float, pages: int = 30) -> dict[str, float]:
+    """The classroom_30 figures (see the module docstring)."""
+    from app.benches.ui import _clients, _Instrumented
+
+    lab = _Instrumented(classroom=True)
+    room = lab.lab.room
+    assert room is not None
+    stop = threading.Event()
+    rss: dict[str, int] = {}
+
+    def students_play() -> None:
+        while not stop.wait(0.5):
+            lessons = room.private_lessons()
+            if len(lessons) >= pages and "start" not in rss:
+                rss["start"] = _rss_bytes()
+            for lesson in lessons.values():
+                rig = lesson.rig
+                st = None if rig is None else rig.loop.status
+                if st is not None and st.trajectory is None and st.active:
+                    try:
+                        lesson.run_line()
+                    except ValueError:
+                        pass
+
+    player = threading.Thread(target=students_play, name="bench-students", daemon=True)
+    try:
+        lab.keep_running_the_line()
+        player.start()
+        res = _clients(lab.ws_url, pages, seconds, settle=30.0, my_arm=True)
+        rss["end"] = _rss_bytes()
+        jitter = lab.loop.status.jitter_p99_ms
+        lab.check()
+        lessons = room.private_lessons()
+        faults = [lesson.rig.loop.status.fault for lesson in lessons.values()
+                  if lesson.rig is not None and lesson.rig.loop.status.fault]
+        if faults:
+            raise RuntimeError(f"classroom bench: private arms faulted: {faults[:3]}")
+    finally:
+        stop.set()
+        player.join(2.0)
+        lab.close()
+    start = rss.get("start", rss["end"])
+    return {
+        "classroom_30_pose_hz": res["own_pose_hz_min"],
+        "classroom_30_bytes_per_client_per_s": res["bytes_per_client_per_s"],
+        "classroom_30_bytes_per_client_per_s_max": res["bytes_per_client_per_s_max"],
+        "classroom_30_loop_jitter_p99_ms": float("nan") if jitter is None else float(jitter),
+        "classroom_30_rss_growth_pct": 100.0 * (rss["end"] - start) / start,
+    }
+
+
 def run(quick: bool) -> dict[str, float]:
-    """The figures above (about 6 s quick, 20 s otherwise)."""
-    repeat = 15 if quick else 40
+    """The figures above (about 1 min quick, 3 min otherwise)."""
     out: dict[str, float] = {}
     cost = 0.0
-    for n in SIZES:
-        cost = ms_cost(class_of(n), repeat=repeat)
-        out[f"classroom_step_us_n{n}"] = cost * 1e6
-    out["sandboxes_realtime_per_core"] = SIZES[-1] * 1e-3 / cost
-    fast = ms_cost(class_of(SIZES[-1], period=0.001), repeat=repeat * 8)
-    out["sandboxes_realtime_per_core_1ms_loop"] = SIZES[-1] * 1e-3 / fast
     for n in LOOP_SIZES:
         cost = loops_ms_cost(n, seconds=0.5 if quick else 2.0)
         out[f"class_loops_step_us_n{n}"] = cost * 1e6
-    out["sandboxes_loops_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / cost
+    out["sandboxes_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / cost
+    out.update(room_of_30(seconds=20.0 if quick else 120.0))
     return out

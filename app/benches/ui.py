@@ -55,6 +55,9 @@ def client_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--settle", type=float, default=1.0)
     ap.add_argument("--arm-prefix", default="/compliance/arm/")
+    ap.add_argument("--my-arm", action="store_true",
+                    help="each page chooses My arm (a classroom lab) and counts its own "
+                         "arm's frames")
     args = ap.parse_args(argv)
 
     lock = threading.Lock()
@@ -63,6 +66,7 @@ def client_main(argv: list[str] | None = None) -> int:
     frames: dict[int, set[float]] = defaultdict(set)
     pose_frames: dict[int, set[float]] = defaultdict(set)
     plot_frames: dict[int, set[float]] = defaultdict(set)
+    own_frames: dict[int, set[float]] = defaultdict(set)  # a page's own arm (client-scoped)
     angle_uuid: dict[str, str] = {}
 
     def listener(i: int):  # noqa: ANN202
@@ -79,7 +83,7 @@ def client_main(argv: list[str] | None = None) -> int:
                 frames[i].add(now)
             elif kind == "SetOrientationMessage" and str(m.get("name", "")).startswith(
                     args.arm_prefix):
-                pose_frames[i].add(now)
+                (own_frames if m.get("owner") else pose_frames)[i].add(now)
             elif kind == "GuiUpdateMessage" and "data" in m.get("updates", {}) \
                     and m.get("uuid") == angle_uuid.get("uuid"):
                 plot_frames[i].add(now)
@@ -87,6 +91,11 @@ def client_main(argv: list[str] | None = None) -> int:
 
     clients = [HeadlessClient(args.url, on_message=listener(i)).connect()
                for i in range(args.clients)]
+    if args.my_arm:
+        for c in clients:
+            c.wait_for(lambda c=c: any(e.label == "View" for e in c.gui.values()), 60.0,
+                       "the View switch")
+            c.set_value("View", "My arm")
     time.sleep(args.settle)
     b0 = [c.bytes_received for c in clients]
     measuring.set()
@@ -105,6 +114,9 @@ def client_main(argv: list[str] | None = None) -> int:
         "arm_pose_hz": float(np.mean([len(pose_frames[i]) / dt
                                       for i in range(args.clients)])),
         "plot_hz": float(np.mean([len(plot_frames[i]) / dt for i in range(args.clients)])),
+        "own_pose_hz_min": float(min(len(own_frames[i]) / dt for i in range(args.clients))),
+        "bytes_per_client_per_s_max": float(max((b - a) / dt for a, b in zip(b0, b1,
+                                                                              strict=True))),
         "latency_p50_ms": float(np.percentile(lat, 50)),
         "latency_p95_ms": float(np.percentile(lat, 95)),
         "samples": len(latencies),
@@ -113,10 +125,12 @@ def client_main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _clients(url: str, n: int, seconds: float, settle: float = 1.5) -> dict[str, float]:
+def _clients(url: str, n: int, seconds: float, settle: float = 1.5, *,
+             my_arm: bool = False) -> dict[str, float]:
     res = subprocess.run(
         [sys.executable, "-m", "app.benches.ui", "--url", url, "--clients", str(n),
-         "--seconds", str(seconds), "--settle", str(settle)],
+         "--seconds", str(seconds), "--settle", str(settle),
+         *(["--my-arm"] if my_arm else [])],
         cwd=ROOT, capture_output=True, text=True, timeout=seconds + settle + 120)
     if res.returncode != 0:
         raise RuntimeError(f"bench clients failed: {res.stderr.strip()[-500:]}")
@@ -129,10 +143,10 @@ def _clients(url: str, n: int, seconds: float, settle: float = 1.5) -> dict[str,
 class _Instrumented:
     """The lab plus the bench's probe: sample times and a probe node in every frame."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, classroom: bool = False) -> None:
         from app.server import Lab, ServeOptions
 
-        self.lab = Lab(ServeOptions(http_port=0))
+        self.lab = Lab(ServeOptions(http_port=0, classroom=classroom))
         lesson = self.lab.lesson
         self.lesson = lesson
         loop = lesson.rig.loop

@@ -1,0 +1,19 @@
+"""A room of 30 pages, each with a private arm playing the thesis line, beside the shared
+arm (app/benches/classroom.py's room, shorter): nothing dies. The figures it measures are
+the bench's (``armlab bench``), never asserted here: the machine is shared."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from app.benches.classroom import room_of_30
+
+pytestmark = [pytest.mark.realtime, pytest.mark.timeout(900)]
+
+
+def test_thirty_pages_with_private_arms_and_nothing_dies():
+    figures = room_of_30(seconds=10.0, pages=30)  # raises if any arm or the shared loop stopped
+    assert figures["classroom_30_pose_hz"] > 0  # every page got frames of its own arm
+    assert all(math.isfinite(v) for v in figures.values()), figures
