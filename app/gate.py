@@ -119,13 +119,34 @@ class Gate:
                                     Headers({"Content-Type": "text/plain; charset=utf-8",
                                              "Content-Length": str(len(body))}), body)
                 return inner(connection, request) if inner is not None else None
+            if PROXY_PREFIX_HEADER in request.headers and urlsplit(request.path).path == "/":
+                return _to_index_html(request)
             response = inner(connection, request) if inner is not None else None
             if response is not None and self.presented_in_query(request):
-                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; Path=/; HttpOnly; "
+                # no Path: the cookie's path is the page's folder ("/" when served directly,
+                # "/user/NAME/armlab" behind jupyter-server-proxy: this lab only)
+                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; HttpOnly; "
                                                    "SameSite=Strict")
             return response
 
         return process_request
+
+
+#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (app.jupyter)
+PROXY_PREFIX_HEADER = "X-Forwarded-Context"
+
+
+def _to_index_html(request: Request) -> Response:
+    """A redirect from the lab's root to ``index.html`` with the same query, for a page
+    asked for through jupyter-server-proxy (``/user/NAME/armlab/``): viser's page opens its
+    websocket on its own address less one trailing slash, and ``/user/NAME/armlab`` is
+    Jupyter's (a redirect) while ``/user/NAME/armlab/index.html`` reaches the lab. The
+    ``Location`` is relative, so the browser keeps the prefix. Not a security check: a
+    request without the header (served directly) is never redirected."""
+    query = urlsplit(request.path).query
+    location = "index.html" + (f"?{query}" if query else "")
+    return Response(http.HTTPStatus.FOUND, "Found",
+                    Headers({"Location": location, "Content-Length": "0"}), b"")
 
 
 _install_lock = threading.Lock()
