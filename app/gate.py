@@ -80,8 +80,10 @@ class Gate:
                                                              self.token.encode())
 
     def presented_in_query(self, request: Request) -> bool:
-        """The request's URL carries the right ``?token=``."""
-        values = parse_qs(urlsplit(request.path).query).get("token", [])
+        """The request's URL carries the right ``?token=`` or ``?armlab_token=`` (the name
+        used behind Jupyter, whose own login reads ``?token=``: :mod:`app.jupyter`)."""
+        query = parse_qs(urlsplit(request.path).query)
+        values = query.get("token", []) + query.get(COOKIE, [])
         return any(self._matches(v) for v in values)
 
     def presented_in_cookie(self, request: Request) -> bool:

@@ -2,7 +2,8 @@
 
 With ``pip install armlab[hub]`` in the user image, every user's Jupyter server offers an
 "armlab" tile in the JupyterLab launcher. The tile opens
-``/user/NAME/armlab/index.html?token=TOKEN`` in a new tab; jupyter-server-proxy starts
+``/user/NAME/armlab/index.html?armlab_token=TOKEN`` in a new tab (not ``?token=``:
+that name is Jupyter's own login token); jupyter-server-proxy starts
 ``armlab serve`` on a free loopback port the first time that address is asked for, waits
 until it answers, and forwards everything under ``/user/NAME/armlab/`` to it (the page
 and its websocket) with the prefix cut off. The lab itself runs unchanged, one per user
@@ -44,7 +45,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.gate import check_token, new_token
+from app.gate import COOKIE, check_token, new_token
 
 #: the environment variable holding the token (read by ``armlab serve`` as --token's default)
 TOKEN_ENV = "ARMLAB_TOKEN"
@@ -57,7 +58,7 @@ ICON = Path(__file__).with_name("armlab_icon.svg")
 
 def launcher_path(token: str) -> str:
     """The launcher tile's address below the Jupyter server's base URL."""
-    return f"{NAME}/index.html?token={token}"
+    return f"{NAME}/index.html?{COOKIE}={token}"
 
 
 def setup_armlab() -> dict[str, Any]:
