@@ -107,7 +107,7 @@ def labs_running(jupyter_pid: int) -> list[int]:
 
 
 @pytest.fixture
-def jupyter(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen]]:
+def jupyter(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen, Callable[[], str]]]:
     port = free_port()
     env = {k: v for k, v in os.environ.items() if k != "ARMLAB_TOKEN"}
     env.update(PYTHONUNBUFFERED="1", JUPYTER_RUNTIME_DIR=str(tmp_path / "runtime"),
@@ -125,7 +125,7 @@ def jupyter(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen]]:
     base = f"http://127.0.0.1:{port}"
     try:
         poll("the Jupyter server", lambda: get(f"{base}/api/status")[0] == 200 or None)
-        yield base, proc
+        yield base, proc, lambda: (tmp_path / "jupyter.log").read_text()[-3000:]
     finally:
         proc.send_signal(signal.SIGTERM)
         try:
@@ -141,7 +141,7 @@ def jupyter(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen]]:
 
 
 def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter):
-    base, proc = jupyter
+    base, proc, log_tail = jupyter
     t0 = time.monotonic()
     status, _, body = get(f"{base}/server-proxy/servers-info")
     assert status == 200, body[:300]
@@ -181,12 +181,18 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
         kp0 = watcher.find(KP).value
         kp = 31.5 if kp0 != 31.5 else 33.5
         mover.set_value(KP, kp)
-        watcher.wait_for(lambda: watcher.find(KP).value == pytest.approx(kp), TIMEOUT,
-                         "the other page to show the new Kp")
+        try:
+            watcher.wait_for(lambda: watcher.find(KP).value == pytest.approx(kp), TIMEOUT,
+                             "the other page to show the new Kp")
+        except TimeoutError:
+            sliders = [(c is mover, e.uuid, e.value) for c in (mover, watcher)
+                       for e in list(c.gui.values()) if e.label == KP]
+            raise AssertionError(f"Kp not echoed: {sliders} {mover.notifications} "
+                                 f"{watcher.notifications} {log_tail()}") from None
 
         # the Teach panel writes its equation from the running loop's parameters
         def teach_shows_new_kp() -> bool:
-            return any(f"= {kp:.3g} × (" in str(e.props.get("content", ""))
+            return any(f"= {kp:.3g} × (" in str(e.props.get("_markdown", ""))
                        for e in watcher.gui.values())
 
         watcher.wait_for(teach_shows_new_kp, TIMEOUT, f"the Teach panel to use Kp {kp}")
