@@ -15,6 +15,7 @@ the lab with it (no process left).
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import socket
@@ -87,6 +88,12 @@ def get(url: str, *, follow: bool = True) -> tuple[int, dict[str, list[str]], by
         for k, v in exc.headers.items():
             headers.setdefault(k.lower(), []).append(v)
         return exc.code, headers, exc.read()
+
+
+def teach_text(client: HeadlessClient) -> str:
+    """Every markdown the page shows, joined."""
+    with client._lock:
+        return "\n".join(str(e.props.get("_markdown", "")) for e in client.gui.values())
 
 
 def labs_running(jupyter_pid: int) -> list[int]:
@@ -190,12 +197,17 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
             raise AssertionError(f"Kp not echoed: {sliders} {mover.notifications} "
                                  f"{watcher.notifications} {log_tail()}") from None
 
-        # the Teach panel writes its equation from the running loop's parameters
-        def teach_shows_new_kp() -> bool:
-            return any(f"= {kp:.3g} × (" in str(e.props.get("_markdown", ""))
-                       for e in watcher.gui.values())
+        # the Teach panel's design table is written from the running loop's parameters
+        # (loop.params, not the slider): ωp = √Kp (2.11)
+        omega = f"√Kp (2.11) | {math.sqrt(kp):.3g} rad/s"
+        assert omega not in teach_text(watcher)
 
-        watcher.wait_for(teach_shows_new_kp, TIMEOUT, f"the Teach panel to use Kp {kp}")
+        try:
+            watcher.wait_for(lambda: omega in teach_text(watcher), TIMEOUT,
+                             f"the Teach panel to use Kp {kp}")
+        except TimeoutError:
+            raise AssertionError(f"no {omega!r} in the Teach panel: "
+                                 f"{teach_text(watcher)[:3000]}") from None
 
     # a page of another site is refused by the lab's gate: no state reaches it
     with pytest.raises((websockets.exceptions.InvalidStatus,
