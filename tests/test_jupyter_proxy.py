@@ -187,6 +187,8 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
                             TIMEOUT, "the Kp slider through the proxy")
         kp0 = watcher.find(KP).value
         kp = 31.5 if kp0 != 31.5 else 33.5
+        omega = f"√Kp (2.11) | {math.sqrt(kp):.3g} rad/s"  # the Teach panel's ωp, below
+        assert omega not in teach_text(watcher)
         mover.set_value(KP, kp)
         try:
             watcher.wait_for(lambda: watcher.find(KP).value == pytest.approx(kp), TIMEOUT,
@@ -199,9 +201,6 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
 
         # the Teach panel's design table is written from the running loop's parameters
         # (loop.params, not the slider): ωp = √Kp (2.11)
-        omega = f"√Kp (2.11) | {math.sqrt(kp):.3g} rad/s"
-        assert omega not in teach_text(watcher)
-
         try:
             watcher.wait_for(lambda: omega in teach_text(watcher), TIMEOUT,
                              f"the Teach panel to use Kp {kp}")
