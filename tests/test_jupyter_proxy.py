@@ -37,9 +37,12 @@ from websockets.sync.client import connect
 pytest.importorskip("jupyter_server")
 pytest.importorskip("jupyter_server_proxy")
 
-from app.wsclient import HeadlessClient  # noqa: E402
+from websockets.datastructures import Headers  # noqa: E402
+from websockets.http11 import Request, Response  # noqa: E402
 
-pytestmark = pytest.mark.realtime  # a Jupyter server and a lab on the wall clock
+from app.gate import COOKIE, Gate  # noqa: E402
+from app.jupyter import TOKEN_ENV, setup_armlab  # noqa: E402
+from app.wsclient import HeadlessClient  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 JUPYTER_TOKEN = "jupyter-test-token-4f1c"
@@ -147,6 +150,54 @@ def jupyter(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen, Callable[[]
             log.close()
 
 
+def _request(path: str, **headers: str) -> Request:
+    return Request(path, Headers({"Host": "127.0.0.1:9", **headers}))
+
+
+def _page(connection: object, request: Request) -> Response:  # viser's static files
+    return Response(200, "OK", Headers({"Content-Length": "0"}), b"")
+
+
+def test_the_entry_point_names_the_command_the_tile_and_keeps_the_token_off_the_command_line(
+        monkeypatch):
+    monkeypatch.delenv(TOKEN_ENV, raising=False)
+    a, b = setup_armlab(), setup_armlab()
+    token = a["environment"][TOKEN_ENV]
+    assert token != b["environment"][TOKEN_ENV]  # new at each start of the Jupyter server
+    assert a["command"][1:] == ["-m", "app", "serve", "--http-port", "{port}"]
+    assert not any(token in part for part in a["command"])  # `ps` shows the command line
+    entry = a["launcher_entry"]
+    assert entry["path_info"] == f"armlab/index.html?armlab_token={token}"
+    assert Path(entry["icon_path"]).is_file() and a["timeout"] >= 30
+    monkeypatch.setenv(TOKEN_ENV, "fixed-token-for-a-course")
+    assert setup_armlab()["environment"][TOKEN_ENV] == "fixed-token-for-a-course"
+    monkeypatch.setenv(TOKEN_ENV, "bad token!")
+    with pytest.raises(ValueError):
+        setup_armlab()
+
+
+def test_the_gate_reads_armlab_token_and_sends_only_proxied_root_requests_to_index_html():
+    gate = Gate("the-token-1234")
+    wrapped = gate.wrap(_page)
+    upgrade = {"Upgrade": "websocket", "Origin": "http://127.0.0.1:9"}
+    assert gate.refusal(_request("/?armlab_token=the-token-1234", **upgrade)) is None
+    assert gate.refusal(_request("/?armlab_token=wrong-token-12", **upgrade)) is not None
+    # the page for a URL with the token sets the cookie for the page's own folder
+    cookie = wrapped(None, _request("/index.html?armlab_token=the-token-1234")
+                     ).headers["Set-Cookie"]
+    assert cookie.startswith(f"{COOKIE}=the-token-1234;") and "Path" not in cookie
+    # through jupyter-server-proxy (its prefix header), "/" goes to index.html, query kept
+    moved = wrapped(None, _request("/?armlab_token=the-token-1234",
+                                   **{"X-Forwarded-Context": "/user/ana/armlab"}))
+    assert moved.status_code == 302
+    assert moved.headers["Location"] == "index.html?armlab_token=the-token-1234"
+    assert wrapped(None, _request("/?token=the-token-1234")).status_code == 200  # direct
+    # the redirect is for pages only: a proxied websocket upgrade meets the gate
+    assert wrapped(None, _request("/", **upgrade, **{"X-Forwarded-Context": "/x"})
+                   ).status_code == 403
+
+
+@pytest.mark.realtime  # a Jupyter server and a lab on the wall clock
 def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter):
     base, proc, log_tail = jupyter
     t0 = time.monotonic()
