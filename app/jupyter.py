@@ -12,8 +12,9 @@ server: the hub spawns and scales the servers.
 Who gets in (two locks, both needed):
 
 - **Jupyter's own login** guards every address under ``/user/NAME/``: only the server's
-  owner (or whom the hub lets in) reaches the proxy, and Jupyter checks a websocket's
-  ``Origin`` against its ``Host`` before the proxy opens one.
+  owner (or whom the hub lets in) reaches the proxy (for a browser logged in by cookie,
+  Jupyter also checks a websocket's ``Origin``; for a request with a Jupyter token it
+  does not, and the lab's gate below still does).
 - **armlab's gate** (:mod:`app.gate`) still stands in front of the lab's websocket,
   because the lab's loopback port is open to every process of the machine, and on a
   shared node that means other users' processes: they do not pass through Jupyter. The
