@@ -7,10 +7,12 @@ hijacking). The lab therefore prints ``url: http://HOST:PORT/?token=TOKEN`` (a r
 token per start, as Jupyter does) and this gate checks every websocket upgrade before
 viser sees it, answering HTTP 403 (no state is ever sent) unless
 
-- the request presents the token: ``?token=`` on the websocket URL (scripts, the
-  headless client) or the ``armlab_token`` cookie, which the lab sets on the page it
-  serves for a URL with the right token (``HttpOnly; SameSite=Strict``: another
-  site's page never sends it); and
+- the request presents the token: ``?token=`` (or ``?armlab_token=``, the name used
+  behind Jupyter, whose login owns ``?token=``: :mod:`app.jupyter`) on the websocket URL
+  (scripts, the headless client) or the ``armlab_token`` cookie, which the lab sets on
+  the page it serves for a URL with the right token (``HttpOnly; SameSite=Strict``:
+  another site's page never sends it; no ``Path``: the page's folder, so behind
+  jupyter-server-proxy only this lab's prefix gets it); and
 - its ``Origin``, when there is one (every browser sends it), is the lab's own: the
   scheme and the ``Host`` the request was made to.
 
