@@ -93,10 +93,11 @@ def get(url: str, *, follow: bool = True) -> tuple[int, dict[str, list[str]], by
         return exc.code, headers, exc.read()
 
 
-def teach_text(client: HeadlessClient) -> str:
-    """Every markdown the page shows, joined."""
+def page_text(client: HeadlessClient) -> str:
+    """Every markdown and HTML text the page shows, joined."""
     with client._lock:
-        return "\n".join(str(e.props.get("_markdown", "")) for e in client.gui.values())
+        return "\n".join(str(e.props.get(k, "")) for e in client.gui.values()
+                         for k in ("_markdown", "_html"))
 
 
 def labs_running(jupyter_pid: int) -> list[int]:
@@ -236,10 +237,13 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
         for client in (mover, watcher):
             client.wait_for(lambda c=client: any(e.label == KP for e in c.gui.values()),
                             TIMEOUT, "the Kp slider through the proxy")
+        # the arm is built after the page (gains are refused until then): its status line
+        watcher.wait_for(lambda: "holding" in page_text(watcher), TIMEOUT,
+                         "the status line to show the arm holding")
         kp0 = watcher.find(KP).value
         kp = 31.5 if kp0 != 31.5 else 33.5
         omega = f"√Kp (2.11) | {math.sqrt(kp):.3g} rad/s"  # the Teach panel's ωp, below
-        assert omega not in teach_text(watcher)
+        assert omega not in page_text(watcher)
         mover.set_value(KP, kp)
         try:
             watcher.wait_for(lambda: watcher.find(KP).value == pytest.approx(kp), TIMEOUT,
@@ -253,11 +257,11 @@ def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter)
         # the Teach panel's design table is written from the running loop's parameters
         # (loop.params, not the slider): ωp = √Kp (2.11)
         try:
-            watcher.wait_for(lambda: omega in teach_text(watcher), TIMEOUT,
+            watcher.wait_for(lambda: omega in page_text(watcher), TIMEOUT,
                              f"the Teach panel to use Kp {kp}")
         except TimeoutError:
             raise AssertionError(f"no {omega!r} in the Teach panel: "
-                                 f"{teach_text(watcher)[:3000]}") from None
+                                 f"{page_text(watcher)[:3000]}") from None
 
     # a page of another site is refused by the lab's gate: no state reaches it
     with pytest.raises((websockets.exceptions.InvalidStatus,
