@@ -97,7 +97,7 @@ def page_text(client: HeadlessClient) -> str:
     """Every markdown and HTML text the page shows, joined."""
     with client._lock:
         return "\n".join(str(e.props.get(k, "")) for e in client.gui.values()
-                         for k in ("_markdown", "_html"))
+                         for k in ("_markdown", "content"))
 
 
 def labs_running(jupyter_pid: int) -> list[int]:
