@@ -7,8 +7,10 @@ from the proxy's ``/server-proxy/servers-info`` (as JupyterLab does), asks for t
 (the proxy starts ``armlab serve``), then opens two websockets on the address viser's page
 would compute (its own address less query and trailing slash), with the browser's headers:
 ``Origin`` (the Jupyter server's), the ``armlab_token`` cookie the page set and Jupyter's
-login. One moves Kp; the other sees the slider's new value and the Teach panel's equation
-written from the running loop's parameters. At the end the Jupyter server stops and takes
+login. Once the status line shows the arm holding (gains are refused while it is being
+built), one moves Kp; the other sees the slider's new value and the Teach panel's design
+table (ωp = √Kp) written from the running loop's parameters; a page of another site is
+refused. At the end the Jupyter server stops and takes
 the lab with it (no process left).
 """
 
