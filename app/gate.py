@@ -7,10 +7,12 @@ hijacking). The lab therefore prints ``url: http://HOST:PORT/?token=TOKEN`` (a r
 token per start, as Jupyter does) and this gate checks every websocket upgrade before
 viser sees it, answering HTTP 403 (no state is ever sent) unless
 
-- the request presents the token: ``?token=`` on the websocket URL (scripts, the
-  headless client) or the ``armlab_token`` cookie, which the lab sets on the page it
-  serves for a URL with the right token (``HttpOnly; SameSite=Strict``: another
-  site's page never sends it); and
+- the request presents the token: ``?token=`` (or ``?armlab_token=``, the name used
+  behind Jupyter, whose login owns ``?token=``: :mod:`app.jupyter`) on the websocket URL
+  (scripts, the headless client) or the ``armlab_token`` cookie, which the lab sets on
+  the page it serves for a URL with the right token (``HttpOnly; SameSite=Strict``:
+  another site's page never sends it; no ``Path``: the page's folder, so behind
+  jupyter-server-proxy only this lab's prefix gets it); and
 - its ``Origin``, when there is one (every browser sends it), is the lab's own: the
   scheme and the ``Host`` the request was made to.
 
@@ -80,8 +82,10 @@ class Gate:
                                                              self.token.encode())
 
     def presented_in_query(self, request: Request) -> bool:
-        """The request's URL carries the right ``?token=``."""
-        values = parse_qs(urlsplit(request.path).query).get("token", [])
+        """The request's URL carries the right ``?token=`` or ``?armlab_token=`` (the name
+        used behind Jupyter, whose own login reads ``?token=``: :mod:`app.jupyter`)."""
+        query = parse_qs(urlsplit(request.path).query)
+        values = query.get("token", []) + query.get(COOKIE, [])
         return any(self._matches(v) for v in values)
 
     def presented_in_cookie(self, request: Request) -> bool:
@@ -119,13 +123,34 @@ class Gate:
                                     Headers({"Content-Type": "text/plain; charset=utf-8",
                                              "Content-Length": str(len(body))}), body)
                 return inner(connection, request) if inner is not None else None
+            if PROXY_PREFIX_HEADER in request.headers and urlsplit(request.path).path == "/":
+                return _to_index_html(request)
             response = inner(connection, request) if inner is not None else None
             if response is not None and self.presented_in_query(request):
-                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; Path=/; HttpOnly; "
+                # no Path: the cookie's path is the page's folder ("/" when served directly,
+                # "/user/NAME/armlab" behind jupyter-server-proxy: this lab only)
+                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; HttpOnly; "
                                                    "SameSite=Strict")
             return response
 
         return process_request
+
+
+#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (app.jupyter)
+PROXY_PREFIX_HEADER = "X-Forwarded-Context"
+
+
+def _to_index_html(request: Request) -> Response:
+    """A redirect from the lab's root to ``index.html`` with the same query, for a page
+    asked for through jupyter-server-proxy (``/user/NAME/armlab/``): viser's page opens its
+    websocket on its own address less one trailing slash, and ``/user/NAME/armlab`` is
+    Jupyter's (a redirect) while ``/user/NAME/armlab/index.html`` reaches the lab. The
+    ``Location`` is relative, so the browser keeps the prefix. Not a security check: a
+    request without the header (served directly) is never redirected."""
+    query = urlsplit(request.path).query
+    location = "index.html" + (f"?{query}" if query else "")
+    return Response(http.HTTPStatus.FOUND, "Found",
+                    Headers({"Location": location, "Content-Length": "0"}), b"")
 
 
 _install_lock = threading.Lock()

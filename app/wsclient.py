@@ -91,6 +91,8 @@ class HeadlessClient:
         url: ``ws://host:port``; for the lab, ``ws://host:port/?token=T`` (``app.gate``).
         on_message: called (in the client's thread) with each decoded message and the
             receive time (``time.perf_counter()``).
+        headers: extra HTTP headers of the websocket upgrade (a browser's ``Origin`` and
+            ``Cookie``, a proxy's login such as Jupyter's ``Authorization``).
 
     Attributes:
         gui: uuid -> :class:`GuiElement`.
@@ -100,9 +102,10 @@ class HeadlessClient:
         counts: message type -> how many.
     """
 
-    def __init__(self, url: str, *, on_message: Callable[[dict, float], None] | None = None
-                 ) -> None:
+    def __init__(self, url: str, *, on_message: Callable[[dict, float], None] | None = None,
+                 headers: dict[str, str] | None = None) -> None:
         self.url = url
+        self.headers = dict(headers or {})
         self._on_message = on_message
         self.gui: dict[str, GuiElement] = {}
         self.scene: dict[str, dict[str, Any]] = defaultdict(dict)
@@ -157,7 +160,7 @@ class HeadlessClient:
         try:
             async with websockets.asyncio.client.connect(
                 self.url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
-                compression=None,
+                compression=None, additional_headers=self.headers or None,
             ) as ws:
                 self._ws = ws
                 self._connected.set()

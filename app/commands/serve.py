@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -36,8 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--http-port", type=int, default=8080,
                         help="first port to try (default 8080; the next free one if taken)")
     parser.add_argument("--lesson", help="lesson to open first (default: the robot's first)")
-    parser.add_argument("--token", help="access token the page's URL carries (default: a new "
-                                        "random one at each start)")
+    parser.add_argument("--token", default=os.environ.get("ARMLAB_TOKEN") or None,
+                        help="access token the page's URL carries (default: $ARMLAB_TOKEN, or "
+                        "a new random one at each start)")
     parser.add_argument("--classroom", action="store_true",
                         help="roles for a class: only a page that types the passcode printed "
                         "after the url changes the shared arm; every page may press E-STOP")
