@@ -42,9 +42,14 @@ def _text_field(page, label: str):  # noqa: ANN001, ANN202
                         "/ancestor::div[.//input][1]//input").first
 
 
-def test_teacher_and_student_pages(browser, classroom):
+def _pick(page, label: str, option: str) -> None:  # noqa: ANN001
+    page.get_by_label(label).first.click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def test_a_class_teacher_and_student_pages(browser, classroom):
     lab = classroom
-    loop = lab.lesson.rig.loop
+    loop = shared = lab.lesson.rig.loop
     teacher_ctx, teacher = _open(browser, lab)
     student_ctx, student = _open(browser, lab)
     try:
@@ -91,25 +96,6 @@ def test_teacher_and_student_pages(browser, classroom):
         teacher.get_by_role("tab", name="Run").click()
         teacher.get_by_role("button", name="Reset").click()
         wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 60, "reset")
-    finally:
-        teacher_ctx.close()
-        student_ctx.close()
-
-
-def _pick(page, label: str, option: str) -> None:  # noqa: ANN001
-    page.get_by_label(label).first.click()
-    page.get_by_role("option", name=option, exact=True).click()
-
-
-def test_my_arm_use_these_gains_and_reload(browser, classroom):
-    lab = classroom
-    shared = lab.lesson.rig.loop
-    teacher_ctx, teacher = _open(browser, lab)
-    student_ctx, student = _open(browser, lab)
-    try:
-        _text_field(teacher, "Passcode").fill(lab.roles.passcode)
-        teacher.get_by_text("You present.").first.wait_for(timeout=60_000)
-        _text_field(student, "Your name").fill("Budi")
 
         # "My arm": the student's own lesson, on the student's page only.
         _pick(student, "View", "My arm")
@@ -127,21 +113,24 @@ def test_my_arm_use_these_gains_and_reload(browser, classroom):
         assert shared.params.kp == kp_shared  # the teacher's arm did not move
 
         # The presenter's overview lists the student; "Use these gains" copies them.
-        teacher.get_by_text("Budi").first.wait_for(timeout=60_000)
-        _pick(teacher, "Student", f"Budi (#{sid})")
+        teacher.get_by_text("Ayu").first.wait_for(timeout=60_000)
+        _pick(teacher, "Student", f"Ayu (#{sid})")
         teacher.get_by_role("button", name="Use these gains").click()
         wait_for(lambda: shared.params.kp == pytest.approx(kp_shared + 0.5), 60,
                  "the shared arm at the student's Kp")
 
         # A reload of the student's page returns to the same arm, gains kept.
-        loop = mine.rig.loop
+        own = mine.rig.loop
         student.reload()
-        wait_for(lambda: any(lesson.rig is not None and lesson.rig.loop is loop
+        wait_for(lambda: any(lesson.rig is not None and lesson.rig.loop is own
                              for lesson in lab.room.private_lessons().values()), 90,
                  "the same private arm after the reload")
         student.get_by_text("My arm.").first.wait_for(timeout=60_000)
-        assert loop.params.kp == pytest.approx(kp_shared + 0.5)
+        assert own.params.kp == pytest.approx(kp_shared + 0.5)
     finally:
         teacher_ctx.close()
         student_ctx.close()
     lab.lesson.gains.set_params(DEFAULT)
+
+
+
