@@ -41,8 +41,9 @@ MY_ARM_TEXT = ("**My arm.** Your own simulated arm: nothing you do here reaches 
 FOLLOW, MY_ARM = "Follow the teacher", "My arm"
 #: the browser's localStorage key holding its seat (a reload finds its arm again)
 SEAT_KEY = "armlab_seat"
-#: s to wait for a page to say which seat it has
-SEAT_ASK_S = 10.0
+#: s to wait for a page to say which seat it has, and how often to ask
+SEAT_ASK_S = 4.0
+SEAT_ASKS = 4
 #: Hz of the ghost's pose; the overview tables refresh every :data:`TABLE_EVERY` ticks
 GHOST_HZ = 10.0
 TABLE_EVERY = 10
@@ -175,11 +176,19 @@ class Room:
     # -- "My arm" -------------------------------------------------------------------------
 
     def _find_seat(self, state: _PageState) -> None:
-        """A reload: if the browser holds a seat that is still kept, show its arm again."""
-        try:
-            key = state.client.local_storage.get_item(SEAT_KEY, timeout=SEAT_ASK_S)
-        except (RuntimeError, TimeoutError):
-            return
+        """A reload: if the browser holds a seat that is still kept, show its arm again.
+
+        Asked up to :data:`SEAT_ASKS` times: a page that has only just connected may not
+        answer the first question."""
+        key = None
+        for _ in range(SEAT_ASKS):
+            try:
+                key = state.client.local_storage.get_item(SEAT_KEY, timeout=SEAT_ASK_S)
+                break
+            except TimeoutError:
+                continue
+            except RuntimeError:  # the page left, or its browser keeps no localStorage
+                return
         if key and self._sandboxes is not None and self._sandboxes.has(key):
             state.seat = key
             state.view.value = MY_ARM  # fires _on_view

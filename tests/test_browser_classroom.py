@@ -102,13 +102,13 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
         wait_for(lambda: len(lab.room.private_lessons()) == 1, 90, "the student's own lesson")
         ((sid, mine),) = lab.room.private_lessons().items()
         student.get_by_text("My arm.").first.wait_for(timeout=60_000)
-        kp_shared = shared.params.kp
+        kp_shared, kp_mine = shared.params.kp, mine.rig.loop.params.kp  # (its own start)
         student.get_by_role("tab", name="Gains").click()
         thumb = _labelled(student, KP).locator("[role=slider]")
         thumb.focus()
         for _ in range(5):
             student.keyboard.press("ArrowRight")
-        wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp_shared + 0.5), 60,
+        wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp_mine + 0.5), 60,
                  "the student's own Kp")
         assert shared.params.kp == kp_shared  # the teacher's arm did not move
 
@@ -116,7 +116,7 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
         teacher.get_by_text("Ayu").first.wait_for(timeout=60_000)
         _pick(teacher, "Student", f"Ayu (#{sid})")
         teacher.get_by_role("button", name="Use these gains").click()
-        wait_for(lambda: shared.params.kp == pytest.approx(kp_shared + 0.5), 60,
+        wait_for(lambda: shared.params.kp == pytest.approx(kp_mine + 0.5), 60,
                  "the shared arm at the student's Kp")
 
         # A reload of the student's page returns to the same arm, gains kept.
@@ -126,7 +126,7 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
                              for lesson in lab.room.private_lessons().values()), 90,
                  "the same private arm after the reload")
         student.get_by_text("My arm.").first.wait_for(timeout=60_000)
-        assert own.params.kp == pytest.approx(kp_shared + 0.5)
+        assert own.params.kp == pytest.approx(kp_mine + 0.5)
     finally:
         teacher_ctx.close()
         student_ctx.close()
