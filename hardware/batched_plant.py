@@ -55,7 +55,7 @@ from hardware.servo import (
 from hardware.servo_spec import DIRECTION_BIT, ServoSpec
 from kinematics.batched_dynamics import batched_dynamics
 from kinematics.model import SerialChain
-from kinematics.validate import scalar, vector
+from kinematics.validate import index, scalar, vector
 
 #: The registers the firmware acts on, held per (joint, arm) as int64 arrays.
 REGISTERS: tuple[str, ...] = tuple(f.name for f in fields(ServoRegisters))
@@ -456,10 +456,7 @@ class BatchedPlant:
         self._p_until = self._p_until[keep]
 
     def _link(self, link: int, name: str) -> int:
-        if isinstance(link, bool) or not isinstance(link, int | np.integer) or not (
-                0 <= int(link) < self.n):
-            raise ValueError(f"{name} must be an index 0..{self.n - 1}, got {link!r}")
-        return int(link)
+        return index(name, link, self.n)
 
     # -- stepping ---------------------------------------------------------------------
 
@@ -608,25 +605,13 @@ class BatchedPlant:
         if not self._p_row.size:
             self._s["push_tau"] = np.zeros_like(q)
             return
-        rows, links = self._p_row, self._p_link
-        P = rows.size
-        fr = self._dyn.frames(q[:, rows]).reshape(self.n, 12, P)  # per link R (9), o (3)
-        lf = fr[links, :, np.arange(P)].T  # (12, P): the pushed link's frame
-        px, py, pz = self._p_point.T
+        rows = self._p_row
+        fr = self._dyn.frames(q[:, rows]).reshape(self.n, 12, rows.size)  # R (9), o (3)
+        _, cols = self._points(fr, self._p_link, self._p_point.T)
         f0, f1, f2 = self._p_force.T
-        p0 = lf[0] * px + lf[1] * py + lf[2] * pz + lf[9]
-        p1 = lf[3] * px + lf[4] * py + lf[5] * pz + lf[10]
-        p2 = lf[6] * px + lf[7] * py + lf[8] * pz + lf[11]
         tau = np.empty_like(q)
         for j in range(self.n):
-            a0, a1, a2 = self._axes[j]
-            b = fr[j]
-            z0 = b[0] * a0 + b[1] * a1 + b[2] * a2
-            z1 = b[3] * a0 + b[4] * a1 + b[5] * a2
-            z2 = b[6] * a0 + b[7] * a1 + b[8] * a2
-            rx, ry, rz = p0 - b[9], p1 - b[10], p2 - b[11]
-            c0, c1, c2 = z1 * rz - z2 * ry, z2 * rx - z0 * rz, z0 * ry - z1 * rx
-            contrib = np.where(j <= links, c0 * f0 + c1 * f1 + c2 * f2, 0.0)
+            contrib = cols[j, 0] * f0 + cols[j, 1] * f1 + cols[j, 2] * f2
             tau[j] = np.bincount(rows, weights=contrib, minlength=n_arms)  # in push order
         self._s["push_tau"] = tau
 

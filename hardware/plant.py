@@ -30,7 +30,7 @@ from hardware.servo import ServoModel, ServoParams, ServoRegisters, ServoReport
 from hardware.servo_spec import ServoSpec
 from kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from kinematics.model import SerialChain
-from kinematics.validate import scalar, vector
+from kinematics.validate import index, scalar, vector
 
 
 @dataclass(frozen=True)
@@ -244,10 +244,7 @@ class Plant:
         self._wall = None
 
     def _link(self, link: int) -> int:
-        if isinstance(link, bool) or not isinstance(link, int | np.integer) or not (
-                0 <= int(link) < self.n):
-            raise ValueError(f"link must be an index 0..{self.n - 1}, got {link!r}")
-        return int(link)
+        return index("link", link, self.n)
 
     # -- stepping -----------------------------------------------------------------
 

@@ -75,3 +75,11 @@ def scalar(name: str, value: object, *, positive: bool = False,
     if nonnegative and x < 0.0:
         raise ValueError(f"{name} must be >= 0, got {x}")
     return x
+
+
+def index(name: str, value: object, size: int) -> int:
+    """Return ``value`` as an index 0..size-1 (an int, not a bool); ValueError otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not (
+            0 <= int(value) < size):
+        raise ValueError(f"{name} must be an index 0..{size - 1}, got {value!r}")
+    return int(value)
