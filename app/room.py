@@ -12,6 +12,7 @@ private arm's scene nodes, named as the shared ones, are drawn there in their pl
 from __future__ import annotations
 
 import secrets
+import sys
 import threading
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -220,7 +221,7 @@ class Room:
                 notify(state.client, "The class is full", str(exc))
                 state.view.value = FOLLOW
                 return
-            ctx = replace(lab.lesson_context(), backend="sim", port=None, baud=None,
+            ctx = replace(lab.lesson_ctx, backend="sim", port=None, baud=None,
                           joint_map=None, arms=seat)
             self.show_shared(state.client, shown=False)
             try:
@@ -333,7 +334,8 @@ class Room:
             try:
                 self._tick(tables=k % TABLE_EVERY == 0)
             except Exception as exc:  # a page gone mid-update: next tick
-                print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200])
+                print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200],
+                      file=sys.stderr, flush=True)
 
     def _tick(self, *, tables: bool) -> None:
         with self._lock:

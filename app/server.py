@@ -160,6 +160,7 @@ class Lab:
         room: the classroom's pages, roles and private arms (:class:`app.room.Room`), with
             ``options.classroom`` only; None otherwise.
         lesson: handle of the open lesson (None while switching).
+        lesson_ctx: what the open lesson was built for.
     """
 
     def __init__(self, options: ServeOptions, *, verbose: bool = False) -> None:
@@ -197,6 +198,8 @@ class Lab:
             self.lesson: LessonHandle | None = None
             self._open(name)
         except BaseException:
+            if getattr(self, "room", None) is not None:
+                self.room.close()
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
             raise
@@ -243,8 +246,7 @@ class Lab:
 
     # -- lessons ----------------------------------------------------------------
 
-    def lesson_context(self) -> LessonContext:
-        """What the lab's lessons are built for (from its options)."""
+    def _context(self) -> LessonContext:
         o = self.options
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
                              realtime=o.realtime, tip_link=o.tip_link,
@@ -252,13 +254,14 @@ class Lab:
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
-        ctx = self.lesson_context()
+        ctx = self._context()
         if o_robots := getattr(module, "ROBOTS", ()):
             if not works_with(module, ctx.robot):  # the URDF options belong to the robot
                 ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
                               joint_map=None)
         self.lesson = module.build(self.server, ctx)
         self.lesson_name = name
+        self.lesson_ctx = ctx
         if self.room is not None:
             self.room.lesson_changed()
 
