@@ -223,3 +223,29 @@ def test_a_full_class_says_so():
             b.wait_for(lambda: b.find("View").value == "Follow the teacher", 30.0,
                        "B back to following")
             assert lab.room.private_lesson(b_id) is None
+
+
+def test_a_disconnect_mid_drag_lets_go_of_the_students_arm(classroom):
+    from kinematics.fk import fk
+
+    lab = classroom
+    page, cid = _joined(lab)
+    page.set_value("View", "My arm")
+    wait_for(lambda: lab.room.private_lesson(cid) is not None, 60, "the page's own lesson")
+    mine = lab.room.private_lesson(cid)
+    loop, model = mine.rig.loop, mine.rig.model
+    wait_for(lambda: loop.status.active and len(loop.recorder.snapshot(0.1)["t"]) > 0, 60,
+             "the arm held")
+
+    def deflection() -> float:  # |θ_cmd − θ|, the most of any joint, rad
+        snap = loop.recorder.snapshot(0.1)
+        return float(abs(snap["error"][-1]).max())
+
+    hand = fk(model, loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+    mine._on_drag("start", hand + [0.0, 0.0, 0.12])  # what the hand's drag callback does
+    wait_for(lambda: deflection() > 0.03, 60, "the arm pulled by the drag")
+    pulled = deflection()
+    page.close()  # the page goes away mid-drag
+    wait_for(lambda: lab.room.private_lesson(cid) is None, 60, "the page's lesson closed")
+    wait_for(lambda: deflection() < pulled / 4, 60, "the arm let go of")
+    assert loop.status.fault is None and loop.status.running  # kept for a reload

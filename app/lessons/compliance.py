@@ -213,7 +213,10 @@ class ComplianceLesson(LessonBase):
 
     def _close_rig(self, rig: Rig) -> None:
         if self.ctx.arms is not None:  # the student's arm lives on for a reload; the page
-            rig.scene.remove()  # leaves, or another preset replaces it (arm_for)
+            # leaves (maybe mid-drag: let go of the arm) or another preset replaces it
+            rig.loop.post(Spring(None, stiffness=0.0, link=rig.model.n - 1,
+                                 point=rig.model.tip[:3, 3]))
+            rig.scene.remove()
             return
         try:
             rig.loop.shutdown(torque_off=True)
