@@ -249,3 +249,23 @@ def test_a_disconnect_mid_drag_lets_go_of_the_students_arm(classroom):
     wait_for(lambda: lab.room.private_lesson(cid) is None, 60, "the page's lesson closed")
     wait_for(lambda: deflection() < pulled / 4, 60, "the arm let go of")
     assert loop.status.fault is None and loop.status.running  # kept for a reload
+
+
+def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
+    lab = classroom
+    page, cid = _joined(lab)
+    with page:
+        page.set_value("View", "My arm")
+        wait_for(lambda: lab.room.private_lesson(cid) is not None, 60, "the page's own lesson")
+        mine = lab.room.private_lesson(cid)
+        kp = mine.rig.loop.params.kp
+        shared_kp = lab.lesson.rig.loop.params.kp
+        slider = mine.gains.sliders["kp"].handle
+        for bad in (float("nan"), 1e308, "twenty", [1, 2]):
+            page.set_value(slider, bad)
+        page.wait_for(lambda: sum(t == "Value refused" for t, _ in page.notifications) >= 1,
+                      30.0, "the refusal")
+        page.send({"type": "GuiUpdateMessage", "uuid": slider._impl.uuid,
+                   "updates": {"value": kp + 1.0}})  # a good value still goes through
+        wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp + 1.0), 30, "the good Kp")
+        assert lab.lesson.rig.loop.params.kp == shared_kp
