@@ -7,6 +7,7 @@ a free loopback port.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from _helpers import wait_for
 
@@ -269,3 +270,56 @@ def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
                    "updates": {"value": kp + 1.0}})  # a good value still goes through
         wait_for(lambda: mine.rig.loop.params.kp == pytest.approx(kp + 1.0), 30, "the good Kp")
         assert lab.lesson.rig.loop.params.kp == shared_kp
+
+
+def test_my_arm_in_the_other_arm_lessons_is_private_too():
+    """The IK-accuracy, redundancy and any-arm lessons offer My arm as well: a student's
+    control moves their own copy, never the shared one; the hand and the quadruped (one
+    simulator thread each, not batched) say so and keep the page following."""
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        page, cid = _joined(lab)
+        with page:
+            def mine_for(name: str):  # noqa: ANN202
+                lab.switch(name)
+                page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
+                              "the page following the new lesson")
+                page.set_value("View", "My arm")
+                wait_for(lambda: lab.room.private_lesson(cid) is not None, 60,
+                         f"the page's own {name} lesson")
+                mine = lab.room.private_lesson(cid)
+                assert mine is not lab.lesson and type(mine) is type(lab.lesson)
+                return mine
+
+            mine = mine_for("ik_accuracy")
+            page.set_value(mine.x_input, 5.0)
+            wait_for(lambda: mine.target[0] == pytest.approx(0.05), 30, "the own target X")
+            assert lab.lesson.target[0] == pytest.approx(0.02)
+
+            mine = mine_for("redundancy")
+            k_a = lab.lesson.k_a.handle.value
+            page.set_value(mine.k_a.handle, k_a + 100.0)
+            wait_for(lambda: mine.k_a.handle.value == pytest.approx(k_a + 100.0), 30,
+                     "the own k_a")
+            assert lab.lesson.k_a.handle.value == k_a
+
+            mine = mine_for("arm")
+            shared = lab.lesson.loop
+            assert mine.loop is not shared and mine.loop is lab.room.sandboxes.loop_of(
+                lab.room._pages[cid].seat)
+            page.set_value(mine.sliders[0], 20.0)
+            wait_for(lambda: abs(_q(mine.loop)[0] - np.radians(20.0)) < np.radians(2.0), 60,
+                     "the own arm's first joint at 20°")
+            assert abs(_q(shared)[0]) < np.radians(2.0)
+
+            lab.switch("hand")
+            page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
+                          "following the hand")
+            page.set_value("View", "My arm")
+            assert "no private arm" in page.wait_notification("No private arm here")
+            assert lab.room.private_lesson(cid) is None
+
+
+def _q(loop) -> np.ndarray:  # noqa: ANN001
+    """The newest joint angles a loop recorded (NaN before its first period)."""
+    snap = loop.recorder.snapshot(0.5)
+    return snap["q"][-1] if len(snap["t"]) else np.full(loop.model.n, np.nan)

@@ -39,14 +39,24 @@ HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the l
 TRY = ("Move a joint slider a few degrees, then drag the orange target: the hand follows it.")
 ROBOTS = ("open_manipulator_x", ANY_URDF)
 ORDER = 50
+#: a student's page can hold a private copy of this lesson (``ctx.arms``)
+PRIVATE = True
 MAX_JOINTS = 7
 #: s a slider's goal is held after the smooth approach (the loop then keeps it).
 SLIDER_HOLD_S = 0.2
+#: s of signals the loop's recorder keeps (the hand pose and the status read the newest).
+HISTORY_S = 20.0
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> ArmLesson:
     """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
     return ArmLesson(server, ctx)
+
+
+def private_key(ctx: LessonContext) -> str:
+    """Which of the class's batched plants a student's copy of this arm lives in: one per
+    robot and tip link (the arms of one plant share the model)."""
+    return f"arm {ctx.robot} {ctx.tip_link or '(default tip)'}"
 
 
 def check_servo_arm(model: SerialChain) -> None:
@@ -97,24 +107,40 @@ class ArmLesson(LessonBase):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
         check_servo_arm(model)
         self.model = model
-        extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
-        self.backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **extra)
-        with self.opening(self.backend.close):
-            self.loop = ControlLoop(model, self.backend, DEFAULT, controller="compliance",
-                                    realtime=ctx.realtime)
+        if ctx.arms is not None:  # a student's arm: kept for a reload, run by the class
+            self.backend, self.loop = ctx.arms.arm_for(
+                model, DEFAULT, preset=private_key(ctx), q0=model.neutral(),
+                history_s=HISTORY_S)
+            undo = None
+        else:
+            extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
+            self.backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **extra)
+            undo = self.backend.close
+        with self.opening(undo):
+            if ctx.arms is None:
+                self.loop = ControlLoop(model, self.backend, DEFAULT, controller="compliance",
+                                        realtime=ctx.realtime, history_s=HISTORY_S)
             self.view = ArmView(server, model, root="/arm")
             self._build_scene()
             self._build_gui()
-        self.loop.start()
+        if ctx.arms is None:
+            self.loop.start()
         self.publish(pose=self._pose_frame, plots=self._status_frame, pose_hz=pose_hz,
                      plot_hz=min(pose_hz, 10.0))
 
     # ================================================================== scene and GUI
 
+    def _held(self) -> np.ndarray:
+        """(n,) rad the arm is at now: its newest recorded angles (a kept private arm), or
+        the neutral pose (a loop that has not read the servos yet)."""
+        snap = self.loop.recorder.snapshot(1.0)
+        if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
+            return np.asarray(snap["q"][-1], dtype=float)
+        return self.model.neutral()
+
     def _build_scene(self) -> None:
         base = self.model.base_pose
-        q0 = self.model.neutral()
-        hand = self.model.fk(q0)[:3, 3]
+        hand = self.model.fk(self._held())[:3, 3]
         scene = self.server.scene
         self.base = scene.add_frame("/arm_target_base", show_axes=False,
                                     position=base[:3, 3],
@@ -135,11 +161,12 @@ class ArmLesson(LessonBase):
         self.status = self._gui.add_status(try_this=TRY)
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         lower, upper = self.loop.lower, self.loop.upper
+        held = np.degrees(self._held())
         with tabs.add_tab("Joints", viser.Icon.ADJUSTMENTS):
             self.sliders = []
             for i, j in enumerate(self.model.joints):
                 lo, hi = math.degrees(lower[i]), math.degrees(upper[i])
-                start = float(np.clip(0.0, lo, hi))
+                start = float(np.clip(round(held[i] * 2.0) / 2.0, lo, hi))  # the 0.5° step
                 slider = gui.add_slider(f"{j.name} °", min=lo, max=hi, step=0.5,
                                         initial_value=start,
                                         hint=f"Joint {j.name}: {lo:+.1f}° .. {hi:+.1f}°")
@@ -201,11 +228,13 @@ class ArmLesson(LessonBase):
 
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove GUI and
-        scene."""
+        scene. A student's arm (``ctx.arms``) keeps running, holding its pose, for a reload."""
         if self.mark_closed():
-            close_in_turn(self.publisher.close, lambda: self.loop.shutdown(torque_off=True),
-                          self.backend.close, self.view.remove, self.base.remove,
-                          self._gui.remove_all)
+            own = self.ctx.arms is None
+            close_in_turn(self.publisher.close,
+                          (lambda: self.loop.shutdown(torque_off=True)) if own else None,
+                          self.backend.close if own else None, self.view.remove,
+                          self.base.remove, self._gui.remove_all)
 
 
 def _wxyz(R: np.ndarray) -> np.ndarray:

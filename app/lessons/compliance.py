@@ -173,7 +173,8 @@ class ComplianceLesson(LessonBase):
         self._push: tuple[np.ndarray, float] | None = None  # (force N, end loop time)
         self.rig: Rig | None = None
         params = DEFAULT
-        if ctx.arms is not None and (kept := ctx.arms.kept()) is not None:
+        kept = None if ctx.arms is None else ctx.arms.kept()
+        if kept is not None and kept[0] in RECEPTIONIST_PRESETS:
             link_preset, params = kept  # a reload: the student's arm as they left it
         with self.opening():
             self._build_gui(params, link_preset)

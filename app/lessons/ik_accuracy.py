@@ -48,6 +48,8 @@ HELP = ("The paper's planar arm with three 0–180° hobby servos: drag the targ
 TRY = ("Drag the target in the arm's plane, then press **Run the paper's table**.")
 ROBOTS = ("planar_servo_arm",)
 ORDER = 20
+#: a student's page can hold a private copy (it simulates on its own; no servos, no ``ctx.arms``)
+PRIVATE = True
 
 ROUNDING_LABELS = {"none": "none (exact angles)", "round": "round to whole degrees",
                    "truncate": "truncate the servo command (the paper)"}

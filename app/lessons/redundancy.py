@@ -60,6 +60,8 @@ HELP = ("A redundant planar 3R arm draws the paper's circle five ways side by si
 TRY = ("Press **Run the circle** and watch which arms leave their joint limits (red dots).")
 ROBOTS = ("redundant_planar",)
 ORDER = 20
+#: a student's page can hold a private copy (it simulates on its own; no servos, no ``ctx.arms``)
+PRIVATE = True
 
 #: The simulations shown, in chart-series order.
 SHOWN_MODES: tuple[str, ...] = ("1", "2", "3", "4", "bounded")
