@@ -184,6 +184,6 @@ def _goal_vector(name: str, value: object, n: int) -> np.ndarray:
         raise ValueError(f"{name} must be {n} numbers, got {value!r}; nothing was sent") from None
     if arr.shape != (n,):
         raise ValueError(f"{name} must have shape ({n},), got {arr.shape}; nothing was sent")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name}: non-finite values {arr.tolist()}; nothing was sent")
     return arr

@@ -353,7 +353,7 @@ class ControlLoop:
             self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
             return
         for name, arr in (("position", q), ("velocity", qd), ("load", load)):
-            if not np.all(np.isfinite(arr)):
+            if not np.isfinite(arr).all():
                 raise _Fault(f"the servos reported a non-finite {name} ({arr.tolist()}); "
                              "torque off")
         bad = [(j, e) for j, e in enumerate(meas.errors) if e]
@@ -367,25 +367,25 @@ class ControlLoop:
         assert st is not None
         tau_dyn = rnea(self.model, q, qd, st.qdd_ref)
         q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
-        if not (np.all(np.isfinite(q_ref)) and np.all(np.isfinite(qd_ref))
-                and np.all(np.isfinite(st.qdd_ref))):
+        if not (np.isfinite(q_ref).all() and np.isfinite(qd_ref).all()
+                and np.isfinite(st.qdd_ref).all()):
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "
                          "torque off")
-        worst = int(np.argmax(np.abs(st.qdd_ref)))
-        if abs(st.qdd_ref[worst]) > self.max_accel:
+        if np.abs(st.qdd_ref).max() > self.max_accel:
+            worst = int(np.argmax(np.abs(st.qdd_ref)))
             raise _Fault(
                 f"unstable: reference acceleration {st.qdd_ref[worst]:.0f} rad/s² on joint "
                 f"{self.model.joints[worst].name} exceeds {self.max_accel:g} "
                 f"(Kp {p.kp:g}, Kv {p.kv:g}, M_env {p.m_env:g}, D_env {p.d_env:g}, "
                 f"K_env {p.k_env:g}, K_f {p.k_f:g} at {p.period * 1e3:g} ms); torque off")
         fast = np.abs(qd_ref) >= self.max_speed * (1.0 - 1e-9)
-        if np.any(fast):
+        if fast.any():
             j = int(np.argmax(fast))
             raise _Fault(f"unstable: the reference speed of joint {self.model.joints[j].name} "
                          f"reached the servo's limit ({self.max_speed[j]:.1f} rad/s); "
                          "torque off (lower the gains)")
         lag = np.abs(q_ref - q) > self.max_lag
-        self._lag_time = self._lag_time + p.period if np.any(lag) else 0.0
+        self._lag_time = self._lag_time + p.period if lag.any() else 0.0
         if self._lag_time > self.lag_time:
             j = int(np.argmax(np.abs(q_ref - q)))
             raise _Fault(f"joint {self.model.joints[j].name} has been more than "

@@ -52,7 +52,7 @@ from hardware.servo import (
     ServoReport,
     effective_slope,
 )
-from hardware.servo_spec import DIRECTION_BIT, ServoSpec
+from hardware.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
 from kinematics.batched_dynamics import batched_dynamics
 from kinematics.model import SerialChain
 from kinematics.validate import index, scalar, vector
@@ -145,6 +145,7 @@ class BatchedPlant:
         self._cpr = col([1.0 / s.position_unit for s in specs])  # counts per rad
         self._cpsu = col([s.speed_unit / s.position_unit for s in specs])  # counts per unit·s
         self._speed_unit = col([s.speed_unit for s in specs])
+        self._speed_units = [s.speed_unit for s in specs]
         self._stall_torque = col([s.stall_torque for s in specs])
         self._backemf = col([s.stall_torque / s.no_load_speed for s in specs])
         self._viscous = col([p.viscous_friction for p in plist])
@@ -330,9 +331,10 @@ class BatchedPlant:
             if values is None:
                 continue
             v = list(values)  # checked in Python: this runs every period of every arm
-            if len(v) != self.n or not all(
-                    isinstance(x, int | np.integer) and not isinstance(x, bool)
-                    and 0 <= x <= 0xFFFF for x in v):
+            if len(v) != self.n or not (
+                    all(type(x) is int and 0 <= x <= 0xFFFF for x in v)  # the usual case
+                    or all(isinstance(x, int | np.integer) and not isinstance(x, bool)
+                           and 0 <= x <= 0xFFFF for x in v)):
                 raise ValueError(f"{name} must be {self.n} raw register values 0..65535, "
                                  f"got {values!r}")
             self._r[name][:, r] = v
@@ -718,13 +720,16 @@ class BatchedPlant:
         (its column only: O(n), whatever N)."""
         r = self.row(arm)
         s, regs = self._s, self._r
-        spd = signed_words(s["velocity"][:, r] / self._speed_unit[:, 0])
-        load = signed_words(s["duty"][:, r] * 1023.0)
-        err = (np.where(s["angle_error"][:, r], ERROR_ANGLE_LIMIT, 0)
-               | np.where(s["overload"][:, r], ERROR_OVERLOAD, 0))
+        # the column as Python numbers: for n servos, scalar arithmetic beats numpy's
+        # per-call cost (signed_word rounds as signed_words does)
+        present, velocity, duty = (s[k][:, r].tolist() for k in ("present", "velocity", "duty"))
+        moving, angle_error, overload = (s[k][:, r].tolist()
+                                         for k in ("moving", "angle_error", "overload"))
+        enable, limit = regs["torque_enable"][:, r].tolist(), regs["torque_limit"][:, r].tolist()
         return tuple(ServoReport(
-            position=int(s["present"][i, r]), speed=int(spd[i]), load=int(load[i]),
-            voltage=self._voltage[i], temperature=self._temperature[i],
-            moving=int(s["moving"][i, r]), error=int(err[i]),
-            torque_enable=int(regs["torque_enable"][i, r]),
-            torque_limit=int(regs["torque_limit"][i, r])) for i in range(self.n))
+            position=int(present[i]), speed=signed_word(velocity[i] / self._speed_units[i]),
+            load=signed_word(duty[i] * 1023.0), voltage=self._voltage[i],
+            temperature=self._temperature[i], moving=int(moving[i]),
+            error=(ERROR_ANGLE_LIMIT if angle_error[i] else 0)
+            | (ERROR_OVERLOAD if overload[i] else 0),
+            torque_enable=int(enable[i]), torque_limit=int(limit[i])) for i in range(self.n))

@@ -10,6 +10,7 @@ sign, zero offset) is the backend's business.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,12 @@ def signed_word(units: float) -> int:
     a = abs(units)
     mag = 1023 if a >= 1023.0 else round(a)  # round: half to even, as np.rint
     return mag | (DIRECTION_BIT if units < 0 and mag else 0)
+
+
+def clamped_count(units: float, lo: int, hi: int) -> int:
+    """``units`` rounded half to even (as ``np.rint``) and clamped into [lo, hi]: a register
+    value. NaN raises ValueError. (Plain floats: this runs for every servo every period.)"""
+    return int(round(min(max(units, float(lo)), float(hi))))
 
 
 def word_to_signed(raw: int) -> int:
@@ -72,7 +79,7 @@ class ServoSpec:
 
     def position_to_raw(self, angle: float) -> int:
         """Joint-side angle (rad from centre) -> goal position 0..1023, rounded and clamped."""
-        return int(np.clip(np.rint(512 + angle / self.position_unit), 0, 1023))
+        return clamped_count(512.0 + float(angle) / self.position_unit, 0, 1023)
 
     def raw_to_position(self, raw: int) -> float:
         """Position count 0..1023 -> rad from centre."""
@@ -83,9 +90,10 @@ class ServoSpec:
 
         ``inf`` asks for the fastest setting: 0 (no speed control).
         """
-        if np.isinf(speed):
+        speed = float(speed)
+        if math.isinf(speed):
             return 0
-        return int(np.clip(np.rint(abs(speed) / self.speed_unit), 1, 1023))
+        return clamped_count(abs(speed) / self.speed_unit, 1, 1023)
 
     def raw_to_speed_limit(self, raw: int) -> float:
         """Moving Speed register -> rad/s limit (0 -> the no-load speed: no control)."""
@@ -110,7 +118,7 @@ class ServoSpec:
 
     def torque_limit_to_raw(self, torque: float) -> int:
         """N·m -> Torque Limit / Max Torque register 0..1023."""
-        return int(np.clip(np.rint(torque / self.stall_torque * 1023.0), 0, 1023))
+        return clamped_count(float(torque) / self.stall_torque * 1023.0, 0, 1023)
 
     def raw_to_torque_limit(self, raw: int) -> float:
         """Torque Limit register -> N·m."""

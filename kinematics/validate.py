@@ -39,7 +39,10 @@ def floats(name: str, value: object, size: int) -> list[float]:
         ValueError: as :func:`vector` does, naming ``name``.
     """
     try:
-        vals = [float(v) for v in value]  # type: ignore[attr-defined]
+        if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.ndim == 1:
+            vals = value.tolist()  # Python floats at once (iterating makes numpy scalars)
+        else:
+            vals = [float(v) for v in value]  # type: ignore[attr-defined]
     except (TypeError, ValueError):
         vals = []
     if len(vals) != size or not all(math.isfinite(v) for v in vals):
