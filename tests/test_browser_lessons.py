@@ -71,7 +71,7 @@ def switch(page, lab, name: str, title: str) -> None:
     wait_for(lambda: lab.lesson_name == name, 60, f"the lab to open {name}")
 
 
-def settled_view(page, previous: np.ndarray | None, *, timeout: float = 40.0) -> np.ndarray:
+def settled_view(page, previous: np.ndarray | None, *, timeout: float = 90.0) -> np.ndarray:
     """The view once it changed from ``previous`` and has something drawn."""
     deadline = time.monotonic() + timeout
     while True:

@@ -39,6 +39,8 @@ from pathlib import Path
 import numpy as np
 
 PROBE = "/bench_probe"
+#: s the client process waits for every page to draw its own arm (``--my-arm``)
+OWN_ARM_TIMEOUT_S = 240.0
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -67,10 +69,14 @@ def client_main(argv: list[str] | None = None) -> int:
     pose_frames: dict[int, set[float]] = defaultdict(set)
     plot_frames: dict[int, set[float]] = defaultdict(set)
     own_frames: dict[int, set[float]] = defaultdict(set)  # a page's own arm (client-scoped)
+    own_seen: set[int] = set()  # pages that have drawn their own arm at least once
     angle_uuid: dict[str, str] = {}
 
     def listener(i: int):  # noqa: ANN202
         def on_message(m: dict, now: float) -> None:
+            if m.get("owner") and m.get("type") == "SetOrientationMessage" and str(
+                    m.get("name", "")).startswith(args.arm_prefix):
+                own_seen.add(i)
             if not measuring.is_set():
                 if m.get("type") == "GuiUplotMessage" and str(
                         (m.get("props") or {}).get("title", "")).startswith("Joint angle"):
@@ -96,6 +102,14 @@ def client_main(argv: list[str] | None = None) -> int:
             c.wait_for(lambda c=c: any(e.label == "View" for e in c.gui.values()), 60.0,
                        "the View switch")
             c.set_value("View", "My arm")
+        # every page has its own arm on screen before anything is counted (a busy server
+        # builds 30 private lessons one after the other)
+        deadline = time.monotonic() + OWN_ARM_TIMEOUT_S
+        while len(own_seen) < args.clients:
+            if time.monotonic() > deadline:
+                raise SystemExit(f"only {len(own_seen)} of {args.clients} pages drew their own "
+                                 f"arm within {OWN_ARM_TIMEOUT_S:g} s")
+            time.sleep(0.2)
     time.sleep(args.settle)
     b0 = [c.bytes_received for c in clients]
     measuring.set()
@@ -131,7 +145,8 @@ def _clients(url: str, n: int, seconds: float, settle: float = 1.5, *,
         [sys.executable, "-m", "app.benches.ui", "--url", url, "--clients", str(n),
          "--seconds", str(seconds), "--settle", str(settle),
          *(["--my-arm"] if my_arm else [])],
-        cwd=ROOT, capture_output=True, text=True, timeout=seconds + settle + 120)
+        cwd=ROOT, capture_output=True, text=True,
+        timeout=seconds + settle + 120 + (OWN_ARM_TIMEOUT_S if my_arm else 0.0))
     if res.returncode != 0:
         raise RuntimeError(f"bench clients failed: {res.stderr.strip()[-500:]}")
     return json.loads(res.stdout.strip().splitlines()[-1])
