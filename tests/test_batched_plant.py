@@ -12,7 +12,7 @@ from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD, IDEAL, ServoParams
 from hardware.servo_spec import RX24F
 from hardware.sim_backend import thesis_registers
 from kinematics import load_robot
-from kinematics.batched_dynamics import batched_dynamics
+from kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
 from kinematics.dynamics import dynamics_model
 
 MODEL = load_robot("receptionist_arm")
@@ -69,18 +69,22 @@ def _all_words(batch: BatchedPlant) -> np.ndarray:
                      batch.register("torque_limit")], axis=2)
 
 
-def test_generated_dynamics_over_arms_equal_the_float_path() -> None:
+@pytest.mark.parametrize("n_arms", [5, FLOAT_ARMS + 16])  # per arm, then numpy over arms
+def test_generated_dynamics_over_arms_equal_the_float_path(n_arms: int) -> None:
     rng = np.random.default_rng(3)
-    q, qd, tau = (rng.uniform(-2.5, 2.5, (3, 40)) for _ in range(3))
+    q, qd, tau = (rng.uniform(-2.5, 2.5, (3, n_arms)) for _ in range(3))
     g, arm = [float(x) for x in MODEL.gravity], [3e-3] * 3
     fd = batched_dynamics(MODEL).fd(q, qd, tau, g, arm)
     one = dynamics_model(MODEL)
     ref = np.array([one.fd(list(q[:, k]), list(qd[:, k]), list(tau[:, k]), g, arm)
-                    for k in range(40)]).T
-    assert np.array_equal(fd, ref)
+                    for k in range(n_arms)]).T
+    assert fd.shape == (3, n_arms) and np.array_equal(fd, ref)
 
 
-def test_batched_plant_equals_n_single_plants_over_one_second() -> None:
+@pytest.mark.parametrize("float_arms", [FLOAT_ARMS, 0])  # the plant's path for a few arms; numpy's
+def test_batched_plant_equals_n_single_plants_over_one_second(float_arms: int,
+                                                              monkeypatch) -> None:  # noqa: ANN001
+    monkeypatch.setattr("kinematics.batched_dynamics.FLOAT_ARMS", float_arms)
     singles, batch = _pair()
     worst = 0.0
     for k in range(1000):
