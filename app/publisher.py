@@ -2,8 +2,9 @@
 
 It calls the lesson's ``pose`` function ``pose_hz`` times a second (30 by
 default) and its ``plots`` function ``plot_hz`` times a second (11: a margin
-over the 10 Hz the charts must reach), each frame inside one
-``server.atomic()`` block so its updates arrive together. viser replaces
+over the 10 Hz the charts must reach). Each pose frame is one
+``server.atomic()`` block, so the links move together; chart frames are not
+(viser holds a page's whole stream while an atomic block is open). viser replaces
 a pending update of a property by the newer one, so a slow browser skips stale
 frames rather than queueing them. Nothing is computed or sent while no browser
 is connected; the first browser to connect gets a full frame at once.
@@ -111,21 +112,21 @@ class Publisher:
             self._stop.wait(max(delay, 0.0))
 
     def _frame(self, *, pose: bool, plots: bool, force: bool) -> None:
-        t0 = time.perf_counter()
+        t0 = t1 = time.perf_counter()
         try:
-            with self.server.atomic():
-                if pose:
+            if pose:
+                with self.server.atomic():  # the links move together
                     self._pose()
                     for hook in self._hooks:
                         hook()
                 t1 = time.perf_counter()
-                if plots:
-                    self._plots(force)
-                    self.stats.plot_frames += 1
-                    self.stats.last_plot_s = time.perf_counter() - t1
-            if pose:
                 self.stats.pose_frames += 1
                 self.stats.last_pose_s = t1 - t0
+            if plots:  # not atomic: viser sends nothing to a page while an atomic block
+                # is open, and a slow chart frame would hold that page's poses back
+                self._plots(force)
+                self.stats.plot_frames += 1
+                self.stats.last_plot_s = time.perf_counter() - t1
         except Exception:  # one bad frame must not freeze every page: log it, go on
             self.stats.errors += 1
             if self.stats.errors <= 3:

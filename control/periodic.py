@@ -35,6 +35,11 @@ from dataclasses import dataclass
 import numpy as np
 
 
+#: s a running pacer's :meth:`Pacer.stats` is reused: it sums up the last 1000 wake-ups,
+#: and every page reads it in every frame (30 private arms share one clock's statistics).
+STATS_TTL_S = 0.2
+
+
 @dataclass(frozen=True)
 class PaceStats:
     """How well a real-time pacer kept time (None before the first wake-ups).
@@ -97,6 +102,7 @@ class Pacer:
         self._skips: deque[tuple[float, int]] = deque(maxlen=1000)  # (wall time, periods)
         self._overruns = 0
         self._skipped = 0
+        self._last_stats: tuple[float, PaceStats] | None = None  # (perf_counter, stats)
 
     @property
     def running(self) -> bool:
@@ -132,7 +138,12 @@ class Pacer:
             self.step()
 
     def stats(self) -> PaceStats:
-        """The lateness and skips measured so far (real time only)."""
+        """The lateness and skips measured so far (real time only); while the thread runs,
+        the same figures for :data:`STATS_TTL_S` s."""
+        now = time.perf_counter()
+        last = self._last_stats
+        if last is not None and now - last[0] < STATS_TTL_S and self.alive:
+            return last[1]
         with self._lock:  # copy only: the loop's thread takes this lock every wake-up
             late = np.array(self._late) if self._late else None
             gaps = np.array(self._intervals) if self._intervals else None
@@ -143,11 +154,13 @@ class Pacer:
         if late is not None:
             p50, p99 = (float(v) * 1e3 for v in np.percentile(late, (50, 99)))
             top = float(late.max() * 1e3)
-        return PaceStats(
+        stats = PaceStats(
             late_p50_ms=p50, late_p99_ms=p99, late_max_ms=top,
             interval_mean_ms=None if gaps is None else float(gaps.mean() * 1e3),
             overruns=overruns, skipped=skipped,
             skipped_recent=sum(k for t, k in skips if t >= since))
+        self._last_stats = (now, stats)
+        return stats
 
     def _run(self) -> None:
         error: Exception | None = None

@@ -12,8 +12,10 @@ Figures:
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
     classroom_30_pose_hz: a lab served with ``--classroom`` and 30 pages (headless
         clients in another process), each showing "My arm" and its arm playing the thesis
-        line again and again while the shared arm does too: the lowest rate of own-arm
-        pose frames any page receives.
+        line again and again while the shared arm does too: the lowest rate of frames of
+        its own lesson any page receives (a probe node in each frame, as ``ui_pose_hz``);
+        ``classroom_30_arm_moved_hz``: the lowest rate of those in which its arm turned
+        (a resting arm sends no pose).
     classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
         ``_max``: the most any page received).
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
@@ -88,6 +90,22 @@ def _rss_bytes() -> int:
     raise OSError("no VmRSS in /proc/self/status")
 
 
+def _probe(lesson: object) -> None:
+    """A hidden node of ``lesson``'s page that each of its frames moves (the bench counts
+    them as the page receives them)."""
+    from app.benches.ui import OWN_PROBE
+
+    node = lesson.server.scene.add_frame(OWN_PROBE, show_axes=False,  # type: ignore[attr-defined]
+                                         visible=False)
+    seq = [0]
+
+    def hook() -> None:
+        seq[0] += 1
+        node.position = (float(seq[0]), 0.0, 0.0)
+
+    lesson.publisher.add_frame_hook(hook)  # type: ignore[attr-defined]
+
+
 def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict[str, float]:
     """The classroom_30 figures (see the module docstring), counted for ``seconds`` from
     ``settle`` s after every page drew its own arm."""
@@ -99,12 +117,17 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     stop = threading.Event()
     rss: dict[str, int] = {}
 
+    probed: set[int] = set()
+
     def students_play() -> None:
         while not stop.wait(0.5):
             lessons = room.private_lessons()
             if len(lessons) >= pages and "start" not in rss:
                 rss["start"] = _rss_bytes()
             for lesson in lessons.values():
+                if id(lesson) not in probed:  # a probe node in each of its frames
+                    probed.add(id(lesson))
+                    _probe(lesson)
                 rig = lesson.rig
                 st = None if rig is None else rig.loop.status
                 if st is not None and st.trajectory is None and st.active:
@@ -133,6 +156,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     start = rss.get("start", rss["end"])
     return {
         "classroom_30_pose_hz": res["own_pose_hz_min"],
+        "classroom_30_arm_moved_hz": res["own_arm_moved_hz_min"],
         "classroom_30_bytes_per_client_per_s": res["bytes_per_client_per_s"],
         "classroom_30_bytes_per_client_per_s_max": res["bytes_per_client_per_s_max"],
         "classroom_30_loop_jitter_p99_ms": float("nan") if jitter is None else float(jitter),

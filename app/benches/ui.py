@@ -39,6 +39,8 @@ from pathlib import Path
 import numpy as np
 
 PROBE = "/bench_probe"
+#: a page's own probe (client-scoped): one per frame of its private lesson
+OWN_PROBE = "/bench_probe_mine"
 #: s the client process waits for every page to draw its own arm (``--my-arm``)
 OWN_ARM_TIMEOUT_S = 240.0
 ROOT = Path(__file__).resolve().parents[2]
@@ -68,7 +70,8 @@ def client_main(argv: list[str] | None = None) -> int:
     frames: dict[int, set[float]] = defaultdict(set)
     pose_frames: dict[int, set[float]] = defaultdict(set)
     plot_frames: dict[int, set[float]] = defaultdict(set)
-    own_frames: dict[int, set[float]] = defaultdict(set)  # a page's own arm (client-scoped)
+    own_frames: dict[int, set[float]] = defaultdict(set)  # frames of a page's own lesson
+    own_moved: dict[int, set[float]] = defaultdict(set)  # ... in which its own arm turned
     own_seen: set[int] = set()  # pages that have drawn their own arm at least once
     angle_uuid: dict[str, str] = {}
 
@@ -83,13 +86,15 @@ def client_main(argv: list[str] | None = None) -> int:
                     angle_uuid.setdefault("uuid", m["uuid"])
                 return
             kind = m.get("type")
-            if kind == "SetPositionMessage" and m.get("name") == PROBE:
+            if kind == "SetPositionMessage" and m.get("name") == OWN_PROBE:
+                own_frames[i].add(now)
+            elif kind == "SetPositionMessage" and m.get("name") == PROBE:
                 with lock:
                     latencies.append(time.monotonic() - float(m["position"][0]))
                 frames[i].add(now)
             elif kind == "SetOrientationMessage" and str(m.get("name", "")).startswith(
                     args.arm_prefix):
-                (own_frames if m.get("owner") else pose_frames)[i].add(now)
+                (own_moved if m.get("owner") else pose_frames)[i].add(now)
             elif kind == "GuiUpdateMessage" and "data" in m.get("updates", {}) \
                     and m.get("uuid") == angle_uuid.get("uuid"):
                 plot_frames[i].add(now)
@@ -129,6 +134,8 @@ def client_main(argv: list[str] | None = None) -> int:
                                       for i in range(args.clients)])),
         "plot_hz": float(np.mean([len(plot_frames[i]) / dt for i in range(args.clients)])),
         "own_pose_hz_min": float(min(len(own_frames[i]) / dt for i in range(args.clients))),
+        "own_arm_moved_hz_min": float(min(len(own_moved[i]) / dt
+                                          for i in range(args.clients))),
         "bytes_per_client_per_s_max": float(max((b - a) / dt for a, b in zip(b0, b1,
                                                                               strict=True))),
         "latency_p50_ms": float(np.percentile(lat, 50)),
