@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 #: s a running pacer's :meth:`Pacer.stats` is reused: it sums up the last 1000 wake-ups,
 #: and every page reads it in every frame (30 private arms share one clock's statistics).
 STATS_TTL_S = 0.2
