@@ -84,8 +84,25 @@ class GuiElement:
     props: dict[str, Any] = field(default_factory=dict)
 
 
+class SharedLoop:
+    """One thread running one asyncio event loop, for many :class:`HeadlessClient` pages
+    (``HeadlessClient(url, loop=shared.loop)``): no thread per page."""
+
+    def __init__(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self.loop.run_forever, name="headless-pages",
+                                        daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the loop (close the pages first)."""
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self._thread.join(5.0)
+
+
 class HeadlessClient:
-    """A fake browser connected to a viser server (runs its own asyncio thread).
+    """A fake browser connected to a viser server (runs its own asyncio thread, or on a
+    :class:`SharedLoop`'s).
 
     Args:
         url: ``ws://host:port``; for the lab, ``ws://host:port/?token=T`` (``app.gate``).
@@ -93,6 +110,8 @@ class HeadlessClient:
             receive time (``time.perf_counter()``).
         headers: extra HTTP headers of the websocket upgrade (a browser's ``Origin`` and
             ``Cookie``, a proxy's login such as Jupyter's ``Authorization``).
+        loop: a running event loop to use (``SharedLoop.loop``) instead of a thread of its
+            own: many pages in one process then share one thread (a bench's 30 pages).
 
     Attributes:
         gui: uuid -> :class:`GuiElement`.
@@ -103,7 +122,8 @@ class HeadlessClient:
     """
 
     def __init__(self, url: str, *, on_message: Callable[[dict, float], None] | None = None,
-                 headers: dict[str, str] | None = None) -> None:
+                 headers: dict[str, str] | None = None,
+                 loop: asyncio.AbstractEventLoop | None = None) -> None:
         self.url = url
         self.headers = dict(headers or {})
         self._on_message = on_message
@@ -117,7 +137,9 @@ class HeadlessClient:
         self.frames_received = 0
         self.counts: Counter[str] = Counter()
         self._lock = threading.RLock()  # wait_for predicates call find()
-        self._loop = asyncio.new_event_loop()
+        self._own_loop = loop is None
+        self._loop = asyncio.new_event_loop() if loop is None else loop
+        self._started = False
         self._ws: websockets.asyncio.client.ClientConnection | None = None
         self._connected = threading.Event()
         self._closed = threading.Event()
@@ -128,7 +150,11 @@ class HeadlessClient:
 
     def connect(self, timeout: float = 30.0) -> HeadlessClient:
         """Connect and introduce itself with a camera message; returns self."""
-        self._thread.start()
+        self._started = True
+        if self._own_loop:
+            self._thread.start()
+        else:  # a loop already running in another thread (:class:`SharedLoop`)
+            asyncio.run_coroutine_threadsafe(self._main(), self._loop)
         if not self._connected.wait(timeout):
             raise TimeoutError(f"no connection to {self.url} in {timeout} s: {self._error}")
         if self._error is not None:
@@ -146,7 +172,7 @@ class HeadlessClient:
         self._closed.wait(5.0)
 
     def __enter__(self) -> HeadlessClient:
-        return self if self._thread.is_alive() else self.connect()
+        return self if self._started else self.connect()
 
     def __exit__(self, *exc: object) -> None:
         self.close()

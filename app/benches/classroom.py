@@ -21,6 +21,9 @@ Figures:
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
     classroom_30_rss_growth_pct: the server process's memory growth over the run, from
         the moment all 30 private arms exist.
+    classroom_30_client_cpu_share: CPU seconds per second of the process running the 30
+        fake pages (one thread): near 1, they, not the server, may limit the rates (in a
+        classroom each browser has a device of its own).
     (120 s of the room, 20 s with ``--quick``.)
 
 Median of repeats, ``time.perf_counter``; the machine is shared, so these are figures,
@@ -161,6 +164,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         "classroom_30_bytes_per_client_per_s_max": res["bytes_per_client_per_s_max"],
         "classroom_30_loop_jitter_p99_ms": float("nan") if jitter is None else float(jitter),
         "classroom_30_rss_growth_pct": 100.0 * (rss["end"] - start) / start,
+        "classroom_30_client_cpu_share": res["client_cpu_share"],
     }
 
 
