@@ -47,6 +47,17 @@ class Page:
         """Send what is buffered for the page now."""
         self.client.flush()
 
+    def behind(self) -> bool:
+        """Whether messages of an earlier frame still wait to be sent to the page (the page
+        or the server cannot keep up): a publisher then skips a frame instead of making one
+        that viser would only fold into the waiting one."""
+        try:
+            buffer = self.client._websock_connection.get_message_buffer()  # type: ignore[attr-defined]
+            sent = buffer.generator_cursors.get(self.client.client_id)
+            return sent is not None and buffer.message_counter - 1 > sent
+        except AttributeError:  # another viser: never skip
+            return False
+
     def get_clients(self) -> dict[int, viser.ClientHandle]:
         """The one page, or nothing once it has left."""
         connected = self.client._viser_server.get_clients()  # type: ignore[attr-defined]

@@ -6,8 +6,10 @@ over the 10 Hz the charts must reach). Each pose frame is one
 ``server.atomic()`` block, so the links move together; chart frames are not
 (viser holds a page's whole stream while an atomic block is open). viser replaces
 a pending update of a property by the newer one, so a slow browser skips stale
-frames rather than queueing them. Nothing is computed or sent while no browser
-is connected; the first browser to connect gets a full frame at once.
+frames rather than queueing them; a publisher of one page (``app.page.Page``)
+makes no frame while that page has not been sent the last one. Nothing is
+computed or sent while no browser is connected; the first browser to connect
+gets a full frame at once.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ class PublisherStats:
     pose_frames: int = 0
     plot_frames: int = 0
     skipped_idle: int = 0
+    skipped_behind: int = 0  #: frames not made: the page had not been sent the last one
     errors: int = 0
     last_pose_s: float = 0.0  #: wall time spent in the last pose frame
     last_plot_s: float = 0.0  #: wall time spent in the last plot frame
@@ -62,6 +65,8 @@ class Publisher:
         self.pose_hz = pose_hz
         self.plot_hz = plot_hz
         self.stats = PublisherStats()
+        # a one-page "server" (app.page.Page) says when its page is behind
+        self._behind: Callable[[], bool] | None = getattr(server, "behind", None)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="armlab-publisher", daemon=True)
         self._hooks: list[Callable[[], None]] = []
@@ -98,7 +103,10 @@ class Publisher:
             has_clients = bool(self.server.get_clients())
             force = has_clients and not had_clients
             pose_due, plot_due = now >= next_pose, now >= next_plot
-            if has_clients and (pose_due or plot_due or force):
+            if (has_clients and (pose_due or plot_due) and not force
+                    and self._behind is not None and self._behind()):
+                self.stats.skipped_behind += 1  # the last frame is still on its way
+            elif has_clients and (pose_due or plot_due or force):
                 self._frame(pose=pose_due or force, plots=plot_due or force, force=force)
             elif not has_clients:
                 self.stats.skipped_idle += 1

@@ -5,8 +5,10 @@ role line, a "Passcode" field, a "Your name" field and a "View" switch between
 "Follow the teacher" (the shared arm, read-only: :class:`app.classroom.Roles`
 refuses a follower's changes) and "My arm" (a private copy of the open lesson on the
 page, driving the student's own simulated arm: :mod:`app.sandboxes`). While a page
-shows its own arm, the shared lesson's panel is hidden on that page only and the
-private arm's scene nodes, named as the shared ones, are drawn there in their place.
+shows its own arm, the shared lesson's panel is hidden on that page only, the
+private arm's scene nodes, named as the shared ones, are drawn there in their place,
+and the shared lesson's updates are held back from it (:mod:`app.muting`: the server
+does not serialise a stream the page does not show).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from app.arm_view import ArmView
 from app.classroom import Roles, address_of, new_passcode, qr_svg
 from app.inputs import UpdateScreen, notify
 from app.lessons._common import remove_quietly
+from app.muting import SharedStream
 from app.overview import GHOST_OFFSET, GHOST_RGBA, ClassOverview, StudentRow, row_figures
 from app.page import Page
 from app.sandboxes import ClassFull, Sandboxes
@@ -83,6 +86,8 @@ class Room:
         self._lock = threading.RLock()
         self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
         self._stop = threading.Event()
+        #: the shared lesson's updates, held back from pages that show their own arm
+        self.stream = SharedStream(lab.server)
         lab.server.on_client_connect(self._welcome)
         lab.server.on_client_disconnect(self._goodbye)
         self._ticker = threading.Thread(target=self._tick_often, name="armlab-room",
@@ -132,6 +137,7 @@ class Room:
 
     def _goodbye(self, client: viser.ClientHandle) -> None:
         self.roles.forget(client.client_id)
+        self.stream.forget(client.client_id)
         with self._lock:
             state = self._pages.pop(client.client_id, None)
         if state is not None:
@@ -224,9 +230,11 @@ class Room:
             ctx = replace(lab.lesson_ctx, backend="sim", port=None, baud=None,
                           joint_map=None, arms=seat)
             self.show_shared(state.client, shown=False)
+            self.stream.hold(state.client.client_id)
             try:
                 state.private = module.build(Page(state.client), ctx)
             except BaseException:
+                self.stream.release(state.client)
                 self.show_shared(state.client, shown=True)
                 state.view.value = FOLLOW
                 raise
@@ -242,6 +250,7 @@ class Room:
         state.figures = row_figures(lesson)
         lesson.close()
         if not gone:
+            self.stream.release(state.client)  # the shared lesson as it is now, then live
             self.show_shared(state.client, shown=True)
             state.role.content = FOLLOWER_TEXT
 

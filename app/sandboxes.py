@@ -194,7 +194,7 @@ class Sandboxes:
             loop.start()
             return backend, loop
 
-    def _free(self, seat: Seat) -> None:
+    def _free(self, seat: Seat) -> None:  # holding self._lock
         arm, seat.arm = seat.arm, None
         if arm is None:
             return
@@ -203,11 +203,15 @@ class Sandboxes:
         self._plants[arm.preset].remove_arm(arm.arm)
 
     def close(self) -> None:
-        """Stop the class: every loop, the clock, the sweeper."""
+        """Stop the class: the sweeper, the clock, then every loop (torque off) and arm.
+
+        The arms are freed holding the class's lock, after the clock stopped: a tick that
+        stepped a plant while one of its arms was taken out would leave the plant's arrays
+        of different widths."""
         self._stop.set()
+        self.clock.stop()
         with self._lock:
             seats = list(self._seats.values())
             self._seats.clear()
-        for seat in seats:
-            self._free(seat)
-        self.clock.stop()
+            for seat in seats:
+                self._free(seat)

@@ -323,3 +323,62 @@ def _q(loop) -> np.ndarray:  # noqa: ANN001
     """The newest joint angles a loop recorded (NaN before its first period)."""
     snap = loop.recorder.snapshot(0.5)
     return snap["q"][-1] if len(snap["t"]) else np.full(loop.model.n, np.nan)
+
+
+def test_a_page_with_its_own_arm_is_not_sent_the_shared_stream_and_catches_up(classroom):
+    """While a page shows My arm the shared lesson's updates are held back from it (the
+    server does not serialise them for it); following again, it is sent the latest."""
+    lab = classroom
+    shared_kp = lab.lesson.gains.sliders["kp"].handle
+    kp0 = lab.lesson.rig.loop.params.kp
+    student, cid = _joined(lab)
+    teacher, witness = _page(lab), _page(lab)  # witness: a page that follows
+    uuid = shared_kp._impl.uuid
+    with student, teacher, witness:
+        teacher.set_value("Passcode", lab.roles.passcode)
+        teacher.wait_notification("You present")
+        student.set_value("View", "My arm")
+        wait_for(lambda: lab.room.private_lesson(cid) is not None, 60, "the page's own lesson")
+        assert lab.room.stream.installed and lab.room.stream.is_held(cid)
+        teacher.set_value(shared_kp, kp0 + 5.0)
+        witness.wait_for(lambda: witness.gui[uuid].value == kp0 + 5.0, 30.0,
+                         "a following page shown the new Kp")
+        student.wait_for(lambda: student.frames_received > 0, 30.0, "frames")
+        frames = student.frames_received
+        student.wait_for(lambda: student.frames_received > frames + 10, 30.0,
+                         "ten more frames of the student's own lesson")
+        assert student.gui[uuid].value == pytest.approx(kp0)  # held back, not sent
+        assert lab.room.stream.held > 0
+        student.set_value("View", "Follow the teacher")
+        student.wait_for(lambda: student.gui[uuid].value == kp0 + 5.0, 30.0,
+                         "the student's page caught up with the shared Kp")
+        assert not lab.room.stream.is_held(cid)
+        teacher.set_value(shared_kp, kp0)
+        student.wait_for(lambda: student.gui[uuid].value == kp0, 30.0, "the stream live again")
+
+
+def test_closing_a_class_while_its_clock_steps_frees_every_arm():
+    """The lab closing (or a test ending) while the class's clock is stepping: every arm
+    is freed after the clock stopped, never while a tick steps its plant."""
+    from app.sandboxes import Sandboxes
+    from kinematics import load_robot
+
+    model = load_robot("receptionist_arm", preset="18.5/25")
+    boxes = Sandboxes(realtime=True)
+    for k in range(12):
+        boxes.seat(f"seat{k}").arm_for(model, DEFAULT, preset="18.5/25",
+                                       q0=np.array([0.0, 0.3, 0.3]), history_s=1.0)
+    steps = boxes.clock.steps
+    wait_for(lambda: boxes.clock.steps > steps + 20, 30, "the clock stepping the arms")
+    seen = []  # per freed arm: (the clock still running, the class's lock held)
+    free = boxes._free
+
+    def watched(seat) -> None:  # noqa: ANN001
+        seen.append((boxes.clock.alive, boxes._lock._is_owned()))
+        free(seat)
+
+    boxes._free = watched
+    boxes.close()
+    assert len(seen) == 12 and not any(alive for alive, _ in seen)
+    assert all(locked for _, locked in seen)
+    assert boxes.n_arms == 0 and not boxes.clock.alive
