@@ -117,21 +117,24 @@ class Room:
 
     def _welcome(self, client: viser.ClientHandle) -> None:
         gui = client.gui
-        role = gui.add_markdown(FOLLOWER_TEXT, order=-97.0)
-        view = gui.add_dropdown("View", (FOLLOW, MY_ARM), initial_value=FOLLOW, order=-96.5,
-                                hint="Follow the teacher's arm, or try your own gains on "
-                                     "your own simulated arm")
-        code = gui.add_text("Passcode", "", order=-96.0,
-                            hint="The teacher types the passcode armlab serve printed")
-        name = gui.add_text("Your name", "", order=-95.0,
-                            hint="Shown to the teacher (e.g. when you press E-STOP)")
-        state = _PageState(client, role, code, view,
-                           UpdateScreen(self.lab.server, gui=gui))  # the page's own controls
-        with self._lock:
-            self._pages[client.client_id] = state
-        name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
-        code.on_update(lambda _e: self._on_passcode(state))
-        view.on_update(lambda _e: self._on_view(state))
+        screen = UpdateScreen(self.lab.server, gui=gui)  # the page's own controls
+        # One atomic block: the page gets its fields only with their callbacks in place
+        # (a page quick to choose My arm would otherwise change the View unheard).
+        with client.atomic():
+            role = gui.add_markdown(FOLLOWER_TEXT, order=-97.0)
+            view = gui.add_dropdown("View", (FOLLOW, MY_ARM), initial_value=FOLLOW,
+                                    order=-96.5, hint="Follow the teacher's arm, or try your "
+                                                      "own gains on your own simulated arm")
+            code = gui.add_text("Passcode", "", order=-96.0,
+                                hint="The teacher types the passcode armlab serve printed")
+            name = gui.add_text("Your name", "", order=-95.0,
+                                hint="Shown to the teacher (e.g. when you press E-STOP)")
+            state = _PageState(client, role, code, view, screen)
+            with self._lock:
+                self._pages[client.client_id] = state
+            name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
+            code.on_update(lambda _e: self._on_passcode(state))
+            view.on_update(lambda _e: self._on_view(state))
         threading.Thread(target=self._find_seat, args=(state,), daemon=True,
                          name="armlab-seat").start()
 
