@@ -69,6 +69,7 @@ class SharedStream:
         self._held_from.discard(client_id)
 
     def is_held(self, client_id: int) -> bool:
+        """Whether updates are held back from page ``client_id`` now."""
         return client_id in self._held_from
 
     def catch_up(self, client: viser.ClientHandle) -> None:
