@@ -43,7 +43,7 @@ from dataclasses import fields
 
 import numpy as np
 
-from hardware.plant import JointStops
+from hardware.plant import JointStops, checked_wall
 from hardware.servo import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
@@ -422,20 +422,11 @@ class BatchedPlant:
         if origin_base is None:
             f["wall_on"][r] = False
             return
-        if normal_base is None:
-            raise ValueError("normal_base is needed with a wall origin")
-        nrm = vector("normal_base", normal_base, 3)
-        length = float(np.linalg.norm(nrm))
-        if length < 1e-9:
-            raise ValueError("normal_base must not be zero")
-        k = scalar("stiffness", stiffness, positive=True)
-        c = scalar("damping", damping, nonnegative=True)
-        li = self.n - 1 if link is None else self._link(link, "link")
-        pt = np.array(self._tip) if point is None else vector("point", point, 3)
-        if point is None and link is not None and li != self.n - 1:
-            pt = np.zeros(3)
-        f["wall_origin"][:, r] = vector("origin_base", origin_base, 3)
-        f["wall_normal"][:, r] = nrm / length
+        origin, normal, k, c, li, pt = checked_wall(
+            origin_base, normal_base, stiffness, damping, link, point, n=self.n,
+            tip=np.array(self._tip), link_index=lambda j: self._link(j, "link"))
+        f["wall_origin"][:, r] = origin
+        f["wall_normal"][:, r] = normal
         f["wall_k"][r], f["wall_c"][r], f["wall_link"][r] = k, c, li
         f["wall_point"][:, r] = pt
         f["wall_on"][r] = True

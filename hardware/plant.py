@@ -94,6 +94,32 @@ class JointStops:
     damping: float = 0.5
 
 
+
+def checked_wall(origin_base: object, normal_base: object, stiffness: object, damping: object,
+                 link: int | None, point: object, *, n: int, tip: np.ndarray,
+                 link_index: Callable[[int], int],
+                 ) -> tuple[np.ndarray, np.ndarray, float, float, int, np.ndarray]:
+    """A wall's arguments checked (``Plant.set_wall``, ``BatchedPlant.set_wall``): origin
+    (3,), unit normal (3,), stiffness, damping, the contact link's index and the contact
+    point (3,) in its frame (the tip on the last link, else the link's origin).
+
+    Raises:
+        ValueError: naming the argument that is missing, zero, non-finite or out of range.
+    """
+    if normal_base is None:
+        raise ValueError("normal_base is needed with a wall origin")
+    nrm = vector("normal_base", normal_base, 3)
+    length = float(np.linalg.norm(nrm))
+    if length < 1e-9:
+        raise ValueError("normal_base must not be zero")
+    k = scalar("stiffness", stiffness, positive=True)
+    c = scalar("damping", damping, nonnegative=True)
+    li = n - 1 if link is None else link_index(link)
+    pt = np.array(tip) if point is None else vector("point", point, 3)
+    if point is None and link is not None and li != n - 1:
+        pt = np.zeros(3)
+    return vector("origin_base", origin_base, 3), nrm / length, k, c, li, pt
+
 class Plant:
     """Arm + servos, stepped at a fixed ``dt``.
 
@@ -222,20 +248,10 @@ class Plant:
         if origin_base is None:
             self._wall = None
             return
-        if normal_base is None:
-            raise ValueError("normal_base is needed with a wall origin")
-        nrm = vector("normal_base", normal_base, 3)
-        length = float(np.linalg.norm(nrm))
-        if length < 1e-9:
-            raise ValueError("normal_base must not be zero")
-        k = scalar("stiffness", stiffness, positive=True)
-        c = scalar("damping", damping, nonnegative=True)
-        li = self.n - 1 if link is None else self._link(link)
-        pt = self.model.tip[:3, 3] if point is None else vector("point", point, 3)
-        if point is None and link is not None and li != self.n - 1:
-            pt = np.zeros(3)
-        self._wall = _Wall(tuple(vector("origin_base", origin_base, 3)), tuple(nrm / length),
-                           k, c, li, tuple(float(x) for x in pt))
+        origin, normal, k, c, li, pt = checked_wall(
+            origin_base, normal_base, stiffness, damping, link, point, n=self.n,
+            tip=self.model.tip[:3, 3], link_index=self._link)
+        self._wall = _Wall(tuple(origin), tuple(normal), k, c, li, tuple(float(x) for x in pt))
 
     def clear_forces(self) -> None:
         """Remove every push, spring and wall."""
