@@ -355,7 +355,8 @@ class DrivenPacer:
         self._t_next = 0.0  # local time of the next period, s
         self._last_wall: float | None = None
         self._intervals: deque[float] = deque(maxlen=1000)
-        self._stats_lock = threading.Lock()  # the clock appends, a UI thread copies
+        self._gap_sum = 0.0  # sum of _intervals, kept as they come and go (read every frame)
+        self._stats_lock = threading.Lock()  # the clock appends, a UI thread reads
 
     @property
     def running(self) -> bool:
@@ -401,12 +402,12 @@ class DrivenPacer:
         this loop's periods), mean wall time between this loop's periods (real time)."""
         base = self._clock.stats()
         with self._stats_lock:
-            gaps = tuple(self._intervals)
+            count, total = len(self._intervals), self._gap_sum
         scale = self._clock.dt / self.period
         return PaceStats(
             late_p50_ms=base.late_p50_ms, late_p99_ms=base.late_p99_ms,
             late_max_ms=base.late_max_ms,
-            interval_mean_ms=float(np.mean(gaps) * 1e3) if gaps else None,
+            interval_mean_ms=total / count * 1e3 if count else None,
             overruns=base.overruns, skipped=round(base.skipped * scale),
             skipped_recent=round(base.skipped_recent * scale))
 
@@ -418,8 +419,12 @@ class DrivenPacer:
         if self._clock.realtime and self._clock.alive:
             now = time.perf_counter()
             if self._last_wall is not None:
+                gap = now - self._last_wall
                 with self._stats_lock:
-                    self._intervals.append(now - self._last_wall)
+                    if len(self._intervals) == self._intervals.maxlen:
+                        self._gap_sum -= self._intervals[0]  # about to drop out
+                    self._intervals.append(gap)
+                    self._gap_sum += gap
             self._last_wall = now
         try:
             self.step()
