@@ -17,6 +17,7 @@ it is applied, so it is always [−window, 0].
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -27,8 +28,11 @@ import viser.uplot
 
 from app import theme
 
-#: Colours used for command / reference / actual / extra series (readable on a projector).
-COLORS = ("#1f5eea", "#e8820c", "#222222", "#c2185b", "#2e7d32", "#6a1b9a")
+#: Colours of command / reference / actual / extra series: the Okabe-Ito palette (Okabe &
+#: Ito 2008, "Color Universal Design"), told apart with every common colour-vision
+#: deficiency: blue, orange, black, vermillion, bluish green, reddish purple. Lines sharing
+#: a chart differ in dash or width as well (:func:`distinct_styles`).
+COLORS = ("#0072B2", "#E69F00", "#000000", "#D55E00", "#009E73", "#CC79A7")
 
 #: Dash patterns (px on, px off) for lines of one kind sharing a chart (finger 1, 2, 3;
 #: servo 1, 2, 3): they differ in pattern as well as colour, for colour-blind readers.
@@ -121,21 +125,104 @@ def fixed_x(lo: float, hi: float) -> dict:
     return {"time": False, "range": (float(lo), float(hi))}
 
 
+#: Smallest spans of the lessons' chart axes (:func:`fit_range`): an arm at rest shows
+#: its 0.29° position steps as a ripple, not as a full-height oscillation.
+ANGLE_SPAN_DEG = 4.0  #: joint angle charts, °: about 14 position steps of the RX-24F
+TORQUE_SPAN_NM = 0.5  #: torque charts, N·m (a fifth of the RX-24F's stall torque)
+
+#: A pinned y range is widened by this fraction of the span needed on each side, so a
+#: curve that grows a little does not re-pin it at once.
+HEADROOM = 0.15
+#: ... and narrowed again once it is more than this many times the span needed.
+SHRINK = 4.0
+#: Data that leaves a pinned range widens it by at least this fraction of its span.
+GROW = 0.5
+
+
+def nice_step(span: float) -> float:
+    """A round tick step (1, 2 or 5 times a power of ten) giving about four steps in
+    ``span`` (> 0)."""
+    raw = span / 4.0
+    base = 10.0 ** math.floor(math.log10(raw))
+    return next(m * base for m in (1.0, 2.0, 5.0, 10.0) if m * base >= raw)
+
+
+def fit_range(lo: float, hi: float, *, min_span: float,
+              current: tuple[float, float] | None = None) -> tuple[float, float] | None:
+    """The y range a chart should pin for data in [lo, hi]; None to keep ``current``.
+
+    The range spans at least ``min_span`` (centred on the data when the data spans less),
+    so a signal at rest shows as the small ripple it is instead of being stretched to
+    the chart's full height (the servo's 0.29° position steps read as wild oscillation
+    when auto-scaled). ``current`` is kept while the data stays inside it and it is at
+    most :data:`SHRINK` times the span needed. Data leaving it widens it by at least
+    :data:`GROW` of its span on that side (a rising curve re-pins a few times, not at every
+    update). A new range has :data:`HEADROOM` on each side and round ends (multiples of
+    half a :func:`nice_step`).
+
+    Args:
+        lo, hi: smallest and largest value shown (finite, lo <= hi).
+        min_span: smallest span, in the chart's units (> 0).
+        current: the pinned range now, or None.
+    """
+    if hi - lo < min_span:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * min_span, mid + 0.5 * min_span
+    span = hi - lo
+    if current is not None and current[1] - current[0] <= SHRINK * span:
+        if current[0] <= lo and hi <= current[1]:
+            return None
+        # grow by half the old span on the side the data left: a rising curve re-pins
+        grow = GROW * (current[1] - current[0])  # a few times, not at every update
+        if lo < current[0]:
+            lo = min(lo, current[0] - grow)
+        if hi > current[1]:
+            hi = max(hi, current[1] + grow)
+        span = hi - lo
+    step = 0.5 * nice_step(span * (1.0 + 2.0 * HEADROOM))
+    return (math.floor((lo - HEADROOM * span) / step) * step,
+            math.ceil((hi + HEADROOM * span) / step) * step)
+
+
 @dataclass(frozen=True)
 class SeriesSpec:
-    """One line of a chart: label, colour, dashed or not, scale ("y" or "y2")."""
+    """One line of a chart: label, colour, dash pattern (None: solid), scale ("y" or
+    "y2") and width (CSS px)."""
 
     label: str
     color: str
     dash: tuple[int, ...] | None = None
     scale: str = "y"
+    width: float = 2.0
 
 
-def _series(spec: SeriesSpec) -> viser.uplot.Series:
-    s: dict = {"label": spec.label, "stroke": spec.color, "width": 2, "scale": spec.scale}
+def uplot_series(spec: SeriesSpec) -> viser.uplot.Series:
+    """The uPlot series options of one line."""
+    s: dict = {"label": spec.label, "stroke": spec.color, "width": spec.width,
+               "scale": spec.scale}
     if spec.dash:
         s["dash"] = list(spec.dash)
     return s  # type: ignore[return-value]
+
+
+def distinct_styles(series: Iterable[dict]) -> list[tuple[str, str]]:
+    """Pairs of lines (labels) of one chart that differ in colour alone.
+
+    ``series`` are uPlot series options as the page gets them (the x series, without a
+    stroke, is skipped). Lines of one colour are one kind (the lower and upper limit)
+    and may share their style; lines of different colours must also differ in dash
+    pattern or width, so that a reader who cannot tell the colours apart still can.
+    """
+    lines = [s for s in series if s.get("stroke")]
+    same = []
+    for i, a in enumerate(lines):
+        for b in lines[i + 1:]:
+            if str(a["stroke"]).lower() == str(b["stroke"]).lower():
+                continue
+            if tuple(a.get("dash") or ()) == tuple(b.get("dash") or ()) and \
+                    float(a.get("width", 1)) == float(b.get("width", 1)):
+                same.append((str(a.get("label")), str(b.get("label"))))
+    return same
 
 
 class LivePlot:
@@ -150,21 +237,31 @@ class LivePlot:
         series: the lines (y arrays given to :meth:`update` in this order).
         y_label: left axis label (unit).
         y2_label: right axis label for series on scale "y2" (None: no right axis).
+        y_span, y2_span: smallest span of the left / right axis, in its units (None:
+            the axis scales to the data alone); see :func:`fit_range`.
         window_s: seconds shown.
         points: decimation bins per window.
         height: chart height, px.
         order: place among its container's elements (viser's ``order``).
 
     Change nothing but ``data`` after creation: the page would rebuild the chart in
-    place. To retitle or relabel, remove it and add a new one at the same ``order``.
+    place (the chart itself re-pins a spanned axis, rarely: :meth:`_fit`). To retitle or
+    relabel, remove it and add a new one at the same ``order``.
     """
 
     def __init__(self, gui: viser.GuiApi, *, title: str, series: Sequence[SeriesSpec],
                  y_label: str, y2_label: str | None = None, window_s: float = 10.0,
-                 points: int = 128, height: int = 170, order: float | None = None) -> None:
+                 points: int = 128, height: int = 170, order: float | None = None,
+                 y_span: float | None = None, y2_span: float | None = None) -> None:
         self.window_s = window_s
         self.points = points
         self.n_series = len(series)
+        #: scale -> (smallest span, the series on it): the axes pinned by :func:`fit_range`
+        self._spans = {key: (span, [i for i, s in enumerate(series) if s.scale == key])
+                       for key, span in (("y", y_span), ("y2", y2_span)) if span is not None}
+        #: scale -> the range pinned now
+        self.ranges: dict[str, tuple[float, float]] = {
+            key: (-0.5 * span, 0.5 * span) for key, (span, _) in self._spans.items()}
         scales: dict = {"x": fixed_x(-window_s, 0.0), "y": {"auto": True}}
         font, label_font = theme.chart_font(), theme.chart_font(bold=True)
         big = theme.projector()
@@ -177,14 +274,18 @@ class LivePlot:
             axes.append({"label": y2_label, "scale": "y2", "side": 1,
                          "size": 80 if big else 52, "font": font, "labelFont": label_font,
                          "grid": {"show": False}})
+        scales.update({key: {"auto": False, "range": r} for key, r in self.ranges.items()})
+        self._scales = scales
         # Start with the window's x extent and flat zero lines.
         empty = (np.array([-window_s, 0.0]), *(np.zeros(2) for _ in range(self.n_series)))
         self.handle = gui.add_uplot(
             data=empty,
-            series=({"label": "t − now (s)"}, *(_series(s) for s in series)),
+            series=({"label": "t − now (s)"}, *(uplot_series(s) for s in series)),
             scales=scales, axes=tuple(axes), title=title, height=height,
             legend={"live": False},
             cursor={"show": False},
+            # room above the plot for the top tick's label (uPlot centres it on the tick)
+            padding=(math.ceil(0.6 * theme.sizes().ticks), 24, 0, 0),
             order=order,
         )
         self._last_t: float | None = None
@@ -225,11 +326,33 @@ class LivePlot:
         x = tt - tt[-1]
         x[0], x[-1] = -self.window_s, 0.0  # the data spans the whole pinned axis
         self.handle.data = (x, *yy)
+        self._fit(yy)
         self._last_t = newest
         self._last_sent = now
         self._last_values = np.array([y[-1] for y in yy])
         self.updates += 1
         return True
+
+    def _fit(self, ys: Sequence[np.ndarray]) -> None:
+        """Re-pin each spanned axis whose data left its range (or shrank well inside it).
+
+        A new range rebuilds the chart on the page (uPlot takes scales only when it
+        creates a chart), which :func:`fit_range`'s headroom keeps rare.
+        """
+        changed = False
+        for key, (span, members) in self._spans.items():
+            values = [ys[i] for i in members]
+            lo = min(float(np.min(v)) for v in values)
+            hi = max(float(np.max(v)) for v in values)
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                continue
+            new = fit_range(lo, hi, min_span=span, current=self.ranges[key])
+            if new is not None:
+                self.ranges[key] = new
+                self._scales[key] = {"auto": False, "range": new}
+                changed = True
+        if changed:
+            self.handle.scales = dict(self._scales)
 
     def remove(self) -> None:
         self.handle.remove()

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from _helpers import chart_x_ranges, expected_console, view_png, wait_for
 
+from app.plots import ANGLE_SPAN_DEG
 from control.params import DEFAULT
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
@@ -125,6 +126,25 @@ def _chart_series(page, title_start: str) -> list[list[float]] | None:  # noqa: 
         }""", title_start)
 
 
+def _y_fit(page, title_start: str) -> tuple[float, float, float, float] | None:  # noqa: ANN001
+    """(y min shown, y max shown, smallest y, largest y of the data) of the chart whose
+    title starts with ``title_start``; None before it has a y range."""
+    r = page.evaluate(
+        """(t) => {
+            const reg = (window.__viserTestpoints || {}).uplots || {};
+            for (const {chart} of Object.values(reg)) {
+                const title = chart.root.querySelector('.u-title');
+                if (!chart.root.isConnected || !title || !title.textContent.startsWith(t))
+                    continue;
+                const ys = chart.data.slice(1).flatMap(a => Array.from(a));
+                if (chart.scales.y.min == null || !ys.length) return null;
+                return [chart.scales.y.min, chart.scales.y.max, Math.min(...ys), Math.max(...ys)];
+            }
+            return null;
+        }""", title_start)
+    return None if r is None else tuple(r)
+
+
 def _shown_widths(page) -> list[float]:  # noqa: ANN001
     """The x span each chart on the page displays, s (NaN: a chart with no x range yet)."""
     return [float("nan") if lo is None or hi is None else hi - lo
@@ -133,6 +153,17 @@ def _shown_widths(page) -> list[float]:  # noqa: ANN001
 
 def test_run_fills_the_charts(page, lab):
     loop = lab.lesson.rig.loop
+    # At rest the angle chart spans at least ANGLE_SPAN_DEG: the servo's 0.29° steps are a
+    # ripple, not a full-height oscillation (an auto-scaled axis would span 0.29°).
+    def resting() -> bool:
+        fit = _y_fit(page, "Joint angle")
+        return fit is not None and fit[1] - fit[0] >= ANGLE_SPAN_DEG - 1e-9 \
+            and fit[0] <= fit[2] and fit[3] <= fit[1]
+
+    wait_for(resting, 60, lambda: f"a resting angle chart of at least {ANGLE_SPAN_DEG}°, "
+             f"shown: {_y_fit(page, 'Joint angle')}")
+    lo, hi, y_lo, y_hi = _y_fit(page, "Joint angle")
+    assert y_hi - y_lo < 0.25 * (hi - lo)  # at rest: the data fills a small part of it
     page.get_by_role("button", name="Run thesis line").click()
     wait_for(lambda: loop.status.trajectory is not None, 30, "the run to start")
     wait_for(lambda: loop.status.trajectory is None, 60, "the run to end")
@@ -142,6 +173,12 @@ def test_run_fills_the_charts(page, lab):
         return float(np.ptp(data[1])) if data and len(data[0]) > 50 else 0.0
 
     wait_for(lambda: sweep() > 40.0, 60, "the elbow's sweep in the angle chart")
+    # ... and the run's sweep fits the axis (re-pinned as it grew)
+    def inside() -> bool:
+        fit = _y_fit(page, "Joint angle")
+        return fit is not None and fit[0] <= fit[2] and fit[3] <= fit[1]
+
+    wait_for(inside, 60, lambda: f"the sweep inside the axis: {_y_fit(page, 'Joint angle')}")
     data = _chart_series(page, "Joint angle")
     assert data[0][0] == -10.0 and data[0][-1] == 0.0  # the last 10 s, now at 0
     # ... and the page shows all of it (not a zoomed slice), also after picking a joint.

@@ -1,9 +1,10 @@
-"""Lines of one kind sharing a chart differ in dash pattern as well as colour.
+"""Lines sharing a chart differ in dash pattern or width as well as colour.
 
 Read from the chart configuration a page receives (a headless client of the
-real lesson server): quadruped servo 1/2/3, hand finger 1/2/3 and the
-redundancy lesson's modes, whose colours alone are hard to tell apart for
-colour-blind readers (magenta vs green, blue vs purple).
+real lesson server): every chart of every lesson, and in particular quadruped
+servo 1/2/3, hand finger 1/2/3 and the redundancy lesson's modes, whose colours
+alone were hard to tell apart for colour-blind readers (magenta vs green, blue vs
+purple).
 """
 
 from __future__ import annotations
@@ -14,7 +15,13 @@ import pytest
 from _browser_style import chart_props
 from _helpers import served_lesson
 
-from app.lessons import LessonContext, hand, quadruped, redundancy
+from app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
+from app.plots import COLORS, distinct_styles
+from app.server import Lab, ServeOptions
+from app.wsclient import HeadlessClient
+
+#: Okabe-Ito (app.plots.COLORS) and the greys of zero and limit lines
+GREYS = {"#999999", "#bbbbbb", "#777777"}
 
 
 def _series_by_chart(server, pattern: str) -> list[list[dict]]:
@@ -54,3 +61,26 @@ def test_lines_of_one_kind_differ_in_dash(module, robot, pattern):
             assert by_label["mode 1"] != by_label.get("mode bounded", ()) or \
                 "mode bounded" not in by_label
             assert len(set(dashes)) >= len(dashes) - 1, styles
+
+
+@pytest.mark.parametrize("lesson", sorted(all_lessons()))
+def test_every_chart_tells_its_lines_apart_without_colour(lesson):
+    with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab, \
+            HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+        page.wait_for(lambda: any(e.label == "E-STOP" for e in page.gui.values()),
+                      what="the page")
+        charts = [dict(e.props) for e in page.gui.values() if e.kind == "GuiUplotMessage"]
+    for chart in charts:
+        lines = chart["series"][1:]
+        assert distinct_styles(lines) == [], (chart.get("title"), lines)
+        colours = {str(s["stroke"]).lower() for s in lines}
+        assert colours <= {c.lower() for c in COLORS} | GREYS, (chart.get("title"), colours)
+
+
+def test_distinct_styles_names_lines_told_apart_by_colour_alone():
+    a = {"label": "a", "stroke": COLORS[0], "width": 2}
+    b = {"label": "b", "stroke": COLORS[1], "width": 2}
+    assert distinct_styles([{"label": "t"}, a, b]) == [("a", "b")]
+    assert distinct_styles([a, {**b, "dash": [6, 4]}]) == []
+    assert distinct_styles([a, {**b, "width": 4}]) == []
+    assert distinct_styles([a, {**a, "label": "a too"}]) == []  # one colour: one kind

@@ -20,13 +20,21 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.plots import COLORS, LivePlot, SeriesSpec, rebuild_plots
+from app.plots import (
+    ANGLE_SPAN_DEG,
+    COLORS,
+    TORQUE_SPAN_NM,
+    LivePlot,
+    SeriesSpec,
+    rebuild_plots,
+)
 from kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / np.pi
 TORQUE_UNITS = ("N·m", "kgf·cm")
 #: viser ``order`` of the four charts (after the pickers).
 CHART_ORDER = (10.0, 11.0, 12.0, 13.0)
+ERROR_SPAN_DEG = 2.0  #: smallest span of the angle error chart, °
 
 
 def joint_label(name: str) -> str:
@@ -79,27 +87,31 @@ class JointPlots:
 
     def _build(self) -> None:
         j, u = self.labels[self._joint], self._unit
+        k = KGF_CM_PER_NM if u == "kgf·cm" else 1.0
         kw = {"window_s": self.window_s, "points": self.points}
         with self.container:
             self.angle = LivePlot(self.gui, title=f"Joint angle {j}", y_label="angle (°)",
                                   order=CHART_ORDER[0], series=(
                                       SeriesSpec("command θ_cmd", COLORS[0], (6, 4)),
-                                      SeriesSpec("reference θ_ref", COLORS[1]),
-                                      SeriesSpec("actual θ", COLORS[2])), **kw)
+                                      SeriesSpec("reference θ_ref", COLORS[1], (2, 3)),
+                                      SeriesSpec("actual θ", COLORS[2])),
+                                  y_span=ANGLE_SPAN_DEG, **kw)
             self.error = LivePlot(self.gui, title=f"Angle error θ_cmd − θ, {j}",
                                   y_label="error (°)", order=CHART_ORDER[1], height=130,
-                                  series=(SeriesSpec("error", COLORS[3]),), **kw)
+                                  series=(SeriesSpec("error", COLORS[3]),),
+                                  y_span=ERROR_SPAN_DEG, **kw)
             self.torque = LivePlot(self.gui, title=f"Torque {j}: servo (after LPF) vs "
                                                    "Newton–Euler",
                                    y_label=f"torque ({u})", order=CHART_ORDER[2], series=(
                                        SeriesSpec("servo, LPF", COLORS[2]),
-                                       SeriesSpec("Newton–Euler", COLORS[4], (6, 4))), **kw)
+                                       SeriesSpec("Newton–Euler", COLORS[4], (6, 4))),
+                                   y_span=TORQUE_SPAN_NM * k, **kw)
             self.external = LivePlot(self.gui, title=f"External torque τ_ext and θ_env, {j}",
                                      y_label=f"τ_ext ({u})", y2_label="θ_env (°)",
                                      order=CHART_ORDER[3], series=(
                                          SeriesSpec("τ_ext", COLORS[3]),
                                          SeriesSpec("θ_env (°)", COLORS[5], (6, 4), "y2")),
-                                     **kw)
+                                     y_span=TORQUE_SPAN_NM * k, y2_span=ANGLE_SPAN_DEG, **kw)
 
     @property
     def joint(self) -> int:

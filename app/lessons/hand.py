@@ -157,14 +157,14 @@ class HandLesson(LessonBase):
             self.current_plot = LivePlot(gui, title="Motor current (measured)", y_label="A",
                                          series=(*(SeriesSpec(f"finger {i + 1}", c, dash(i))
                                                    for i, c in enumerate(FINGER_COLORS)),
-                                                 SeriesSpec("0", ZERO_RGB)), **kw)
+                                                 SeriesSpec("0", ZERO_RGB, width=1.0)), **kw)
             self.force_plot = LivePlot(
                 gui, title="Fingertip force", y_label="N", series=(
                     *(SeriesSpec(f"finger {i + 1}", c, dash(i))
                       for i, c in enumerate(FINGER_COLORS)),
                     SeriesSpec("limit F", COLORS[3], (6, 4)),
-                    SeriesSpec("from current (finger 1)", COLORS[2], (2, 3)),
-                    SeriesSpec("0", ZERO_RGB)), **kw)
+                    SeriesSpec("from current (finger 1)", COLORS[2], (2, 3), width=3.5),
+                    SeriesSpec("0", ZERO_RGB, width=1.0)), **kw)
 
     # ================================================================== actions
 

@@ -31,7 +31,7 @@ from app.camera import aim
 from app.inputs import check_number, notify
 from app.lessons import LessonContext
 from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
-from app.plots import COLORS, fixed_x
+from app.plots import COLORS, SeriesSpec, dash, fixed_x, uplot_series
 from control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from control.experiments.seed004 import table
 from control.experiments.seed004_data import TABLE1
@@ -270,7 +270,7 @@ class IKAccuracyLesson:
             self.error_plot = gui.add_uplot(
                 data=(np.arange(1.0, 25.0), *(np.zeros(24) for _ in TABLE_COLUMNS)),
                 series=({"label": "row"},
-                        *({"label": f"{label} (mm)", "stroke": COLORS[i], "width": 2}
+                        *(uplot_series(SeriesSpec(f"{label} (mm)", COLORS[i], dash(i)))
                           for i, label in enumerate(TABLE_COLUMNS))),
                 scales={"x": fixed_x(1.0, 24.0), "y": {"auto": True}},
                 axes=({"label": "row"}, {"label": "mm"}), title="Error per row",

@@ -43,7 +43,7 @@ from app.lessons._common import (
     warning_html,
 )
 from app.lessons.quadruped_scene import QuadrupedScene
-from app.plots import COLORS, LivePlot, SeriesSpec, dash, rebuild_plots
+from app.plots import ANGLE_SPAN_DEG, COLORS, LivePlot, SeriesSpec, dash, rebuild_plots
 from control.backend import Backend, BackendError
 from control.gait_loop import GaitLoop, GaitStatus
 from control.walking import (
@@ -262,7 +262,7 @@ class QuadrupedLesson(LessonBase):
                 LivePlot(gui, title=f"Leg {self._leg}: {SERVO_NAMES[j]}", y_label="angle (°)",
                          order=10.0 + j, height=130, window_s=8.0, points=128, series=(
                              SeriesSpec("commanded", COLORS[0], (6, 4)),
-                             SeriesSpec("servo", COLORS[2])))
+                             SeriesSpec("servo", COLORS[2])), y_span=ANGLE_SPAN_DEG)
                 for j in range(3)]
 
     # ================================================================== actions

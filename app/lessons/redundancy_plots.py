@@ -21,7 +21,7 @@ import numpy as np
 import viser
 
 from app.lessons.redundancy_scene import MODE_COLORS
-from app.plots import SeriesSpec, _series, fixed_x
+from app.plots import SeriesSpec, fixed_x, uplot_series
 from kinematics.model import SerialChain
 from kinematics.redundancy import CircleRun
 from kinematics.units import deg
@@ -34,6 +34,8 @@ BAND_FILL = "rgba(46, 125, 50, 0.10)"
 #: of each other) are told apart by pattern, not only by colour.
 MODE_DASHES: dict[str, tuple[int, ...] | None] = {
     "1": None, "2": None, "3": (2, 3), "4": (6, 4), "bounded": (12, 3, 2, 3)}
+#: Mode -> line width: mode 2 (solid, as mode 1) is the wide line under the others.
+MODE_WIDTHS = {"1": 2.0, "2": 4.0, "3": 2.0, "4": 2.0, "bounded": 2.0}
 
 
 class RunPlot:
@@ -56,7 +58,7 @@ class RunPlot:
         self.n_series = len(series)
         self.handle = gui.add_uplot(
             data=(np.array([0.0, self.duration]), *(np.zeros(2) for _ in series)),
-            series=({"label": "t (s)"}, *(_series(s) for s in series)),
+            series=({"label": "t (s)"}, *(uplot_series(s) for s in series)),
             scales={"x": fixed_x(0.0, self.duration), "y": {"auto": True}},
             axes=({"label": "t (s)", "size": 34}, {"label": y_label, "scale": "y", "size": 52}),
             bands=bands or None, title=title, height=height, legend={"live": False},
@@ -94,10 +96,11 @@ class RedundancyPlots:
         self.model = model
         self.modes = modes
         # Mode 4 dashed: it runs exactly on top of mode 2 (docs/redundancy.md); every
-        # mode differs from the others in dash pattern or colour hue family.
-        lines = tuple(SeriesSpec(f"mode {m}", MODE_COLORS[m], MODE_DASHES[m]) for m in modes)
-        limits = (SeriesSpec("lower limit", LIMIT_COLOR, (6, 4)),
-                  SeriesSpec("upper limit", LIMIT_COLOR, (6, 4)))
+        # mode differs from the others in dash pattern or width as well as colour.
+        lines = tuple(SeriesSpec(f"mode {m}", MODE_COLORS[m], MODE_DASHES[m],
+                                 width=MODE_WIDTHS[m]) for m in modes)
+        limits = (SeriesSpec("lower limit", LIMIT_COLOR, (6, 4), width=1.0),
+                  SeriesSpec("upper limit", LIMIT_COLOR, (6, 4), width=1.0))
         n = len(modes)
         # Shade the allowed band: between the upper (n + 2) and lower (n + 1) series.
         band = ({"series": (n + 2, n + 1), "fill": BAND_FILL},)

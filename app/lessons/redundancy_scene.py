@@ -26,15 +26,16 @@ import viser.transforms as vtf
 from app import theme
 from app.arm_view import ArmView
 from app.camera import aim
+from app.plots import COLORS
 from kinematics.model import SerialChain
 from kinematics.redundancy import circle_target, task_jacobian
 
 #: Mode -> (column, row) of its panel; row 0 is the top row (no joint limits).
 GRID = {"1": (0.0, 0), "3": (1.0, 0), "2": (0.0, 1), "4": (1.0, 1), "bounded": (0.5, 2)}
 ROWS = 3
-#: Mode -> colour (hex, as in the plots).
-MODE_COLORS = {"1": "#1f5eea", "2": "#e8820c", "3": "#c2185b", "4": "#2e7d32",
-               "bounded": "#6a1b9a"}
+#: Mode -> colour (hex, as in the plots; the Okabe-Ito palette of ``app.plots.COLORS``).
+MODE_COLORS = {"1": COLORS[0], "2": COLORS[1], "3": COLORS[5], "4": COLORS[4],
+               "bounded": COLORS[3]}
 #: Mode -> short label shown above its panel.
 MODE_LABELS = {"1": "1 · J⁺ẋ, no limits", "2": "2 · J⁺ẋ + limits (decomposition)",
                "3": "3 · J⁺ẋ + k_a ∇w, no limits", "4": "4 · k_a ∇w + limits (paper)",
