@@ -137,6 +137,9 @@ HEADROOM = 0.15
 SHRINK = 4.0
 #: Data that leaves a pinned range widens it by at least this fraction of its span.
 GROW = 0.5
+#: A pinned range reaches this fraction of its span beyond its round ends: a tick on
+#: the end would have its label cut in half by the chart's edge.
+TICK_ROOM = 0.08
 
 
 def nice_step(span: float) -> float:
@@ -157,8 +160,8 @@ def fit_range(lo: float, hi: float, *, min_span: float,
     when auto-scaled). ``current`` is kept while the data stays inside it and it is at
     most :data:`SHRINK` times the span needed. Data leaving it widens it by at least
     :data:`GROW` of its span on that side (a rising curve re-pins a few times, not at every
-    update). A new range has :data:`HEADROOM` on each side and round ends (multiples of
-    half a :func:`nice_step`).
+    update). A new range has :data:`HEADROOM` on each side, is rounded out to multiples
+    of half a :func:`nice_step` and then reaches :data:`TICK_ROOM` beyond them.
 
     Args:
         lo, hi: smallest and largest value shown (finite, lo <= hi).
@@ -180,8 +183,10 @@ def fit_range(lo: float, hi: float, *, min_span: float,
             hi = max(hi, current[1] + grow)
         span = hi - lo
     step = 0.5 * nice_step(span * (1.0 + 2.0 * HEADROOM))
-    return (math.floor((lo - HEADROOM * span) / step) * step,
-            math.ceil((hi + HEADROOM * span) / step) * step)
+    lo = math.floor((lo - HEADROOM * span) / step) * step
+    hi = math.ceil((hi + HEADROOM * span) / step) * step
+    room = TICK_ROOM * (hi - lo)  # the end ticks' labels stay inside the chart
+    return lo - room, hi + room
 
 
 @dataclass(frozen=True)
@@ -284,8 +289,6 @@ class LivePlot:
             scales=scales, axes=tuple(axes), title=title, height=height,
             legend={"live": False},
             cursor={"show": False},
-            # room above the plot for the top tick's label (uPlot centres it on the tick)
-            padding=(math.ceil(0.6 * theme.sizes().ticks), 24, 0, 0),
             order=order,
         )
         self._last_t: float | None = None

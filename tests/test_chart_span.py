@@ -17,7 +17,16 @@ from _helpers import client_of
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app.plots import ANGLE_SPAN_DEG, HEADROOM, SHRINK, LivePlot, SeriesSpec, fit_range, nice_step
+from app.plots import (
+    ANGLE_SPAN_DEG,
+    HEADROOM,
+    SHRINK,
+    TICK_ROOM,
+    LivePlot,
+    SeriesSpec,
+    fit_range,
+    nice_step,
+)
 from hardware.servo_spec import SPECS
 
 RX24F_STEP_DEG = math.degrees(SPECS[24].position_unit)  # 0.29°
@@ -32,8 +41,8 @@ def test_fit_range_holds_the_data_and_spans_at_least_the_minimum(lo, width, min_
     assert r[1] - r[0] >= min_span
     # not wider than the span needed, its headroom and one round step on each side
     need = max(width, min_span)
-    assert r[1] - r[0] <= need * (1 + 2 * HEADROOM) + nice_step(need * (1 + 2 * HEADROOM)) \
-        + 1e-9 * max(1.0, abs(lo))
+    rounded = need * (1 + 2 * HEADROOM) + nice_step(need * (1 + 2 * HEADROOM))
+    assert r[1] - r[0] <= rounded * (1 + 2 * TICK_ROOM) + 1e-9 * max(1.0, abs(lo))
 
 
 @given(st.floats(-1e3, 1e3), st.floats(0.0, 1e2), st.floats(-1e3, 1e3), st.floats(1e-2, 1e3))

@@ -45,6 +45,8 @@ ORDER = 30
 
 STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
 DEFAULT_FORCE = 0.8  #: N
+CURRENT_SPAN_A = 0.2  #: smallest span of the current chart, A
+FORCE_SPAN_N = 1.0  #: smallest span of the force chart, N
 DEFAULT_SIZE_CM = 6.0
 DEFAULT_STIFFNESS = 1000.0
 WINDOW_S = 6.0  #: seconds shown on the charts
@@ -153,13 +155,15 @@ class HandLesson(LessonBase):
         with self._gui.chart_panel("Current and force") as tab, tab:
             kw = {"window_s": WINDOW_S, "points": 200}
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
-            # line at F rather than an auto-zoomed band around it
+            # line at F rather than an auto-zoomed band around it; its axis spans at least
+            # CURRENT_SPAN_A / FORCE_SPAN_N (app.plots.fit_range)
             self.current_plot = LivePlot(gui, title="Motor current (measured)", y_label="A",
                                          series=(*(SeriesSpec(f"finger {i + 1}", c, dash(i))
                                                    for i, c in enumerate(FINGER_COLORS)),
-                                                 SeriesSpec("0", ZERO_RGB, width=1.0)), **kw)
+                                                 SeriesSpec("0", ZERO_RGB, width=1.0)),
+                                         y_span=CURRENT_SPAN_A, **kw)
             self.force_plot = LivePlot(
-                gui, title="Fingertip force", y_label="N", series=(
+                gui, title="Fingertip force", y_label="N", y_span=FORCE_SPAN_N, series=(
                     *(SeriesSpec(f"finger {i + 1}", c, dash(i))
                       for i, c in enumerate(FINGER_COLORS)),
                     SeriesSpec("limit F", COLORS[3], (6, 4)),

@@ -239,11 +239,12 @@ class QuadrupedLesson(LessonBase):
             self.margin_plot = LivePlot(gui, title="Static stability margin",
                                         y_label="cm", order=20.0, series=(
                                             SeriesSpec("margin", COLORS[4]),
-                                            SeriesSpec("0", "#999999", (4, 4))), **kw)
+                                            SeriesSpec("0", "#999999", (4, 4))),
+                                        y_span=2.0, **kw)
             self.error_plot = LivePlot(gui, title="Eq. 4.1 |servo − commanded| / commanded",
                                        y_label="%", order=21.0, series=tuple(
                                            SeriesSpec(f"servo {j + 1}", COLORS[j + 3], dash(j))
-                                           for j in range(3)), **kw)
+                                           for j in range(3)), y_span=5.0, **kw)
         self._build_joint_charts()
 
         @self.leg_picker.on_click
