@@ -16,6 +16,7 @@ from __future__ import annotations
 import secrets
 import sys
 import threading
+import time
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -45,9 +46,10 @@ MY_ARM_TEXT = ("**My arm.** Your own simulated arm: nothing you do here reaches 
 FOLLOW, MY_ARM = "Follow the teacher", "My arm"
 #: the browser's localStorage key holding its seat (a reload finds its arm again)
 SEAT_KEY = "armlab_seat"
-#: s to wait for a page to say which seat it has, and how often to ask
+#: s a page has to say which seat it has (a loaded classroom laptop or a phone can take
+#: tens of seconds to run a reloaded page), and s between questions
+SEAT_WAIT_S = 180.0
 SEAT_ASK_S = 4.0
-SEAT_ASKS = 4
 #: Hz of the ghost's pose; the overview tables refresh every :data:`TABLE_EVERY` ticks
 GHOST_HZ = 10.0
 TABLE_EVERY = 10
@@ -107,6 +109,14 @@ class Room:
         with self._lock:
             return {cid: s.private for cid, s in self._pages.items() if s.private is not None}
 
+    def pages(self) -> dict[int, str]:
+        """Client id -> what that page shows and whether it holds a seat (for a person
+        reading a log or a failed test)."""
+        with self._lock:
+            return {cid: f"{'presenter' if self.roles.is_presenter(cid) else s.view.value}"
+                         f"{', seat' if s.seat else ''}{', own lesson' if s.private else ''}"
+                    for cid, s in self._pages.items()}
+
     def private_lesson(self, client_id: int) -> Any:
         """The lesson page ``client_id`` shows as "My arm", or None."""
         with self._lock:
@@ -146,7 +156,7 @@ class Room:
         if state is not None:
             self._close_private(state, gone=True)
             if state.seat is not None and self._sandboxes is not None:
-                self._sandboxes.leave(state.seat)
+                self._sandboxes.leave(state.seat, page=client.client_id)
 
     # -- the presenter -----------------------------------------------------------------
 
@@ -188,10 +198,12 @@ class Room:
     def _find_seat(self, state: _PageState) -> None:
         """A reload: if the browser holds a seat that is still kept, show its arm again.
 
-        Asked up to :data:`SEAT_ASKS` times: a page that has only just connected may not
-        answer the first question."""
+        Asked every :data:`SEAT_ASK_S` s until the page answers, leaves, or
+        :data:`SEAT_WAIT_S` s have passed: a page that has only just connected may not
+        answer the first question, and a busy one answers late."""
         key = None
-        for _ in range(SEAT_ASKS):
+        deadline = time.monotonic() + SEAT_WAIT_S
+        while time.monotonic() < deadline:
             try:
                 key = state.client.local_storage.get_item(SEAT_KEY, timeout=SEAT_ASK_S)
                 break
@@ -225,7 +237,7 @@ class Room:
                 state.view.value = FOLLOW
                 return
             try:
-                seat = self.sandboxes.seat(self._seat_of(state))
+                seat = self.sandboxes.seat(self._seat_of(state), page=state.client.client_id)
             except ClassFull as exc:
                 notify(state.client, "The class is full", str(exc))
                 state.view.value = FOLLOW

@@ -65,7 +65,10 @@ class Seat:
         self.key = key
         self._owner = owner
         self.arm: _Arm | None = None
-        self.left_at: float | None = None  #: monotonic time its page left (None: open)
+        self.left_at: float | None = None  #: monotonic time its last page left (None: open)
+        #: the pages showing it (a reloaded page's new connection may come before the old
+        #: one has gone)
+        self.pages: set[object] = set()
 
     def kept(self) -> tuple[str, Params] | None:
         """(preset, gains) of the arm this seat already has, or None."""
@@ -135,8 +138,9 @@ class Sandboxes:
             seat = self._seats.get(key)
             return None if seat is None or seat.arm is None else seat.arm.loop
 
-    def seat(self, key: str) -> Seat:
-        """The seat of ``key`` (kept since its page left, or new); its page is open again.
+    def seat(self, key: str, *, page: object = None) -> Seat:
+        """The seat of ``key`` (kept since its page left, or new), shown by ``page`` (a
+        client id) from now on.
 
         Raises:
             ClassFull: a new seat, and :attr:`max_arms` arms are held.
@@ -148,15 +152,20 @@ class Sandboxes:
                     raise ClassFull(f"the class is full: {self.max_arms} private arms are in use; "
                                     "follow the teacher's arm")
                 seat = self._seats[key] = Seat(self, key)
+            seat.pages.add(page)
             seat.left_at = None
             return seat
 
-    def leave(self, key: str) -> None:
-        """The page of ``key`` left: its arm is kept :attr:`idle_s` s for a reload."""
+    def leave(self, key: str, *, page: object = None) -> None:
+        """``page`` no longer shows the seat of ``key``; once no page does, its arm is
+        kept :attr:`idle_s` s for a reload. (A reload's old page may leave after its new
+        one has taken the seat: the seat stays open.)"""
         with self._lock:
             seat = self._seats.get(key)
             if seat is not None:
-                seat.left_at = self._now()
+                seat.pages.discard(page)
+                if not seat.pages:
+                    seat.left_at = self._now()
 
     def sweep(self) -> int:
         """Free the seats whose page left more than :attr:`idle_s` s ago; returns how many."""

@@ -1,4 +1,5 @@
-"""A protocol-1.0 servo bus over pyserial: one transaction at a time, bounded retries.
+"""A Dynamixel servo bus over pyserial (protocol 1.0 or 2.0): one transaction at a time,
+bounded retries.
 
 Thesis §3.5: the controller sends an instruction packet, then waits for the
 status packet before the next one (half duplex). :class:`Bus` does that for
@@ -12,6 +13,11 @@ native UARTs (not applicable on USB adapters and ptys, which is fine).
 Every failure a person can cause ends in one :class:`BusError` line that says
 what to do: port missing, permission denied (dialout group), port busy, no
 reply (power, baud, ID, protocol), wrong model, link lost.
+
+One bus speaks one protocol (``Bus(port, protocol=2)`` for X-series servos): the
+packets differ (:mod:`hardware.protocol1`, :mod:`hardware.protocol2`), the timing and
+the named access through the servo's control table do not. Protocol 2.0 adds reads of
+many servos in one request (:meth:`Bus.sync_read`, :meth:`Bus.bulk_read`) and REBOOT.
 """
 
 from __future__ import annotations
@@ -31,13 +37,17 @@ from pathlib import Path
 import serial
 
 from hardware import protocol1 as p1
-from hardware.control_table import RX24F_TABLE, ControlTable, table_for
+from hardware import protocol2 as p2
+from hardware.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
 from hardware.protocol1 import wire_time
-from hardware.servo_spec import RETURN_DELAY_UNIT, SPECS
+from hardware.servo_spec import RETURN_DELAY_UNIT
+from hardware.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
 
 log = logging.getLogger("armlab.bus")
 
 TIOCGRS485 = 0x542E
+#: The protocols a bus speaks (one at a time).
+PROTOCOLS = (1, 2)
 #: Error bits that mean "this write was refused" (the others describe the servo's state).
 REFUSED = p1.ErrorBits.RANGE | p1.ErrorBits.INSTRUCTION | p1.ErrorBits.CHECKSUM
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
@@ -160,7 +170,7 @@ def open_port(port: str, baud: float, *, exclusive: bool = True) -> serial.Seria
 
 
 class Bus:
-    """Protocol 1.0 on one serial port.
+    """Protocol 1.0 or 2.0 on one serial port.
 
     Args:
         port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
@@ -175,13 +185,16 @@ class Bus:
         echo: the adapter echoes what it sends (half-duplex TTL with TX and RX tied).
         rs485: switch a native UART into kernel RS-485 mode (not applicable on a
             USB adapter or a pty; noted in :attr:`notes`, not an error).
-        table: control table assumed for servos not yet identified.
+        table: control table assumed for servos not yet identified (None: the RX-24F's
+            on protocol 1.0, the XM430-W350's on 2.0).
         exclusive: lock the port against other programs.
+        protocol: 1 (AX, RX, MX servos) or 2 (X-series).
 
     Attributes:
         stats: :class:`BusStats` counters.
         notes: one-line remarks from opening (latency timer, RS-485 not applicable).
-        errors: last error byte reported by each servo ID.
+        errors: last error reported by each servo ID (protocol 1.0: its error bits;
+            2.0: its :class:`~hardware.protocol2.StatusError`).
         late_ids: IDs whose status packet came while the bus waited for another servo's
             (a late reply: the scan pings them again).
         tables: control table of each identified servo ID.
@@ -191,7 +204,9 @@ class Bus:
 
     def __init__(self, port: str, baud: float = 1_000_000, *, retries: int | None = None,
                  timeout_margin: float | None = None, echo: bool = False, rs485: bool = False,
-                 table: ControlTable = RX24F_TABLE, exclusive: bool = True):
+                 table: ControlTable | None = None, exclusive: bool = True, protocol: int = 1):
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"protocol: 1 (AX, RX, MX servos) or 2 (X-series), got {protocol!r}")
         if retries is None:
             retries = PTY_RETRIES if is_pty(port) else WIRE_RETRIES
         if retries < 0:
@@ -201,13 +216,17 @@ class Bus:
         if not timeout_margin > 0:
             raise ValueError(f"timeout_margin must be > 0 s, got {timeout_margin}")
         self.port = port
+        self.protocol = protocol
+        self._p = p1 if protocol == 1 else p2
+        if table is None:
+            table = RX24F_TABLE if protocol == 1 else XM430_W350_TABLE
         self.retries = int(retries)
         self.timeout_margin = float(timeout_margin)
         self.echo = bool(echo)
         self.table = table
         self.stats = BusStats()
         self.notes: list[str] = []
-        self.errors: dict[int, p1.ErrorBits] = {}
+        self.errors: dict[int, p1.ErrorBits | p2.StatusError] = {}
         self.late_ids: set[int] = set()
         self.tables: dict[int, ControlTable] = {}
         self.status_return_level: dict[int, int] = {}
@@ -273,16 +292,32 @@ class Bus:
 
     # -- transactions -------------------------------------------------------
 
-    def transact(self, packet: bytes, *, reply: bool, reply_length: int = p1.OVERHEAD,
-                 tries: int | None = None, margin: float | None = None) -> p1.StatusPacket | None:
+    def status_length(self, data_bytes: int = 0) -> int:
+        """Bytes of a status packet carrying ``data_bytes`` of data, in this bus's protocol
+        (before protocol 2.0's byte stuffing)."""
+        if self.protocol == 1:
+            return p1.OVERHEAD + data_bytes
+        return p2.status_length(data_bytes)
+
+    def _id_of(self, packet: bytes) -> int:
+        """The ID an encoded packet is sent to (or comes from)."""
+        return packet[2] if self.protocol == 1 else packet[4]
+
+    def transact(self, packet: bytes, *, reply: bool, reply_length: int | None = None,
+                 tries: int | None = None, margin: float | None = None
+                 ) -> p1.StatusPacket | p2.StatusPacket | None:
         """Send one instruction packet; return its status packet (None when none is due).
 
-        Retries up to ``tries - 1`` more times (default ``retries + 1`` tries in all)
-        on a timeout or a broken reply; :class:`NoReply` when all fail.
+        ``reply_length``: bytes of the expected status packet (default: one without
+        data). Retries up to ``tries - 1`` more times (default ``retries + 1`` tries in
+        all) on a timeout or a broken reply; :class:`NoReply` when all fail.
         """
-        servo_id = packet[2]
+        servo_id = self._id_of(packet)
+        if reply_length is None:
+            reply_length = self.status_length()
         tries = self.retries + 1 if tries is None else max(1, int(tries))
         delay = self.return_delay.get(servo_id, 254)
+        want = {servo_id: reply_length - self.status_length()}
         with self._lock:
             for attempt in range(tries):
                 if attempt:
@@ -293,19 +328,22 @@ class Bus:
                     self.timeout_margin if margin is None else margin)
                 if not reply:
                     if self.echo:
-                        self._receive(packet, reply_length=len(packet), timeout=timeout,
-                                      echo_only=True)
+                        self._receive(packet, {}, timeout=timeout, echo_only=True)
                     return None
-                status = self._receive(packet, reply_length=reply_length, timeout=timeout)
-                if status is not None:
-                    self.errors[status.servo_id] = status.error
-                    return status
+                statuses = self._receive(packet, want, timeout=timeout)
+                if statuses:
+                    return statuses[servo_id]
             self.stats.failures += 1
-        raise NoReply(
-            f"no reply from servo {servo_id} at {self._baud:.0f} bps on {self.port} "
+        raise self._no_reply([servo_id], tries)
+
+    def _no_reply(self, ids: list[int], tries: int, what: str = "") -> NoReply:
+        who = f"servo {ids[0]}" if len(ids) == 1 else \
+            f"servos {', '.join(str(i) for i in ids)}"
+        return NoReply(
+            f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
             f"after {tries} tries: check the servos' power (a U2D2 supplies none), "
             f"the baud (armlab scan --port {self.port}), the ID, and that they speak "
-            "protocol 1.0"
+            f"protocol {self.protocol}.0"
         )
 
     def _send(self, packet: bytes) -> float:
@@ -329,13 +367,17 @@ class Bus:
             "the servo power off, or the emulator stopped?"
         )
 
-    def _receive(self, request: bytes, *, reply_length: int, timeout: float,
-                 echo_only: bool = False) -> p1.StatusPacket | None:
-        parser = p1.PacketParser()
+    def _receive(self, request: bytes, want: dict[int, int], *, timeout: float,
+                 echo_only: bool = False) -> dict[int, p1.StatusPacket | p2.StatusPacket]:
+        """The status packets of the servos in ``want`` (ID -> bytes of data each answers
+        with) that arrive within ``timeout`` s; all of them, or those that came when the
+        wait ended (a timeout, or a broken reply after which nothing more is pending)."""
+        parser = self._p.PacketParser()
         deadline = time.monotonic() + timeout
         echo_pending = self.echo
         if echo_pending:
             deadline += wire_time(len(request), self._baud)
+        got: dict[int, p1.StatusPacket | p2.StatusPacket] = {}
         while True:
             # past the deadline still look once (timeout 0): a client the OS paused
             # must not miss a reply that came in time
@@ -346,23 +388,30 @@ class Bus:
                 if echo_pending and raw == request:
                     echo_pending = False
                     if echo_only:
-                        return None
+                        return got
                     continue
-                status = p1.decode_status(raw)
-                if status.servo_id != request[2] or len(raw) != reply_length:
+                try:
+                    status = self._p.decode_status(raw)
+                except (p1.ProtocolError, p2.ProtocolError):  # an instruction: not ours
+                    self.stats.corrupt += 1
+                    continue
+                if want.get(status.servo_id) != len(status.params) or status.servo_id in got:
                     log.debug("stray packet %s waiting for %s", raw.hex(" "), request.hex(" "))
                     self.stats.corrupt += 1
                     self.late_ids.add(status.servo_id)
                     continue
                 self.stats.replies += 1
-                return status
-            if parser.stats.bad_checksums and not parser.pending:
+                self.errors[status.servo_id] = status.error
+                got[status.servo_id] = status
+                if len(got) == len(want):
+                    return got
+            if _broken(parser) and not parser.pending:
                 break  # a broken reply: retry now rather than wait out the timeout
         self.stats.timeouts += 1
-        self.stats.corrupt += parser.stats.bad_checksums
+        self.stats.corrupt += _broken(parser)
         if not echo_only:
             log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
-        return None
+        return got
 
     def _read_chunk(self, timeout: float) -> bytes | None:
         """The bytes that arrive within ``timeout`` s (None: none did); :class:`LinkLost`
@@ -385,7 +434,7 @@ class Bus:
     def collect_late(self, seconds: float) -> set[int]:
         """Listen ``seconds`` for status packets no request waits for (replies the machine
         held back past their timeout); their IDs join :attr:`late_ids`, which is returned."""
-        parser = p1.PacketParser()
+        parser = self._p.PacketParser()
         deadline = time.monotonic() + seconds
         with self._lock:
             while (left := deadline - time.monotonic()) > 0:
@@ -393,34 +442,45 @@ class Bus:
                 if chunk is None:
                     break
                 for raw in parser.feed(chunk):
-                    self.late_ids.add(p1.decode_status(raw).servo_id)
+                    self.late_ids.add(self._id_of(raw))
         return self.late_ids
 
     # -- instructions -------------------------------------------------------
 
     def ping(self, servo_id: int, *, tries: int | None = None,
-             margin: float | None = None) -> p1.StatusPacket:
-        """PING one servo (answers at every status return level)."""
-        status = self.transact(p1.ping(servo_id), reply=True, tries=tries, margin=margin)
+             margin: float | None = None) -> p1.StatusPacket | p2.StatusPacket:
+        """PING one servo (answers at every status return level; on protocol 2.0 with its
+        model number and firmware version as data)."""
+        status = self.transact(self._p.ping(servo_id), reply=True, tries=tries, margin=margin,
+                               reply_length=self.status_length(0 if self.protocol == 1 else 3))
         assert status is not None
         return status
 
     def read_bytes(self, servo_id: int, address: int, length: int) -> bytes:
-        """READ ``length`` bytes at ``address`` of one servo (error bits kept in ``errors``)."""
-        if servo_id == p1.BROADCAST_ID:
+        """READ ``length`` bytes at ``address`` of one servo (its error kept in ``errors``)."""
+        if servo_id == self._p.BROADCAST_ID:
             raise ValueError("servo_id: READ cannot be broadcast (nobody would answer)")
-        status = self.transact(p1.read(servo_id, address, length), reply=True,
-                               reply_length=p1.OVERHEAD + length)
+        status = self.transact(self._p.read(servo_id, address, length), reply=True,
+                               reply_length=self.status_length(length))
         assert status is not None
         return status.params
 
-    def write_bytes(self, servo_id: int, address: int, data: bytes) -> p1.StatusPacket | None:
+    def _answers_writes(self, servo_id: int) -> bool:
+        return servo_id != self._p.BROADCAST_ID and self.status_return_level.get(servo_id, 2) >= 2
+
+    def write_bytes(self, servo_id: int, address: int, data: bytes
+                    ) -> p1.StatusPacket | p2.StatusPacket | None:
         """WRITE ``data`` at ``address``; raise :class:`~hardware.protocol1.ServoError`
-        when the servo refuses it (range, instruction, checksum, or an angle-limit
-        error on a goal)."""
-        reply = servo_id != p1.BROADCAST_ID and self.status_return_level.get(servo_id, 2) >= 2
-        status = self.transact(p1.write(servo_id, address, data), reply=reply)
-        if status is not None:
+        (protocol 1.0: range, instruction, checksum, or an angle-limit error on a goal)
+        or :class:`~hardware.protocol2.ServoError` (2.0: any error number) when the servo
+        refuses it. A protocol-2.0 hardware alert alone is not a refusal: the write was
+        carried out, and the alert stays in :attr:`errors`."""
+        status = self.transact(self._p.write(servo_id, address, data),
+                               reply=self._answers_writes(servo_id))
+        if isinstance(status, p2.StatusPacket):
+            if status.error.number:
+                raise p2.ServoError(servo_id, p2.StatusError(status.error.number))
+        elif status is not None:
             refused = status.error & REFUSED
             if address <= 31 and address + len(data) > 30:
                 refused |= status.error & p1.ErrorBits.ANGLE_LIMIT
@@ -430,23 +490,84 @@ class Bus:
 
     def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
         """SYNC_WRITE to several servos in one packet (no reply)."""
-        self.transact(p1.sync_write(address, length, data), reply=False)
+        self.transact(self._p.sync_write(address, length, data), reply=False)
 
-    def factory_reset(self, servo_id: int, *, confirm: bool = False) -> None:
-        """FACTORY_RESET one servo: its ID becomes 1 and its baud the model's default.
+    def sync_read(self, address: int, length: int, ids: list[int] | tuple[int, ...]
+                  ) -> dict[int, bytes]:
+        """SYNC_READ (protocol 2.0): ``length`` bytes at ``address`` from each of ``ids`` in
+        one request; each servo answers in turn, after the one before it.
+
+        Servos whose answer was lost are asked again (a SYNC_READ of those alone), up to
+        the bus's retries; :class:`NoReply` names the ones that never answered.
+
+        Returns:
+            servo ID -> its bytes, in the order of ``ids``.
+        """
+        ids = list(ids)
+        return self._read_many(p2.sync_read(address, length, ids), {i: length for i in ids},
+                               lambda missing: p2.sync_read(address, length, missing))
+
+    def bulk_read(self, requests: list[tuple[int, int, int]]) -> dict[int, bytes]:
+        """BULK_READ (protocol 2.0): ``(servo ID, address, length)`` for each servo, each its
+        own item, in one request; retries and errors as :meth:`sync_read`."""
+        by_id = {servo_id: (address, length) for servo_id, address, length in requests}
+        return self._read_many(p2.bulk_read(requests), {i: n for i, (_, n) in by_id.items()},
+                               lambda missing: p2.bulk_read([(i, *by_id[i]) for i in missing]))
+
+    def _read_many(self, packet: bytes, want: dict[int, int], again) -> dict[int, bytes]:
+        """Send a SYNC_READ or BULK_READ ``packet`` and gather its answers (``want``: ID ->
+        data bytes); ``again(missing IDs)`` is the packet that asks those once more."""
+        if self.protocol != 2:
+            raise ValueError("SYNC_READ and BULK_READ are protocol 2.0 instructions: open the "
+                             "bus with protocol=2")
+        got: dict[int, bytes] = {}
+        tries = self.retries + 1
+        with self._lock:
+            for attempt in range(tries):
+                missing = [i for i in want if i not in got]
+                if attempt:
+                    self.stats.retries += 1
+                    packet = again(missing)
+                backlog = self._send(packet)
+                # every servo waits for the answer before its own, then its return delay
+                replies = sum(self.status_length(want[i]) for i in missing)
+                delays = sum(self.return_delay.get(i, 254) for i in missing)
+                timeout = backlog + reply_timeout(len(packet), replies, self._baud, delays,
+                                                  self.timeout_margin)
+                answers = self._receive(packet, {i: want[i] for i in missing}, timeout=timeout)
+                got.update({i: st.params for i, st in answers.items()})
+                if len(got) == len(want):
+                    return {i: got[i] for i in want}
+            self.stats.failures += 1
+        raise self._no_reply([i for i in want if i not in got], tries, " to a group read")
+
+    def reboot(self, servo_id: int) -> None:
+        """REBOOT (protocol 2.0): the servo restarts, clearing a hardware error (its torque
+        is off afterwards)."""
+        if self.protocol != 2:
+            raise ValueError("REBOOT is a protocol 2.0 instruction: power-cycle a "
+                             "protocol 1.0 servo instead")
+        self.transact(p2.reboot(servo_id), reply=self._answers_writes(servo_id))
+
+    def factory_reset(self, servo_id: int, *, confirm: bool = False,
+                      level: p2.ResetLevel = p2.ResetLevel.ALL) -> None:
+        """FACTORY_RESET one servo: its ID becomes 1 and its baud the model's default
+        (protocol 2.0's ``level`` may keep the ID, or the ID and the baud).
 
         Refused (ValueError, nothing sent) unless ``confirm=True``.
         """
-        packet = p1.factory_reset(servo_id, confirm=confirm)
-        reply = servo_id != p1.BROADCAST_ID and self.status_return_level.get(servo_id, 2) >= 2
-        self.transact(packet, reply=reply)
+        if self.protocol == 1:
+            packet = p1.factory_reset(servo_id, confirm=confirm)
+        else:
+            packet = p2.factory_reset(servo_id, level, confirm=confirm)
+        self.transact(packet, reply=self._answers_writes(servo_id))
         self.status_return_level.pop(servo_id, None)
         self.return_delay.pop(servo_id, None)
         self.tables.pop(servo_id, None)
 
     def action(self) -> None:
         """Broadcast ACTION: apply every servo's registered REG_WRITE."""
-        self.transact(p1.action(), reply=False)
+        self.transact(self._p.action(), reply=False)
 
     # -- named access -------------------------------------------------------
 
@@ -473,8 +594,9 @@ class Bus:
         table = self.table_of(servo_id)
         address, data = table.encode(name, value)
         if name == "status_return_level":
-            self.transact(p1.write(servo_id, address, data), reply=False)
-            time.sleep(reply_timeout(len(data) + 7, p1.OVERHEAD, self._baud,
+            packet = self._p.write(servo_id, address, data)
+            self.transact(packet, reply=False)
+            time.sleep(reply_timeout(len(packet), self.status_length(), self._baud,
                                      self.return_delay.get(servo_id, 254), 0.002))
             with self._lock:
                 try:
@@ -497,21 +619,30 @@ class Bus:
         Raises :class:`WrongModel` when ``expect`` (model number or name) differs.
         """
         model = self.read(servo_id, "model_number")  # same address on every model
+        known = TABLES if self.protocol == 1 else X_TABLES
         if expect is not None:
-            want = table_for(expect)
+            want = table_for(expect) if self.protocol == 1 else x_table_for(expect)
             if model != want.spec.model_number:
-                found = SPECS[model].name if model in SPECS else "unknown model"
+                found = known[model].name if model in known else "unknown model"
                 raise WrongModel(
                     f"servo {servo_id} is a {found} (model number {model}), expected a "
                     f"{want.name} ({want.spec.model_number}): fix the joint map or --servo"
                 )
-        if model not in SPECS:
+        if model not in known:
+            names = " or ".join(f"{t.name} ({k})" for k, t in known.items())
             raise WrongModel(
-                f"servo {servo_id} has model number {model}, not an AX-12A (12) or RX-24F (24)"
+                f"servo {servo_id} has model number {model}, not a protocol "
+                f"{self.protocol}.0 servo the lab knows: {names}"
             )
-        table = table_for(model)
+        table = known[model]
         self.tables[servo_id] = table
         return table
+
+
+def _broken(parser: p1.PacketParser | p2.PacketParser) -> int:
+    """Packets a parser dropped for a bad checksum (1.0) or CRC (2.0)."""
+    stats = parser.stats
+    return stats.bad_checksums if isinstance(stats, p1.ParserStats) else stats.bad_crcs
 
 
 def sync_data(values: dict[int, tuple[int, ...]], sizes: tuple[int, ...]) -> dict[int, bytes]:

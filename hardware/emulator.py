@@ -29,9 +29,10 @@ import time
 import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Protocol, TextIO
+from typing import TYPE_CHECKING, Protocol, TextIO
 
 from hardware import protocol1 as p1
+from hardware import protocol2 as p2
 from hardware.control_table import (
     LOCKED_WRITABLE,
     RX24F_TABLE,
@@ -46,6 +47,9 @@ from hardware.servo import ServoRegisters
 from hardware.servo_spec import RETURN_DELAY_UNIT, baud_from_value, value_from_baud
 from kinematics.model import Quadruped, SerialChain
 from kinematics.validate import scalar
+
+if TYPE_CHECKING:
+    from hardware.emulator_x import XServoNetwork
 
 TCGETS2 = 0x802C542A  #: _IOR('T', 0x2A, struct termios2) on Linux
 EMULATED_FIRMWARE = 24
@@ -226,6 +230,7 @@ class ServoNetwork:
     servos: list[VirtualServo]
     physics: Physics
     t: float = 0.0
+    protocol = 1  #: the protocol its servos speak (:mod:`hardware.emulator_x`: 2)
 
     def tick(self, t: float) -> None:
         """Advance the plant to ``t`` s and refresh every servo's present values."""
@@ -358,7 +363,8 @@ class EmulatorStats:
 
 @dataclass
 class PtyEmulator:
-    """Serves a :class:`ServoNetwork` on a new pseudo-terminal.
+    """Serves a :class:`ServoNetwork` (protocol 1.0) or an
+    :class:`~hardware.emulator_x.XServoNetwork` (2.0) on a new pseudo-terminal.
 
     Args:
         network: the servos.
@@ -369,7 +375,7 @@ class PtyEmulator:
         log: text stream for one line per received (``rx``) and sent (``tx``) packet.
     """
 
-    network: ServoNetwork
+    network: ServoNetwork | XServoNetwork
     pace: bool = False
     faults: Faults = field(default_factory=Faults)
     echo: bool = False
@@ -382,7 +388,8 @@ class PtyEmulator:
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self._rng = random.Random(self.faults.seed)
-        self._parser = p1.PacketParser(collect_bad=True)
+        self._p = p1 if self.network.protocol == 1 else p2
+        self._parser = p1.PacketParser(collect_bad=True) if self._p is p1 else p2.PacketParser()
         self._queue: list[tuple[float, bytes]] = []  # (due time, bytes), sorted
         self._wire_free = 0.0
         self._last_byte = 0.0
@@ -439,14 +446,19 @@ class PtyEmulator:
             if not any(s.hears(baud) for s in self.network.servos):
                 self.stats.wrong_baud += 1
                 continue
+            try:
+                packet = self._p.decode_instruction(raw)
+            except (p1.ProtocolError, p2.ProtocolError):  # a status packet: not for servos
+                continue
             self._tick(now)
-            replies = self.network.handle(p1.decode_instruction(raw), baud=baud)
+            replies = self.network.handle(packet, baud=baud)  # type: ignore[arg-type]
             self._schedule(raw, replies, now, wire_baud)
-        for raw in self._parser.bad:
+        bad = getattr(self._parser, "bad", [])  # protocol 1.0: broken checksums
+        for raw in bad:
             self._schedule(raw, self.network.checksum_error(raw, baud=baud), now, wire_baud)
-        self._parser.bad.clear()
+        bad.clear()
 
-    def _schedule(self, request: bytes, replies: list[tuple[VirtualServo, bytes]],
+    def _schedule(self, request: bytes, replies: list,
                   now: float, baud: float) -> None:
         t = now
         if self.pace:
@@ -457,6 +469,7 @@ class PtyEmulator:
             if self.pace:
                 due = max(due, self._wire_free) + p1.wire_time(len(reply), baud)
                 self._wire_free = due
+            t = due  # the next servo answers after this one (a protocol-2.0 group read)
             reply = self._inject(reply)
             if reply is None:
                 continue

@@ -28,6 +28,8 @@ import numpy as np
 
 from hardware.servo import ServoModel, ServoParams, ServoRegisters, ServoReport
 from hardware.servo_spec import ServoSpec
+from hardware.xseries import XSpec
+from hardware.xservo import XRegisters, XReport, XServoModel
 from kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from kinematics.model import SerialChain
 from kinematics.validate import index, scalar, vector
@@ -125,21 +127,24 @@ class Plant:
 
     Args:
         model: the serial chain.
-        specs: one :class:`ServoSpec` per joint (or one for all).
+        specs: one :class:`ServoSpec` (protocol 1.0) or :class:`~hardware.xseries.XSpec`
+            (X-series) per joint, or one for all.
         dt: integration step and servo firmware tick, s (1e-3 default).
         q0, qd0: (n,) initial joint state (default: neutral, at rest).
         directions: (n,) +1/-1: servo angle = direction · joint angle (default +1).
         params: :class:`ServoParams` per joint or one for all (rotor, friction, overload).
-        registers: per joint a :class:`ServoRegisters` to use (default: factory values,
-            goal at the initial position, torque off).
+        registers: per joint a :class:`ServoRegisters` (:class:`XRegisters` for an
+            X-series joint) to use (default: factory values, goal at the initial
+            position, torque off).
         stops: joint-limit stops, or None for none.
     """
 
-    def __init__(self, model: SerialChain, specs: ServoSpec | Sequence[ServoSpec], *,
+    def __init__(self, model: SerialChain,
+                 specs: ServoSpec | XSpec | Sequence[ServoSpec | XSpec], *,
                  dt: float = 1e-3, q0: np.ndarray | None = None,
                  qd0: np.ndarray | None = None, directions: Sequence[float] | None = None,
                  params: ServoParams | Sequence[ServoParams] | None = None,
-                 registers: Sequence[ServoRegisters] | None = None,
+                 registers: Sequence[ServoRegisters | XRegisters] | None = None,
                  stops: JointStops | None = JointStops()) -> None:
         n = model.n
         self.model = model
@@ -148,7 +153,7 @@ class Plant:
         if self.dt > 0.01:
             raise ValueError(f"dt must be <= 0.01 s for a stable servo loop, got {dt}")
         self._dyn = dynamics_model(model)
-        spec_list = [specs] * n if isinstance(specs, ServoSpec) else list(specs)
+        spec_list = [specs] * n if isinstance(specs, (ServoSpec, XSpec)) else list(specs)
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
         if params is None or isinstance(params, ServoParams):
@@ -170,9 +175,10 @@ class Plant:
         self._qd = [float(x) for x in qd]
         if registers is not None and len(registers) != n:
             raise ValueError(f"registers must have {n} entries, got {len(registers)}")
-        self.servos: tuple[ServoModel, ...] = tuple(
-            ServoModel(spec_list[i], None if registers is None else registers[i],
-                       params=param_list[i], angle=dirs[i] * self._q[i]) for i in range(n))
+        self.servos: tuple[ServoModel | XServoModel, ...] = tuple(
+            (XServoModel if isinstance(spec_list[i], XSpec) else ServoModel)(
+                spec_list[i], None if registers is None else registers[i],  # type: ignore[arg-type]
+                params=param_list[i], angle=dirs[i] * self._q[i]) for i in range(n))
         self._armature = [p.rotor_inertia for p in param_list]
         self._viscous = [p.viscous_friction for p in param_list]
         self._coulomb = [(i, (p.coulomb_friction, 1.0 / p.friction_speed))
@@ -423,11 +429,11 @@ class Plant:
         return GroundTruth(self.t, np.array(q), np.array(qd), np.array(motor), np.array(fric),
                            np.array(ext), np.array(stop))
 
-    def servo_report(self, i: int) -> ServoReport:
+    def servo_report(self, i: int) -> ServoReport | XReport:
         """What servo ``i`` would answer to a READ (raw words)."""
         return self.servos[self._link(i)].report()
 
-    def reports(self) -> tuple[ServoReport, ...]:
+    def reports(self) -> tuple[ServoReport | XReport, ...]:
         """Every servo's report, in joint order."""
         return tuple(s.report() for s in self.servos)
 

@@ -140,11 +140,30 @@ XL330_M288 = XSpec("XL330-M288", 1200, stall_torque=0.52, stall_current=1.47,
                    max_voltage_limit=70)
 
 
+#: Factory values of the items whose defaults differ between the models (ROBOTIS
+#: e-manual, each model's control table): limits, Shutdown and the controllers' gains.
+FACTORY = {
+    "XL430-W250": {"pwm_limit": 885, "velocity_limit": 265, "shutdown": 52,
+                   "velocity_i_gain": 1000, "velocity_p_gain": 100, "position_d_gain": 4000,
+                   "position_i_gain": 0, "position_p_gain": 640},
+    "XM430-W350": {"pwm_limit": 885, "current_limit": 1193, "velocity_limit": 200,
+                   "shutdown": 52, "velocity_i_gain": 1920, "velocity_p_gain": 100,
+                   "position_d_gain": 0, "position_i_gain": 0, "position_p_gain": 800},
+    "XL330-M288": {"pwm_limit": 885, "current_limit": 1750, "velocity_limit": 445,
+                   "shutdown": 53, "velocity_i_gain": 1600, "velocity_p_gain": 180,
+                   "position_d_gain": 0, "position_i_gain": 0, "position_p_gain": 400},
+}
+#: Largest Velocity Limit (address 44) each model takes.
+VELOCITY_LIMIT_MAX = {"XL430-W250": 1023, "XM430-W350": 1023, "XL330-M288": 2047}
+
+
 def _items(spec: XSpec) -> tuple[Item, ...]:
     E, R = EEPROM, RAM
+    f = FACTORY[spec.name]
     current = "current" if spec.has_current else "load"
     sensed = (  # only on servos that measure their current
-        Item("current_limit", 38, 2, True, E, 0, 2047, None, "current"),
+        Item("current_limit", 38, 2, True, E, 0, f.get("current_limit", 2047),
+             f.get("current_limit"), "current"),
         Item("goal_current", 102, 2, True, R, -2047, 2047, None, "current", signed=True),
     ) if spec.has_current else ()
     return sensed + (
@@ -158,21 +177,25 @@ def _items(spec: XSpec) -> tuple[Item, ...]:
         Item("temperature_limit", 31, 1, True, E, 0, 100, spec.temperature_limit, "celsius"),
         Item("max_voltage_limit", 32, 2, True, E, 0, 160, spec.max_voltage_limit, "voltage"),
         Item("min_voltage_limit", 34, 2, True, E, 0, 160, spec.min_voltage_limit, "voltage"),
-        Item("velocity_limit", 44, 4, True, E, 0, 1023, None, "velocity"),
+        Item("pwm_limit", 36, 2, True, E, 0, 885, f["pwm_limit"], "pwm"),
+        Item("velocity_limit", 44, 4, True, E, 0, VELOCITY_LIMIT_MAX[spec.name],
+             f["velocity_limit"], "velocity"),
         Item("max_position_limit", 48, 4, True, E, 0, COUNTS - 1, COUNTS - 1, "position"),
         Item("min_position_limit", 52, 4, True, E, 0, COUNTS - 1, 0, "position"),
+        Item("shutdown", 63, 1, True, E, 0, 255, f["shutdown"]),
         Item("torque_enable", 64, 1, True, R, 0, 1, 0),
         Item("led", 65, 1, True, R, 0, 1, 0),
         Item("status_return_level", 68, 1, True, R, 0, 2, 2),
         Item("registered_instruction", 69, 1, False, R, 0, 1, 0),
         Item("hardware_error_status", 70, 1, False, R, 0, 255, 0),
-        Item("velocity_i_gain", 76, 2, True, R, 0, 16383, None),
-        Item("velocity_p_gain", 78, 2, True, R, 0, 16383, None),
-        Item("position_d_gain", 80, 2, True, R, 0, 16383, None),
-        Item("position_i_gain", 82, 2, True, R, 0, 16383, None),
-        Item("position_p_gain", 84, 2, True, R, 0, 16383, None),
+        *(Item(name, address, 2, True, R, 0, 16383, f[name]) for name, address in (
+            ("velocity_i_gain", 76), ("velocity_p_gain", 78), ("position_d_gain", 80),
+            ("position_i_gain", 82), ("position_p_gain", 84))),
+        Item("feedforward_2nd_gain", 88, 2, True, R, 0, 16383, 0),
+        Item("feedforward_1st_gain", 90, 2, True, R, 0, 16383, 0),
         Item("goal_pwm", 100, 2, True, R, -885, 885, None, "pwm", signed=True),
-        Item("goal_velocity", 104, 4, True, R, -1023, 1023, 0, "velocity", signed=True),
+        Item("goal_velocity", 104, 4, True, R, -VELOCITY_LIMIT_MAX[spec.name],
+             VELOCITY_LIMIT_MAX[spec.name], 0, "velocity", signed=True),
         Item("profile_acceleration", 108, 4, True, R, 0, 32767, 0),
         Item("profile_velocity", 112, 4, True, R, 0, 32767, 0),
         Item("goal_position", 116, 4, True, R, 0, COUNTS - 1, None, "position"),
@@ -211,7 +234,10 @@ class XControlTable(ControlTable):
         mem = bytearray(TABLE_SIZE)
         given = {"model_number": self.spec.model_number, "firmware_version": firmware,
                  "id": servo_id, "goal_position": present_position,
-                 "present_position": present_position}
+                 "present_position": present_position,
+                 # the goals that limit the output start at their limits
+                 "goal_pwm": FACTORY[self.name]["pwm_limit"],
+                 "goal_current": FACTORY[self.name].get("current_limit")}
         if baud_value is not None:
             given["baud_rate"] = baud_value
         for item in self.items:

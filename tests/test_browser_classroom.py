@@ -123,8 +123,8 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
         own = mine.rig.loop
         student.reload()
         wait_for(lambda: any(lesson.rig is not None and lesson.rig.loop is own
-                             for lesson in lab.room.private_lessons().values()), 90,
-                 "the same private arm after the reload")
+                             for lesson in lab.room.private_lessons().values()), 180,
+                 lambda: f"the same private arm after the reload; pages: {lab.room.pages()}")
         student.get_by_text("My arm.").first.wait_for(timeout=60_000)
         assert own.params.kp == pytest.approx(kp_mine + 0.5)
     finally:

@@ -382,3 +382,29 @@ def test_closing_a_class_while_its_clock_steps_frees_every_arm():
     assert len(seen) == 12 and not any(alive for alive, _ in seen)
     assert all(locked for _, locked in seen)
     assert boxes.n_arms == 0 and not boxes.clock.alive
+
+
+def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
+    """A reload: the new page takes the seat before the old page's goodbye. The late
+    goodbye must not start the idle timer under the new page (its arm would be freed
+    while shown); once no page shows it, the arm is kept ``idle_s`` s, then freed."""
+    from app.sandboxes import Sandboxes
+    from kinematics import load_robot
+
+    now = [0.0]
+    boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])
+    try:
+        model = load_robot("receptionist_arm", preset="18.5/25")
+        boxes.seat("k", page=1).arm_for(model, DEFAULT, preset="18.5/25",
+                                        q0=np.array([0.0, 0.3, 0.3]), history_s=1.0)
+        boxes.seat("k", page=2)  # the reloaded page, before the old one has gone
+        boxes.leave("k", page=1)  # ... whose goodbye comes late
+        now[0] += 3600.0
+        assert boxes.sweep() == 0 and boxes.has("k") and boxes.n_arms == 1
+        boxes.leave("k", page=2)
+        now[0] += 599.0
+        assert boxes.sweep() == 0 and boxes.has("k")  # kept for a reload
+        now[0] += 2.0
+        assert boxes.sweep() == 1 and not boxes.has("k") and boxes.n_arms == 0
+    finally:
+        boxes.close()

@@ -1,7 +1,9 @@
 """``armlab emulate --robot NAME``: simulated Dynamixel servos behind a pseudo-terminal.
 
 The first line printed is ``port: /dev/pts/N`` (flushed): point ``armlab scan``,
-``armlab serve --backend serial`` or any protocol-1.0 client at it. Serves until
+``armlab serve --backend serial`` or any Dynamixel client at it. The servos speak
+protocol 1.0 (RX-24F, AX-12A) or, for X-series servos (``--servo XM430-W350``, and by
+default for ``open_manipulator_x``: XM430-W350, IDs 11..14), protocol 2.0. Serves until
 SIGINT or SIGTERM, then exits cleanly.
 
 ``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
@@ -18,8 +20,10 @@ import sys
 
 from app.commands.scan import _ids
 from hardware.emulator import Faults, PtyEmulator, emulated_network
+from hardware.emulator_x import X_ARMS, emulated_x_network
 from hardware.servo_spec import value_from_baud
-from kinematics.model import load_robot
+from hardware.xseries import X_TABLES
+from kinematics.model import SerialChain, load_robot
 
 NAME = "emulate"
 HELP = "serve simulated servos of a robot on a pseudo-terminal (prints 'port: /dev/pts/N')"
@@ -51,9 +55,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=float, default=1_000_000,
                         help="the servos' baud, bit/s (default 1000000)")
     parser.add_argument("--ids", type=_ids, help="servo IDs in joint order "
-                        "(default 1,3,5 for receptionist_arm, else 1..n)")
-    parser.add_argument("--servo", choices=("RX-24F", "AX-12A"),
-                        help="servo model (default RX-24F for the thesis arm, else AX-12A)")
+                        "(default 1,3,5 for receptionist_arm, 11.. for open_manipulator_x, "
+                        "else 1..n)")
+    parser.add_argument("--servo", choices=("RX-24F", "AX-12A",
+                                            *(t.name for t in X_TABLES.values())),
+                        help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
+                        "open_manipulator_x, else AX-12A); X-series servos speak protocol 2.0")
     parser.add_argument("--pace", action="store_true",
                         help="hold replies for their wire time at the set baud")
     parser.add_argument("--drop", type=_fraction, default=0.0, metavar="F",
@@ -102,12 +109,21 @@ def remove_link(link: str, target: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    value_from_baud(args.baud)  # ValueError for a rate no servo can take
     if not -20 <= args.nice <= 19:
         raise ValueError(f"--nice must be in -20..19, got {args.nice}")
-    _raise_priority(args.nice)
     model = load_robot(args.robot, preset=args.preset)
-    network = emulated_network(model, ids=args.ids, servo=args.servo, baud=args.baud)
+    x_servo, first_id = X_ARMS.get(model.name, (None, 1))
+    servo = args.servo or x_servo
+    if servo in {t.name for t in X_TABLES.values()}:
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"--servo {servo}: X-series servos drive a serial arm here, "
+                             f"not the {model.name}")
+        ids = args.ids or tuple(range(first_id, first_id + model.n))
+        network = emulated_x_network(model, ids, servo=servo, baud=args.baud)
+    else:
+        value_from_baud(args.baud)  # ValueError for a rate no servo can take
+        network = emulated_network(model, ids=args.ids, servo=servo, baud=args.baud)
+    _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)
     stop = {"now": False}
@@ -125,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"port: {emu.path}", flush=True)
         s = network.servos
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
-              f"{', '.join(str(x.servo_id) for x in s)}) of {model.name} at {args.baud:.0f} bps"
+              f"{', '.join(str(x.servo_id) for x in s)}, protocol {network.protocol}.0) of "
+              f"{model.name} at {args.baud:.0f} bps"
               f"{', paced' if args.pace else ''}; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
     except ArithmeticError as exc:  # the simulated plant diverged: say so in one line

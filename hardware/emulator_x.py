@@ -1,0 +1,396 @@
+"""Emulated X-series servos speaking protocol 2.0, behind the same pseudo-terminal as the
+protocol-1.0 ones (:class:`hardware.emulator.PtyEmulator` serves either network).
+
+Each :class:`XVirtualServo` keeps its 147-byte control-table image and answers as the
+e-manual's "Protocol 2.0" page describes: PING (a broadcast PING is answered by every
+servo, in ID order), READ, WRITE, REG_WRITE/ACTION, REBOOT, FACTORY_RESET, SYNC_READ,
+SYNC_WRITE and BULK_READ; Status Return Level (0: PING only, 1: + reads, 2: all); the
+error numbers (Access for a read-only item, an EEPROM item while torque is on, or an
+address past the table; Data Length, Data Range; Instruction for an ACTION with nothing
+registered); the alert bit while Hardware Error Status is set; silence at a baud that
+is not the servo's. The servos move because :class:`XPlantPhysics` hands their RAM to
+the simulated X-series firmware (:class:`hardware.xservo.XServoModel`) of the same
+plant the simulator uses.
+
+*Interpretation* (the e-manual says a goal "should be configured within" its limit):
+a Goal Position outside the Min/Max Position Limit (in Position Control), a Goal
+Current above Current Limit, a Goal PWM above PWM Limit or a Goal Velocity above
+Velocity Limit is refused whole with the Data Limit error.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+
+from hardware import protocol2 as p2
+from hardware.plant import Plant
+from hardware.protocol2 import ErrorNumber as E
+from hardware.protocol2 import Instruction as I
+from hardware.servo_spec import RETURN_DELAY_UNIT
+from hardware.xseries import BAUDS, TABLE_SIZE, OperatingMode, XControlTable, x_table_for
+from hardware.xservo import XRegisters
+from kinematics.model import SerialChain
+
+#: Robot -> (X-series model, first ID) of the arms that ship with X-series servos:
+#: ROBOTIS OpenManipulator-X, XM430-W350 at IDs 11.. (its public specification; the
+#: gripper's servo, ID 15, drives no joint of the chain and is not emulated).
+X_ARMS = {"open_manipulator_x": ("XM430-W350", 11)}
+#: The firmware version the emulated servos report (address 6).
+EMULATED_FIRMWARE = 46
+#: A UART still decodes bytes within about 3 % of its rate.
+BAUD_TOLERANCE = 0.03
+#: First RAM address: EEPROM is 0..63 (written only while Torque Enable is 0).
+RAM_START = 64
+#: (goal, its limit): a goal whose magnitude exceeds its limit gets the Data Limit error.
+_GOAL_LIMITS = (("goal_current", "current_limit"), ("goal_pwm", "pwm_limit"),
+                ("goal_velocity", "velocity_limit"))
+
+
+@dataclass
+class XVirtualServo:
+    """One emulated X-series servo: its control-table image and its firmware's state.
+
+    Attributes:
+        table: the model's control table.
+        memory: the 147-byte table image.
+        joint: index of the simulated servo this one is (see :class:`XPlantPhysics`).
+        pending: a REG_WRITE waiting for ACTION (address, data).
+        hardware_error: Hardware Error Status the simulated firmware reports.
+    """
+
+    table: XControlTable
+    memory: bytearray
+    joint: int
+    pending: tuple[int, bytes] | None = None
+    hardware_error: int = 0
+
+    @classmethod
+    def new(cls, table: XControlTable, servo_id: int, joint: int, *, baud_value: int,
+            present_position: int) -> XVirtualServo:
+        """A servo fresh from power-on with ID ``servo_id`` at baud value ``baud_value``."""
+        mem = table.defaults(firmware=EMULATED_FIRMWARE, servo_id=servo_id,
+                             present_position=present_position, baud_value=baud_value)
+        return cls(table, mem, joint)
+
+    def get(self, name: str) -> int:
+        return self.table.value_at(self.memory, name)
+
+    def put(self, name: str, value: int) -> None:
+        """Set an item from the servo's side (present values), bypassing access."""
+        item = self.table.item(name)
+        self.memory[item.address : item.address + item.size] = int(value).to_bytes(
+            item.size, "little", signed=item.signed)
+
+    @property
+    def servo_id(self) -> int:
+        return self.memory[7]
+
+    @property
+    def baud(self) -> float:
+        return float(BAUDS[self.memory[8]])
+
+    @property
+    def return_delay(self) -> float:
+        """s before the status packet (2 µs a unit)."""
+        return RETURN_DELAY_UNIT * self.memory[9]
+
+    def hears(self, baud: float | None) -> bool:
+        """Whether bytes at ``baud`` reach this servo's UART intact (None: unknown, yes)."""
+        return baud is None or abs(baud - self.baud) <= BAUD_TOLERANCE * self.baud
+
+    def answers(self, instruction: int) -> bool:
+        """Status Return Level (address 68): 0 = PING only, 1 = + READs, 2 = all."""
+        level = self.memory[68]
+        if instruction == I.PING:
+            return True
+        if instruction in (I.READ, I.SYNC_READ, I.BULK_READ):
+            return level >= 1
+        return level >= 2
+
+    def error(self, number: int = 0) -> int:
+        """The ERROR byte of a reply: ``number`` and the alert bit while a hardware error
+        is set."""
+        return number | (p2.ALERT if self.hardware_error else 0)
+
+    def read(self, address: int, length: int) -> tuple[int, bytes]:
+        """READ: (error number, data); Access past the table's end."""
+        if length == 0 or address + length > TABLE_SIZE:
+            return E.ACCESS, b""
+        return 0, bytes(self.memory[address : address + length])
+
+    def check_write(self, address: int, data: bytes) -> int:
+        """The error number refusing ``data`` at ``address`` (0: accepted)."""
+        if not data or address + len(data) > TABLE_SIZE:
+            return E.ACCESS
+        torque_on = self.memory[64] == 1
+        image = bytearray(self.memory)
+        image[address : address + len(data)] = data
+        touched = {}
+        for a in range(address, address + len(data)):
+            item = self.table.at(a)
+            if item is None:
+                return E.ACCESS  # an undefined address
+            if not item.writable or (torque_on and a < RAM_START):
+                return E.ACCESS  # read-only, or EEPROM while the torque is on
+            touched[item.name] = item
+        for item in touched.values():
+            if item.address < address or item.address + item.size > address + len(data):
+                return E.DATA_LENGTH  # part of an item
+            if not item.lo <= self.table.value_at(image, item.name) <= item.hi:
+                return E.DATA_RANGE
+        return self._limit_error(image, touched)
+
+    def _limit_error(self, image: bytearray, touched: dict) -> int:
+        value = lambda name: self.table.value_at(image, name)  # noqa: E731
+        if "goal_position" in touched and \
+                value("operating_mode") == OperatingMode.POSITION and \
+                not value("min_position_limit") <= value("goal_position") <= \
+                value("max_position_limit"):
+            return E.DATA_LIMIT
+        for goal, limit in _GOAL_LIMITS:
+            if goal in touched and abs(value(goal)) > value(limit):
+                return E.DATA_LIMIT
+        if "operating_mode" in touched:
+            try:
+                self.table.check_operating_mode(value("operating_mode"))
+            except ValueError:
+                return E.DATA_RANGE
+        return 0
+
+    def write(self, address: int, data: bytes) -> int:
+        """WRITE: apply ``data`` if every touched item accepts it; the error number."""
+        refused = self.check_write(address, data)
+        if not refused:
+            self.memory[address : address + len(data)] = data
+        return refused
+
+    def reboot(self) -> None:
+        """REBOOT: the RAM back to its power-on values (torque off), the error cleared."""
+        present = self.get("present_position")
+        fresh = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=self.servo_id,
+                                    present_position=present, baud_value=self.memory[8])
+        self.memory[RAM_START:] = fresh[RAM_START:]
+        self.pending = None
+        self.hardware_error = 0
+
+    def factory_reset(self, level: int) -> None:
+        """FACTORY_RESET at ``level`` (0xFF everything, 0x01 keep the ID, 0x02 keep the ID
+        and the baud rate)."""
+        keep_id = self.servo_id if level in (p2.ResetLevel.KEEP_ID,
+                                             p2.ResetLevel.KEEP_ID_AND_BAUD) else 1
+        keep_baud = self.memory[8] if level == p2.ResetLevel.KEEP_ID_AND_BAUD else None
+        present = self.get("present_position")
+        self.memory[:] = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=keep_id,
+                                             present_position=present, baud_value=keep_baud)
+        self.pending = None
+
+
+class XPlantPhysics:
+    """Emulated X-series servos moved by the simulated plant: each servo's RAM goes into
+    its :class:`~hardware.xservo.XServoModel`'s registers, its report comes back.
+
+    Args:
+        plant: one plant of X-series servos (one servo per joint).
+    """
+
+    def __init__(self, plant: Plant) -> None:
+        self.plant = plant
+        #: the registers the firmware acts on that the control table holds
+        self._names = [f.name for f in fields(XRegisters)
+                       if plant.servos and _has(plant.servos[0].spec.name, f.name)]
+
+    def advance_to(self, t: float) -> None:
+        self.plant.advance_to(t)
+
+    def apply(self, s: XVirtualServo) -> None:
+        regs = self.plant.servos[s.joint].regs
+        for name in self._names:
+            setattr(regs, name, s.get(name))
+
+    def report(self, s: XVirtualServo) -> None:
+        model = self.plant.servos[s.joint]
+        r = model.report()
+        s.put("present_position", r.position)
+        s.put("present_velocity", r.velocity)
+        s.put("present_pwm", r.pwm)
+        s.put("present_current" if s.table.spec.has_current else "present_load", r.current)
+        s.put("moving", r.moving)
+        s.put("present_input_voltage", r.voltage)
+        s.put("present_temperature", r.temperature)
+        s.put("torque_enable", r.torque_enable)
+        s.put("hardware_error_status", r.hardware_error)
+        s.hardware_error = r.hardware_error
+
+    def reboot(self, s: XVirtualServo) -> None:
+        self.plant.servos[s.joint].reboot()
+
+
+@dataclass
+class XServoNetwork:
+    """X-series servos on one bus and how they answer protocol-2.0 instruction packets
+    (the interface :class:`hardware.emulator.PtyEmulator` serves).
+
+    Attributes:
+        servos: the emulated servos (IDs may change by WRITE or FACTORY_RESET).
+        physics: the plant that moves them.
+    """
+
+    servos: list[XVirtualServo]
+    physics: XPlantPhysics
+    t: float = 0.0
+    protocol = 2
+
+    def tick(self, t: float) -> None:
+        """Advance the plant to ``t`` s and refresh every servo's present values."""
+        self.t = t
+        self.physics.advance_to(t)
+        for s in self.servos:
+            self.physics.report(s)
+
+    def handle(self, packet: p2.InstructionPacket, *, baud: float | None = None
+               ) -> list[tuple[XVirtualServo, bytes]]:
+        """Execute one instruction packet heard at ``baud``; return (servo, status packet)
+        pairs in the order they go on the wire."""
+        listeners = [s for s in self.servos if s.hears(baud)]
+        inst, params = packet.instruction, packet.params
+        if inst == I.SYNC_WRITE:
+            self._sync_write(listeners, params)
+            return []
+        if inst in (I.SYNC_READ, I.BULK_READ):
+            return self._group_read(listeners, inst, params)
+        broadcast = packet.servo_id == p2.BROADCAST_ID
+        targets = [s for s in listeners if broadcast or s.servo_id == packet.servo_id]
+        replies = []
+        for s in sorted(targets, key=lambda s: s.servo_id) if broadcast else targets:
+            servo_id = s.servo_id  # a reply carries the ID the servo had
+            number, data = self._execute(s, inst, params)
+            if (not broadcast or inst == I.PING) and s.answers(inst):
+                replies.append((s, p2.status(servo_id, s.error(number), data)))
+        return replies
+
+    def _execute(self, s: XVirtualServo, inst: int, params: bytes) -> tuple[int, bytes]:
+        if inst == I.PING:
+            return 0, bytes(s.memory[0:2]) + bytes((s.memory[6],))
+        if inst == I.READ:
+            if len(params) != 4:
+                return E.DATA_LENGTH, b""
+            return s.read(_u16(params, 0), _u16(params, 2))
+        if inst in (I.WRITE, I.REG_WRITE):
+            if len(params) < 3:
+                return E.DATA_LENGTH, b""
+            address, data = _u16(params, 0), bytes(params[2:])
+            if inst == I.REG_WRITE:
+                refused = s.check_write(address, data)
+                if not refused:
+                    s.pending = (address, data)
+                    s.put("registered_instruction", 1)
+                return refused, b""
+            refused = s.write(address, data)
+            self.physics.apply(s)
+            return refused, b""
+        if inst == I.ACTION:
+            if s.pending is None:
+                return E.INSTRUCTION, b""
+            refused = s.write(*s.pending)
+            s.pending = None
+            s.put("registered_instruction", 0)
+            self.physics.apply(s)
+            return refused, b""
+        if inst == I.REBOOT:
+            s.reboot()
+            self.physics.reboot(s)
+            self.physics.apply(s)
+            return 0, b""
+        if inst == I.FACTORY_RESET:
+            if len(params) != 1 or params[0] not in tuple(p2.ResetLevel):
+                return E.DATA_RANGE, b""
+            if s.memory[64]:
+                return E.ACCESS, b""  # EEPROM: torque must be off
+            s.factory_reset(params[0])
+            self.physics.apply(s)
+            return 0, b""
+        return E.INSTRUCTION, b""
+
+    def _group_read(self, listeners: list[XVirtualServo], inst: int, params: bytes
+                    ) -> list[tuple[XVirtualServo, bytes]]:
+        """SYNC_READ (address, length, IDs) or BULK_READ ((ID, address, length) each): the
+        servos answer in the order they are named."""
+        if inst == I.SYNC_READ:
+            if len(params) < 5:
+                return []
+            address, length = _u16(params, 0), _u16(params, 2)
+            asks = [(i, address, length) for i in params[4:]]
+        else:
+            if len(params) % 5 or not params:
+                return []
+            asks = [(params[k], _u16(params, k + 1), _u16(params, k + 3))
+                    for k in range(0, len(params), 5)]
+        by_id = {s.servo_id: s for s in listeners}
+        replies = []
+        for servo_id, address, length in asks:
+            s = by_id.get(servo_id)
+            if s is None or not s.answers(inst):
+                continue
+            number, data = s.read(address, length)
+            replies.append((s, p2.status(servo_id, s.error(number), data)))
+        return replies
+
+    def _sync_write(self, listeners: list[XVirtualServo], params: bytes) -> None:
+        if len(params) < 4:
+            return
+        address, length = _u16(params, 0), _u16(params, 2)
+        body = params[4:]
+        if length == 0 or len(body) % (length + 1):
+            return
+        by_id = {s.servo_id: s for s in listeners}
+        for k in range(0, len(body), length + 1):
+            s = by_id.get(body[k])
+            if s is not None:
+                s.write(address, bytes(body[k + 1 : k + 1 + length]))
+                self.physics.apply(s)
+
+    def checksum_error(self, raw: bytes, *, baud: float | None = None
+                       ) -> list[tuple[XVirtualServo, bytes]]:
+        """Nothing: a protocol-2.0 packet whose CRC fails is not recognised as one (the
+        client's timeout and retry take care of it)."""
+        return []
+
+
+def _has(model: str, name: str) -> bool:
+    """Whether the X-series ``model``'s control table has an item ``name``."""
+    return any(item.name == name for item in x_table_for(model).items)
+
+
+def _u16(data: bytes, at: int) -> int:
+    return data[at] | data[at + 1] << 8
+
+
+def emulated_x_network(model: SerialChain, ids: Sequence[int], *, servo: str = "XM430-W350",
+                       baud: float = 1_000_000, dt: float = 1e-3) -> XServoNetwork:
+    """The X-series servos of ``model`` on one bus (``ids`` in joint order), moved by a
+    plant of the same chain, as the simulator's.
+
+    Args:
+        model: a serial chain.
+        ids: servo IDs in joint order.
+        servo: the X-series model of every joint ("XM430-W350", "XL430-W250", "XL330-M288").
+        baud: bit/s in every servo's EEPROM (one of the X-series rates).
+        dt: plant step, s.
+    """
+    ids = [int(i) for i in ids]
+    if len(ids) != model.n:
+        raise ValueError(f"ids: {len(ids)} given for the {model.n} joints of {model.name}")
+    if len(set(ids)) != len(ids) or not all(0 <= i <= p2.MAX_ID for i in ids):
+        raise ValueError(f"ids: distinct IDs in 0..{p2.MAX_ID}, got {ids}")
+    table = x_table_for(servo)
+    baud_value = table.from_si("baud_rate", baud)
+    plant = Plant(model, table.spec, dt=dt)
+    physics = XPlantPhysics(plant)
+    servos = [XVirtualServo.new(table, i, j, baud_value=baud_value,
+                                present_position=plant.servos[j].report().position)
+              for j, i in enumerate(ids)]
+    for s in servos:
+        physics.apply(s)
+        physics.report(s)
+    return XServoNetwork(servos, physics)

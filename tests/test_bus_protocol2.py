@@ -1,0 +1,115 @@
+"""Protocol 2.0 over a real pseudo-terminal: ``armlab emulate`` serving X-series servos
+(the OpenManipulator-X's four XM430-W350, IDs 11..14) and :class:`hardware.bus.Bus`
+opened with ``protocol=2``.
+
+The e-manual's PING answer byte for byte; named reads and writes through the X-series
+table; one SYNC_READ and one BULK_READ for every servo; the error numbers a person
+can cause (an EEPROM item with the torque on, a goal past its limit, a read-only item);
+REBOOT; lost and broken answers retried; a protocol-1.0 bus on it hears nothing and
+says which protocol it tried.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from _emulator import emulator
+from _helpers import wait_for
+
+from hardware import protocol2 as p2
+from hardware.bus import Bus, NoReply
+from hardware.xseries import CENTRE, XM430_W350_TABLE
+
+IDS = (11, 12, 13, 14)
+OMX = ("--robot", "open_manipulator_x")
+
+
+def test_ping_answers_as_the_e_manual_shows(tmp_path):
+    with emulator(*OMX, log_dir=tmp_path) as emu, Bus(emu.port, protocol=2) as bus:
+        status = bus.ping(11)
+        assert status.servo_id == 11 and not status.error
+        assert int.from_bytes(status.params[:2], "little") == 1020  # XM430-W350
+        # the reply on the wire: FF FF FD 00 | ID | LEN 7 | 55 | ERR | model L H | fw | CRC
+        reply = emu.packets("tx")[-1]
+        assert reply[:9] == bytes.fromhex("ff ff fd 00 0b 07 00 55 00")
+        assert reply[9:11] == (1020).to_bytes(2, "little")
+        assert p2.crc16(reply[:-2]) == int.from_bytes(reply[-2:], "little")
+        assert emu.packets("rx")[-1] == p2.ping(11) == bytes.fromhex(
+            "ff ff fd 00 0b 03 00 01") + p2.crc16(bytes.fromhex(
+                "ff ff fd 00 0b 03 00 01")).to_bytes(2, "little")
+
+
+def test_named_access_group_reads_and_the_arm_moves():
+    with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        for i in IDS:
+            assert bus.identify(i, expect="XM430-W350") is XM430_W350_TABLE
+        assert bus.read(12, "operating_mode") == 3
+        assert bus.read(12, "position_p_gain") == 800  # the XM430-W350's factory gain
+        # one SYNC_READ: present current, velocity and position of every servo (10 bytes)
+        first = bus.sync_read(126, 10, IDS)
+        assert list(first) == list(IDS) and all(len(b) == 10 for b in first.values())
+        assert bus.stats.transactions == 4 + 2 + 1
+        goal = CENTRE + round(math.radians(20) / XM430_W350_TABLE.spec.position_unit)
+        bus.write(12, "torque_enable", 1)
+        bus.write(12, "goal_position", goal)
+
+        def position() -> int:
+            data = bus.bulk_read([(12, 132, 4), (11, 132, 4)])
+            return int.from_bytes(data[12], "little", signed=True)
+
+        wait_for(lambda: abs(position() - goal) < 40, 30, "joint 2 at its goal")
+        assert bus.read_si(12, "present_position") == pytest.approx(math.radians(20), abs=0.05)
+
+
+def test_refused_writes_name_the_error_and_change_nothing():
+    with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        bus.write(13, "torque_enable", 1)
+        with pytest.raises(p2.ServoError, match="access"):  # EEPROM with the torque on
+            bus.write(13, "return_delay_time", 0)
+        assert bus.read(13, "return_delay_time") == 250
+        with pytest.raises(p2.ServoError, match="limits"):  # past Current Limit (1193)
+            bus.write_bytes(13, 102, (1500).to_bytes(2, "little"))
+        bus.write(13, "torque_enable", 0)
+        bus.write(13, "max_position_limit", 3000)
+        bus.write(13, "torque_enable", 1)
+        with pytest.raises(p2.ServoError, match="limits"):  # past Max Position Limit
+            bus.write(13, "goal_position", 3500)
+        bus.write(13, "goal_position", 2900)
+        assert bus.read(13, "goal_position") == 2900
+        with pytest.raises(p2.ServoError, match="access"):  # read-only
+            bus.write_bytes(13, 132, (0).to_bytes(4, "little"))
+        with pytest.raises(ValueError, match="read-only"):  # and never sent by name
+            bus.write(13, "present_position", 0)
+
+
+def test_reboot_turns_the_torque_off():
+    with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        bus.write(14, "torque_enable", 1)
+        bus.reboot(14)
+        wait_for(lambda: bus.read(14, "torque_enable") == 0, 10, "torque off after REBOOT")
+
+
+def test_lost_and_broken_answers_to_a_sync_read_are_asked_again():
+    with emulator(*OMX, "--drop", "0.2", "--corrupt", "0.2", "--seed", "5") as emu, \
+            Bus(emu.port, protocol=2, retries=8) as bus:
+        for _ in range(20):
+            data = bus.sync_read(132, 4, IDS)
+            assert list(data) == list(IDS)
+        assert bus.stats.retries > 0 and bus.stats.failures == 0
+
+
+def test_a_protocol_1_bus_hears_nothing_and_names_the_protocol():
+    with emulator(*OMX) as emu:
+        with Bus(emu.port, retries=1) as bus:
+            with pytest.raises(NoReply, match="protocol 1.0"):
+                bus.ping(11)
+            # protocol-2.0 instructions are refused before anything is sent
+            sent = bus.stats.transactions
+            for call in (lambda: bus.sync_read(132, 4, [11]), lambda: bus.reboot(11),
+                         lambda: bus.bulk_read([(11, 132, 4)])):
+                with pytest.raises(ValueError, match="protocol 2.0"):
+                    call()
+            assert bus.stats.transactions == sent
+        with Bus(emu.port, protocol=2) as bus:
+            bus.ping(11)  # the servos still answer in their own protocol
