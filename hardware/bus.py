@@ -456,6 +456,25 @@ class Bus:
         assert status is not None
         return status
 
+    def broadcast_ping(self, ids: list[int] | range | None = None, *,
+                       margin: float | None = None) -> dict[int, p2.StatusPacket]:
+        """PING to broadcast (protocol 2.0): every servo answers, one after the other.
+
+        Waits as long as answers from all of ``ids`` (default every ID, 0..252) would
+        take, plus ``margin`` (default the bus's); returns the ones that came, by ID."""
+        if self.protocol != 2:
+            raise ValueError("a broadcast PING is answered on protocol 2.0 only (on 1.0 "
+                             "every servo would answer at once): ping each ID")
+        ids = list(range(p2.MAX_ID + 1) if ids is None else ids)
+        packet = p2.ping(p2.BROADCAST_ID)
+        each = wire_time(self.status_length(3), self._baud) + RETURN_DELAY_UNIT * 254
+        with self._lock:
+            backlog = self._send(packet)
+            timeout = backlog + wire_time(len(packet), self._baud) + len(ids) * each + \
+                (self.timeout_margin if margin is None else margin)
+            answers = self._receive(packet, {i: 3 for i in ids}, timeout=timeout)
+        return answers  # type: ignore[return-value]
+
     def read_bytes(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes at ``address`` of one servo (its error kept in ``errors``)."""
         if servo_id == self._p.BROADCAST_ID:

@@ -251,6 +251,13 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
     if not servos:
         raise ValueError("no servo answered: nothing to write a map from")
     for f in servos:
+        if f.protocol not in PROTOCOLS:
+            raise ValueError(
+                f"servo ID {f.servo_id} ({f.model}) speaks protocol {f.protocol}.0: the lab's "
+                f"serial backend drives protocol {', '.join(map(str, PROTOCOLS))} servos so "
+                "far, so a map for it could not be served; scan the arm's protocol-1.0 "
+                "servos only (--ids)")
+    for f in servos:
         if f.model == "unknown":
             try:
                 table_for(f.model_number)

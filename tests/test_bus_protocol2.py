@@ -113,3 +113,26 @@ def test_a_protocol_1_bus_hears_nothing_and_names_the_protocol():
             assert bus.stats.transactions == sent
         with Bus(emu.port, protocol=2) as bus:
             bus.ping(11)  # the servos still answer in their own protocol
+
+
+def test_scan_finds_the_x_series_servos_and_their_protocol():
+    from hardware.joint_map import draft_joint_map
+    from hardware.scan import scan
+
+    with emulator(*OMX) as emu:
+        found = scan(emu.port, (57_600, 1_000_000), ids=range(0, 20))
+    assert [(f.servo_id, f.model, f.protocol, f.baud) for f in found] == \
+        [(i, "XM430-W350", 2, 1_000_000.0) for i in IDS]
+    assert all(f.model_number == 1020 and f.cw_limit == 0 and f.ccw_limit == 4095
+               for f in found)
+    assert found[0].ccw_limit_deg == pytest.approx(180.0, abs=0.1)
+    with pytest.raises(ValueError, match="ID 11 .*protocol 2.0"):
+        draft_joint_map(found)
+
+
+def test_scan_of_a_protocol_1_bus_names_protocol_1():
+    from hardware.scan import scan
+
+    with emulator("--ids", "1,3,5") as emu:
+        found = scan(emu.port, (1_000_000,), ids=range(0, 8))
+    assert [(f.servo_id, f.protocol) for f in found] == [(1, 1), (3, 1), (5, 1)]

@@ -19,7 +19,8 @@ from hardware.scan import (
 )
 
 NAME = "scan"
-HELP = "ping servo IDs 0..253 at each baud and list ID, model, firmware, baud, angle limits"
+HELP = ("ping servo IDs 0..253 at each baud (protocol 1.0 and 2.0) and list ID, model, "
+        "protocol, firmware, baud, angle limits")
 
 
 def _ids(text: str) -> list[int]:
@@ -114,13 +115,15 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write("\n")
         return 0
     if not found:
-        print(f"no servo answered on {args.port}: check power, cabling, the baud "
-              "(try --all-bauds) and that the servos speak protocol 1.0")
+        print(f"no servo answered on {args.port}: check power, cabling and the baud "
+              "(try --all-bauds); the lab speaks Dynamixel protocol 1.0 and 2.0")
         return 1
-    print(f"{'ID':>3}  {'model':8} {'fw':>3} {'baud':>9}  {'angle limits (deg from centre)':>30}")
+    print(f"{'ID':>3}  {'model':10} {'protocol':>8} {'fw':>3} {'baud':>9}  "
+          f"{'angle limits (deg from centre)':>30}")
     for f in found:
         limits = ("wheel mode" if f.cw_limit == f.ccw_limit == 0 else
                   f"{f.cw_limit_deg:+7.1f} .. {f.ccw_limit_deg:+7.1f} "
                   f"({f.cw_limit}..{f.ccw_limit})")
-        print(f"{f.servo_id:3d}  {f.model:8} {f.firmware:3d} {f.baud:9.0f}  {limits:>30}")
+        print(f"{f.servo_id:3d}  {f.model:10} {f.protocol:>6}.0 {f.firmware:3d} {f.baud:9.0f}  "
+              f"{limits:>30}")
     return 0

@@ -1,0 +1,136 @@
+"""The simulated X-series firmware (hardware/xservo.py) on the OpenManipulator-X's chain:
+the numbers of the e-manual's control tables and block diagrams, checked in motion.
+
+- Position Control with the XM430-W350's factory gains reaches a 30° goal, and its
+  steady error is the one the P gain predicts for the torque it holds (KPP = P/128
+  PWM counts per count, 885 = full duty).
+- Profile Velocity: the desired position moves at PV · 0.229 rpm.
+- Current-based Position Control: Goal Current bounds the current, hence the torque.
+- Overload: a servo held at full PWM without moving shuts its torque off after
+  ``overload_time``, its alert stays until REBOOT.
+- The XL430-W250 has no current sensor: address 126 is Present Load (0.1 %).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hardware.plant import Plant
+from hardware.servo import ServoParams
+from hardware.xseries import (
+    CENTRE,
+    XL430_W250,
+    XM430_W350,
+    XM430_W350_TABLE,
+    OperatingMode,
+)
+from hardware.xservo import (
+    HW_OVERLOAD,
+    PROFILE_VELOCITY_UNIT,
+    PWM_FULL,
+    XRegisters,
+    XServoModel,
+)
+from kinematics import load_robot
+
+OMX = load_robot("open_manipulator_x")
+UNIT = XM430_W350.position_unit
+
+
+def _counts(deg: float) -> int:
+    return CENTRE + round(math.radians(deg) / UNIT)
+
+
+def _plant(spec=XM430_W350, **kw) -> Plant:
+    plant = Plant(OMX, spec, **kw)
+    for s in plant.servos:
+        s.regs.torque_enable = 1
+    plant.advance_to(0.5)  # holding where torque came on
+    return plant
+
+
+def test_factory_registers_are_the_e_manuals():
+    regs = XRegisters.factory(XM430_W350_TABLE)
+    assert (regs.position_p_gain, regs.position_i_gain, regs.position_d_gain) == (800, 0, 0)
+    assert (regs.velocity_p_gain, regs.velocity_i_gain) == (100, 1920)
+    assert regs.current_limit == regs.goal_current == 1193
+    assert regs.pwm_limit == regs.goal_pwm == 885 == PWM_FULL
+    assert regs.shutdown == 52 and regs.operating_mode == OperatingMode.POSITION
+
+
+def test_position_control_reaches_its_goal_with_the_p_gain_s_steady_error():
+    plant = _plant()
+    servo = plant.servos[1]
+    servo.regs.goal_position = _counts(30.0)
+    plant.advance_to(3.0)
+    r = servo.report()
+    assert r.moving == 0
+    error = servo.desired - r.position  # counts
+    # P only (I = D = 0): the PWM it holds is KPP · error, KPP = 800 / 128
+    assert r.pwm == pytest.approx(800 / 128 * error, abs=800 / 128)
+    assert abs(error) > 0  # gravity on joint 2: a P-only servo holds with an error
+    assert math.degrees(plant.q[1]) == pytest.approx(30.0, abs=4.0)
+
+
+def test_the_profile_moves_the_desired_position_at_profile_velocity():
+    plant = _plant()
+    servo = plant.servos[0]  # joint 1: about the vertical, no gravity load
+    servo.regs.profile_velocity = 40  # 40 · 0.229 rpm
+    servo.regs.goal_position = _counts(90.0)
+    start = servo.desired
+    plant.advance_to(0.7)
+    speed = (servo.desired - start) / 0.2  # counts/s, no acceleration limit (PA = 0)
+    assert speed == pytest.approx(40 * PROFILE_VELOCITY_UNIT, rel=0.02)
+    plant.advance_to(2.5)
+    assert servo.desired == _counts(90.0)
+    assert math.degrees(plant.q[0]) == pytest.approx(90.0, abs=1.0)
+
+
+def test_goal_current_bounds_the_current_in_current_based_position_control():
+    plant = _plant()
+    servo = plant.servos[0]
+    servo.regs.operating_mode = OperatingMode.CURRENT_BASED_POSITION
+    servo.regs.goal_current = 100  # 0.269 A
+    servo.regs.goal_position = _counts(120.0)
+    peak = 0
+    for k in range(1, 200):
+        plant.advance_to(0.5 + 0.005 * k)
+        peak = max(peak, abs(plant.servos[0].report().current))
+    assert 90 <= peak <= 100  # it pushes with all the current it may, never more
+
+
+def test_an_overload_shuts_the_torque_off_until_a_reboot():
+    plant = _plant(params=ServoParams(overload_time=0.5))
+    servo = plant.servos[1]
+    servo.regs.goal_pwm = 885
+    servo.regs.goal_position = _counts(30.0)
+    plant.set_wall(np.array(OMX.fk(plant.q)[:3, 3]), np.array([0.0, 0.0, 1.0]),
+                   stiffness=1e5, damping=50.0, link=3)  # a hard stop in its way
+    plant.advance_to(3.0)  # stalled at full PWM against it for more than 0.5 s
+    assert servo.hardware_error & HW_OVERLOAD and servo.regs.torque_enable == 0
+    assert servo.duty == 0.0
+    servo.regs.torque_enable = 1  # the servo does not take it back ...
+    plant.advance_to(3.2)
+    assert servo.regs.torque_enable == 0
+    servo.reboot()  # ... until a REBOOT
+    assert servo.hardware_error == 0
+    servo.regs.torque_enable = 1
+    plant.set_wall(None)
+    plant.advance_to(3.5)
+    assert servo.report().torque_enable == 1
+
+
+def test_the_xl430_reports_load_not_current():
+    plant = _plant(spec=XL430_W250)
+    r = plant.servos[1].report()
+    torque = plant.servos[1].motor_torque(float(plant.qd[1]))
+    assert r.current == round(torque / XL430_W250.stall_torque / 0.001)  # 0.1 % units
+    assert abs(r.current) <= 1000
+
+
+def test_a_model_without_current_sensing_has_no_current_torque():
+    servo = XServoModel(XL430_W250)
+    assert servo._current_torque(500) == 0.0
