@@ -39,9 +39,9 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
     if kind == "serial":
         if port is None:
             raise ValueError("the serial backend needs a port (e.g. /dev/ttyUSB0)")
-        from hardware.dynamixel_backend import DynamixelBackend  # pyserial only when asked
+        from hardware.xseries_backend import open_servo_backend  # pyserial only when asked
 
         if baud is not None:
             kw["baud"] = baud
-        return DynamixelBackend(model, port, **kw)
+        return open_servo_backend(model, port, **kw)  # protocol 1.0 or 2.0, by the map
     raise ValueError(f"unknown backend {kind!r}; choose one of {', '.join(KINDS)}")

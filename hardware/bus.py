@@ -299,6 +299,11 @@ class Bus:
             return p1.OVERHEAD + data_bytes
         return p2.status_length(data_bytes)
 
+    @property
+    def broadcast_id(self) -> int:
+        """The ID every servo listens to (0xFE in both protocols; no servo answers it)."""
+        return self._p.BROADCAST_ID
+
     def _id_of(self, packet: bytes) -> int:
         """The ID an encoded packet is sent to (or comes from)."""
         return packet[2] if self.protocol == 1 else packet[4]

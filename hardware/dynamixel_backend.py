@@ -32,9 +32,8 @@ from hardware.control_table import (
     THESIS_COMPLIANCE_MARGIN,
     THESIS_COMPLIANCE_SLOPE,
     ControlTable,
-    table_for,
 )
-from hardware.joint_map import JointMap, default_joint_map, load_joint_map
+from hardware.joint_map import JointMap, default_joint_map, load_joint_map, servo_table
 from hardware.servo_spec import value_from_baud
 from kinematics.model import Quadruped, SerialChain
 
@@ -80,28 +79,20 @@ class DynamixelBackend(GoalLimits):
             raise ValueError(f"torque_limit: a fraction 0..1 of max torque, got {torque_limit}")
         if status_return_level not in (1, 2):
             raise ValueError(f"status_return_level must be 1 or 2, got {status_return_level}")
-        value_from_baud(baud)  # ValueError for a rate the servos cannot take
         self.model = model
         if isinstance(joint_map, str | Path):
             joint_map = load_joint_map(joint_map, model)
         self.map = joint_map or default_joint_map(model)
-        self.table: ControlTable = table_for(self.map.servo)
+        if self.map.protocol != self.PROTOCOL:
+            raise ValueError(
+                f"the {self.map.servo} speaks protocol {self.map.protocol}.0: open it with "
+                "hardware.xseries_backend.open_servo_backend(), which picks the backend")
+        self.table: ControlTable = servo_table(self.map.servo)
         self.spec = self.table.spec
-        item = self.table.item
-        # one READ of present position, speed and load (adjacent items): address, length and
-        # each item's bytes in the reply
-        present = [item(n) for n in ("present_position", "present_speed", "present_load")]
-        self._present_at = present[0].address
-        self._present_len = present[-1].address + present[-1].size - self._present_at
-        self._present = [slice(i.address - self._present_at, i.address - self._present_at + i.size)
-                         for i in present]
-        self._torque_limit = item("torque_limit")
-        self._goal = item("goal_position")  # followed by moving_speed: one 4-byte write
-        self._goal_size = self._goal.size + item("moving_speed").size
+        self._baud_value(baud)  # ValueError for a rate the servos cannot take
         self.baud = float(baud)
         self.torque_limit = float(torque_limit)
-        self._torque_limit_raw = self.spec.torque_limit_to_raw(
-            torque_limit * self.spec.stall_torque)
+        self._layout()
         self.status_return_level_setting = int(status_return_level)
         self.configuration: list[str] = []
         self.estops = 0
@@ -113,11 +104,35 @@ class DynamixelBackend(GoalLimits):
         #: s, the most a ``sync(t)`` came after its time (the loop or the OS stalled)
         self.late_max = 0.0
         self._bus_options = {"retries": retries, "timeout_margin": timeout_margin,
-                             "echo": echo, "rs485": rs485, "table": self.table}
+                             "echo": echo, "rs485": rs485, "table": self.table,
+                             "protocol": self.PROTOCOL}
         if not configure and from_baud is not None and from_baud != baud:
             raise ValueError("from_baud needs configure=True to switch the servos' baud")
         self._open(port, from_baud or baud, configure=configure, from_baud=from_baud)
         self._t0 = time.monotonic()
+
+    #: the protocol of the servos this backend drives
+    PROTOCOL = 1
+
+    def _baud_value(self, baud: float) -> int:
+        """The servos' Baud Rate value for ``baud``; ValueError for a rate they cannot take."""
+        return value_from_baud(baud)
+
+    def _layout(self) -> None:
+        """Where the present values and goals sit in the control table."""
+        item = self.table.item
+        # one READ of present position, speed and load (adjacent items): address, length and
+        # each item's bytes in the reply
+        present = [item(n) for n in ("present_position", "present_speed", "present_load")]
+        self._present_at = present[0].address
+        self._present_len = present[-1].address + present[-1].size - self._present_at
+        self._present = [slice(i.address - self._present_at, i.address - self._present_at + i.size)
+                         for i in present]
+        self._torque_limit = item("torque_limit")
+        self._goal = item("goal_position")  # followed by moving_speed: one 4-byte write
+        self._goal_size = self._goal.size + item("moving_speed").size
+        self._torque_limit_raw = self.spec.torque_limit_to_raw(
+            self.torque_limit * self.spec.stall_torque)
 
     def _open(self, port: str, baud: float, *, configure: bool,
               from_baud: float | None = None) -> None:
@@ -252,8 +267,7 @@ class DynamixelBackend(GoalLimits):
         """
         self.estops += 1
         try:
-            self.bus.transact(p1.write(p1.BROADCAST_ID, *self.table.encode("torque_enable", 0)),
-                              reply=False)
+            self.bus.write_bytes(self.bus.broadcast_id, *self.table.encode("torque_enable", 0))
         except (BusError, OSError, ValueError) as exc:
             if not self._estop_unsent:  # one line per outage, not one per retry
                 log.error("e-stop: torque off could not be sent (%s)", exc)
@@ -366,6 +380,11 @@ class DynamixelBackend(GoalLimits):
                     f"servo {j.servo_id} ({j.name}) is in wheel mode (CW and CCW angle "
                     "limits 0): set its angle limits before using it as a joint")
         self._cw, self._ccw = [int(x) for x in cw], [int(x) for x in ccw]
+        return self._narrowed(self._cw, self._ccw)
+
+    def _narrowed(self, cw: list[int], ccw: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The map's joint limits narrowed to the servos' raw limits ``cw``..``ccw``;
+        BackendError naming the joints where the two do not overlap."""
         a_lo = np.array([self.spec.raw_to_position(x) for x in cw])
         a_hi = np.array([self.spec.raw_to_position(x) for x in ccw])
         q_lo, q_hi = self.map.servo_limits_to_joint(a_lo, a_hi)

@@ -32,10 +32,6 @@ from hardware.xseries import BAUDS, TABLE_SIZE, OperatingMode, XControlTable, x_
 from hardware.xservo import XRegisters
 from kinematics.model import SerialChain
 
-#: Robot -> (X-series model, first ID) of the arms that ship with X-series servos:
-#: ROBOTIS OpenManipulator-X, XM430-W350 at IDs 11.. (its public specification; the
-#: gripper's servo, ID 15, drives no joint of the chain and is not emulated).
-X_ARMS = {"open_manipulator_x": ("XM430-W350", 11)}
 #: The firmware version the emulated servos report (address 6).
 EMULATED_FIRMWARE = 46
 #: A UART still decodes bytes within about 3 % of its rate.

@@ -34,18 +34,43 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hardware.control_table import table_for
+from hardware.control_table import TABLES, ControlTable, table_for
 from hardware.servo_spec import ServoSpec
+from hardware.xseries import X_TABLES, XSpec, x_table_for
 from kinematics.model import Joint, Quadruped, SerialChain
 
 if TYPE_CHECKING:
     from hardware.scan import Found
 
 #: Dynamixel protocol versions a joint map may name that this lab drives.
-PROTOCOLS = (1.0,)
+PROTOCOLS = (1.0, 2.0)
 
 THESIS_LEFT_ARM_IDS = (1, 3, 5)
 THESIS_RIGHT_ARM_IDS = (2, 4, 6)
+#: Robot -> (servo model, IDs in joint order) of the arms that ship with their servos: the
+#: thesis arm (RX-24F, IDs 1, 3, 5) and ROBOTIS's OpenManipulator-X (XM430-W350, IDs
+#: 11..14 from its public specification; its gripper's servo, ID 15, drives no joint of
+#: the chain).
+ROBOT_SERVOS = {"receptionist_arm": ("RX-24F", THESIS_LEFT_ARM_IDS),
+                "open_manipulator_x": ("XM430-W350", (11, 12, 13, 14))}
+
+
+def servo_table(model: str | int) -> ControlTable:
+    """The control table of a protocol-1.0 (AX-12A, RX-24F) or X-series (XL430-W250,
+    XM430-W350, XL330-M288) model; ValueError listing every known model otherwise."""
+    try:
+        return table_for(model)
+    except ValueError:
+        pass
+    try:
+        return x_table_for(model)
+    except ValueError:
+        tables = (*TABLES.values(), *X_TABLES.values())
+        if isinstance(model, str):
+            raise ValueError(f"unknown servo model {model!r}; known: "
+                             f"{', '.join(t.name for t in tables)}") from None
+        raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
+            f"{t.spec.model_number} ({t.name})" for t in tables)) from None
 
 
 @dataclass(frozen=True)
@@ -73,7 +98,8 @@ class JointMap:
     """The servos of a robot, in the robot model's joint order.
 
     Attributes:
-        servo: model name every servo must be ("RX-24F" or "AX-12A").
+        servo: model name every servo must be ("RX-24F", "AX-12A", or an X-series model:
+            their protocol is :attr:`protocol`).
         joints: one :class:`JointServo` per joint.
     """
 
@@ -81,7 +107,7 @@ class JointMap:
     joints: tuple[JointServo, ...]
 
     def __post_init__(self) -> None:
-        table_for(self.servo)  # ValueError for an unknown model
+        servo_table(self.servo)  # ValueError for an unknown model
         ids = [j.servo_id for j in self.joints]
         if len(set(ids)) != len(ids):
             raise ValueError(f"joint map: duplicate servo IDs in {ids}")
@@ -104,8 +130,13 @@ class JointMap:
         return tuple(j.servo_id for j in self.joints)
 
     @property
-    def spec(self) -> ServoSpec:
-        return table_for(self.servo).spec
+    def spec(self) -> ServoSpec | XSpec:
+        return servo_table(self.servo).spec
+
+    @property
+    def protocol(self) -> int:
+        """The protocol the servos speak (1 or 2)."""
+        return self.spec.protocol
 
     @property
     def signs(self) -> np.ndarray:
@@ -146,8 +177,9 @@ def robot_joints(model: SerialChain | Quadruped) -> list[Joint]:
 
 
 def default_servo(robot_name: str) -> str:
-    """The thesis arm has RX-24F servos; the quadruped and the others AX-12A."""
-    return "RX-24F" if robot_name == "receptionist_arm" else "AX-12A"
+    """The servo model of a robot that ships with its servos (:data:`ROBOT_SERVOS`); the
+    quadruped and the others AX-12A."""
+    return ROBOT_SERVOS.get(robot_name, ("AX-12A", ()))[0]
 
 
 def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = None,
@@ -157,13 +189,11 @@ def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = Non
     joints = robot_joints(model)
     servo = servo or default_servo(model.name)
     if ids is None:
-        if model.name == "receptionist_arm" and len(joints) == 3:
-            ids = THESIS_LEFT_ARM_IDS
-        else:
-            ids = tuple(range(1, len(joints) + 1))
+        shipped = ROBOT_SERVOS.get(model.name, (None, ()))[1]
+        ids = shipped if len(shipped) == len(joints) else tuple(range(1, len(joints) + 1))
     if len(ids) != len(joints):
         raise ValueError(f"ids: {len(ids)} given for the {len(joints)} joints of {model.name}")
-    half = table_for(servo).spec.position_range / 2
+    half = servo_table(servo).spec.position_range / 2
     return JointMap(servo, tuple(
         JointServo(j.name, int(i), 1, 0.0, max(j.lower, -half), min(j.upper, half))
         for j, i in zip(joints, ids, strict=True)
@@ -195,6 +225,9 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
         base = default_joint_map(model, servo=data.get("servo"))
     except ValueError as exc:
         raise ValueError(f"joint map {path}: {exc}") from None
+    if "protocol" in data and float(protocol) != base.protocol:
+        raise ValueError(f"joint map {path}: protocol {protocol} but the {base.servo} speaks "
+                         f"protocol {base.protocol}.0")
     half = base.spec.position_range / 2
     by_name = {j.name: j for j in base.joints}
     entries = data.get("joints")
@@ -251,16 +284,9 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
     if not servos:
         raise ValueError("no servo answered: nothing to write a map from")
     for f in servos:
-        if f.protocol not in PROTOCOLS:
-            raise ValueError(
-                f"servo ID {f.servo_id} ({f.model}) speaks protocol {f.protocol}.0: the lab's "
-                f"serial backend drives protocol {', '.join(map(str, PROTOCOLS))} servos so "
-                "far, so a map for it could not be served; scan the arm's protocol-1.0 "
-                "servos only (--ids)")
-    for f in servos:
         if f.model == "unknown":
             try:
-                table_for(f.model_number)
+                servo_table(f.model_number)
             except ValueError as exc:  # the message lists the known models
                 raise ValueError(f"servo ID {f.servo_id}: {exc}") from None
     models = {f.model for f in servos}
@@ -282,7 +308,7 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                 f"{len(names)} joints ({', '.join(names)}) but {len(servos)} servos answered")
     bauds = {f.baud for f in servos}
     lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe.",
-             f'servo = "{servos[0].model}"', "protocol = 1.0",
+             f'servo = "{servos[0].model}"', f"protocol = {servos[0].protocol}.0",
              f"baud = {int(min(bauds))}", ""]
     for i, (name, f) in enumerate(zip(names, servos, strict=True)):
         wheel = f.cw_limit == f.ccw_limit == 0

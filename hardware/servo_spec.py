@@ -70,6 +70,7 @@ class ServoSpec:
     temperature_limit: int
     max_voltage: float
     position_range: float = np.radians(300.0)
+    protocol = 1  #: the Dynamixel protocol it speaks
     speed_unit: float = 0.111 * RPM
 
     @property

@@ -74,6 +74,7 @@ class XSpec:
 
     protocol = 2
     position_unit = POSITION_UNIT
+    position_range = 2.0 * math.pi  #: rad covered by Position Control's 0..4095 (one turn)
 
     @property
     def has_current(self) -> bool:

@@ -57,7 +57,8 @@ def test_draft_names_joints_in_id_order_and_narrows_to_the_urdf(tmp_path):
     ([_found(21)], "joint 'elbow' of two_joint_arm has no servo"),
     ([_found(21), _found(22), _found(23)], "servo ID 23 has no joint"),
     ([_found(21), _found(22, model="unknown", number=9999)],
-     "servo ID 22: unknown servo model number 9999; known: 12 (AX-12A)"),
+     "servo ID 22: unknown servo model number 9999; known: 12 (AX-12A), 24 (RX-24F), "
+     "1060 (XL430-W250), 1020 (XM430-W350), 1200 (XL330-M288)"),
     ([_found(21), _found(22, model="RX-24F", number=24)], "ID 22: RX-24F"),
     ([_found(21), _found(22, cw=110.0, ccw=140.0)], "joint 'elbow' (servo ID 22)"),
 ])
@@ -74,8 +75,14 @@ def test_a_map_limit_outside_the_servo_range_names_joint_and_servo(tmp_path):
     with pytest.raises(ValueError, match=r"joint 'elbow' \(servo ID 22, AX-12A\): upper limit "
                        r"\+170.0 deg is outside the servo's range ±150.0 deg"):
         load_joint_map(path, load_robot(TWO))
-    path.write_text('servo = "XM430-W350"\n[[joints]]\nname = "yaw"\nid = 21\n')
-    with pytest.raises(ValueError, match="unknown servo model 'XM430-W350'; known: AX-12A"):
+    path.write_text('servo = "XC330-T288"\n[[joints]]\nname = "yaw"\nid = 21\n')
+    with pytest.raises(ValueError, match="unknown servo model 'XC330-T288'; known: AX-12A, "
+                                         "RX-24F, XL430-W250, XM430-W350, XL330-M288"):
+        load_joint_map(path, load_robot(TWO))
+    # an X-series map names its protocol, or none; never the other one
+    path.write_text('servo = "XM430-W350"\nprotocol = 1.0\n[[joints]]\nname = "yaw"\nid = 21\n'
+                    '[[joints]]\nname = "elbow"\nid = 22\n')
+    with pytest.raises(ValueError, match="protocol 1.0 but the XM430-W350 speaks protocol 2.0"):
         load_joint_map(path, load_robot(TWO))
 
 

@@ -20,6 +20,7 @@ from _helpers import wait_for
 from hardware import protocol2 as p2
 from hardware.bus import Bus, NoReply
 from hardware.xseries import CENTRE, XM430_W350_TABLE
+from kinematics import load_robot
 
 IDS = (11, 12, 13, 14)
 OMX = ("--robot", "open_manipulator_x")
@@ -126,8 +127,9 @@ def test_scan_finds_the_x_series_servos_and_their_protocol():
     assert all(f.model_number == 1020 and f.cw_limit == 0 and f.ccw_limit == 4095
                for f in found)
     assert found[0].ccw_limit_deg == pytest.approx(180.0, abs=0.1)
-    with pytest.raises(ValueError, match="ID 11 .*protocol 2.0"):
-        draft_joint_map(found)
+    text = draft_joint_map(found, load_robot("open_manipulator_x"))
+    assert 'servo = "XM430-W350"' in text and "protocol = 2.0" in text
+    assert 'name = "joint1"\nid = 11' in text
 
 
 def test_scan_of_a_protocol_1_bus_names_protocol_1():

@@ -20,7 +20,8 @@ import sys
 
 from app.commands.scan import _ids
 from hardware.emulator import Faults, PtyEmulator, emulated_network
-from hardware.emulator_x import X_ARMS, emulated_x_network
+from hardware.emulator_x import emulated_x_network
+from hardware.joint_map import default_joint_map
 from hardware.servo_spec import value_from_baud
 from hardware.xseries import X_TABLES
 from kinematics.model import SerialChain, load_robot
@@ -112,17 +113,16 @@ def run(args: argparse.Namespace) -> int:
     if not -20 <= args.nice <= 19:
         raise ValueError(f"--nice must be in -20..19, got {args.nice}")
     model = load_robot(args.robot, preset=args.preset)
-    x_servo, first_id = X_ARMS.get(model.name, (None, 1))
-    servo = args.servo or x_servo
-    if servo in {t.name for t in X_TABLES.values()}:
+    jmap = default_joint_map(model, servo=args.servo,
+                             ids=tuple(args.ids) if args.ids is not None else None)
+    if jmap.protocol == 2:
         if not isinstance(model, SerialChain):
-            raise ValueError(f"--servo {servo}: X-series servos drive a serial arm here, "
+            raise ValueError(f"--servo {jmap.servo}: X-series servos drive a serial arm here, "
                              f"not the {model.name}")
-        ids = args.ids or tuple(range(first_id, first_id + model.n))
-        network = emulated_x_network(model, ids, servo=servo, baud=args.baud)
+        network = emulated_x_network(model, jmap.ids, servo=jmap.servo, baud=args.baud)
     else:
         value_from_baud(args.baud)  # ValueError for a rate no servo can take
-        network = emulated_network(model, ids=args.ids, servo=servo, baud=args.baud)
+        network = emulated_network(model, ids=args.ids, servo=args.servo, baud=args.baud)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)

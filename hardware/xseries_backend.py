@@ -1,0 +1,237 @@
+"""``XSeriesBackend``: the controller's servos are X-series Dynamixels (protocol 2.0).
+
+The same ``control.backend.Backend`` as :class:`~hardware.dynamixel_backend.DynamixelBackend`
+(finding the servos, the joint map, limits, E-STOP, reconnect), with what protocol 2.0 and
+the X-series do differently:
+
+- :meth:`XSeriesBackend.configure`: torque off (EEPROM is written only then), return
+  delay 0, operating mode (current-based position control where the servo measures its
+  current, so Goal Current bounds its torque; position control on the XL430), status
+  return level, no profile limits (the controller sends a speed with every goal),
+  Goal Current or Goal PWM at ``torque_limit``, baud. Logged step by step; EEPROM
+  items are written only when they differ;
+- :meth:`read`: one SYNC_READ of Present Current, Velocity and Position (addresses
+  126..135) for every servo; the torque is current × the servo's torque constant, or
+  Present Load × stall torque on a servo without current sensing;
+- :meth:`write`: every Profile Velocity and Goal Position (112..119) in one SYNC_WRITE,
+  after clamping into the joint limits and the servos' Min/Max Position Limits;
+- a servo that raised its hardware alert (overload, overheating) has switched its torque
+  off; Torque on REBOOTs it first (the only way back, e-manual "Shutdown").
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.backend import BackendError, JointState
+from hardware import protocol2 as p2
+from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
+from hardware.joint_map import JointMap, default_joint_map, load_joint_map
+from hardware.xseries import VELOCITY_UNIT, OperatingMode
+from kinematics.model import Quadruped, SerialChain
+
+log = logging.getLogger("armlab.xseries")
+
+#: Present Current (2), Present Velocity (4), Present Position (4): one SYNC_READ.
+PRESENT_AT, PRESENT_LEN = 126, 10
+#: Profile Velocity (4) and Goal Position (4): one SYNC_WRITE.
+GOAL_AT, GOAL_LEN = 112, 8
+#: s a servo takes to restart after REBOOT before it answers again
+REBOOT_WAIT = 0.5
+
+
+class XSeriesBackend(DynamixelBackend):
+    """A :class:`~control.backend.Backend` on X-series servos (protocol 2.0).
+
+    Args: as :class:`~hardware.dynamixel_backend.DynamixelBackend` (``torque_limit``:
+    the fraction of Current Limit, or of PWM Limit on a servo without current sensing,
+    the servos may use).
+    """
+
+    PROTOCOL = 2
+
+    def _baud_value(self, baud: float) -> int:
+        return self.table.from_si("baud_rate", baud)
+
+    def _layout(self) -> None:
+        spec = self.spec
+        self._alarms = [""] * self.map.n  #: the hardware error each servo reported
+        self.mode = OperatingMode.CURRENT_BASED_POSITION if spec.has_current \
+            else OperatingMode.POSITION
+        self.table.check_operating_mode(self.mode)
+        if spec.has_current:
+            self._limit_name, self._limit_raw = "goal_current", round(
+                self.torque_limit * self.table.item("current_limit").default)
+        else:
+            self._limit_name, self._limit_raw = "goal_pwm", round(
+                self.torque_limit * self.table.item("pwm_limit").default)
+
+    # -- Backend protocol ---------------------------------------------------
+
+    def read(self) -> JointState:
+        """One SYNC_READ of 126..135 -> joint positions, speeds, torques and alarms."""
+        data = self._guard(self.bus.sync_read, PRESENT_AT, PRESENT_LEN, list(self.map.ids))
+        s = self.spec
+        pos, vel, load, errors, alarms = [], [], [], [], []
+        for k, j in enumerate(self.map.joints):
+            raw = data[j.servo_id]
+            current = int.from_bytes(raw[0:2], "little", signed=True)
+            vel.append(s.raw_to_velocity(int.from_bytes(raw[2:6], "little", signed=True)))
+            pos.append(s.raw_to_position(int.from_bytes(raw[6:10], "little", signed=True)))
+            load.append(s.raw_to_torque(current))
+            err = self.bus.errors.get(j.servo_id, p2.StatusError())
+            errors.append(err.byte)
+            if err.alert and not self._shutdown[k]:  # asked once, told once
+                bits = self._guard(self.bus.read, j.servo_id, "hardware_error_status")
+                self._alarms[k] = p2.describe_hardware_error(bits)
+                self._shutdown[k] = True
+                log.warning("joint %s (servo %d): %s; its torque is off until a reboot",
+                            j.name, j.servo_id, self._alarms[k])
+            alarms.append(self._alarms[k] if err.alert else "")
+        signs = self.map.signs
+        return JointState(
+            t=time.monotonic() - self._t0,
+            position=self.map.to_joint(np.array(pos)),
+            velocity=signs * np.array(vel),
+            load=signs * np.array(load),
+            errors=tuple(errors),
+            torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
+            alarms=tuple(alarms),
+        )
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Clamp goals into the limits; send them with their profile velocities in one
+        SYNC_WRITE."""
+        q, v = self.checked_goal(position, speed)
+        goals, speeds = self.goal_words(q, v)
+        self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
+            {j.servo_id: (sp, g) for j, g, sp in zip(self.map.joints, goals, speeds,
+                                                     strict=True)}))
+
+    def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
+        """Raw goal positions and profile velocities for joint goals: clamped into
+        [lower, upper], then into each servo's Min..Max Position Limit (never outside).
+        A speed of 0 is Profile Velocity 0: no limit, as Moving Speed 0 on protocol 1.0."""
+        q = np.clip(position, self._lower, self._upper)
+        a = self.map.to_servo(q)
+        goals = [min(max(self.spec.position_to_raw(x), lo), hi)
+                 for x, lo, hi in zip(a, self._cw, self._ccw, strict=True)]
+        speeds = [0 if x == 0 else min(max(round(abs(x) / VELOCITY_UNIT), 1), vmax)
+                  for x, vmax in zip(speed, self._vmax, strict=True)]
+        return goals, speeds
+
+    def set_torque(self, on: bool) -> None:
+        """Torque on or off. A servo that shut down on a hardware error is REBOOTed first
+        (its RAM settings are written again); a servo whose torque was off gets its present
+        position (clamped) as goal at ``SAFE_SPEED``, so nothing jumps."""
+        ids = self.map.ids
+        if on:
+            down = [ids[k] for k in range(self.n) if self._shutdown[k]]
+            for i in down:
+                self._guard(self.bus.reboot, i)
+            if down:
+                time.sleep(REBOOT_WAIT)
+                for i in down:
+                    self._guard(self.bus.ping, i)
+                    self._ram_settings(i, [])
+            off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
+            if off:
+                here = self.read().position
+                goals, speeds = self.goal_words(here, np.full(self.n, SAFE_SPEED))
+                self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
+                    {ids[k]: (speeds[k], goals[k]) for k in off}))
+            self._sync_torque(ids, 1)
+            self._shutdown[:] = False
+        else:
+            self._sync_torque(ids, 0)
+        self._torque = bool(on)
+
+    # -- set-up -------------------------------------------------------------
+
+    def configure(self, *, from_baud: float | None = None) -> list[str]:
+        """The configuration sequence, one logged line per step (see the module docstring).
+        Returns the lines, also kept in :attr:`configuration`."""
+        lines: list[str] = []
+        mode_text = ("current-based position control" if self.mode ==
+                     OperatingMode.CURRENT_BASED_POSITION else "position control")
+        eeprom = [("return_delay_time", 0, "return delay 0 µs"),
+                  ("operating_mode", self.mode, f"operating mode {self.mode} ({mode_text})")]
+        self._sync_torque(self.map.ids, 0)
+        for j in self.map.joints:
+            i = j.servo_id
+            lines.append(f"servo {i} ({j.name}): torque off (EEPROM is written only then)")
+            for name, value, text in eeprom:
+                if self._guard(self.bus.read, i, name) == value:
+                    lines.append(f"servo {i} ({j.name}): {text} (already set)")
+                else:
+                    self._write_setting(i, name, value)
+                    lines.append(f"servo {i} ({j.name}): {text}")
+            self._ram_settings(i, lines, name=j.name)
+        target = self._baud_value(self.baud)
+        if from_baud is not None and self._baud_value(from_baud) != target:
+            for j in self.map.joints:
+                self._write_setting(j.servo_id, "baud_rate", target)
+                lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
+            time.sleep(0.01)
+            self._guard(self.bus.set_baud, self.baud)
+            for j in self.map.joints:
+                self._guard(self.bus.ping, j.servo_id)
+        else:
+            lines.append(f"all servos: baud {self.baud:.0f} bps (already set)")
+        for line in lines:
+            log.info(line)
+        self.configuration = lines
+        return lines
+
+    def _ram_settings(self, servo_id: int, lines: list[str], *, name: str = "") -> None:
+        """The RAM items (lost at a REBOOT): status return level, no profile limit, the
+        torque bound."""
+        who = f"servo {servo_id}" + (f" ({name})" if name else "")
+        limit_text = ("goal current" if self._limit_name == "goal_current" else "goal PWM")
+        for item, value, text in (
+                ("status_return_level", self.status_return_level_setting,
+                 f"status return level {self.status_return_level_setting}"),
+                ("profile_acceleration", 0, "profile acceleration 0 (no limit)"),
+                ("profile_velocity", 0, "profile velocity 0 (set with every goal)"),
+                (self._limit_name, self._limit_raw,
+                 f"{limit_text} {self.torque_limit:.0%} of its limit")):
+            self._write_setting(servo_id, item, value)
+            lines.append(f"{who}: {text}")
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit."""
+        self._cw = [int(self._guard(self.bus.read, i, "min_position_limit"))
+                    for i in self.map.ids]
+        self._ccw = [int(self._guard(self.bus.read, i, "max_position_limit"))
+                     for i in self.map.ids]
+        #: a profile velocity above Velocity Limit would be refused (Data Limit)
+        self._vmax = [int(self._guard(self.bus.read, i, "velocity_limit"))
+                      for i in self.map.ids]
+        return self._narrowed(self._cw, self._ccw)
+
+
+def _goal_data(values: dict[int, tuple[int, int]]) -> dict[int, bytes]:
+    """(profile velocity, goal position) per servo -> SYNC_WRITE chunks (4 + 4 bytes)."""
+    return {i: v.to_bytes(4, "little") + g.to_bytes(4, "little")
+            for i, (v, g) in values.items()}
+
+
+def open_servo_backend(model: SerialChain | Quadruped, port: str, *,
+                       joint_map: JointMap | str | Path | None = None,
+                       **kw: Any) -> DynamixelBackend:
+    """The backend for ``model``'s servos on ``port``: :class:`XSeriesBackend` when the
+    joint map names X-series servos (protocol 2.0), else :class:`DynamixelBackend`."""
+    if isinstance(joint_map, str | Path):
+        joint_map = load_joint_map(joint_map, model)
+    jmap = joint_map or default_joint_map(model)
+    if jmap.protocol == 2:
+        if isinstance(model, Quadruped):
+            raise BackendError("the X-series backend drives a serial arm, not the quadruped")
+        return XSeriesBackend(model, port, joint_map=jmap, **kw)
+    return DynamixelBackend(model, port, joint_map=jmap, **kw)
+
