@@ -68,6 +68,9 @@ class DynamixelBackend(GoalLimits):
             (the bus's :class:`~hardware.bus.BusError` translated, kept as its cause).
     """
 
+    #: the protocol of the servos this backend drives
+    PROTOCOL = 1
+
     def __init__(self, model: SerialChain | Quadruped, port: str, *, baud: float = 1_000_000,
                  joint_map: JointMap | str | Path | None = None, from_baud: float | None = None,
                  configure: bool = True, torque_limit: float = 1.0,
@@ -110,9 +113,6 @@ class DynamixelBackend(GoalLimits):
             raise ValueError("from_baud needs configure=True to switch the servos' baud")
         self._open(port, from_baud or baud, configure=configure, from_baud=from_baud)
         self._t0 = time.monotonic()
-
-    #: the protocol of the servos this backend drives
-    PROTOCOL = 1
 
     def _baud_value(self, baud: float) -> int:
         """The servos' Baud Rate value for ``baud``; ValueError for a rate they cannot take."""
@@ -342,8 +342,15 @@ class DynamixelBackend(GoalLimits):
                     line = f"servo {i} ({j.name}): {text}"
                 log.info(line)
                 lines.append(line)
-        target = value_from_baud(self.baud)
-        if from_baud is not None and value_from_baud(from_baud) != target:
+        self._switch_baud(from_baud, lines)
+        self.configuration = lines
+        return lines
+
+    def _switch_baud(self, from_baud: float | None, lines: list[str]) -> None:
+        """The last configuration step: servos answering at ``from_baud`` are told the
+        backend's baud and the bus follows them (one logged line each, added to ``lines``)."""
+        target = self._baud_value(self.baud)
+        if from_baud is not None and self._baud_value(from_baud) != target:
             for j in self.map.joints:
                 self._write_setting(j.servo_id, "baud_rate", target)
                 lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
@@ -355,8 +362,6 @@ class DynamixelBackend(GoalLimits):
         else:
             lines.append(f"all servos: baud {self.baud:.0f} bps (already set)")
             log.info(lines[-1])
-        self.configuration = lines
-        return lines
 
     def _write_setting(self, servo_id: int, name: str, value: int) -> None:
         self._guard(self.bus.write, servo_id, name, value)

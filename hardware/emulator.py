@@ -29,7 +29,7 @@ import time
 import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Protocol, TextIO
+from typing import Any, ClassVar, Protocol, Self, TextIO
 
 from hardware import protocol1 as p1
 from hardware import protocol2 as p2
@@ -44,12 +44,9 @@ from hardware.joint_map import default_joint_map
 from hardware.plant import Plant
 from hardware.quadruped_sim import BodyOnLegs
 from hardware.servo import ServoRegisters
-from hardware.servo_spec import RETURN_DELAY_UNIT, baud_from_value, value_from_baud
+from hardware.servo_spec import RETURN_DELAY_UNIT, value_from_baud
 from kinematics.model import Quadruped, SerialChain
 from kinematics.validate import scalar
-
-if TYPE_CHECKING:
-    from hardware.emulator_x import XServoNetwork
 
 TCGETS2 = 0x802C542A  #: _IOR('T', 0x2A, struct termios2) on Linux
 EMULATED_FIRMWARE = 24
@@ -77,28 +74,30 @@ def line_baud(master_fd: int) -> float | None:
 
 
 @dataclass
-class VirtualServo:
-    """One emulated servo: its control table image and what its firmware reports.
+class TableImage:
+    """What every emulated servo keeps, whatever its protocol: its model's control table
+    and the table's image.
 
     Attributes:
-        table: the model's control table (AX-12A or RX-24F).
-        memory: the 50-byte table image (addresses 0..49).
-        joint: index of the simulated servo this one is (see :class:`PlantPhysics`).
+        table: the model's control table.
+        memory: the table image (50 bytes on the AX-12A and RX-24F, 147 on the X-series).
+        joint: index of the simulated servo this one is (see the network's physics).
         pending: a REG_WRITE waiting for ACTION (address, data).
-        model_error: error bits the simulated firmware reports (overload).
     """
 
     table: ControlTable
     memory: bytearray
     joint: int
     pending: tuple[int, bytes] | None = None
-    model_error: int = 0
+
+    #: the firmware version the emulated servos report
+    FIRMWARE: ClassVar[int] = EMULATED_FIRMWARE
 
     @classmethod
     def new(cls, table: ControlTable, servo_id: int, joint: int, *, baud_value: int,
-            present_position: int = 512) -> VirtualServo:
+            present_position: int) -> Self:
         """A servo fresh from power-on with ID ``servo_id`` at EEPROM baud value ``baud_value``."""
-        mem = table.defaults(firmware=EMULATED_FIRMWARE, servo_id=servo_id,
+        mem = table.defaults(firmware=cls.FIRMWARE, servo_id=servo_id,
                              present_position=present_position, baud_value=baud_value)
         return cls(table, mem, joint)
 
@@ -109,24 +108,36 @@ class VirtualServo:
         """Set an item from the servo's side (present values, shutdown), bypassing access."""
         item = self.table.item(name)
         self.memory[item.address : item.address + item.size] = int(value).to_bytes(
-            item.size, "little")
+            item.size, "little", signed=item.signed)
 
     @property
     def servo_id(self) -> int:
-        return self.memory[3]
+        return self.get("id")
 
     @property
     def baud(self) -> float:
-        return baud_from_value(self.memory[4])
+        return self.table.to_si("baud_rate", self.get("baud_rate"))
 
     @property
     def return_delay(self) -> float:
         """s before the status packet (2 µs a unit, thesis §2.3)."""
-        return RETURN_DELAY_UNIT * self.memory[5]
+        return RETURN_DELAY_UNIT * self.get("return_delay_time")
 
     def hears(self, baud: float | None) -> bool:
         """Whether bytes at ``baud`` reach this servo's UART intact (None: unknown, yes)."""
         return baud is None or abs(baud - self.baud) <= BAUD_TOLERANCE * self.baud
+
+
+@dataclass
+class VirtualServo(TableImage):
+    """One emulated protocol-1.0 servo (AX-12A, RX-24F): its table image and what its
+    firmware reports.
+
+    Attributes:
+        model_error: error bits the simulated firmware reports (overload).
+    """
+
+    model_error: int = 0
 
     def answers(self, instruction: int) -> bool:
         """Status Return Level (address 16): 0 = PING only, 1 = + READ, 2 = all."""
@@ -219,18 +230,21 @@ class Physics(Protocol):
 
 
 @dataclass
-class ServoNetwork:
-    """The servos on one bus and how they answer instruction packets.
+class ServoBus:
+    """Emulated servos on one bus and the simulated plant that moves them. A protocol's
+    network (:class:`ServoNetwork`, :class:`hardware.emulator_x.XServoNetwork`) adds
+    ``protocol`` and how its servos answer instruction packets (``handle``,
+    ``checksum_error``): what :class:`PtyEmulator` serves.
 
     Attributes:
         servos: the emulated servos (IDs may change by WRITE or FACTORY_RESET).
         physics: the plant that moves them.
+        t: s of plant time reached.
     """
 
-    servos: list[VirtualServo]
-    physics: Physics
+    servos: list[Any]
+    physics: Any
     t: float = 0.0
-    protocol = 1  #: the protocol its servos speak (:mod:`hardware.emulator_x`: 2)
 
     def tick(self, t: float) -> None:
         """Advance the plant to ``t`` s and refresh every servo's present values."""
@@ -238,6 +252,16 @@ class ServoNetwork:
         self.physics.advance_to(t)
         for s in self.servos:
             self.physics.report(s)
+
+
+@dataclass
+class ServoNetwork(ServoBus):
+    """Protocol-1.0 servos (:class:`VirtualServo`) on one bus and how they answer
+    instruction packets."""
+
+    servos: list[VirtualServo]
+    physics: Physics
+    protocol = 1  #: the protocol its servos speak (:mod:`hardware.emulator_x`: 2)
 
     def handle(self, packet: p1.InstructionPacket, *, baud: float | None = None
                ) -> list[tuple[VirtualServo, bytes]]:
@@ -375,7 +399,7 @@ class PtyEmulator:
         log: text stream for one line per received (``rx``) and sent (``tx``) packet.
     """
 
-    network: ServoNetwork | XServoNetwork
+    network: ServoBus
     pace: bool = False
     faults: Faults = field(default_factory=Faults)
     echo: bool = False

@@ -22,20 +22,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
 from hardware import protocol2 as p2
+from hardware.emulator import ServoBus, TableImage
 from hardware.plant import Plant
 from hardware.protocol2 import ErrorNumber as E
 from hardware.protocol2 import Instruction as I
-from hardware.servo_spec import RETURN_DELAY_UNIT
-from hardware.xseries import BAUDS, TABLE_SIZE, OperatingMode, XControlTable, x_table_for
+from hardware.xseries import TABLE_SIZE, OperatingMode, x_table_for
 from hardware.xservo import XRegisters
 from kinematics.model import SerialChain
 
 #: The firmware version the emulated servos report (address 6).
 EMULATED_FIRMWARE = 46
-#: A UART still decodes bytes within about 3 % of its rate.
-BAUD_TOLERANCE = 0.03
 #: First RAM address: EEPROM is 0..63 (written only while Torque Enable is 0).
 RAM_START = 64
 #: (goal, its limit): a goal whose magnitude exceeds its limit gets the Data Limit error.
@@ -44,60 +43,20 @@ _GOAL_LIMITS = (("goal_current", "current_limit"), ("goal_pwm", "pwm_limit"),
 
 
 @dataclass
-class XVirtualServo:
-    """One emulated X-series servo: its control-table image and its firmware's state.
+class XVirtualServo(TableImage):
+    """One emulated X-series servo: its 147-byte table image (``table`` an
+    :class:`~hardware.xseries.XControlTable`) and its firmware's state.
 
     Attributes:
-        table: the model's control table.
-        memory: the 147-byte table image.
-        joint: index of the simulated servo this one is (see :class:`XPlantPhysics`).
-        pending: a REG_WRITE waiting for ACTION (address, data).
         hardware_error: Hardware Error Status the simulated firmware reports.
     """
 
-    table: XControlTable
-    memory: bytearray
-    joint: int
-    pending: tuple[int, bytes] | None = None
     hardware_error: int = 0
-
-    @classmethod
-    def new(cls, table: XControlTable, servo_id: int, joint: int, *, baud_value: int,
-            present_position: int) -> XVirtualServo:
-        """A servo fresh from power-on with ID ``servo_id`` at baud value ``baud_value``."""
-        mem = table.defaults(firmware=EMULATED_FIRMWARE, servo_id=servo_id,
-                             present_position=present_position, baud_value=baud_value)
-        return cls(table, mem, joint)
-
-    def get(self, name: str) -> int:
-        return self.table.value_at(self.memory, name)
-
-    def put(self, name: str, value: int) -> None:
-        """Set an item from the servo's side (present values), bypassing access."""
-        item = self.table.item(name)
-        self.memory[item.address : item.address + item.size] = int(value).to_bytes(
-            item.size, "little", signed=item.signed)
-
-    @property
-    def servo_id(self) -> int:
-        return self.memory[7]
-
-    @property
-    def baud(self) -> float:
-        return float(BAUDS[self.memory[8]])
-
-    @property
-    def return_delay(self) -> float:
-        """s before the status packet (2 µs a unit)."""
-        return RETURN_DELAY_UNIT * self.memory[9]
-
-    def hears(self, baud: float | None) -> bool:
-        """Whether bytes at ``baud`` reach this servo's UART intact (None: unknown, yes)."""
-        return baud is None or abs(baud - self.baud) <= BAUD_TOLERANCE * self.baud
+    FIRMWARE: ClassVar[int] = EMULATED_FIRMWARE
 
     def answers(self, instruction: int) -> bool:
         """Status Return Level (address 68): 0 = PING only, 1 = + READs, 2 = all."""
-        level = self.memory[68]
+        level = self.get("status_return_level")
         if instruction == I.PING:
             return True
         if instruction in (I.READ, I.SYNC_READ, I.BULK_READ):
@@ -119,7 +78,7 @@ class XVirtualServo:
         """The error number refusing ``data`` at ``address`` (0: accepted)."""
         if not data or address + len(data) > TABLE_SIZE:
             return E.ACCESS
-        torque_on = self.memory[64] == 1
+        torque_on = self.get("torque_enable") == 1
         image = bytearray(self.memory)
         image[address : address + len(data)] = data
         touched = {}
@@ -165,7 +124,7 @@ class XVirtualServo:
         """REBOOT: the RAM back to its power-on values (torque off), the error cleared."""
         present = self.get("present_position")
         fresh = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=self.servo_id,
-                                    present_position=present, baud_value=self.memory[8])
+                                    present_position=present, baud_value=self.get("baud_rate"))
         self.memory[RAM_START:] = fresh[RAM_START:]
         self.pending = None
         self.hardware_error = 0
@@ -175,7 +134,7 @@ class XVirtualServo:
         and the baud rate)."""
         keep_id = self.servo_id if level in (p2.ResetLevel.KEEP_ID,
                                              p2.ResetLevel.KEEP_ID_AND_BAUD) else 1
-        keep_baud = self.memory[8] if level == p2.ResetLevel.KEEP_ID_AND_BAUD else None
+        keep_baud = self.get("baud_rate") if level == p2.ResetLevel.KEEP_ID_AND_BAUD else None
         present = self.get("present_position")
         self.memory[:] = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=keep_id,
                                              present_position=present, baud_value=keep_baud)
@@ -223,26 +182,13 @@ class XPlantPhysics:
 
 
 @dataclass
-class XServoNetwork:
-    """X-series servos on one bus and how they answer protocol-2.0 instruction packets
-    (the interface :class:`hardware.emulator.PtyEmulator` serves).
-
-    Attributes:
-        servos: the emulated servos (IDs may change by WRITE or FACTORY_RESET).
-        physics: the plant that moves them.
-    """
+class XServoNetwork(ServoBus):
+    """X-series servos (:class:`XVirtualServo`) on one bus and how they answer protocol-2.0
+    instruction packets (the interface :class:`hardware.emulator.PtyEmulator` serves)."""
 
     servos: list[XVirtualServo]
     physics: XPlantPhysics
-    t: float = 0.0
     protocol = 2
-
-    def tick(self, t: float) -> None:
-        """Advance the plant to ``t`` s and refresh every servo's present values."""
-        self.t = t
-        self.physics.advance_to(t)
-        for s in self.servos:
-            self.physics.report(s)
 
     def handle(self, packet: p2.InstructionPacket, *, baud: float | None = None
                ) -> list[tuple[XVirtualServo, bytes]]:
@@ -267,7 +213,8 @@ class XServoNetwork:
 
     def _execute(self, s: XVirtualServo, inst: int, params: bytes) -> tuple[int, bytes]:
         if inst == I.PING:
-            return 0, bytes(s.memory[0:2]) + bytes((s.memory[6],))
+            return 0, s.get("model_number").to_bytes(2, "little") + bytes(
+                (s.get("firmware_version"),))
         if inst == I.READ:
             if len(params) != 4:
                 return E.DATA_LENGTH, b""
@@ -301,7 +248,7 @@ class XServoNetwork:
         if inst == I.FACTORY_RESET:
             if len(params) != 1 or params[0] not in tuple(p2.ResetLevel):
                 return E.DATA_RANGE, b""
-            if s.memory[64]:
+            if s.get("torque_enable"):
                 return E.ACCESS, b""  # EEPROM: torque must be off
             s.factory_reset(params[0])
             self.physics.apply(s)

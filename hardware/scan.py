@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from hardware import protocol1 as p1
 from hardware import protocol2 as p2
 from hardware.bus import Bus, BusError, NoReply, is_pty, reply_timeout
-from hardware.control_table import TABLES
+from hardware.control_table import TABLES, ControlTable
 from hardware.protocol1 import wire_time
 from hardware.servo_spec import RETURN_DELAY_UNIT
 from hardware.xseries import X_TABLES
@@ -153,16 +153,18 @@ def _describe2(bus: Bus, servo_id: int, baud: float, status: p2.StatusPacket) ->
         ccw, cw = (int.from_bytes(limits[k:k + 4], "little") for k in (0, 4))
     except BusError:  # answers PING but not READ (status return level 0)
         baud_value, cw, ccw = 0, 0, 0
-    if table is not None:
-        cw_deg = math.degrees(table.spec.raw_to_position(cw))
-        ccw_deg = math.degrees(table.spec.raw_to_position(ccw))
-    else:
-        cw_deg = ccw_deg = float("nan")
     return Found(
         servo_id=servo_id, model_number=model_number,
         model=table.name if table is not None else "unknown", firmware=status.params[2],
         baud=float(baud), baud_value=baud_value, cw_limit=cw, ccw_limit=ccw,
-        cw_limit_deg=cw_deg, ccw_limit_deg=ccw_deg, error=status.error.byte, protocol=2)
+        cw_limit_deg=_degrees(table, cw), ccw_limit_deg=_degrees(table, ccw),
+        error=status.error.byte, protocol=2)
+
+
+def _degrees(table: ControlTable | None, raw: int) -> float:
+    """A raw position limit as a horn angle from the centre, degrees (NaN for a model the
+    lab does not know)."""
+    return float("nan") if table is None else math.degrees(table.spec.raw_to_position(raw))
 
 
 def _scan_protocol1(port: str, bauds: Sequence[float], ids: list[int], margin: float,
@@ -207,15 +209,10 @@ def _describe(bus: Bus, servo_id: int, baud: float, status: p1.StatusPacket) -> 
     table = TABLES.get(model_number)
     cw = int.from_bytes(head[6:8], "little")
     ccw = int.from_bytes(head[8:10], "little")
-    if table is not None:
-        cw_deg = math.degrees(table.spec.raw_to_position(cw))
-        ccw_deg = math.degrees(table.spec.raw_to_position(ccw))
-    else:
-        cw_deg = ccw_deg = float("nan")
     return Found(
         servo_id=servo_id, model_number=model_number,
         model=table.name if table is not None else "unknown",
         firmware=head[2], baud=float(baud),
-        baud_value=head[4], cw_limit=cw, ccw_limit=ccw, cw_limit_deg=cw_deg,
-        ccw_limit_deg=ccw_deg, error=int(status.error),
+        baud_value=head[4], cw_limit=cw, ccw_limit=ccw, cw_limit_deg=_degrees(table, cw),
+        ccw_limit_deg=_degrees(table, ccw), error=int(status.error),
     )

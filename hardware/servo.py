@@ -147,7 +147,34 @@ def compliance_duty(error: float, *, margin: int, slope: int, punch: int,
     return min(float(torque_limit), p + (e - margin) * (torque_limit - p) / effective_slope(slope))
 
 
-class ServoModel:
+class GearedMotor:
+    """The horn torque between firmware ticks, the same for every servo model: the
+    DC-motor line at the duty the firmware holds over the tick (``drive − damping · ω``,
+    set by each tick) minus gear friction (:attr:`params`)."""
+
+    params: ServoParams
+    #: Horn torque coefficients for the current tick: tau = drive - damping * omega.
+    drive: float = 0.0
+    damping: float = 0.0
+
+    def torque(self, velocity: float) -> float:
+        """Horn torque N·m at horn ``velocity`` rad/s: motor line minus gear friction."""
+        return self.drive - self.damping * velocity - self.friction(velocity)
+
+    def motor_torque(self, velocity: float) -> float:
+        """Motor torque at the horn (the torque–speed line at the present duty), N·m."""
+        return self.drive - self.damping * velocity
+
+    def friction(self, velocity: float) -> float:
+        """Gear-train friction torque opposing ``velocity`` (positive = resisting CCW), N·m."""
+        p = self.params
+        f = p.viscous_friction * velocity
+        if p.coulomb_friction:
+            f += p.coulomb_friction * math.tanh(velocity / p.friction_speed)
+        return f
+
+
+class ServoModel(GearedMotor):
     """One servo's firmware and motor.
 
     Args:
@@ -180,9 +207,6 @@ class ServoModel:
         self._shutdown = False
         self._angle_error = False
         self._moving = False
-        #: Horn torque coefficients for the current tick: tau = drive - damping * omega.
-        self.drive = 0.0
-        self.damping = 0.0
 
     # -- firmware tick ------------------------------------------------------
 
@@ -273,24 +297,6 @@ class ServoModel:
             self.regs.torque_limit = 0
             self._enabled = False
             self._duty = 0.0
-
-    # -- physics between ticks ---------------------------------------------
-
-    def torque(self, velocity: float) -> float:
-        """Horn torque N·m at horn ``velocity`` rad/s: motor line minus gear friction."""
-        return self.drive - self.damping * velocity - self.friction(velocity)
-
-    def motor_torque(self, velocity: float) -> float:
-        """Motor torque at the horn (the torque–speed line at the present duty), N·m."""
-        return self.drive - self.damping * velocity
-
-    def friction(self, velocity: float) -> float:
-        """Gear-train friction torque opposing ``velocity`` (positive = resisting CCW), N·m."""
-        p = self.params
-        f = p.viscous_friction * velocity
-        if p.coulomb_friction:
-            f += p.coulomb_friction * math.tanh(velocity / p.friction_speed)
-        return f
 
     # -- what the servo reports --------------------------------------------
 

@@ -172,19 +172,9 @@ class XSeriesBackend(DynamixelBackend):
                     self._write_setting(i, name, value)
                     lines.append(f"servo {i} ({j.name}): {text}")
             self._ram_settings(i, lines, name=j.name)
-        target = self._baud_value(self.baud)
-        if from_baud is not None and self._baud_value(from_baud) != target:
-            for j in self.map.joints:
-                self._write_setting(j.servo_id, "baud_rate", target)
-                lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
-            time.sleep(0.01)
-            self._guard(self.bus.set_baud, self.baud)
-            for j in self.map.joints:
-                self._guard(self.bus.ping, j.servo_id)
-        else:
-            lines.append(f"all servos: baud {self.baud:.0f} bps (already set)")
         for line in lines:
             log.info(line)
+        self._switch_baud(from_baud, lines)
         self.configuration = lines
         return lines
 

@@ -39,7 +39,7 @@ import math
 from dataclasses import dataclass
 
 from hardware.protocol2 import HardwareError
-from hardware.servo import ServoParams
+from hardware.servo import GearedMotor, ServoParams
 from hardware.xseries import (
     CENTRE,
     COUNTS,
@@ -144,10 +144,10 @@ class XReport:
     temperature: int
 
 
-class XServoModel:
+class XServoModel(GearedMotor):
     """One X-series servo's firmware and motor (the plant's interface of
-    :class:`hardware.servo.ServoModel`: :meth:`update`, ``drive``/``damping``,
-    :meth:`motor_torque`, :meth:`friction`, :meth:`report`).
+    :class:`hardware.servo.ServoModel`: :meth:`update`, ``drive``/``damping`` and the
+    torques of :class:`~hardware.servo.GearedMotor`, :meth:`report`).
 
     Args:
         spec: the datasheet (``hardware.xseries.XM430_W350`` etc.).
@@ -182,9 +182,6 @@ class XServoModel:
         self._stall_time = 0.0
         self._hardware_error = 0
         self._moving = False
-        #: Horn torque coefficients for the current tick: tau = drive - damping * omega.
-        self.drive = 0.0
-        self.damping = 0.0
 
     # -- firmware tick ------------------------------------------------------
 
@@ -324,24 +321,6 @@ class XServoModel:
         self._hardware_error = 0
         self._stall_time = 0.0
         self.regs.torque_enable = 0
-
-    # -- physics between ticks ---------------------------------------------
-
-    def torque(self, velocity: float) -> float:
-        """Horn torque N·m at horn ``velocity`` rad/s: motor line minus gear friction."""
-        return self.drive - self.damping * velocity - self.friction(velocity)
-
-    def motor_torque(self, velocity: float) -> float:
-        """Motor torque at the horn (the torque–speed line at the present duty), N·m."""
-        return self.drive - self.damping * velocity
-
-    def friction(self, velocity: float) -> float:
-        """Gear-train friction torque opposing ``velocity``, N·m."""
-        p = self.params
-        f = p.viscous_friction * velocity
-        if p.coulomb_friction:
-            f += p.coulomb_friction * math.tanh(velocity / p.friction_speed)
-        return f
 
     # -- what the servo reports --------------------------------------------
 
