@@ -1,4 +1,5 @@
-"""armlab beside its peers (``armlab bench --peers``): MuJoCo and Pinocchio on the same URDF.
+"""armlab beside its peers (``armlab bench --peers``): MuJoCo and Pinocchio on the same URDF,
+the official Dynamixel SDK on the same emulated servos.
 
 Everything runs in this process, on ``kinematics/robots/receptionist_arm.urdf`` (the
 thesis arm, three joints), armlab's figure measured in the same run as the peer's:
@@ -19,10 +20,17 @@ thesis arm, three joints), armlab's figure measured in the same run as the peer'
   law (PD on the joint, clipped at the RX-24F's stall torque) written into
   ``qfrc_applied`` before each ``mj_step``, against armlab's plant (its own RK4 and the
   RX-24F servo model, ``hardware.plant``).
+- ``peer_bus2_cycle_ms`` / ``armlab_bus2_cycle_ms``: one SYNC_READ of present current,
+  velocity and position (126..135) of the OpenManipulator-X's four XM430-W350 plus one
+  SYNC_WRITE of profile velocity and goal (112..119), protocol 2.0 at 1 Mbps on the same
+  paced emulator (``armlab emulate --pace --robot open_manipulator_x``, return delay 0
+  as the X-series backend configures it): the SDK's
+  ``GroupSyncRead.txRxPacket`` + ``GroupSyncWrite.txPacket`` against
+  ``hardware.bus.Bus.sync_read`` + ``sync_write``; medians over cycles.
 - ``ratio_*``: armlab's time over the peer's (below 1: armlab is faster).
 
-The peers are an optional extra (``pip install -e '.[bench]'``: ``mujoco`` and ``pin``),
-never a dependency of the lab.
+The peers are an optional extra (``pip install -e '.[bench]'``: ``mujoco``, ``pin`` and
+``dynamixel-sdk``), never a dependency of the lab.
 """
 
 from __future__ import annotations
@@ -42,14 +50,16 @@ from kinematics import load_robot
 from kinematics.dynamics import rnea
 from kinematics.ik import rmrc
 
-INSTALL = "pip install -e '.[bench]'  (MuJoCo and Pinocchio, for armlab bench --peers)"
+INSTALL = ("pip install -e '.[bench]'  (MuJoCo, Pinocchio and the Dynamixel SDK, for "
+           "armlab bench --peers)")
 TOL = 1e-4  #: m, the IK tolerance of both solvers
 
 
 def missing() -> list[str]:
     """The peer packages that cannot be imported here."""
     out = []
-    for module, package in (("mujoco", "mujoco"), ("pinocchio", "pin")):
+    for module, package in (("mujoco", "mujoco"), ("pinocchio", "pin"),
+                            ("dynamixel_sdk", "dynamixel-sdk")):
         try:
             __import__(module)
         except ImportError:
@@ -153,8 +163,65 @@ def run(quick: bool) -> dict[str, float]:
     out["peer_plant_steps_per_s"] = _cpu_rate(mujoco_step, steps, batches)
     out["armlab_plant_steps_per_s"] = _cpu_rate(backend.plant.step, steps, batches)
 
+    out.update(bus2_cycles(quick))
     out["ratio_rnea"] = out["armlab_rnea_us"] / out["peer_rnea_us"]
     out["ratio_ik"] = out["armlab_rmrc_us"] / out["peer_ik_us"]
     out["ratio_ik_set"] = out["armlab_rmrc_set_us"] / out["peer_ik_set_us"]
     out["ratio_plant"] = out["peer_plant_steps_per_s"] / out["armlab_plant_steps_per_s"]
+    out["ratio_bus2"] = out["armlab_bus2_cycle_ms"] / out["peer_bus2_cycle_ms"]
     return out
+
+
+def bus2_cycles(quick: bool) -> dict[str, float]:
+    """The protocol-2.0 group read + write cycle, armlab's bus then the SDK's, on one
+    paced emulator (see the module's docstring)."""
+    import dynamixel_sdk as sdk
+
+    from app.benches.bus import BAUD, paced_emulator
+    from hardware.bus import Bus
+    from hardware.xseries_backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
+
+    ids = [11, 12, 13, 14]
+    n = 300 if quick else 2000
+    goal = {i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}
+
+    def median_ms(cycle) -> float:  # noqa: ANN001
+        for _ in range(50):  # warm-up
+            cycle()
+        samples = []
+        for _ in range(n):
+            t0 = time.perf_counter()
+            cycle()
+            samples.append(time.perf_counter() - t0)
+        return float(np.median(samples) * 1e3)
+
+    with paced_emulator("--robot", "open_manipulator_x", "--baud", str(BAUD)) as port:
+        with Bus(port, BAUD, protocol=2, timeout_margin=0.1, retries=5) as bus:
+            for i in ids:  # as a configured arm: no 500 µs factory return delay
+                bus.write(i, "return_delay_time", 0)
+
+            def armlab_cycle() -> None:
+                bus.sync_read(PRESENT_AT, PRESENT_LEN, ids)
+                bus.sync_write(GOAL_AT, GOAL_LEN, goal)
+
+            armlab_ms = median_ms(armlab_cycle)
+        handler = sdk.PortHandler(port)
+        if not handler.openPort() or not handler.setBaudRate(BAUD):
+            raise RuntimeError(f"the Dynamixel SDK could not open {port}")
+        try:
+            packets = sdk.PacketHandler(2.0)
+            reader = sdk.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
+            writer = sdk.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
+            for i in ids:
+                reader.addParam(i)
+                writer.addParam(i, list(goal[i]))
+
+            def sdk_cycle() -> None:
+                if reader.txRxPacket() != sdk.COMM_SUCCESS:
+                    raise RuntimeError("the SDK's SYNC_READ failed")
+                writer.txPacket()
+
+            peer_ms = median_ms(sdk_cycle)
+        finally:
+            handler.closePort()
+    return {"armlab_bus2_cycle_ms": armlab_ms, "peer_bus2_cycle_ms": peer_ms}
