@@ -33,8 +33,14 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
             from hardware.quadruped_sim import QuadrupedSimBackend
 
             return QuadrupedSimBackend(model, **kw)
+        from hardware.joint_map import default_servo, servo_table
         from hardware.sim_backend import SimBackend
 
+        spec = servo_table(default_servo(model.name)).spec
+        if spec.protocol == 2 and "specs" not in kw:  # an arm that ships with X-series servos
+            from hardware.xseries_sim import XSimBackend
+
+            return XSimBackend(model, spec=spec, **kw)  # type: ignore[arg-type]
         return SimBackend(model, **kw)
     if kind == "serial":
         if port is None:

@@ -127,11 +127,15 @@ class SimBackend(GoalLimits):
         q_start = model.neutral() if q0 is None else vector("q0", q0, n)
         regs = sim_registers(spec_list, dirs, self._lower, self._upper, q_start,
                              torque_on=torque_on)
-        self.plant = Plant(model, spec_list, dt=dt, q0=q0, directions=dirs, params=params,
-                           registers=regs)
-        self.specs = tuple(spec_list)
-        self.directions = tuple(dirs)
+        self._init_plant(Plant(model, spec_list, dt=dt, q0=q0, directions=dirs, params=params,
+                               registers=regs), spec_list, dirs)
         self._torque_limits = tuple(r.torque_limit for r in regs)
+
+    def _init_plant(self, plant: Plant, specs: Sequence, directions: Sequence[float]) -> None:
+        """Hold ``plant``, its servos' datasheets and directions (the end of opening)."""
+        self.plant = plant
+        self.specs = tuple(specs)
+        self.directions = tuple(directions)
         self._lock = threading.RLock()
         self._closed = False
 
