@@ -247,12 +247,19 @@ class HeadlessClient:
     # -- queries and actions ------------------------------------------------------------
 
     def find(self, label: str, kind: str | None = None) -> GuiElement:
-        """The GUI element labelled ``label`` (and of message type ``kind``, if given)."""
+        """The GUI element labelled ``label`` (and of message type ``kind``, if given);
+        KeyError when the page has none (yet: wait with :meth:`shows`)."""
         with self._lock:
             for el in self.gui.values():
                 if el.label == label and (kind is None or el.kind == kind):
                     return el
         raise KeyError(f"no GUI element labelled {label!r}")
+
+    def shows(self, label: str, kind: str | None = None) -> bool:
+        """Whether the page has a GUI element labelled ``label`` (of type ``kind``)."""
+        with self._lock:
+            return any(el.label == label and (kind is None or el.kind == kind)
+                       for el in self.gui.values())
 
     def send(self, message: dict[str, Any]) -> None:
         """Send one client->server message (a dict with its ``type``)."""
@@ -312,11 +319,16 @@ class HeadlessClient:
 
     def wait_for(self, predicate: Callable[[], bool], timeout: float = 60.0,
                  what: str = "condition") -> None:
-        """Poll ``predicate`` until true (TimeoutError naming ``what`` otherwise)."""
+        """Poll ``predicate`` until true (TimeoutError naming ``what`` otherwise). A
+        :meth:`find` of an element the page does not have yet (KeyError) counts as not yet
+        true: on a busy machine the page's controls may arrive after the first poll."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             with self._lock:
-                ok = predicate()
+                try:
+                    ok = predicate()
+                except KeyError:
+                    ok = False
             if ok:
                 return
             time.sleep(0.02)

@@ -111,7 +111,7 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
             assert lab.lesson_name == "arm" and lesson.model.joint_names == ("yaw", "elbow")
             assert lesson.backend.map.ids == (21, 22)
             with client_of(lab.server, token=lab.token) as client:
-                client.wait_for(lambda: client.find("elbow °") is not None, 30.0,
+                client.wait_for(lambda: client.shows("elbow °"), 60.0,
                                 "the elbow slider")
                 client.set_value("elbow °", 40.0)
 

@@ -130,7 +130,7 @@ def test_the_lab_on_open_manipulator_x_scan_map_serve_slider_reaches_the_servos(
             lesson = lab.lesson
             assert isinstance(lesson.backend, XSeriesBackend)
             with client_of(lab.server, token=lab.token) as client:
-                client.wait_for(lambda: client.find("joint2 °") is not None, 30.0,
+                client.wait_for(lambda: client.shows("joint2 °"), 60.0,
                                 "the joint2 slider")
                 client.set_value("joint2 °", 25.0)
 
