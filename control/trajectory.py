@@ -172,8 +172,21 @@ def cartesian_to_joint(model: SerialChain, points: np.ndarray, q0: np.ndarray, *
     return JointTrajectory.from_positions(np.arange(len(points)) * dt, out, name)
 
 
+#: Robot -> (start, end (3,) m in its base frame, a start guess (n,) rad) of its chapter-4
+#: line, 20 cm: the thesis's for its arm; across the OpenManipulator-X's front, 20 cm ahead
+#: of its base and 15 cm up, for the same experiment on an arm a school owns.
+LINES = {
+    "open_manipulator_x": (np.array([0.20, -0.10, 0.15]), np.array([0.20, 0.10, 0.15]),
+                           np.array([-0.46, 0.0, 0.3, 0.3])),
+}
+
+
 def thesis_line(model: SerialChain, *, step: float = THESIS_STEP,
                 period: float = THESIS_PERIOD) -> JointTrajectory:
-    """The chapter-4 line: 20 cm along y at 2.5 mm per 16 ms sample (81 samples, 1.28 s)."""
-    pts = line_points(THESIS_LINE_START, THESIS_LINE_END, step)
-    return cartesian_to_joint(model, pts, THESIS_Q_GUESS, dt=period, name="thesis 20 cm line")
+    """The chapter-4 line: 20 cm along y at 2.5 mm per 16 ms sample (81 samples, 1.28 s);
+    the thesis's, or the model's own from :data:`LINES`."""
+    start, end, guess = LINES.get(model.name, (THESIS_LINE_START, THESIS_LINE_END,
+                                               THESIS_Q_GUESS))
+    pts = line_points(start, end, step)
+    name = "thesis 20 cm line" if model.name not in LINES else f"{model.name} 20 cm line"
+    return cartesian_to_joint(model, pts, guess, dt=period, name=name)
