@@ -154,6 +154,13 @@ FACTORY = {
                    "shutdown": 53, "velocity_i_gain": 1600, "velocity_p_gain": 180,
                    "position_d_gain": 0, "position_i_gain": 0, "position_p_gain": 400},
 }
+#: Position D Gain (address 80) the backends write in Current-based Position Control.
+#: There the servo's current loop cancels its motor's back-EMF, the damping the arm has
+#: in (PWM) Position Control, and with the factory D gain 0 an arm under the compliance
+#: loop rings: the thesis gains on the simulated OpenManipulator-X swing its shoulder by
+#: 20° peak to peak while holding, and by about 1.2° with this gain (the X firmware model
+#: in ``hardware.xservo``; 200 is too little, 2000 no better).
+CURRENT_POSITION_D_GAIN = 800
 #: Largest Velocity Limit (address 44) each model takes.
 VELOCITY_LIMIT_MAX = {"XL430-W250": 1023, "XM430-W350": 1023, "XL330-M288": 2047}
 

@@ -6,10 +6,11 @@ the X-series do differently:
 
 - :meth:`XSeriesBackend.configure`: torque off (EEPROM is written only then), return
   delay 0, operating mode (current-based position control where the servo measures its
-  current, so Goal Current bounds its torque; position control on the XL430), status
-  return level, no profile limits (the controller sends a speed with every goal),
-  Goal Current or Goal PWM at ``torque_limit``, baud. Logged step by step; EEPROM
-  items are written only when they differ;
+  current, so Goal Current bounds its torque, with a Position D Gain for the damping the
+  current loop takes away; position control on the XL430), status return level, no
+  profile limits (the controller sends a speed with every goal), Goal Current or Goal
+  PWM at ``torque_limit``, baud. Logged step by step; EEPROM items are written only when
+  they differ;
 - :meth:`read`: one SYNC_READ of Present Current, Velocity and Position (addresses
   126..135) for every servo; the torque is current × the servo's torque constant, or
   Present Load × stall torque on a servo without current sensing;
@@ -32,7 +33,7 @@ from control.backend import BackendError, JointState
 from hardware import protocol2 as p2
 from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
-from hardware.xseries import VELOCITY_UNIT, OperatingMode
+from hardware.xseries import CURRENT_POSITION_D_GAIN, VELOCITY_UNIT, OperatingMode
 from kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.xseries")
@@ -183,13 +184,17 @@ class XSeriesBackend(DynamixelBackend):
         torque bound."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
         limit_text = ("goal current" if self._limit_name == "goal_current" else "goal PWM")
-        for item, value, text in (
-                ("status_return_level", self.status_return_level_setting,
-                 f"status return level {self.status_return_level_setting}"),
-                ("profile_acceleration", 0, "profile acceleration 0 (no limit)"),
-                ("profile_velocity", 0, "profile velocity 0 (set with every goal)"),
-                (self._limit_name, self._limit_raw,
-                 f"{limit_text} {self.torque_limit:.0%} of its limit")):
+        settings = [("status_return_level", self.status_return_level_setting,
+                     f"status return level {self.status_return_level_setting}"),
+                    ("profile_acceleration", 0, "profile acceleration 0 (no limit)"),
+                    ("profile_velocity", 0, "profile velocity 0 (set with every goal)"),
+                    (self._limit_name, self._limit_raw,
+                     f"{limit_text} {self.torque_limit:.0%} of its limit")]
+        if self.mode == OperatingMode.CURRENT_BASED_POSITION:
+            settings.append(("position_d_gain", CURRENT_POSITION_D_GAIN,
+                             f"position D gain {CURRENT_POSITION_D_GAIN} (the damping "
+                             "the current loop takes away)"))
+        for item, value, text in settings:
             self._write_setting(servo_id, item, value)
             lines.append(f"{who}: {text}")
 

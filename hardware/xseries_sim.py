@@ -3,11 +3,12 @@
 The simulated counterpart of :class:`hardware.xseries_backend.XSeriesBackend`, as
 :class:`hardware.sim_backend.SimBackend` is of the protocol-1.0 backend: the servos are
 :class:`hardware.xservo.XServoModel` firmware in the plant, configured as the X-series
-backend configures real ones (current-based position control where the servo senses
-its current, Goal Current or Goal PWM as the torque bound, no profile limits, Min/Max
-Position Limit at the joint limits); goals go in as Goal Position and Profile Velocity
-counts, readings come back as the servos report them (4096 counts a turn, 0.229 rpm,
-the current's or the load's unit) and are decoded with the same conversions.
+backend configures real ones (current-based position control where the servo senses its
+current, with Goal Current as the torque bound and a Position D Gain, else Goal PWM; no
+profile limits, Min/Max Position Limit at the joint limits); goals go in as Goal
+Position and Profile Velocity counts, readings come back as the servos report them (4096
+counts a turn, 0.229 rpm, the current's or the load's unit) and are decoded with the
+same conversions.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from control.backend import JointState
 from hardware import protocol2 as p2
+from hardware import xseries
 from hardware.plant import Plant
 from hardware.servo import ServoParams
 from hardware.sim_backend import SimBackend
@@ -49,6 +51,7 @@ def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
                            else OperatingMode.POSITION)
     if spec.has_current:
         regs.goal_current = round(torque_limit * regs.current_limit)
+        regs.position_d_gain = xseries.CURRENT_POSITION_D_GAIN
     else:
         regs.goal_pwm = round(torque_limit * regs.pwm_limit)
     regs.min_position_limit, regs.max_position_limit = min_limit, max_limit

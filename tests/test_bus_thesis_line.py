@@ -1,11 +1,8 @@
-"""The thesis-line compliance experiment end to end through the serial backend + emulator.
+"""The thesis-line compliance experiment end to end through DynamixelBackend + emulator.
 
 The same ``control.experiments.thesis.run_line`` (ControlLoop, compliance law,
 16 ms period) drives once the emulated servos over a real pty and once the
-simulated backend; the emulated arm's angles must follow the simulated ones. Two arms:
-the thesis's (three RX-24F, protocol 1.0, DynamixelBackend / SimBackend) and the
-OpenManipulator-X on its 20 cm line (four XM430-W350, protocol 2.0, XSeriesBackend /
-XSimBackend).
+SimBackend; the emulated arm's angles must follow the simulated ones.
 """
 
 from __future__ import annotations
@@ -24,22 +21,11 @@ from control.params import preset
 from hardware.dynamixel_backend import DynamixelBackend
 from hardware.servo_spec import RX24F
 from hardware.sim_backend import SimBackend
-from hardware.xseries import XM430_W350
-from hardware.xseries_backend import XSeriesBackend
-from hardware.xseries_sim import XSimBackend
 from kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 
 ARM = load_robot("receptionist_arm")
-OMX = load_robot("open_manipulator_x")
-#: robot -> (emulator arguments, serial backend, simulated backend, position count in rad)
-ARMS = {
-    "receptionist_arm": (ARM, (), DynamixelBackend, SimBackend, RX24F.position_unit),
-    "open_manipulator_x": (OMX, ("--robot", "open_manipulator_x"), XSeriesBackend,
-                           lambda model, **kw: XSimBackend(model, spec=XM430_W350, **kw),
-                           XM430_W350.position_unit),
-}
 PRE = 2.0  # s to bring the arm from hanging (q = 0) to the line's start before the run
 #: counts outside the one-period band. The compliance loop feeds the quantised load back,
 #: so two *simulated* runs that differ by one count at the start or 1 ms of actuation delay
@@ -81,23 +67,21 @@ ATTEMPTS = 3
 STALL_FAULT_S = 0.5
 
 
-def _emulated_run(robot, params, start):
+def _emulated_run(params, start):
     """One thesis-line run through a fresh emulator; returns (run, worst stall in s), the
     run None when the loop stopped on a fault after a stall longer than its lag limit
     (the shared machine held it back: the arm fell behind its reference)."""
-    model, args, backend, _, _ = ARMS[robot]
     nice = os.getpriority(os.PRIO_PROCESS, 0)
-    with emulator(*args) as emu:
+    with emulator() as emu:
         # generous retries: a stall of the shared machine must show as lateness, not a fault
-        serial = backend(model, emu.port, timeout_margin=0.1, retries=10)
-        serial.set_torque(True)  # the emulated arm hangs with torque off
-        serial.write(start, np.full(model.n, 2.0))
+        serial = DynamixelBackend(ARM, emu.port, timeout_margin=0.1, retries=10)
+        serial.set_torque(True)  # the emulated arm hangs at q = 0 with torque off
+        serial.write(start, np.full(3, 2.0))
         time.sleep(PRE)
         with contextlib.suppress(OSError):  # a real-time loop, like the lab PC's (needs root)
             os.setpriority(os.PRIO_PROCESS, 0, -10)
         try:
-            emu_run = run_line(model, lambda model, **kw: serial, params,
-                               controller="compliance")
+            emu_run = run_line(ARM, lambda model, **kw: serial, params, controller="compliance")
         except ValueError as exc:  # the loop stopped on a fault
             if serial.late_max > STALL_FAULT_S:
                 return None, serial.late_max
@@ -113,23 +97,21 @@ def _emulated_run(robot, params, start):
     return emu_run, max(serial.late_max, slipped)
 
 
-@pytest.mark.parametrize("robot", sorted(ARMS))
-def test_thesis_line_through_the_emulator_matches_the_simulator(robot):
-    model, _, _, simulated, count = ARMS[robot]
-    plan, t0, t1 = line_plan(model)
+def test_thesis_line_through_the_emulator_matches_the_simulator():
+    plan, t0, t1 = line_plan(ARM)
     params = preset("well-damped default")
     start = plan.q[0]
     for _ in range(ATTEMPTS):
-        emu_run, stall = _emulated_run(robot, params, start)
+        emu_run, stall = _emulated_run(params, start)
         if emu_run is not None and stall <= params.period:
             break
     if emu_run is None:
         pytest.skip(f"in {ATTEMPTS} runs the shared machine stalled the real-time loop by at "
                     f"least {stall * 1e3:.0f} ms: it stopped on a tracking fault")
-    sim = simulated(model)  # the same pre-positioning in simulated time
-    sim.write(start, np.full(model.n, 2.0))
+    sim = SimBackend(ARM)  # hanging at q = 0, the same pre-positioning in simulated time
+    sim.write(start, np.full(3, 2.0))
     sim.sync(PRE)
-    sim_run = run_line(model, lambda model, **kw: _SimAfter(sim, PRE), params,
+    sim_run = run_line(ARM, lambda model, **kw: _SimAfter(sim, PRE), params,
                        controller="compliance")
     e, s = emu_run.snapshot, sim_run.snapshot
     n = min(len(e["t"]), len(s["t"]))
@@ -146,9 +128,6 @@ def test_thesis_line_through_the_emulator_matches_the_simulator(robot):
     m = n - 2 * k
     window = np.stack([qs[j : j + m] for j in range(2 * k + 1)])
     outside = np.maximum(window.min(axis=0) - qe[k : k + m], qe[k : k + m] - window.max(axis=0))
-    # in the thesis servos' counts (0.29°) for both arms: the X-series count is 0.088°
     counts = outside.max(axis=0) / RX24F.position_unit
     assert np.all(counts <= TOLERANCE_COUNTS + 1e-6), (
-        f"emulated angles leave the simulated ones by {counts} counts "
-        f"({np.degrees(outside.max(axis=0))}°; the {robot}'s count is "
-        f"{np.degrees(count):.3f}°)")
+        f"emulated angles leave the simulated ones by {counts} counts")

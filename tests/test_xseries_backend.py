@@ -25,7 +25,7 @@ from app.backends import make_backend
 from app.server import Lab, ServeOptions
 from hardware import protocol2 as p2
 from hardware.bus import Bus
-from hardware.xseries import CENTRE, OperatingMode
+from hardware.xseries import CENTRE, CURRENT_POSITION_D_GAIN, OperatingMode
 from hardware.xseries_backend import XSeriesBackend
 from kinematics.model import load_robot
 
@@ -65,12 +65,14 @@ def test_configured_then_it_moves_reports_torque_and_stops(tmp_path):
             assert isinstance(b, XSeriesBackend) and b.n == 4
             text = "\n".join(b.configuration)
             for step in ("torque off", "return delay 0", "operating mode 5 (current-based",
-                         "status return level 1", "goal current 100%", "baud 1000000"):
+                         "status return level 1", "goal current 100%", "position D gain 800",
+                         "baud 1000000"):
                 assert step in text
             for i in IDS:
                 assert b.bus.read(i, "operating_mode") == OperatingMode.CURRENT_BASED_POSITION
                 assert b.bus.read(i, "return_delay_time") == 0
                 assert b.bus.read(i, "goal_current") == 1193
+                assert b.bus.read(i, "position_d_gain") == CURRENT_POSITION_D_GAIN
             sent = _requests(b)
             state = b.read()
             assert _requests(b) == sent + 1  # one SYNC_READ for four servos
