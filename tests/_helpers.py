@@ -111,3 +111,18 @@ def client_of(server: viser.ViserServer, *, timeout: float = 30.0,
         client.wait_for(lambda: bool(set(server.get_clients()) - before), timeout,
                         "the server to register the client")
         yield client
+
+
+def settled(server: viser.ViserServer, page: HeadlessClient, timeout: float = 60.0) -> None:
+    """Return once ``page`` holds every control ``server`` had made before this call.
+
+    One websocket carries the server's messages in order: a marker added now arrives after
+    all of them (then it is removed again)."""
+    marker = f"settled {time.monotonic_ns()}"
+    handle = server.gui.add_markdown(marker)
+    try:
+        page.wait_for(lambda: any(e.props.get("_markdown") == marker
+                                  for e in list(page.gui.values())),
+                      timeout, "the page to receive the controls made before it")
+    finally:
+        handle.remove()

@@ -13,7 +13,7 @@ import re
 
 import pytest
 from _browser_style import chart_props
-from _helpers import served_lesson
+from _helpers import served_lesson, settled
 
 from app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
 from app.plots import COLORS, distinct_styles
@@ -67,8 +67,7 @@ def test_lines_of_one_kind_differ_in_dash(module, robot, pattern):
 def test_every_chart_tells_its_lines_apart_without_colour(lesson):
     with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab, \
             HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
-        page.wait_for(lambda: any(e.label == "E-STOP" for e in page.gui.values()),
-                      what="the page")
+        settled(lab.server, page)
         charts = [dict(e.props) for e in page.gui.values() if e.kind == "GuiUplotMessage"]
     for chart in charts:
         lines = chart["series"][1:]
