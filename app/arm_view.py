@@ -28,6 +28,8 @@ from kinematics.urdf import resolve_resource, warn_missing_once
 
 #: Colour of a link drawn without its mesh (collision shape or capsule).
 FALLBACK_RGB = (150, 150, 160)
+#: Colour of a link drawn see-through (:meth:`ArmView.see_through`).
+SEE_THROUGH_RGB = (190, 190, 200)
 #: Radius of the capsule drawn between joint frames for a link with no usable shape (m).
 CAPSULE_RADIUS = 0.015
 
@@ -69,6 +71,7 @@ class ArmView:
         if model.urdf_path is None:
             raise ValueError("model: has no urdf_path to draw")
         self.model = model
+        self._scene = server.scene
         self.root = server.scene.add_frame(root, show_axes=False)
         urdf_path = Path(model.urdf_path)
         package_paths = tuple(getattr(model, "package_paths", ()))
@@ -111,6 +114,12 @@ class ArmView:
         self.q = np.full(len(names), np.nan)
         self.set_q(np.zeros(len(names)) if isinstance(model, Quadruped) else model.neutral())
 
+    @property
+    def moving_root(self) -> str:
+        """Scene name of the first moving joint's frame: everything that moves hangs from
+        it (a camera framing the arm itself, not the body it stands on, frames this)."""
+        return self._moving[0][0].name if self._moving else self.root.name
+
     def set_q(self, q: np.ndarray) -> None:
         """Pose the robot at joint vector ``q`` (n,), rad (m for prismatic joints)."""
         q = np.asarray(q, dtype=float)
@@ -124,6 +133,30 @@ class ArmView:
                 h = 0.5 * qi
                 frame.wxyz = _quat_mul(q0, np.array([math.cos(h), *(math.sin(h) * axis)]))
         self.q = q.copy()
+
+    def see_through(self, link: str, *, opacity: float = 0.25) -> bool:
+        """Draw ``link`` translucent, so that links behind it show (a body the arm stands
+        on): its own meshes are hidden and its visual shapes drawn again, grey, at
+        ``opacity``. False if the robot has no such link or nothing of it to draw."""
+        frame = self.link_frames.get(link)
+        robot = self._urdf._urdf.robot
+        visuals = next((lk.visuals for lk in robot.links if lk.name == link), [])
+        if frame is None or not visuals:
+            return False
+        urdf_path = Path(self.model.urdf_path)
+        package_paths = tuple(getattr(self.model, "package_paths", ()))
+        shapes = [m for v in visuals
+                  if (m := _shape(v.geometry, v.origin, urdf_path, package_paths)) is not None]
+        if not shapes:
+            return False
+        for mesh in self._urdf._meshes:
+            if mesh.name.rsplit("/", 1)[0] == frame.name:
+                mesh.visible = False
+        mesh = trimesh.util.concatenate(shapes)
+        self._scene.add_mesh_simple(
+            f"{frame.name}/see_through", mesh.vertices, mesh.faces, color=SEE_THROUGH_RGB,
+            opacity=opacity, side="double")
+        return True
 
     def remove(self) -> None:
         self.root.remove()

@@ -1,24 +1,27 @@
-"""Pointing the 3D view: the starting camera of new pages and of the pages already open.
+"""Pointing the 3D view: each lesson's camera frames its own robot and task.
+
+A lesson names what it shows (:class:`View`: its scene roots and a viewing direction)
+with :func:`show`; the camera then stands just far enough back along that direction for
+the visible nodes under those roots to fill the 3D view (:func:`frame_points`), on new
+pages, on the pages already open (each for its own field of view and aspect), and again
+on a page's "Frame" button or when its 3D view changes shape (:func:`reframe`).
 
 ``server.initial_camera`` only sets where a *new* page starts (and where "Reset
-View" returns); a page already open keeps its camera. A lesson opened by the
-lesson switcher therefore aims every connected client's camera as well, so its
-scene comes into view at once.
+View" returns); a page already open keeps its camera until it is moved.
 """
 
 from __future__ import annotations
 
+import math
+import threading
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 import viser
-
-
-def aim(server: viser.ViserServer, *, position: tuple[float, float, float],
-        look_at: tuple[float, float, float],
-        up: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-    """Camera at ``position`` looking at ``look_at`` (world, m) on new and open pages."""
-    server.initial_camera.position = position
-    server.initial_camera.look_at = look_at
-    server.initial_camera.up = up
-    show_initial_view(server)
+import viser.transforms as vtf
 
 
 def connected(client: viser.ClientHandle) -> bool:
@@ -29,16 +32,196 @@ def connected(client: viser.ClientHandle) -> bool:
     return get is None or not getattr(get(), "done", False)
 
 
-def show_initial_view(server: viser.ViserServer) -> None:
-    """Move every open page's camera to ``server.initial_camera`` (after a lesson switch)."""
-    ic = server.initial_camera
-    up = ic.up if ic.up is not None else (0.0, 0.0, 1.0)
-    for client in server.get_clients().values():
-        if not connected(client):
-            continue
-        try:
-            client.camera.up_direction = up
-            client.camera.position = ic.position
-            client.camera.look_at = ic.look_at  # after position, which drags look_at along
-        except (AssertionError, ValueError, RuntimeError):
-            pass  # a page that has not reported its camera yet starts at initial_camera
+# -- framing: the camera that makes a lesson's robot the picture ------------------------
+
+#: viser's vertical field of view (rad) until a page reports its own.
+DEFAULT_FOV = math.radians(75.0)
+#: Width / height of the 3D view until a page reports its own (a 16:9 projector).
+DEFAULT_ASPECT = 16.0 / 9.0
+#: How far from the view's centre towards its edge the outermost framed point may reach
+#: (1 = the edge): the robot spans most of the view with a margin round it.
+FILL = 0.8
+#: Nearest the camera comes to a framed point, m.
+NEAR = 0.05
+
+
+@dataclass(frozen=True)
+class View:
+    """What a lesson's camera frames.
+
+    Attributes:
+        roots: scene node names; the origins of the visible nodes under them (the robot's
+            link frames and meshes, the task's target, line or labels) are framed.
+        direction: (3,) the direction the camera looks in, world (need not be unit).
+        up: (3,) world direction shown upwards.
+    """
+
+    roots: tuple[str, ...]
+    direction: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+
+def frame_points(points: np.ndarray, *, direction: Sequence[float],
+                 up: Sequence[float] = (0.0, 0.0, 1.0), fov: float = DEFAULT_FOV,
+                 aspect: float = DEFAULT_ASPECT, fill: float = FILL
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The camera (position (3,), look_at (3,), world m) that looks along ``direction``
+    at the centre of ``points`` (k, 3) from just far enough that every point lies within
+    ``fill`` of the view's half-height and half-width (vertical field of view ``fov`` rad,
+    width/height ``aspect``): the outermost point reaches ``fill`` of the way to an edge."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if len(pts) == 0 or not np.all(np.isfinite(pts)):
+        raise ValueError("points: need at least one, all finite")
+    forward = np.asarray(direction, dtype=float)
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, np.asarray(up, dtype=float))
+    if np.linalg.norm(right) < 1e-9:
+        raise ValueError("direction: must not be parallel to up")
+    right /= np.linalg.norm(right)
+    upward = np.cross(right, forward)
+    look_at = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    rel = pts - look_at
+    x, y, z = rel @ right, rel @ upward, rel @ forward  # z: farther than the centre
+    ty = math.tan(0.5 * fov) * fill
+    tx = ty * aspect
+    # a point at depth D + z shows at y / (D + z) of the focal length: within ty needs
+    # D >= |y| / ty - z; likewise for x; and every point at least NEAR ahead
+    distance = max(float(np.max(np.abs(y) / ty - z)), float(np.max(np.abs(x) / tx - z)),
+                   float(np.max(NEAR - z)))
+    return look_at - distance * forward, look_at
+
+
+def node_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
+    """(k, 3) world positions of the origins of the visible scene nodes under ``roots``
+    (``scene``: a server's or a page's ``viser`` scene; a node hidden, or under a hidden
+    one, is left out)."""
+    handles: dict[str, Any] = scene._handle_from_node_name  # viser keeps no public index
+    poses: dict[str, np.ndarray | None] = {"": np.eye(4)}
+
+    def pose(name: str) -> np.ndarray | None:
+        if name in poses:
+            return poses[name]
+        parent = pose(name.rsplit("/", 1)[0])
+        handle = handles.get(name)
+        if parent is None or (handle is not None and not handle.visible):
+            poses[name] = None
+            return None
+        if handle is None:  # a path segment without a node of its own
+            poses[name] = parent
+            return parent
+        local = np.eye(4)
+        local[:3, :3] = vtf.SO3(np.asarray(handle.wxyz, dtype=float)).as_matrix()
+        local[:3, 3] = handle.position
+        poses[name] = parent @ local
+        return poses[name]
+
+    names = [n for n in list(handles) if any(n == r or n.startswith(r + "/") for r in roots)]
+    out = [p[:3, 3] for p in map(pose, names) if p is not None]
+    return np.array(out, dtype=float).reshape(-1, 3)
+
+
+@dataclass(frozen=True)
+class Framing:
+    """One framing :func:`reframe` gave a page: the points it framed (k, 3), the camera
+    it set (position, look_at (3,)) and the page's view it was for (fov rad, aspect)."""
+
+    points: np.ndarray
+    position: np.ndarray
+    look_at: np.ndarray
+    fov: float
+    aspect: float
+
+
+#: page -> its last framing (for a person, or a test, checking what the page was shown)
+last_framing: weakref.WeakKeyDictionary[viser.ClientHandle, Framing] = \
+    weakref.WeakKeyDictionary()
+#: scene -> the View its lesson asked for (a server's scene, or a page's own for a
+#: student's private lesson)
+_views: weakref.WeakKeyDictionary[Any, View] = weakref.WeakKeyDictionary()
+
+
+def _camera_of(client: viser.ClientHandle) -> tuple[float, float]:
+    """(fov, aspect) the page reported, or the defaults before it has."""
+    try:
+        fov, aspect = float(client.camera.fov), float(client.camera.aspect)
+    except (AssertionError, AttributeError, ValueError, ZeroDivisionError):
+        return DEFAULT_FOV, DEFAULT_ASPECT
+    if not (0.0 < fov < math.pi and math.isfinite(aspect) and aspect > 0.0):
+        return DEFAULT_FOV, DEFAULT_ASPECT
+    return fov, aspect
+
+
+def show(server: Any, view: View) -> None:
+    """Frame ``view`` on ``server`` (a :class:`viser.ViserServer`, or an
+    :class:`app.page.Page` for one page): new pages start there (at the default aspect),
+    open pages move there (each at its own), and :func:`reframe` returns to it."""
+    _views[server.scene] = view
+    points = node_points(server.scene, view.roots)
+    if len(points) == 0:
+        return
+    position, look_at = frame_points(points, direction=view.direction, up=view.up)
+    if isinstance(server, viser.ViserServer):
+        server.initial_camera.position = tuple(position)
+        server.initial_camera.look_at = tuple(look_at)
+        server.initial_camera.up = view.up
+    for client in list(server.get_clients().values()):
+        reframe(client)  # a page showing its own lesson keeps that lesson's view
+
+
+def reframe(client: viser.ClientHandle) -> bool:
+    """Move ``client``'s camera to its lesson's framed view, for the page's own field of
+    view and aspect (the "Frame" button; a page whose 3D view changed shape). The page's
+    own lesson (a private arm), while it is open, wins over the server's. False if there
+    is nothing to frame or the page has gone."""
+    if not connected(client):
+        return False
+    shared = client._viser_server.scene  # type: ignore[attr-defined]
+    # the page's own lesson first; once it has closed its nodes are gone: the shared view
+    for candidate in (client.scene, shared):
+        view = _views.get(candidate)
+        points = node_points(candidate, view.roots) if view is not None else np.empty((0, 3))
+        if len(points):
+            break
+    else:
+        return False
+    fov, aspect = _camera_of(client)
+    position, look_at = frame_points(points, direction=view.direction, up=view.up,
+                                     fov=fov, aspect=aspect)
+    try:
+        client.camera.up_direction = view.up
+        client.camera.position = tuple(position)
+        client.camera.look_at = tuple(look_at)  # after position, which drags look_at along
+    except (AssertionError, ValueError, RuntimeError):
+        return False  # not reported its camera yet: it starts at initial_camera
+    last_framing[client] = Framing(points, position, look_at, fov, aspect)
+    return True
+
+
+#: A page's view is framed again when its width/height changes by more than this
+#: fraction (a side panel collapsed or opened, the window resized, a phone turned).
+RESHAPE = 0.03
+
+
+def reframe_on_reshape(server: viser.ViserServer) -> None:
+    """Frame every page for its own 3D view: once when it first reports its shape (new
+    pages start framed for :data:`DEFAULT_ASPECT`), and again whenever that shape changes;
+    an orbit or a zoom (the same shape) is left alone."""
+
+    @server.on_client_connect
+    def _(client: viser.ClientHandle) -> None:
+        last: list[float] = []
+        lock = threading.Lock()
+
+        def heard(camera: viser.CameraHandle) -> None:
+            try:
+                aspect = float(camera.aspect)
+            except (AssertionError, ZeroDivisionError):
+                return  # no report yet
+            with lock:
+                if last and abs(aspect / last[0] - 1.0) <= RESHAPE:
+                    return
+                last[:] = [aspect]
+            reframe(client)
+
+        client.camera.on_update(heard)
+        heard(client.camera)  # a first report that came before the callback was there

@@ -6,8 +6,7 @@ watches. :class:`Page` offers the same for one page (viser's client-scoped GUI a
 scene), so the same lesson code builds a private copy on one student's page: its
 controls reach only that page, and its scene nodes, named as the shared lesson's,
 *shadow* the shared ones there (viser draws a page's own node in place of the server's
-of the same name). ``initial_camera`` is the page's own camera: a lesson that sets
-where a new page looks from moves this page's view.
+of the same name). A lesson's camera (``app.camera.show``) frames this page alone.
 """
 
 from __future__ import annotations
@@ -30,14 +29,12 @@ class Page:
     Attributes:
         client: the page.
         gui, scene: its own GUI and scene (seen by this page only).
-        initial_camera: its camera (setting position/look_at moves the page's view).
     """
 
     def __init__(self, client: viser.ClientHandle) -> None:
         self.client = client
         self.gui = client.gui
         self.scene = client.scene
-        self.initial_camera = client.camera
 
     def atomic(self) -> AbstractContextManager[None]:
         """Group the messages sent inside the block; the page applies them together."""

@@ -28,7 +28,7 @@ from types import ModuleType
 
 import viser
 
-from app.camera import show_initial_view
+from app.camera import reframe, reframe_on_reshape
 from app.classroom import Roles
 from app.gate import Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
@@ -191,6 +191,7 @@ class Lab:
             # Docked, the controls never cover the 3D view: the camera frames the arm in
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
+            reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
             port = self.server.get_port()
             wildcard = options.host in WILDCARD_HOSTS
             shown = lan_address() if wildcard else options.host
@@ -217,8 +218,13 @@ class Lab:
             "E-STOP", color="red", icon=viser.Icon.HAND_STOP,
             hint="Torque off on every servo now. Press Reset to go on.", order=-100.0)
         self.estop_button.on_click(lambda event: self.estop(by=event.client))
-        if self.roles is not None:
-            self.roles.open(self.estop_button)
+        self.frame_button = gui.add_button(
+            "Frame", icon=viser.Icon.FOCUS_CENTERED, order=-95.0,
+            hint="Point this page's camera at the lesson's robot again (after an orbit)")
+        self.frame_button.on_click(lambda event: event.client is not None
+                                   and reframe(event.client))
+        if self.roles is not None:  # both only make things safe or change one page's view
+            self.roles.open(self.estop_button, self.frame_button)
         ordered = sorted(self._lessons.values(), key=lesson_order)
         self._by_title = {m.TITLE: m.NAME for m in ordered}
         self.lesson_dropdown = gui.add_dropdown(
@@ -280,8 +286,7 @@ class Lab:
                 self.lesson.close()
                 self.lesson = None
             try:
-                self._open(name)
-                show_initial_view(self.server)  # open pages look at the new lesson's scene
+                self._open(name)  # its scene frames itself on every open page (app.camera)
             except (ValueError, OSError, RuntimeError):
                 self._open(previous)  # back to the lesson that worked
                 self.lesson_dropdown.value = self._lessons[previous].TITLE

@@ -100,6 +100,12 @@ class SharedLoop:
         self._thread.join(5.0)
 
 
+#: The server's camera messages: type -> (field, key in :attr:`HeadlessClient.camera`).
+CAMERA_MESSAGES = {"SetCameraPositionMessage": ("position", "position"),
+                   "SetCameraLookAtMessage": ("look_at", "look_at"),
+                   "SetCameraUpDirectionMessage": ("position", "up")}
+
+
 class HeadlessClient:
     """A fake browser connected to a viser server (runs its own asyncio thread, or on a
     :class:`SharedLoop`'s).
@@ -117,6 +123,7 @@ class HeadlessClient:
         gui: uuid -> :class:`GuiElement`.
         notifications: (title, body) of every notification shown.
         downloads: filename -> bytes of every completed file download.
+        camera: the camera the server last set: "position", "look_at", "up" (3-tuples).
         bytes_received, frames_received: traffic counters.
         counts: message type -> how many.
     """
@@ -132,6 +139,8 @@ class HeadlessClient:
         self.notifications: list[tuple[str, str]] = []
         self.downloads: dict[str, bytes] = {}
         self.theme: dict[str, Any] | None = None  #: the last ThemeConfigurationMessage
+        self.camera: dict[str, tuple[float, ...]] = {}
+        self.camera_sets = 0  #: camera messages received (a move sets position and look_at)
         self._parts: dict[str, dict[str, Any]] = {}
         self.bytes_received = 0
         self.frames_received = 0
@@ -159,11 +168,18 @@ class HeadlessClient:
             raise TimeoutError(f"no connection to {self.url} in {timeout} s: {self._error}")
         if self._error is not None:
             raise ConnectionError(str(self._error))
-        self.send({"type": "ViewerCameraMessage", "wxyz": (1.0, 0.0, 0.0, 0.0),
-                   "position": (0.5, -0.7, 1.0), "fov": 1.0, "near": 0.01, "far": 100.0,
-                   "image_height": 720, "image_width": 1280, "look_at": (0.0, 0.0, 0.6),
-                   "up_direction": (0.0, 0.0, 1.0)})
+        self.report_view()
         return self
+
+    def report_view(self, *, width: int = 1280, height: int = 720, fov: float = 1.0,
+                    position: tuple[float, float, float] = (0.5, -0.7, 1.0),
+                    look_at: tuple[float, float, float] = (0.0, 0.0, 0.6)) -> None:
+        """Tell the server this page's camera and the size of its 3D view, as a browser
+        does after every orbit or resize (the first report comes with :meth:`connect`)."""
+        self.send({"type": "ViewerCameraMessage", "wxyz": (1.0, 0.0, 0.0, 0.0),
+                   "position": position, "fov": fov, "near": 0.01, "far": 100.0,
+                   "image_height": height, "image_width": width, "look_at": look_at,
+                   "up_direction": (0.0, 0.0, 1.0)})
 
     def close(self) -> None:
         """Drop the connection abruptly (like a closed tab)."""
@@ -241,6 +257,10 @@ class HeadlessClient:
                 self.downloads[t["name"]] = b"".join(t["parts"][i] for i in range(t["count"]))
         elif kind == "ThemeConfigurationMessage":
             self.theme = m
+        elif kind in CAMERA_MESSAGES:
+            field, key = CAMERA_MESSAGES[kind]
+            self.camera[key] = tuple(m[field])
+            self.camera_sets += 1
         elif "name" in m and kind.startswith("Set"):
             self.scene[m["name"]][kind] = {k: v for k, v in m.items() if k != "type"}
 

@@ -40,6 +40,33 @@ def browser():
         chromium = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
                                       args=CHROMIUM_ARGS)
         try:
-            yield chromium
+            yield PatientBrowser(chromium)
         finally:
             chromium.close()
+
+
+#: ms a page waits for an element to be actionable (visible, enabled and standing still
+#: for two animation frames) before a click fails. Playwright's 30 s ran out once on a
+#: loaded machine, where a software-rendered 3D page draws a frame in seconds.
+ACTION_TIMEOUT_MS = 120_000
+
+
+class PatientBrowser:
+    """The Chromium the tests drive, whose new pages and contexts wait
+    :data:`ACTION_TIMEOUT_MS` for an element before they give up."""
+
+    def __init__(self, chromium) -> None:
+        self._chromium = chromium
+
+    def new_page(self, **kwargs):
+        page = self._chromium.new_page(**kwargs)
+        page.set_default_timeout(ACTION_TIMEOUT_MS)
+        return page
+
+    def new_context(self, **kwargs):
+        context = self._chromium.new_context(**kwargs)
+        context.set_default_timeout(ACTION_TIMEOUT_MS)
+        return context
+
+    def __getattr__(self, name: str):
+        return getattr(self._chromium, name)

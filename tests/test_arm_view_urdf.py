@@ -93,3 +93,17 @@ def test_panda_without_its_meshes_is_drawn_from_collision_spheres(server):
     view, missing = _draw(load_robot(DATA / "panda_style.urdf"), server)
     assert len(missing) == 11  # link0..7, hand, two fingers: one warning each
     assert set(view.drawn_as.values()) == {"collision"}
+
+
+def test_a_link_drawn_see_through_hides_its_mesh_for_a_translucent_copy(server):
+    view = ArmView(server, load_robot("receptionist_arm"), root="/through")
+    torso = view.link_frames["torso"].name
+    nodes = server.scene._handle_from_node_name
+    own = [h for n, h in nodes.items() if n.rsplit("/", 1)[0] == torso and "geometry" in n]
+    assert own and all(h.visible for h in own)
+    assert view.see_through("torso", opacity=0.3)
+    assert not any(h.visible for h in own)  # the opaque box is hidden...
+    copy = nodes[f"{torso}/see_through"]
+    assert copy.visible and copy.opacity == pytest.approx(0.3)  # ...and drawn translucent
+    assert not view.see_through("no_such_link")
+    assert not view.see_through("shoulder_pitch_link")  # a link with nothing to draw

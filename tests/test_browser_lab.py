@@ -283,6 +283,6 @@ def test_estop_button_switches_every_servo_off(page, lab):
     page.get_by_role("button", name="E-STOP").click()
     wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 30, "the e-stop")
     assert not any(r.torque_enable for r in plant.reports())
-    page.get_by_text("E-STOPPED").first.wait_for(timeout=30_000)  # the page says so
+    page.get_by_text("E-STOPPED").first.wait_for()  # the page says so
     page.get_by_role("button", name="Reset").click()
     wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 30, "torque back on")

@@ -36,7 +36,7 @@ def page(browser, lab):
           if m.type == "error" and not expected_console(m.text) else None)
     pg.on("pageerror", lambda e: pg.console_errors.append(f"page error: {e}"))
     pg.goto(lab.url)
-    pg.locator("canvas").first.wait_for(timeout=30_000)
+    pg.locator("canvas").first.wait_for()
     yield pg
     pg.close()
 

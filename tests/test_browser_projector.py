@@ -91,7 +91,12 @@ def test_normal_text_is_at_least_13px_and_the_switch_enlarges_it(browser, lab):
         assert n > 20
         assert 13.0 <= smallest < 20.0, where
         assert min(_tick_fonts(lab)) >= 13.0
-        pg.get_by_role("checkbox", name="Projector").check()
+        # a click event sent to the switch itself: on a loaded machine the panel may still
+        # be settling, and a pointer click waits for the switch to stand still (it timed
+        # out once after 30 s); the page's own click handling is the same
+        switch = pg.get_by_role("checkbox", name="Projector")
+        switch.dispatch_event("click")
+        wait_for(switch.is_checked, 60.0, "the Projector switch to turn on")
         wait_for(lambda: _smallest(pg)[0] >= 20.0, 120.0, "the page to take projector sizes")
         wait_for(lambda: min(_tick_fonts(lab)) >= 18.0, 120.0,
                  "the re-opened lesson's charts to take projector tick sizes")

@@ -22,6 +22,7 @@ import viser.transforms as vtf
 
 from app.arm_view import ArmView
 from app.backends import make_backend
+from app.camera import View, show
 from app.lessons import ANY_URDF, LessonContext
 from app.lessons._common import LessonBase, close_in_turn, esc, set_content, status_html
 from control.commands import EStop, Reset, RunTrajectory, SetTarget
@@ -149,6 +150,8 @@ class ArmLesson(LessonBase):
             "/arm_target_base/target", scale=0.08, disable_rotations=True, depth_test=False,
             position=hand)
         scene.add_icosphere("/arm_target_base/target/dot", radius=0.008, color=(250, 160, 0))
+        show(self.server, View(roots=(self.view.moving_root, "/arm_target_base"),
+                               direction=_view_direction(base, hand)))
 
         @self.target.on_update
         def _(event: viser.TransformControlsEvent) -> None:
@@ -235,6 +238,19 @@ class ArmLesson(LessonBase):
                           (lambda: self.loop.shutdown(torque_off=True)) if own else None,
                           self.backend.close if own else None, self.view.remove,
                           self.base.remove, self._gui.remove_all)
+
+
+def _view_direction(base: np.ndarray, hand: np.ndarray) -> tuple[float, float, float]:
+    """The camera's direction for any arm (what moves, not the body it stands on): from
+    in front of where its hand reaches at rest (``base`` (4, 4) world <- base, ``hand``
+    (3,) base frame), a little to one side and above. Seen so, a reaching arm shows its
+    height rather than its length: it fills a narrow 3D view between docked panels too."""
+    reach = (base @ np.append(hand, 1.0))[:2] - base[:2, 3]
+    length = float(np.hypot(*reach))
+    h = reach / length if length > 0.02 else np.array([1.0, 0.0])  # an arm standing up
+    side = np.array([-h[1], h[0]])
+    x, y = -h + 0.3 * side
+    return float(x), float(y), -0.3
 
 
 def _wxyz(R: np.ndarray) -> np.ndarray:

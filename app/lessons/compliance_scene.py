@@ -17,6 +17,7 @@ import viser.transforms as vtf
 
 from app import theme
 from app.arm_view import ArmView
+from app.camera import View, show
 from kinematics.model import SerialChain
 
 #: Metres of arrow drawn per newton.
@@ -57,6 +58,9 @@ class ComplianceScene:
         self.root = scene.add_frame(root, show_axes=False)
         self.arm = ArmView(server, model, root=f"{root}/arm")
         self.ghost = ArmView(server, model, root=f"{root}/ghost", color=GHOST_RGBA)
+        # the thesis robot's torso stands between the camera and the arm's upper links
+        self.arm.see_through("torso")
+        self.ghost.see_through("torso", opacity=0.0)
         base = np.asarray(model.base_pose, dtype=float)
         self._base = base
         self._base_inv = np.linalg.inv(base)
@@ -116,8 +120,9 @@ class ComplianceScene:
                        for i in range(TRAIL_DOTS)]
         self._trail_next = 0
         self._trail_last: np.ndarray | None = None
-        server.initial_camera.position = (0.62, -0.12, 1.16)
-        server.initial_camera.look_at = (0.0, 0.14, 0.93)
+        # the arm (not the torso it stands on) and its task, from the front right
+        show(server, View(roots=(self.arm.moving_root, self.ghost.moving_root, sh),
+                          direction=(-0.62, 0.26, -0.23)))
 
     # -- frames -----------------------------------------------------------------
 

@@ -15,7 +15,7 @@ import viser
 import viser.transforms as vtf
 
 from app import theme
-from app.camera import aim
+from app.camera import View, show
 from kinematics.hand import FingerGeometry, tip_positions
 
 OBJECT_HEIGHT = 0.09  #: m, height of the drawn cylinder
@@ -80,8 +80,8 @@ class HandScene:
                                        head_length=0.008, visible=False)
         self.label = scene.add_label(f"{root}/label", "", position=(0.0, 0.0, 0.12),
                                      font_screen_scale=theme.label_scale())
-        # looking at a point right of the palm, so the hand clears the control panel
-        aim(server, position=(0.17, -0.16, 0.16), look_at=(0.03, 0.025, 0.035))
+        # from the front right, above the palm
+        show(server, View(roots=(root,), direction=(-0.14, 0.185, -0.125)))
 
     @staticmethod
     def _finger_wxyz(azimuth: float, phi: float) -> np.ndarray:

@@ -27,7 +27,7 @@ import viser.uplot
 
 from app import theme
 from app.arm_view import ArmView
-from app.camera import aim
+from app.camera import View, show
 from app.inputs import check_number, notify
 from app.lessons import LessonContext
 from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
@@ -209,8 +209,8 @@ class IKAccuracyLesson:
                 except ValueError as exc:
                     notify(event.client, "Target refused", str(exc))
 
-        # from above the near edge of the board, the arm left of the control panel
-        aim(self.server, position=(0.15, -0.12, 0.33), look_at=(0.13, 0.10, 0.0))
+        # steeply down across the board's diagonal: the board fills a narrow view too
+        show(self.server, View(roots=("/ik",), direction=(-0.1, 0.15, -0.4)))
 
     # ================================================================== GUI
 

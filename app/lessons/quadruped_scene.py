@@ -22,7 +22,7 @@ import viser.transforms as vtf
 
 from app import theme
 from app.arm_view import ArmView
-from app.camera import aim, connected
+from app.camera import View, connected, show
 from control.walking import GaitPlan, WalkState
 from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS
@@ -102,7 +102,7 @@ class QuadrupedScene:
                                             anchor="bottom-left")
         self.stable: bool | None = None
         self._followed: np.ndarray | None = None
-        aim(server, position=(0.40, -0.58, 0.40), look_at=(0.04, 0.0, 0.05))
+        show(server, View(roots=(root,), direction=(-0.2, 0.6, -0.5)))  # front left, above
 
     def set_foot_paths(self, plan: GaitPlan) -> None:
         """Draw every foot's closed path over one cycle of ``plan`` (body frame)."""

@@ -25,7 +25,7 @@ import viser.transforms as vtf
 
 from app import theme
 from app.arm_view import ArmView
-from app.camera import aim
+from app.camera import View, show
 from app.plots import COLORS
 from kinematics.model import SerialChain
 from kinematics.redundancy import circle_target, task_jacobian
@@ -43,9 +43,6 @@ MODE_LABELS = {"1": "1 · J⁺ẋ, no limits", "2": "2 · J⁺ẋ + limits (deco
 #: Metres between panel origins, world x (columns) and world z (rows).
 COLUMN_M = 1.45
 ROW_M = 1.35
-#: Camera: in front of the grid of panels (world y < 0), looking at its middle.
-CAMERA_LOOK_AT = (0.72, 0.0, 1.85)
-CAMERA_AT = (0.72, -3.2, 1.85)
 #: Seconds between two stick pictures.
 STICK_S = 0.1
 #: Ellipse semi-axis (m) per unit singular value of J (m/rad).
@@ -173,7 +170,8 @@ class RedundancyScene:
                       for i in range(model.n)]
             self.views[mode] = ModeView(mode, frame, arm, b, sticks, trace, ellipse, joints,
                                         status)
-        aim(server, position=CAMERA_AT, look_at=CAMERA_LOOK_AT)
+        # in front of the grid of panels (world y < 0), square on it
+        show(server, View(roots=(root,), direction=(0.0, 1.0, 0.0)))
 
     def show_mode(self, mode: str, visible: bool) -> None:
         """Show or hide one panel."""

@@ -1,0 +1,102 @@
+"""The robot is the picture, in a real headless Chromium at a projector's 1920x1080 and
+1280x720: every lesson's camera frames its robot (the framed scene nodes, projected
+with the camera and canvas the page itself reports) over at least 40 % of the 3D view's
+height and inside it; after the user orbits, "Frame" brings that view back.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from _helpers import wait_for
+
+from app import camera
+from app.lessons import all_lessons
+
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
+
+SIZES = ((1920, 1080), (1280, 720))
+#: Of the camera's distance: the page's camera this close to the last framing shows it
+#: (an orbit moves it by far more)
+SAME = 0.02
+
+
+def _client(lab, known: set[int]):
+    """The one page that connected after ``known`` (client ids)."""
+    new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
+    return new[0] if len(new) == 1 else None
+
+
+def _shown(client, since: camera.Framing | None = None) -> camera.Framing | None:
+    """The page's last framing (a newer one than ``since``) once the page shows it: its
+    camera is there and its view still has the shape the framing was made for (a view
+    reshaped since is framed again); else None."""
+    framing = camera.last_framing.get(client)
+    if framing is None or framing is since:
+        return None
+    try:
+        cam = client.camera
+        tol = SAME * float(np.linalg.norm(framing.position - framing.look_at))
+        there = (float(np.linalg.norm(cam.position - framing.position)) <= tol
+                 and float(np.linalg.norm(cam.look_at - framing.look_at)) <= tol)
+        same_view = abs(cam.aspect / framing.aspect - 1.0) <= camera.RESHAPE
+    except (AssertionError, ZeroDivisionError):  # no camera report yet
+        return None
+    return framing if there and same_view else None
+
+
+def _height_span(client, framing: camera.Framing, up) -> tuple[float, float]:
+    """(half the vertical span of the framed points in the page's view, as a fraction of
+    the view's height; the largest |x| or |y|, 1 at the view's edges)."""
+    cam = client.camera
+    forward = np.asarray(cam.look_at) - np.asarray(cam.position)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    upward = np.cross(right, forward)
+    rel = framing.points - np.asarray(cam.position)
+    depth = rel @ forward
+    t = math.tan(0.5 * cam.fov)
+    x = rel @ right / (depth * t * cam.aspect)
+    y = rel @ upward / (depth * t)
+    return float(y.max() - y.min()) / 2.0, float(max(np.abs(x).max(), np.abs(y).max()))
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_every_lesson_frames_its_robot_and_frame_restores_it(browser, lab, size):
+    width, height = size
+    first = lab.lesson_name
+    known = set(lab.server.get_clients())
+    pg = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        pg.goto(lab.url)
+        pg.locator("canvas").first.wait_for(timeout=60_000)
+        wait_for(lambda: _client(lab, known) is not None, 60, "the page to connect")
+        client = _client(lab, known)
+        framing = None
+        for name in sorted(all_lessons()):
+            before = camera.last_framing.get(client)
+            lab.switch(name)
+            wait_for(lambda before=before: _shown(client, before) is not None, 90,
+                     f"{name}: the page to show its framed view")
+            framing = _shown(client)
+            up = camera._views[lab.server.scene].up
+            span, reach = _height_span(client, framing, up)
+            assert span >= 0.4, (name, size, span, client.camera.aspect)
+            assert reach <= 1.0 + 1e-6, (name, size, reach)
+        # orbit with the mouse, then "Frame"
+        box = pg.locator("canvas").first.bounding_box()
+        cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        pg.mouse.move(cx, cy)
+        pg.mouse.down()
+        pg.mouse.move(cx + 200, cy + 80, steps=10)
+        pg.mouse.up()
+        wait_for(lambda: _shown(client) is None, 60, "the orbit to move the camera")
+        pg.get_by_role("button", name="Frame").click()
+        wait_for(lambda: _shown(client, framing) is not None, 60,
+                 "Frame to bring the view back")
+    finally:
+        pg.close()
+        lab.switch(first)
