@@ -42,6 +42,7 @@ from app.lessons import (
 )
 from app.room import Room
 from app.theme import PageStyle, set_projector
+from app.viser_fixes import install as install_viser_fixes
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -168,6 +169,7 @@ class Lab:
     """
 
     def __init__(self, options: ServeOptions, *, verbose: bool = False) -> None:
+        install_viser_fixes()  # before the server: GUI calls from callback threads
         self.options = options
         lessons = all_lessons()
         name = options.lesson or default_lesson(options.robot)
