@@ -366,3 +366,20 @@ def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client):
         assert len(applied) == 2
     finally:
         lesson.gains._apply = apply
+
+
+def test_push_from_the_run_tab_shows_its_figures_beside_the_button(lab, client):
+    loop = loop_of(lab)
+    client.click("Push the hand")  # the Push tab's defaults: 4 N against the line, 2 s
+    wait_for(lambda: "pushing 4 N" in str(lab.lesson.status.content), 30.0,
+             "the status to say pushing")
+
+    def measured() -> list[str]:
+        return [str(e.props.get("_markdown")) for e in list(client.gui.values())
+                if str(e.props.get("_markdown") or "").startswith("**Measured** (push")]
+
+    client.wait_for(lambda: len(measured()) == 2, 90.0,
+                    "the push's figures beside both Push buttons")
+    text = lab.lesson.push_result_run.content
+    assert "push of 4 N against the line" in text and "Tp" in text and "C_f" in text
+    assert loop.status.fault is None

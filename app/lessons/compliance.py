@@ -77,8 +77,8 @@ HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance 
         "tune Kp, Kv and the virtual environment (M_env, D_env, K_env, K_f), run the 20 cm "
         "line, push or drag the hand and watch the arm yield.")
 #: The first action, shown under the status line.
-TRY = ("Press **Run thesis line** (Run tab), then push the hand while it runs (Push "
-       "tab; by hand on real servos): the arm gives way and comes back.")
+TRY = ("Press **Run thesis line**, then **Push the hand** while it runs (by hand on real "
+       "servos): the arm gives way and comes back.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 0
 #: Status when an e-stop's torque-off write could not go out (the link is gone).
@@ -295,6 +295,13 @@ class ComplianceLesson(LessonBase):
                                        "response with eq. 2.16–2.19")
             step.on_click(lambda e: guarded(e, self.run_step))
             self.step_result = gui.add_markdown("")  # the figures of the last step, here
+        # the push test one click from here too (the Push tab sets its force and length)
+        push = gui.add_button("Push the hand", icon=viser.Icon.HAND_FINGER,
+                              visible=not self.hardware,
+                              hint="Push the hand as the Push tab sets it (4 N along −y for "
+                                   "2 s unless changed): the arm gives way and comes back")
+        push.on_click(lambda e: guarded(e, self.push))
+        self.push_result_run = gui.add_markdown("")  # the figures of the last push, here
         self.download = gui.add_button("Download the last run (CSV)", icon=viser.Icon.DOWNLOAD,
                                        hint="Time, every plotted signal (SI) and the "
                                             "parameters in the header")
@@ -654,7 +661,8 @@ class ComplianceLesson(LessonBase):
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
                     joint_labels=[joint_label(n) for n in rig.model.joint_names])
-                set_content(self.push_result, measured_line(self.measured_env))
+                for beside in (self.push_result, self.push_result_run):  # both buttons
+                    set_content(beside, measured_line(self.measured_env))
         except ValueError as exc:
             self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"
 

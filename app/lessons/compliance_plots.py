@@ -32,7 +32,8 @@ from kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / np.pi
 TORQUE_UNITS = ("N·m", "kgf·cm")
-#: viser ``order`` of the four charts (after the pickers).
+#: viser ``order`` of the four charts (after the pickers): angle, external torque (the
+#: push shows there: second, so it is in view at 1280x720 too), error, servo torque.
 CHART_ORDER = (10.0, 11.0, 12.0, 13.0)
 ERROR_SPAN_DEG = 2.0  #: smallest span of the angle error chart, °
 
@@ -97,18 +98,18 @@ class JointPlots:
                                       SeriesSpec("actual θ", COLORS[2])),
                                   y_span=ANGLE_SPAN_DEG, **kw)
             self.error = LivePlot(self.gui, title=f"Angle error θ_cmd − θ, {j}",
-                                  y_label="error (°)", order=CHART_ORDER[1], height=130,
+                                  y_label="error (°)", order=CHART_ORDER[2], height=130,
                                   series=(SeriesSpec("error", COLORS[3]),),
                                   y_span=ERROR_SPAN_DEG, **kw)
             self.torque = LivePlot(self.gui, title=f"Torque {j}: servo (after LPF) vs "
                                                    "Newton–Euler",
-                                   y_label=f"torque ({u})", order=CHART_ORDER[2], series=(
+                                   y_label=f"torque ({u})", order=CHART_ORDER[3], series=(
                                        SeriesSpec("servo, LPF", COLORS[2]),
                                        SeriesSpec("Newton–Euler", COLORS[4], (6, 4))),
                                    y_span=TORQUE_SPAN_NM * k, **kw)
             self.external = LivePlot(self.gui, title=f"External torque τ_ext and θ_env, {j}",
                                      y_label=f"τ_ext ({u})", y2_label="θ_env (°)",
-                                     order=CHART_ORDER[3], series=(
+                                     order=CHART_ORDER[1], series=(
                                          SeriesSpec("τ_ext", COLORS[3]),
                                          SeriesSpec("θ_env (°)", COLORS[5], (6, 4), "y2")),
                                      y_span=TORQUE_SPAN_NM * k, y2_span=ANGLE_SPAN_DEG, **kw)
