@@ -137,7 +137,8 @@ class ArmView:
     def see_through(self, link: str, *, opacity: float = 0.25) -> bool:
         """Draw ``link`` translucent, so that links behind it show (a body the arm stands
         on): its own meshes are hidden and its visual shapes drawn again, grey, at
-        ``opacity``. False if the robot has no such link or nothing of it to draw."""
+        ``opacity`` (0: not drawn at all). False if the robot has no such link or nothing
+        of it to draw."""
         frame = self.link_frames.get(link)
         robot = self._urdf._urdf.robot
         visuals = next((lk.visuals for lk in robot.links if lk.name == link), [])
@@ -152,6 +153,8 @@ class ArmView:
         for mesh in self._urdf._meshes:
             if mesh.name.rsplit("/", 1)[0] == frame.name:
                 mesh.visible = False
+        if opacity <= 0.0:
+            return True
         mesh = trimesh.util.concatenate(shapes)
         self._scene.add_mesh_simple(
             f"{frame.name}/see_through", mesh.vertices, mesh.faces, color=SEE_THROUGH_RGB,

@@ -60,7 +60,7 @@ class ComplianceScene:
         self.ghost = ArmView(server, model, root=f"{root}/ghost", color=GHOST_RGBA)
         # the thesis robot's torso stands between the camera and the arm's upper links
         self.arm.see_through("torso")
-        self.ghost.see_through("torso", opacity=0.0)
+        self.ghost.see_through("torso", opacity=0.0)  # the ghost is the commanded arm only
         base = np.asarray(model.base_pose, dtype=float)
         self._base = base
         self._base_inv = np.linalg.inv(base)
