@@ -17,14 +17,20 @@ import contextlib
 import functools
 from typing import Any
 
-from viser.infra._async_message_buffer import AsyncMessageBuffer
+try:  # a private module of viser: another release may move it (then nothing is patched)
+    from viser.infra._async_message_buffer import AsyncMessageBuffer
+except ImportError:  # pragma: no cover - not this viser
+    AsyncMessageBuffer = None  # type: ignore[assignment,misc]
 
 #: The words of the race's error (CPython's asyncio.Event.set over a changing deque).
 RACE = "mutated during iteration"
 
 
 def install() -> None:
-    """Make ``AsyncMessageBuffer.push`` survive the waiter race (idempotent)."""
+    """Make ``AsyncMessageBuffer.push`` survive the waiter race (idempotent; nothing on a
+    viser without that class)."""
+    if AsyncMessageBuffer is None:
+        return
     push = AsyncMessageBuffer.push
     if getattr(push, "armlab_fixed", False):
         return
