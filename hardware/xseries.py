@@ -325,3 +325,27 @@ def x_table_for(model: int | str) -> XControlTable:
         raise ValueError(f"unknown X-series model number {model}; known: "
                          f"{', '.join(f'{k} ({t.name})' for k, t in X_TABLES.items())}")
     return X_TABLES[int(model)]
+
+
+def lab_mode(spec: XSpec) -> OperatingMode:
+    """The operating mode the lab runs a servo in: current-based position control where it
+    measures its current (Goal Current then bounds its torque), else position control."""
+    return OperatingMode.CURRENT_BASED_POSITION if spec.has_current else OperatingMode.POSITION
+
+
+def lab_settings(spec: XSpec, *, torque_limit: float) -> tuple[tuple[str, int, str], ...]:
+    """The RAM items the lab sets with :func:`lab_mode`, as (item, raw value, a line for
+    the log): the torque bound, Goal Current (or Goal PWM) at ``torque_limit`` of its
+    factory limit, and in current-based position control the Position D Gain
+    (:data:`CURRENT_POSITION_D_GAIN`). The X-series backend writes them to real servos;
+    the simulator sets them in its firmware model's registers."""
+    table = x_table_for(spec.model_number)
+    share = f"{torque_limit:.0%} of its limit"
+    if not spec.has_current:
+        return (("goal_pwm", round(torque_limit * table.item("pwm_limit").default),
+                 f"goal PWM {share}"),)
+    return (("goal_current", round(torque_limit * table.item("current_limit").default),
+             f"goal current {share}"),
+            ("position_d_gain", CURRENT_POSITION_D_GAIN,
+             f"position D gain {CURRENT_POSITION_D_GAIN} (the damping the current loop "
+             "takes away)"))

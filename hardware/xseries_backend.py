@@ -33,7 +33,7 @@ from control.backend import BackendError, JointState
 from hardware import protocol2 as p2
 from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
-from hardware.xseries import CURRENT_POSITION_D_GAIN, VELOCITY_UNIT, OperatingMode
+from hardware.xseries import VELOCITY_UNIT, OperatingMode, lab_mode, lab_settings
 from kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.xseries")
@@ -62,15 +62,8 @@ class XSeriesBackend(DynamixelBackend):
     def _layout(self) -> None:
         spec = self.spec
         self._alarms = [""] * self.map.n  #: the hardware error each servo reported
-        self.mode = OperatingMode.CURRENT_BASED_POSITION if spec.has_current \
-            else OperatingMode.POSITION
+        self.mode = lab_mode(spec)
         self.table.check_operating_mode(self.mode)
-        if spec.has_current:
-            self._limit_name, self._limit_raw = "goal_current", round(
-                self.torque_limit * self.table.item("current_limit").default)
-        else:
-            self._limit_name, self._limit_raw = "goal_pwm", round(
-                self.torque_limit * self.table.item("pwm_limit").default)
 
     # -- Backend protocol ---------------------------------------------------
 
@@ -180,20 +173,15 @@ class XSeriesBackend(DynamixelBackend):
         return lines
 
     def _ram_settings(self, servo_id: int, lines: list[str], *, name: str = "") -> None:
-        """The RAM items (lost at a REBOOT): status return level, no profile limit, the
-        torque bound."""
+        """The RAM items (lost at a REBOOT): status return level, no profile limit, then
+        the mode's own (:func:`hardware.xseries.lab_settings`: the torque bound, the D
+        gain)."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
-        limit_text = ("goal current" if self._limit_name == "goal_current" else "goal PWM")
-        settings = [("status_return_level", self.status_return_level_setting,
+        settings = (("status_return_level", self.status_return_level_setting,
                      f"status return level {self.status_return_level_setting}"),
                     ("profile_acceleration", 0, "profile acceleration 0 (no limit)"),
                     ("profile_velocity", 0, "profile velocity 0 (set with every goal)"),
-                    (self._limit_name, self._limit_raw,
-                     f"{limit_text} {self.torque_limit:.0%} of its limit")]
-        if self.mode == OperatingMode.CURRENT_BASED_POSITION:
-            settings.append(("position_d_gain", CURRENT_POSITION_D_GAIN,
-                             f"position D gain {CURRENT_POSITION_D_GAIN} (the damping "
-                             "the current loop takes away)"))
+                    *lab_settings(self.spec, torque_limit=self.torque_limit))
         for item, value, text in settings:
             self._write_setting(servo_id, item, value)
             lines.append(f"{who}: {text}")

@@ -19,11 +19,10 @@ import numpy as np
 
 from control.backend import JointState
 from hardware import protocol2 as p2
-from hardware import xseries
 from hardware.plant import Plant
 from hardware.servo import ServoParams
 from hardware.sim_backend import SimBackend
-from hardware.xseries import COUNTS, VELOCITY_UNIT, OperatingMode, XSpec, x_table_for
+from hardware.xseries import COUNTS, VELOCITY_UNIT, XSpec, lab_mode, lab_settings, x_table_for
 from hardware.xservo import XRegisters, XReport
 from kinematics.model import SerialChain
 from kinematics.validate import vector
@@ -44,16 +43,12 @@ def x_servo_limits(model: SerialChain, spec: XSpec, directions: Sequence[float]
 def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
                       torque_limit: float = 1.0, torque_on: bool = True) -> XRegisters:
     """Registers as :class:`~hardware.xseries_backend.XSeriesBackend` configures a servo:
-    current-based position control where it senses current (else position control),
-    Goal Current (or Goal PWM) at ``torque_limit`` of its limit, no profile limits."""
+    the lab's mode and its settings (:func:`hardware.xseries.lab_mode`,
+    :func:`~hardware.xseries.lab_settings`), no profile limits."""
     regs = XRegisters.factory(x_table_for(spec.model_number), goal_position=goal)
-    regs.operating_mode = (OperatingMode.CURRENT_BASED_POSITION if spec.has_current
-                           else OperatingMode.POSITION)
-    if spec.has_current:
-        regs.goal_current = round(torque_limit * regs.current_limit)
-        regs.position_d_gain = xseries.CURRENT_POSITION_D_GAIN
-    else:
-        regs.goal_pwm = round(torque_limit * regs.pwm_limit)
+    regs.operating_mode = lab_mode(spec)
+    for item, value, _ in lab_settings(spec, torque_limit=torque_limit):
+        setattr(regs, item, value)
     regs.min_position_limit, regs.max_position_limit = min_limit, max_limit
     regs.torque_enable = int(torque_on)
     return regs
