@@ -4,12 +4,14 @@
 - :func:`served_lesson`: a lesson built on a real viser server on a free port.
 - :func:`client_of`: a headless client (:class:`app.wsclient.HeadlessClient`, what the
   page sends on the wire) connected to a server, once the server counts it as a client.
+- :func:`project`: points in a camera's view, as the framing tests judge them.
 - The Chromium the browser tests drive, its flags, the console messages that
   headless software rendering prints without a fault, and :func:`chart_x_ranges`.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -17,6 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import viser
 
 from app.lessons import LessonContext
@@ -126,3 +129,20 @@ def settled(server: viser.ViserServer, page: HeadlessClient, timeout: float = 60
                       timeout, "the page to receive the controls made before it")
     finally:
         handle.remove()
+
+
+def project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, depth) of ``points`` (k, 3) in a pinhole view from ``position`` towards
+    ``look_at`` (``up`` upwards, vertical field of view ``fov`` rad, width/height
+    ``aspect``): x, y in units of the view's half-width and half-height (±1 at its
+    edges), depth along the view direction."""
+    position, look_at, up = (np.asarray(v, dtype=float) for v in (position, look_at, up))
+    forward = (look_at - position) / np.linalg.norm(look_at - position)
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    upward = np.cross(right, forward)
+    rel = np.asarray(points, dtype=float) - position
+    depth = rel @ forward
+    t = math.tan(0.5 * fov)
+    return rel @ right / (depth * t * aspect), rel @ upward / (depth * t), depth

@@ -6,11 +6,9 @@ height and inside it; after the user orbits, "Frame" brings that view back.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from _helpers import wait_for
+from _helpers import project, wait_for
 
 from app import camera
 from app.lessons import all_lessons
@@ -51,16 +49,7 @@ def _height_span(client, framing: camera.Framing, up) -> tuple[float, float]:
     """(half the vertical span of the framed points in the page's view, as a fraction of
     the view's height; the largest |x| or |y|, 1 at the view's edges)."""
     cam = client.camera
-    forward = np.asarray(cam.look_at) - np.asarray(cam.position)
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, up)
-    right /= np.linalg.norm(right)
-    upward = np.cross(right, forward)
-    rel = framing.points - np.asarray(cam.position)
-    depth = rel @ forward
-    t = math.tan(0.5 * cam.fov)
-    x = rel @ right / (depth * t * cam.aspect)
-    y = rel @ upward / (depth * t)
+    x, y, _ = project(framing.points, cam.position, cam.look_at, up, cam.fov, cam.aspect)
     return float(y.max() - y.min()) / 2.0, float(max(np.abs(x).max(), np.abs(y).max()))
 
 

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 import viser
-from _helpers import client_of, settled
+from _helpers import client_of, project, settled
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -26,22 +26,6 @@ from app.camera import FILL, View, frame_points, node_points
 from app.lessons import all_lessons
 from app.server import Lab, ServeOptions
 from app.wsclient import HeadlessClient
-
-
-def _project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, y, depth) of ``points`` (k, 3) in a pinhole view: x, y in units of the view's
-    half-width and half-height (±1 at its edges), depth along the view direction."""
-    position, look_at, up = (np.asarray(v, dtype=float) for v in (position, look_at, up))
-    forward = (look_at - position) / np.linalg.norm(look_at - position)
-    right = np.cross(forward, up)
-    right /= np.linalg.norm(right)
-    upward = np.cross(right, forward)
-    rel = np.asarray(points, dtype=float) - position
-    depth = rel @ forward
-    t = math.tan(0.5 * fov)
-    return rel @ right / (depth * t * aspect), rel @ upward / (depth * t), depth
-
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 
@@ -53,7 +37,7 @@ unit = st.floats(-1.0, 1.0, allow_nan=False)
 def test_framed_points_reach_fill_of_the_view_and_no_further(points, direction, aspect, fov):
     pts = np.array(points)
     position, look_at = frame_points(pts, direction=direction, fov=fov, aspect=aspect)
-    x, y, depth = _project(pts, position, look_at, (0, 0, 1), fov, aspect)
+    x, y, depth = project(pts, position, look_at, (0, 0, 1), fov, aspect)
     assert np.all(depth >= camera.NEAR - 1e-9)
     reach = np.maximum(np.abs(x), np.abs(y))
     assert np.all(reach <= FILL + 1e-9)
@@ -148,7 +132,7 @@ def test_every_lesson_frames_its_robot_in_the_page_view(lesson):
             page.report_view(width=width, height=height, fov=FOV)
             aspect = width / height
             _shows_framing(page, lab, fov=FOV, aspect=aspect)
-            x, y, depth = _project(points, page.camera["position"], page.camera["look_at"],
+            x, y, depth = project(points, page.camera["position"], page.camera["look_at"],
                                    view.up, FOV, aspect)
             assert np.all(depth > 0) and np.all(np.abs(x) <= 1) and np.all(np.abs(y) <= 1)
             if aspect > 1.0:  # a projector's view: the robot is the picture
