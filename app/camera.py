@@ -165,7 +165,11 @@ def show(server: Any, view: View) -> None:
         server.initial_camera.look_at = tuple(look_at)
         server.initial_camera.up = view.up
     for client in list(server.get_clients().values()):
-        reframe(client)  # a page showing its own lesson keeps that lesson's view
+        own = _framed_scene(client.scene) if client.scene is not server.scene else None
+        if own is not None:  # a page showing its own lesson keeps that lesson's view
+            _aim(client, *own)
+        else:
+            _aim(client, view, points)
 
 
 def reframe(client: viser.ClientHandle) -> bool:
@@ -173,16 +177,26 @@ def reframe(client: viser.ClientHandle) -> bool:
     view and aspect (the "Frame" button; a page whose 3D view changed shape). The page's
     own lesson (a private arm), while it is open, wins over the server's. False if there
     is nothing to frame or the page has gone."""
-    if not connected(client):
-        return False
     shared = client._viser_server.scene  # type: ignore[attr-defined]
     # the page's own lesson first; once it has closed its nodes are gone: the shared view
-    for candidate in (client.scene, shared):
-        view = _views.get(candidate)
-        points = node_points(candidate, view.roots) if view is not None else np.empty((0, 3))
-        if len(points):
-            break
-    else:
+    framed = _framed_scene(client.scene) or _framed_scene(shared)
+    return framed is not None and _aim(client, *framed)
+
+
+def _framed_scene(scene: Any) -> tuple[View, np.ndarray] | None:
+    """(the View a lesson asked for on ``scene``, the points it frames now), or None
+    (no lesson's view there, or none of its nodes left)."""
+    view = _views.get(scene)
+    if view is None:
+        return None
+    points = node_points(scene, view.roots)
+    return (view, points) if len(points) else None
+
+
+def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
+    """Frame ``points`` along ``view`` on ``client``'s camera, for its own field of view
+    and aspect; False if the page has gone or has not reported its camera yet."""
+    if not connected(client):
         return False
     fov, aspect = _camera_of(client)
     position, look_at = frame_points(points, direction=view.direction, up=view.up,
