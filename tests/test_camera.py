@@ -24,8 +24,10 @@ from hypothesis import strategies as st
 from app import camera
 from app.camera import FILL, View, frame_points, node_points
 from app.lessons import all_lessons
+from app.lessons.compliance_scene import TRAIL_DOTS, ComplianceScene
 from app.server import Lab, ServeOptions
 from app.wsclient import HeadlessClient
+from kinematics import load_robot
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 
@@ -71,6 +73,31 @@ def test_node_points_compose_poses_and_leave_hidden_nodes_out():
         assert pts.shape == (3, 3)
         assert np.allclose(sorted(map(tuple, pts)), sorted(map(tuple, expected)))
         assert node_points(server.scene, ("/nothing",)).shape == (0, 3)
+    finally:
+        server.stop()
+
+
+def test_the_compliance_camera_frames_the_arm_and_its_task_not_the_hands_trail():
+    """The trail is the hand's history: the arm's move to its start leaves dots far from
+    where it then stands, and later dots replace them. Framed, they would move the camera
+    (and leave the resting arm small, or out of the view framed a moment before)."""
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        rig = ComplianceScene(server, load_robot("receptionist_arm"),
+                              path=np.array([[0.15, 0.0, 0.0], [0.15, 0.2, 0.0]]), root="/c",
+                              on_target=lambda _p: None, on_drag_hand=lambda *_a: None)
+        view = camera._views[server.scene]
+        before = node_points(server.scene, view.roots)
+        far = np.array([1.5, -1.0, 0.5])  # base frame, m
+        for i in range(TRAIL_DOTS):
+            rig.add_trail(far + 0.01 * i)
+        after = node_points(server.scene, view.roots)
+        assert np.array_equal(before, after)
+        # what is framed: the arm, its ghost and the line's ends (world = base pose @ p)
+        base = np.asarray(rig.model.base_pose, dtype=float)
+        for end in ((0.15, 0.0, 0.0), (0.15, 0.2, 0.0)):
+            world = base[:3, :3] @ end + base[:3, 3]
+            assert np.min(np.linalg.norm(before - world, axis=1)) < 1e-9
     finally:
         server.stop()
 

@@ -29,6 +29,9 @@ ARROW_MIN_N = 0.05
 ESTIMATE_ON_N = 0.4
 ESTIMATE_OFF_N = 0.25
 TRAIL_DOTS = 24
+#: the nodes under the shoulder frame that the camera frames with the arm: the task
+#: (the line, its ends and labels, the target), not the trail, springs or arrows
+FRAMED_TASK = ("label", "path", "path_label", "path_end0", "path_end1", "target")
 GHOST_RGBA = (0.35, 0.6, 1.0, 0.35)
 PATH_RGB = (20, 150, 60)
 FORCE_RGB = (220, 30, 30)
@@ -120,8 +123,11 @@ class ComplianceScene:
                        for i in range(TRAIL_DOTS)]
         self._trail_next = 0
         self._trail_last: np.ndarray | None = None
-        # the arm (not the torso it stands on) and its task, from the front right
-        show(server, View(roots=(self.arm.moving_root, self.ghost.moving_root, sh),
+        # the arm (not the torso it stands on) and its task, from the front right; not the
+        # hand's trail: a history (the move to the start leaves dots far from where the arm
+        # stands), it would move the camera whenever a page is framed
+        task = tuple(f"{sh}/{name}" for name in FRAMED_TASK)
+        show(server, View(roots=(self.arm.moving_root, self.ghost.moving_root, *task),
                           direction=(-0.62, 0.26, -0.23)))
 
     # -- frames -----------------------------------------------------------------
