@@ -165,7 +165,7 @@ def test_every_lesson_frames_its_robot_in_the_page_view(lesson):
     with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab, \
             client_of(lab.server, token=lab.token) as page:
         _at_rest(lab, page)
-        view = _framed(lab)[0]
+        view = camera._views[lab.server.scene]
         for width, height in VIEWS:
             page.report_view(width=width, height=height, fov=FOV)
             aspect = width / height
