@@ -215,6 +215,28 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
 #: fraction (a side panel collapsed or opened, the window resized, a phone turned).
 RESHAPE = 0.03
 
+#: Of the camera's distance to what it looks at: a page's camera this close to its last
+#: framing shows it (an orbit moves it by far more)
+SAME = 0.02
+
+
+def shown(client: viser.ClientHandle, since: Framing | None = None) -> Framing | None:
+    """The page's last framing (a newer one than ``since``) once the page shows it: its
+    camera is there and its view still has the shape the framing was made for (a view
+    reshaped since is framed again); else None (for a test, or a script taking pictures)."""
+    framing = last_framing.get(client)
+    if framing is None or framing is since:
+        return None
+    try:
+        cam = client.camera
+        tol = SAME * float(np.linalg.norm(framing.position - framing.look_at))
+        there = (float(np.linalg.norm(cam.position - framing.position)) <= tol
+                 and float(np.linalg.norm(cam.look_at - framing.look_at)) <= tol)
+        same_view = abs(cam.aspect / framing.aspect - 1.0) <= RESHAPE
+    except (AssertionError, ZeroDivisionError):  # no camera report yet
+        return None
+    return framing if there and same_view else None
+
 
 def reframe_on_reshape(server: viser.ViserServer) -> None:
     """Frame every page for its own 3D view: once when it first reports its shape (new

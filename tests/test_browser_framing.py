@@ -16,33 +16,12 @@ from app.lessons import all_lessons
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 
 SIZES = ((1920, 1080), (1280, 720))
-#: Of the camera's distance: the page's camera this close to the last framing shows it
-#: (an orbit moves it by far more)
-SAME = 0.02
 
 
 def _client(lab, known: set[int]):
     """The one page that connected after ``known`` (client ids)."""
     new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
     return new[0] if len(new) == 1 else None
-
-
-def _shown(client, since: camera.Framing | None = None) -> camera.Framing | None:
-    """The page's last framing (a newer one than ``since``) once the page shows it: its
-    camera is there and its view still has the shape the framing was made for (a view
-    reshaped since is framed again); else None."""
-    framing = camera.last_framing.get(client)
-    if framing is None or framing is since:
-        return None
-    try:
-        cam = client.camera
-        tol = SAME * float(np.linalg.norm(framing.position - framing.look_at))
-        there = (float(np.linalg.norm(cam.position - framing.position)) <= tol
-                 and float(np.linalg.norm(cam.look_at - framing.look_at)) <= tol)
-        same_view = abs(cam.aspect / framing.aspect - 1.0) <= camera.RESHAPE
-    except (AssertionError, ZeroDivisionError):  # no camera report yet
-        return None
-    return framing if there and same_view else None
 
 
 def _height_span(client, framing: camera.Framing, up) -> tuple[float, float]:
@@ -68,9 +47,9 @@ def test_every_lesson_frames_its_robot_and_frame_restores_it(browser, lab, size)
         for name in sorted(all_lessons()):
             before = camera.last_framing.get(client)
             lab.switch(name)
-            wait_for(lambda before=before: _shown(client, before) is not None, 90,
+            wait_for(lambda before=before: camera.shown(client, before) is not None, 90,
                      f"{name}: the page to show its framed view")
-            framing = _shown(client)
+            framing = camera.shown(client)
             up = camera._views[lab.server.scene].up
             span, reach = _height_span(client, framing, up)
             assert span >= 0.4, (name, size, span, client.camera.aspect)
@@ -82,9 +61,9 @@ def test_every_lesson_frames_its_robot_and_frame_restores_it(browser, lab, size)
         pg.mouse.down()
         pg.mouse.move(cx + 200, cy + 80, steps=10)
         pg.mouse.up()
-        wait_for(lambda: _shown(client) is None, 60, "the orbit to move the camera")
+        wait_for(lambda: camera.shown(client) is None, 60, "the orbit to move the camera")
         pg.get_by_role("button", name="Frame").click()
-        wait_for(lambda: _shown(client, framing) is not None, 60,
+        wait_for(lambda: camera.shown(client, framing) is not None, 60,
                  "Frame to bring the view back")
     finally:
         pg.close()

@@ -33,6 +33,19 @@ def test_bad_serve_options_name_the_option():
         Lab(ServeOptions(http_port=0, lesson="no_such_lesson"))
 
 
+def test_a_switch_made_by_the_lab_shows_in_every_pages_switcher():
+    with Lab(ServeOptions(http_port=0)) as lab:
+        with HeadlessClient(lab.url.replace("http://", "ws://")) as page:
+            page.wait_for(lambda: any(e.label == "Lesson" for e in page.gui.values()),
+                          what="the lesson switcher")
+            lab.switch("arm")
+            title = all_lessons()["arm"].TITLE
+            page.wait_for(lambda: any(e.label == "Lesson" and e.value == title
+                                      for e in page.gui.values()),
+                          30.0, "the page's switcher to name the arm lesson")
+            assert lab.lesson_dropdown.value == title and lab.lesson_name == "arm"
+
+
 def test_switching_lessons_from_the_page_stops_the_old_one():
     with Lab(ServeOptions(http_port=0)) as lab:
         compliance = lab.lesson
