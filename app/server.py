@@ -41,7 +41,6 @@ from app.lessons import (
     works_with,
 )
 from app.room import Room
-from app.stop_first import install as install_stop_first
 from app.theme import PageStyle, set_projector
 from app.viser_fixes import install as install_viser_fixes
 
@@ -195,7 +194,6 @@ class Lab:
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
-            install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
             port = self.server.get_port()
             wildcard = options.host in WILDCARD_HOSTS
             shown = lan_address() if wildcard else options.host
@@ -220,8 +218,7 @@ class Lab:
         gui = self.server.gui
         self.estop_button = gui.add_button(
             "E-STOP", color="red", icon=viser.Icon.HAND_STOP,
-            hint="Torque off on every servo now (key: Esc). Press Reset to go on.",
-            order=-100.0)
+            hint="Torque off on every servo now. Press Reset to go on.", order=-100.0)
         self.estop_button.on_click(lambda event: self.estop(by=event.client))
         self.frame_button = gui.add_button(
             "Frame", icon=viser.Icon.FOCUS_CENTERED, order=-95.0,
