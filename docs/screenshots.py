@@ -19,7 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the browser tests' Chromium (_helpers)
 
-from _helpers import CHROMIUM, CHROMIUM_ARGS  # noqa: E402
+from _helpers import CHROMIUM, CHROMIUM_ARGS, new_page_client  # noqa: E402
 
 from app import camera  # noqa: E402
 from app.lessons import all_lessons, lesson_order  # noqa: E402
@@ -42,19 +42,14 @@ def _until(predicate: Callable[[], object], what: str) -> None:
         time.sleep(0.1)
 
 
-def _new_client(lab: Lab, known: set[int]):
-    new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
-    return new[0] if len(new) == 1 else None
-
-
 def _picture(lab: Lab, browser, size: tuple[int, int], path: Path) -> None:
     """Open the lab's page at ``size``, wait for its framed view and charts, save ``path``."""
     known = set(lab.server.get_clients())
     page = browser.new_page(viewport={"width": size[0], "height": size[1]})
     try:
         page.goto(lab.url)
-        _until(lambda: _new_client(lab, known) is not None, "the page to connect")
-        client = _new_client(lab, known)
+        _until(lambda: new_page_client(lab, known) is not None, "the page to connect")
+        client = new_page_client(lab, known)
         _until(lambda: camera.shown(client) is not None, "the lesson's framed view")
         _until(lambda: page.get_by_text("Try this").count() > 0, "the lesson's controls")
         notice = page.locator(".mantine-Notification-root", has_text="WebGL")

@@ -146,3 +146,10 @@ def project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
     depth = rel @ forward
     t = math.tan(0.5 * fov)
     return rel @ right / (depth * t * aspect), rel @ upward / (depth * t), depth
+
+
+def new_page_client(lab: Any, known: set[int]) -> Any:
+    """The one page (``viser.ClientHandle``) of ``lab`` that connected after ``known``
+    (client ids), or None while there is not exactly one."""
+    new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
+    return new[0] if len(new) == 1 else None

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _helpers import new_page_client as _client
 from _helpers import project, wait_for
 
 from app import camera
@@ -16,12 +17,6 @@ from app.lessons import all_lessons
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 
 SIZES = ((1920, 1080), (1280, 720))
-
-
-def _client(lab, known: set[int]):
-    """The one page that connected after ``known`` (client ids)."""
-    new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
-    return new[0] if len(new) == 1 else None
 
 
 def _height_span(client, framing: camera.Framing, up) -> tuple[float, float]:
