@@ -40,7 +40,9 @@ from app.lessons import (
     lesson_order,
     works_with,
 )
+from app.look import Looks
 from app.room import Room
+from app.stop_first import install as install_stop_first
 from app.theme import PageStyle, set_projector
 from app.viser_fixes import install as install_viser_fixes
 
@@ -96,6 +98,8 @@ class ServeOptions:
             changes the shared arm; every page may press E-STOP.
         tip_link, package_paths, joint_map: for a robot given as a URDF file (see
             :class:`app.lessons.LessonContext`).
+        plain_on_software: a page whose browser draws WebGL on the CPU gets the plain
+            look (:mod:`app.look`); False keeps the full look on every page.
     """
 
     robot: str = "receptionist_arm"
@@ -112,6 +116,7 @@ class ServeOptions:
     tip_link: str | None = None
     package_paths: tuple[str, ...] = ()
     joint_map: str | None = None
+    plain_on_software: bool = True
 
     def __post_init__(self) -> None:
         if self.token is not None:
@@ -194,6 +199,9 @@ class Lab:
             # the space left between them and a lesson's charts docked on the left.
             self.server.gui.main_panel.dock_right()
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
+            install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
+            # a page drawing WebGL on the CPU gets the plain look (app.look)
+            self.looks = Looks(self.server, plain_on_software=options.plain_on_software)
             port = self.server.get_port()
             wildcard = options.host in WILDCARD_HOSTS
             shown = lan_address() if wildcard else options.host
@@ -218,7 +226,8 @@ class Lab:
         gui = self.server.gui
         self.estop_button = gui.add_button(
             "E-STOP", color="red", icon=viser.Icon.HAND_STOP,
-            hint="Torque off on every servo now. Press Reset to go on.", order=-100.0)
+            hint="Torque off on every servo now (key: Esc). Press Reset to go on.",
+            order=-100.0)
         self.estop_button.on_click(lambda event: self.estop(by=event.client))
         self.frame_button = gui.add_button(
             "Frame", icon=viser.Icon.FOCUS_CENTERED, order=-95.0,

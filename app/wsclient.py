@@ -10,6 +10,9 @@ the page does on the wire:
 - decodes every server frame: ``[8 B msgpack length][8 B zstd length][zstd
   msgpack][padding][raw binary buffers]``, the msgpack holding
   ``{"messages": [...], "timestampSec", "binaryBufferLengths"}``;
+- keeps a localStorage of its own (``LocalStorage*Message``) and answers the server's
+  questions about it, as the page does (it runs no JavaScript: a key only a page
+  script would write is absent);
 - sends GUI changes as ``GuiUpdateMessage``, drags as ``SceneNodeDragMessage`` and
   gizmo moves as ``TransformControls*Message`` (plain msgpack dicts with a ``type`` key).
 
@@ -124,6 +127,7 @@ class HeadlessClient:
         notifications: (title, body) of every notification shown.
         downloads: filename -> bytes of every completed file download.
         camera: the camera the server last set: "position", "look_at", "up" (3-tuples).
+        local_storage: key -> value the server stored in this page's localStorage.
         bytes_received, frames_received: traffic counters.
         counts: message type -> how many.
     """
@@ -140,6 +144,7 @@ class HeadlessClient:
         self.downloads: dict[str, bytes] = {}
         self.theme: dict[str, Any] | None = None  #: the last ThemeConfigurationMessage
         self.camera: dict[str, tuple[float, ...]] = {}
+        self.local_storage: dict[str, str] = {}
         self.camera_sets = 0  #: camera messages received (a move sets position and look_at)
         self._parts: dict[str, dict[str, Any]] = {}
         self.bytes_received = 0
@@ -213,8 +218,9 @@ class HeadlessClient:
                     with self._lock:
                         self.bytes_received += len(raw)
                         self.frames_received += 1
-                        for m in messages:
-                            self._absorb(m)
+                        answers = [a for m in messages if (a := self._absorb(m)) is not None]
+                    for answer in answers:
+                        await ws.send(msgspec.msgpack.encode(answer))
                     if self._on_message is not None:
                         for m in messages:
                             self._on_message(m, now)
@@ -226,7 +232,8 @@ class HeadlessClient:
 
     # -- state --------------------------------------------------------------------
 
-    def _absorb(self, m: dict[str, Any]) -> None:
+    def _absorb(self, m: dict[str, Any]) -> dict[str, Any] | None:
+        """Take in one server message; returns the page's answer to it, if it has one."""
         kind = m.get("type", "")
         self.counts[kind] += 1
         uuid = m.get("uuid")
@@ -263,6 +270,17 @@ class HeadlessClient:
             self.camera_sets += 1
         elif "name" in m and kind.startswith("Set"):
             self.scene[m["name"]][kind] = {k: v for k, v in m.items() if k != "type"}
+        elif kind == "LocalStorageSetItemMessage":
+            self.local_storage[m["key"]] = m["value"]
+        elif kind == "LocalStorageRemoveItemMessage":
+            self.local_storage.pop(m["key"], None)
+        elif kind == "LocalStorageClearMessage":
+            self.local_storage.clear()
+        elif kind == "LocalStorageGetItemRequestMessage":
+            return {"type": "LocalStorageGetItemResponseMessage", "error": None,
+                    "value": self.local_storage.get(m["key"]),
+                    "request_uuid": m["request_uuid"]}
+        return None
 
     # -- queries and actions ------------------------------------------------------------
 

@@ -69,7 +69,9 @@ def take(out: Path, lessons: Sequence[str] = ()) -> list[Path]:
     names = list(lessons) or [m.NAME for m in sorted(all_lessons().values(), key=lesson_order)]
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    with Lab(ServeOptions(http_port=0, lesson=names[0])) as lab, sync_playwright() as pw:
+    # (the full look: the pictures show what a page drawing on a GPU shows, app.look)
+    with Lab(ServeOptions(http_port=0, lesson=names[0], plain_on_software=False)) as lab, \
+            sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
                                      args=CHROMIUM_ARGS)
         try:

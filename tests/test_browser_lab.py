@@ -1,8 +1,9 @@
 """The lab in a real headless Chromium (Playwright driving Debian's /usr/bin/chromium).
 
-What a person sees and does: the page loads without console errors, the 3D view
-shows the arm, moving the Kp slider changes the controller, Run fills the charts,
-the CSV download arrives with the recorded rows, the preset picker restores the
+What a person sees and does: the page loads without console errors, gets the plain
+look (headless Chromium draws WebGL in software: app.look), the 3D view shows the arm,
+moving the Kp slider changes the controller, Run fills the charts, the CSV download
+arrives with the recorded rows, the preset picker restores the
 gains, dragging the hand with the mouse pulls the arm, and the E-STOP button
 switches every servo off. Skipped, with a message, where chromium is not
 installed (``apt-get install chromium``).
@@ -48,6 +49,14 @@ def test_page_loads_without_console_errors(page):
               if k in ("error", "pageerror") and not expected_console(t)]
     assert errors == []
     assert page.get_by_role("button", name="E-STOP").is_visible()
+
+
+def test_a_software_webgl_page_gets_the_plain_look(page, lab):
+    """Headless Chromium draws WebGL with SwiftShader: the page names it and is drawn plain."""
+    wait_for(lambda: any(lab.looks.is_plain(cid) for cid in lab.server.get_clients()), 180,
+             "the page to name its WebGL renderer and get the plain look")
+    (cid,) = [cid for cid in lab.server.get_clients() if lab.looks.is_plain(cid)]
+    assert "swiftshader" in lab.looks.renderer(cid).lower()
 
 
 def test_3d_view_renders_the_arm(page):
