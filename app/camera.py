@@ -94,7 +94,8 @@ def frame_points(points: np.ndarray, *, direction: Sequence[float],
 def node_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
     """(k, 3) world positions of the origins of the visible scene nodes under ``roots``
     (``scene``: a server's or a page's ``viser`` scene; a node hidden, or under a hidden
-    one, is left out)."""
+    one, is left out, and so is one at a non-finite pose and what hangs under it: a
+    lesson's marker with nothing to show yet is no place to aim a camera)."""
     handles: dict[str, Any] = scene._handle_from_node_name  # viser keeps no public index
     poses: dict[str, np.ndarray | None] = {"": np.eye(4)}
 
@@ -112,7 +113,8 @@ def node_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
         local = np.eye(4)
         local[:3, :3] = vtf.SO3(np.asarray(handle.wxyz, dtype=float)).as_matrix()
         local[:3, 3] = handle.position
-        poses[name] = parent @ local
+        world = parent @ local
+        poses[name] = world if np.all(np.isfinite(world)) else None
         return poses[name]
 
     names = [n for n in list(handles) if any(n == r or n.startswith(r + "/") for r in roots)]

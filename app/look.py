@@ -78,6 +78,7 @@ class Looks:
         self._server = server
         self._renderers: dict[int, str] = {}
         self._plain: set[int] = set()
+        self._settled: set[int] = set()
         self._lock = threading.Lock()
         server.on_client_connect(self._ask)
         server.on_client_disconnect(self._forget)
@@ -89,9 +90,16 @@ class Looks:
             return self._renderers.get(client_id)
 
     def is_plain(self, client_id: int) -> bool:
-        """True once page ``client_id`` was given the plain look."""
+        """True once page ``client_id`` has taken the plain look in."""
         with self._lock:
             return client_id in self._plain
+
+    def settled(self, client_id: int) -> bool:
+        """True once page ``client_id`` has its look for good: it named its renderer and,
+        if that draws in software, has taken the plain look in (a test comparing
+        pictures of the page over time waits for this)."""
+        with self._lock:
+            return client_id in self._settled
 
     def _ask(self, client: viser.ClientHandle) -> None:
         script = PROBE_SCRIPT % {"key": json.dumps(LOCAL_STORAGE_PREFIX + RENDERER_KEY)}
@@ -119,10 +127,17 @@ class Looks:
             self._renderers[client.client_id] = renderer or ""
         if self.plain_on_software and is_software(renderer or ""):
             plain(client)
+            try:  # the page answers after it has handled the plain look's messages
+                client.local_storage.get_item(RENDERER_KEY, timeout=ANSWER_WAIT_S)
+            except (TimeoutError, RuntimeError):
+                return
             with self._lock:
                 self._plain.add(client.client_id)
+        with self._lock:
+            self._settled.add(client.client_id)
 
     def _forget(self, client: viser.ClientHandle) -> None:
         with self._lock:
             self._renderers.pop(client.client_id, None)
             self._plain.discard(client.client_id)
+            self._settled.discard(client.client_id)

@@ -148,6 +148,14 @@ def project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
     return rel @ right / (depth * t * aspect), rel @ upward / (depth * t), depth
 
 
+def wait_look_settled(lab: Any, known: set[int]) -> None:
+    """Wait until the page of ``lab`` that connected after ``known`` (client ids) has its
+    look for good (app.look: a page drawing WebGL in software turns plain once it has
+    named its renderer, which changes every pixel between two pictures)."""
+    wait_for(lambda: any(lab.looks.settled(cid) for cid in lab.server.get_clients()
+                         if cid not in known), 180.0, "the page's look to settle")
+
+
 def new_page_client(lab: Any, known: set[int]) -> Any:
     """The one page (``viser.ClientHandle``) of ``lab`` that connected after ``known``
     (client ids), or None while there is not exactly one."""

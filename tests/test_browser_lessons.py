@@ -15,7 +15,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _helpers import after_switch, chart_x_ranges, expected_console, view_png, wait_for
+from _helpers import (
+    after_switch,
+    chart_x_ranges,
+    expected_console,
+    view_png,
+    wait_for,
+    wait_look_settled,
+)
 
 from app.lessons import all_lessons, lesson_order
 
@@ -30,6 +37,7 @@ VIEW = (0.0, 0.22, 1.0, 1.0)
 @pytest.fixture(scope="module")
 def page(browser, lab):
     lab.wait_until_loadable()
+    known = set(lab.server.get_clients())
     pg = browser.new_page(viewport={"width": 1400, "height": 860})
     pg.console_errors = []  # type: ignore[attr-defined]
     pg.on("console", lambda m: pg.console_errors.append(m.text)
@@ -37,6 +45,7 @@ def page(browser, lab):
     pg.on("pageerror", lambda e: pg.console_errors.append(f"page error: {e}"))
     pg.goto(lab.url)
     pg.locator("canvas").first.wait_for()
+    wait_look_settled(lab, known)  # (pictures are compared across lesson switches)
     yield pg
     pg.close()
 

@@ -13,7 +13,7 @@ import re
 
 import pytest
 from _browser_style import chart_props
-from _helpers import wait_for
+from _helpers import wait_for, wait_look_settled
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
 
@@ -49,11 +49,14 @@ def _tick_fonts(lab) -> list[float]:
     return sizes
 
 
-def _open(browser, url):
+def _open(browser, lab):
+    """A 1920x1080 page of ``lab``, its charts drawn and its look settled."""
+    known = set(lab.server.get_clients())
     pg = browser.new_page(viewport={"width": 1920, "height": 1080})
-    pg.goto(url)
+    pg.goto(lab.url)
     pg.get_by_role("button", name="Run thesis line").wait_for(timeout=120_000)
     wait_for(lambda: pg.locator(".u-title").count() > 0, 120.0, "the charts to draw")
+    wait_look_settled(lab, known)
     return pg
 
 
@@ -70,7 +73,7 @@ def projector_lab():
 
 
 def test_projector_text_is_at_least_20px(browser, projector_lab):
-    pg = _open(browser, projector_lab.url)
+    pg = _open(browser, projector_lab)
     try:
         wait_for(lambda: _smallest(pg)[0] >= 20.0, 60.0, "projector text sizes")
         smallest, where, n = _smallest(pg)
@@ -85,7 +88,7 @@ def test_projector_text_is_at_least_20px(browser, projector_lab):
 
 
 def test_normal_text_is_at_least_13px_and_the_switch_enlarges_it(browser, lab):
-    pg = _open(browser, lab.url)
+    pg = _open(browser, lab)
     try:
         smallest, where, n = _smallest(pg)
         assert n > 20
@@ -166,11 +169,13 @@ def test_scene_label_height(browser, projector, request):
     from app.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, projector=projector)) as lab:
-        pg = _open(browser, lab.url)
+        pg = _open(browser, lab)
         try:
             scene = lab.lesson.rig.scene
+            # (the target's gizmo sits under the label: hidden, or its handle, seen
+            # through the label's halo, would count as the label's)
             h = _label_height(pg, scene.path_label, still=(
-                scene.arm.root, scene.ghost.root, *scene._trail))
+                scene.arm.root, scene.ghost.root, scene.target, *scene._trail))
         finally:
             pg.close()
     assert (24.0 if projector else 16.0) <= h <= 60.0, h

@@ -58,7 +58,7 @@ def test_frame_points_refuses_what_cannot_be_framed():
         frame_points(np.zeros((1, 3)), direction=(0, 0, -1))  # along up
 
 
-def test_node_points_compose_poses_and_leave_hidden_nodes_out():
+def test_node_points_compose_poses_and_leave_hidden_and_non_finite_nodes_out():
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         quarter = (math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4))  # 90° about z
@@ -68,6 +68,8 @@ def test_node_points_compose_poses_and_leave_hidden_nodes_out():
         server.scene.add_frame("/a/hidden", position=(9.0, 9.0, 9.0), visible=False)
         server.scene.add_icosphere("/a/hidden/child", radius=0.01)
         server.scene.add_frame("/elsewhere", position=(5.0, 5.0, 5.0))
+        server.scene.add_frame("/a/lost", position=(math.nan, 0.0, 0.0))  # nothing to show
+        server.scene.add_icosphere("/a/lost/child", radius=0.01)
         pts = node_points(server.scene, ("/a",))
         expected = np.array([[1.0, 0.0, 0.0], [1.0, 0.5, 0.0], [1.0, 0.5, 0.2]])
         assert pts.shape == (3, 3)

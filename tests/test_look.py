@@ -62,6 +62,7 @@ def test_a_software_page_alone_gets_the_plain_look_and_a_gpu_page_keeps_the_full
             wait_for(lambda: len(set(lab.server.get_clients()) - known) == 1, 60, "the page")
             soft = _only(lab, known)
             wait_for(lambda: lab.looks.is_plain(soft), 60, "the plain look")
+            assert lab.looks.settled(soft)
             wait_for(lambda: any(m["type"] == "EnableLightsMessage" for m in soft_seen), 60,
                      "the page to get the lights without shadows")
             env = [m for m in soft_seen if m["type"] == "EnvironmentMapMessage"]
@@ -77,10 +78,12 @@ def test_a_software_page_alone_gets_the_plain_look_and_a_gpu_page_keeps_the_full
                     gpu = _only(lab, known)
                     wait_for(lambda g=gpu: lab.looks.renderer(g) is not None, 60, "its answer")
                     assert lab.looks.renderer(gpu) == (renderer or "")
+                    wait_for(lambda g=gpu: lab.looks.settled(g), 60, "its look settled")
                     assert not lab.looks.is_plain(gpu)
                     assert not _plain_sent(gpu_seen)
                 wait_for(lambda g=gpu: g not in lab.server.get_clients(), 60, "the page to leave")
-                wait_for(lambda g=gpu: lab.looks.renderer(g) is None, 60, "its entry forgotten")
+                wait_for(lambda g=gpu: lab.looks.renderer(g) is None
+                         and not lab.looks.settled(g), 60, "its entry forgotten")
             assert lab.looks.is_plain(soft)  # the software page keeps its plain look
 
 
