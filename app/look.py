@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import viser
 
-from app.page_js import LOCAL_STORAGE_PREFIX, run_javascript
+from app.page_js import LOCAL_STORAGE_PREFIX, ask_item, run_javascript
 
 #: the page's localStorage key the probe writes the renderer name to
 RENDERER_KEY = "armlab_webgl_renderer"
@@ -108,19 +107,12 @@ class Looks:
                              name="armlab-look").start()
 
     def _answer(self, client: viser.ClientHandle) -> None:
-        """Wait for the page's answer (asked every :data:`ASK_EVERY_S` s, up to
-        :data:`ANSWER_WAIT_S` s: a page that has only just connected may miss the first
-        question), then give a software renderer the plain look."""
-        deadline = time.monotonic() + ANSWER_WAIT_S
-        while True:
-            try:
-                renderer = client.local_storage.get_item(RENDERER_KEY, timeout=ASK_EVERY_S)
-                break
-            except TimeoutError:
-                if time.monotonic() >= deadline:
-                    return
-            except RuntimeError:  # the page left, or its browser keeps no localStorage
-                return
+        """Wait for the page's answer (:func:`app.page_js.ask_item`), then give a
+        software renderer the plain look."""
+        try:
+            renderer = ask_item(client, RENDERER_KEY, every=ASK_EVERY_S, within=ANSWER_WAIT_S)
+        except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
+            return
         with self._lock:
             if client.client_id not in self._server.get_clients():
                 return  # gone while it answered

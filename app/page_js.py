@@ -8,6 +8,8 @@ page goes on handling the server's messages.
 
 from __future__ import annotations
 
+import time
+
 import viser
 
 try:  # viser's own message (viser._messages is private: another release may move it)
@@ -35,3 +37,21 @@ def run_javascript(client: viser.ClientHandle, source: str, *, name: str) -> boo
     client._websock_connection.queue_message(  # type: ignore[attr-defined]
         RunJavascriptMessage(source=guarded(source, name=name)))
     return True
+
+
+def ask_item(client: viser.ClientHandle, key: str, *, every: float, within: float) -> str | None:
+    """``client``'s localStorage value of ``key`` (None: absent), asked every ``every`` s
+    until the page answers: a page that has only just connected may miss the first
+    question, and a busy one answers late.
+
+    Raises:
+        TimeoutError: no answer within ``within`` s.
+        RuntimeError: the page left, or its browser keeps no localStorage.
+    """
+    deadline = time.monotonic() + within
+    while True:
+        try:
+            return client.local_storage.get_item(key, timeout=every)
+        except TimeoutError:
+            if time.monotonic() >= deadline:
+                raise

@@ -16,7 +16,6 @@ from __future__ import annotations
 import secrets
 import sys
 import threading
-import time
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -30,6 +29,7 @@ from app.lessons._common import remove_quietly
 from app.muting import SharedStream
 from app.overview import GHOST_OFFSET, GHOST_RGBA, ClassOverview, StudentRow, row_figures
 from app.page import Page
+from app.page_js import ask_item
 from app.sandboxes import ClassFull, Sandboxes
 
 if TYPE_CHECKING:
@@ -201,16 +201,10 @@ class Room:
         Asked every :data:`SEAT_ASK_S` s until the page answers, leaves, or
         :data:`SEAT_WAIT_S` s have passed: a page that has only just connected may not
         answer the first question, and a busy one answers late."""
-        key = None
-        deadline = time.monotonic() + SEAT_WAIT_S
-        while time.monotonic() < deadline:
-            try:
-                key = state.client.local_storage.get_item(SEAT_KEY, timeout=SEAT_ASK_S)
-                break
-            except TimeoutError:
-                continue
-            except RuntimeError:  # the page left, or its browser keeps no localStorage
-                return
+        try:
+            key = ask_item(state.client, SEAT_KEY, every=SEAT_ASK_S, within=SEAT_WAIT_S)
+        except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
+            return
         if key and self._sandboxes is not None and self._sandboxes.has(key):
             state.seat = key
             state.view.value = MY_ARM  # fires _on_view
