@@ -36,6 +36,7 @@ import viser
 from viser._messages import GuiUpdateMessage
 
 from app.inputs import notify
+from app.page_js import set_props
 
 #: letters and digits that cannot be mistaken for one another on a projector
 PASSCODE_ALPHABET = "ABCDEFGHJKMNPQRSTUVWXYZ23456789"
@@ -242,8 +243,7 @@ class Roles:
         handle = self._server.gui._gui_input_handle_from_uuid.get(uuid)  # type: ignore
         if handle is None or getattr(handle._impl, "is_button", False):
             return
-        client._websock_connection.queue_message(  # type: ignore[attr-defined]
-            GuiUpdateMessage(uuid, {"value": handle._impl.value}))
+        set_props(client, handle, value=handle._impl.value)
 
 
 def address_of(server: viser.ViserServer, client_id: int) -> str | int:

@@ -1,16 +1,24 @@
-"""Running a small script in one page, through the message viser itself uses to load
-Plotly (``RunJavascriptMessage``): viser has no public API for it, and its page runs
-the source with ``new Function(source)()`` in its message loop, with nothing around it.
+"""One page alone: a small script run in it, a question to its localStorage, and
+properties of shared elements set on it only.
+
+A script goes through the message viser itself uses to load Plotly
+(``RunJavascriptMessage``): viser has no public API for it, and its page runs the
+source with ``new Function(source)()`` in its message loop, with nothing around it.
 :func:`run_javascript` therefore wraps every script in ``try``/``catch``: a script that
 throws (an element it expected is missing in some release) logs to the console and the
-page goes on handling the server's messages.
+page goes on handling the server's messages. :func:`set_props` sends viser's own
+update messages to one page's connection (viser's handles send them to every page).
 """
 
 from __future__ import annotations
 
+import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import viser
+from viser._messages import GuiUpdateMessage, SceneNodeUpdateMessage
 
 try:  # viser's own message (viser._messages is private: another release may move it)
     from viser._messages import RunJavascriptMessage
@@ -55,3 +63,105 @@ def ask_item(client: viser.ClientHandle, key: str, *, every: float, within: floa
         except TimeoutError:
             if time.monotonic() >= deadline:
                 raise
+
+
+def owner_of(handle: Any) -> viser.ViserServer | viser.ClientHandle:
+    """The server (an element every page shows) or the page (one page's own) that a GUI
+    element or scene node belongs to."""
+    impl = handle._impl
+    api = impl.gui_api if hasattr(impl, "gui_api") else impl.api
+    return api._owner
+
+
+def set_props(client: viser.ClientHandle, handle: Any, **props: Any) -> None:
+    """Set properties of a GUI element or scene node on ``client``'s page only, through
+    the update message viser sends when a handle's property is assigned (the server's
+    handle, and every other page, keep their values). Nothing is sent for an element
+    already removed (the page would log an error).
+
+    viser sends a page its own messages and the messages for every page by two separate
+    queues, so an update for an element every page shows is held until the page has been
+    sent everything shared that came before (:func:`after_shared`): an element created a
+    moment ago exists on the page before its update arrives."""
+    impl = handle._impl
+    if impl.removed:
+        return
+    if hasattr(impl, "gui_api"):
+        message: Any = GuiUpdateMessage(impl.uuid, props)
+        api = impl.gui_api
+    else:  # a scene node, addressed by name and the scope (server or page) it belongs to
+        message = SceneNodeUpdateMessage(impl.name, props, owner=impl.api._owner_id)
+        api = impl.api
+
+    def send() -> None:
+        if not impl.removed:
+            client._websock_connection.queue_message(message)  # type: ignore[attr-defined]
+
+    if api._owner is client:
+        send()  # the page's own element: created through the same queue
+    else:
+        after_shared(client, send)
+
+
+#: s a page may take to be sent the shared messages before a held one (then it is dropped)
+SHARED_WAIT_S = 120.0
+#: s between looks at how far a page has been sent the shared messages
+SHARED_POLL_S = 0.01
+
+_held_lock = threading.Lock()
+#: client id -> [(shared message id to wait for, send), ...] in order
+_held: dict[Any, list[tuple[int, float, Callable[[], None]]]] = {}
+
+
+def _broadcast(client: viser.ClientHandle) -> Any:
+    """viser's buffer of the messages for every page (None: a viser without one)."""
+    server = getattr(client, "_viser_server", None)
+    return getattr(getattr(server, "_websock_server", None), "_broadcast_buffer", None)
+
+
+def after_shared(client: viser.ClientHandle, send: Callable[[], None]) -> None:
+    """Call ``send()`` once ``client`` has been sent every message for all pages queued
+    before this call (at once if it has; in call order per page; never for a page that
+    left or is not sent them within :data:`SHARED_WAIT_S`)."""
+    buffer = _broadcast(client)
+    cursors = getattr(buffer, "generator_cursors", None)
+    if buffer is None or cursors is None:
+        send()  # a viser without these: as good as it gets
+        return
+    mark = buffer.message_counter - 1
+    key = (id(buffer), client.client_id)
+    with _held_lock:
+        waiting = _held.get(key)
+        if waiting is None and cursors.get(client.client_id, -1) >= mark:
+            send()
+            return
+        if waiting is None:
+            _held[key] = waiting = []
+            threading.Thread(target=_release, args=(key, cursors, client),
+                             daemon=True, name="armlab-page-props").start()
+        waiting.append((mark, time.monotonic() + SHARED_WAIT_S, send))
+
+
+def held(client: viser.ClientHandle) -> int:
+    """How many of ``client``'s messages :func:`after_shared` still holds."""
+    key = (id(_broadcast(client)), client.client_id)
+    with _held_lock:
+        return len(_held.get(key, ()))
+
+
+def _release(key: Any, cursors: dict, client: viser.ClientHandle) -> None:
+    """Send a page's held messages as it is sent the shared ones before them."""
+    server = client._viser_server  # type: ignore[attr-defined]
+    while True:
+        with _held_lock:
+            waiting = _held[key]
+            at = cursors.get(client.client_id, -1)
+            now = time.monotonic()
+            while waiting and (at >= waiting[0][0] or now > waiting[0][1]):
+                mark, _, send = waiting.pop(0)
+                if at >= mark:
+                    send()
+            if not waiting or client.client_id not in server.get_clients():
+                del _held[key]  # all sent, or the page has gone
+                return
+        time.sleep(SHARED_POLL_S)

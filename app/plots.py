@@ -189,6 +189,21 @@ def fit_range(lo: float, hi: float, *, min_span: float,
     return lo - room, hi + room
 
 
+def chart_axes(s: theme.TextSizes, *, y_label: str, y2_label: str | None = None
+               ) -> tuple[dict, ...]:
+    """uPlot axes of a live chart in text sizes ``s``: time on x, ``y_label`` on the left
+    and, if given, ``y2_label`` on the right (scale "y2", no grid of its own)."""
+    font, label_font = theme.chart_font(s), theme.chart_font(s, bold=True)
+    axes: list[dict] = [{"label": "t − now (s)", "size": s.x_axis, "font": font,
+                         "labelFont": label_font},
+                        {"label": y_label, "scale": "y", "size": s.y_axis, "font": font,
+                         "labelFont": label_font}]
+    if y2_label is not None:
+        axes.append({"label": y2_label, "scale": "y2", "side": 1, "size": s.y_axis,
+                     "font": font, "labelFont": label_font, "grid": {"show": False}})
+    return tuple(axes)
+
+
 @dataclass(frozen=True)
 class SeriesSpec:
     """One line of a chart: label, colour, dash pattern (None: solid), scale ("y" or
@@ -268,17 +283,10 @@ class LivePlot:
         self.ranges: dict[str, tuple[float, float]] = {
             key: (-0.5 * span, 0.5 * span) for key, (span, _) in self._spans.items()}
         scales: dict = {"x": fixed_x(-window_s, 0.0), "y": {"auto": True}}
-        font, label_font = theme.chart_font(), theme.chart_font(bold=True)
-        big = theme.projector()
-        axes: list = [{"label": "t − now (s)", "size": 48 if big else 34,
-                       "font": font, "labelFont": label_font},
-                      {"label": y_label, "scale": "y", "size": 80 if big else 52,
-                       "font": font, "labelFont": label_font}]
+        axes = {mode: chart_axes(theme.sizes(mode), y_label=y_label, y2_label=y2_label)
+                for mode in (False, True)}
         if y2_label is not None:
             scales["y2"] = {"auto": True}
-            axes.append({"label": y2_label, "scale": "y2", "side": 1,
-                         "size": 80 if big else 52, "font": font, "labelFont": label_font,
-                         "grid": {"show": False}})
         scales.update({key: {"auto": False, "range": r} for key, r in self.ranges.items()})
         self._scales = scales
         # Start with the window's x extent and flat zero lines.
@@ -286,11 +294,13 @@ class LivePlot:
         self.handle = gui.add_uplot(
             data=empty,
             series=({"label": "t − now (s)"}, *(uplot_series(s) for s in series)),
-            scales=scales, axes=tuple(axes), title=title, height=height,
+            scales=scales, axes=axes[False], title=title, height=height,
             legend={"live": False},
             cursor={"show": False},
             order=order,
         )
+        # a page in projector mode gets the projector axes (app.theme)
+        theme.sized(self.handle, normal={"axes": axes[False]}, projector={"axes": axes[True]})
         self._last_t: float | None = None
         self._last_sent = 0.0
         self._last_values: np.ndarray | None = None

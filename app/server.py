@@ -41,9 +41,10 @@ from app.lessons import (
     works_with,
 )
 from app.look import Looks
+from app.panels import install as install_panels
 from app.room import Room
 from app.stop_first import install as install_stop_first
-from app.theme import PageStyle, set_projector
+from app.theme import PageStyle
 from app.viser_fixes import install as install_viser_fixes
 
 #: Label at the top of the control panel.
@@ -93,7 +94,8 @@ class ServeOptions:
         realtime: run the control loop against the wall clock (False: as fast as
             possible, for tests).
         token: the access token the page's URL carries (None: a new random one).
-        projector: start with large text (the panel's "Projector" switch).
+        projector: large text on pages whose browser has not chosen (each page has its
+            own "Projector" switch, kept in its browser: :mod:`app.theme`).
         classroom: roles (:mod:`app.classroom`): only a page that typed the passcode
             changes the shared arm; every page may press E-STOP.
         tip_link, package_paths, joint_map: for a robot given as a URDF file (see
@@ -200,6 +202,7 @@ class Lab:
             self.server.gui.main_panel.dock_right()
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
             install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
+            install_panels(self.server)  # a browser's collapsed side panels kept on reload
             # a page drawing WebGL on the CPU gets the plain look (app.look)
             self.looks = Looks(self.server, plain_on_software=options.plain_on_software)
             port = self.server.get_port()
@@ -243,17 +246,9 @@ class Lab:
             order=-90.0, visible=len(ordered) > 1,
             hint="Switch to another lesson (stops the current one)")
         self.lesson_dropdown.on_update(self._on_lesson_picked)
-        self.page_style = PageStyle(gui, projector=self.options.projector, order=-80.0,
-                                    on_change=lambda _on: self._reopen())
-
-    def _reopen(self) -> None:
-        """Re-open the current lesson (its charts take the new text size)."""
-        with self._lock:
-            if self._closed or self.lesson is None:
-                return
-            self.lesson.close()
-            self.lesson = None
-            self._open(self.lesson_name)
+        # each page its own Projector switch, kept in its browser (app.theme)
+        self.page_style = PageStyle(self.server, projector=self.options.projector,
+                                    order=-80.0)
 
     def _on_lesson_picked(self, event: viser.GuiEvent) -> None:
         name = self._by_title.get(str(self.lesson_dropdown.value))
@@ -357,7 +352,6 @@ class Lab:
             if lesson is not None:
                 lesson.close()
         finally:
-            set_projector(False)  # charts built later (another lab in this process) are normal
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
 

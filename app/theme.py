@@ -1,64 +1,70 @@
-"""Text sizes of the lab's page: normal (>= 13 px) or projector (>= 20 px at 1920x1080).
+"""Text sizes of the lab's pages, each page its own: normal (>= 13 px) or projector
+(>= 20 px at 1920x1080).
 
 viser offers no font-size setting, so the lab adds one HTML element holding a
-``<style>`` sheet (:func:`add_style`); its content is swapped when the
-"Projector" switch changes. Sizes are in CSS px, so browser zoom (Ctrl +)
-still scales them. uPlot draws its tick digits on a canvas with the font given
-when the chart is built, so charts read :func:`chart_font` at creation: a
-chart built after the switch changed (a lesson opened or re-opened) uses the
-new size.
+``<style>`` sheet (:func:`style_sheet`); the 3D scene's labels and the charts'
+canvas-drawn tick digits have sizes of their own (a label's ``font_screen_scale``, a
+uPlot axis's ``font``). All of them are built in the normal sizes and shared by every
+page. An element whose size depends on the mode is registered with :func:`sized`
+(labels through :func:`add_label`, charts in :mod:`app.plots`); a page whose
+"Projector" switch is on is sent the projector values of those elements, to it alone
+(:func:`app.page_js.set_props`). So the projected page can have large text while the
+students' phones keep theirs, and nothing is rebuilt: the arm goes on as it was.
+
+Each browser keeps its choice in its localStorage (:data:`PROJECTOR_KEY`), so a reload
+keeps it; ``armlab serve --projector`` is the choice of a browser that has made none.
+Sizes are in CSS px, so browser zoom (Ctrl +) still scales them.
 """
 
 from __future__ import annotations
 
+import threading
+import time
+import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import viser
+
+from app.page_js import ask_item, held, owner_of, set_props
 
 
 @dataclass(frozen=True)
 class TextSizes:
     """CSS px of the page's text: controls (labels, inputs, tabs, status), charts' titles
-    and legends, and the charts' canvas-drawn tick digits."""
+    and legends, the charts' canvas-drawn tick digits, and the room the charts' x and y
+    axes take for their digits and label."""
 
     controls: int
     chart_title: int
     ticks: int
+    x_axis: int
+    y_axis: int
 
 
-NORMAL = TextSizes(controls=14, chart_title=14, ticks=13)
-PROJECTOR = TextSizes(controls=22, chart_title=22, ticks=20)
+NORMAL = TextSizes(controls=14, chart_title=14, ticks=13, x_axis=34, y_axis=52)
+PROJECTOR = TextSizes(controls=22, chart_title=22, ticks=20, x_axis=48, y_axis=80)
 
-_state = {"projector": False}
+#: viser's ``font_screen_scale`` of the lab's 3D scene labels. Scale 1 draws text about
+#: 12 px tall at 1080p (the issue measured 7-8 px at 0.6): 1.75 gives >= 16 px glyph
+#: height, 2.6 gives >= 24 px in projector mode.
+LABEL_SCALE = {False: 1.75, True: 2.6}
 
-
-def projector() -> bool:
-    """True while the page is in projector mode."""
-    return _state["projector"]
-
-
-def set_projector(on: bool) -> None:
-    """Switch projector mode for charts built from now on (:func:`chart_font`)."""
-    _state["projector"] = bool(on)
-
-
-def sizes() -> TextSizes:
-    """The text sizes of the current mode."""
-    return PROJECTOR if projector() else NORMAL
+#: the page's localStorage key holding its choice ("1" projector, "0" normal)
+PROJECTOR_KEY = "armlab_projector"
+#: s a page has to answer the question for its choice, and s between questions
+ANSWER_WAIT_S = 180.0
+ASK_EVERY_S = 4.0
 
 
-def label_scale() -> float:
-    """viser's ``font_screen_scale`` for the lab's 3D scene labels in the current mode.
-
-    Scale 1 draws text about 12 px tall at 1080p (the issue measured 7-8 px at 0.6):
-    1.75 gives >= 16 px glyph height, 2.6 gives >= 24 px in projector mode.
-    """
-    return 2.6 if projector() else 1.75
+def sizes(projector: bool) -> TextSizes:
+    """The text sizes of a mode."""
+    return PROJECTOR if projector else NORMAL
 
 
-def chart_font(*, bold: bool = False) -> str:
-    """A canvas font string for uPlot's axis ticks / labels in the current mode."""
-    return f"{'bold ' if bold else ''}{sizes().ticks}px system-ui, sans-serif"
+def chart_font(s: TextSizes, *, bold: bool = False) -> str:
+    """A canvas font string for uPlot's axis ticks / labels in sizes ``s``."""
+    return f"{'bold ' if bold else ''}{s.ticks}px system-ui, sans-serif"
 
 
 def style_sheet(s: TextSizes) -> str:
@@ -80,37 +86,173 @@ def style_sheet(s: TextSizes) -> str:
     )
 
 
+# -- elements whose size depends on the page's mode -------------------------------------
+
+
+@dataclass(frozen=True)
+class _Sized:
+    handle: weakref.ref
+    normal: dict[str, Any]
+    projector: dict[str, Any]
+
+
+#: held while the registry changes and while a page is sent sizes, so that an element
+#: registered while a page switches gets that page's new mode
+_lock = threading.RLock()
+#: every element registered by :func:`sized`, held weakly (dropped once removed or gone)
+_sized: list[_Sized] = []
+#: the :class:`PageStyle` of each server
+_styles: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def sized(handle: Any, *, normal: dict[str, Any], projector: dict[str, Any]) -> Any:
+    """Register ``handle`` (a GUI element or scene node built with the ``normal``
+    properties) so that projector pages show it with the ``projector`` ones; pages
+    already in projector mode get them now. Returns ``handle``."""
+    entry = _Sized(weakref.ref(handle), dict(normal), dict(projector))
+    owner = owner_of(handle)
+    server = owner if isinstance(owner, viser.ViserServer) else owner._viser_server  # type: ignore
+    with _lock:
+        _sized[:] = [e for e in _sized if _alive(e)]
+        _sized.append(entry)
+        style = _styles.get(server)
+        for client in style.projector_pages() if style is not None else ():
+            if owner is server or owner is client:
+                set_props(client, handle, **entry.projector)
+    return handle
+
+
+def _alive(entry: _Sized) -> bool:
+    handle = entry.handle()
+    return handle is not None and not handle._impl.removed
+
+
+def _sized_for(client: viser.ClientHandle) -> list[tuple[Any, _Sized]]:
+    """The live registered elements page ``client`` shows: its server's and its own."""
+    with _lock:
+        entries = [e for e in _sized if _alive(e)]
+    out = []
+    for e in entries:
+        handle = e.handle()
+        owner = owner_of(handle) if handle is not None else None
+        if owner is client or owner is client._viser_server:  # type: ignore[attr-defined]
+            out.append((handle, e))
+    return out
+
+
+def add_label(scene: viser.SceneApi, name: str, text: str, **kwargs: Any
+              ) -> viser.LabelHandle:
+    """``scene.add_label`` at the lab's label size: at least 16 px tall at 1080p, 24 px
+    on a projector page."""
+    handle = scene.add_label(name, text, font_screen_scale=LABEL_SCALE[False], **kwargs)
+    return sized(handle, normal={"font_screen_scale": LABEL_SCALE[False]},
+                 projector={"font_screen_scale": LABEL_SCALE[True]})
+
+
 class PageStyle:
-    """The lab's text-size sheet on every page, and a "Projector" switch for it.
+    """The lab's text-size sheet, and each page's own "Projector" switch for it.
 
     Args:
-        gui: the server's GUI (the sheet and the switch go into the control panel).
-        projector: start in projector mode.
+        server: the lab's viser server (the sheet goes into its control panel, every
+            page that connects gets its switch).
+        projector: the mode of a browser that has not chosen one yet.
         order: place of the switch in the panel.
-        on_change: called with the new mode after the switch changed (the lab
-            re-opens the lesson so its charts take the new tick size).
     """
 
-    def __init__(self, gui: viser.GuiApi, *, projector: bool = False, order: float = -80.0,
-                 on_change=None) -> None:
-        set_projector(projector)
-        self.sheet = gui.add_html(style_sheet(sizes()), order=-1000.0)
-        self.switch = gui.add_checkbox(
-            "Projector", initial_value=projector, order=order,
-            hint="Large text for a classroom projector (every page)")
-        self._on_change = on_change
+    def __init__(self, server: viser.ViserServer, *, projector: bool = False,
+                 order: float = -80.0) -> None:
+        self.default = projector
+        self.order = order
+        self._server = server
+        self.sheet = sized(server.gui.add_html(style_sheet(NORMAL), order=-1000.0),
+                           normal={"content": style_sheet(NORMAL)},
+                           projector={"content": style_sheet(PROJECTOR)})
+        self._lock = threading.Lock()
+        self._switches: dict[int, viser.GuiCheckboxHandle] = {}
+        self._projector: set[int] = set()
+        self._settled: set[int] = set()
+        _styles[server] = self
+        server.on_client_connect(self._hello)
+        server.on_client_disconnect(self._goodbye)
 
-        @self.switch.on_update
-        def _(_event: viser.GuiEvent) -> None:
-            self.set(bool(self.switch.value))
+    def is_projector(self, client_id: int) -> bool:
+        """True while page ``client_id`` shows projector sizes."""
+        with self._lock:
+            return client_id in self._projector
 
-    def set(self, on: bool) -> None:
-        """Projector mode on or off on every page."""
-        if on == projector():
-            return
-        set_projector(on)
-        self.sheet.content = style_sheet(sizes())
-        if self.switch.value != on:
-            self.switch.value = on
-        if self._on_change is not None:
-            self._on_change(on)
+    def settled(self, client_id: int) -> bool:
+        """True once page ``client_id`` has taken in the mode its browser chose (or the
+        default, if it chose none): a test measuring its text waits for this."""
+        with self._lock:
+            return client_id in self._settled
+
+    def projector_pages(self) -> list[viser.ClientHandle]:
+        """The pages in projector mode now."""
+        with self._lock:
+            ids = set(self._projector)
+        return [c for cid, c in self._server.get_clients().items() if cid in ids]
+
+    def switch(self, client_id: int) -> viser.GuiCheckboxHandle | None:
+        """Page ``client_id``'s Projector switch (None: not connected)."""
+        with self._lock:
+            return self._switches.get(client_id)
+
+    def set(self, client: viser.ClientHandle, on: bool, *, remember: bool = True) -> None:
+        """Projector mode on or off on ``client``'s page only; ``remember``: kept in its
+        browser for the next visit."""
+        cid = client.client_id
+        with _lock:
+            with self._lock:
+                if cid not in self._switches:
+                    return  # gone
+                was = cid in self._projector
+                (self._projector.add if on else self._projector.discard)(cid)
+                switch = self._switches[cid]
+            if on != was:
+                for handle, entry in _sized_for(client):
+                    set_props(client, handle, **(entry.projector if on else entry.normal))
+        if switch.value != on:
+            switch.value = on
+        if remember:
+            client.local_storage.set_item(PROJECTOR_KEY, "1" if on else "0")
+
+    def _hello(self, client: viser.ClientHandle) -> None:
+        switch = client.gui.add_checkbox(
+            "Projector", initial_value=False, order=self.order,
+            hint="Large text for a classroom projector (this browser only)")
+        with self._lock:
+            self._switches[client.client_id] = switch
+        switch.on_update(lambda _e: self._flipped(client, switch))
+        threading.Thread(target=self._recall, args=(client,), daemon=True,
+                         name="armlab-projector").start()
+
+    def _flipped(self, client: viser.ClientHandle, switch: viser.GuiCheckboxHandle) -> None:
+        """The page's switch changed (a click there; :meth:`set` moving it changes nothing)."""
+        if bool(switch.value) != self.is_projector(client.client_id):
+            self.set(client, bool(switch.value))
+
+    def _recall(self, client: viser.ClientHandle) -> None:
+        """The browser's own choice (asked of its localStorage), else the default."""
+        try:
+            stored = ask_item(client, PROJECTOR_KEY, every=ASK_EVERY_S, within=ANSWER_WAIT_S)
+        except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
+            stored = None
+        on = self.default if stored not in ("0", "1") else stored == "1"
+        if on:
+            self.set(client, True, remember=False)
+            try:  # the page has taken the sizes in once it answers after they were sent
+                deadline = time.monotonic() + ANSWER_WAIT_S
+                while held(client) and time.monotonic() < deadline:
+                    time.sleep(0.05)
+                client.local_storage.get_item(PROJECTOR_KEY, timeout=ANSWER_WAIT_S)
+            except (TimeoutError, RuntimeError):
+                return
+        with self._lock:
+            if client.client_id in self._switches:
+                self._settled.add(client.client_id)
+
+    def _goodbye(self, client: viser.ClientHandle) -> None:
+        with self._lock:
+            self._switches.pop(client.client_id, None)
+            self._projector.discard(client.client_id)
+            self._settled.discard(client.client_id)

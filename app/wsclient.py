@@ -124,6 +124,8 @@ class HeadlessClient:
 
     Attributes:
         gui: uuid -> :class:`GuiElement`.
+        scene: node name -> message type -> its fields (``Set*`` messages), and
+            ``"SceneNodeUpdateMessage"`` -> the node's properties updated so far.
         notifications: (title, body) of every notification shown.
         downloads: filename -> bytes of every completed file download.
         camera: the camera the server last set: "position", "look_at", "up" (3-tuples).
@@ -268,6 +270,8 @@ class HeadlessClient:
             field, key = CAMERA_MESSAGES[kind]
             self.camera[key] = tuple(m[field])
             self.camera_sets += 1
+        elif kind == "SceneNodeUpdateMessage":
+            self.scene[m["name"]].setdefault(kind, {}).update(m["updates"])
         elif "name" in m and kind.startswith("Set"):
             self.scene[m["name"]][kind] = {k: v for k, v in m.items() if k != "type"}
         elif kind == "LocalStorageSetItemMessage":

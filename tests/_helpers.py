@@ -150,10 +150,12 @@ def project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
 
 def wait_look_settled(lab: Any, known: set[int]) -> None:
     """Wait until the page of ``lab`` that connected after ``known`` (client ids) has its
-    look for good (app.look: a page drawing WebGL in software turns plain once it has
-    named its renderer, which changes every pixel between two pictures)."""
-    wait_for(lambda: any(lab.looks.settled(cid) for cid in lab.server.get_clients()
-                         if cid not in known), 180.0, "the page's look to settle")
+    look for good: app.look (a page drawing WebGL in software turns plain once it has
+    named its renderer, which changes every pixel between two pictures) and app.theme
+    (a page whose browser chose Projector gets its sizes once it has said so)."""
+    wait_for(lambda: any(lab.looks.settled(cid) and lab.page_style.settled(cid)
+                         for cid in lab.server.get_clients() if cid not in known),
+             180.0, "the page's look to settle")
 
 
 def new_page_client(lab: Any, known: set[int]) -> Any:

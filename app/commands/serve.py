@@ -44,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="roles for a class: only a page that types the passcode printed "
                         "after the url changes the shared arm; every page may press E-STOP")
     parser.add_argument("--projector", action="store_true",
-                        help="large text for a classroom projector (the panel's Projector switch)")
+                        help="large text on every browser that has not chosen (each page has its "
+                             "own Projector switch)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -78,8 +78,7 @@ class HandScene:
         self.arrows = scene.add_arrows(f"{root}/forces", points=np.zeros((3, 2, 3)),
                                        colors=LIMIT_RGB, shaft_radius=0.0015, head_radius=0.004,
                                        head_length=0.008, visible=False)
-        self.label = scene.add_label(f"{root}/label", "", position=(0.0, 0.0, 0.12),
-                                     font_screen_scale=theme.label_scale())
+        self.label = theme.add_label(scene, f"{root}/label", "", position=(0.0, 0.0, 0.12))
         # from the front right, above the palm
         show(server, View(roots=(root,), direction=(-0.14, 0.185, -0.125)))
 

@@ -97,8 +97,7 @@ class QuadrupedScene:
         self.margin_line = scene.add_line_segments(f"{root}/margin",
                                                    np.zeros((1, 2, 3), np.float32),
                                                    STABLE_RGB, thickness=0.004)
-        self.margin_label = scene.add_label(f"{root}/margin_label", "",
-                                            font_screen_scale=theme.label_scale(),
+        self.margin_label = theme.add_label(scene, f"{root}/margin_label", "",
                                             anchor="bottom-left")
         self.stable: bool | None = None
         self._followed: np.ndarray | None = None

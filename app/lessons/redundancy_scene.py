@@ -153,10 +153,9 @@ class RedundancyScene:
             scene.add_frame(b, show_axes=False, wxyz=base_wxyz, position=base[:3, 3])
             scene.add_line_segments(f"{b}/circle", closed_segments(circle), CIRCLE_RGB,
                                     thickness=0.006)
-            scene.add_label(f"{b}/title", MODE_LABELS[mode], position=(-0.55, 1.08, 0.0),
-                            font_screen_scale=theme.label_scale(), anchor="bottom-left")
-            status = scene.add_label(f"{b}/status", "", position=(-0.55, 1.0, 0.0),
-                                     font_screen_scale=theme.label_scale(),
+            theme.add_label(scene, f"{b}/title", MODE_LABELS[mode], position=(-0.55, 1.08, 0.0),
+                            anchor="bottom-left")
+            status = theme.add_label(scene, f"{b}/status", "", position=(-0.55, 1.0, 0.0),
                                      anchor="bottom-left")
             light = tuple(int(0.45 * c + 0.55 * 255) for c in rgb)
             sticks = scene.add_line_segments(f"{b}/sticks", np.zeros((1, 2, 3), np.float32),
