@@ -2,7 +2,8 @@
 
 What a person sees and does: the page loads without console errors, gets the plain
 look (headless Chromium draws WebGL in software: app.look), the 3D view shows the arm,
-moving the Kp slider changes the controller, Run fills the charts, the CSV download
+moving the Kp slider changes the controller, Run fills the charts, one click on Step
+shows its Tp and %OS beside the button, the CSV download
 arrives with the recorded rows, the preset picker restores the
 gains, dragging the hand with the mouse pulls the arm, and the E-STOP button
 switches every servo off. Skipped, with a message, where chromium is not
@@ -198,6 +199,19 @@ def test_run_fills_the_charts(page, lab):
          "the θ1 charts")
     wait_for(lambda: _shown_widths(page) == [pytest.approx(10.0)] * 4, 30, "full-width θ1 charts")
     page.screenshot(path=str(page.shots / "after_run.png"))
+
+
+def test_a_step_from_the_run_tab_shows_tp_and_overshoot_beside_its_button(page, lab):
+    """The first minute: one click on the Run tab's Step, and its measured Tp and %OS
+    appear right under the button, without another click."""
+    step = page.get_by_role("button", name="Step", exact=True)
+    step.click()
+    figures = page.locator("p", has_text="Measured").filter(has_text="%OS")
+    wait_for(lambda: figures.count() > 0 and "Tp" in figures.first.inner_text(), 120,
+             "the step's Tp and %OS beside the Step button")
+    button, text = step.bounding_box(), figures.first.bounding_box()
+    assert 0.0 <= text["y"] - (button["y"] + button["height"]) < 120.0, (button, text)
+    assert text["width"] > 0 and text["height"] > 0
 
 
 def test_csv_download_arrives_with_the_recorded_rows(page, lab, tmp_path):

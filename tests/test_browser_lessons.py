@@ -1,6 +1,6 @@
 """Every lesson in a real headless Chromium: switch to it from the page's lesson switcher,
-see its scene drawn and its charts showing their whole x range, switch back, and no
-error in the browser console.
+see its scene drawn, its charts showing their whole x range and its "Try this" line,
+switch back, and no error in the browser console.
 
 Screenshots of each lesson go to ``$ARMLAB_SCREENSHOTS`` (a directory) when it is set,
 for a person to look at.
@@ -107,6 +107,12 @@ def save(pixels: np.ndarray, name: str) -> None:
         Image.fromarray(pixels.astype(np.uint8)).save(Path(where) / f"{name}.png")
 
 
+def try_this(page) -> str:
+    """The text of the page's "Try this:" line ("" while there is none)."""
+    line = page.locator("p", has_text="Try this:")
+    return line.first.inner_text() if line.count() else ""
+
+
 def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, page):
     lessons = all_lessons()
     first = lab.lesson_name
@@ -115,6 +121,7 @@ def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, pag
     before = settled_view(page, None)
     save(before, first)
     assert drawn_fraction(before) > 0.02, f"{first}: nothing drawn"
+    wait_for(lambda: len(try_this(page)) > 30, 60, f"{first}: a Try this line")
     shown = {first: before}
     for name in names:
         switch(page, lab, name, lessons[name].TITLE)
@@ -123,6 +130,7 @@ def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, pag
         assert drawn_fraction(now) > 0.02, f"{name}: the 3D view is blank"
         assert differs(now, before), f"{name}: the view did not change"
         wait_for(lambda: charts_show_all_their_data(page), 30, f"{name}: charts' x ranges")
+        wait_for(lambda: len(try_this(page)) > 30, 60, f"{name}: a Try this line")
         shown[name] = before = now
         assert after_switch(page.console_errors) == [], \
             f"after opening {name}: {page.console_errors}"
