@@ -35,6 +35,7 @@ from typing import Any
 import viser
 from viser._messages import GuiUpdateMessage
 
+from app.gate import PRESENTER_COOKIE, cookie_values
 from app.inputs import notify
 from app.page_js import set_props
 
@@ -244,6 +245,15 @@ class Roles:
         if handle is None or getattr(handle._impl, "is_button", False):
             return
         set_props(client, handle, value=handle._impl.value)
+
+
+def presenter_link_code(server: viser.ViserServer, client_id: int) -> str | None:
+    """The passcode a presenter link left in page ``client_id``'s browser (the
+    :data:`app.gate.PRESENTER_COOKIE` its websocket upgrade carried), or None."""
+    connection = server._websock_server._live_connections.get(client_id)  # type: ignore
+    headers = getattr(getattr(connection, "request", None), "headers", None)
+    values = [] if headers is None else cookie_values(headers, PRESENTER_COOKIE)
+    return values[-1] if values else None
 
 
 def address_of(server: viser.ViserServer, client_id: int) -> str | int:

@@ -37,7 +37,7 @@ import types
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import parse_qs, parse_qsl, urlencode, urlsplit
 
 import websockets.asyncio.server
 import websockets.datastructures
@@ -46,6 +46,10 @@ from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
 COOKIE = "armlab_token"
+#: the cookie a presenter link (``?presenter=PASSCODE``) leaves in the browser; the
+#: classroom reads it when the page's websocket opens (app.room), not the gate
+PRESENTER_COOKIE = "armlab_presenter"
+PRESENTER_QUERY = "presenter"
 _TOKEN_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_")
 
 
@@ -90,12 +94,7 @@ class Gate:
 
     def presented_in_cookie(self, request: Request) -> bool:
         """The request carries the right ``armlab_token`` cookie."""
-        for header in request.headers.get_all("Cookie"):
-            for part in header.split(";"):
-                name, _, value = part.strip().partition("=")
-                if name == COOKIE and self._matches(value):
-                    return True
-        return False
+        return any(self._matches(v) for v in cookie_values(request.headers, COOKIE))
 
     def refusal(self, request: Request) -> str | None:
         """Why a websocket upgrade is refused, or None to let it through."""
@@ -125,15 +124,49 @@ class Gate:
                 return inner(connection, request) if inner is not None else None
             if PROXY_PREFIX_HEADER in request.headers and urlsplit(request.path).path == "/":
                 return _to_index_html(request)
+            if self.presented_in_query(request) and _query_has(request, PRESENTER_QUERY):
+                return self._presenter_link(request)
             response = inner(connection, request) if inner is not None else None
             if response is not None and self.presented_in_query(request):
-                # no Path: the cookie's path is the page's folder ("/" when served directly,
-                # "/user/NAME/armlab" behind jupyter-server-proxy: this lab only)
-                response.headers["Set-Cookie"] = (f"{COOKIE}={self.token}; HttpOnly; "
-                                                   "SameSite=Strict")
+                response.headers["Set-Cookie"] = self._token_cookie()
             return response
 
         return process_request
+
+    def _token_cookie(self) -> str:
+        # no Path: the cookie's path is the page's folder ("/" when served directly,
+        # "/user/NAME/armlab" behind jupyter-server-proxy: this lab only)
+        return f"{COOKIE}={self.token}; HttpOnly; SameSite=Strict"
+
+    def _presenter_link(self, request: Request) -> Response:
+        """A presenter link's page request (the right token and ``?presenter=CODE``): a
+        redirect to the same URL without the passcode, so the projected address bar never
+        shows it, setting the token cookie and :data:`PRESENTER_COOKIE` (``CODE`` if it
+        is made of passcode characters; the classroom checks it)."""
+        pairs = parse_qsl(urlsplit(request.path).query)
+        code = next((v for k, v in pairs if k == PRESENTER_QUERY), "")
+        rest = urlencode([(k, v) for k, v in pairs if k != PRESENTER_QUERY])
+        headers = Headers({"Location": f"?{rest}", "Content-Length": "0",
+                           "Cache-Control": "no-store"})
+        headers["Set-Cookie"] = self._token_cookie()
+        if code.isalnum() and code.isascii() and len(code) <= 64:
+            headers["Set-Cookie"] = f"{PRESENTER_COOKIE}={code}; HttpOnly; SameSite=Strict"
+        return Response(http.HTTPStatus.SEE_OTHER, "See Other", headers, b"")
+
+
+def cookie_values(headers: Any, name: str) -> list[str]:
+    """The values of every cookie called ``name`` in ``headers`` (a request's)."""
+    out = []
+    for header in headers.get_all("Cookie"):
+        for part in header.split(";"):
+            key, _, value = part.strip().partition("=")
+            if key == name:
+                out.append(value)
+    return out
+
+
+def _query_has(request: Request, key: str) -> bool:
+    return key in parse_qs(urlsplit(request.path).query, keep_blank_values=True)
 
 
 #: set by jupyter-server-proxy on what it forwards: the prefix it cut off (app.jupyter)

@@ -23,7 +23,7 @@ import viser
 from viser._messages import GuiUpdateMessage
 
 from app.arm_view import ArmView
-from app.classroom import Roles, address_of, new_passcode, qr_svg
+from app.classroom import Roles, address_of, new_passcode, presenter_link_code, qr_svg
 from app.inputs import UpdateScreen, notify
 from app.lessons._common import remove_quietly
 from app.muting import SharedStream
@@ -145,6 +145,7 @@ class Room:
             name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
             code.on_update(lambda _e: self._on_passcode(state))
             view.on_update(lambda _e: self._on_view(state))
+        self._presenter_link(state)
         threading.Thread(target=self._find_seat, args=(state,), daemon=True,
                          name="armlab-seat").start()
 
@@ -171,6 +172,26 @@ class Room:
             state.client.add_notification("Passcode refused", why, color="red",
                                           auto_close_seconds=8.0)
             return
+        self._present(state)
+
+    def _presenter_link(self, state: _PageState) -> None:
+        """A page opened from the presenter link (``armlab serve`` prints it) presents at
+        once; its passcode is checked, and counted, as a typed one."""
+        cid = state.client.client_id
+        code = presenter_link_code(self.lab.server, cid)
+        if code is None:
+            return
+        why = self.roles.try_passcode(cid, code, key=address_of(self.lab.server, cid))
+        if why is not None:
+            state.client.add_notification(
+                "Presenter link refused", f"{why} (a link from an earlier start?). Type "
+                "the passcode into the Passcode field.", color="red", auto_close_seconds=12.0)
+            return
+        self._present(state)
+
+    def _present(self, state: _PageState) -> None:
+        """Page ``state`` now presents: its Passcode and View fields go, the students' QR
+        code and the class overview come."""
         if state.view.value != FOLLOW:
             state.view.value = FOLLOW  # a presenter drives the shared arm
         state.code.remove()

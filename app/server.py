@@ -30,7 +30,7 @@ import viser
 
 from app.camera import reframe, reframe_on_reshape
 from app.classroom import Roles
-from app.gate import Gate, check_token, gated, new_token
+from app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
 from app.inputs import UpdateScreen
 from app.lessons import (
     LessonContext,
@@ -213,6 +213,9 @@ class Lab:
             self.url = f"{self.base_url}/?token={self.token}"
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
             self.room: Room | None = Room(self) if options.classroom else None
+            #: the teacher's link: a page opened from it presents at once (classroom only)
+            self.presenter_url: str | None = None if self.room is None else \
+                f"{self.url}&{PRESENTER_QUERY}={self.room.roles.passcode}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)

@@ -136,3 +136,18 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
 
 
 
+
+
+def test_the_presenter_link_presents_without_showing_the_passcode(browser, classroom):
+    lab = classroom
+    before = set(lab.roles.presenters())
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(f"{lab.local_url}&presenter={lab.roles.passcode}")  # as armlab serve prints
+        page.get_by_text("You now change the shared arm").first.wait_for(timeout=180_000)
+        assert "presenter=" not in page.url and lab.roles.passcode not in page.url
+        wait_for(lambda: len(set(lab.roles.presenters()) - before) == 1, 60, "a presenter")
+        assert page.locator("label", has_text="Passcode").count() == 0
+    finally:
+        context.close()

@@ -137,6 +137,32 @@ def test_a_students_estop_stops_the_shared_arm_and_the_presenter_sees_who(classr
         wait_for(lambda: not lab.lesson.rig.loop.status.estopped, 30, "the presenter's Reset")
 
 
+def test_the_presenter_link_presents_at_once_and_a_stale_one_is_refused(classroom):
+    lab = classroom
+    loop = lab.lesson.rig.loop
+    kp0 = loop.params.kp
+    # the page the link opens: a redirect to the url without the passcode, leaving it in
+    # an HttpOnly cookie (tests/test_gate.py reads the HTTP side)
+    assert lab.presenter_url == f"{lab.url}&presenter={lab.roles.passcode}"
+    ws = lab.local_url.replace("http://", "ws://")
+    cookie = {"Cookie": f"armlab_presenter={lab.roles.passcode}"}
+    with HeadlessClient(ws, headers=cookie).connect() as teacher:
+        teacher.wait_notification("You present")
+        teacher.wait_for(lambda: not _has(teacher, "Passcode"), 30.0, "the field gone")
+        teacher.wait_for(lambda: _has_html(teacher, "<svg"), 30.0, "the QR code")
+        teacher.set_value("Kp (1/s²)", kp0 + 3.0)
+        wait_for(lambda: loop.params.kp == pytest.approx(kp0 + 3.0), 30, "the presenter's Kp")
+        teacher.set_value("Kp (1/s²)", kp0)
+        wait_for(lambda: loop.params.kp == pytest.approx(kp0), 30, "Kp back")
+    # a link from an earlier start: refused with a message, counted as a guess, no role
+    stale = {"Cookie": "armlab_presenter=OLDCODE2"}
+    with HeadlessClient(ws, headers=stale).connect() as page:
+        assert "earlier start" in page.wait_notification("Presenter link refused")
+        page.wait_for(lambda: _has(page, "Passcode"), 30.0, "the Passcode field kept")
+        assert lab.roles.presenters() == ()
+    lab.roles.guesses.right("127.0.0.1")  # the next tests start without that wrong guess
+
+
 def test_guesses_from_one_address_are_slowed_down():
     with Lab(ServeOptions(http_port=0, classroom=True, lesson="ik_accuracy")) as lab:
         # a wait no loaded machine outlasts

@@ -5,6 +5,7 @@ Raw websocket clients and a real Chromium, against the whole lab on a free loopb
 
 from __future__ import annotations
 
+import http.client
 import http.server
 import threading
 import urllib.request
@@ -18,7 +19,7 @@ from _helpers import wait_for
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from app.gate import COOKIE, Gate, check_token
+from app.gate import COOKIE, PRESENTER_COOKIE, Gate, check_token
 from app.wsclient import HeadlessClient
 from control.params import DEFAULT
 
@@ -73,6 +74,31 @@ def test_the_page_from_the_printed_url_sets_the_cookie_its_websocket_presents(la
                  additional_headers={"Cookie": f"{COOKIE}={lab.token}"},
                  origin=f"http://{urlsplit(lab.url).netloc}") as ws:
         assert len(ws.recv(timeout=30)) > 0
+
+
+def _head(url: str) -> tuple[int, str | None, list[str]]:
+    """(status, Location, Set-Cookie values) of a GET of ``url``, not following redirects."""
+    parts = urlsplit(url)
+    conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=30)
+    try:
+        conn.request("GET", f"{parts.path or '/'}?{parts.query}")
+        reply = conn.getresponse()
+        return reply.status, reply.getheader("Location"), reply.headers.get_all("Set-Cookie") or []
+    finally:
+        conn.close()
+
+
+def test_a_presenter_link_moves_the_passcode_from_the_address_bar_to_a_cookie(lab):
+    status, location, cookies = _head(f"{lab.url}&presenter=K7QMR2XD")
+    assert status == 303 and location == f"?token={lab.token}"  # the same page, no passcode
+    assert f"{PRESENTER_COOKIE}=K7QMR2XD; HttpOnly; SameSite=Strict" in cookies
+    assert any(c.startswith(f"{COOKIE}={lab.token};") for c in cookies)
+    # without the token: the static page, no cookie of either kind
+    status, _, cookies = _head(f"{lab.url.split('?')[0]}?presenter=K7QMR2XD")
+    assert status == 200 and cookies == []
+    # a value that is no passcode is not passed on
+    _, _, cookies = _head(f"{lab.url}&presenter=%3Cscript%3E")
+    assert not any(c.startswith(PRESENTER_COOKIE) for c in cookies)
 
 
 @pytest.mark.parametrize("bad", ["", "short", "has space 123", "a/b/c/d/e", "x" * 129])

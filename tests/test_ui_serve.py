@@ -133,6 +133,8 @@ def test_classroom_prints_the_network_url_then_the_passcode():
         socket.inet_aton(parts.hostname)  # an address a student can type
         assert len(passcode) >= 6 and passcode.isalnum()
         token = parse_qs(parts.query)["token"][0]
+        # then the teacher's presenter link: the url with the passcode
+        assert _next_line(proc).strip() == f"presenter: {url}&presenter={passcode}"
         # tests talk to loopback only: the same server through 127.0.0.1
         local = f"http://127.0.0.1:{parts.port}/?token={token}"
         with urllib.request.urlopen(local, timeout=10) as reply:

@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"url: {lab.url}", flush=True)
             if lab.roles is not None:
                 print(f"passcode: {lab.roles.passcode}", flush=True)
+                print(f"presenter: {lab.presenter_url}", flush=True)
             while not stop.wait(0.5):
                 pass
             print("stopping: control loop shut down, torque off", flush=True)
