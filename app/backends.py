@@ -33,11 +33,10 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
             from hardware.quadruped_sim import QuadrupedSimBackend
 
             return QuadrupedSimBackend(model, **kw)
-        from hardware.joint_map import default_servo, servo_table
         from hardware.sim_backend import SimBackend
 
-        spec = servo_table(default_servo(model.name)).spec
-        if spec.protocol == 2 and "specs" not in kw:  # an arm that ships with X-series servos
+        spec = shipped_x_servo(model)
+        if spec is not None and "specs" not in kw:  # an arm that ships with X-series servos
             from hardware.xseries_sim import XSimBackend
 
             return XSimBackend(model, spec=spec, **kw)  # type: ignore[arg-type]
@@ -51,3 +50,13 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
             kw["baud"] = baud
         return open_servo_backend(model, port, **kw)  # protocol 1.0 or 2.0, by the map
     raise ValueError(f"unknown backend {kind!r}; choose one of {', '.join(KINDS)}")
+
+
+def shipped_x_servo(model: SerialChain) -> Any:
+    """The X-series servo (``hardware.xseries.XSpec``) an arm ships with, which its
+    simulation models (the OpenManipulator-X's XM430-W350), or None: the arm is
+    simulated with RX-24F servos, as the thesis arm."""
+    from hardware.joint_map import default_servo, servo_table
+
+    spec = servo_table(default_servo(model.name)).spec
+    return spec if spec.protocol == 2 else None

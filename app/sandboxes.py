@@ -7,7 +7,10 @@ over arms); one :class:`control.periodic.SharedClock` thread steps every plant a
 period is due. A loop is the lesson's own (commands, trajectories, the step test,
 pushes, drags, recording, faults) over a :class:`hardware.batched_backend.BatchedArmBackend`:
 one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
-lesson's arm, not a lookalike, and a hundred of them cost one thread.
+lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
+with X-series servos (the OpenManipulator-X) is simulated with their firmware model as
+its shared arm is (:class:`hardware.xseries_sim.XSimBackend`, a plant of its own that
+its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
@@ -24,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.backends import shipped_x_servo
 from control.backend import Backend
 from control.loop import ControlLoop
 from control.params import Params
@@ -31,6 +35,7 @@ from control.periodic import SharedClock
 from hardware.batched_backend import BatchedArmBackend, add_sim_arm
 from hardware.batched_plant import BatchedPlant
 from hardware.servo_spec import RX24F
+from hardware.xseries_sim import XSimBackend
 from kinematics.model import SerialChain
 
 #: private arms one lab holds at most (the issue's default)
@@ -50,8 +55,8 @@ class ClassFull(ValueError):
 @dataclass
 class _Arm:
     preset: str
-    arm: int
-    backend: BatchedArmBackend
+    arm: int | None  #: its index in the preset's batched plant (None: a plant of its own)
+    backend: Backend
     loop: ControlLoop
 
 
@@ -188,16 +193,23 @@ class Sandboxes:
             if seat.arm is not None and seat.arm.preset == preset:
                 return seat.arm.backend, seat.arm.loop
             self._free(seat)
-            plant = self._plants.get(preset)
-            if plant is None:
-                plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
-            arm = add_sim_arm(plant, q0=q0, lock=self._lock)
-            try:
+            x_spec = shipped_x_servo(model)
+            if x_spec is not None:  # X-series servos: their firmware model, one plant per arm
+                backend: Backend = XSimBackend(model, spec=x_spec, dt=DT, q0=q0)
+                arm = None
+            else:
+                plant = self._plants.get(preset)
+                if plant is None:
+                    plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
+                arm = add_sim_arm(plant, q0=q0, lock=self._lock)
                 backend = BatchedArmBackend(plant, arm, lock=self._lock)
+            try:
                 loop = ControlLoop(model, backend, params, controller="compliance",
                                    history_s=history_s, clock=self.clock)
             except BaseException:
-                plant.remove_arm(arm)
+                backend.close()
+                if arm is not None:
+                    plant.remove_arm(arm)
                 raise
             seat.arm = _Arm(preset, arm, backend, loop)
             loop.start()
@@ -209,7 +221,8 @@ class Sandboxes:
             return
         arm.loop.shutdown(torque_off=True)
         arm.backend.close()
-        self._plants[arm.preset].remove_arm(arm.arm)
+        if arm.arm is not None:
+            self._plants[arm.preset].remove_arm(arm.arm)
 
     def close(self) -> None:
         """Stop the class: the sweeper, the clock, then every loop (torque off) and arm.

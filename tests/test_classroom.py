@@ -434,3 +434,34 @@ def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
         assert boxes.sweep() == 1 and not boxes.has("k") and boxes.n_arms == 0
     finally:
         boxes.close()
+
+
+def test_a_private_open_manipulator_x_has_its_x_series_servos():
+    """A student's own OpenManipulator-X is simulated with its XM430-W350 firmware model,
+    as the shared one is (app.backends.make_backend), not with the thesis arm's RX-24F:
+    it reports currents and turns to a goal; freeing it closes it."""
+    from app.sandboxes import Sandboxes
+    from control.commands import RunTrajectory
+    from control.trajectory import minimum_jerk
+    from hardware.xseries import XM430_W350
+    from hardware.xseries_sim import XSimBackend
+    from kinematics import load_robot
+
+    model = load_robot("open_manipulator_x")
+    boxes = Sandboxes(realtime=False)
+    try:
+        backend, loop = boxes.seat("omx").arm_for(model, DEFAULT, preset="omx",
+                                                  q0=model.neutral(), history_s=2.0)
+        assert isinstance(backend, XSimBackend) and backend.specs[0] is XM430_W350
+        wait_for(lambda: loop.status.active and len(loop.recorder.snapshot(1.0)["t"]) > 20,
+                 60, "the arm's loop running on the class clock")
+        start = np.asarray(backend.read().position, dtype=float)
+        goal = start + np.array([0.0, 0.3, 0.0, 0.0])
+        loop.post(RunTrajectory(minimum_jerk(start, goal, 1.0)))
+        wait_for(lambda: abs(backend.read().position[1] - goal[1]) < np.radians(3.0), 60,
+                 "the shoulder at its goal")
+        assert loop.status.fault is None
+        assert np.any(np.abs(backend.read().load) > 0.0)  # torque from the measured current
+    finally:
+        boxes.close()
+    assert boxes.n_arms == 0
