@@ -101,7 +101,7 @@ class _Sized:
 _lock = threading.RLock()
 #: every element registered by :func:`sized`, held weakly (dropped once removed or gone)
 _sized: list[_Sized] = []
-#: the :class:`PageStyle` of each server
+#: each server's :class:`PageStyle`, both held weakly (a PageStyle holds its server)
 _styles: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -115,7 +115,8 @@ def sized(handle: Any, *, normal: dict[str, Any], projector: dict[str, Any]) -> 
     with _lock:
         _sized[:] = [e for e in _sized if _alive(e)]
         _sized.append(entry)
-        style = _styles.get(server)
+        ref = _styles.get(server)
+        style = None if ref is None else ref()
         for client in style.projector_pages() if style is not None else ():
             if owner is server or owner is client:
                 set_props(client, handle, **entry.projector)
@@ -171,7 +172,8 @@ class PageStyle:
         self._switches: dict[int, viser.GuiCheckboxHandle] = {}
         self._projector: set[int] = set()
         self._settled: set[int] = set()
-        _styles[server] = self
+        self._chosen: set[int] = set()  #: pages whose switch was clicked
+        _styles[server] = weakref.ref(self)
         server.on_client_connect(self._hello)
         server.on_client_disconnect(self._goodbye)
 
@@ -228,6 +230,8 @@ class PageStyle:
 
     def _flipped(self, client: viser.ClientHandle, switch: viser.GuiCheckboxHandle) -> None:
         """The page's switch changed (a click there; :meth:`set` moving it changes nothing)."""
+        with self._lock:
+            self._chosen.add(client.client_id)  # a click outranks what the browser held
         if bool(switch.value) != self.is_projector(client.client_id):
             self.set(client, bool(switch.value))
 
@@ -238,7 +242,9 @@ class PageStyle:
         except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
             stored = None
         on = self.default if stored not in ("0", "1") else stored == "1"
-        if on:
+        with self._lock:
+            clicked = client.client_id in self._chosen
+        if on and not clicked:
             self.set(client, True, remember=False)
             try:  # the page has taken the sizes in once it answers after they were sent
                 deadline = time.monotonic() + ANSWER_WAIT_S
@@ -256,3 +262,4 @@ class PageStyle:
             self._switches.pop(client.client_id, None)
             self._projector.discard(client.client_id)
             self._settled.discard(client.client_id)
+            self._chosen.discard(client.client_id)
