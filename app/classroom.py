@@ -35,7 +35,7 @@ from typing import Any
 import viser
 from viser._messages import GuiUpdateMessage
 
-from app.gate import PRESENTER_COOKIE, cookie_values
+from app.gate import cookie_values
 from app.inputs import notify
 from app.page_js import set_props
 
@@ -247,12 +247,14 @@ class Roles:
         set_props(client, handle, value=handle._impl.value)
 
 
-def presenter_link_code(server: viser.ViserServer, client_id: int) -> str | None:
-    """The passcode a presenter link left in page ``client_id``'s browser (the
-    :data:`app.gate.PRESENTER_COOKIE` its websocket upgrade carried), or None."""
+def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
+                        ) -> str | None:
+    """The passcode a presenter link left in page ``client_id``'s browser (the cookie
+    ``cookie``, :attr:`app.gate.Gate.presenter_cookie`, its websocket upgrade carried),
+    or None."""
     connection = server._websock_server._live_connections.get(client_id)  # type: ignore
     headers = getattr(getattr(connection, "request", None), "headers", None)
-    values = [] if headers is None else cookie_values(headers, PRESENTER_COOKIE)
+    values = [] if headers is None else cookie_values(headers, cookie)
     return values[-1] if values else None
 
 

@@ -46,8 +46,10 @@ from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
 COOKIE = "armlab_token"
-#: the cookie a presenter link (``?presenter=PASSCODE``) leaves in the browser; the
-#: classroom reads it when the page's websocket opens (app.room), not the gate
+#: the cookie a presenter link (``?presenter=PASSCODE``) leaves in the browser, named
+#: ``armlab_presenter_<start>`` (:attr:`Gate.presenter_cookie`: a link of an earlier
+#: start, whose passcode is gone, is not even read); the classroom reads it when the
+#: page's websocket opens (app.room), not the gate
 PRESENTER_COOKIE = "armlab_presenter"
 PRESENTER_QUERY = "presenter"
 _TOKEN_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_")
@@ -79,6 +81,8 @@ class Gate:
     def __init__(self, token: str) -> None:
         self.token = check_token(token)
         self.refused = 0  #: upgrades answered 403
+        #: the name of this start's presenter-link cookie
+        self.presenter_cookie = f"{PRESENTER_COOKIE}_{secrets.token_hex(4)}"
         self._lock = threading.Lock()
 
     def _matches(self, presented: str | None) -> bool:
@@ -150,7 +154,7 @@ class Gate:
                            "Cache-Control": "no-store"})
         headers["Set-Cookie"] = self._token_cookie()
         if code.isalnum() and code.isascii() and len(code) <= 64:
-            headers["Set-Cookie"] = f"{PRESENTER_COOKIE}={code}; HttpOnly; SameSite=Strict"
+            headers["Set-Cookie"] = f"{self.presenter_cookie}={code}; HttpOnly; SameSite=Strict"
         return Response(http.HTTPStatus.SEE_OTHER, "See Other", headers, b"")
 
 

@@ -178,14 +178,14 @@ class Room:
         """A page opened from the presenter link (``armlab serve`` prints it) presents at
         once; its passcode is checked, and counted, as a typed one."""
         cid = state.client.client_id
-        code = presenter_link_code(self.lab.server, cid)
+        code = presenter_link_code(self.lab.server, cid, self.lab.gate.presenter_cookie)
         if code is None:
             return
         why = self.roles.try_passcode(cid, code, key=address_of(self.lab.server, cid))
         if why is not None:
             state.client.add_notification(
-                "Presenter link refused", f"{why} (a link from an earlier start?). Type "
-                "the passcode into the Passcode field.", color="red", auto_close_seconds=12.0)
+                "Presenter link refused", f"{why}. Type the passcode into the Passcode "
+                "field.", color="red", auto_close_seconds=12.0)
             return
         self._present(state)
 

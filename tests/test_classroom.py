@@ -145,7 +145,9 @@ def test_the_presenter_link_presents_at_once_and_a_stale_one_is_refused(classroo
     # an HttpOnly cookie (tests/test_gate.py reads the HTTP side)
     assert lab.presenter_url == f"{lab.url}&presenter={lab.roles.passcode}"
     ws = lab.local_url.replace("http://", "ws://")
-    cookie = {"Cookie": f"armlab_presenter={lab.roles.passcode}"}
+    name = lab.gate.presenter_cookie  # armlab_presenter_<this start>
+    assert name.startswith("armlab_presenter_")
+    cookie = {"Cookie": f"{name}={lab.roles.passcode}"}
     with HeadlessClient(ws, headers=cookie).connect() as teacher:
         teacher.wait_notification("You present")
         teacher.wait_for(lambda: not _has(teacher, "Passcode"), 30.0, "the field gone")
@@ -154,13 +156,24 @@ def test_the_presenter_link_presents_at_once_and_a_stale_one_is_refused(classroo
         wait_for(lambda: loop.params.kp == pytest.approx(kp0 + 3.0), 30, "the presenter's Kp")
         teacher.set_value("Kp (1/s²)", kp0)
         wait_for(lambda: loop.params.kp == pytest.approx(kp0), 30, "Kp back")
-    # a link from an earlier start: refused with a message, counted as a guess, no role
-    stale = {"Cookie": "armlab_presenter=OLDCODE2"}
-    with HeadlessClient(ws, headers=stale).connect() as page:
-        assert "earlier start" in page.wait_notification("Presenter link refused")
+    # a wrong code in this start's cookie (made by hand): refused with a message and
+    # counted as a guess; no role
+    forged = {"Cookie": f"{name}=WRONGCOD"}
+    with HeadlessClient(ws, headers=forged).connect() as page:
+        assert "not the passcode" in page.wait_notification("Presenter link refused")
         page.wait_for(lambda: _has(page, "Passcode"), 30.0, "the Passcode field kept")
         assert lab.roles.presenters() == ()
     lab.roles.guesses.right("127.0.0.1")  # the next tests start without that wrong guess
+    # a link of an earlier start (another cookie name): not read at all, nothing said
+    stale = {"Cookie": f"armlab_presenter_0badcafe={lab.roles.passcode}"}
+    before = set(lab.server.get_clients())
+    with HeadlessClient(ws, headers=stale).connect() as page:
+        page.wait_for(lambda: _has(page, "Passcode"), 30.0, "the Passcode field")
+        (client,) = [c for i, c in lab.server.get_clients().items() if i not in before]
+        # a question the page answers after everything its welcome sent it
+        client.local_storage.get_item("anything", timeout=30.0)
+        assert lab.roles.presenters() == ()
+        assert not any(t == "Presenter link refused" for t, _ in page.notifications)
 
 
 def test_guesses_from_one_address_are_slowed_down():
