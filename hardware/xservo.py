@@ -27,10 +27,17 @@ Between ticks the horn torque follows the DC-motor line, as for the protocol-1.0
 servos: tau = stall_torque · (duty − omega / no_load_speed), minus gear friction.
 
 *Interpretations* (the e-manual gives the gains' conversion "including the sampling
-time" but not the time itself): the firmware's control period is
-:data:`FIRMWARE_PERIOD`; the integral and derivative are scaled to it when the
-plant's step differs. The current loop is ideal: the torque is current × torque
-constant as far as the supply voltage allows (duty within ±PWM Limit).
+time" but not the time itself, nor how the derivative is taken): the firmware's control
+period is :data:`FIRMWARE_PERIOD`; the integral and derivative are scaled to it when the
+plant's step differs. The derivative is the desired position's change less the horn's
+velocity as the firmware senses it (what it reports as Present Velocity), not the
+difference of two encoder counts: that difference is 0 or a whole count per tick, and
+with the lab's D gain every count the horn crosses would put a one-tick spike of
+0.24 N·m into the current the servo reports, so a reading taken 1 ms earlier or later
+would see a different load (the emulated and simulated OpenManipulator-X under the
+compliance loop drifted 2° apart from that alone). The current loop is ideal: the
+torque is current × torque constant as far as the supply voltage allows (duty within
+±PWM Limit).
 """
 
 from __future__ import annotations
@@ -175,7 +182,7 @@ class XServoModel(GearedMotor):
         self._desired = float(self._present)  # profile state, counts and counts/s
         self._desired_v = 0.0
         self._integral = 0.0
-        self._last_error = 0.0
+        self._last_desired = self._desired  # counts, at the last tick (the derivative's)
         self._velocity_integral = 0.0
         self._enabled = False
         self._duty = 0.0
@@ -196,7 +203,7 @@ class XServoModel(GearedMotor):
         if enabled and not self._enabled:  # torque on: start from where the horn is
             self._desired, self._desired_v = float(present), 0.0
             self._integral = self._velocity_integral = 0.0
-            self._last_error = 0.0
+            self._last_desired = self._desired
         self._enabled = enabled
         mode = regs.operating_mode
         duty = 0.0
@@ -210,7 +217,7 @@ class XServoModel(GearedMotor):
             if mode == OperatingMode.POSITION:  # the limits hold in Position Control only
                 goal = min(max(goal, regs.min_position_limit), regs.max_position_limit)
             accel = self._profile(goal, dt)
-            u = self._position_pid(present, accel, dt)
+            u = self._position_pid(present, velocity, accel, dt)
             if mode == OperatingMode.CURRENT_BASED_POSITION:
                 limit = abs(regs.goal_current)
                 torque_target = self._current_torque(min(max(u, -limit), limit))
@@ -275,15 +282,15 @@ class XServoModel(GearedMotor):
         self._desired_v = v
         return (v - v_old) / dt
 
-    def _position_pid(self, present: int, accel: float, dt: float) -> float:
+    def _position_pid(self, present: int, velocity: float, accel: float, dt: float) -> float:
         """The position controller's output (PWM counts, or current counts in
-        Current-based Position Control) for this tick."""
+        Current-based Position Control) for this tick, at Present Position ``present``
+        (counts) and horn ``velocity`` (rad/s)."""
         regs = self.regs
         error = self._desired - present
         ticks = dt / FIRMWARE_PERIOD
         self._integral += error * ticks
-        derivative = (error - self._last_error) / ticks
-        self._last_error = error
+        derivative = self._error_rate(velocity, ticks)
         per_tick_v = self._desired_v * FIRMWARE_PERIOD
         per_tick_a = accel * FIRMWARE_PERIOD * FIRMWARE_PERIOD
         return (regs.position_p_gain / 128.0 * error
@@ -291,6 +298,14 @@ class XServoModel(GearedMotor):
                 + regs.position_d_gain / 16.0 * derivative
                 + regs.feedforward_1st_gain / 4.0 * per_tick_v
                 + regs.feedforward_2nd_gain / 4.0 * per_tick_a)
+
+    def _error_rate(self, velocity: float, ticks: float) -> float:
+        """The position error's change per firmware tick, counts: the desired position's
+        change since the last tick less the sensed horn ``velocity`` (rad/s) over one
+        :data:`FIRMWARE_PERIOD` (see the module's interpretations)."""
+        desired_rate = (self._desired - self._last_desired) / ticks
+        self._last_desired = self._desired
+        return desired_rate - velocity * self._counts_per_rad * FIRMWARE_PERIOD
 
     def _current_torque(self, current_counts: float) -> float:
         """Torque at the horn (N·m) a current command gives (counts of the current unit)."""

@@ -6,6 +6,8 @@ the numbers of the e-manual's control tables and block diagrams, checked in moti
   PWM counts per count, 885 = full duty).
 - Profile Velocity: the desired position moves at PV · 0.229 rpm.
 - Current-based Position Control: Goal Current bounds the current, hence the torque.
+- The D term damps with the horn's sensed velocity: the current a slowly turning horn
+  reports has no spike where the encoder crosses a count.
 - Overload: a servo held at full PWM without moving shuts its torque off after
   ``overload_time``, its alert stays until REBOOT.
 - The XL430-W250 has no current sensor: address 126 is Present Load (0.1 %).
@@ -100,6 +102,28 @@ def test_goal_current_bounds_the_current_in_current_based_position_control():
         plant.advance_to(0.5 + 0.005 * k)
         peak = max(peak, abs(plant.servos[0].report().current))
     assert 90 <= peak <= 100  # it pushes with all the current it may, never more
+
+
+def test_the_d_term_damps_with_the_horn_velocity_not_the_encoder_s_count_steps():
+    """Held at the centre with the lab's D gain while the horn turns at 0.05 rad/s (a count
+    every 30 ticks or so): every tick the current is KPP · error − KPD · the velocity in
+    counts per tick. The difference of two counts would put a 50-count (0.24 N·m) spike
+    into the reading at every count crossed, and a reading's timing would decide the load."""
+    regs = XRegisters.factory(XM430_W350_TABLE)
+    regs.operating_mode = OperatingMode.CURRENT_BASED_POSITION
+    regs.position_d_gain = 800
+    regs.torque_enable = 1
+    servo = XServoModel(XM430_W350, regs)
+    dt, speed = 1e-3, 0.05  # s, rad/s
+    per_tick = speed / UNIT * dt  # counts the horn turns in a tick
+    currents = []
+    for k in range(300):
+        servo.update(dt, speed * k * dt, speed)
+        r = servo.report()
+        want = 800 / 128 * (CENTRE - r.position) - 800 / 16 * per_tick
+        assert r.current == pytest.approx(want, abs=1.0)
+        currents.append(r.current)
+    assert np.max(np.abs(np.diff(currents))) <= 800 / 128 + 1  # the P term's count step
 
 
 def test_an_overload_shuts_the_torque_off_until_a_reboot():
