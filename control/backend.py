@@ -143,6 +143,19 @@ class Pushable(Protocol):
         ...
 
 
+@runtime_checkable
+class CurrentSensing(Protocol):
+    """A backend that can say whether its servos measure their motor current (the
+    disturbance observer, thesis eq. 2.36, needs K_t I, not a load estimate)."""
+
+    @property
+    def senses_current(self) -> bool:
+        """True when every servo measures its motor current, so ``JointState.load`` is
+        current × torque constant (XM430, XL330); False for a load estimate (RX-24F,
+        AX-12A Present Load; XL430)."""
+        ...
+
+
 class GoalLimits:
     """The joint limits a backend enforces and the goal check every ``Backend.write`` runs.
 

@@ -279,6 +279,12 @@ class DynamixelBackend(GoalLimits):
         self._estop_unsent = False
         return True
 
+    @property
+    def senses_current(self) -> bool:
+        """Whether the servos measure their motor current (``control.backend.CurrentSensing``):
+        X-series with a current sensor; protocol-1.0 servos report a load estimate."""
+        return bool(getattr(self.spec, "has_current", False))
+
     def close(self) -> None:
         if not self._closed:
             self._closed = True

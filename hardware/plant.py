@@ -7,8 +7,9 @@ Each step of ``dt`` (1 ms default):
 2. the state (q, qd) is integrated by classical Runge–Kutta 4 with
    ``qdd = forward_dynamics(q, qd, tau)`` (thesis eq. 2.41–2.50 inverted), where tau =
    servo torques (motor line at the held duty, gear friction) + joint stops + external
-   forces (push, spring, wall), all re-evaluated at each RK stage except the push and the
-   duty. The rotor inertias enter as armature (diagonal extra inertia).
+   forces (push, spring, wall) + applied joint torques (a known disturbance), all
+   re-evaluated at each RK stage except the push, the applied torques and the duty. The
+   rotor inertias enter as armature (diagonal extra inertia).
 
 Frames: every external force and point here is in the model's **base frame** (for
 ``receptionist_arm`` the thesis frame: x along gravity), not the 3D viewer's world;
@@ -44,7 +45,8 @@ class GroundTruth:
         q, qd: (n,) joint positions rad and velocities rad/s.
         motor_torque: (n,) N·m the servo motors apply to the joints (motor line).
         friction_torque: (n,) N·m gear friction acting on the joints.
-        external_torque: (n,) N·m of the push, spring and wall (J^T F).
+        external_torque: (n,) N·m of the push, spring and wall (J^T F) and the applied
+            joint torques (:meth:`Plant.apply_joint_torque`).
         stop_torque: (n,) N·m of the joint-limit stops.
     """
 
@@ -63,6 +65,13 @@ class _Push:
     link: int
     point: tuple[float, float, float]
     until: float
+
+
+@dataclass(frozen=True)
+class _JointTorque:
+    joint: int
+    torque: float
+    start: float
 
 
 @dataclass(frozen=True)
@@ -192,6 +201,7 @@ class Plant:
         self._spring: _Spring | None = None
         self._wall: _Wall | None = None
         self._push_tau = [0.0] * n
+        self._joint_torques: list[_JointTorque] = []
 
     # -- state ------------------------------------------------------------------
 
@@ -259,11 +269,37 @@ class Plant:
             tip=self.model.tip[:3, 3], link_index=self._link)
         self._wall = _Wall(tuple(origin), tuple(normal), k, c, li, tuple(float(x) for x in pt))
 
+    def apply_joint_torque(self, joint: int, torque: float, *, start: float = 0.0) -> None:
+        """A known disturbance: a constant ``torque`` N·m on ``joint`` (positive along the
+        joint's axis, as J^T F of a push is) from plant time ``start`` s on, for as long as
+        the plant runs (a weight hung on a pulley at the joint). Torques add up; the
+        disturbance observers (thesis eq. 2.36) are checked against it.
+
+        Raises:
+            ValueError: naming the argument: no such joint, a non-finite torque, or a
+                negative or non-finite start.
+        """
+        j = index("joint", joint, self.n)
+        tau = scalar("torque", torque)
+        t0 = scalar("start", start, nonnegative=True)
+        self._joint_torques.append(_JointTorque(j, tau, t0))
+
+    def joint_torques(self, t: float | None = None) -> np.ndarray:
+        """(n,) N·m of the applied joint torques (:meth:`apply_joint_torque`) acting at plant
+        time ``t`` s (default now)."""
+        now = self.t if t is None else t
+        tau = np.zeros(self.n)
+        for d in self._joint_torques:
+            if now >= d.start - 1e-12:
+                tau[d.joint] += d.torque
+        return tau
+
     def clear_forces(self) -> None:
-        """Remove every push, spring and wall."""
+        """Remove every push, spring, wall and applied joint torque."""
         self._pushes.clear()
         self._spring = None
         self._wall = None
+        self._joint_torques.clear()
 
     def _link(self, link: int) -> int:
         return index("link", link, self.n)
@@ -317,6 +353,7 @@ class Plant:
         damp = [s.damping + b for s, b in zip(self.servos, self._viscous, strict=True)]
         coulomb = self._coulomb
         push = self._push_tau if self._pushes else None
+        applied = [float(x) for x in self.joint_torques()] if self._joint_torques else None
         # Stops only when a joint is within reach of a limit this step (13 rad/s × dt << 0.05).
         stops = self.stops is not None and any(
             q < lo + 0.05 or q > hi - 0.05
@@ -333,6 +370,8 @@ class Plant:
                 tau = [a + b for a, b in zip(tau, self._stop_torques(q, qd), strict=True)]
             if push is not None:
                 tau = [a + b for a, b in zip(tau, push, strict=True)]
+            if applied is not None:
+                tau = [a + b for a, b in zip(tau, applied, strict=True)]
             if fields:
                 tau = [a + b for a, b in zip(tau, self._field_torques(q, qd), strict=True)]
             return fd(q, qd, tau, g, arm)
@@ -423,6 +462,8 @@ class Plant:
             motor.append(d * servo.motor_torque(d * qd[i]))
             fric.append(-d * servo.friction(d * qd[i]))
         ext = list(self._push_tau) if self._pushes else [0.0] * self.n
+        if self._joint_torques:
+            ext = [a + b for a, b in zip(ext, self.joint_torques(), strict=True)]
         if self._spring is not None or self._wall is not None:
             ext = [a + b for a, b in zip(ext, self._field_torques(q, qd), strict=True)]
         stop = self._stop_torques(q, qd)

@@ -197,6 +197,12 @@ class SimBackend(GoalLimits):
                 servo.regs.torque_enable = 0
         return True
 
+    @property
+    def senses_current(self) -> bool:
+        """Whether every simulated servo measures its motor current
+        (``control.backend.CurrentSensing``): the XM430/XL330 models do, the RX-24F not."""
+        return all(getattr(s, "has_current", False) for s in self.specs)
+
     def close(self) -> None:
         """Release the backend; later calls raise BackendError (torque left as it is)."""
         with self._lock:

@@ -9,6 +9,7 @@ Every public function that takes arrays from a caller runs them through
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -86,3 +87,19 @@ def index(name: str, value: object, size: int) -> int:
             0 <= int(value) < size):
         raise ValueError(f"{name} must be an index 0..{size - 1}, got {value!r}")
     return int(value)
+
+
+def joint_index(value: object, names: Sequence[str]) -> int:
+    """A joint named by its index (0..n-1, also as text: "1") or by its name ("joint2") ->
+    its index; ValueError listing both forms otherwise."""
+    text = str(value).strip()
+    if text in names:
+        return list(names).index(text)
+    try:
+        k = int(text)
+    except ValueError:
+        k = -1
+    if 0 <= k < len(names) and not isinstance(value, bool):
+        return k
+    raise ValueError(f"joint must be an index 0..{len(names) - 1} or one of "
+                     f"{', '.join(names)}; got {value!r}")

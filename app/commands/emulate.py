@@ -6,6 +6,11 @@ protocol 1.0 (RX-24F, AX-12A) or, for X-series servos (``--servo XM430-W350``, a
 default for ``open_manipulator_x``: XM430-W350, IDs 11..14), protocol 2.0. Serves until
 SIGINT or SIGTERM, then exits cleanly.
 
+``--disturb JOINT:NM@S`` applies a known torque to a joint of the simulated arm (a
+weight hung at the joint) from S s of the emulator's plant clock on: what
+``armlab experiment observers --backend serial --applied NM`` estimates from the
+servos' current. Repeat it for several.
+
 ``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
 earlier emulator left), so the emulator keeps its name across restarts, as a
 ``/dev/serial/by-id/...`` path does across re-plugs; the link goes when it exits.
@@ -15,16 +20,20 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
+from collections.abc import Sequence
 
 from app.commands.scan import _ids
 from hardware.emulator import Faults, PtyEmulator, emulated_network
 from hardware.emulator_x import emulated_x_network
 from hardware.joint_map import default_joint_map
+from hardware.plant import Plant
 from hardware.servo_spec import value_from_baud
 from hardware.xseries import X_TABLES
 from kinematics.model import SerialChain, load_robot
+from kinematics.validate import joint_index
 
 NAME = "emulate"
 HELP = "serve simulated servos of a robot on a pseudo-terminal (prints 'port: /dev/pts/N')"
@@ -37,6 +46,40 @@ def _fraction(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not 0.0 <= v <= 1.0:
         raise argparse.ArgumentTypeError(f"a fraction of replies in [0, 1], got {v}")
+    return v
+
+
+#: what ``--disturb`` takes
+DISTURB_FORMAT = ("JOINT:NM@S (joint index or name, torque in N·m along the joint's axis, "
+                  "seconds after the emulator starts), e.g. 1:0.3@1.5")
+
+
+def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, float]:
+    """``--disturb JOINT:NM@S`` -> (joint index, torque N·m, start s).
+
+    Raises:
+        ValueError: one line naming the option, the value, what is wrong and the format.
+    """
+    m = re.fullmatch(r"\s*([^:@]+):([^:@]+)@([^:@]+)\s*", text)
+    try:
+        if m is None:
+            raise ValueError("not JOINT:NM@S")
+        joint = joint_index(m[1], names)
+        torque, start = _number(m[2], "the torque"), _number(m[3], "the start")
+        if start < 0:
+            raise ValueError(f"the start must be >= 0 s, got {start:g}")
+    except ValueError as exc:
+        raise ValueError(f"--disturb {text!r}: {exc}; expected {DISTURB_FORMAT}") from None
+    return joint, torque, start
+
+
+def _number(text: str, name: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"{name} is not a number: {text.strip()!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ValueError(f"{name} must be finite, got {text.strip()!r}")
     return v
 
 
@@ -80,9 +123,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "programs, like a device; needs root, else ignored)")
     parser.add_argument("--log", metavar="FILE",
                         help="write one line per received (rx) and sent (tx) packet")
+    parser.add_argument("--disturb", action="append", default=[], metavar="JOINT:NM@S",
+                        help="apply a known torque to a joint of the simulated arm: "
+                        + DISTURB_FORMAT.replace("%", "%%") + " (repeatable)")
     parser.add_argument("--link", metavar="PATH",
                         help="also make PATH a symlink to the pseudo-terminal (replaced on "
                              "restart, like a /dev/serial/by-id name)")
+
+
+def _arm_plant(network: object) -> Plant:
+    """The plant of a serial arm's emulated servos (protocol 2.0 or 1.0), for ``--disturb``."""
+    physics = network.physics  # type: ignore[attr-defined]
+    return physics.plant if hasattr(physics, "plant") else physics.plants[0]
 
 
 def make_link(link: str, target: str) -> None:
@@ -123,6 +175,14 @@ def run(args: argparse.Namespace) -> int:
     else:
         value_from_baud(args.baud)  # ValueError for a rate no servo can take
         network = emulated_network(model, ids=args.ids, servo=args.servo, baud=args.baud)
+    disturbances = []
+    if args.disturb:
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"--disturb: a joint torque on a serial arm, not the {model.name}")
+        disturbances = [parse_disturbance(d, model.joint_names) for d in args.disturb]
+        plant = _arm_plant(network)
+        for joint, torque, start in disturbances:
+            plant.apply_joint_torque(joint, torque, start=start)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)
@@ -143,7 +203,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
               f"{', '.join(str(x.servo_id) for x in s)}, protocol {network.protocol}.0) of "
               f"{model.name} at {args.baud:.0f} bps"
-              f"{', paced' if args.pace else ''}; Ctrl-C to stop", file=sys.stderr, flush=True)
+              f"{', paced' if args.pace else ''}"
+              + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
+                        for j, nm, t0 in disturbances)
+              + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
     except ArithmeticError as exc:  # the simulated plant diverged: say so in one line
         print(f"armlab emulate: the simulated plant failed ({exc}); restart the emulator",

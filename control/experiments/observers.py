@@ -8,21 +8,54 @@ each follows the truth (the total disturbance τ_dis, which also holds gravity a
 friction, for the DOB; τ_ext for the RTOB), how fast the RTOB picks up the step
 (its 63 % time should be about 1/g_reac), and, with
 the estimate fed back (thesis fig. 2.9), how much less the joint gives way.
-RX-24F servos take no current command, so this is a simulation lesson only.
+
+With ``--backend serial`` (servos that measure their motor current: XM430-W350,
+XL330-M288, real or ``armlab emulate``d) the DOB runs on the servos instead: the arm
+holds still (goal = present position, or ``--pose`` first), the present current (as
+torque, through the datasheet's torque constant) and velocity of ``--joint`` are read
+every :data:`SERVO_PERIOD`, and the estimate before and after a torque applied to the
+joint (a weight hung on it, or ``armlab emulate --disturb``) is compared with
+``--applied``. RX-24F servos report a load estimate, not a current: the DOB is a
+simulation lesson on them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from control.experiments import Experiment, option
-from control.observers import ObserverRun, TorqueJoint, simulate_observers
-from kinematics.validate import scalar
+from control.backend import Backend, CurrentSensing
+from control.experiments import BackendOptions, Experiment, option
+from control.observers import (
+    ObserverRun,
+    ObserverState,
+    TorqueJoint,
+    disturbance_observer,
+    simulate_observers,
+)
+from kinematics.dynamics import mass_matrix
+from kinematics.model import SerialChain, load_robot
+from kinematics.validate import index, joint_index, scalar, vector
 
 DECIMATE = 20  #: CSV rows: every 20th sample (2 ms at the 0.1 ms step)
+SIM_STEP, SIM_AT, SIM_DURATION, SIM_G = 0.004, 0.5, 1.5, 200.0  #: the simulation's defaults
+
+SERVO_PERIOD = 0.01  #: s between two readings of the servos
+SERVO_G_DIS = 20.0  #: rad/s, the DOB's default cut-off on servos (well under 1/period)
+SERVO_DURATION = 10.0  #: s of holding and reading, by default
+SERVO_ROBOT = "open_manipulator_x"  #: the arm with current-sensing servos (XM430-W350)
+#: s the servo's own position loop and the DOB take to settle after the torque went on
+#: or a torque step came (the XM430's P+D hold settles in ~0.3 s, the DOB in 5/g)
+SETTLE_S = 1.0
+MARGIN_S = 0.2  #: s left out before the step (the estimate starts moving before its midpoint)
+MIN_WINDOW_S = 0.5  #: s of settled readings each side of the step at least
+POSE_SPEED = 1.0  #: rad/s going to ``--pose``
+POSE_TOLERANCE = 0.05  #: rad from the pose (the servo's P hold sags under gravity)
+STILL = 0.05  #: rad/s under which the joint counts as still
+SERVO_DECIMATE = 5  #: rows of the servo run: every 5th reading (50 ms)
 
 
 def _rise_time(t: np.ndarray, est: np.ndarray, true: np.ndarray, at: float) -> float:
@@ -87,22 +120,287 @@ def observers(*, step: float = 0.004, at: float = 0.5, duration: float = 1.5,
     return figures, runs[False]
 
 
+# -- on servos that measure their current ---------------------------------------------
+
+BackendFactory = Callable[..., Backend]
+
+
+def dob_series(t: np.ndarray, qd: np.ndarray, tau_m: np.ndarray, *, j_n: float,
+               g_dis: float) -> np.ndarray:
+    """The disturbance observer (thesis eq. 2.36 through the LPF of fig. 2.7–2.8) over a
+    recording: τ̂_dis at every reading.
+
+    Args:
+        t: (N,) reading times, s (each step's own interval is its sample time: a bus is
+            read at a jittery rate).
+        qd: (N,) θ̇, rad/s.
+        tau_m: (N,) K_tn I, N·m: the measured current through the datasheet's torque
+            constant (what a current-sensing backend reports as ``JointState.load``), so
+            the observer gets I in N·m with K_tn = 1.
+        j_n: nominal inertia J_n, kg·m².  g_dis: cut-off, rad/s.
+
+    Returns:
+        (N,) τ̂_dis, N·m; the filter starts settled on the first reading.
+    """
+    state = ObserverState(z=float(tau_m[0] + g_dis * j_n * qd[0]))
+    out = np.empty(len(t))
+    out[0] = tau_m[0]
+    for k in range(1, len(t)):
+        dt = max(float(t[k] - t[k - 1]), 1e-6)
+        out[k] = disturbance_observer(state, float(tau_m[k]), float(qd[k]), j_n=j_n,
+                                      kt_n=1.0, g_dis=g_dis, dt=dt)
+    return out
+
+
+def step_index(x: np.ndarray) -> int:
+    """Where a step in ``x`` is: the k that best splits it into two constant levels
+    x[:k], x[k:] (least squares, the classic change point); 1 <= k < len(x)."""
+    n = len(x)
+    if n < 2:
+        raise ValueError("need at least two readings to find a step")
+    c, c2 = np.cumsum(x), np.cumsum(x * x)
+    k = np.arange(1, n)
+    left = c2[k - 1] - c[k - 1] ** 2 / k
+    right = (c2[-1] - c2[k - 1]) - (c[-1] - c[k - 1]) ** 2 / (n - k)
+    return int(k[np.argmin(left + right)])
+
+
+def step_figures(t: np.ndarray, est: np.ndarray, *, at: float | None = None,
+                 settle: float = SETTLE_S) -> dict[str, float]:
+    """The estimate before and after a step: its medians over the settled readings
+    [``settle``, step − :data:`MARGIN_S`) and [step + ``settle``, end] (t from the first
+    reading), the step at ``at`` s or, when None, where :func:`step_index` finds it.
+
+    Raises:
+        ValueError: a window shorter than :data:`MIN_WINDOW_S` (the step came too early or
+            too late for the run's duration).
+    """
+    step_at = float(t[step_index(est)]) if at is None else float(at)
+    before = (t >= settle) & (t < step_at - MARGIN_S)
+    after = t >= step_at + settle
+    for name, window in (("before", before), ("after", after)):
+        span = float(np.ptp(t[window])) if window.any() else 0.0
+        if span < MIN_WINDOW_S:
+            raise ValueError(
+                f"the step at {step_at:.2f} s of the {t[-1]:.2f} s run leaves {span:.2f} s of "
+                f"settled readings {name} it (need {MIN_WINDOW_S} s, {settle} s after the "
+                "torque went on and after the step): apply it later or earlier, or give a "
+                "longer --duration")
+    lo, hi = float(np.median(est[before])), float(np.median(est[after]))
+    return {"step_at_s": step_at, "dob_before_nm": lo, "dob_after_nm": hi,
+            "estimated_nm": -(hi - lo)}
+
+
+def _check_current(backend: Backend) -> None:
+    if not (isinstance(backend, CurrentSensing) and backend.senses_current):
+        raise ValueError("these servos report no motor current (a load estimate, e.g. RX-24F "
+                         "or XL430 Present Load): the disturbance observer needs K_t I; use "
+                         "servos that measure their current (XM430-W350, XL330-M288) or "
+                         "--backend sim")
+
+
+def _go_to(backend: Backend, pose: np.ndarray, t: float, period: float) -> float:
+    """Send the arm to ``pose`` at :data:`POSE_SPEED` and wait (reading every ``period``)
+    until it is there and still; returns the backend time reached."""
+    here = backend.read().position
+    goal = np.clip(pose, backend.lower, backend.upper)
+    backend.write(goal, np.full(len(goal), POSE_SPEED))
+    timeout = float(np.max(np.abs(goal - here))) / POSE_SPEED + 5.0
+    for _ in range(int(timeout / period)):
+        t += period
+        backend.sync(t)
+        s = backend.read()
+        if np.all(np.abs(s.position - goal) < POSE_TOLERANCE) and \
+                np.all(np.abs(s.velocity) < STILL):
+            return t
+    raise ValueError(f"the arm did not reach --pose {np.degrees(goal).round(1).tolist()}° in "
+                     f"{timeout:.1f} s (it stands at {np.degrees(s.position).round(1).tolist()}°)")
+
+
+def hold_and_read(backend: Backend, joint: int, duration: float, *,
+                  pose: np.ndarray | None = None, period: float = SERVO_PERIOD
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Torque on; hold the arm where it stands (goal = present position) or, given a
+    ``pose`` (n,) rad, go there first and hold it; read the servos every ``period`` for
+    ``duration`` s.
+
+    Returns:
+        (t from the first reading s, q rad, θ̇ rad/s, K_t I N·m) of ``joint``, (N,) each,
+        and the whole arm's pose at the first reading, (n,) rad.
+
+    Raises:
+        ValueError: the servos measure no current, the pose was not reached, or the
+            servo switched its torque off (a hardware error).
+    """
+    _check_current(backend)
+    backend.set_torque(True)
+    t = backend.read().t
+    if pose is None:
+        here = backend.read().position
+        backend.write(here, np.full(len(here), POSE_SPEED))
+    else:
+        t = _go_to(backend, pose, t, period)
+    rows, held = [], None
+    for _ in range(int(round(duration / period))):
+        t += period
+        backend.sync(t)
+        s = backend.read()
+        if not s.torque_on[joint]:
+            alarm = s.alarms[joint] if s.alarms else ""
+            raise ValueError(f"joint {joint}'s servo switched its torque off"
+                             f"{': ' + alarm if alarm else ''}")
+        held = s.position if held is None else held
+        rows.append((s.t, s.position[joint], s.velocity[joint], s.load[joint]))
+    t_, q, qd, tau = (np.array(c) for c in zip(*rows, strict=True))
+    return t_ - t_[0], q, qd, tau, np.array(held)
+
+
+def _release(backend: Backend) -> None:
+    """Torque off (an e-stop if that fails) and close, whatever happened."""
+    try:
+        backend.set_torque(False)
+    except Exception:  # noqa: BLE001 - the link may be gone: try the e-stop, then close
+        backend.estop()
+    finally:
+        backend.close()
+
+
+def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, joint: int,
+                    duration: float = SERVO_DURATION, g_dis: float = SERVO_G_DIS,
+                    applied: float | None = None, at: float | None = None,
+                    pose: np.ndarray | None = None, period: float = SERVO_PERIOD
+                    ) -> dict[str, Any]:
+    """The disturbance observer on servos that measure their current: hold, read, estimate.
+
+    J_n is the model's mass-matrix diagonal at the held pose (the rotor's reflected inertia
+    is left out: at rest J_n θ̈ is nil and the estimate is K_tn I, whatever J_n).
+
+    Args:
+        model: the arm; ``backend_factory(model)`` opens its servos.
+        joint: the joint index to observe.
+        duration: s of holding and reading.  g_dis: the DOB's cut-off, rad/s.
+        applied: the torque applied to the joint during the run, N·m along its axis
+            (positive like the joint's angle), to compare with; None: not known.
+        at: s after the first reading the torque came; None: found in the estimate.
+        pose: (n,) rad to go to and hold first (an arm hanging on its stops, whose
+            torque the stops would share); None: hold where it stands.
+
+    Returns:
+        {"joint", "j_n", "g_dis", "period_s", "samples", "step_at_s", "dob_before_nm",
+        "dob_after_nm", "estimated_nm", ["applied_nm", "relative_error"], "series"}:
+        τ̂_dis before and after (thesis sign: the load the motor works against, J θ̈ =
+        K_t I − τ_dis), and the applied torque that step implies, −Δτ̂_dis.
+    """
+    shortest = 2.0 * (SETTLE_S + MIN_WINDOW_S)
+    if not scalar("duration", duration, positive=True) >= shortest:
+        raise ValueError(f"--duration must be at least {shortest:g} s on servos (settled "
+                         f"readings before and after the step), got {duration:g}")
+    scalar("g_dis", g_dis, positive=True)
+    index("joint", joint, model.n)
+    if applied is not None and scalar("applied", applied) == 0.0:
+        raise ValueError("--applied must not be 0 (the relative error divides by it)")
+    if at is not None:
+        scalar("at", at, nonnegative=True)
+    backend = backend_factory(model)
+    try:
+        t, q, qd, tau, held = hold_and_read(backend, joint, duration, pose=pose,
+                                            period=period)
+    finally:
+        _release(backend)
+    j_n = float(mass_matrix(model, held)[joint, joint])
+    est = dob_series(t, qd, tau, j_n=j_n, g_dis=g_dis)
+    figures: dict[str, Any] = {"joint": model.joint_names[joint], "j_n": j_n, "g_dis": g_dis,
+                               "period_s": period, "samples": len(t),
+                               **step_figures(t, est, at=at)}
+    if applied is not None:
+        figures["applied_nm"] = applied
+        figures["relative_error"] = abs(figures["estimated_nm"] - applied) / abs(applied)
+    sl = slice(None, None, SERVO_DECIMATE)
+    figures["series"] = {"t": t[sl].tolist(), "q": q[sl].tolist(), "qd": qd[sl].tolist(),
+                         "tau_m": tau[sl].tolist(), "tau_dis_hat": est[sl].tolist()}
+    return figures
+
+
+# -- options -------------------------------------------------------------------------
+
 @dataclass(frozen=True)
-class ObserverOptions:
-    """Options of ``observers`` (see :func:`observers`)."""
+class ObserverOptions(BackendOptions):
+    """Options of ``observers`` (see :func:`observers` and :func:`servo_observers`)."""
 
-    step: float = option(0.004, "external torque step, N·m")
-    at: float = option(0.5, "time of the step, s")
-    g_dis: float = option(200.0, "DOB cut-off, rad/s")
-    g_reac: float = option(200.0, "RTOB cut-off, rad/s")
-    model_error: float = option(0.0, "relative error of the nominal inertia J_n "
-                                "(0.2 = 20 %% too large)")
+    step: float | None = option(None, f"external torque step, N·m (simulation; default "
+                                f"{SIM_STEP:g})")
+    at: float | None = option(None, f"time of the step, s (default {SIM_AT:g}; on servos: s "
+                              "after the first reading, default: found in the estimate)")
+    g_dis: float | None = option(None, f"DOB cut-off, rad/s (default {SIM_G:g}; "
+                                 f"{SERVO_G_DIS:g} on servos)")
+    g_reac: float | None = option(None, f"RTOB cut-off, rad/s (simulation; default "
+                                  f"{SIM_G:g})")
+    model_error: float | None = option(None, "relative error of the nominal inertia J_n "
+                                       "(0.2 = 20 %% too large; simulation, default 0)")
+    duration: float | None = option(None, f"s of the run (default {SIM_DURATION:g}; "
+                                    f"{SERVO_DURATION:g} on servos)")
+    robot: str | None = option(None, f"robot model on servos (default {SERVO_ROBOT})",
+                               metavar="NAME")
+    joint: str | None = option(None, "on servos: the joint to observe, index or name "
+                               "(e.g. 1 or joint2)", metavar="J")
+    applied: float | None = option(None, "on servos: the torque applied to the joint during "
+                                   "the run, N·m along its axis, to compare with",
+                                   metavar="NM")
+    pose: str | None = option(None, "on servos: go to these joint angles first, degrees "
+                              "(comma-separated), then hold (default: hold where the arm "
+                              "stands)", metavar="DEG,...")
 
 
-def _run(options: ObserverOptions) -> dict[str, Any]:
+_SIM_ONLY = ("step", "g_reac", "model_error")
+_SERVO_ONLY = ("robot", "joint", "applied", "pose")
+
+
+def _run(options: ObserverOptions, *, backend_factory: BackendFactory | None = None
+         ) -> dict[str, Any]:
     o = options
-    figures, run = observers(step=o.step, at=o.at, g_dis=o.g_dis, g_reac=o.g_reac,
-                             model_error=o.model_error)
+    if o.backend == "sim":
+        given = [n for n in _SERVO_ONLY + ("port", "baud") if getattr(o, n) is not None]
+        if given:
+            raise ValueError(f"{_names(given)} for the servos (--backend serial)")
+        return _sim_run(o)
+    given = [n for n in _SIM_ONLY if getattr(o, n) is not None]
+    if given:
+        raise ValueError(f"{_names(given)} for the simulation (--backend sim); on servos "
+                         "apply a torque to the joint and give it as --applied")
+    if o.joint is None:
+        raise ValueError("--joint: name the joint to observe on the servos (index or name)")
+    if backend_factory is None:
+        raise ValueError("the servo run needs a backend_factory")
+    model = load_robot(o.robot or SERVO_ROBOT)
+    if not isinstance(model, SerialChain):
+        raise ValueError(f"--robot {o.robot}: the observers run on a serial arm")
+    pose = None
+    if o.pose is not None:
+        try:
+            values = [float(x) for x in o.pose.split(",")]
+        except ValueError:
+            raise ValueError(f"--pose: {model.n} angles in degrees, comma-separated; got "
+                             f"{o.pose!r}") from None
+        pose = np.radians(vector("--pose", values, model.n))
+    return servo_observers(model, backend_factory, joint=joint_index(o.joint, model.joint_names),
+                           duration=SERVO_DURATION if o.duration is None else o.duration,
+                           g_dis=SERVO_G_DIS if o.g_dis is None else o.g_dis,
+                           applied=o.applied, at=o.at, pose=pose)
+
+
+def _names(fields: list[str]) -> str:
+    """"--step is" / "--step, --g-reac are": the options named by their fields."""
+    opts = ", ".join("--" + f.replace("_", "-") for f in fields)
+    return f"{opts} {'is' if len(fields) == 1 else 'are'}"
+
+
+def _sim_run(o: ObserverOptions) -> dict[str, Any]:
+    figures, run = observers(step=SIM_STEP if o.step is None else o.step,
+                             at=SIM_AT if o.at is None else o.at,
+                             duration=SIM_DURATION if o.duration is None else o.duration,
+                             g_dis=SIM_G if o.g_dis is None else o.g_dis,
+                             g_reac=SIM_G if o.g_reac is None else o.g_reac,
+                             model_error=0.0 if o.model_error is None else o.model_error)
     sl = slice(None, None, DECIMATE)
     figures["series"] = {k: getattr(run, k)[sl].tolist()
                          for k in ("t", "tau_dis", "tau_dis_hat", "tau_ext", "tau_ext_hat")}
@@ -116,5 +414,6 @@ def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 EXPERIMENTS = (
     Experiment("observers", "disturbance and reaction-torque observers on a torque-driven "
-               "joint (thesis eq. 2.36, 2.37)", ObserverOptions, _run, _rows),
+               "joint (thesis eq. 2.36, 2.37); the DOB on current-sensing servos with "
+               "--backend serial", ObserverOptions, _run, _rows, needs=("backend_factory",)),
 )
