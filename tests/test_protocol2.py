@@ -78,11 +78,24 @@ def test_stuffing_inserts_fd_after_each_header_pattern_and_counts_in_len():
     assert back.params == b"\x00\x01\xff\xff\xfd\x01"
 
 
-@given(st.integers(0, p2.MAX_ID), st.binary(max_size=200))
+#: parameter bytes as a packet's data may hold them: any bytes, and runs made of the
+#: header's pieces (FF FF FD, FF FF FD FD, FF, FD), which plain random bytes almost never
+#: give, so that byte stuffing is exercised where it acts
+PIECES = st.sampled_from([b"\xff\xff\xfd", b"\xff\xff\xfd\xfd", b"\xff", b"\xfd",
+                          b"\x00", b"\xff\xff"])
+PARAMS = st.one_of(
+    st.binary(max_size=200),
+    st.lists(st.one_of(PIECES, st.binary(max_size=3)), max_size=40).map(b"".join))
+
+
+@given(st.integers(0, p2.MAX_ID), PARAMS)
 def test_any_params_round_trip_through_encode_parse_decode(servo_id, params):
     parser = p2.PacketParser()
     wire = p2.status(servo_id, 0, params)
-    assert p2.unstuff(p2.stuff(params)) == params
+    stuffed = p2.stuff(params)
+    assert p2.unstuff(stuffed) == params
+    # after stuffing, a header pattern is always followed by the stuffing byte
+    assert stuffed.count(b"\xff\xff\xfd") == stuffed.count(b"\xff\xff\xfd\xfd")
     (got,) = parser.feed(wire)
     s = p2.decode_status(got)
     assert (s.servo_id, s.params) == (servo_id, params)
