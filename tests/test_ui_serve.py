@@ -151,3 +151,31 @@ def test_listening_on_the_network_without_classroom_warns():
     assert code == 0, err
     assert "without --classroom: every browser with the URL then controls the arm" in err
     assert "passcode" not in out
+
+
+def test_serve_a_urdf_with_its_tip_link_and_a_package_path():
+    """``armlab serve --robot FILE.urdf --tip-link LINK --package-path DIR``, as a person
+    types it: the page gets a slider per joint of the chain to that link, and the meshes
+    the package path finds are drawn (only the ones still missing are named, once)."""
+    from app.wsclient import HeadlessClient
+    from kinematics import load_robot
+
+    data = ROOT / "tests" / "data"
+    urdf = data / "mobile_manipulator.urdf"
+    chain = load_robot(urdf, tip_link="tcp_link")
+    proc, url = start_serve("--robot", str(urdf), "--tip-link", "tcp_link",
+                            "--package-path", str(data / "extra_packages"),
+                            "--http-port", "0")
+    try:
+        parts = urllib.parse.urlsplit(url)
+        local = f"ws://127.0.0.1:{parts.port}/?{parts.query}"  # loopback, as printed
+        with HeadlessClient(local).connect() as page:
+            labels = [f"{name} °" for name in chain.joint_names]
+            page.wait_for(lambda: all(page.shows(label) for label in labels), 60.0,
+                          "a slider per joint of the chain to tcp_link")
+            assert not page.shows("camera_joint °")  # off the chain
+    finally:
+        code, out, err = stop(proc)
+    assert code == 0, err
+    assert err.count("shoulder.dae") == 1 and err.count("upper_arm.dae") == 1  # named once
+    assert "camera.stl" not in err  # found through --package-path
