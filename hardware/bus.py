@@ -31,8 +31,10 @@ import struct
 import termios
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 import serial
 
@@ -373,11 +375,18 @@ class Bus:
         )
 
     def _receive(self, request: bytes, want: dict[int, int], *, timeout: float,
-                 echo_only: bool = False) -> dict[int, p1.StatusPacket | p2.StatusPacket]:
+                 echo_only: bool = False, protocol: ModuleType | None = None
+                 ) -> dict[int, p1.StatusPacket | p2.StatusPacket]:
         """The status packets of the servos in ``want`` (ID -> bytes of data each answers
         with) that arrive within ``timeout`` s; all of them, or those that came when the
-        wait ended (a timeout, or a broken reply after which nothing more is pending)."""
-        parser = self._p.PacketParser()
+        wait ended (a timeout, or a broken reply after which nothing more is pending).
+
+        ``protocol``: the packet module (:mod:`~hardware.protocol1` or
+        :mod:`~hardware.protocol2`) to parse with, when not the bus's own (a probe of the
+        other protocol: its answers are not kept in :attr:`errors`)."""
+        own = protocol is None or protocol is self._p
+        p = self._p if protocol is None else protocol
+        parser = p.PacketParser()
         deadline = time.monotonic() + timeout
         echo_pending = self.echo
         if echo_pending:
@@ -396,7 +405,7 @@ class Bus:
                         return got
                     continue
                 try:
-                    status = self._p.decode_status(raw)
+                    status = p.decode_status(raw)
                 except (p1.ProtocolError, p2.ProtocolError):  # an instruction: not ours
                     self.stats.corrupt += 1
                     continue
@@ -406,7 +415,8 @@ class Bus:
                     self.late_ids.add(status.servo_id)
                     continue
                 self.stats.replies += 1
-                self.errors[status.servo_id] = status.error
+                if own:
+                    self.errors[status.servo_id] = status.error
                 got[status.servo_id] = status
                 if len(got) == len(want):
                     return got
@@ -479,6 +489,44 @@ class Bus:
                 (self.timeout_margin if margin is None else margin)
             answers = self._receive(packet, {i: 3 for i in ids}, timeout=timeout)
         return answers  # type: ignore[return-value]
+
+    def ping_other_protocol(self, ids: Sequence[int]) -> tuple[int, list[int]]:
+        """Which servos answer a PING in the protocol this bus does *not* speak, at its baud.
+
+        How a backend tells "nothing answers here" from "servos of the other family answer
+        here" (a joint map naming the wrong servo model): protocol 2.0 is asked with one
+        broadcast PING, which every servo on the bus answers whatever its ID; protocol 1.0
+        has no such PING (every servo would answer at once), so each of ``ids`` gets its
+        own. Only PINGs are sent: nothing is written to any servo. On a pseudo-terminal the
+        PINGs go twice (the machine may hold answers back). A lost link answers nothing.
+
+        Returns:
+            (the other protocol, 1 or 2; the IDs that answered in it, sorted; empty when
+            none did).
+        """
+        other, p = (2, p2) if self.protocol == 1 else (1, p1)
+        tries = 2 if is_pty(self.port) else 1
+        if other == 2:
+            asks = [(p2.ping(p2.BROADCAST_ID), {i: 3 for i in range(p2.MAX_ID + 1)})]
+        else:
+            asks = [(p1.ping(i), {i: 0}) for i in ids if 0 <= i <= p1.MAX_ID]
+        heard: set[int] = set()
+        try:
+            with self._lock:
+                for _ in range(tries):
+                    for packet, want in asks:
+                        if set(want) <= heard:
+                            continue
+                        backlog = self._send(packet)
+                        # every servo that answers a broadcast waits for the one before it
+                        replies = len(want) * (p2.status_length(3) if other == 2
+                                               else p1.OVERHEAD)
+                        timeout = backlog + reply_timeout(len(packet), replies, self._baud,
+                                                          254 * len(want), self.timeout_margin)
+                        heard |= set(self._receive(packet, want, timeout=timeout, protocol=p))
+        except BusError:
+            pass
+        return other, sorted(heard)
 
     def read_bytes(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes at ``address`` of one servo (its error kept in ``errors``)."""

@@ -27,7 +27,7 @@ import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
 from hardware import protocol1 as p1
-from hardware.bus import Bus, BusError, BusStats, sync_data
+from hardware.bus import Bus, BusError, BusStats, NoReply, sync_data
 from hardware.control_table import (
     THESIS_COMPLIANCE_MARGIN,
     THESIS_COMPLIANCE_SLOPE,
@@ -373,13 +373,33 @@ class DynamixelBackend(GoalLimits):
         self._guard(self.bus.write, servo_id, name, value)
 
     def _find_servos(self) -> None:
-        for j in self.map.joints:
+        """PING every mapped servo and check its model; read its return delay.
+
+        When the first servo does not answer, the servos may speak the other protocol (a
+        joint map naming the wrong servo family): :meth:`_wrong_protocol` asks, and names
+        it. Nothing is written to a servo before they all answered.
+        """
+        for k, j in enumerate(self.map.joints):
             try:
                 self.bus.ping(j.servo_id)
             except BusError as exc:
-                raise BackendError(f"joint {j.name}: {exc}") from exc
+                wrong = self._wrong_protocol() if k == 0 and isinstance(exc, NoReply) else None
+                raise BackendError(wrong or f"joint {j.name}: {exc}") from exc
             self.bus.identify(j.servo_id, expect=self.map.servo)
             self.bus.return_delay[j.servo_id] = self.bus.read(j.servo_id, "return_delay_time")
+
+    def _wrong_protocol(self) -> str | None:
+        """The message for servos that answer the other protocol at this baud (None when
+        nothing does): the joint map names a servo model of the wrong family
+        (:meth:`~hardware.bus.Bus.ping_other_protocol`: a broadcast PING in protocol 2.0,
+        the map's IDs in 1.0)."""
+        other, ids = self.bus.ping_other_protocol(self.map.ids)
+        if not ids:
+            return None
+        return (f"the servos on {self.bus.port} answer protocol {other}.0 "
+                f"(ID{'s' if len(ids) > 1 else ''} {', '.join(map(str, ids))}), but the joint "
+                f"map names {self.map.servo} (protocol {self.PROTOCOL}.0): fix the map's "
+                f"servo model (armlab scan --port {self.bus.port} shows what answers)")
 
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits: the map's, narrowed to each servo's CW..CCW angle limits."""

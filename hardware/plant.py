@@ -141,7 +141,8 @@ class Plant:
         dt: integration step and servo firmware tick, s (1e-3 default).
         q0, qd0: (n,) initial joint state (default: neutral, at rest).
         directions: (n,) +1/-1: servo angle = direction · joint angle (default +1).
-        params: :class:`ServoParams` per joint or one for all (rotor, friction, overload).
+        params: :class:`ServoParams` per joint or one for all (rotor, friction, overload;
+            default: :class:`ServoParams`, supplied at an X-series model's rated voltage).
         registers: per joint a :class:`ServoRegisters` (:class:`XRegisters` for an
             X-series joint) to use (default: factory values, goal at the initial
             position, torque off).
@@ -165,8 +166,11 @@ class Plant:
         spec_list = [specs] * n if isinstance(specs, (ServoSpec, XSpec)) else list(specs)
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
-        if params is None or isinstance(params, ServoParams):
-            param_list = [params or ServoParams()] * n
+        if params is None:  # an X-series servo reports its own rated supply (5 V: XL330)
+            param_list = [ServoParams(voltage=s.voltage) if isinstance(s, XSpec)
+                          else ServoParams() for s in spec_list]
+        elif isinstance(params, ServoParams):
+            param_list = [params] * n
         else:
             param_list = list(params)
             if len(param_list) != n:

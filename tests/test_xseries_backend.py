@@ -6,7 +6,9 @@ The configuration sequence (current-based position control, Goal Current); one
 SYNC_READ and one SYNC_WRITE a period; the arm reaches a goal and reports its torque
 from the measured current; a goal beyond a servo's Max Position Limit never leaves the
 process; E-STOP switches every torque off; a map naming X-series servos opens this
-backend through the lab's own factory.
+backend through the lab's own factory. Each X-series model the lab knows (XM430-W350,
+XL330-M288, and the XL430-W250 without a current sensor) is configured for what it
+senses, reaches a goal and reports the torque that holds the arm up.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import time
 import tomllib
 
 import numpy as np
@@ -25,8 +28,10 @@ from app.backends import make_backend
 from app.server import Lab, ServeOptions
 from hardware import protocol2 as p2
 from hardware.bus import Bus
-from hardware.xseries import CENTRE, CURRENT_POSITION_D_GAIN, OperatingMode
-from hardware.xseries_backend import XSeriesBackend
+from hardware.joint_map import default_joint_map
+from hardware.xseries import CENTRE, CURRENT_POSITION_D_GAIN, OperatingMode, x_table_for
+from hardware.xseries_backend import XSeriesBackend, open_servo_backend
+from kinematics.dynamics import gravity_torques
 from kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
@@ -145,3 +150,85 @@ def test_the_lab_on_open_manipulator_x_scan_map_serve_slider_reaches_the_servos(
                 assert lesson.loop.status.fault is None
         finally:
             lab.close()
+
+
+def _at_rest(b: XSeriesBackend, what: str, *, also=lambda state: True, span: float = 0.3):
+    """Poll until every joint stayed still (under 0.05 rad/s) for ``span`` s and ``also``
+    holds; the last state read."""
+    still: list = []
+
+    def resting() -> bool:
+        state = b.read()
+        if np.any(np.abs(state.velocity) >= 0.05):
+            still.clear()
+        still.append((time.monotonic(), state))
+        return still[-1][0] - still[0][0] >= span and bool(also(state))
+
+    wait_for(resting, 30, what)
+    return still[-1][1]
+
+
+def _stiffness(servo: str, mode: int) -> float:
+    """N·m per rad of position error the servo pushes back with at its factory Position P
+    Gain (KPP = P/128 current counts, or PWM counts of 885 for full duty, per count)."""
+    table = x_table_for(servo)
+    spec = table.spec
+    per_rad = table.item("position_p_gain").default / 128 / spec.position_unit
+    if mode == OperatingMode.CURRENT_BASED_POSITION:
+        return per_rad * spec.current_unit * spec.torque_constant
+    return per_rad / 885 * spec.stall_torque
+
+
+@pytest.mark.parametrize(("servo", "mode", "bound", "limit"), [
+    ("XM430-W350", OperatingMode.CURRENT_BASED_POSITION, "goal_current", "current_limit"),
+    ("XL330-M288", OperatingMode.CURRENT_BASED_POSITION, "goal_current", "current_limit"),
+    ("XL430-W250", OperatingMode.POSITION, "goal_pwm", "pwm_limit"),  # no current sensor
+])
+def test_each_x_model_is_set_up_for_what_it_senses_and_reports_the_arm_s_weight(
+        servo, mode, bound, limit):
+    """An OpenManipulator-X built with ``servo`` (its map names that model): the mode and
+    torque bound fit the servo, the shoulder reaches a goal, and the torque read (current
+    x torque constant, or the XL430's Present Load x stall torque) holds the arm up.
+
+    With the torque off the arm folds onto its shoulder's stop, as a real one does. The
+    XL330's 0.52 N·m cannot lift the outstretched arm from there (1.5 N·m for the XL430,
+    4.1 for the XM430), so the elbow is folded first, as with any weak arm; then the
+    shoulder goes back to -30°, where it and the elbow carry the arm's weight."""
+    table = x_table_for(servo)
+    jmap = default_joint_map(OMX, servo=servo)
+    assert jmap.servo == servo and jmap.ids == IDS
+    with emulator("--robot", "open_manipulator_x", "--servo", servo) as emu:
+        b = open_servo_backend(OMX, emu.port, joint_map=jmap, timeout_margin=MARGIN)
+        try:
+            assert isinstance(b, XSeriesBackend) and b.table is table
+            assert b.mode == mode and b.senses_current == (servo != "XL430-W250")
+            assert f"operating mode {mode} (" in "\n".join(b.configuration)
+            for i in IDS:
+                assert b.bus.tables[i] is table  # the model number each servo answered
+                assert b.bus.read(i, "operating_mode") == mode
+                assert b.bus.read(i, bound) == table.item(limit).default  # torque_limit 1.0
+            volts = b.bus.read(11, "present_input_voltage")  # the model's own supply
+            assert table.item("min_voltage_limit").default < volts < \
+                table.item("max_voltage_limit").default
+            _at_rest(b, "the arm at rest on its shoulder's stop",
+                     also=lambda state: state.position[1] > math.radians(80))
+            b.set_torque(True)
+            fold = b.read().position.copy()
+            fold[2] = math.radians(45)  # the XL330 sags ~15°, well off the elbow's stop
+            b.write(fold, np.full(4, 1.0))
+            _at_rest(b, "the elbow folded", also=lambda state: state.position[2] > 0.3)
+            goal = fold.copy()
+            goal[1] = math.radians(-30)
+            b.write(goal, np.full(4, 1.0))
+            state = _at_rest(b, f"the {servo} shoulder at rest near -30°",
+                             also=lambda state: state.position[1] < 0.0)
+            g = gravity_torques(OMX, state.position)  # what holds the arm still there
+            # position control sags under the weight by |g| / stiffness (XL330: ~13°)
+            sag = abs(g[1]) / _stiffness(servo, mode)
+            assert abs(state.position[1] - goal[1]) < sag + math.radians(3)
+            for k in (1, 2):  # shoulder and elbow carry the arm's weight
+                assert abs(state.load[k]) > 0.05 and np.sign(state.load[k]) == np.sign(g[k])
+                assert state.load[k] == pytest.approx(g[k], abs=0.06)  # friction 0.03
+            assert all(state.torque_on) and not any(state.alarms)
+        finally:
+            b.close()
