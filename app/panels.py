@@ -22,12 +22,15 @@ from app.page_js import LOCAL_STORAGE_PREFIX, run_javascript
 
 #: the page's localStorage key: a JSON list of the collapsed sides ("left", "right")
 PANELS_KEY = "armlab_collapsed_panels"
-#: ms after the page loads during which the remembered sides are collapsed again as they
-#: appear (a lesson's chart panel comes after the page's first messages)
-RESTORE_MS = 60_000
+#: ms after the page loads during which each remembered side is collapsed again once it
+#: appears (a lesson's chart panel comes after the page's first messages, late on a busy
+#: machine or a page drawing in software)
+RESTORE_MS = 300_000
 
-#: What each page runs once. While restoring, the remembered sides are collapsed as they
-#: appear; after that, the page's collapsed sides are written down whenever they change.
+#: What each page runs once. While restoring, each remembered side is collapsed as it
+#: appears (clicked again every 2 s until it shows collapsed, then left to the person);
+#: once every remembered side is done (or after RESTORE_MS), the page's collapsed sides
+#: are written down whenever they change.
 PAGE_SCRIPT = """
 (() => {
   const KEY = %(key)s;
@@ -35,23 +38,26 @@ PAGE_SCRIPT = """
   const railed = (edge) =>
     !!document.querySelector(`[data-dock-region="${edge}"] [data-dock-rail-root]`);
   const collapse = (edge) => document.querySelector(`[data-dock-region-collapse="${edge}"]`);
-  let wanted = [];
-  try { wanted = JSON.parse(localStorage.getItem(KEY) || '[]').filter(e => EDGES.includes(e)); }
-  catch (e) { wanted = []; }
+  let pending = [];
+  try { pending = JSON.parse(localStorage.getItem(KEY) || '[]').filter(e => EDGES.includes(e)); }
+  catch (e) { pending = []; }
   const started = Date.now();
-  let restoring = wanted.length > 0;
+  const clicked = {};  // edge -> ms of the last click (a click during a re-layout may not take)
   let written = localStorage.getItem(KEY);
   setInterval(() => {
-    if (restoring) {
-      for (const edge of wanted) {
+    const now = Date.now();
+    if (pending.length && now - started < %(restore_ms)d) {
+      pending = pending.filter((edge) => {
+        if (railed(edge)) return false;  // done: from now on it is the person's
         const button = collapse(edge);
-        if (button && !railed(edge)) button.click();
-      }
-      if (wanted.every(railed) || Date.now() - started > %(restore_ms)d) restoring = false;
+        if (button && now - (clicked[edge] || 0) > 2000) { button.click(); clicked[edge] = now; }
+        return true;
+      });
       return;
     }
-    const now = JSON.stringify(EDGES.filter(railed));
-    if (now !== written) { localStorage.setItem(KEY, now); written = now; }
+    pending = [];
+    const shown = JSON.stringify(EDGES.filter(railed));
+    if (shown !== written) { localStorage.setItem(KEY, shown); written = shown; }
   }, 500);
 })();
 """
