@@ -34,23 +34,38 @@ def _stored(pg) -> list[str]:
     return json.loads(raw) if raw else []
 
 
-def _framed_for_its_view(client, since=None) -> camera.Framing:
-    """Wait until the page shows a framing (newer than ``since``) made for the shape its
-    3D view has now; return it."""
-    wait_for(lambda: camera.shown(client, since) is not None, FRAMED_S,
-             "the page to show the robot framed for its view")
+def _view_aspect(pg) -> float:
+    """Width / height of the 3D view as the page draws it now."""
+    box = pg.locator("canvas").first.bounding_box()
+    return box["width"] / box["height"]
+
+
+def _framed_as_drawn(client, pg, what: str, *, since=None, wider_than: float = 0.0
+                     ) -> camera.Framing:
+    """Wait until the page shows a framing (newer than ``since``; for a view wider than
+    ``wider_than`` by more than app.camera.RESHAPE) made for its 3D view as the page draws
+    it now (the canvas's box, not a shape the page had while its panels were still
+    docking); return it."""
+    def framed() -> bool:
+        f = camera.shown(client, since)
+        return (f is not None and abs(f.aspect / _view_aspect(pg) - 1.0) <= camera.RESHAPE
+                and f.aspect > wider_than * (1.0 + camera.RESHAPE))
+
+    def seen() -> str:
+        last = camera.last_framing.get(client)
+        return (f"{what} (the page draws {_view_aspect(pg):.3f}, reported "
+                f"{client.camera.aspect:.3f}; last framing for "
+                f"{None if last is None else round(last.aspect, 3)}; wanted wider than "
+                f"{wider_than:.3f})")
+
+    wait_for(framed, FRAMED_S, seen)
     return camera.shown(client)
 
 
-def _framed_wider_than(client, aspect: float, what: str) -> camera.Framing:
-    """Wait until the page shows the robot framed for a view wider than ``aspect`` (by
-    more than app.camera.RESHAPE); return that framing."""
-    def wider() -> bool:
-        f = camera.shown(client)
-        return f is not None and f.aspect > aspect * (1.0 + camera.RESHAPE)
-
-    wait_for(wider, FRAMED_S, what)
-    return camera.shown(client)
+def _docked(pg) -> bool:
+    """Both sides are docked (collapsed or not): the page's layout is complete."""
+    return all(pg.locator(f'[data-dock-region="{edge}"]').count() > 0
+               for edge in ("left", "right"))
 
 
 def test_a_collapsed_side_is_kept_on_reload_and_the_robot_reframed(browser, lab):
@@ -62,30 +77,31 @@ def test_a_collapsed_side_is_kept_on_reload_and_the_robot_reframed(browser, lab)
         wait_for(lambda: new_page_client(lab, known) is not None, 60, "the page to connect")
         client = new_page_client(lab, known)
         wait_look_settled(lab, known)
-        pg.locator('[data-dock-region-collapse="left"]').wait_for(timeout=120_000)
-        wide = _framed_for_its_view(client)
+        wait_for(lambda: _docked(pg), FRAMED_S, "both sides docked")
+        wide = _framed_as_drawn(client, pg, "the robot framed between both sides")
         # one click collapses the charts' side; the view is wider, the robot framed for it
         pg.locator('[data-dock-region-collapse="left"]').click()
         wait_for(lambda: _railed(pg, "left"), 60, "the left side to collapse")
-        _framed_wider_than(client, wide.aspect, "the robot framed for the wider view")
+        _framed_as_drawn(client, pg, "the robot framed for the wider view",
+                         wider_than=wide.aspect)
         wait_for(lambda: _stored(pg) == ["left"], 60, "the page to note the collapsed side")
         # a reload: the side collapses again, and the new page frames for that view
         known = set(lab.server.get_clients())
         pg.reload()
         wait_for(lambda: new_page_client(lab, known) is not None, 60, "the reloaded page")
         client = new_page_client(lab, known)
-        wait_for(lambda: _railed(pg, "left"), FRAMED_S, "the left side collapsed after the reload")
-        # (the docked sides' widths may settle a little differently on a reload: the
-        # view must be framed as it is now, wider than with the side open)
-        again = _framed_wider_than(client, wide.aspect,
-                                   "the reloaded page framed for its view with the side shut")
+        wait_for(lambda: _docked(pg) and _railed(pg, "left"), FRAMED_S,
+                 "the left side collapsed after the reload")
+        again = _framed_as_drawn(client, pg, "the reloaded page framed with the side shut",
+                                 wider_than=wide.aspect)
         assert _railed(pg, "left") and not _railed(pg, "right")
         # the controls' side collapsed too, then another lesson: framed for that view
         pg.locator('[data-dock-region-collapse="right"]').click()
         wait_for(lambda: _railed(pg, "right"), 60, "the right side to collapse")
-        widest = _framed_wider_than(client, again.aspect, "the robot framed for the widest view")
+        widest = _framed_as_drawn(client, pg, "the robot framed for the widest view",
+                                  wider_than=again.aspect)
         lab.switch("hand")
-        _framed_for_its_view(client, widest)  # (shown: framed for the view as it is now)
+        _framed_as_drawn(client, pg, "the next lesson framed for the view", since=widest)
         assert _railed(pg, "right")
     finally:
         pg.close()
