@@ -247,22 +247,25 @@ class Roles:
         set_props(client, handle, value=handle._impl.value)
 
 
+def _connection(server: viser.ViserServer, client_id: int) -> Any:
+    """The websocket connection of page ``client_id`` (viser keeps it privately), or None."""
+    return server._websock_server._live_connections.get(client_id)  # type: ignore
+
+
 def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
                         ) -> str | None:
     """The passcode a presenter link left in page ``client_id``'s browser (the cookie
     ``cookie``, :attr:`app.gate.Gate.presenter_cookie`, its websocket upgrade carried),
     or None."""
-    connection = server._websock_server._live_connections.get(client_id)  # type: ignore
-    headers = getattr(getattr(connection, "request", None), "headers", None)
+    headers = getattr(getattr(_connection(server, client_id), "request", None), "headers", None)
     values = [] if headers is None else cookie_values(headers, cookie)
     return values[-1] if values else None
 
 
 def address_of(server: viser.ViserServer, client_id: int) -> str | int:
     """The network address page ``client_id`` connects from (its client id if unknown)."""
-    connection = server._websock_server._live_connections.get(client_id)  # type: ignore
     try:
-        return str(connection.remote_address[0])
+        return str(_connection(server, client_id).remote_address[0])
     except (AttributeError, IndexError, TypeError):
         return client_id
 

@@ -165,29 +165,30 @@ class Room:
         typed = state.code.value
         if len(typed.strip()) < len(self.roles.passcode):
             return  # still typing
-        cid = state.client.client_id
-        why = self.roles.try_passcode(cid, typed, key=address_of(self.lab.server, cid))
         state.code.value = ""
-        if why is not None:
-            state.client.add_notification("Passcode refused", why, color="red",
-                                          auto_close_seconds=8.0)
-            return
-        self._present(state)
+        self._try_passcode(state, typed, refused="Passcode refused", then="", seconds=8.0)
 
     def _presenter_link(self, state: _PageState) -> None:
         """A page opened from the presenter link (``armlab serve`` prints it) presents at
         once; its passcode is checked, and counted, as a typed one."""
+        code = presenter_link_code(self.lab.server, state.client.client_id,
+                                   self.lab.gate.presenter_cookie)
+        if code is not None:
+            self._try_passcode(state, code, refused="Presenter link refused",
+                               then=". Type the passcode into the Passcode field.",
+                               seconds=12.0)
+
+    def _try_passcode(self, state: _PageState, code: str, *, refused: str, then: str,
+                      seconds: float) -> None:
+        """The page presents if ``code`` is the passcode (checked and counted by
+        :meth:`Roles.try_passcode`); else one notification ``refused`` saying why."""
         cid = state.client.client_id
-        code = presenter_link_code(self.lab.server, cid, self.lab.gate.presenter_cookie)
-        if code is None:
-            return
         why = self.roles.try_passcode(cid, code, key=address_of(self.lab.server, cid))
-        if why is not None:
-            state.client.add_notification(
-                "Presenter link refused", f"{why}. Type the passcode into the Passcode "
-                "field.", color="red", auto_close_seconds=12.0)
+        if why is None:
+            self._present(state)
             return
-        self._present(state)
+        state.client.add_notification(refused, why + then, color="red",
+                                      auto_close_seconds=seconds)
 
     def _present(self, state: _PageState) -> None:
         """Page ``state`` now presents: its Passcode and View fields go, the students' QR
