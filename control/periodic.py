@@ -440,6 +440,58 @@ class DrivenPacer:
         self._t_next += self.period
 
 
+#: s at most that a :class:`SharedClock` waits between two ticks for the threads waiting
+#: on its :class:`HandOverLock` to have had their turn
+HAND_OVER_S = 0.002
+
+
+class HandOverLock:
+    """A re-entrant lock that a :class:`SharedClock` hands to waiting threads between ticks.
+
+    CPython's locks are not fair. The clock's thread releases its lock at the end of a
+    tick and takes it again for the next before a thread woken to take it has run, so a
+    page reading its arm (the Servos panel, the class overview) waited for a whole batch
+    of ticks: 8 ms, or 50 ms of catch-up on a busy machine, for each of 30 pages. A
+    thread that has to wait here counts itself (:attr:`waiting`); the clock, between two
+    ticks, lets the waiters in first (:meth:`SharedClock._tick`). It is used as an RLock
+    is: ``with lock:``, ``acquire()``, ``release()``.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.RLock()
+        self._count = threading.Lock()
+        self._waiting = 0
+
+    @property
+    def waiting(self) -> int:
+        """Threads blocked in :meth:`acquire` now."""
+        return self._waiting
+
+    def acquire(self, blocking: bool = True, timeout: float = -1) -> bool:
+        """Take the lock (again, in the thread that holds it); as ``RLock.acquire``."""
+        if self._lock.acquire(False):
+            return True
+        if not blocking:
+            return False
+        with self._count:
+            self._waiting += 1
+        try:
+            return self._lock.acquire(True, timeout)
+        finally:
+            with self._count:
+                self._waiting -= 1
+
+    def release(self) -> None:
+        """Release it once (as ``RLock.release``)."""
+        self._lock.release()
+
+    def __enter__(self) -> bool:
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
 class SharedClock:
     """One thread stepping a world by ``dt`` and the loops attached to it in lockstep.
 
@@ -454,30 +506,37 @@ class SharedClock:
         dt: s per tick.
         realtime: pace ticks by the wall clock (a :class:`Pacer` of period ``dt``); False:
             as fast as possible.
-        lock: held around each tick (default a new RLock; share it with whatever else
-            touches the world, e.g. the backends).
+        lock: held around each tick (default a new :class:`HandOverLock`; share it with
+            whatever else touches the world, e.g. the backends). Between two ticks the
+            clock lets the threads waiting on a HandOverLock in first (at most
+            ``hand_over_s``).
         name: the thread's name.
         batch_s: wall time between wake-ups when real time, s (ticks due run together).
         max_catch_up: most world time run at one wake-up, s (beyond: skipped).
+        hand_over_s: most wall time the clock waits between two ticks for the threads
+            waiting on its :class:`HandOverLock`, s.
         on_error: called with an exception of ``step`` (in the clock's thread, ``lock``
             held), e.g. to put a diverged arm back (``BatchedPlant.step`` raises
             FloatingPointError naming the arms after stepping every arm).
     """
 
     def __init__(self, step: Callable[[], None], *, dt: float, realtime: bool = True,
-                 lock: threading.RLock | None = None, name: str = "armlab-class",
+                 lock: HandOverLock | threading.RLock | None = None,
+                 name: str = "armlab-class",
                  batch_s: float = 0.008, max_catch_up: float = 0.05,
+                 hand_over_s: float = HAND_OVER_S,
                  on_error: Callable[[Exception], None] | None = None) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
         self.step = step
         self.dt = float(dt)
         self.realtime = realtime
-        self.lock = threading.RLock() if lock is None else lock
+        self.lock = HandOverLock() if lock is None else lock
         self.name = name
         self.errors = 0
         self.last_error: Exception | None = None
         self.on_error = on_error
+        self.hand_over_s = float(hand_over_s)
         self._k = 0
         self._pacers: list[DrivenPacer] = []
         self._ticking = False
@@ -564,3 +623,12 @@ class SharedClock:
                         self.last_error = again
             finally:
                 self._k += 1
+        if getattr(self.lock, "waiting", 0):
+            self._hand_over()
+
+    def _hand_over(self) -> None:
+        """Between two ticks, the lock released: let the threads waiting on it take it
+        before the next tick does (at most :attr:`hand_over_s`)."""
+        deadline = time.perf_counter() + self.hand_over_s
+        while self.lock.waiting and time.perf_counter() < deadline:
+            time.sleep(0)  # gives the interpreter to a woken waiter

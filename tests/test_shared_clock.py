@@ -311,3 +311,32 @@ def test_a_diverged_arm_is_put_back_by_on_error_and_the_others_go_on() -> None:
     assert put_back == [wild] and clock.errors == 1 and plant.diverged().size == 0
     for a, b in zip(loops, ref, strict=True):
         _same_record(a, b)
+
+
+def test_a_thread_waiting_for_the_class_lock_gets_it_between_two_ticks() -> None:
+    """A page reading its arm (the Servos panel, the overview) takes the class lock. A
+    clock that is behind (here always: each tick takes longer than its ``dt``) runs its
+    ticks back to back and would take the lock back at once for the next; it lets the
+    waiter in first (a HandOverLock), so a reader waits about one tick, not a catch-up of
+    many."""
+    def slow_step() -> None:
+        sum(range(5000))
+
+    clock = SharedClock(slow_step, dt=1e-5, realtime=True, max_catch_up=0.05,
+                        hand_over_s=60.0)  # unbounded here: the order, not the time
+    clock.start()
+    try:
+        deadline = time.monotonic() + 30.0
+        while clock.steps < 100 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        waited = []
+        for _ in range(40):
+            k0 = clock.steps
+            with clock.lock:
+                waited.append(clock.steps - k0)
+            time.sleep(0.002)  # the clock ticks on between two reads
+    finally:
+        clock.stop()
+    # the tick running when the reader asked, and at most one begun before it counted
+    # itself a waiter
+    assert max(waited) <= 2, waited
