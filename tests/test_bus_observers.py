@@ -6,12 +6,13 @@ estimate of a known applied torque, from the current the servos report, settles 
 shoulder T s into the emulator's clock; ``servo_observers`` (what ``armlab experiment
 observers --backend serial`` runs) opens the four XM430-W350 over the real
 pseudo-terminal, lifts the arm from where it hangs to the zero pose, holds it and reads
-Present Current, Velocity and Position every 10 ms; the step of τ̂_dis (thesis eq. 2.36) must be the
-applied torque within 10 %. The RTOB (thesis eq. 2.37) on the same readings subtracts the
-model's gravity at every reading's pose: within RTOB_ZERO of 0 before the step (the
-emulator's plant is moved by the same model; a real arm shows its model error there) and
-within 10 % of the applied torque after it. The step is found in the estimate, so how long
-the start-up takes on a loaded machine does not matter as long as it is over before T.
+Present Current, Velocity and Position every 10 ms; the step of τ̂_dis (thesis eq. 2.36)
+must be the applied torque within 10 %. The RTOB (thesis eq. 2.37) on the same readings
+subtracts the model's gravity at every reading's pose: within RTOB_ZERO of 0 before the
+step (the emulator's plant is moved by the same model; a real arm shows its model error
+there) and within 10 % of the applied torque after it. The step is found in the estimate,
+so how long the start-up takes on a loaded machine does not matter as long as it is over
+before T.
 """
 
 from __future__ import annotations
