@@ -1,14 +1,18 @@
 """Must-show (issue "Any Dynamixel arm"): on emulated XM430s, the disturbance observer's
 estimate of a known applied torque, from the current the servos report, settles within
-10 % of it.
+10 % of it; so does the reaction-torque observer's, absolute, and it reads ~0 before.
 
 ``armlab emulate --robot open_manipulator_x --disturb joint2:0.3@T`` hangs 0.3 N·m on the
 shoulder T s into the emulator's clock; ``servo_observers`` (what ``armlab experiment
 observers --backend serial`` runs) opens the four XM430-W350 over the real
 pseudo-terminal, lifts the arm from where it hangs to the zero pose, holds it and reads
-Present Current and Velocity every 10 ms; the step of τ̂_dis (thesis eq. 2.36) must be the
-applied torque within 10 %. The step is found in the estimate, so how long the start-up
-takes on a loaded machine does not matter as long as it is over before T.
+Present Current, Velocity and Position every 10 ms; the step of τ̂_dis (thesis eq. 2.36)
+must be the applied torque within 10 %. The RTOB (thesis eq. 2.37) on the same readings
+subtracts the model's gravity at every reading's pose: within RTOB_ZERO of 0 before the
+step (the emulator's plant is moved by the same model; a real arm shows its model error
+there) and within 10 % of the applied torque after it. The step is found in the estimate,
+so how long the start-up takes on a loaded machine does not matter as long as it is over
+before T.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import pytest
 from _emulator import emulator
 
 from control.experiments.observers import servo_observers
+from hardware.xseries import XM430_W350
 from hardware.xseries_backend import XSeriesBackend
 from kinematics.model import load_robot
 
@@ -34,9 +39,11 @@ DISTURB_AT = 20.0
 #: s of readings: the step lands in them however long the start took (up to 18 s), with
 #: settled readings before and after it
 DURATION = 30.0
+#: N·m: three counts of Present Current (2.69 mA × 1.78 N·m/A each)
+RTOB_ZERO = 3 * XM430_W350.current_unit * XM430_W350.torque_constant
 
 
-def test_the_dob_estimates_a_known_torque_on_emulated_xm430s_within_10_percent():
+def test_the_dob_and_the_rtob_estimate_a_known_torque_on_emulated_xm430s_within_10_percent():
     with emulator("--robot", "open_manipulator_x",
                   "--disturb", f"joint2:{APPLIED}@{DISTURB_AT}") as emu:
         # generous retries: a stall of the shared machine must show as lateness, not a fault
@@ -50,3 +57,7 @@ def test_the_dob_estimates_a_known_torque_on_emulated_xm430s_within_10_percent()
         f"applied {APPLIED} N·m, estimated {fig['estimated_nm']:.4f} N·m "
         f"(τ̂_dis {fig['dob_before_nm']:.4f} -> {fig['dob_after_nm']:.4f} N·m at "
         f"{fig['step_at_s']:.2f} s)")
+    assert abs(fig["rtob_before_nm"]) < RTOB_ZERO, fig["rtob_before_nm"]
+    assert fig["rtob_error_pct"] < 10.0, (
+        f"applied {APPLIED} N·m, the RTOB read {fig['rtob_before_nm']:.4f} N·m before and "
+        f"{fig['rtob_after_nm']:.4f} N·m after the step at {fig['step_at_s']:.2f} s")

@@ -1,7 +1,8 @@
-"""The disturbance observer on current-sensing servos (issue "Any Dynamixel arm", build
-item 4): the plant's known joint torque, ``armlab emulate --disturb``'s parsing, and
-``armlab experiment observers --backend serial``'s figures on the simulated XM430s
-(simulated time; the emulated run over a pseudo-terminal is tests/test_bus_observers.py)."""
+"""The disturbance and reaction-torque observers on current-sensing servos (issue "Any
+Dynamixel arm", build item 4): the plant's known joint torque, ``armlab emulate
+--disturb``'s parsing, and ``armlab experiment observers --backend serial``'s figures on
+the simulated XM430s (simulated time; the emulated run over a pseudo-terminal is
+tests/test_bus_observers.py)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,9 @@ from kinematics import load_robot
 OMX = load_robot("open_manipulator_x")
 NAMES = OMX.joint_names
 SHOULDER = 1
+#: N·m: the RTOB with nothing applied reads within three counts of Present Current
+#: (2.69 mA × 1.78 N·m/A each) of 0: the simulated plant is moved by the same model
+RTOB_ZERO = 3 * XM430_W350.current_unit * XM430_W350.torque_constant
 
 
 def test_an_applied_joint_torque_acts_from_its_start_and_shows_in_the_truth():
@@ -102,7 +106,7 @@ def _omx_factory(torque, start, *, spec=XM430_W350, q0=(0.2, 0.2, 0.2, 0.2), see
 
 
 @pytest.mark.parametrize("torque", [0.3, -0.3, 0.1])
-def test_the_dob_on_simulated_xm430s_estimates_the_applied_torque(torque):
+def test_the_dob_and_the_rtob_on_simulated_xm430s_estimate_the_applied_torque(torque):
     opened = []
     fig = servo_observers(OMX, _omx_factory(torque, 5.0, seen=opened), joint=SHOULDER,
                           duration=8.0, applied=torque, pose=np.zeros(4))
@@ -111,6 +115,11 @@ def test_the_dob_on_simulated_xm430s_estimates_the_applied_torque(torque):
     assert fig["joint"] == "joint2" and fig["samples"] == 800
     # the hold works against gravity: τ̂_dis before is the shoulder's gravity torque (< 0)
     assert fig["dob_before_nm"] < -0.3
+    # the RTOB takes the model's gravity at the measured pose out: ~0, then the torque itself
+    assert abs(fig["rtob_before_nm"]) < RTOB_ZERO, fig
+    assert fig["rtob_after_nm"] == pytest.approx(torque, rel=0.1)
+    assert fig["rtob_error_pct"] < 10.0
+    assert len(fig["series"]["applied_hat"]) == len(fig["series"]["tau_known"]) == 160
     # torque off and closed at the end
     (b,) = opened
     assert not any(s.regs.torque_enable for s in b.plant.servos) and b._closed
@@ -154,7 +163,8 @@ def test_servos_without_current_sensing_get_one_clear_error(factory):
 
 @pytest.mark.parametrize("kw,why", [({"duration": 2.0}, "--duration must be at least 3"),
                                     ({"joint": 4}, "joint must be an index"),
-                                    ({"applied": 0.0}, "--applied must not be 0")])
+                                    ({"applied": 0.0}, "--applied must not be 0"),
+                                    ({"g_reac": 0.0}, "g_reac must be > 0")])
 def test_bad_servo_run_arguments_are_refused_before_the_servos_are_opened(kw, why):
     def factory(model):
         raise AssertionError("opened")
@@ -170,6 +180,9 @@ def test_bad_servo_run_arguments_are_refused_before_the_servos_are_opened(kw, wh
     (["--backend", "serial", "--port", "/dev/null"], "--joint: name the joint"),
     (["--backend", "serial", "--port", "/dev/null", "--joint", "1", "--pose", "0,0"],
      "--pose"),
+    # the RTOB's cut-off is for the servos too: checked before the port is opened
+    (["--backend", "serial", "--port", "/dev/null", "--joint", "1", "--g-reac", "0"],
+     "g_reac must be > 0"),
 ])
 def test_options_of_the_other_backend_are_refused(argv, why, capsys):
     assert main(["experiment", "observers", *argv]) == 2

@@ -10,13 +10,19 @@ friction, for the DOB; τ_ext for the RTOB), how fast the RTOB picks up the step
 the estimate fed back (thesis fig. 2.9), how much less the joint gives way.
 
 With ``--backend serial`` (servos that measure their motor current: XM430-W350,
-XL330-M288, real or ``armlab emulate``d) the DOB runs on the servos instead: the arm
-holds still (goal = present position, or ``--pose`` first), the present current (as
-torque, through the datasheet's torque constant) and velocity of ``--joint`` are read
-every :data:`SERVO_PERIOD`, and the estimate before and after a torque applied to the
-joint (a weight hung on it, or ``armlab emulate --disturb``) is compared with
-``--applied``. RX-24F servos report a load estimate, not a current: the DOB is a
-simulation lesson on them.
+XL330-M288, real or ``armlab emulate``d) both observers run on the servos instead: the
+arm holds still (goal = present position, or ``--pose`` first), the present current (as
+torque, through the datasheet's torque constant), position and velocity are read every
+:data:`SERVO_PERIOD`. The DOB's estimate of ``--joint`` before and after a torque applied
+to the joint (a weight hung on it, or ``armlab emulate --disturb``) is compared with
+``--applied`` as a step. The RTOB subtracts the known load, the arm model's gravity and
+velocity torques at the measured pose (RNEA with q̈ = 0), and so estimates the applied
+torque itself: it should read 0 before the step and ``--applied`` after it. Its reading
+before the step (``rtob_before_nm``) is the model's error at the pose: on
+``armlab emulate`` nearly nil, because the emulator's plant is moved by the same model;
+on a real arm the model's masses and centres of mass, cables and the gears' static
+friction show there as an offset, which is also in ``rtob_after_nm``. RX-24F servos
+report a load estimate, not a current: the observers are a simulation lesson on them.
 """
 
 from __future__ import annotations
@@ -34,9 +40,10 @@ from control.observers import (
     ObserverState,
     TorqueJoint,
     disturbance_observer,
+    reaction_torque_observer,
     simulate_observers,
 )
-from kinematics.dynamics import mass_matrix
+from kinematics.dynamics import bias_torques, mass_matrix
 from kinematics.model import SerialChain, load_robot
 from kinematics.validate import index, joint_index, scalar, vector
 
@@ -44,7 +51,7 @@ DECIMATE = 20  #: CSV rows: every 20th sample (2 ms at the 0.1 ms step)
 SIM_STEP, SIM_AT, SIM_DURATION, SIM_G = 0.004, 0.5, 1.5, 200.0  #: the simulation's defaults
 
 SERVO_PERIOD = 0.01  #: s between two readings of the servos
-SERVO_G_DIS = 20.0  #: rad/s, the DOB's default cut-off on servos (well under 1/period)
+SERVO_G = 20.0  #: rad/s, both observers' default cut-off on servos (well under 1/period)
 SERVO_DURATION = 10.0  #: s of holding and reading, by default
 SERVO_ROBOT = "open_manipulator_x"  #: the arm with current-sensing servos (XM430-W350)
 #: s the servo's own position loop and the DOB take to settle after the torque went on
@@ -152,6 +159,51 @@ def dob_series(t: np.ndarray, qd: np.ndarray, tau_m: np.ndarray, *, j_n: float,
     return out
 
 
+def known_torques(model: SerialChain, joint: int, q: np.ndarray, qd: np.ndarray
+                  ) -> np.ndarray:
+    """The RTOB's known load on ``joint`` at every reading: τ_g + τ_int of thesis eq. 2.37
+    from the arm model, g(q) + C(q, q̇) q̇ (RNEA with q̈ = 0, thesis eq. 2.41–2.50) at the
+    measured pose and speeds (thesis sign: the torque the motor must give to carry it).
+
+    The joint's own J_n θ̈ is the observer's (its g J_n θ̇ terms); the other joints'
+    accelerations are left out (the arm is held still). The model has no friction: what
+    a held joint's gears hold stays in the estimate (nil at rest in the emulator's plant,
+    part of the offset on a real arm).
+
+    Args:
+        q, qd: (N, n) positions rad and velocities rad/s of the whole arm.
+
+    Returns:
+        (N,) N·m.
+    """
+    return np.array([bias_torques(model, qk, qdk)[joint] for qk, qdk in zip(q, qd, strict=True)])
+
+
+def rtob_series(t: np.ndarray, qd: np.ndarray, tau_m: np.ndarray, tau_known: np.ndarray, *,
+                j_n: float, g_reac: float) -> np.ndarray:
+    """The reaction-torque observer (thesis eq. 2.37) over a recording: τ̂_reac at every
+    reading, the external load torque (thesis sign: the motor works against it, so a
+    torque applied along the joint's axis reads as −τ̂_reac).
+
+    Args:
+        t, qd, tau_m: as :func:`dob_series` (K_tn I in N·m with K_tn = 1).
+        tau_known: (N,) the known load, N·m (:func:`known_torques`).
+        j_n: nominal inertia J_n, kg·m².  g_reac: cut-off, rad/s.
+
+    Returns:
+        (N,) τ̂_reac, N·m; the filter starts settled on the first reading.
+    """
+    state = ObserverState(z=float(tau_m[0] + g_reac * j_n * qd[0] - tau_known[0]))
+    out = np.empty(len(t))
+    out[0] = tau_m[0] - tau_known[0]
+    for k in range(1, len(t)):
+        dt = max(float(t[k] - t[k - 1]), 1e-6)
+        out[k] = reaction_torque_observer(state, float(tau_m[k]), float(qd[k]),
+                                          float(tau_known[k]), j_n=j_n, kt_n=1.0,
+                                          g_reac=g_reac, dt=dt)
+    return out
+
+
 def step_index(x: np.ndarray) -> int:
     """Where a step in ``x`` is: the k that best splits it into two constant levels
     x[:k], x[k:] (least squares, the classic change point); 1 <= k < len(x)."""
@@ -165,11 +217,12 @@ def step_index(x: np.ndarray) -> int:
     return int(k[np.argmin(left + right)])
 
 
-def step_figures(t: np.ndarray, est: np.ndarray, *, at: float | None = None,
-                 settle: float = SETTLE_S) -> dict[str, float]:
-    """The estimate before and after a step: its medians over the settled readings
-    [``settle``, step − :data:`MARGIN_S`) and [step + ``settle``, end] (t from the first
-    reading), the step at ``at`` s or, when None, where :func:`step_index` finds it.
+def step_windows(t: np.ndarray, est: np.ndarray, *, at: float | None = None,
+                 settle: float = SETTLE_S) -> tuple[float, np.ndarray, np.ndarray]:
+    """Where a step in ``est`` is and its settled readings each side: (the step's time,
+    the readings in [``settle``, step − :data:`MARGIN_S`), those in [step + ``settle``,
+    end]) (t from the first reading; masks (N,)), the step at ``at`` s or, when None,
+    where :func:`step_index` finds it.
 
     Raises:
         ValueError: a window shorter than :data:`MIN_WINDOW_S` (the step came too early or
@@ -186,6 +239,14 @@ def step_figures(t: np.ndarray, est: np.ndarray, *, at: float | None = None,
                 f"settled readings {name} it (need {MIN_WINDOW_S} s, {settle} s after the "
                 "torque went on and after the step): apply it later or earlier, or give a "
                 "longer --duration")
+    return step_at, before, after
+
+
+def step_figures(t: np.ndarray, est: np.ndarray, *, at: float | None = None,
+                 settle: float = SETTLE_S) -> dict[str, float]:
+    """The DOB's estimate before and after a step: its medians over the settled readings
+    of :func:`step_windows`, and the torque that step implies, −Δτ̂_dis."""
+    step_at, before, after = step_windows(t, est, at=at, settle=settle)
     lo, hi = float(np.median(est[before])), float(np.median(est[after]))
     return {"step_at_s": step_at, "dob_before_nm": lo, "dob_after_nm": hi,
             "estimated_nm": -(hi - lo)}
@@ -219,14 +280,14 @@ def _go_to(backend: Backend, pose: np.ndarray, t: float, period: float) -> float
 
 def hold_and_read(backend: Backend, joint: int, duration: float, *,
                   pose: np.ndarray | None = None, period: float = SERVO_PERIOD
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Torque on; hold the arm where it stands (goal = present position) or, given a
     ``pose`` (n,) rad, go there first and hold it; read the servos every ``period`` for
     ``duration`` s.
 
     Returns:
-        (t from the first reading s, q rad, θ̇ rad/s, K_t I N·m) of ``joint``, (N,) each,
-        and the whole arm's pose at the first reading, (n,) rad.
+        (t from the first reading s (N,), the whole arm's q rad (N, n) and q̇ rad/s (N, n),
+        K_t I N·m of ``joint`` (N,)).
 
     Raises:
         ValueError: the servos measure no current, the pose was not reached, or the
@@ -240,7 +301,7 @@ def hold_and_read(backend: Backend, joint: int, duration: float, *,
         backend.write(here, np.full(len(here), POSE_SPEED))
     else:
         t = _go_to(backend, pose, t, period)
-    rows, held = [], None
+    rows = []
     for _ in range(int(round(duration / period))):
         t += period
         backend.sync(t)
@@ -249,10 +310,9 @@ def hold_and_read(backend: Backend, joint: int, duration: float, *,
             alarm = s.alarms[joint] if s.alarms else ""
             raise ValueError(f"joint {joint}'s servo switched its torque off"
                              f"{': ' + alarm if alarm else ''}")
-        held = s.position if held is None else held
-        rows.append((s.t, s.position[joint], s.velocity[joint], s.load[joint]))
+        rows.append((s.t, s.position, s.velocity, s.load[joint]))
     t_, q, qd, tau = (np.array(c) for c in zip(*rows, strict=True))
-    return t_ - t_[0], q, qd, tau, np.array(held)
+    return t_ - t_[0], q, qd, tau
 
 
 def _release(backend: Backend) -> None:
@@ -266,19 +326,22 @@ def _release(backend: Backend) -> None:
 
 
 def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, joint: int,
-                    duration: float = SERVO_DURATION, g_dis: float = SERVO_G_DIS,
-                    applied: float | None = None, at: float | None = None,
-                    pose: np.ndarray | None = None, period: float = SERVO_PERIOD
-                    ) -> dict[str, Any]:
-    """The disturbance observer on servos that measure their current: hold, read, estimate.
+                    duration: float = SERVO_DURATION, g_dis: float = SERVO_G,
+                    g_reac: float = SERVO_G, applied: float | None = None,
+                    at: float | None = None, pose: np.ndarray | None = None,
+                    period: float = SERVO_PERIOD) -> dict[str, Any]:
+    """The disturbance and reaction-torque observers on servos that measure their current:
+    hold, read, estimate.
 
     J_n is the model's mass-matrix diagonal at the held pose (the rotor's reflected inertia
-    is left out: at rest J_n θ̈ is nil and the estimate is K_tn I, whatever J_n).
+    is left out: at rest J_n θ̈ is nil and the estimate is K_tn I, whatever J_n). The
+    RTOB's known load is :func:`known_torques` at every reading's measured pose.
 
     Args:
         model: the arm; ``backend_factory(model)`` opens its servos.
         joint: the joint index to observe.
-        duration: s of holding and reading.  g_dis: the DOB's cut-off, rad/s.
+        duration: s of holding and reading.  g_dis, g_reac: the DOB's and the RTOB's
+            cut-offs, rad/s.
         applied: the torque applied to the joint during the run, N·m along its axis
             (positive like the joint's angle), to compare with; None: not known.
         at: s after the first reading the torque came; None: found in the estimate.
@@ -286,16 +349,21 @@ def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, join
             torque the stops would share); None: hold where it stands.
 
     Returns:
-        {"joint", "j_n", "g_dis", "period_s", "samples", "step_at_s", "dob_before_nm",
-        "dob_after_nm", "estimated_nm", ["applied_nm", "relative_error"], "series"}:
-        τ̂_dis before and after (thesis sign: the load the motor works against, J θ̈ =
-        K_t I − τ_dis), and the applied torque that step implies, −Δτ̂_dis.
+        {"joint", "j_n", "g_dis", "g_reac", "period_s", "samples", "step_at_s",
+        "dob_before_nm", "dob_after_nm", "estimated_nm", "rtob_before_nm", "rtob_after_nm",
+        ["applied_nm", "relative_error", "rtob_error_pct"], "series"}: τ̂_dis before and
+        after (thesis sign: the load the motor works against, J θ̈ = K_t I − τ_dis), the
+        applied torque that step implies, −Δτ̂_dis; the RTOB's estimate of the torque
+        applied along the joint's axis (−τ̂_reac, like ``applied``) before the step (the
+        model's offset: ~0 where the model is right) and after it, and its error against
+        ``applied``, absolute (not a difference), in % of it.
     """
     shortest = 2.0 * (SETTLE_S + MIN_WINDOW_S)
     if not scalar("duration", duration, positive=True) >= shortest:
         raise ValueError(f"--duration must be at least {shortest:g} s on servos (settled "
                          f"readings before and after the step), got {duration:g}")
     scalar("g_dis", g_dis, positive=True)
+    scalar("g_reac", g_reac, positive=True)
     index("joint", joint, model.n)
     if applied is not None and scalar("applied", applied) == 0.0:
         raise ValueError("--applied must not be 0 (the relative error divides by it)")
@@ -303,21 +371,28 @@ def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, join
         scalar("at", at, nonnegative=True)
     backend = backend_factory(model)
     try:
-        t, q, qd, tau, held = hold_and_read(backend, joint, duration, pose=pose,
-                                            period=period)
+        t, q, qd, tau = hold_and_read(backend, joint, duration, pose=pose, period=period)
     finally:
         _release(backend)
-    j_n = float(mass_matrix(model, held)[joint, joint])
-    est = dob_series(t, qd, tau, j_n=j_n, g_dis=g_dis)
+    j_n = float(mass_matrix(model, q[0])[joint, joint])
+    est = dob_series(t, qd[:, joint], tau, j_n=j_n, g_dis=g_dis)
+    known = known_torques(model, joint, q, qd)
+    ext = -rtob_series(t, qd[:, joint], tau, known, j_n=j_n, g_reac=g_reac)
     figures: dict[str, Any] = {"joint": model.joint_names[joint], "j_n": j_n, "g_dis": g_dis,
-                               "period_s": period, "samples": len(t),
+                               "g_reac": g_reac, "period_s": period, "samples": len(t),
                                **step_figures(t, est, at=at)}
+    _, before, after = step_windows(t, ext, at=figures["step_at_s"])
+    figures["rtob_before_nm"] = float(np.median(ext[before]))
+    figures["rtob_after_nm"] = float(np.median(ext[after]))
     if applied is not None:
         figures["applied_nm"] = applied
         figures["relative_error"] = abs(figures["estimated_nm"] - applied) / abs(applied)
+        figures["rtob_error_pct"] = 100.0 * abs(figures["rtob_after_nm"] - applied) / abs(applied)
     sl = slice(None, None, SERVO_DECIMATE)
-    figures["series"] = {"t": t[sl].tolist(), "q": q[sl].tolist(), "qd": qd[sl].tolist(),
-                         "tau_m": tau[sl].tolist(), "tau_dis_hat": est[sl].tolist()}
+    figures["series"] = {"t": t[sl].tolist(), "q": q[sl, joint].tolist(),
+                         "qd": qd[sl, joint].tolist(), "tau_m": tau[sl].tolist(),
+                         "tau_dis_hat": est[sl].tolist(), "tau_known": known[sl].tolist(),
+                         "applied_hat": ext[sl].tolist()}
     return figures
 
 
@@ -332,9 +407,9 @@ class ObserverOptions(BackendOptions):
     at: float | None = option(None, f"time of the step, s (default {SIM_AT:g}; on servos: s "
                               "after the first reading, default: found in the estimate)")
     g_dis: float | None = option(None, f"DOB cut-off, rad/s (default {SIM_G:g}; "
-                                 f"{SERVO_G_DIS:g} on servos)")
-    g_reac: float | None = option(None, f"RTOB cut-off, rad/s (simulation; default "
-                                  f"{SIM_G:g})")
+                                 f"{SERVO_G:g} on servos)")
+    g_reac: float | None = option(None, f"RTOB cut-off, rad/s (default {SIM_G:g}; "
+                                  f"{SERVO_G:g} on servos)")
     model_error: float | None = option(None, "relative error of the nominal inertia J_n "
                                        "(0.2 = 20 %% too large; simulation, default 0)")
     duration: float | None = option(None, f"s of the run (default {SIM_DURATION:g}; "
@@ -351,7 +426,7 @@ class ObserverOptions(BackendOptions):
                               "stands)", metavar="DEG,...")
 
 
-_SIM_ONLY = ("step", "g_reac", "model_error")
+_SIM_ONLY = ("step", "model_error")
 _SERVO_ONLY = ("robot", "joint", "applied", "pose")
 
 
@@ -384,7 +459,8 @@ def _run(options: ObserverOptions, *, backend_factory: BackendFactory | None = N
         pose = np.radians(vector("--pose", values, model.n))
     return servo_observers(model, backend_factory, joint=joint_index(o.joint, model.joint_names),
                            duration=SERVO_DURATION if o.duration is None else o.duration,
-                           g_dis=SERVO_G_DIS if o.g_dis is None else o.g_dis,
+                           g_dis=SERVO_G if o.g_dis is None else o.g_dis,
+                           g_reac=SERVO_G if o.g_reac is None else o.g_reac,
                            applied=o.applied, at=o.at, pose=pose)
 
 
@@ -414,6 +490,9 @@ def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 EXPERIMENTS = (
     Experiment("observers", "disturbance and reaction-torque observers on a torque-driven "
-               "joint (thesis eq. 2.36, 2.37); the DOB on current-sensing servos with "
-               "--backend serial", ObserverOptions, _run, _rows, needs=("backend_factory",)),
+               "joint (thesis eq. 2.36, 2.37); both on current-sensing servos with "
+               "--backend serial, where rtob_before_nm (the RTOB with nothing applied) is "
+               "the arm model's error: ~0 on the emulator (same model), an offset on a "
+               "real arm",
+               ObserverOptions, _run, _rows, needs=("backend_factory",)),
 )
