@@ -485,6 +485,11 @@ class HandOverLock:
         """Release it once (as ``RLock.release``)."""
         self._lock.release()
 
+    def _is_owned(self) -> bool:
+        """Whether the calling thread holds it (as ``RLock._is_owned``, which
+        ``threading.Condition`` uses)."""
+        return self._lock._is_owned()  # type: ignore[attr-defined]
+
     def __enter__(self) -> bool:
         return self.acquire()
 
