@@ -549,6 +549,13 @@ class Bus:
         carried out, and the alert stays in :attr:`errors`."""
         status = self.transact(self._p.write(servo_id, address, data),
                                reply=self._answers_writes(servo_id))
+        self._check_refused(servo_id, address, data, status)
+        return status
+
+    def _check_refused(self, servo_id: int, address: int, data: bytes,
+                       status: p1.StatusPacket | p2.StatusPacket | None) -> None:
+        """Raise the protocol's ServoError when ``status``, the answer to a write of
+        ``data`` at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
         if isinstance(status, p2.StatusPacket):
             if status.error.number:
                 raise p2.ServoError(servo_id, p2.StatusError(status.error.number))
@@ -558,7 +565,6 @@ class Bus:
                 refused |= status.error & p1.ErrorBits.ANGLE_LIMIT
             if refused:
                 raise p1.ServoError(servo_id, refused)
-        return status
 
     def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
         """SYNC_WRITE to several servos in one packet (no reply)."""
@@ -636,6 +642,17 @@ class Bus:
         self.status_return_level.pop(servo_id, None)
         self.return_delay.pop(servo_id, None)
         self.tables.pop(servo_id, None)
+
+    def reg_write(self, servo_id: int, name: str, value: int) -> None:
+        """REG_WRITE a raw value to an item: the servo checks it and holds it (Registered
+        Instruction 1) until an ACTION (:meth:`action`) applies it, so goals registered
+        on several servos start at one instant. Refused as :meth:`write` refuses: ValueError
+        (nothing sent) for a read-only item or a value out of range, the protocol's
+        ServoError when the servo refuses it."""
+        address, data = self.table_of(servo_id).encode(name, value)
+        status = self.transact(self._p.reg_write(servo_id, address, data),
+                               reply=self._answers_writes(servo_id))
+        self._check_refused(servo_id, address, data, status)
 
     def action(self) -> None:
         """Broadcast ACTION: apply every servo's registered REG_WRITE."""

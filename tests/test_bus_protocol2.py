@@ -139,3 +139,62 @@ def test_scan_of_a_protocol_1_bus_names_protocol_1():
     with emulator("--ids", "1,3,5") as emu:
         found = scan(emu.port, (1_000_000,), ids=range(0, 8))
     assert [(f.servo_id, f.protocol) for f in found] == [(1, 1), (3, 1), (5, 1)]
+
+
+def test_reg_write_holds_a_goal_until_a_broadcast_action_moves_both_servos():
+    """REG_WRITE: the servo checks the goal and keeps it aside (Registered Instruction 1,
+    Goal Position unchanged, the horn where it was); one broadcast ACTION starts both."""
+    turn = (11, 13)  # the base turns freely, the elbow against gravity
+    with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        held = {}
+        for i in turn:  # hold where the horn is now (the torque-off arm has settled)
+            held[i] = bus.read(i, "present_position")
+            bus.write(i, "goal_position", held[i])
+            bus.write(i, "torque_enable", 1)
+        goal = {i: held[i] + 300 for i in turn}  # 26°
+        for i in turn:
+            bus.reg_write(i, "goal_position", goal[i])
+        for i in turn:
+            assert bus.read(i, "registered_instruction") == 1
+            assert bus.read(i, "goal_position") == held[i]
+            assert abs(bus.read(i, "present_position") - held[i]) < 40  # not on its way
+        with pytest.raises(p2.ServoError, match="limits"):  # checked when registered
+            bus.reg_write(11, "goal_current", 1500)  # past Current Limit (1193)
+        assert bus.read(11, "registered_instruction") == 1  # the goal still waits
+        bus.action()  # broadcast: no reply
+        for i in turn:
+            wait_for(lambda i=i: abs(bus.read(i, "present_position") - goal[i]) < 40, 30,
+                     f"servo {i} at its registered goal after ACTION")
+            assert bus.read(i, "registered_instruction") == 0
+            assert bus.read(i, "goal_position") == goal[i]
+        # an ACTION with nothing registered: the e-manual's Instruction error
+        status = bus.transact(p2.action(11), reply=True)
+        assert status.error.number == p2.ErrorNumber.INSTRUCTION
+
+
+#: what the factory-reset test changes from the XM430-W350's factory values (EEPROM and RAM)
+CHANGED = {"return_delay_time": 0, "operating_mode": 5, "max_position_limit": 3000,
+           "shutdown": 0x24, "position_p_gain": 500}
+
+
+def test_factory_reset_needs_its_confirmation_and_keeps_id_and_baud_at_level_2():
+    with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        for name, value in CHANGED.items():
+            bus.write(12, name, value)
+        sent = bus.stats.transactions
+        with pytest.raises(ValueError, match="confirm=True"):
+            bus.factory_reset(12, level=p2.ResetLevel.KEEP_ID_AND_BAUD)
+        assert bus.stats.transactions == sent  # refused before anything was sent
+        assert {n: bus.read(12, n) for n in CHANGED} == CHANGED
+        bus.factory_reset(12, level=p2.ResetLevel.KEEP_ID_AND_BAUD, confirm=True)
+        assert bus.ping(12).servo_id == 12  # still ID 12 at 1 Mbps
+        assert (bus.read(12, "id"), bus.read(12, "baud_rate")) == (12, 3)
+        assert {n: bus.read(12, n) for n in CHANGED} == \
+            {n: XM430_W350_TABLE.item(n).default for n in CHANGED}
+        assert bus.read(13, "operating_mode") == 3 and bus.read(11, "id") == 11  # the others
+        # level 0xFF forgets the ID and the baud too: servo 13 becomes ID 1 at 57 600
+        bus.factory_reset(13, confirm=True)
+        with pytest.raises(NoReply):
+            bus.ping(13, tries=2)
+        bus.set_baud(57_600)
+        assert int.from_bytes(bus.ping(1).params[:2], "little") == 1020
