@@ -359,9 +359,9 @@ class ControlLoop:
         bad = [(j, e) for j, e in enumerate(meas.errors) if e]
         if bad and not started:  # a Reset's torque-on clears them by the next reading
             j, e = bad[0]
-            names = meas.alarms[j] if meas.alarms else f"error bits {e:#04x}"
-            raise _Fault(f"servo of joint {self.model.joints[j].name} reports {names}; "
-                         "torque off (check load, temperature and supply, then Reset)")
+            alarm = meas.alarms[j] if meas.alarms else f"its servo reports error bits {e:#04x}"
+            raise _Fault(f"joint {self.model.joints[j].name}: {alarm}; torque off "
+                         "(check load, temperature and supply, then Reset)")
         q_cmd, qd_cmd, qdd_cmd = self._command(t, p.period)
         st = self._state
         assert st is not None

@@ -84,8 +84,11 @@ ALERT = 0x80
 
 
 class HardwareError(enum.IntFlag):
-    """Hardware Error Status (X-series address 70): why a servo raised its alert and, for
-    most bits, switched its torque off (a REBOOT clears it)."""
+    """Hardware Error Status (X-series address 70; e-manual, "Shutdown" and "Hardware Error
+    Status"): why a servo raised its alert. The bits set in its Shutdown register (63;
+    0x34 from the factory on the XM430 and XL430: Overheating, Electrical Shock, Overload)
+    also switch its torque off; only a REBOOT clears the status and lets the torque on
+    again."""
 
     INPUT_VOLTAGE = 0x01
     OVERHEATING = 0x04
@@ -94,21 +97,25 @@ class HardwareError(enum.IntFlag):
     OVERLOAD = 0x20
 
 
-_HARDWARE_TEXT = {
-    HardwareError.INPUT_VOLTAGE: "input voltage out of range",
-    HardwareError.OVERHEATING: "overheating",
-    HardwareError.MOTOR_ENCODER: "motor encoder fault",
-    HardwareError.ELECTRICAL_SHOCK: "electrical shock (or a broken circuit)",
-    HardwareError.OVERLOAD: "overload (a persistent load beyond its torque)",
+#: Each bit's name in the e-manual's table (its "... Error").
+_HARDWARE_NAMES = {
+    HardwareError.INPUT_VOLTAGE: "Input Voltage",
+    HardwareError.OVERHEATING: "Overheating",
+    HardwareError.MOTOR_ENCODER: "Motor Encoder",
+    HardwareError.ELECTRICAL_SHOCK: "Electrical Shock",
+    HardwareError.OVERLOAD: "Overload",
 }
+HARDWARE_ERROR_BITS = sum(_HARDWARE_NAMES)  #: 0x3D, the bits a Hardware Error Status uses
 
 
 def describe_hardware_error(bits: int) -> str:
-    """Human text for a Hardware Error Status value, e.g. "overheating, overload"; "ok"."""
-    flags = HardwareError(int(bits) & 0x3D)
+    """A Hardware Error Status value by its bits' e-manual names and the value, e.g.
+    "Overheating, Overload (Hardware Error Status 0x24)"; "ok" when clear."""
+    flags = HardwareError(int(bits) & HARDWARE_ERROR_BITS)
     if not flags:
         return "ok"
-    return ", ".join(text for bit, text in _HARDWARE_TEXT.items() if bit in flags)
+    names = ", ".join(name for bit, name in _HARDWARE_NAMES.items() if bit in flags)
+    return f"{names} (Hardware Error Status {int(bits):#04x})"
 
 
 @dataclass(frozen=True)

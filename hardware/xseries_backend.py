@@ -16,8 +16,10 @@ the X-series do differently:
   Present Load × stall torque on a servo without current sensing;
 - :meth:`write`: every Profile Velocity and Goal Position (112..119) in one SYNC_WRITE,
   after clamping into the joint limits and the servos' Min/Max Position Limits;
-- a servo that raised its hardware alert (overload, overheating) has switched its torque
-  off; Torque on REBOOTs it first (the only way back, e-manual "Shutdown").
+- a servo that raised its hardware alert (the error byte's bit 7) is asked its Hardware
+  Error Status once, named by ID and flag in its joint's alarm (:func:`hardware_alarm`);
+  a flag in its Shutdown register has switched its torque off, and torque on REBOOTs it
+  first (the only way back, e-manual "Shutdown").
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ log = logging.getLogger("armlab.xseries")
 PRESENT_AT, PRESENT_LEN = 126, 10
 #: Profile Velocity (4) and Goal Position (4): one SYNC_WRITE.
 GOAL_AT, GOAL_LEN = 112, 8
+#: Velocity Limit, Max Position Limit, Min Position Limit (44..55): one READ.
+LIMIT_ITEMS = ("velocity_limit", "max_position_limit", "min_position_limit")
 #: s a servo takes to restart after REBOOT before it answers again
 REBOOT_WAIT = 0.5
 
@@ -82,10 +86,9 @@ class XSeriesBackend(DynamixelBackend):
             errors.append(err.byte)
             if err.alert and not self._shutdown[k]:  # asked once, told once
                 bits = self._guard(self.bus.read, j.servo_id, "hardware_error_status")
-                self._alarms[k] = p2.describe_hardware_error(bits)
+                self._alarms[k] = hardware_alarm(bits, servo_id=j.servo_id)
                 self._shutdown[k] = True
-                log.warning("joint %s (servo %d): %s; its torque is off until a reboot",
-                            j.name, j.servo_id, self._alarms[k])
+                log.warning("joint %s: %s", j.name, self._alarms[k])
             alarms.append(self._alarms[k] if err.alert else "")
         signs = self.map.signs
         return JointState(
@@ -187,15 +190,31 @@ class XSeriesBackend(DynamixelBackend):
             lines.append(f"{who}: {text}")
 
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit."""
-        self._cw = [int(self._guard(self.bus.read, i, "min_position_limit"))
-                    for i in self.map.ids]
-        self._ccw = [int(self._guard(self.bus.read, i, "max_position_limit"))
-                     for i in self.map.ids]
+        """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit.
+
+        One READ of Velocity Limit, Max and Min Position Limit (44..55) a servo: a reply of
+        its own length, which a late answer to an earlier request (a slow link) cannot pass
+        for, as it could for one item (and a limit read wrong would let goals past it)."""
+        first, last = self.table.item(LIMIT_ITEMS[0]), self.table.item(LIMIT_ITEMS[-1])
+        at, length = first.address, last.address + last.size - first.address
+        limits = []
+        for i in self.map.ids:
+            raw = self._guard(self.bus.read_bytes, i, at, length)
+            limits.append({name: self.table.decode(name, raw[self.table.item(name).address - at:])
+                           for name in LIMIT_ITEMS})
+        self._cw = [x["min_position_limit"] for x in limits]
+        self._ccw = [x["max_position_limit"] for x in limits]
         #: a profile velocity above Velocity Limit would be refused (Data Limit)
-        self._vmax = [int(self._guard(self.bus.read, i, "velocity_limit"))
-                      for i in self.map.ids]
+        self._vmax = [x["velocity_limit"] for x in limits]
         return self._narrowed(self._cw, self._ccw)
+
+
+def hardware_alarm(bits: int, *, servo_id: int | None = None) -> str:
+    """What a person is told about a servo's Hardware Error Status ``bits``: the servo,
+    the flags by their e-manual names with the value, and the way back, e.g. "servo 12:
+    Overload (Hardware Error Status 0x20), cleared by a REBOOT (Reset sends it)"."""
+    who = "" if servo_id is None else f"servo {servo_id}: "
+    return f"{who}{p2.describe_hardware_error(bits)}, cleared by a REBOOT (Reset sends it)"
 
 
 def _goal_data(values: dict[int, tuple[int, int]]) -> dict[int, bytes]:

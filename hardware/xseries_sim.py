@@ -18,11 +18,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.backend import JointState
-from hardware import protocol2 as p2
 from hardware.plant import Plant
 from hardware.servo import ServoParams
 from hardware.sim_backend import SimBackend
 from hardware.xseries import COUNTS, VELOCITY_UNIT, XSpec, lab_mode, lab_settings, x_table_for
+from hardware.xseries_backend import hardware_alarm
 from hardware.xservo import XRegisters, XReport
 from kinematics.model import SerialChain
 from kinematics.validate import vector
@@ -65,7 +65,7 @@ def decode_x_reports(reports: Sequence[XReport], spec: XSpec, directions: Sequen
         load=d * np.array([spec.raw_to_torque(r.current) for r in reports]),
         errors=tuple(r.hardware_error for r in reports),
         torque_on=tuple(bool(r.torque_enable) for r in reports),
-        alarms=tuple(p2.describe_hardware_error(r.hardware_error) if r.hardware_error else ""
+        alarms=tuple(hardware_alarm(r.hardware_error) if r.hardware_error else ""
                      for r in reports))
 
 

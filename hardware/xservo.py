@@ -20,8 +20,9 @@ models' pages: "Operating Mode", "Profile Velocity", "Position PID Gain"; docs/s
    KVI = I/65536) to PWM; Current Control: Goal Current; PWM Control: Goal PWM;
 5. report Present Position, Velocity, PWM and Current (or Present Load on the XL430,
    which has no current sensor), Moving, and the Hardware Error Status (an overload:
-   full PWM without moving for ``overload_time``; with its Shutdown bit set, torque off
-   until a REBOOT).
+   full PWM without moving for ``overload_time``; any other bit when injected,
+   :meth:`XServoModel.inject_hardware_error`; a bit set in Shutdown switches the torque
+   off until a REBOOT).
 
 Between ticks the horn torque follows the DC-motor line, as for the protocol-1.0
 servos: tau = stall_torque · (duty − omega / no_load_speed), minus gear friction.
@@ -45,7 +46,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hardware.protocol2 import HardwareError
+from hardware.protocol2 import HARDWARE_ERROR_BITS, HardwareError
 from hardware.servo import GearedMotor, ServoParams
 from hardware.xseries import (
     CENTRE,
@@ -188,6 +189,8 @@ class XServoModel(GearedMotor):
         self._duty = 0.0
         self._stall_time = 0.0
         self._hardware_error = 0
+        self._torque_time = 0.0  #: s the torque has been on (an injected error's clock)
+        self._injected: tuple[int, float] | None = None  #: (bits, after s of torque on)
         self._moving = False
 
     # -- firmware tick ------------------------------------------------------
@@ -249,7 +252,7 @@ class XServoModel(GearedMotor):
             duty = min(max(torque_target / self.spec.stall_torque +
                            velocity / self.spec.no_load_speed, -full), full)
         self._duty = duty
-        self._check_overload(dt, duty, velocity)
+        self._check_hardware(dt, duty, velocity)
         if self._duty != 0.0:
             self.drive = self._duty * self.spec.stall_torque
             self.damping = self._backemf
@@ -314,9 +317,33 @@ class XServoModel(GearedMotor):
             return 0.0
         return current_counts * unit * self.spec.torque_constant
 
-    def _check_overload(self, dt: float, duty: float, velocity: float) -> None:
-        """Overload: full PWM without moving for ``overload_time``; with the Shutdown bit
-        set, torque off until a REBOOT (:meth:`reboot`)."""
+    def inject_hardware_error(self, bits: int, *, after: float = 0.0) -> None:
+        """Raise Hardware Error Status ``bits`` once the torque has been on for ``after`` s
+        in all (a test-and-teaching fault: what the firmware sets by itself on an input
+        voltage out of range, a hot motor, a broken encoder...). Once: a REBOOT clears it
+        as any other. Bits in Shutdown switch the torque off, as the firmware's own do.
+
+        Raises:
+            ValueError: ``bits`` not a Hardware Error Status bit, or ``after`` negative.
+        """
+        bits = int(bits)
+        if not bits or bits & ~HARDWARE_ERROR_BITS:
+            raise ValueError(f"bits: Hardware Error Status bits ({HARDWARE_ERROR_BITS:#04x}), "
+                             f"got {bits:#04x}")
+        if not after >= 0.0:
+            raise ValueError(f"after: s of torque on, >= 0, got {after}")
+        self._injected = (bits, float(after))
+
+    def _check_hardware(self, dt: float, duty: float, velocity: float) -> None:
+        """Hardware Error Status: an overload (full PWM without moving for
+        ``overload_time``) or an injected error that is due; with its Shutdown bit set,
+        torque off until a REBOOT (:meth:`reboot`)."""
+        if self._enabled:
+            self._torque_time += dt
+        if self._injected is not None and self._enabled and \
+                self._torque_time >= self._injected[1]:
+            self._hardware_error |= self._injected[0]
+            self._injected = None
         p = self.params
         full = self.regs.pwm_limit / PWM_FULL
         if full > 0 and abs(duty) >= full - 1e-9 and abs(velocity) < p.stall_speed:

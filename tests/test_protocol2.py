@@ -133,9 +133,15 @@ def test_error_byte_number_and_alert():
 
 
 def test_hardware_error_status_names_each_bit():
-    assert p2.describe_hardware_error(0x24) == ("overheating, overload (a persistent load "
-                                                "beyond its torque)")
-    assert p2.describe_hardware_error(0) == "ok"
+    # the e-manual's Shutdown / Hardware Error Status table: bit 0 Input Voltage, 2
+    # Overheating, 3 Motor Encoder, 4 Electrical Shock, 5 Overload (1, 6, 7 unused)
+    for bit, name in ((0, "Input Voltage"), (2, "Overheating"), (3, "Motor Encoder"),
+                      (4, "Electrical Shock"), (5, "Overload")):
+        assert p2.describe_hardware_error(1 << bit) == \
+            f"{name} (Hardware Error Status {1 << bit:#04x})"
+    assert p2.describe_hardware_error(0x24) == \
+        "Overheating, Overload (Hardware Error Status 0x24)"
+    assert p2.describe_hardware_error(0) == p2.describe_hardware_error(0xC2) == "ok"
 
 
 def test_malformed_packets_and_arguments_are_refused():

@@ -8,7 +8,9 @@ from the measured current; a goal beyond a servo's Max Position Limit never leav
 process; E-STOP switches every torque off; a map naming X-series servos opens this
 backend through the lab's own factory. Each X-series model the lab knows (XM430-W350,
 XL330-M288, and the XL430-W250 without a current sensor) is configured for what it
-senses, reaches a goal and reports the torque that holds the arm up.
+senses, reaches a goal and reports the torque that holds the arm up. A servo's hardware
+alert (``armlab emulate --fault``) stops the served lab with one message naming the servo
+and its Hardware Error Status, and Reset REBOOTs it.
 """
 
 from __future__ import annotations
@@ -232,3 +234,50 @@ def test_each_x_model_is_set_up_for_what_it_senses_and_reports_the_arm_s_weight(
             assert all(state.torque_on) and not any(state.alarms)
         finally:
             b.close()
+
+
+def _packets_to(emu, servo_id: int, instruction: int) -> list[p2.InstructionPacket]:
+    """The instruction packets of one kind the emulator received for ``servo_id``."""
+    packets = (p2.decode_instruction(raw) for raw in emu.packets("rx"))
+    return [k for k in packets if k.servo_id == servo_id and k.instruction == instruction]
+
+
+def test_a_hardware_alert_stops_the_lab_naming_the_servo_and_reset_reboots_it(
+        tmp_path, capfd):
+    """``emulate --fault joint2:overload@1``: after 1 s of torque on, servo 12 raises
+    Overload in its Hardware Error Status and, the bit being in its Shutdown register,
+    switches its own torque off; every reply carries the alert bit. The backend READs
+    address 70 of that servo once; the loop stops with the torque off and one message
+    naming the servo, the flag and the value, which the page shows. Reset REBOOTs the
+    servo and the arm is held again."""
+    with emulator("--robot", "open_manipulator_x", "--fault", "joint2:overload@1",
+                  log_dir=tmp_path) as emu:
+        with Lab(ServeOptions(robot="open_manipulator_x", backend="serial", port=emu.port,
+                              http_port=0)) as lab:
+            lesson = lab.lesson
+            loop, bus = lesson.loop, lesson.backend.bus
+            with client_of(lab.server, token=lab.token) as page:
+                wait_for(lambda: loop.status.fault is not None, 60, "the loop to stop")
+                st = loop.status
+                said = "servo 12: Overload (Hardware Error Status 0x20), cleared by a REBOOT"
+                assert st.fault.startswith(f"joint joint2: {said}"), st.fault
+                assert not (st.active or st.torque_on or st.torque_off_unsent or st.link_down)
+                page.wait_for(lambda: any(said in str(e.props.get("content", ""))
+                                          for e in page.gui.values()), 30,
+                              "the page to show the alert")
+                reads = [k for k in _packets_to(emu, 12, p2.Instruction.READ)
+                         if k.params[:2] == (70).to_bytes(2, "little")]
+                assert len(reads) == 1  # asked once
+                assert bus.read(12, "hardware_error_status") == p2.HardwareError.OVERLOAD
+                assert bus.errors[12].alert
+                assert not any(bus.read(i, "torque_enable") for i in IDS)
+                assert not _packets_to(emu, 12, p2.Instruction.REBOOT)
+                page.click("Reset (after E-STOP or a fault)")
+                wait_for(lambda: loop.status.active and loop.status.torque_on, 60,
+                         "the arm held again after Reset")
+                assert len(_packets_to(emu, 12, p2.Instruction.REBOOT)) == 1
+                assert bus.read(12, "hardware_error_status") == 0
+                assert not bus.errors[12].alert and loop.status.fault is None
+                assert not page.notifications  # told by the status line, not a pop-up
+    err = capfd.readouterr().err
+    assert "Traceback" not in err, err[-2000:]

@@ -65,7 +65,8 @@ def test_torque_on_reboots_a_servo_that_shut_down():
     servo = b.plant.servos[1]
     servo._hardware_error = 0x20  # an overload the firmware reported
     b.sync(0.1)
-    assert not b.read().torque_on[1] and b.read().alarms[1].startswith("overload")
+    assert not b.read().torque_on[1]
+    assert b.read().alarms[1].startswith("Overload (Hardware Error Status 0x20)")
     b.set_torque(True)
     b.sync(0.2)
     assert all(b.read().torque_on) and b.read().errors[1] == 0

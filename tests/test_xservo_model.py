@@ -10,6 +10,8 @@ the numbers of the e-manual's control tables and block diagrams, checked in moti
   reports has no spike where the encoder crosses a count.
 - Overload: a servo held at full PWM without moving shuts its torque off after
   ``overload_time``, its alert stays until REBOOT.
+- An injected Hardware Error Status flag (``armlab emulate --fault JOINT:FLAG@S``) comes
+  after S s of torque on; the Shutdown register decides whether the torque goes off.
 - The XL430-W250 has no current sensor: address 126 is Present Load (0.1 %).
 """
 
@@ -20,7 +22,9 @@ import math
 import numpy as np
 import pytest
 
+from app.commands.emulate import parse_fault
 from hardware.plant import Plant
+from hardware.protocol2 import HardwareError
 from hardware.servo import ServoParams
 from hardware.xseries import (
     CENTRE,
@@ -145,6 +149,61 @@ def test_an_overload_shuts_the_torque_off_until_a_reboot():
     plant.set_wall(None)
     plant.advance_to(3.5)
     assert servo.report().torque_enable == 1
+
+
+def test_an_injected_flag_comes_after_its_torque_on_time_and_shutdown_decides_the_torque():
+    """Shutdown's factory value 52 (0x34: Overheating, Electrical Shock, Overload): an
+    overheating servo switches its torque off, one with its input voltage out of range
+    keeps it; both raise their alert, which only a REBOOT clears (and it stays cleared)."""
+    plant = Plant(OMX, XM430_W350)  # torque off
+    hot, low = plant.servos[1], plant.servos[2]
+    assert hot.regs.shutdown == 0x34
+    hot.inject_hardware_error(HardwareError.OVERHEATING, after=0.5)
+    low.inject_hardware_error(HardwareError.INPUT_VOLTAGE, after=0.5)
+    plant.advance_to(1.0)
+    assert hot.hardware_error == low.hardware_error == 0  # its clock runs with torque on
+    for s in (hot, low):
+        s.regs.torque_enable = 1
+    plant.advance_to(1.4)
+    assert hot.hardware_error == low.hardware_error == 0
+    plant.advance_to(1.6)
+    assert hot.report().hardware_error == 0x04 and hot.report().torque_enable == 0
+    assert low.report().hardware_error == 0x01 and low.report().torque_enable == 1
+    hot.reboot()
+    hot.regs.torque_enable = 1
+    plant.advance_to(3.0)
+    assert hot.hardware_error == 0 and hot.report().torque_enable == 1  # once only
+    for bits, after in ((0x02, 0.0), (0x40, 0.0), (0, 0.0), (0x20, -1.0)):
+        with pytest.raises(ValueError, match="bits|after"):
+            hot.inject_hardware_error(bits, after=after)
+
+
+@pytest.mark.parametrize("text,want", [
+    ("joint2:overload@3", (1, HardwareError.OVERLOAD, 3.0)),
+    (" 0:Electrical_Shock@0 ", (0, HardwareError.ELECTRICAL_SHOCK, 0.0))])
+def test_emulate_fault_takes_a_joint_a_flag_and_the_torque_on_time(text, want):
+    assert parse_fault(text, OMX.joint_names) == want
+
+
+@pytest.mark.parametrize("text,why", [("joint2:overload", "not JOINT:FLAG@S"),
+                                      ("joint9:overload@1", "joint must be"),
+                                      ("1:overlod@1", "no flag 'overlod'"),
+                                      ("1:overload@-2", "must be >= 0")])
+def test_a_bad_emulate_fault_gets_one_line_naming_the_flags(text, why):
+    with pytest.raises(ValueError, match=why) as err:
+        parse_fault(text, OMX.joint_names)
+    msg = str(err.value)
+    assert msg.startswith(f"--fault {text!r}: ") and "\n" not in msg
+    assert "input_voltage, overheating, motor_encoder, electrical_shock, overload" in msg
+
+
+def test_the_emulator_refuses_fault_on_protocol_1_servos_before_it_serves(capsys):
+    from app.cli import main
+
+    assert main(["emulate", "--robot", "receptionist_arm", "--fault", "1:overload@1"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""  # no "port: " line: nothing was served
+    assert err.count("\n") == 1 and "RX-24F has none" in err
 
 
 def test_the_xl430_reports_load_not_current():

@@ -11,6 +11,13 @@ weight hung at the joint) from S s of the emulator's plant clock on: what
 ``armlab experiment observers --backend serial --applied NM`` estimates from the
 servos' current. Repeat it for several.
 
+``--fault JOINT:FLAG@S`` makes the X-series servo of a joint raise a Hardware Error
+Status flag (``input_voltage``, ``overheating``, ``motor_encoder``, ``electrical_shock``,
+``overload``) once its torque has been on for S s: its replies carry the alert bit, and
+a flag in its Shutdown register (the XM430's factory value: overheating, electrical
+shock, overload) switches its torque off until a REBOOT, as the servo's firmware does.
+Repeatable.
+
 ``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
 earlier emulator left), so the emulator keeps its name across restarts, as a
 ``/dev/serial/by-id/...`` path does across re-plugs; the link goes when it exits.
@@ -30,6 +37,7 @@ from hardware.emulator import Faults, PtyEmulator, emulated_network
 from hardware.emulator_x import emulated_x_network
 from hardware.joint_map import default_joint_map
 from hardware.plant import Plant
+from hardware.protocol2 import HardwareError
 from hardware.servo_spec import value_from_baud
 from hardware.xseries import X_TABLES
 from kinematics.model import SerialChain, load_robot
@@ -71,6 +79,34 @@ def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, floa
     except ValueError as exc:
         raise ValueError(f"--disturb {text!r}: {exc}; expected {DISTURB_FORMAT}") from None
     return joint, torque, start
+
+
+#: the flags ``--fault`` takes: Hardware Error Status bits by name
+FAULT_FLAGS = {flag.name.lower(): flag for flag in HardwareError}
+FAULT_FORMAT = (f"JOINT:FLAG@S (joint index or name; FLAG one of {', '.join(FAULT_FLAGS)}; "
+                "S seconds of torque on before it), e.g. joint2:overload@3")
+
+
+def parse_fault(text: str, names: Sequence[str]) -> tuple[int, HardwareError, float]:
+    """``--fault JOINT:FLAG@S`` -> (joint index, Hardware Error Status flag, s of torque on).
+
+    Raises:
+        ValueError: one line naming the option, the value, what is wrong and the format.
+    """
+    m = re.fullmatch(r"\s*([^:@]+):([^:@]+)@([^:@]+)\s*", text)
+    try:
+        if m is None:
+            raise ValueError("not JOINT:FLAG@S")
+        joint = joint_index(m[1], names)
+        flag = FAULT_FLAGS.get(m[2].strip().lower())
+        if flag is None:
+            raise ValueError(f"no flag {m[2].strip()!r}")
+        after = _number(m[3], "the time")
+        if after < 0:
+            raise ValueError(f"the time must be >= 0 s, got {after:g}")
+    except ValueError as exc:
+        raise ValueError(f"--fault {text!r}: {exc}; expected {FAULT_FORMAT}") from None
+    return joint, flag, after
 
 
 def _number(text: str, name: str) -> float:
@@ -126,6 +162,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--disturb", action="append", default=[], metavar="JOINT:NM@S",
                         help="apply a known torque to a joint of the simulated arm: "
                         + DISTURB_FORMAT.replace("%", "%%") + " (repeatable)")
+    parser.add_argument("--fault", action="append", default=[], metavar="JOINT:FLAG@S",
+                        help="X-series servos: the joint's servo raises a Hardware Error "
+                        "Status flag after S s of torque on: " + FAULT_FORMAT + " (repeatable)")
     parser.add_argument("--link", metavar="PATH",
                         help="also make PATH a symlink to the pseudo-terminal (replaced on "
                              "restart, like a /dev/serial/by-id name)")
@@ -183,6 +222,12 @@ def run(args: argparse.Namespace) -> int:
         plant = _arm_plant(network)
         for joint, torque, start in disturbances:
             plant.apply_joint_torque(joint, torque, start=start)
+    if args.fault and jmap.protocol != 2:
+        raise ValueError(f"--fault: Hardware Error Status is an X-series (protocol 2.0) "
+                         f"register; the {jmap.servo} has none (emulate --servo XM430-W350)")
+    alerts = [parse_fault(f, model.joint_names) for f in args.fault]
+    for joint, flag, after in alerts:
+        _arm_plant(network).servos[joint].inject_hardware_error(flag, after=after)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)
@@ -206,6 +251,8 @@ def run(args: argparse.Namespace) -> int:
               f"{', paced' if args.pace else ''}"
               + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
                         for j, nm, t0 in disturbances)
+              + "".join(f"; {flag.name.lower()} on {model.joint_names[j]} after {t:g} s "
+                        "of torque on" for j, flag, t in alerts)
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
     except ArithmeticError as exc:  # the simulated plant diverged: say so in one line

@@ -24,8 +24,16 @@ from app.arm_view import ArmView
 from app.backends import make_backend
 from app.camera import View, show
 from app.lessons import ANY_URDF, LessonContext
-from app.lessons._common import LessonBase, close_in_turn, esc, set_content, status_html
-from control.commands import EStop, Reset, RunTrajectory, SetTarget
+from app.lessons._common import LessonBase, close_in_turn, esc, guarded, set_content, status_html
+from app.lessons._loop_state import (
+    STOPPED_COLOR,
+    check_running,
+    link_note,
+    post_reset,
+    stopped_state,
+)
+from app.lessons.compliance_servos import LinkMonitor
+from control.commands import EStop, RunTrajectory, SetTarget
 from control.loop import ControlLoop
 from control.params import DEFAULT
 from control.trajectory import hold
@@ -103,6 +111,7 @@ class ArmLesson(LessonBase):
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0) -> None:
         super().__init__(server, ctx)
+        self._link = LinkMonitor()
         model = load_robot(ctx.robot, tip_link=ctx.tip_link, package_paths=ctx.package_paths)
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
@@ -157,7 +166,10 @@ class ArmLesson(LessonBase):
         def _(event: viser.TransformControlsEvent) -> None:
             if event.client is None:
                 return
-            self.set_target(np.asarray(self.target.position, dtype=float))
+            if event.phase == "start":  # a stopped loop: said once, when the target is grabbed
+                guarded(event, lambda: check_running(self.loop.status))
+            elif stopped_state(self.loop.status) is None:
+                self.set_target(np.asarray(self.target.position, dtype=float))
 
     def _build_gui(self) -> None:
         gui = self.server.gui
@@ -176,7 +188,7 @@ class ArmLesson(LessonBase):
                 slider.on_update(self._on_slider)
                 self.sliders.append(slider)
             reset = gui.add_button("Reset (after E-STOP or a fault)")
-            reset.on_click(lambda _e: self.loop.post(Reset()))
+            reset.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(
                 f"**{esc(self.model.name)}**: {self.model.n} joints "
@@ -193,10 +205,16 @@ class ArmLesson(LessonBase):
 
     def _on_slider(self, event: viser.GuiEvent) -> None:
         q = np.radians([float(s.value) for s in self.sliders])
-        self.move_to(q)
+        guarded(event, lambda: self.move_to(q))
 
     def move_to(self, q: np.ndarray) -> None:
-        """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits."""
+        """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits.
+
+        Raises:
+            ValueError: the loop is stopped (a lost link, a fault, E-STOP): saying why
+                nothing happened.
+        """
+        check_running(self.loop.status)
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
         self.loop.post(RunTrajectory(hold(q, SLIDER_HOLD_S), approach=True))
 
@@ -211,11 +229,16 @@ class ArmLesson(LessonBase):
 
     def _status_frame(self, force: bool) -> None:
         st = self.loop.status
-        state = ("fault" if st.fault else "e-stop" if st.estopped else
-                 "holding" if st.active else "starting")
-        color = "#b00020" if st.fault or st.estopped else "#2e7d32"
-        detail = esc(st.fault or st.message or f"backend {self.ctx.backend}, loop t {st.t:.1f} s")
-        set_content(self.status, status_html(state, color, detail))
+        where = f"backend {self.ctx.backend}, loop t {st.t:.1f} s"
+        state = stopped_state(st)
+        if state is not None:  # red; under an unsent torque-off, why the link failed
+            color = STOPPED_COLOR
+            detail = st.fault if st.torque_off_unsent and st.fault else where
+        else:
+            state, color = ("holding", "#2e7d32") if st.active else ("starting", "#555")
+            detail = st.message or where
+        set_content(self.status, status_html(state, color, esc(detail),
+                                             extra=link_note(self._link, self.backend)))
 
     # ================================================================== lifetime
 

@@ -35,6 +35,13 @@ from app.lessons._common import (
     status_html,
     warning_html,
 )
+from app.lessons._loop_state import (
+    STOPPED_COLOR,
+    check_running,
+    link_note,
+    post_reset,
+    stopped_state,
+)
 from app.lessons.compliance_controls import GainControls
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_scene import ComplianceScene
@@ -53,7 +60,6 @@ from control.commands import (
     EStop,
     Push,
     Reconnect,
-    Reset,
     RunTrajectory,
     SetTarget,
     Spring,
@@ -81,8 +87,6 @@ TRY = ("Press **Run thesis line**, then **Push the hand** while it runs (by hand
        "servos): the arm gives way and comes back.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 0
-#: Status when an e-stop's torque-off write could not go out (the link is gone).
-UNSENT_BANNER = "Torque off could not be sent: switch the servo power off"
 
 DEG = 180.0 / math.pi
 #: Push directions offered, in the shoulder (thesis) frame: x = gravity, y = along the line.
@@ -377,33 +381,19 @@ class ComplianceLesson(LessonBase):
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
-        self._check_running(rig)
+        check_running(rig.loop.status)
         t0 = self._now()
         rig.loop.post(RunTrajectory(rig.line))
         self.run_start, self.run_label = t0, "thesis line"
         self.experiment = Experiment("line", t0, ready_at=math.inf, label="thesis line")
         rig.scene.set_target(THESIS_LINE_END)
 
-    @staticmethod
-    def _check_running(rig: Rig) -> None:
-        """ValueError saying why nothing would happen when the loop is stopped (a stopped
-        loop would take a command and do nothing)."""
-        st = rig.loop.status
-        if st.link_down:
-            raise ValueError(f"nothing happened: the link to the servos is down ({st.fault}); "
-                             "the lab retries every second (or press Reconnect)")
-        if st.fault is not None:
-            raise ValueError(f"nothing happened: the control loop is stopped ({st.fault}); "
-                             "press Reset first")
-        if st.estopped:
-            raise ValueError("nothing happened: E-STOP is in force; press Reset first")
-
     def run_step(self) -> None:
         """Step one joint's command by the chosen angle (measures the PD loop)."""
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
-        self._check_running(rig)
+        check_running(rig.loop.status)
         loop = rig.loop
         label = str(self.step_joint.value)
         plan = plan_step(loop.recorder.snapshot(0.2), joint=("θ1", "θ0", "θ2").index(label),
@@ -441,14 +431,7 @@ class ComplianceLesson(LessonBase):
     def reset(self) -> None:
         """Clear a fault or E-STOP: torque on, hold. ValueError (shown to the person) while
         the link to the servos is down: nothing can be reset then."""
-        loop = self._loop()
-        st = loop.status
-        if st.link_down:
-            loop.post(Reconnect())
-            raise ValueError(f"nothing happened: the link to the servos is down ({st.fault}); "
-                             "trying to reconnect now (the lab also tries once a second); "
-                             "press Reset again once the status says the link is back")
-        loop.post(Reset())
+        post_reset(self._loop())
         self._push = None
 
     def reconnect(self) -> None:
@@ -574,12 +557,9 @@ class ComplianceLesson(LessonBase):
     def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
         if self.reconnect_button.visible != st.link_down:
             self.reconnect_button.visible = st.link_down
-        if st.torque_off_unsent:  # never claim a torque-off that did not reach the servos
-            state, color = UNSENT_BANNER, "#b00020"
-        elif st.estopped:
-            state, color = "E-STOPPED: torque off (press Reset)", "#b00020"
-        elif st.fault:
-            state, color = f"stopped: {st.fault}", "#b00020"
+        stopped = stopped_state(st)
+        if stopped is not None:
+            state, color = stopped, STOPPED_COLOR
         elif not st.active:
             state, color = "starting", "#555"
         elif st.trajectory:
@@ -600,9 +580,7 @@ class ComplianceLesson(LessonBase):
         msg = ""
         if st.message and not st.fault and st.message != state:
             msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
-        link = self._link.warning(getattr(rig.backend, "stats", None), time.monotonic())
-        if link is not None:  # retries hold the arm; a link that needs many is told
-            msg += f"<div style='color:#a15c00;font-size:0.85em'>{esc(link)}</div>"
+        msg += link_note(self._link, rig.backend)  # retries hold the arm; many are told
         if st.skipped_recent:  # the machine could not keep up: say so, do not hide it
             msg += (f"<div style='color:#a15c00;font-size:0.85em'>late: {st.skipped_recent} "
                     "periods skipped in the last 10 s</div>")
