@@ -5,8 +5,9 @@ opened with ``protocol=2``.
 The e-manual's PING answer byte for byte; named reads and writes through the X-series
 table; one SYNC_READ and one BULK_READ for every servo; the error numbers a person
 can cause (an EEPROM item with the torque on, a goal past its limit, a read-only item);
-REBOOT; lost and broken answers retried; a protocol-1.0 bus on it hears nothing and
-says which protocol it tried.
+REBOOT; REG_WRITE held until a broadcast ACTION; FACTORY_RESET behind its confirmation,
+at its levels; lost and broken answers retried; a protocol-1.0 bus on it hears nothing
+and says which protocol it tried.
 """
 
 from __future__ import annotations
