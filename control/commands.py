@@ -13,7 +13,11 @@ import numpy as np
 
 from control.compliance import MODES, Mode
 from control.trajectory import JointTrajectory
+from kinematics.redundancy import AIMS
 from kinematics.validate import scalar, vector
+
+#: 1/s, the largest null-space gain k_a (seed 002 eq. 2) a person may set
+MAX_NULL_SPACE_GAIN = 10.0
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,26 @@ class SetTarget:
 
 
 @dataclass(frozen=True)
+class UseSpareJoints:
+    """While the hand follows a target (``SetTarget``), move the joints it does not need
+    (n > 3) towards ``aim`` (a key of ``kinematics.redundancy.AIMS``: "off", "limits",
+    "manipulability", "both") by seed 002's gradient projection with gain ``gain`` (k_a
+    of eq. 2, 1/s). Turned on while the arm holds, the hand's place becomes the target."""
+
+    aim: str
+    gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.aim not in AIMS:
+            raise ValueError(f"aim must be one of {', '.join(AIMS)}, got {self.aim!r}")
+        g = scalar("null-space gain k_a (1/s)", self.gain, nonnegative=True)
+        if g > MAX_NULL_SPACE_GAIN:
+            raise ValueError(f"null-space gain k_a (1/s) must be at most "
+                             f"{MAX_NULL_SPACE_GAIN:g}, got {g:g}")
+        object.__setattr__(self, "gain", g)
+
+
+@dataclass(frozen=True)
 class SetController:
     """Switch the controller mode ("none", "pd", "compliance") without a bump."""
 
@@ -118,6 +142,6 @@ class SetController:
 
 
 Command = (RunTrajectory | Stop | Push | Spring | EStop | Reset | Reconnect | SetTarget
-           | SetController)
+           | UseSpareJoints | SetController)
 COMMANDS = (RunTrajectory, Stop, Push, Spring, EStop, Reset, Reconnect, SetTarget,
-            SetController)
+            UseSpareJoints, SetController)

@@ -51,6 +51,7 @@ from control.commands import (
     SetTarget,
     Spring,
     Stop,
+    UseSpareJoints,
 )
 from control.compliance import MODES, ComplianceController, ControllerState, Mode
 from control.params import DEFAULT, Params, loop_stability, stability_warning
@@ -60,12 +61,15 @@ from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
 from kinematics.dynamics import rnea
 from kinematics.ik import rmrc
 from kinematics.model import SerialChain
+from kinematics.redundancy import POSITION_ROWS, aim_gradient, null_space_rate, task_jacobian
 from kinematics.validate import scalar
 
 DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
 TARGET_SPEED = 0.156  #: m/s hand speed when following a target (thesis: 2.5 mm / 16 ms)
 SWITCH_INTERVAL = 0.001  #: s, the interpreter's thread switch interval while paced
 APPROACH_MIN = 0.01  #: rad; a trajectory starting farther than this from the command is approached
+#: rad/s, the fastest joint of the spare joints' self-motion (``UseSpareJoints``)
+SPARE_MAX_SPEED = 0.5
 
 
 @dataclass(frozen=True)
@@ -194,6 +198,7 @@ class ControlLoop:
         self._traj: JointTrajectory | None = None
         self._traj_t0 = 0.0
         self._target: np.ndarray | None = None
+        self._spare: UseSpareJoints = UseSpareJoints("off")
         self._active = False
         self._torque_on = False
         self._estopped = False
@@ -239,6 +244,13 @@ class ControlLoop:
         with self._lock:
             self._pending = params
         return warning
+
+    @property
+    def spare_joints(self) -> UseSpareJoints:
+        """What the spare joints aim for while the hand follows a target (the last
+        ``UseSpareJoints`` applied; "off" at first)."""
+        with self._lock:
+            return self._spare
 
     def post(self, command: Command) -> None:
         """Queue ``command``; the loop applies it at the start of its next period."""
@@ -513,6 +525,9 @@ class ControlLoop:
                                  "e-stop: torque off could not be sent; switch the servo "
                                  "power off")
             return
+        if isinstance(cmd, UseSpareJoints):
+            self._use_spare_joints(cmd)
+            return
         if isinstance(cmd, SetController):
             self.controller.mode = cmd.mode
             if self._state is not None:  # bumpless: go on from the current reference
@@ -552,6 +567,21 @@ class ControlLoop:
             if cmd.xyz is None:
                 self._note("target released: holding")
 
+    def _use_spare_joints(self, cmd: UseSpareJoints) -> None:
+        if cmd.aim != "off" and self.model.n <= len(POSITION_ROWS):
+            self._note(f"{self.model.n} joints have no spare joint for a hand position "
+                       "(3 coordinates): nothing to aim for")
+            return
+        with self._lock:
+            self._spare = cmd
+        if cmd.aim == "off":
+            self._note("spare joints: off")
+            return
+        if self._traj is None and self._target is None and self._hold is not None:
+            self._target = self.model.fk(self._hold)[:3, 3]  # keep the hand where it is
+        self._note(f"spare joints: {cmd.aim} (k_a {cmd.gain:g} 1/s) while the hand "
+                   "follows its target")
+
     def _current_cmd(self) -> np.ndarray:
         if self._traj is not None:
             return self._traj.sample(self._t - self._traj_t0)[0]
@@ -575,7 +605,8 @@ class ControlLoop:
         return q, qd, qdd
 
     def _follow_target(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One RMRC sample towards the target: dX limited to ``target_speed``·T (thesis §3.3)."""
+        """One RMRC sample towards the target: dX limited to ``target_speed``·T (thesis §3.3),
+        then the spare joints' self-motion, if asked (:meth:`_spare_step`)."""
         assert self._hold is not None and self._target is not None
         q0 = self._hold
         x = self.model.fk(q0)[:3, 3]
@@ -591,7 +622,25 @@ class ControlLoop:
             q1 = np.clip(res.q, self.lower, self.upper)
             if not res.reached:
                 self._note(f"target out of reach: {res.message}")
+        q1 = self._spare_step(q1, period)
         qd = (q1 - q0) / period
         qdd = (qd - self._qd_cmd_prev) / period
         self._hold = q1
         return q1.copy(), qd, qdd
+
+    def _spare_step(self, q: np.ndarray, period: float) -> np.ndarray:
+        """``q`` moved for one period along θ̇_NS = (I − J⁺J) k_a ∇H (seed 002 eq. 6 with the
+        criterion of the ``UseSpareJoints`` in force), scaled down so no joint turns
+        faster than :data:`SPARE_MAX_SPEED` (the direction, and so the null space, is
+        kept); in the joint limits. The hand's position does not move to first order; the
+        next period's RMRC takes back the second-order drift."""
+        spare = self._spare
+        if spare.aim == "off" or spare.gain == 0.0:
+            return q
+        J = task_jacobian(self.model, q, POSITION_ROWS)
+        grad = aim_gradient(self.model, q, spare.aim, lower=self.lower, upper=self.upper)
+        rate = null_space_rate(J, grad, spare.gain)
+        fastest = float(np.max(np.abs(rate)))
+        if fastest > SPARE_MAX_SPEED:
+            rate *= SPARE_MAX_SPEED / fastest
+        return np.clip(q + rate * period, self.lower, self.upper)

@@ -8,6 +8,7 @@ Pure functions over a recorder snapshot (:meth:`control.recorder.Recorder.snapsh
   to wait before measuring it;
 - :func:`measure_step`: the PD loop's response to that step (θ against θ_cmd);
 - :func:`measure_push`: the environment's response to a push (θ_env against τ_ext);
+- :func:`hand_excursion`: how far a push moved the hand, and how near it came back;
 - :func:`line_errors`: the largest |θ_cmd − θ| of a run.
 
 The figures are :func:`control.metrics.measure_step`'s, with ωn and ζ read back from
@@ -25,6 +26,7 @@ import numpy as np
 from control import metrics
 from control.params import Params
 from control.trajectory import JointTrajectory
+from kinematics.model import SerialChain
 
 MIN_STEP = math.radians(0.5)  #: rad; a smaller step is refused (the slider moves by 1°)
 
@@ -170,6 +172,23 @@ def measure_push(snap: dict[str, np.ndarray], *, t0: float, t1: float, what: str
     return measure_response(t, env[:, j], initial=e0, final=e1,
                             what=f"{what}, joint {joint_labels[j]}",
                             static_gain=(e1 - e0) / (tau1 - tau0))
+
+
+def hand_excursion(model: SerialChain, snap: dict[str, np.ndarray], *, t0: float
+                   ) -> tuple[float, float]:
+    """How far the hand of ``model`` went from where it was at loop time ``t0`` (a push's
+    start): (the largest distance since then, the distance in the newest sample), m.
+
+    Raises:
+        ValueError: no finite sample at or after ``t0``.
+    """
+    keep = (snap["t"] >= t0) & np.all(np.isfinite(snap["q"]), axis=1)
+    q = snap["q"][keep]
+    if len(q) == 0:
+        raise ValueError("no samples since the push began (the loop stopped?)")
+    x = np.array([model.fk(qi)[:3, 3] for qi in q])
+    d = np.linalg.norm(x - x[0], axis=1)
+    return float(d.max()), float(d[-1])
 
 
 def line_errors(snap: dict[str, np.ndarray], *, t0: float) -> np.ndarray:

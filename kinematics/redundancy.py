@@ -13,6 +13,12 @@ This module holds, one function per equation of the paper:
 - :func:`bounded_rate` a method that guarantees the limits (bounded least squares,
   ``scipy.optimize.lsq_linear``), not in the paper.
 
+The same gradient projection on any serial arm whose task is its hand's position in
+space (m = 3 rows, :data:`POSITION_ROWS`; n > 3 joints leave n − 3 spare ones): the
+criterion of eq. 2 is :func:`log_manipulability_gradient` (eq. 3's ∇w divided by w),
+:func:`joint_limit_gradient` (staying away from the joint limits; not in the paper) or
+both (:func:`aim_gradient`), and :func:`null_space_rate` moves the spare joints.
+
 Shapes: ``J`` is (m, n), joint vectors are (n,), task vectors are (m,).
 Why the printed decomposition method cannot raise the manipulability (modes 2 and 4 give
 the same motion) is derived in docs/redundancy.md and shown by ``tests/test_seed002_*``.
@@ -31,6 +37,11 @@ from kinematics.validate import matrix, scalar, vector
 
 #: Task rows of the 6 x n geometric Jacobian used for a planar arm: base-frame x and y.
 PLANAR_ROWS = (0, 1)
+#: Task rows for a hand position in space: base-frame x, y and z.
+POSITION_ROWS = (0, 1, 2)
+#: What the spare joints of an arm following a hand target may aim for (a key of
+#: :func:`aim_gradient`): nothing, away from the joint limits, more manipulability, both.
+AIMS = ("off", "limits", "manipulability", "both")
 
 
 def task_jacobian(model: SerialChain, q: np.ndarray, rows: tuple[int, ...] = PLANAR_ROWS
@@ -93,6 +104,72 @@ def manipulability_gradient(model: SerialChain, q: np.ndarray,
     Minv = np.linalg.inv(M)
     dJ = jacobian_derivatives(model, q, rows)
     return np.array([w * np.trace(Minv @ dJ[k] @ J.T) for k in range(model.n)])
+
+
+def log_manipulability_gradient(model: SerialChain, q: np.ndarray,
+                                rows: tuple[int, ...] = POSITION_ROWS) -> np.ndarray:
+    """∇(ln w) = ∇w / w: seed 002 eq. 3 divided by w.
+
+    The same direction as eq. 3 and the same maximum, but free of the arm's size (w of a
+    position task has units m³, so eq. 2's k_a would differ by orders of magnitude from
+    a 20 cm arm to a 1 m one); k_a then has units 1/s. Zeros at a singular pose (w = 0).
+
+    Returns:
+        (n,) gradient, 1/rad.
+    """
+    q = vector("q", q, model.n)
+    w = manipulability(task_jacobian(model, q, rows))
+    if w < 1e-12:
+        return np.zeros(model.n)
+    return manipulability_gradient(model, q, rows) / w
+
+
+def joint_limit_criterion(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
+    """H(θ) = −½ Σ ((θ_i − θ̄_i) / (½ (θ_max,i − θ_min,i)))², θ̄ the middle of each range.
+
+    Not in seed 002 (which keeps the limits by velocity bounds, eq. 5-7): the distance
+    from the middle of the joint ranges (Liégeois 1977), 0 with every joint mid-range,
+    −½ for each joint at a limit. Used in place of w in eq. 2 it keeps the spare joints
+    away from their limits.
+    """
+    q = vector("q", q)
+    mid, half = _mid_half(q.size, lower, upper)
+    return float(-0.5 * np.sum(((q - mid) / half) ** 2))
+
+
+def joint_limit_gradient(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """∇H = −(θ − θ̄) / (½ (θ_max − θ_min))² of :func:`joint_limit_criterion` (not in
+    seed 002), 1/rad: it points from each joint towards the middle of its range."""
+    q = vector("q", q)
+    mid, half = _mid_half(q.size, lower, upper)
+    return -(q - mid) / half**2
+
+
+def _mid_half(n: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = vector("lower", lower, n), vector("upper", upper, n)
+    if np.any(hi <= lo):
+        raise ValueError("joint limits: every upper limit must be above its lower limit")
+    return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
+def aim_gradient(model: SerialChain, q: np.ndarray, aim: str, *, lower: np.ndarray,
+                 upper: np.ndarray, rows: tuple[int, ...] = POSITION_ROWS) -> np.ndarray:
+    """The ∇ of seed 002 eq. 2 for an aim of :data:`AIMS` (1/rad): zeros ("off"),
+    :func:`joint_limit_gradient` ("limits"), :func:`log_manipulability_gradient`
+    ("manipulability"), or their sum ("both": each is of order 1/rad).
+
+    Raises:
+        ValueError: an aim not in :data:`AIMS`.
+    """
+    if aim not in AIMS:
+        raise ValueError(f"aim must be one of {', '.join(AIMS)}, got {aim!r}")
+    q = vector("q", q, model.n)
+    grad = np.zeros(model.n)
+    if aim in ("limits", "both"):
+        grad += joint_limit_gradient(q, lower, upper)
+    if aim in ("manipulability", "both"):
+        grad += log_manipulability_gradient(model, q, rows)
+    return grad
 
 
 def null_space_projector(J: np.ndarray) -> np.ndarray:

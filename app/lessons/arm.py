@@ -1,4 +1,4 @@
-"""Lesson: your own arm from its URDF — joint sliders, a draggable hand target, compliance.
+"""Lesson: your own arm from its URDF — joint sliders, a hand target, compliance, spare joints.
 
 Any serial chain of 1 to 7 revolute joints (``armlab serve --robot PATH.urdf
 --tip-link LINK``, or the shipped ``open_manipulator_x``) runs the thesis's
@@ -10,6 +10,12 @@ the URDF narrowed to the servos'); dragging the hand target makes the loop follo
 it by resolved-motion rate control (position only, so a 4+ joint arm is redundant
 for it). The Teach tab lists every joint's limits and says which come from a
 stated default (a continuous joint whose file gives none).
+
+The compliance lesson's controls run on it too (:mod:`app.lessons.arm_controls`): the
+gains and the virtual environment with presets, a push at the hand, live charts of any
+joint; and an arm of more than 3 joints may use its spare joints (seed 002's gradient
+projection) to stay away from its limits or gain manipulability while the hand follows
+the target.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ from app.lessons._loop_state import (
     post_reset,
     stopped_state,
 )
+from app.lessons.arm_controls import ArmControls
 from app.lessons.compliance_servos import LinkMonitor
 from control.commands import EStop, RunTrajectory, SetTarget
 from control.loop import ControlLoop
@@ -42,8 +49,9 @@ from kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
 NAME = "arm"
 TITLE = "Your arm: joints and hand target (any URDF)"
 HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the loop follows it "
-        "by resolved-motion rate control) and the compliance controller holding the pose. "
-        "Limits come from the file; the Teach tab lists them.")
+        "by resolved-motion rate control) and the compliance controller holding the pose, "
+        "with its gains, a push at the hand and live charts; spare joints (more than 3) "
+        "can aim away from the limits. Limits come from the file; the Teach tab lists them.")
 #: The first action, shown under the status line.
 TRY = ("Move a joint slider a few degrees, then drag the orange target: the hand follows it.")
 ROBOTS = ("open_manipulator_x", ANY_URDF)
@@ -189,6 +197,9 @@ class ArmLesson(LessonBase):
                 self.sliders.append(slider)
             reset = gui.add_button("Reset (after E-STOP or a fault)")
             reset.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
+        self.controls = ArmControls(self.server, self._gui, tabs, model=self.model,
+                                    backend=self.backend, loop=self.loop,
+                                    base_node=self.base.name, place_target=self._place_target)
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(
                 f"**{esc(self.model.name)}**: {self.model.n} joints "
@@ -197,6 +208,7 @@ class ArmLesson(LessonBase):
                 "holds each joint; dragging the orange target moves the hand by "
                 "resolved-motion rate control (Δq = J⁺ Δx, position only).")
             self.limits = gui.add_markdown(limits_markdown(self.model, lower, upper))
+            self.controls.add_teach(gui)
 
     def _tip_name(self) -> str:
         return self.ctx.tip_link or "the file's default tip"
@@ -222,10 +234,16 @@ class ArmLesson(LessonBase):
         """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
         self.loop.post(SetTarget(xyz))
 
+    def _place_target(self, xyz: np.ndarray) -> None:
+        """Show the hand target at ``xyz`` (3,) m, base frame (viser reports only a page's
+        moves, so this is not taken for one)."""
+        self.target.position = np.asarray(xyz, dtype=float)
+
     def _pose_frame(self) -> None:
         snap = self.loop.recorder.snapshot(0.05)
         if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
             self.view.set_q(snap["q"][-1])
+            self.controls.pose_frame(snap)
 
     def _status_frame(self, force: bool) -> None:
         st = self.loop.status
@@ -237,8 +255,10 @@ class ArmLesson(LessonBase):
         else:
             state, color = ("holding", "#2e7d32") if st.active else ("starting", "#555")
             detail = st.message or where
-        set_content(self.status, status_html(state, color, esc(detail),
+        set_content(self.status, status_html(state + self.controls.status_note(), color,
+                                             esc(detail),
                                              extra=link_note(self._link, self.backend)))
+        self.controls.plot_frame(force)
 
     # ================================================================== lifetime
 
@@ -260,7 +280,7 @@ class ArmLesson(LessonBase):
             close_in_turn(self.publisher.close,
                           (lambda: self.loop.shutdown(torque_off=True)) if own else None,
                           self.backend.close if own else None, self.view.remove,
-                          self.base.remove, self._gui.remove_all)
+                          self.controls.remove, self.base.remove, self._gui.remove_all)
 
 
 def _view_direction(base: np.ndarray, hand: np.ndarray) -> tuple[float, float, float]:

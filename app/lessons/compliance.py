@@ -33,7 +33,6 @@ from app.lessons._common import (
     send_download,
     set_content,
     status_html,
-    warning_html,
 )
 from app.lessons._loop_state import (
     STOPPED_COLOR,
@@ -42,9 +41,10 @@ from app.lessons._loop_state import (
     post_reset,
     stopped_state,
 )
-from app.lessons.compliance_controls import GainControls
+from app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
 from app.lessons.compliance_plots import JointPlots, joint_label
-from app.lessons.compliance_scene import ComplianceScene
+from app.lessons.compliance_push import PushControls
+from app.lessons.compliance_scene import ComplianceScene, estimated_hand_force
 from app.lessons.compliance_servos import LinkMonitor, safe_health_html
 from app.lessons.compliance_teach import (
     Chapter4,
@@ -66,7 +66,7 @@ from control.commands import (
     Stop,
 )
 from control.loop import ControlLoop, LoopStatus
-from control.params import DEFAULT, Params, loop_stability, stability_warning
+from control.params import DEFAULT, Params
 from control.response import Measured, line_errors, measure_push, measure_step, plan_step
 from control.trajectory import (
     THESIS_LINE_END,
@@ -270,7 +270,7 @@ class ComplianceLesson(LessonBase):
         with self._gui.chart_panel("Live charts") as charts:
             self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"),
                                     default_joint=2)
-        self._show_warning(params, unstable=loop_stability(params).unstable)
+        show_gain_warning(self.warning, params)
 
     def _build_run_tab(self, gui: viser.GuiApi, link_preset: str) -> None:
         run = gui.add_button("Run thesis line", color="green", icon=viser.Icon.PLAYER_PLAY,
@@ -329,22 +329,11 @@ class ComplianceLesson(LessonBase):
         else:
             gui.add_markdown("**Drag the pink sphere at the hand** to pull the arm with a "
                              "spring, or push it with the button below.")
-        sim = not self.hardware
         self._spring_k = guarded_slider(gui, "Drag spring (N/m)", name="drag spring", lo=10.0,
                                         hi=1000.0, step=10.0, initial=200.0,
-                                        apply=lambda v: None, visible=sim)
-        self._push_force = guarded_slider(gui, "Push force (N)", name="push force", lo=0.5,
-                                          hi=20.0, step=0.5, initial=4.0,
-                                          apply=lambda v: None, visible=sim)
-        self.push_dir = gui.add_dropdown("Direction", tuple(PUSH_DIRECTIONS),
-                                         visible=not self.hardware)
-        self._push_time = guarded_slider(gui, "Duration (s)", name="duration", lo=0.1, hi=10.0,
-                                         step=0.1, initial=2.0, apply=lambda v: None,
-                                         visible=sim)
-        push = gui.add_button("Push", icon=viser.Icon.HAND_FINGER, visible=not self.hardware,
-                              hint="Push the hand with this force for this long")
-        push.on_click(lambda e: guarded(e, self.push))
-        self.push_result = gui.add_markdown("")  # the figures of the last push, here
+                                        apply=lambda v: None, visible=not self.hardware)
+        self.pushes = PushControls(gui, tuple(PUSH_DIRECTIONS), servos=self.hardware,
+                                   on_push=self.push)
 
     # ================================================================== actions
 
@@ -356,22 +345,7 @@ class ComplianceLesson(LessonBase):
 
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
-        unstable = loop_stability(params).unstable
-        if self.hardware and unstable:
-            raise ValueError("unstable gains are refused on real servos: "
-                             f"{stability_warning(params)}")
-        self._loop().set_params(params, force=True)
-        self._show_warning(params, unstable=unstable)
-
-    def _show_warning(self, params: Params, *, unstable: bool) -> None:
-        w = stability_warning(params)
-        if w is None:
-            self.warning.visible = False
-            return
-        color = "#b00020" if unstable else "#a15c00"
-        head = "Unstable gains" if unstable else "Check the gains"
-        self.warning.content = warning_html(head, w, color=color)
-        self.warning.visible = True
+        apply_gains(self._loop(), params, servos=self.hardware, warning=self.warning)
 
     def _now(self) -> float:
         return self._loop().status.t
@@ -413,8 +387,9 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         if not isinstance(rig.backend, Pushable):
             raise ValueError("real servos: push the arm by hand")
-        force = self._push_force.value * np.array(PUSH_DIRECTIONS[str(self.push_dir.value)])
-        duration = self._push_time.value
+        pushes = self.pushes
+        force = pushes.force * np.array(PUSH_DIRECTIONS[pushes.direction])
+        duration = pushes.duration
         t0 = self._now()
         rig.loop.post(Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
                            duration=duration))
@@ -423,7 +398,7 @@ class ComplianceLesson(LessonBase):
             return
         self.run_start, self.run_label = t0, "push"
         self.experiment = Experiment("push", t0, ready_at=t0 + duration, label=(
-            f"push of {self._push_force.value:g} N {self.push_dir.value} for {duration:g} s"))
+            f"push of {pushes.force:g} N {pushes.direction} for {duration:g} s"))
 
     def stop(self) -> None:
         self._loop().post(Stop())
@@ -529,12 +504,7 @@ class ComplianceLesson(LessonBase):
                 applied = push[0] if applied is None else applied + push[0]
             else:
                 self._push = None
-        tau_ext = snap["tau_ext"][-1]
-        estimated = None
-        if np.all(np.isfinite(tau_ext)):
-            # τ_ext is what the motors spend against the world: the world applies −τ_ext.
-            estimated = np.linalg.pinv(J[:3].T) @ (-tau_ext)
-        rig.scene.set_forces(hand, applied, estimated)
+        rig.scene.set_forces(hand, applied, estimated_hand_force(J, snap["tau_ext"][-1]))
 
     def _plot_frame(self, force: bool) -> None:
         rig = self.rig
@@ -639,7 +609,7 @@ class ComplianceLesson(LessonBase):
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
                     joint_labels=[joint_label(n) for n in rig.model.joint_names])
-                for beside in (self.push_result, self.push_result_run):  # both buttons
+                for beside in (self.pushes.result, self.push_result_run):  # both buttons
                     set_content(beside, measured_line(self.measured_env))
         except ValueError as exc:
             self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"

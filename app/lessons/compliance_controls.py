@@ -10,6 +10,10 @@ viser calls an input's callbacks when Python sets its value too. Every callback
 here compares with :attr:`GainControls.params` (updated before any input is
 shown) and does nothing when they agree, so showing the parameters on the
 inputs never applies anything again and needs no re-entry flag.
+
+:func:`apply_gains` is the ``apply`` every arm lesson gives it: the parameters go to
+the control loop (unstable gains refused on real servos) and the warning line under
+the status says what :func:`control.params.stability_warning` finds.
 """
 
 from __future__ import annotations
@@ -21,7 +25,9 @@ from dataclasses import fields, replace
 import viser
 
 from app.inputs import GuardedNumber, notify
-from control.params import LAWS, PARAM_SPECS, PRESETS, Params
+from app.lessons._common import warning_html
+from control.loop import ControlLoop
+from control.params import LAWS, PARAM_SPECS, PRESETS, Params, loop_stability, stability_warning
 
 #: Slider value shown = SI value × scale (the period is shown in ms).
 DISPLAY_SCALE = {"period": 1000.0}
@@ -155,6 +161,38 @@ class GainControls:
         self.feedforward.value = params.feedforward
         self.law.value = LAW_LABELS[params.law]
         self.preset.value = _preset_of(params)
+
+
+def apply_gains(loop: ControlLoop, params: Params, *, servos: bool,
+                warning: viser.GuiHtmlHandle) -> None:
+    """Swap ``params`` into ``loop`` (at its next period) and show their warning.
+
+    Unstable gains (the sampled loop diverges even on an ideal servo) are taken on the
+    simulated arm, to be seen failing, and refused on real ``servos``.
+
+    Raises:
+        ValueError: refused (nothing changes then).
+    """
+    unstable = loop_stability(params).unstable
+    if servos and unstable:
+        raise ValueError(f"unstable gains are refused on real servos: "
+                         f"{stability_warning(params)}")
+    loop.set_params(params, force=True)
+    show_gain_warning(warning, params)
+
+
+def show_gain_warning(warning: viser.GuiHtmlHandle, params: Params) -> None:
+    """Show what :func:`stability_warning` says of ``params`` in ``warning`` (hidden when
+    nothing): red for unstable gains, amber for a caution."""
+    w = stability_warning(params)
+    if w is None:
+        warning.visible = False
+        return
+    unstable = loop_stability(params).unstable
+    color = "#b00020" if unstable else "#a15c00"
+    head = "Unstable gains" if unstable else "Check the gains"
+    warning.content = warning_html(head, w, color=color)
+    warning.visible = True
 
 
 def _preset_of(params: Params) -> str:

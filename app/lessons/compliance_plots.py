@@ -1,6 +1,7 @@
 """The compliance lesson's live charts: one joint at a time, about 10 s, degrees and N·m/kgf·cm.
 
-Four charts for the chosen joint (a button group picks it):
+Four charts for the chosen joint (a button group picks it, or a dropdown for an arm
+whose joint names would not fit on a phone's row of buttons):
 
 1. joint angle: command θ_cmd, reference θ_ref (sent to the servo), actual θ;
 2. angle error θ_cmd − θ;
@@ -36,6 +37,8 @@ TORQUE_UNITS = ("N·m", "kgf·cm")
 #: push shows there: second, so it is in view at 1280x720 too), error, servo torque.
 CHART_ORDER = (10.0, 11.0, 12.0, 13.0)
 ERROR_SPAN_DEG = 2.0  #: smallest span of the angle error chart, °
+#: characters of joint names a row of buttons holds on a phone; more get a dropdown
+BUTTONS_MAX_CHARS = 24
 
 
 def joint_label(name: str) -> str:
@@ -66,25 +69,33 @@ class JointPlots:
         self._unit = TORQUE_UNITS[0]
         self._stale = False
         with container:
-            self.joint_picker = gui.add_button_group("Joint", self.labels, order=1.0,
-                                                     hint="The joint the charts show")
+            hint = "The joint the charts show"
+            self.joint_picker: viser.GuiButtonGroupHandle | viser.GuiDropdownHandle
+            if sum(len(label) for label in self.labels) <= BUTTONS_MAX_CHARS:
+                buttons = gui.add_button_group("Joint", self.labels, order=1.0, hint=hint)
+                buttons.on_click(self._pick)
+                self.joint_picker = buttons
+            else:
+                dropdown = gui.add_dropdown("Joint", self.labels, order=1.0, hint=hint,
+                                            initial_value=self.labels[default_joint])
+                dropdown.on_update(self._pick)
+                self.joint_picker = dropdown
             self.torque_unit = gui.add_dropdown("Torque unit", TORQUE_UNITS, order=2.0,
                                                 initial_value=self._unit,
                                                 hint="The thesis gives torques in kgf·cm")
         self._build()
-
-        @self.joint_picker.on_click
-        def _(_: viser.GuiEvent) -> None:
-            value = str(self.joint_picker.value)
-            if value in self.labels and self.labels.index(value) != self._joint:
-                self._joint = self.labels.index(value)
-                self._stale = True  # rebuilt by the next update
 
         @self.torque_unit.on_update
         def _(_: viser.GuiEvent) -> None:
             if self.torque_unit.value != self._unit:
                 self._unit = str(self.torque_unit.value)
                 self._stale = True
+
+    def _pick(self, _: viser.GuiEvent) -> None:
+        value = str(self.joint_picker.value)
+        if value in self.labels and self.labels.index(value) != self._joint:
+            self._joint = self.labels.index(value)
+            self._stale = True  # rebuilt by the next update
 
     def _build(self) -> None:
         j, u = self.labels[self._joint], self._unit

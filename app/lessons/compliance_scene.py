@@ -112,12 +112,8 @@ class ComplianceScene:
         self.spring = scene.add_line_segments(f"{sh}/spring", points=np.zeros((1, 2, 3)),
                                               colors=(90, 90, 90), thickness=0.003,
                                               visible=False)
-        self.force = scene.add_arrows(f"{sh}/force", points=np.zeros((1, 2, 3)),
-                                      colors=FORCE_RGB, shaft_radius=0.007, head_radius=0.016,
-                                      head_length=0.03, visible=False)
-        self.estimate = scene.add_arrows(f"{sh}/estimate", points=np.zeros((1, 2, 3)),
-                                         colors=ESTIMATE_RGB, shaft_radius=0.004,
-                                         head_radius=0.01, head_length=0.02, visible=False)
+        self.arrows = ForceArrows(scene, sh)
+        self.force, self.estimate = self.arrows.force, self.arrows.estimate
         self._trail = [scene.add_icosphere(f"{sh}/trail/{i}", radius=0.004,
                                            color=(40, 40, 40), visible=False)
                        for i in range(TRAIL_DOTS)]
@@ -166,6 +162,32 @@ class ComplianceScene:
         self.spring.points = np.array([[hand, anchor]], dtype=np.float32)
         self.spring.visible = True
 
+    def set_forces(self, hand: np.ndarray, applied: np.ndarray | None,
+                   estimated: np.ndarray | None) -> None:
+        """Arrows for the applied force (red) and the force estimated from τ_ext (purple), N."""
+        self.arrows.set(hand, applied, estimated)
+
+    def remove(self) -> None:
+        self.root.remove()
+
+
+class ForceArrows:
+    """Two arrows ending at the hand: the force applied there (red: a push, a drag's
+    spring) and the force the controller estimates from τ_ext (purple).
+
+    Args:
+        scene: the server's scene API.
+        parent: the scene node of the arm's base frame (the arrows take its coordinates).
+    """
+
+    def __init__(self, scene: viser.SceneApi, parent: str) -> None:
+        self.force = scene.add_arrows(f"{parent}/force", points=np.zeros((1, 2, 3)),
+                                      colors=FORCE_RGB, shaft_radius=0.007, head_radius=0.016,
+                                      head_length=0.03, visible=False)
+        self.estimate = scene.add_arrows(f"{parent}/estimate", points=np.zeros((1, 2, 3)),
+                                         colors=ESTIMATE_RGB, shaft_radius=0.004,
+                                         head_radius=0.01, head_length=0.02, visible=False)
+
     @staticmethod
     def _arrow(handle: viser.ArrowsHandle, at: np.ndarray, force: np.ndarray | None, *,
                on: float = ARROW_MIN_N, off: float = ARROW_MIN_N) -> None:
@@ -178,14 +200,30 @@ class ComplianceScene:
         handle.points = np.array([[tail, at]], dtype=np.float32)
         handle.visible = True
 
-    def set_forces(self, hand: np.ndarray, applied: np.ndarray | None,
-                   estimated: np.ndarray | None) -> None:
-        """Arrows for the applied force (red) and the force estimated from τ_ext (purple), N."""
+    def set(self, hand: np.ndarray, applied: np.ndarray | None,
+            estimated: np.ndarray | None) -> None:
+        """Show ``applied`` and ``estimated`` (3,) N (None: hidden) at ``hand`` (3,) m,
+        base frame; the estimate only above :data:`ESTIMATE_ON_N` until it falls below
+        :data:`ESTIMATE_OFF_N`."""
         self._arrow(self.force, hand, applied)
         self._arrow(self.estimate, hand, estimated, on=ESTIMATE_ON_N, off=ESTIMATE_OFF_N)
 
     def remove(self) -> None:
-        self.root.remove()
+        """Remove both arrows from the scene."""
+        self.force.remove()
+        self.estimate.remove()
+
+
+def estimated_hand_force(J: np.ndarray, tau_ext: np.ndarray) -> np.ndarray | None:
+    """The force the world applies at the hand, (3,) N, from the estimated external joint
+    torques (eq. 2.23): F = (J_vᵀ)⁺ (−τ_ext), the statics τ = J_vᵀ F solved by least
+    squares (τ_ext is what the motors spend against the world, so the world applies
+    −τ_ext). ``J`` (6, n) geometric Jacobian, ``tau_ext`` (n,) N·m; None while τ_ext is
+    not finite (compliance off)."""
+    tau_ext = np.asarray(tau_ext, dtype=float)
+    if not np.all(np.isfinite(tau_ext)):
+        return None
+    return np.linalg.pinv(np.asarray(J, dtype=float)[:3].T) @ (-tau_ext)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
