@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import viser
 from viser._messages import GuiUpdateMessage
 
+from app import collector
 from app.arm_view import ArmView
 from app.classroom import Roles, address_of, new_passcode, presenter_link_code, qr_svg
 from app.inputs import UpdateScreen, notify
@@ -264,6 +265,7 @@ class Room:
             self.stream.hold(state.client.client_id)
             try:
                 state.private = module.build(Page(state.client), ctx)
+                collector.keep()  # the page's lesson lives as long as the page
             except BaseException:
                 self.stream.release(state.client)
                 self.show_shared(state.client, shown=True)
@@ -280,6 +282,7 @@ class Room:
             return
         state.figures = row_figures(lesson)
         lesson.close()
+        collector.closed()
         if not gone:
             self.stream.release(state.client)  # the shared lesson as it is now, then live
             self.show_shared(state.client, shown=True)
@@ -373,6 +376,7 @@ class Room:
             k += 1
             try:
                 self._tick(tables=k % TABLE_EVERY == 0)
+                collector.tidy(every_s=collector.TIDY_EVERY_S)  # what closed lessons left
             except Exception as exc:  # a page gone mid-update: next tick
                 print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200],
                       file=sys.stderr, flush=True)

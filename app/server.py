@@ -28,6 +28,7 @@ from types import ModuleType
 
 import viser
 
+from app import collector
 from app.camera import reframe, reframe_on_reshape
 from app.classroom import Roles
 from app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
@@ -279,7 +280,9 @@ class Lab:
             if not works_with(module, ctx.robot):  # the URDF options belong to the robot
                 ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
                               joint_map=None)
+        collector.tidy()  # what a closed lesson left, freed while no lesson runs here
         self.lesson = module.build(self.server, ctx)
+        collector.keep()  # the lab and its lesson: out of the collector's full passes
         self.lesson_name = name
         self.lesson_ctx = ctx
         if self.room is not None:
@@ -294,6 +297,7 @@ class Lab:
             if self.lesson is not None:
                 self.lesson.close()
                 self.lesson = None
+                collector.closed()
             try:
                 self._open(name)  # its scene frames itself on every open page (app.camera)
             except (ValueError, OSError, RuntimeError):
@@ -357,6 +361,8 @@ class Lab:
         finally:
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
+            collector.closed()  # what the lab kept is garbage now
+            collector.tidy()
 
     def __enter__(self) -> Lab:
         return self

@@ -159,6 +159,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     start = rss.get("start", rss["end"])
     return {
         "classroom_30_pose_hz": res["own_pose_hz_min"],
+        "classroom_30_pose_hz_median": res["own_pose_hz_median"],
         "classroom_30_arm_moved_hz": res["own_arm_moved_hz_min"],
         "classroom_30_bytes_per_client_per_s": res["bytes_per_client_per_s"],
         "classroom_30_bytes_per_client_per_s_max": res["bytes_per_client_per_s_max"],

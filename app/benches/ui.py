@@ -139,6 +139,8 @@ def client_main(argv: list[str] | None = None) -> int:
                                       for i in range(args.clients)])),
         "plot_hz": float(np.mean([len(plot_frames[i]) / dt for i in range(args.clients)])),
         "own_pose_hz_min": float(min(len(own_frames[i]) / dt for i in range(args.clients))),
+        "own_pose_hz_median": float(np.median([len(own_frames[i]) / dt
+                                               for i in range(args.clients)])),
         "own_arm_moved_hz_min": float(min(len(own_moved[i]) / dt
                                           for i in range(args.clients))),
         "bytes_per_client_per_s_max": float(max((b - a) / dt for a, b in zip(b0, b1,
@@ -151,6 +153,9 @@ def client_main(argv: list[str] | None = None) -> int:
         "client_cpu_share": float((cpu1.user + cpu1.system - cpu0.user - cpu0.system)
                                   / (wall1 - wall0)),
     }
+    if args.my_arm:  # which pages, if any, fell behind (the figure is the lowest)
+        print("own frames per page:", sorted(len(own_frames[i]) for i in range(args.clients)),
+              file=sys.stderr, flush=True)
     print(json.dumps(out), flush=True)
     return 0
 
@@ -165,6 +170,8 @@ def _clients(url: str, n: int, seconds: float, settle: float = 1.5, *,
         timeout=seconds + settle + 120 + (OWN_ARM_TIMEOUT_S if my_arm else 0.0))
     if res.returncode != 0:
         raise RuntimeError(f"bench clients failed: {res.stderr.strip()[-500:]}")
+    if res.stderr.strip():
+        print(res.stderr.strip()[-2000:], file=sys.stderr, flush=True)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
