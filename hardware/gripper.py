@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from control.backend import GripperState
-from hardware.plant import JointStops, Plant
+from hardware.plant import Plant
 from hardware.xseries import CURRENT_POSITION_D_GAIN, VELOCITY_UNIT, XSpec, x_table_for
 from hardware.xservo import XRegisters
 from kinematics.model import Joint, Link, SerialChain, joint_limits
@@ -147,11 +147,10 @@ def gripper_chain(gripper: GripperServo) -> SerialChain:
 def gripper_plant(gripper: GripperServo, spec: XSpec, *, dt: float = 1e-3,
                   registers: XRegisters | None = None) -> Plant:
     """The gripper's servo firmware moving its load (:func:`gripper_chain`), horn at its
-    centre, the finger stops as the chain's joint stops. ``registers``: the servo's
+    centre, the fingers' ends as the plant's joint stops. ``registers``: the servo's
     (default: its power-on values, as an emulated servo starts)."""
     return Plant(gripper_chain(gripper), spec, dt=dt,
-                 registers=None if registers is None else [registers],
-                 stops=JointStops(stiffness=50.0, damping=0.5))
+                 registers=None if registers is None else [registers])
 
 
 def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:

@@ -241,7 +241,9 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
 
     Keys: ``servo`` (optional, model name), ``joints``: a list of tables with
     ``name`` (must be a joint of ``model``, every joint listed once, any order),
-    ``id``, and optional ``sign``, ``offset_deg``, ``lower_deg``, ``upper_deg``.
+    ``id``, and optional ``sign``, ``offset_deg``, ``lower_deg``, ``upper_deg``; an
+    optional ``gripper`` table (its servo's ``id``, the URDF's finger ``joint``,
+    ``closed_deg``/``open_deg``; see the module's docstring).
     """
     path = Path(path)
     try:
