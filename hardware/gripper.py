@@ -50,8 +50,10 @@ OMX_CLOSED_ANGLE, OMX_OPEN_ANGLE = 0.92, -1.52
 FINGERS_MASS = 2 * 3.2218127e-02
 #: A, the gripper's Goal Current: 100 counts of the XM430-W350's 2.69 mA (see above).
 GRIPPER_CURRENT = 100 * 2.69e-3
-#: rad/s of the horn between goals (its Profile Velocity): open to closed in about 1 s.
+#: rad/s of the horn between goals: open to closed in about 1 s; and as the Profile
+#: Velocity counts (0.229 rpm) its goals are sent with.
 GRIPPER_SPEED = 2.5
+GRIPPER_PROFILE_VELOCITY = round(GRIPPER_SPEED / VELOCITY_UNIT)
 
 
 @dataclass(frozen=True)
@@ -126,7 +128,7 @@ def open_manipulator_gripper(urdf_path: str | Path, *, servo_id: int = 15) -> Gr
                         OMX_OPEN_ANGLE)
 
 
-def reflected_inertia(gripper: GripperServo, mass: float = FINGERS_MASS) -> float:
+def reflected_inertia(gripper: GripperServo, *, mass: float = FINGERS_MASS) -> float:
     """kg·m² the fingers add at the horn: their kinetic energy ½ m ẋ² with ẋ = (dx/da) ȧ
     is that of an inertia m (dx/da)² turning at ȧ."""
     return mass * gripper.ratio ** 2
@@ -164,11 +166,6 @@ def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:
              f"at most {torque:.2f} N·m at the horn, a gentle grip)"),
             ("position_d_gain", CURRENT_POSITION_D_GAIN,
              f"position D gain {CURRENT_POSITION_D_GAIN}"))
-
-
-def gripper_speed_raw(spec: XSpec) -> int:
-    """Profile Velocity counts of :data:`GRIPPER_SPEED` (the gripper's goals go with it)."""
-    return max(1, round(GRIPPER_SPEED / VELOCITY_UNIT))
 
 
 def decode_gripper(gripper: GripperServo, spec: XSpec, *, position: int, velocity: int,

@@ -40,7 +40,7 @@ from control.backend import BackendError, GripperState, JointState
 from hardware import protocol2 as p2
 from hardware.bus import BusError
 from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
-from hardware.gripper import decode_gripper, gripper_settings, gripper_speed_raw
+from hardware.gripper import GRIPPER_PROFILE_VELOCITY, decode_gripper, gripper_settings
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
 from hardware.xseries import VELOCITY_UNIT, OperatingMode, lab_mode, lab_settings
 from kinematics.model import Quadruped, SerialChain
@@ -152,7 +152,7 @@ class XSeriesBackend(DynamixelBackend):
         """The gripper's (profile velocity, goal position) for a SYNC_WRITE, or nothing."""
         if self.gripper is None or self._gripper_goal is None:
             return {}
-        return {self.gripper.servo_id: (gripper_speed_raw(self.spec), self._gripper_goal)}
+        return {self.gripper.servo_id: (GRIPPER_PROFILE_VELOCITY, self._gripper_goal)}
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Clamp goals into the limits; send them with their profile velocities in one

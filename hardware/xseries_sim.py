@@ -23,11 +23,11 @@ import numpy as np
 
 from control.backend import GripperState, JointState
 from hardware.gripper import (
+    GRIPPER_PROFILE_VELOCITY,
     GripperServo,
     decode_gripper,
     gripper_plant,
     gripper_settings,
-    gripper_speed_raw,
 )
 from hardware.plant import Plant
 from hardware.servo import ServoParams
@@ -81,7 +81,7 @@ def gripper_registers(spec: XSpec, *, torque_on: bool = True) -> XRegisters:
     regs.operating_mode = OperatingMode.CURRENT_BASED_POSITION
     for item, value, _ in gripper_settings(spec):
         setattr(regs, item, value)
-    regs.profile_velocity = gripper_speed_raw(spec)
+    regs.profile_velocity = GRIPPER_PROFILE_VELOCITY
     regs.torque_enable = int(torque_on)
     return regs
 
@@ -190,8 +190,9 @@ class XSimBackend(SimBackend):
                 servo.regs.profile_velocity = min(v, servo.regs.velocity_limit or v)
 
     def set_torque(self, on: bool) -> None:
-        """Torque Enable on every servo; switching on REBOOTs a servo that shut down on a
-        hardware error first (the only way back on an X-series servo)."""
+        """Torque Enable on every servo, the gripper's too (whose fingers then hold where
+        they are); switching on REBOOTs a servo that shut down on a hardware error first
+        (the only way back on an X-series servo)."""
         with self._lock:
             self._check_open()
             fingers = None if self.gripper_plant is None else self.gripper_plant.servos[0]
