@@ -123,16 +123,29 @@ class ArmView:
     def set_q(self, q: np.ndarray) -> None:
         """Pose the robot at joint vector ``q`` (n,), rad (m for prismatic joints)."""
         q = np.asarray(q, dtype=float)
-        for i, (frame, origin, q0, axis, kind) in enumerate(self._moving):
+        for i, moving in enumerate(self._moving):
             qi = float(q[i])
-            if qi == self.q[i]:
-                continue
-            if kind == "prismatic":  # parent <- child = origin · Trans(axis q)
-                frame.position = origin[:3, 3] + origin[:3, :3] @ (axis * qi)
-            else:  # parent <- child = origin · Rot(axis, q)
-                h = 0.5 * qi
-                frame.wxyz = _quat_mul(q0, np.array([math.cos(h), *(math.sin(h) * axis)]))
+            if qi != self.q[i]:
+                _pose(*moving, qi)
         self.q = q.copy()
+
+    def set_joint(self, name: str, value: float) -> None:
+        """Pose the URDF joint ``name`` off the chain (a gripper's finger: m, or rad) at
+        ``value``, and every joint that mimics it at multiplier · value + offset (the
+        other finger)."""
+        for j in self._urdf._urdf.joint_map.values():
+            mimic = j.mimic
+            if j.name == name:
+                v = float(value)
+            elif mimic is not None and mimic.joint == name:
+                v = (mimic.multiplier if mimic.multiplier is not None else 1.0) * float(value) \
+                    + (mimic.offset or 0.0)
+            else:
+                continue
+            origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+            axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+            _pose(self.link_frames[j.child], origin, vtf.SO3.from_matrix(origin[:3, :3]).wxyz,
+                  axis / np.linalg.norm(axis), j.type, v)
 
     def see_through(self, link: str, *, opacity: float = 0.25) -> bool:
         """Draw ``link`` translucent, so that links behind it show (a body the arm stands
@@ -199,6 +212,16 @@ class ArmView:
                                          color=rgb, opacity=opacity)
             drawn[link.name] = kind
         return drawn
+
+
+def _pose(frame: viser.SceneNodeHandle, origin: np.ndarray, q0: np.ndarray, axis: np.ndarray,
+          kind: str, value: float) -> None:
+    """Pose one joint's child frame at ``value`` (m for a prismatic joint, else rad)."""
+    if kind == "prismatic":  # parent <- child = origin · Trans(axis q)
+        frame.position = origin[:3, 3] + origin[:3, :3] @ (axis * value)
+    else:  # parent <- child = origin · Rot(axis, q)
+        h = 0.5 * value
+        frame.wxyz = _quat_mul(q0, np.array([math.cos(h), *(math.sin(h) * axis)]))
 
 
 def _joint_names(model: SerialChain | Quadruped) -> tuple[str, ...]:

@@ -37,8 +37,10 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
 
         spec = shipped_x_servo(model)
         if spec is not None and "specs" not in kw:  # an arm that ships with X-series servos
+            from hardware.joint_map import default_joint_map
             from hardware.xseries_sim import XSimBackend
 
+            kw.setdefault("gripper", default_joint_map(model).gripper)  # its own servo
             return XSimBackend(model, spec=spec, **kw)  # type: ignore[arg-type]
         return SimBackend(model, **kw)
     if kind == "serial":

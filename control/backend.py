@@ -19,6 +19,29 @@ import numpy as np
 
 
 @dataclass(frozen=True)
+class GripperState:
+    """What a gripper's servo reports, in the URDF's finger joint (never ground truth).
+
+    Attributes:
+        joint: the URDF's finger joint (the other finger mimics it).
+        position: m, the finger joint's position.
+        velocity: m/s of the finger.
+        effort: N·m at the servo's horn (its current × torque constant).
+        force: N each finger presses with (the horn's torque through the linkage).
+        torque_on: whether the gripper's servo holds torque.
+        alarm: its hardware error ("" = healthy).
+    """
+
+    joint: str
+    position: float
+    velocity: float
+    effort: float
+    force: float
+    torque_on: bool
+    alarm: str = ""
+
+
+@dataclass(frozen=True)
 class JointState:
     """What the servos report at one instant (never ground truth).
 
@@ -31,6 +54,7 @@ class JointState:
         torque_on: (n,) whether each servo's torque is enabled.
         alarms: (n,) the backend's names for each servo's set error bits
             ("overheating, overload"; "ok" = healthy), or () when it names none.
+        gripper: what the gripper's servo reports, on an arm with one (:class:`Gripping`).
     """
 
     t: float
@@ -40,6 +64,7 @@ class JointState:
     errors: tuple[int, ...]
     torque_on: tuple[bool, ...]
     alarms: tuple[str, ...] = ()
+    gripper: GripperState | None = None
 
 
 class BackendError(RuntimeError):
@@ -140,6 +165,26 @@ class Pushable(Protocol):
                    point: np.ndarray) -> None:
         """Pull ``point`` on ``link`` towards ``anchor`` (3,) m, base frame, with a
         spring of ``stiffness`` N/m (a hand dragging the arm); None releases it."""
+        ...
+
+
+@runtime_checkable
+class Gripping(Protocol):
+    """A backend that drives a gripper's servo beside the arm's joints (read and written in
+    the same bus transactions as the joints; its torque off with theirs)."""
+
+    @property
+    def gripper_range(self) -> tuple[float, float] | None:
+        """(closed, open) m of the finger joint, or None when the arm has no gripper."""
+        ...
+
+    def set_gripper(self, position: float) -> float:
+        """Hold the finger at ``position`` m, clamped into :attr:`gripper_range`, from the
+        next ``write`` on; returns the clamped goal.
+
+        Raises:
+            ValueError: a non-finite position, or an arm without a gripper (nothing sent).
+        """
         ...
 
 

@@ -141,7 +141,18 @@ class SetController:
             raise ValueError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
 
 
+@dataclass(frozen=True)
+class SetGripper:
+    """Move the gripper's finger to ``position`` m (the URDF's finger joint); the backend
+    clamps it into the gripper's range."""
+
+    position: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position", scalar("gripper position (m)", self.position))
+
+
 Command = (RunTrajectory | Stop | Push | Spring | EStop | Reset | Reconnect | SetTarget
-           | UseSpareJoints | SetController)
+           | UseSpareJoints | SetController | SetGripper)
 COMMANDS = (RunTrajectory, Stop, Push, Spring, EStop, Reset, Reconnect, SetTarget,
-            UseSpareJoints, SetController)
+            UseSpareJoints, SetController, SetGripper)

@@ -38,7 +38,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.backend import Backend, BackendError, JointState, Pushable, Reconnectable
+from control.backend import (
+    Backend,
+    BackendError,
+    GripperState,
+    Gripping,
+    JointState,
+    Pushable,
+    Reconnectable,
+)
 from control.commands import (
     COMMANDS,
     Command,
@@ -48,6 +56,7 @@ from control.commands import (
     Reset,
     RunTrajectory,
     SetController,
+    SetGripper,
     SetTarget,
     Spring,
     Stop,
@@ -209,6 +218,7 @@ class ControlLoop:
         self._unsent_retry_t = 0.0
         self._reconnect_t = 0.0  # loop time of the next automatic reconnection attempt
         self._await_reset = False  # a link found again stays torque-off until a Reset
+        self._gripper: GripperState | None = None  # the newest gripper reading
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime)
             if clock is None else
@@ -257,6 +267,12 @@ class ControlLoop:
         if not isinstance(command, COMMANDS):
             raise ValueError(f"not a loop command: {type(command).__name__}")
         self._commands.put(command)
+
+    @property
+    def gripper(self) -> GripperState | None:
+        """What the gripper's servo reported at the newest period (None: the arm has no
+        gripper, or the loop has not read it yet). Safe from any thread."""
+        return self._gripper
 
     @property
     def status(self) -> LoopStatus:
@@ -349,6 +365,8 @@ class ControlLoop:
             return
         self.backend.sync(t)
         meas = self.backend.read()
+        if meas.gripper is not None:
+            self._gripper = meas.gripper
         q, qd, load = (np.asarray(meas.position, dtype=float),
                        np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
         reset = any(isinstance(c, Reset) for c in cmds)
@@ -544,6 +562,9 @@ class ControlLoop:
                 self.backend.set_spring(cmd.anchor, stiffness=cmd.stiffness, link=cmd.link,
                                         point=cmd.point)
             return
+        if isinstance(cmd, SetGripper):
+            self._grip(cmd.position)
+            return
         assert self._hold is not None
         current = self._current_cmd()
         if isinstance(cmd, Stop):
@@ -581,6 +602,17 @@ class ControlLoop:
             self._target = self.model.fk(self._hold)[:3, 3]  # keep the hand where it is
         self._note(f"spare joints: {cmd.aim} (k_a {cmd.gain:g} 1/s) while the hand "
                    "follows its target")
+
+    def _grip(self, position: float) -> None:
+        """Hand a gripper goal (m) to the backend, which sends it with the next goals."""
+        if not (isinstance(self.backend, Gripping) and self.backend.gripper_range):
+            self._note("this arm has no gripper servo")
+        elif not self._active:
+            self._note("gripper: the arm is stopped (E-STOP or a fault); Reset first")
+        else:
+            x = self.backend.set_gripper(position)
+            clamped = " (clamped into its range)" if abs(x - position) > 1e-9 else ""
+            self._note(f"gripper: finger to {x * 1e3:+.1f} mm{clamped}")
 
     def _current_cmd(self) -> np.ndarray:
         if self._traj is not None:

@@ -357,17 +357,21 @@ class DynamixelBackend(GoalLimits):
         backend's baud and the bus follows them (one logged line each, added to ``lines``)."""
         target = self._baud_value(self.baud)
         if from_baud is not None and self._baud_value(from_baud) != target:
-            for j in self.map.joints:
-                self._write_setting(j.servo_id, "baud_rate", target)
-                lines.append(f"servo {j.servo_id} ({j.name}): baud {self.baud:.0f} bps")
+            for i, who in self._named_servos():
+                self._write_setting(i, "baud_rate", target)
+                lines.append(f"servo {i} ({who}): baud {self.baud:.0f} bps")
                 log.info(lines[-1])
             time.sleep(0.01)
             self._guard(self.bus.set_baud, self.baud)
-            for j in self.map.joints:
-                self._guard(self.bus.ping, j.servo_id)
+            for i, _ in self._named_servos():
+                self._guard(self.bus.ping, i)
         else:
             lines.append(f"all servos: baud {self.baud:.0f} bps (already set)")
             log.info(lines[-1])
+
+    def _named_servos(self) -> list[tuple[int, str]]:
+        """(ID, name for the log) of every servo on the bus: one per joint."""
+        return [(j.servo_id, j.name) for j in self.map.joints]
 
     def _write_setting(self, servo_id: int, name: str, value: int) -> None:
         self._guard(self.bus.write, servo_id, name, value)

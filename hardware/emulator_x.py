@@ -10,7 +10,8 @@ address past the table; Data Length, Data Range; Instruction for an ACTION with 
 registered); the alert bit while Hardware Error Status is set; silence at a baud that
 is not the servo's. The servos move because :class:`XPlantPhysics` hands their RAM to
 the simulated X-series firmware (:class:`hardware.xservo.XServoModel`) of the same
-plant the simulator uses.
+plant the simulator uses; an arm's gripper servo (the OpenManipulator-X's ID 15) moves
+the fingers' load of :func:`hardware.gripper.gripper_plant`.
 
 *Interpretation* (the e-manual says a goal "should be configured within" its limit):
 a Goal Position outside the Min/Max Position Limit (in Position Control), a Goal
@@ -26,11 +27,12 @@ from typing import ClassVar
 
 from hardware import protocol2 as p2
 from hardware.emulator import ServoBus, TableImage
+from hardware.gripper import GripperServo, gripper_plant
 from hardware.plant import Plant
 from hardware.protocol2 import ErrorNumber as E
 from hardware.protocol2 import Instruction as I
 from hardware.xseries import TABLE_SIZE, OperatingMode, x_table_for
-from hardware.xservo import XRegisters
+from hardware.xservo import XRegisters, XServoModel
 from kinematics.model import SerialChain
 
 #: The firmware version the emulated servos report (address 6).
@@ -147,24 +149,35 @@ class XPlantPhysics:
 
     Args:
         plant: one plant of X-series servos (one servo per joint).
+        gripper: the gripper's plant (:func:`hardware.gripper.gripper_plant`): the servo
+            whose ``joint`` is one past the arm's last.
     """
 
-    def __init__(self, plant: Plant) -> None:
+    def __init__(self, plant: Plant, *, gripper: Plant | None = None) -> None:
         self.plant = plant
+        self.gripper = gripper
         #: the registers the firmware acts on that the control table holds
         self._names = [f.name for f in fields(XRegisters)
                        if plant.servos and _has(plant.servos[0].spec.name, f.name)]
 
     def advance_to(self, t: float) -> None:
         self.plant.advance_to(t)
+        if self.gripper is not None:
+            self.gripper.advance_to(t)
+
+    def _model(self, s: XVirtualServo) -> XServoModel:
+        """The simulated servo behind ``s``: an arm joint's, or the gripper's."""
+        if s.joint == self.plant.n and self.gripper is not None:
+            return self.gripper.servos[0]
+        return self.plant.servos[s.joint]
 
     def apply(self, s: XVirtualServo) -> None:
-        regs = self.plant.servos[s.joint].regs
+        regs = self._model(s).regs
         for name in self._names:
             setattr(regs, name, s.get(name))
 
     def report(self, s: XVirtualServo) -> None:
-        model = self.plant.servos[s.joint]
+        model = self._model(s)
         r = model.report()
         s.put("present_position", r.position)
         s.put("present_velocity", r.velocity)
@@ -178,7 +191,7 @@ class XPlantPhysics:
         s.hardware_error = r.hardware_error
 
     def reboot(self, s: XVirtualServo) -> None:
-        self.plant.servos[s.joint].reboot()
+        self._model(s).reboot()
 
 
 @dataclass
@@ -310,9 +323,11 @@ def _u16(data: bytes, at: int) -> int:
 
 
 def emulated_x_network(model: SerialChain, ids: Sequence[int], *, servo: str = "XM430-W350",
-                       baud: float = 1_000_000, dt: float = 1e-3) -> XServoNetwork:
+                       baud: float = 1_000_000, dt: float = 1e-3,
+                       gripper: GripperServo | None = None) -> XServoNetwork:
     """The X-series servos of ``model`` on one bus (``ids`` in joint order), moved by a
-    plant of the same chain, as the simulator's.
+    plant of the same chain, as the simulator's; with ``gripper``, its servo too, moving
+    the fingers (:func:`hardware.gripper.gripper_plant`).
 
     Args:
         model: a serial chain.
@@ -320,19 +335,23 @@ def emulated_x_network(model: SerialChain, ids: Sequence[int], *, servo: str = "
         servo: the X-series model of every joint ("XM430-W350", "XL430-W250", "XL330-M288").
         baud: bit/s in every servo's EEPROM (one of the X-series rates).
         dt: plant step, s.
+        gripper: the gripper's servo (its ID after the joints'), or None.
     """
     ids = [int(i) for i in ids]
     if len(ids) != model.n:
         raise ValueError(f"ids: {len(ids)} given for the {model.n} joints of {model.name}")
-    if len(set(ids)) != len(ids) or not all(0 <= i <= p2.MAX_ID for i in ids):
-        raise ValueError(f"ids: distinct IDs in 0..{p2.MAX_ID}, got {ids}")
+    every = ids + ([gripper.servo_id] if gripper is not None else [])
+    if len(set(every)) != len(every) or not all(0 <= i <= p2.MAX_ID for i in every):
+        raise ValueError(f"ids: distinct IDs in 0..{p2.MAX_ID}, got {every}")
     table = x_table_for(servo)
     baud_value = table.from_si("baud_rate", baud)
     plant = Plant(model, table.spec, dt=dt)
-    physics = XPlantPhysics(plant)
+    fingers = None if gripper is None else gripper_plant(gripper, table.spec, dt=dt)
+    physics = XPlantPhysics(plant, gripper=fingers)
+    models = [*plant.servos, *(fingers.servos if fingers is not None else ())]
     servos = [XVirtualServo.new(table, i, j, baud_value=baud_value,
-                                present_position=plant.servos[j].report().position)
-              for j, i in enumerate(ids)]
+                                present_position=m.report().position)
+              for j, (i, m) in enumerate(zip(every, models, strict=True))]
     for s in servos:
         physics.apply(s)
         physics.report(s)

@@ -20,6 +20,16 @@ that answer; ``protocol`` and ``baud`` record what they answered with)::
     offset_deg = 0.0
     lower_deg = -150
     upper_deg = 150
+
+An arm whose gripper has its own X-series servo (the OpenManipulator-X's ID 15) names
+it in a ``[gripper]`` table: its ``id``, the URDF's finger ``joint`` (its limits are the
+gripper's range) and the horn angles at the finger's closed and open ends
+(``closed_deg``, ``open_deg``; the OpenManipulator-X's are known, see
+:mod:`hardware.gripper`)::
+
+    [gripper]
+    id = 15
+    joint = "gripper_left_joint"
 """
 
 from __future__ import annotations
@@ -28,16 +38,17 @@ import json
 import math
 import tomllib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hardware.control_table import TABLES, ControlTable, table_for
+from hardware.gripper import GripperServo, open_manipulator_gripper
 from hardware.servo_spec import ServoSpec
-from hardware.xseries import X_TABLES, XSpec, x_table_for
-from kinematics.model import Joint, Quadruped, SerialChain
+from hardware.xseries import X_TABLES, OperatingMode, XSpec, x_table_for
+from kinematics.model import Joint, Quadruped, SerialChain, URDFError, joint_limits
 
 if TYPE_CHECKING:
     from hardware.scan import Found
@@ -49,10 +60,12 @@ THESIS_LEFT_ARM_IDS = (1, 3, 5)
 THESIS_RIGHT_ARM_IDS = (2, 4, 6)
 #: Robot -> (servo model, IDs in joint order) of the arms that ship with their servos: the
 #: thesis arm (RX-24F, IDs 1, 3, 5) and ROBOTIS's OpenManipulator-X (XM430-W350, IDs
-#: 11..14 from its public specification; its gripper's servo, ID 15, drives no joint of
-#: the chain).
+#: 11..14 from its public specification; its gripper's servo is in :data:`ROBOT_GRIPPERS`).
 ROBOT_SERVOS = {"receptionist_arm": ("RX-24F", THESIS_LEFT_ARM_IDS),
                 "open_manipulator_x": ("XM430-W350", (11, 12, 13, 14))}
+#: Robot -> its gripper's servo (ID, finger joint and horn angles; the range comes from
+#: the URDF): the OpenManipulator-X's ID 15 (:mod:`hardware.gripper`).
+ROBOT_GRIPPERS = {"open_manipulator_x": open_manipulator_gripper}
 
 
 def servo_table(model: str | int) -> ControlTable:
@@ -101,14 +114,23 @@ class JointMap:
         servo: model name every servo must be ("RX-24F", "AX-12A", or an X-series model:
             their protocol is :attr:`protocol`).
         joints: one :class:`JointServo` per joint.
+        gripper: the gripper's servo, or None (the same model; X-series with current-based
+            position control only).
     """
 
     servo: str
     joints: tuple[JointServo, ...]
+    gripper: GripperServo | None = None
 
     def __post_init__(self) -> None:
-        servo_table(self.servo)  # ValueError for an unknown model
+        spec = servo_table(self.servo).spec  # ValueError for an unknown model
         ids = [j.servo_id for j in self.joints]
+        if self.gripper is not None:
+            ids.append(self.gripper.servo_id)
+            if OperatingMode.CURRENT_BASED_POSITION not in getattr(spec, "modes", ()):
+                raise ValueError(
+                    f"joint map: the gripper's servo (ID {self.gripper.servo_id}) needs "
+                    f"current-based position control, which the {self.servo} lacks")
         if len(set(ids)) != len(ids):
             raise ValueError(f"joint map: duplicate servo IDs in {ids}")
         for j in self.joints:
@@ -185,19 +207,33 @@ def default_servo(robot_name: str) -> str:
 def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = None,
                       ids: tuple[int, ...] | None = None) -> JointMap:
     """The map a robot gets without a config file: sign +1, offset 0, limits = the
-    model's joint limits inside the servo's ±150°."""
+    model's joint limits inside the servo's ±150°; the gripper's servo of a robot that
+    ships with one (:data:`ROBOT_GRIPPERS`) when ``servo`` can drive it, its ID after
+    the highest of ``ids`` when they are given (its own, 15, otherwise)."""
     joints = robot_joints(model)
     servo = servo or default_servo(model.name)
+    given = ids is not None
     if ids is None:
         shipped = ROBOT_SERVOS.get(model.name, (None, ()))[1]
         ids = shipped if len(shipped) == len(joints) else tuple(range(1, len(joints) + 1))
     if len(ids) != len(joints):
         raise ValueError(f"ids: {len(ids)} given for the {len(joints)} joints of {model.name}")
-    half = servo_table(servo).spec.position_range / 2
+    spec = servo_table(servo).spec
+    half = spec.position_range / 2
+    gripper = None
+    if (model.name in ROBOT_GRIPPERS and model.urdf_path is not None
+            and OperatingMode.CURRENT_BASED_POSITION in getattr(spec, "modes", ())):
+        gripper = ROBOT_GRIPPERS[model.name](model.urdf_path)
+        if given:
+            after = max(ids) + 1
+            if after > 252:
+                raise ValueError(f"ids: the gripper's servo takes the ID after the highest "
+                                 f"({max(ids)}), and {after} is past 252")
+            gripper = replace(gripper, servo_id=after)
     return JointMap(servo, tuple(
         JointServo(j.name, int(i), 1, 0.0, max(j.lower, -half), min(j.upper, half))
         for j, i in zip(joints, ids, strict=True)
-    ))
+    ), gripper)
 
 
 def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap:
@@ -205,7 +241,9 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
 
     Keys: ``servo`` (optional, model name), ``joints``: a list of tables with
     ``name`` (must be a joint of ``model``, every joint listed once, any order),
-    ``id``, and optional ``sign``, ``offset_deg``, ``lower_deg``, ``upper_deg``.
+    ``id``, and optional ``sign``, ``offset_deg``, ``lower_deg``, ``upper_deg``; an
+    optional ``gripper`` table (its servo's ``id``, the URDF's finger ``joint``,
+    ``closed_deg``/``open_deg``; see the module's docstring).
     """
     path = Path(path)
     try:
@@ -262,9 +300,41 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
     if missing:
         raise ValueError(f"joint map {path}: no servo for joint(s) {', '.join(missing)}")
     try:
-        return JointMap(base.servo, tuple(given[j.name] for j in joints))
+        gripper = _gripper_entry(data.get("gripper"), model, base.gripper)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"joint map {path}: {exc}") from None
+    try:
+        return JointMap(base.servo, tuple(given[j.name] for j in joints), gripper)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+
+
+def _gripper_entry(entry: object, model: SerialChain | Quadruped,
+                   shipped: GripperServo | None) -> GripperServo | None:
+    """A map file's ``[gripper]`` table as a :class:`GripperServo` (None without one): its
+    ``id``, the URDF's finger ``joint`` (whose limits are the range) and the horn angles
+    ``closed_deg``/``open_deg`` (defaults: the robot's own gripper's)."""
+    if entry is None:
+        return None
+    if not isinstance(entry, dict) or "id" not in entry:
+        raise ValueError("[gripper] needs an 'id' (the gripper servo's ID)")
+    joint = entry.get("joint", shipped.joint if shipped else None)
+    if joint is None or model.urdf_path is None:
+        raise ValueError("[gripper] needs the URDF's finger 'joint' it drives")
+    try:
+        lower, upper = joint_limits(model.urdf_path, str(joint))
+    except URDFError as exc:
+        raise ValueError(f"[gripper]: {exc}") from None
+    angles = {}
+    for key, attr in (("closed_deg", "closed_angle"), ("open_deg", "open_angle")):
+        if key in entry:
+            angles[attr] = math.radians(float(entry[key]))
+        elif shipped is not None:
+            angles[attr] = getattr(shipped, attr)
+        else:
+            raise ValueError(f"[gripper] needs '{key}', the horn angle at the finger's "
+                             f"{key.split('_')[0]} end")
+    return GripperServo(int(entry["id"]), str(joint), lower, upper, **angles)
 
 
 def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) -> str:
@@ -274,7 +344,9 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
     the servos' own CW/CCW angle limits (sign +1, offset 0), narrowed to the
     model's joint limits when ``model`` is given. With ``model`` (the
     robot's URDF) joints take its names, and a servo count that differs from its
-    joint count is refused naming the joint without a servo or the servo without a joint.
+    joint count is refused naming the joint without a servo or the servo without a joint;
+    on a robot whose gripper has its own servo (:data:`ROBOT_GRIPPERS`) one servo more
+    than joints is that gripper's (the highest ID) and gets a ``[gripper]`` table.
 
     Raises:
         ValueError: nothing answered, a model the lab does not know (the message lists
@@ -295,8 +367,14 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                          + ", ".join(f"ID {f.servo_id}: {f.model}" for f in servos)
                          + "); a map drives one model: scan the arm's servos only (--ids)")
     names = [f"joint{i + 1}" for i in range(len(servos))]
+    gripper = None
     if model is not None:
         names = list(model.joint_names)
+        if (len(servos) == len(names) + 1 and model.name in ROBOT_GRIPPERS
+                and model.urdf_path is not None):
+            gripper = replace(ROBOT_GRIPPERS[model.name](model.urdf_path),
+                              servo_id=servos[-1].servo_id)
+            servos = servos[:-1]
         if len(servos) < len(names):
             raise ValueError(
                 f"joint {names[len(servos)]!r} of {model.name} has no servo: "
@@ -328,4 +406,9 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
         else:
             lines += [f"lower_deg = {lo:.3f}", f"upper_deg = {hi:.3f}"]
         lines.append("")
+    if gripper is not None:
+        lines += [f"# the gripper's servo: its range is the URDF's {gripper.joint} limits",
+                  "[gripper]", f"id = {gripper.servo_id}", f'joint = "{gripper.joint}"',
+                  f"closed_deg = {math.degrees(gripper.closed_angle):.4f}",
+                  f"open_deg = {math.degrees(gripper.open_angle):.4f}", ""]
     return "\n".join(lines)

@@ -19,7 +19,12 @@ the X-series do differently:
 - a servo that raised its hardware alert (the error byte's bit 7) is asked its Hardware
   Error Status once, named by ID and flag in its joint's alarm (:func:`hardware_alarm`);
   a flag in its Shutdown register has switched its torque off, and torque on REBOOTs it
-  first (the only way back, e-manual "Shutdown").
+  first (the only way back, e-manual "Shutdown");
+- the gripper's servo the map names (the OpenManipulator-X's ID 15, :mod:`hardware.gripper`)
+  is configured in current-based position control at the gripper's gentle Goal Current,
+  read in the same SYNC_READ and written in the same SYNC_WRITE as the joints (its goal
+  from :meth:`XSeriesBackend.set_gripper`, clamped into the finger's range), its torque
+  on and off with theirs.
 """
 
 from __future__ import annotations
@@ -31,9 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from control.backend import BackendError, JointState
+from control.backend import BackendError, GripperState, JointState
 from hardware import protocol2 as p2
+from hardware.bus import BusError
 from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
+from hardware.gripper import GRIPPER_PROFILE_VELOCITY, decode_gripper, gripper_settings
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
 from hardware.xseries import VELOCITY_UNIT, OperatingMode, lab_mode, lab_settings
 from kinematics.model import Quadruped, SerialChain
@@ -68,12 +75,17 @@ class XSeriesBackend(DynamixelBackend):
         self._alarms = [""] * self.map.n  #: the hardware error each servo reported
         self.mode = lab_mode(spec)
         self.table.check_operating_mode(self.mode)
+        self.gripper = self.map.gripper
+        #: every servo on the bus: the joints', then the gripper's
+        self._ids = self.map.ids + ((self.gripper.servo_id,) if self.gripper else ())
+        self._gripper_goal: int | None = None  #: raw goal position, sent with every write
+        self._gripper_alarm = ""  #: the gripper servo's hardware error ("" = healthy)
 
     # -- Backend protocol ---------------------------------------------------
 
     def read(self) -> JointState:
         """One SYNC_READ of 126..135 -> joint positions, speeds, torques and alarms."""
-        data = self._guard(self.bus.sync_read, PRESENT_AT, PRESENT_LEN, list(self.map.ids))
+        data = self._guard(self.bus.sync_read, PRESENT_AT, PRESENT_LEN, list(self._ids))
         s = self.spec
         pos, vel, load, errors, alarms = [], [], [], [], []
         for k, j in enumerate(self.map.joints):
@@ -99,7 +111,48 @@ class XSeriesBackend(DynamixelBackend):
             errors=tuple(errors),
             torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
             alarms=tuple(alarms),
+            gripper=self._read_gripper(data[self.gripper.servo_id]) if self.gripper else None,
         )
+
+    def _read_gripper(self, raw: bytes) -> GripperState:
+        """The gripper servo's part of the SYNC_READ (current, velocity, position) as the
+        finger's state; its hardware alert is asked about once and logged."""
+        g = self.gripper
+        assert g is not None
+        err = self.bus.errors.get(g.servo_id, p2.StatusError())
+        if err.alert and not self._gripper_alarm:
+            bits = self._guard(self.bus.read, g.servo_id, "hardware_error_status")
+            self._gripper_alarm = hardware_alarm(bits, servo_id=g.servo_id)
+            log.warning("gripper: %s", self._gripper_alarm)
+        return decode_gripper(
+            g, self.spec, position=int.from_bytes(raw[6:10], "little", signed=True),
+            velocity=int.from_bytes(raw[2:6], "little", signed=True),
+            current=int.from_bytes(raw[0:2], "little", signed=True),
+            torque_on=self._torque and not self._gripper_alarm, alarm=self._gripper_alarm)
+
+    @property
+    def gripper_range(self) -> tuple[float, float] | None:
+        """(closed, open) m of the gripper's finger, or None without a gripper servo."""
+        return None if self.gripper is None else (self.gripper.lower, self.gripper.upper)
+
+    def set_gripper(self, position: float) -> float:
+        """Hold the gripper's finger at ``position`` m, clamped into its range (a goal
+        beyond it is never sent), from the next :meth:`write` on; returns the clamped goal.
+
+        Raises:
+            ValueError: a non-finite position, or no gripper servo in the map.
+        """
+        if self.gripper is None:
+            raise ValueError("this arm's joint map names no gripper servo")
+        x = self.gripper.clamp(position)
+        self._gripper_goal = self.spec.position_to_raw(self.gripper.to_servo(x))
+        return x
+
+    def _gripper_chunk(self) -> dict[int, tuple[int, int]]:
+        """The gripper's (profile velocity, goal position) for a SYNC_WRITE, or nothing."""
+        if self.gripper is None or self._gripper_goal is None:
+            return {}
+        return {self.gripper.servo_id: (GRIPPER_PROFILE_VELOCITY, self._gripper_goal)}
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Clamp goals into the limits; send them with their profile velocities in one
@@ -108,7 +161,7 @@ class XSeriesBackend(DynamixelBackend):
         goals, speeds = self.goal_words(q, v)
         self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
             {j.servo_id: (sp, g) for j, g, sp in zip(self.map.joints, goals, speeds,
-                                                     strict=True)}))
+                                                     strict=True)} | self._gripper_chunk()))
 
     def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
         """Raw goal positions and profile velocities for joint goals: clamped into
@@ -129,6 +182,8 @@ class XSeriesBackend(DynamixelBackend):
         ids = self.map.ids
         if on:
             down = [ids[k] for k in range(self.n) if self._shutdown[k]]
+            if self._gripper_alarm:
+                down.append(self.gripper.servo_id)  # type: ignore[union-attr]
             for i in down:
                 self._guard(self.bus.reboot, i)
             if down:
@@ -137,15 +192,19 @@ class XSeriesBackend(DynamixelBackend):
                     self._guard(self.bus.ping, i)
                     self._ram_settings(i, [])
             off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
-            if off:
-                here = self.read().position
-                goals, speeds = self.goal_words(here, np.full(self.n, SAFE_SPEED))
+            grip = self.gripper is not None and (not self._torque or bool(self._gripper_alarm))
+            if off or grip:
+                state = self.read()
+                goals, speeds = self.goal_words(state.position, np.full(self.n, SAFE_SPEED))
+                if grip and state.gripper is not None:  # the fingers stay where they are
+                    self.set_gripper(state.gripper.position)
                 self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
-                    {ids[k]: (speeds[k], goals[k]) for k in off}))
-            self._sync_torque(ids, 1)
+                    {ids[k]: (speeds[k], goals[k]) for k in off} | self._gripper_chunk()))
+            self._sync_torque(self._ids, 1)
             self._shutdown[:] = False
+            self._gripper_alarm = ""
         else:
-            self._sync_torque(ids, 0)
+            self._sync_torque(self._ids, 0)
         self._torque = bool(on)
 
     # -- set-up -------------------------------------------------------------
@@ -154,40 +213,71 @@ class XSeriesBackend(DynamixelBackend):
         """The configuration sequence, one logged line per step (see the module docstring).
         Returns the lines, also kept in :attr:`configuration`."""
         lines: list[str] = []
-        mode_text = ("current-based position control" if self.mode ==
-                     OperatingMode.CURRENT_BASED_POSITION else "position control")
-        eeprom = [("return_delay_time", 0, "return delay 0 µs"),
-                  ("operating_mode", self.mode, f"operating mode {self.mode} ({mode_text})")]
-        self._sync_torque(self.map.ids, 0)
-        for j in self.map.joints:
-            i = j.servo_id
-            lines.append(f"servo {i} ({j.name}): torque off (EEPROM is written only then)")
+        self._sync_torque(self._ids, 0)
+        for i, who, mode in self._configured():
+            mode_text = ("current-based position control" if mode ==
+                         OperatingMode.CURRENT_BASED_POSITION else "position control")
+            eeprom = [("return_delay_time", 0, "return delay 0 µs"),
+                      ("operating_mode", mode, f"operating mode {mode} ({mode_text})")]
+            lines.append(f"servo {i} ({who}): torque off (EEPROM is written only then)")
             for name, value, text in eeprom:
                 if self._guard(self.bus.read, i, name) == value:
-                    lines.append(f"servo {i} ({j.name}): {text} (already set)")
+                    lines.append(f"servo {i} ({who}): {text} (already set)")
                 else:
                     self._write_setting(i, name, value)
-                    lines.append(f"servo {i} ({j.name}): {text}")
-            self._ram_settings(i, lines, name=j.name)
+                    lines.append(f"servo {i} ({who}): {text}")
+            self._ram_settings(i, lines, name=who)
         for line in lines:
             log.info(line)
         self._switch_baud(from_baud, lines)
         self.configuration = lines
         return lines
 
+    def _configured(self) -> list[tuple[int, str, int]]:
+        """(ID, name for the log, operating mode) of every servo to configure: the joints
+        in the lab's mode, the gripper's in current-based position control."""
+        out = [(j.servo_id, j.name, self.mode) for j in self.map.joints]
+        if self.gripper is not None:
+            out.append((self.gripper.servo_id, f"gripper {self.gripper.joint}",
+                        OperatingMode.CURRENT_BASED_POSITION))
+        return out
+
+    def _named_servos(self) -> list[tuple[int, str]]:
+        """(ID, name for the log) of every servo on the bus: the joints', the gripper's."""
+        return [(i, who) for i, who, _ in self._configured()]
+
     def _ram_settings(self, servo_id: int, lines: list[str], *, name: str = "") -> None:
         """The RAM items (lost at a REBOOT): status return level, no profile limit, then
         the mode's own (:func:`hardware.xseries.lab_settings`: the torque bound, the D
-        gain)."""
+        gain; the gripper's :func:`hardware.gripper.gripper_settings`)."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
+        gripper = self.gripper is not None and servo_id == self.gripper.servo_id
         settings = (("status_return_level", self.status_return_level_setting,
                      f"status return level {self.status_return_level_setting}"),
                     ("profile_acceleration", 0, "profile acceleration 0 (no limit)"),
                     ("profile_velocity", 0, "profile velocity 0 (set with every goal)"),
-                    *lab_settings(self.spec, torque_limit=self.torque_limit))
+                    *(gripper_settings(self.spec) if gripper else
+                      lab_settings(self.spec, torque_limit=self.torque_limit)))
         for item, value, text in settings:
             self._write_setting(servo_id, item, value)
             lines.append(f"{who}: {text}")
+
+    def _find_servos(self) -> None:
+        """The joints' servos (:meth:`DynamixelBackend._find_servos`), then the gripper's:
+        one that does not answer, or is of another model, is named."""
+        super()._find_servos()
+        g = self.gripper
+        if g is None:
+            return
+        try:
+            self.bus.ping(g.servo_id)
+            self.bus.identify(g.servo_id, expect=self.map.servo)
+        except BusError as exc:
+            raise BackendError(
+                f"the gripper's servo (ID {g.servo_id}, {g.joint}) on {self.bus.port}: {exc}; "
+                f"check its cable and ID (armlab scan --port {self.bus.port} lists what "
+                "answers), or remove [gripper] from the joint map") from exc
+        self.bus.return_delay[g.servo_id] = self.bus.read(g.servo_id, "return_delay_time")
 
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit.

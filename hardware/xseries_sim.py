@@ -8,20 +8,39 @@ current, with Goal Current as the torque bound and a Position D Gain, else Goal 
 profile limits, Min/Max Position Limit at the joint limits); goals go in as Goal
 Position and Profile Velocity counts, readings come back as the servos report them (4096
 counts a turn, 0.229 rpm, the current's or the load's unit) and are decoded with the
-same conversions.
+same conversions. An arm whose gripper has its own servo (``gripper``, the
+OpenManipulator-X's) gets it too: its firmware moving the fingers' load
+(:func:`hardware.gripper.gripper_plant`), configured as the X-series backend configures
+the real one.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from control.backend import JointState
+from control.backend import GripperState, JointState
+from hardware.gripper import (
+    GRIPPER_PROFILE_VELOCITY,
+    GripperServo,
+    decode_gripper,
+    gripper_plant,
+    gripper_settings,
+)
 from hardware.plant import Plant
 from hardware.servo import ServoParams
 from hardware.sim_backend import SimBackend
-from hardware.xseries import COUNTS, VELOCITY_UNIT, XSpec, lab_mode, lab_settings, x_table_for
+from hardware.xseries import (
+    COUNTS,
+    VELOCITY_UNIT,
+    OperatingMode,
+    XSpec,
+    lab_mode,
+    lab_settings,
+    x_table_for,
+)
 from hardware.xseries_backend import hardware_alarm
 from hardware.xservo import XRegisters, XReport
 from kinematics.model import SerialChain
@@ -54,6 +73,19 @@ def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
     return regs
 
 
+def gripper_registers(spec: XSpec, *, torque_on: bool = True) -> XRegisters:
+    """Registers as :class:`~hardware.xseries_backend.XSeriesBackend` configures a gripper's
+    servo: current-based position control with :func:`hardware.gripper.gripper_settings`,
+    the gripper's profile velocity, the goal at the horn's centre."""
+    regs = XRegisters.factory(x_table_for(spec.model_number))
+    regs.operating_mode = OperatingMode.CURRENT_BASED_POSITION
+    for item, value, _ in gripper_settings(spec):
+        setattr(regs, item, value)
+    regs.profile_velocity = GRIPPER_PROFILE_VELOCITY
+    regs.torque_enable = int(torque_on)
+    return regs
+
+
 def decode_x_reports(reports: Sequence[XReport], spec: XSpec, directions: Sequence[float],
                      t: float) -> JointState:
     """The servos' raw reports as the controller sees them: positions rad, velocities
@@ -76,12 +108,13 @@ class XSimBackend(SimBackend):
         model: the serial chain.
         spec: the servos' datasheet (``hardware.xseries.XM430_W350`` etc.).
         dt, q0, directions, params, torque_on: as :class:`~hardware.sim_backend.SimBackend`.
+        gripper: the gripper's servo (same model, current-based position control), or None.
     """
 
     def __init__(self, model: SerialChain, *, spec: XSpec, dt: float = 1e-3,
                  q0: np.ndarray | None = None, directions: Sequence[float] | None = None,
                  params: ServoParams | Sequence[ServoParams] | None = None,
-                 torque_on: bool = True) -> None:
+                 torque_on: bool = True, gripper: GripperServo | None = None) -> None:
         n = model.n
         dirs = [1.0] * n if directions is None else [float(d) for d in directions]
         self._lower, self._upper = x_servo_limits(model, spec, dirs)
@@ -95,6 +128,16 @@ class XSimBackend(SimBackend):
                                           torque_on=torque_on))
         self._init_plant(Plant(model, spec, dt=dt, q0=q0, directions=dirs, params=params,
                                registers=regs), [spec] * n, dirs)
+        self.gripper = gripper
+        self.gripper_plant = None if gripper is None else gripper_plant(
+            gripper, spec, dt=dt, registers=gripper_registers(spec, torque_on=torque_on))
+
+    def sync(self, t: float) -> None:
+        """Integrate the arm (and the gripper) up to ``t`` s."""
+        super().sync(t)
+        if self.gripper_plant is not None:
+            with self._lock:
+                self.gripper_plant.advance_to(self.plant.t)
 
     def read(self) -> JointState:
         """Every joint as its servo reports it (decoded raw values, quantised)."""
@@ -102,7 +145,36 @@ class XSimBackend(SimBackend):
             self._check_open()
             reports = self.plant.reports()
             t = self.plant.t
-        return decode_x_reports(reports, self.specs[0], self.directions, t)  # type: ignore[arg-type]
+            grip = None if self.gripper_plant is None else self.gripper_plant.reports()[0]
+        state = decode_x_reports(reports, self.specs[0], self.directions, t)  # type: ignore[arg-type]
+        if grip is None:
+            return state
+        return replace(state, gripper=self._decode_gripper(grip))
+
+    def _decode_gripper(self, r: XReport) -> GripperState:
+        assert self.gripper is not None
+        alarm = hardware_alarm(r.hardware_error, servo_id=self.gripper.servo_id) \
+            if r.hardware_error else ""
+        return decode_gripper(self.gripper, self.specs[0], position=r.position,  # type: ignore[arg-type]
+                              velocity=r.velocity, current=r.current,
+                              torque_on=bool(r.torque_enable), alarm=alarm)
+
+    @property
+    def gripper_range(self) -> tuple[float, float] | None:
+        """(closed, open) m of the gripper's finger, or None without a gripper."""
+        return None if self.gripper is None else (self.gripper.lower, self.gripper.upper)
+
+    def set_gripper(self, position: float) -> float:
+        """Goal Position of the gripper's servo for the finger at ``position`` m, clamped
+        into its range; returns the clamped goal (ValueError without a gripper)."""
+        if self.gripper is None or self.gripper_plant is None:
+            raise ValueError("this simulated arm has no gripper servo")
+        x = self.gripper.clamp(position)
+        raw = self.specs[0].position_to_raw(self.gripper.to_servo(x))  # type: ignore[attr-defined]
+        with self._lock:
+            self._check_open()
+            self.gripper_plant.servos[0].regs.goal_position = raw
+        return x
 
     def write_checked(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Checked goals (n,) rad and speeds (n,) rad/s -> Goal Position and Profile
@@ -118,11 +190,27 @@ class XSimBackend(SimBackend):
                 servo.regs.profile_velocity = min(v, servo.regs.velocity_limit or v)
 
     def set_torque(self, on: bool) -> None:
-        """Torque Enable on every servo; switching on REBOOTs a servo that shut down on a
-        hardware error first (the only way back on an X-series servo)."""
+        """Torque Enable on every servo, the gripper's too (whose fingers then hold where
+        they are); switching on REBOOTs a servo that shut down on a hardware error first
+        (the only way back on an X-series servo)."""
         with self._lock:
             self._check_open()
-            for servo in self.plant.servos:
+            fingers = None if self.gripper_plant is None else self.gripper_plant.servos[0]
+            if on and fingers is not None and not fingers.regs.torque_enable:
+                fingers.regs.goal_position = fingers.report().position  # they stay put
+            for servo in self._servos():
                 if on and servo.hardware_error:
                     servo.reboot()
                 servo.regs.torque_enable = int(bool(on))
+
+    def _servos(self) -> tuple:
+        """The arm's servo models, then the gripper's."""
+        extra = () if self.gripper_plant is None else self.gripper_plant.servos
+        return (*self.plant.servos, *extra)
+
+    def estop(self) -> bool:
+        """Torque off on every servo, the gripper's too; never raises."""
+        with self._lock:
+            for servo in self._servos():
+                servo.regs.torque_enable = 0
+        return True

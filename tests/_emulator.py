@@ -15,6 +15,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from hardware import protocol2 as p2
+
 ROOT = Path(__file__).resolve().parents[1]
 START_TIMEOUT = 30.0  # s for the emulator to print its port (a loaded 2-core machine)
 
@@ -95,3 +97,19 @@ def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProces
             proc.wait(timeout=10)
         proc.stdout.close()
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def goal_positions(packets: list[bytes], servo_id: int) -> list[int]:
+    """Goal positions sent to ``servo_id`` in protocol-2.0 SYNC_WRITEs of profile velocity
+    and goal position (addresses 112..119), in order."""
+    out = []
+    for raw in packets:
+        packet = p2.decode_instruction(raw)
+        params = packet.params
+        if packet.instruction != p2.Instruction.SYNC_WRITE or params[:4] != bytes(
+                (112, 0, 8, 0)):
+            continue
+        for k in range(4, len(params), 9):
+            if params[k] == servo_id:
+                out.append(int.from_bytes(params[k + 5 : k + 9], "little"))
+    return out

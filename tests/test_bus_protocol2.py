@@ -1,6 +1,6 @@
 """Protocol 2.0 over a real pseudo-terminal: ``armlab emulate`` serving X-series servos
-(the OpenManipulator-X's four XM430-W350, IDs 11..14) and :class:`hardware.bus.Bus`
-opened with ``protocol=2``.
+(the OpenManipulator-X's five XM430-W350: the arm's IDs 11..14 and the gripper's 15) and
+:class:`hardware.bus.Bus` opened with ``protocol=2``.
 
 The e-manual's PING answer byte for byte; named reads and writes through the X-series
 table; one SYNC_READ and one BULK_READ for every servo; the error numbers a person
@@ -125,13 +125,14 @@ def test_scan_finds_the_x_series_servos_and_their_protocol():
     with emulator(*OMX) as emu:
         found = scan(emu.port, (57_600, 1_000_000), ids=range(0, 20))
     assert [(f.servo_id, f.model, f.protocol, f.baud) for f in found] == \
-        [(i, "XM430-W350", 2, 1_000_000.0) for i in IDS]
+        [(i, "XM430-W350", 2, 1_000_000.0) for i in (*IDS, 15)]  # the gripper's too
     assert all(f.model_number == 1020 and f.cw_limit == 0 and f.ccw_limit == 4095
                for f in found)
     assert found[0].ccw_limit_deg == pytest.approx(180.0, abs=0.1)
     text = draft_joint_map(found, load_robot("open_manipulator_x"))
     assert 'servo = "XM430-W350"' in text and "protocol = 2.0" in text
     assert 'name = "joint1"\nid = 11' in text
+    assert '[gripper]\nid = 15\njoint = "gripper_left_joint"' in text
 
 
 def test_scan_of_a_protocol_1_bus_names_protocol_1():

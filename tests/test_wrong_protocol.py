@@ -27,7 +27,7 @@ MARGIN = 0.1  # s of reply timeout: generous, the test machine is shared
 @pytest.mark.parametrize(("robot", "servo", "emulate", "answers", "named"), [
     ("receptionist_arm", "XM430-W350", (), "protocol 1.0 (IDs 1, 3, 5)", "(protocol 2.0)"),
     ("open_manipulator_x", "RX-24F", ("--robot", "open_manipulator_x"),
-     "protocol 2.0 (IDs 11, 12, 13, 14)", "(protocol 1.0)"),
+     "protocol 2.0 (IDs 11, 12, 13, 14, 15)", "(protocol 1.0)"),
 ])
 def test_a_map_naming_the_other_protocol_s_servos_is_named(robot, servo, emulate, answers,
                                                            named):

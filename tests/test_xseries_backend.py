@@ -23,7 +23,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from _emulator import ROOT, emulator
+from _emulator import ROOT, emulator, goal_positions
 from _helpers import client_of, wait_for
 
 from app.backends import make_backend
@@ -46,23 +46,6 @@ MARGIN = 0.1  # s of reply timeout: generous, the test machine is shared
 def _requests(backend: XSeriesBackend) -> int:
     """Requests sent so far (packets less retries: a loaded machine may cause retries)."""
     return backend.bus.stats.transactions - backend.bus.stats.retries
-
-
-def _goal_positions(packets: list[bytes], servo_id: int) -> list[int]:
-    """Goal positions sent to ``servo_id`` in SYNC_WRITEs of profile velocity + goal."""
-    out = []
-    for raw in packets:
-        packet = p2.decode_instruction(raw)
-        if packet.instruction != p2.Instruction.SYNC_WRITE:
-            continue
-        params = packet.params
-        address, length = params[0] | params[1] << 8, params[2] | params[3] << 8
-        if address != 112 or length != 8:
-            continue
-        for k in range(4, len(params), 9):
-            if params[k] == servo_id:
-                out.append(int.from_bytes(params[k + 5 : k + 9], "little"))
-    return out
 
 
 def test_configured_then_it_moves_reports_torque_and_stops(tmp_path):
@@ -114,7 +97,7 @@ def test_a_goal_beyond_a_servo_s_limit_never_leaves_the_process(tmp_path):
             b.set_torque(True)
             b.write(np.array([0.0, 0.0, 1.3, 0.0]), np.full(4, 1.0))  # 74°: past it
             b.read()  # a round trip: the emulator has logged the SYNC_WRITE
-            sent = _goal_positions(emu.packets("rx"), 13)
+            sent = goal_positions(emu.packets("rx"), 13)
             assert sent and max(sent) <= top
         finally:
             b.close()
@@ -133,6 +116,7 @@ def test_the_lab_on_open_manipulator_x_scan_map_serve_slider_reaches_the_servos(
         data = tomllib.loads(map_path.read_text())
         assert data["servo"] == "XM430-W350" and data["protocol"] == 2.0
         assert [j["id"] for j in data["joints"]] == list(IDS)
+        assert data["gripper"]["id"] == 15  # the servo after the chain's: its gripper
         lab = Lab(ServeOptions(robot="open_manipulator_x", backend="serial", port=emu.port,
                                joint_map=str(map_path), http_port=0))
         try:

@@ -21,11 +21,11 @@ thesis arm, three joints), armlab's figure measured in the same run as the peer'
   ``qfrc_applied`` before each ``mj_step``, against armlab's plant (its own RK4 and the
   RX-24F servo model, ``hardware.plant``).
 - ``peer_bus2_cycle_ms`` / ``armlab_bus2_cycle_ms``: one SYNC_READ of present current,
-  velocity and position (126..135) of the OpenManipulator-X's four XM430-W350 plus one
-  SYNC_WRITE of profile velocity and goal (112..119), protocol 2.0 at 1 Mbps on the same
-  paced emulator (``armlab emulate --pace --robot open_manipulator_x``, return delay 0
-  as the X-series backend configures it): the SDK's
-  ``GroupSyncRead.txRxPacket`` + ``GroupSyncWrite.txPacket`` against
+  velocity and position (126..135) of the OpenManipulator-X's five XM430-W350 (IDs
+  11..15, the gripper's included) plus one SYNC_WRITE of profile velocity and goal
+  (112..119), protocol 2.0 at 1 Mbps on the same paced emulator (``armlab emulate
+  --pace --robot open_manipulator_x``, return delay 0 as the X-series backend configures
+  it): the SDK's ``GroupSyncRead.txRxPacket`` + ``GroupSyncWrite.txPacket`` against
   ``hardware.bus.Bus.sync_read`` + ``sync_write``; medians over cycles.
 - ``ratio_*``: armlab's time over the peer's (below 1: armlab is faster).
 
@@ -181,7 +181,7 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     from hardware.bus import Bus
     from hardware.xseries_backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
 
-    ids = [11, 12, 13, 14]
+    ids = [11, 12, 13, 14, 15]  # the arm's and the gripper's, as the X-series backend's
     n = 300 if quick else 2000
     goal = {i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}
 

@@ -3,8 +3,8 @@
 The first line printed is ``port: /dev/pts/N`` (flushed): point ``armlab scan``,
 ``armlab serve --backend serial`` or any Dynamixel client at it. The servos speak
 protocol 1.0 (RX-24F, AX-12A) or, for X-series servos (``--servo XM430-W350``, and by
-default for ``open_manipulator_x``: XM430-W350, IDs 11..14), protocol 2.0. Serves until
-SIGINT or SIGTERM, then exits cleanly.
+default for ``open_manipulator_x``: XM430-W350, IDs 11..14 and its gripper's servo 15,
+moving the fingers), protocol 2.0. Serves until SIGINT or SIGTERM, then exits cleanly.
 
 ``--disturb JOINT:NM@S`` applies a known torque to a joint of the simulated arm (a
 weight hung at the joint) from S s of the emulator's plant clock on: what
@@ -135,8 +135,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=float, default=1_000_000,
                         help="the servos' baud, bit/s (default 1000000)")
     parser.add_argument("--ids", type=_ids, help="servo IDs in joint order "
-                        "(default 1,3,5 for receptionist_arm, 11.. for open_manipulator_x, "
-                        "else 1..n)")
+                        "(default 1,3,5 for receptionist_arm, 11..14 for open_manipulator_x, "
+                        "else 1..n); open_manipulator_x's gripper servo takes the ID after "
+                        "the highest (15 by default)")
     parser.add_argument("--servo", choices=("RX-24F", "AX-12A",
                                             *(t.name for t in X_TABLES.values())),
                         help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
@@ -210,7 +211,8 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(model, SerialChain):
             raise ValueError(f"--servo {jmap.servo}: X-series servos drive a serial arm here, "
                              f"not the {model.name}")
-        network = emulated_x_network(model, jmap.ids, servo=jmap.servo, baud=args.baud)
+        network = emulated_x_network(model, jmap.ids, servo=jmap.servo, baud=args.baud,
+                                     gripper=jmap.gripper)
     else:
         value_from_baud(args.baud)  # ValueError for a rate no servo can take
         network = emulated_network(model, ids=args.ids, servo=args.servo, baud=args.baud)
@@ -245,9 +247,10 @@ def run(args: argparse.Namespace) -> int:
             make_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
+        gripper = f" and the gripper's {jmap.gripper.servo_id}" if jmap.gripper else ""
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
-              f"{', '.join(str(x.servo_id) for x in s)}, protocol {network.protocol}.0) of "
-              f"{model.name} at {args.baud:.0f} bps"
+              f"{', '.join(str(i) for i in jmap.ids)}{gripper}, protocol "
+              f"{network.protocol}.0) of {model.name} at {args.baud:.0f} bps"
               f"{', paced' if args.pace else ''}"
               + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
                         for j, nm, t0 in disturbances)

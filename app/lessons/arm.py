@@ -15,7 +15,9 @@ The compliance lesson's controls run on it too (:mod:`app.lessons.arm_controls`)
 gains and the virtual environment with presets, a push at the hand, live charts of any
 joint; and an arm of more than 3 joints may use its spare joints (seed 002's gradient
 projection) to stay away from its limits or gain manipulability while the hand follows
-the target.
+the target. An arm whose gripper has its own servo (the OpenManipulator-X's ID 15,
+simulated or on the bus) gets Open / Close buttons and a finger slider in mm, and the
+3D view's fingers follow the servo (:mod:`app.lessons.arm_gripper`).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from app.lessons._loop_state import (
     stopped_state,
 )
 from app.lessons.arm_controls import ArmControls
+from app.lessons.arm_gripper import GripperControls
 from app.lessons.compliance_servos import LinkMonitor
 from control.commands import EStop, RunTrajectory, SetTarget
 from control.loop import ControlLoop
@@ -197,6 +200,8 @@ class ArmLesson(LessonBase):
                 self.sliders.append(slider)
             reset = gui.add_button("Reset (after E-STOP or a fault)")
             reset.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
+            self.gripper = GripperControls(gui, model=self.model, backend=self.backend,
+                                           loop=self.loop, view=self.view)
         self.controls = ArmControls(self.server, self._gui, tabs, model=self.model,
                                     backend=self.backend, loop=self.loop,
                                     base_node=self.base.name, place_target=self._place_target)
@@ -209,6 +214,7 @@ class ArmLesson(LessonBase):
                 "resolved-motion rate control (Δq = J⁺ Δx, position only).")
             self.limits = gui.add_markdown(limits_markdown(self.model, lower, upper))
             self.controls.add_teach(gui)
+            self.gripper.add_teach(gui)
 
     def _tip_name(self) -> str:
         return self.ctx.tip_link or "the file's default tip"
@@ -244,6 +250,7 @@ class ArmLesson(LessonBase):
         if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
             self.view.set_q(snap["q"][-1])
             self.controls.pose_frame(snap)
+        self.gripper.pose_frame()
 
     def _status_frame(self, force: bool) -> None:
         st = self.loop.status
@@ -259,6 +266,7 @@ class ArmLesson(LessonBase):
                                              esc(detail),
                                              extra=link_note(self._link, self.backend)))
         self.controls.plot_frame(force)
+        self.gripper.status_frame()
 
     # ================================================================== lifetime
 
