@@ -21,6 +21,9 @@ Figures:
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
     classroom_30_rss_growth_pct: the server process's memory growth over the run, from
         the moment all 30 private arms exist.
+    classroom_30_frames_skipped_behind_pct: of the private pages' frames due, those not
+        made because the page had not yet been sent the one before (``Publisher`` stats,
+        the whole run); ``classroom_30_pose_hz_median``: the median page's rate.
     classroom_30_client_cpu_share: CPU seconds per second of the process running the 30
         fake pages (one thread): near 1, they, not the server, may limit the rates (in a
         classroom each browser has a device of its own).
@@ -148,6 +151,8 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         jitter = lab.loop.status.jitter_p99_ms
         lab.check()
         lessons = room.private_lessons()
+        made = sum(lesson.publisher.stats.pose_frames for lesson in lessons.values())
+        behind = sum(lesson.publisher.stats.skipped_behind for lesson in lessons.values())
         faults = [lesson.rig.loop.status.fault for lesson in lessons.values()
                   if lesson.rig is not None and lesson.rig.loop.status.fault]
         if faults:
@@ -166,6 +171,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         "classroom_30_loop_jitter_p99_ms": float("nan") if jitter is None else float(jitter),
         "classroom_30_rss_growth_pct": 100.0 * (rss["end"] - start) / start,
         "classroom_30_client_cpu_share": res["client_cpu_share"],
+        "classroom_30_frames_skipped_behind_pct": 100.0 * behind / max(1, made + behind),
     }
 
 
