@@ -17,6 +17,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from kinematics.smallarrays import all_finite, clamp
+
 
 @dataclass(frozen=True)
 class GripperState:
@@ -232,7 +234,7 @@ class GoalLimits:
         n = len(self._lower)
         q = _goal_vector("position", position, n)
         v = _goal_vector("speed", speed, n)
-        return np.clip(q, self._lower, self._upper), v
+        return clamp(q, self._lower, self._upper), v
 
 
 def _goal_vector(name: str, value: object, n: int) -> np.ndarray:
@@ -242,6 +244,6 @@ def _goal_vector(name: str, value: object, n: int) -> np.ndarray:
         raise ValueError(f"{name} must be {n} numbers, got {value!r}; nothing was sent") from None
     if arr.shape != (n,):
         raise ValueError(f"{name} must have shape ({n},), got {arr.shape}; nothing was sent")
-    if not np.isfinite(arr).all():
+    if not all_finite(arr):
         raise ValueError(f"{name}: non-finite values {arr.tolist()}; nothing was sent")
     return arr

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from control.backend import JointState
+from kinematics.smallarrays import clamp
 
 if TYPE_CHECKING:  # annotations only: control.params imports control.metrics, which imports us
     from control.params import Params
@@ -223,9 +224,11 @@ class ComplianceController:
             qdd = qdd + qdd_cmd
         state.qdd_ref = np.asarray(qdd, dtype=float)
         q_ref, qd_ref = integrate_reference(state.q_ref, state.qd_ref, state.qdd_ref, T)
-        qd_ref = np.clip(qd_ref, -self.max_speed, self.max_speed)
-        low, high = q_ref < self.lower, q_ref > self.upper
-        qd_ref = np.where((low & (qd_ref < 0)) | (high & (qd_ref > 0)), 0.0, qd_ref)
-        state.q_ref = np.clip(q_ref, self.lower, self.upper)
+        qd_ref = clamp(qd_ref, -self.max_speed, self.max_speed)
+        inside = clamp(q_ref, self.lower, self.upper)
+        if any((inside != q_ref).tolist()):  # at a limit: no speed further out
+            low, high = q_ref < self.lower, q_ref > self.upper
+            qd_ref = np.where((low & (qd_ref < 0)) | (high & (qd_ref > 0)), 0.0, qd_ref)
+        state.q_ref = inside
         state.qd_ref = qd_ref
         return state.q_ref.copy(), state.qd_ref.copy()

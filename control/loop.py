@@ -71,6 +71,7 @@ from kinematics.dynamics import rnea
 from kinematics.ik import rmrc
 from kinematics.model import SerialChain
 from kinematics.redundancy import POSITION_ROWS, aim_gradient, null_space_rate, task_jacobian
+from kinematics.smallarrays import all_finite, clamp
 from kinematics.validate import scalar
 
 DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
@@ -190,6 +191,7 @@ class ControlLoop:
         self.upper = np.minimum(model.upper, np.asarray(backend.upper, dtype=float))
         vel = np.array([j.velocity for j in model.joints], dtype=float)
         self.max_speed = np.where(np.isfinite(vel) & (vel > 0), vel, DEFAULT_MAX_SPEED)
+        self._fast_speed = self.max_speed * (1.0 - 1e-9)  # a reference this fast: a fault
         self.controller = ComplianceController(self.lower, self.upper, self.max_speed,
                                                mode=controller)
         self._params = params
@@ -353,11 +355,8 @@ class ControlLoop:
     def _period(self) -> None:
         self._swap_params()
         cmds: list[Command] = []
-        while True:
-            try:
-                cmds.append(self._commands.get_nowait())
-            except queue.Empty:
-                break
+        while not self._commands.empty():  # this thread is the only one taking
+            cmds.append(self._commands.get_nowait())
         p, t = self._params, self._t
         if self._torque_unsent and t >= self._unsent_retry_t:  # the link may be back
             self._safe_estop()
@@ -369,7 +368,7 @@ class ControlLoop:
             self._gripper = meas.gripper
         q, qd, load = (np.asarray(meas.position, dtype=float),
                        np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
-        reset = any(isinstance(c, Reset) for c in cmds)
+        reset = bool(cmds) and any(isinstance(c, Reset) for c in cmds)
         started = self._state is None or reset
         if self._state is None:
             if self._await_reset and not reset:  # watch the arm, command nothing
@@ -382,10 +381,11 @@ class ControlLoop:
         if not self._active:  # faulted or e-stopped: keep watching, write nothing
             self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
             return
-        for name, arr in (("position", q), ("velocity", qd), ("load", load)):
-            if not np.isfinite(arr).all():
-                raise _Fault(f"the servos reported a non-finite {name} ({arr.tolist()}); "
-                             "torque off")
+        if not all_finite(q, qd, load):
+            for name, arr in (("position", q), ("velocity", qd), ("load", load)):
+                if not all_finite(arr):
+                    raise _Fault(f"the servos reported a non-finite {name} "
+                                 f"({arr.tolist()}); torque off")
         bad = [(j, e) for j, e in enumerate(meas.errors) if e]
         if bad and not started:  # a Reset's torque-on clears them by the next reading
             j, e = bad[0]
@@ -397,31 +397,32 @@ class ControlLoop:
         assert st is not None
         tau_dyn = rnea(self.model, q, qd, st.qdd_ref)
         q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
-        if not (np.isfinite(q_ref).all() and np.isfinite(qd_ref).all()
-                and np.isfinite(st.qdd_ref).all()):
+        if not all_finite(q_ref, qd_ref, st.qdd_ref):
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "
                          "torque off")
-        if np.abs(st.qdd_ref).max() > self.max_accel:
+        # the checks below reduce with Python's max/any over tolist(): on a few joints
+        # numpy's reductions cost more than the arithmetic (kinematics.smallarrays)
+        if max(np.abs(st.qdd_ref).tolist()) > self.max_accel:
             worst = int(np.argmax(np.abs(st.qdd_ref)))
             raise _Fault(
                 f"unstable: reference acceleration {st.qdd_ref[worst]:.0f} rad/s² on joint "
                 f"{self.model.joints[worst].name} exceeds {self.max_accel:g} "
                 f"(Kp {p.kp:g}, Kv {p.kv:g}, M_env {p.m_env:g}, D_env {p.d_env:g}, "
                 f"K_env {p.k_env:g}, K_f {p.k_f:g} at {p.period * 1e3:g} ms); torque off")
-        fast = np.abs(qd_ref) >= self.max_speed * (1.0 - 1e-9)
-        if fast.any():
+        fast = np.abs(qd_ref) >= self._fast_speed
+        if any(fast.tolist()):
             j = int(np.argmax(fast))
             raise _Fault(f"unstable: the reference speed of joint {self.model.joints[j].name} "
                          f"reached the servo's limit ({self.max_speed[j]:.1f} rad/s); "
                          "torque off (lower the gains)")
         lag = np.abs(q_ref - q) > self.max_lag
-        self._lag_time = self._lag_time + p.period if lag.any() else 0.0
+        self._lag_time = self._lag_time + p.period if any(lag.tolist()) else 0.0
         if self._lag_time > self.lag_time:
             j = int(np.argmax(np.abs(q_ref - q)))
             raise _Fault(f"joint {self.model.joints[j].name} has been more than "
                          f"{np.degrees(self.max_lag):.0f}° from its reference for "
                          f"{self.lag_time:g} s (blocked, overloaded or oscillating); torque off")
-        goal = np.clip(q_ref, self.lower, self.upper)
+        goal = clamp(q_ref, self.lower, self.upper)
         speed = np.minimum(np.abs(qd_ref), self.max_speed)
         self.backend.write(goal, speed)
         self._record(t, q_cmd=q_cmd, q_ref=goal, q=q, error=q_cmd - q, qd_ref=qd_ref,
@@ -632,7 +633,7 @@ class ControlLoop:
         else:
             assert self._hold is not None
             q, qd, qdd = self._hold.copy(), np.zeros(self.model.n), np.zeros(self.model.n)
-        q = np.clip(q, self.lower, self.upper)
+        q = clamp(q, self.lower, self.upper)
         self._qd_cmd_prev = qd
         return q, qd, qdd
 

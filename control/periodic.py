@@ -353,6 +353,7 @@ class DrivenPacer:
         self._attached = False
         self._k0 = 0  # clock step of local time 0
         self._t_next = 0.0  # local time of the next period, s
+        self._k_due = 0  # the clock step it is due at (k0 + _steps_before(t_next, dt))
         self._last_wall: float | None = None
         self._intervals: deque[float] = deque(maxlen=1000)
         self._gap_sum = 0.0  # sum of _intervals, kept as they come and go (read every frame)
@@ -373,11 +374,8 @@ class DrivenPacer:
         with self._clock.lock:
             if self._attached:
                 return
-            dt = self._clock.dt
-            m = max(0, int(self._t_next / dt) - 1)  # the first m with (m + 0.5) dt > t_next
-            while (m + 0.5) * dt <= self._t_next:
-                m += 1
-            self._k0 = self._clock.steps - m
+            self._k0 = self._clock.steps - _steps_before(self._t_next, self._clock.dt)
+            self._k_due = self._clock.steps
             self._last_wall = None
             self._attached = True
             self._clock._attach(self)
@@ -412,7 +410,8 @@ class DrivenPacer:
             skipped_recent=round(base.skipped_recent * scale))
 
     def _due(self, k: int) -> bool:
-        return self._attached and (k - self._k0 + 0.5) * self._clock.dt > self._t_next
+        """Whether its next period runs at clock step ``k``: (k − k0 + 0.5)·dt > t_next."""
+        return self._attached and k >= self._k_due
 
     def _fire(self) -> None:
         """One period (in the clock's thread, the lock held); never raises."""
@@ -438,6 +437,16 @@ class DrivenPacer:
             self._attached = False
             return
         self._t_next += self.period
+        self._k_due = self._k0 + _steps_before(self._t_next, self._clock.dt)
+
+
+def _steps_before(t: float, dt: float) -> int:
+    """The first m >= 0 with (m + 0.5)·dt > t: the clock steps after its local time 0 at
+    which a period of local time ``t`` s is due."""
+    m = max(0, int(t / dt) - 1)
+    while (m + 0.5) * dt <= t:
+        m += 1
+    return m
 
 
 #: s at most that a :class:`SharedClock` waits between two ticks for the threads waiting

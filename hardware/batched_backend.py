@@ -3,12 +3,13 @@
 
 It is :class:`hardware.sim_backend.SimBackend` for one arm (by its id) of a plant that
 many arms share: the same joint limits and goal clamping (:class:`GoalLimits`), the same
-raw words written and read and the same decoding (:func:`~hardware.sim_backend.raw_goals`,
-:func:`~hardware.sim_backend.decode_reports`), the same torque, e-stop, close and push
-semantics. One difference: :meth:`BatchedArmBackend.sync` does not step the plant. A
-shared clock (:class:`control.periodic.SharedClock`) steps the whole plant once per
-``dt`` and runs each arm's control period when it is due, so the plant is already at the
-loop's time; ``sync`` only records it.
+raw words written and read and the same decoding (:func:`~hardware.sim_backend.raw_goals`;
+:func:`~hardware.sim_backend.decode_reports` looked up in tables of every word's decoded
+value, :func:`word_tables`: a class reads hundreds of arms a second), the same torque,
+e-stop, close and push semantics. One difference: :meth:`BatchedArmBackend.sync` does not
+step the plant. A shared clock (:class:`control.periodic.SharedClock`) steps the whole
+plant once per ``dt`` and runs each arm's control period when it is due, so the plant is
+already at the loop's time; ``sync`` only records it.
 
 Every method that touches the plant holds the ``lock`` given (the one the clock's
 thread holds while it steps), so a UI thread may e-stop or push an arm at any time.
@@ -27,15 +28,52 @@ An arm's life (the owner's part)::
 
 from __future__ import annotations
 
+import functools
 import threading
+from collections.abc import Sequence
 
 import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
-from hardware.batched_plant import BatchedPlant
+from hardware import protocol1 as p1
+from hardware.batched_plant import BatchedPlant, ReportWords
 from hardware.servo import ServoReport
-from hardware.sim_backend import decode_reports, raw_goals, servo_limits, sim_registers
+from hardware.servo_spec import ServoSpec
+from hardware.sim_backend import raw_goals, servo_limits, sim_registers
 from kinematics.validate import scalar, vector
+
+POSITION_WORDS = 1024  #: Present Position words 0..1023
+SIGNED_WORDS = 2048  #: Present Speed / Present Load words: magnitude 0..1023, bit 10 = CW
+
+
+#: Per joint: its decoded Present Position, Present Speed and Present Load, by raw word.
+WordTables = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
+
+
+@functools.cache
+def word_tables(spec: ServoSpec, direction: float) -> WordTables:
+    """Every Present Position, Present Speed and Present Load word of ``spec`` decoded for
+    a joint of ``direction`` as :func:`~hardware.sim_backend.decode_reports` decodes it
+    (``direction · spec.raw_to_position(word)`` rad, ``raw_to_present_speed`` rad/s,
+    ``raw_to_load`` N·m), indexed by the word: a lookup gives the same floats as the
+    conversion (computed by it), for a fraction of its cost."""
+    d = float(direction)
+    return (tuple(d * spec.raw_to_position(w) for w in range(POSITION_WORDS)),
+            tuple(d * spec.raw_to_present_speed(w) for w in range(SIGNED_WORDS)),
+            tuple(d * spec.raw_to_load(w) for w in range(SIGNED_WORDS)))
+
+
+def decode_words(words: ReportWords, tables: Sequence[WordTables], t: float) -> JointState:
+    """An arm's report words (:meth:`BatchedPlant.report_words`) as the controller sees them,
+    through each joint's :func:`word_tables`: what :func:`~hardware.sim_backend.decode_reports`
+    makes of the same words."""
+    def column(k: int, values: list[int]) -> np.ndarray:
+        return np.array([tb[k][x] for tb, x in zip(tables, values, strict=True)])
+
+    return JointState(t=t, position=column(0, words.position), velocity=column(1, words.speed),
+                      load=column(2, words.load), errors=tuple(words.error),
+                      torque_on=tuple(bool(x) for x in words.torque_enable),
+                      alarms=tuple(p1.error_names(e) for e in words.error))
 
 
 def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
@@ -122,6 +160,8 @@ class BatchedArmBackend(GoalLimits):
         self.directions = plant.directions
         self._lock = lock
         self._lower, self._upper = servo_limits(plant.model, plant.specs, plant.directions)
+        self._tables = [word_tables(s, d) for s, d in zip(self.specs, self.directions,
+                                                          strict=True)]
         with lock:
             self._torque_limits = tuple(r.torque_limit for r in plant.registers(self.arm))
             self._k0 = plant.steps
@@ -151,9 +191,9 @@ class BatchedArmBackend(GoalLimits):
         """Every joint as its servo reports it (decoded raw words, quantised)."""
         with self._lock:
             self._check_open()
-            reports = self.batch.reports(self.arm)
+            words = self.batch.report_words(self.arm)
             t = (self.batch.steps - self._k0) * self.batch.dt
-        return decode_reports(reports, self.specs, self.directions, t)
+        return decode_words(words, self._tables, t)
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving

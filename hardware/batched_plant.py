@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -79,6 +80,16 @@ _STATE: dict[str, type] = {
     "overload": np.bool_, "shutdown": np.bool_, "angle_error": np.bool_, "moving": np.bool_,
     "drive": np.float64, "damping": np.float64, "push_tau": np.float64,
 }
+
+
+class ReportWords(NamedTuple):
+    """One arm's raw words as its servos report them, per joint in joint order (ints)."""
+
+    position: list[int]  #: Present Position 0..1023
+    speed: list[int]  #: Present Speed (bit 10 = CW)
+    load: list[int]  #: Present Load (bit 10 = CW)
+    error: list[int]  #: status error byte (angle limit, overload)
+    torque_enable: list[int]  #: Torque Enable register
 
 
 def signed_words(units: np.ndarray) -> np.ndarray:
@@ -166,6 +177,7 @@ class BatchedPlant:
         self._k = 0
         self._next_id = 0
         self._ids = np.zeros(0, dtype=np.int64)
+        self._row_of: dict[int, int] = {}  # id -> row, rebuilt when an arm joins or leaves
         self._s = {k: np.zeros((n, 0), dtype=t) for k, t in _STATE.items()}
         self._r = {k: np.zeros((n, 0), dtype=np.int64) for k in REGISTERS}
         # pushes, one row each: arm row, link, force (3,), point (3,), until (s)
@@ -195,10 +207,10 @@ class BatchedPlant:
         """The row of arm id ``arm``; ValueError naming ``arm`` when there is no such arm."""
         if isinstance(arm, bool) or not isinstance(arm, int | np.integer):
             raise ValueError(f"arm must be an arm id (int), got {arm!r}")
-        rows = np.flatnonzero(self._ids == int(arm))
-        if rows.size == 0:
+        r = self._row_of.get(int(arm))
+        if r is None:
             raise ValueError(f"arm {arm!r} is not in this plant (ids: {self._ids.tolist()})")
-        return int(rows[0])
+        return r
 
     def add_arm(self, *, q0: np.ndarray | None = None, qd0: np.ndarray | None = None,
                 registers: Sequence[ServoRegisters] | None = None) -> int:
@@ -231,6 +243,7 @@ class BatchedPlant:
         arm = self._next_id
         self._next_id += 1
         self._ids = np.append(self._ids, arm)
+        self._row_of[arm] = self._ids.size - 1
         return arm
 
     def remove_arm(self, arm: int) -> None:
@@ -242,6 +255,7 @@ class BatchedPlant:
         for k in self._f:
             self._f[k] = np.delete(self._f[k], r, axis=-1)
         self._ids = np.delete(self._ids, r)
+        self._row_of = {int(a): i for i, a in enumerate(self._ids.tolist())}
         keep = self._p_row != r
         self._drop_pushes(keep)
         self._p_row = np.where(self._p_row > r, self._p_row - 1, self._p_row)
@@ -615,18 +629,20 @@ class BatchedPlant:
         velocity = self._dir * qd
         s["velocity"] = velocity
         present = np.rint(512.0 + angle * self._cpr)
-        present = np.clip(present, 0.0, 1023.0).astype(np.int64)
+        present = np.minimum(np.maximum(present, 0.0), 1023.0).astype(np.int64)  # clip
         s["present"] = present
+        present_f = present.astype(float)
         torque_limit = r["torque_limit"] & 0x3FF
         shutdown, overload, stall = s["shutdown"], s["overload"], s["stall"]
         te = r["torque_enable"] != 0
-        recovered = shutdown & (torque_limit > 0) & te
-        if recovered.any():  # Torque Limit and Torque Enable written again
-            shutdown = shutdown & ~recovered
-            overload = overload & ~recovered
-            stall = np.where(recovered, 0.0, stall)
+        if shutdown.any():
+            recovered = shutdown & (torque_limit > 0) & te
+            if recovered.any():  # Torque Limit and Torque Enable written again
+                shutdown = shutdown & ~recovered
+                overload = overload & ~recovered
+                stall = np.where(recovered, 0.0, stall)
         enabled = te & ~shutdown
-        sp = np.where(enabled & ~s["enabled"], present.astype(float), s["setpoint"])
+        sp = np.where(enabled & ~s["enabled"], present_f, s["setpoint"])
         cw, ccw = r["cw_angle_limit"] & 0x3FF, r["ccw_angle_limit"] & 0x3FF
         goal = r["goal_position"] & 0x3FF
         wheel = (cw == 0) & (ccw == 0)
@@ -635,10 +651,9 @@ class BatchedPlant:
         raw_speed = r["moving_speed"] & 0x3FF
         step = raw_speed * self._cpsu * dt
         up, down = sp + step, sp - step
-        moved = np.where(sp < target, np.where(up < target, up, target),
-                         np.where(down > target, down, target))
+        moved = np.where(sp < target, np.minimum(up, target), np.maximum(down, target))
         moved = np.where(sp == target, sp, moved)
-        sp = np.where(~enabled, present.astype(float), np.where(raw_speed == 0, target, moved))
+        sp = np.where(~enabled, present_f, np.where(raw_speed == 0, target, moved))
         # the compliance curve (hardware.servo.compliance_duty)
         rsp = np.rint(sp).astype(np.int64)
         error = rsp - present
@@ -648,7 +663,7 @@ class BatchedPlant:
         err = np.abs(error)
         punch = np.minimum(r["punch"], torque_limit)
         level = punch + (err - margin) * (torque_limit - punch) / _SLOPES[slope & 0xFF]
-        duty = np.where(level > torque_limit, torque_limit, level) / 1023.0
+        duty = np.minimum(level, torque_limit) / 1023.0
         duty = np.where(rsp < present, -duty, duty)
         on = enabled & (torque_limit > 0) & (err > margin)
         duty = np.where(on, duty, 0.0)
@@ -659,7 +674,7 @@ class BatchedPlant:
             wduty = np.minimum(wspeed & 0x3FF, torque_limit) / 1023.0
             wduty = np.where(wspeed & DIRECTION_BIT != 0, -wduty, wduty)
             duty = np.where(wheel, np.where(enabled, wduty, 0.0), duty)
-            sp = np.where(wheel, present.astype(float), sp)
+            sp = np.where(wheel, present_f, sp)
             moving = np.where(wheel, wspeed & 0x3FF != 0, moving)
             angle_error = angle_error & ~wheel
         # overload: full duty (at Torque Limit) without moving for overload_time
@@ -706,21 +721,31 @@ class BatchedPlant:
         """(N, n) Moving register (0/1)."""
         return self._s["moving"].astype(np.int64).T
 
+    def report_words(self, arm: int) -> ReportWords:
+        """What a controller reads of arm ``arm`` each period: per joint its Present
+        Position, Present Speed and Present Load words, status error byte and Torque Enable
+        (the fields of :meth:`reports` the loop needs, without building ServoReports)."""
+        r = self.row(arm)
+        s = self._s
+        # the column as Python numbers: for n servos, scalar arithmetic beats numpy's
+        # per-call cost (signed_word rounds as signed_words does)
+        velocity, duty = s["velocity"][:, r].tolist(), s["duty"][:, r].tolist()
+        angle_error, overload = s["angle_error"][:, r].tolist(), s["overload"][:, r].tolist()
+        return ReportWords(
+            position=s["present"][:, r].tolist(),
+            speed=[signed_word(v / u) for v, u in zip(velocity, self._speed_units, strict=True)],
+            load=[signed_word(d * 1023.0) for d in duty],
+            error=[(ERROR_ANGLE_LIMIT if a else 0) | (ERROR_OVERLOAD if o else 0)
+                   for a, o in zip(angle_error, overload, strict=True)],
+            torque_enable=self._r["torque_enable"][:, r].tolist())
+
     def reports(self, arm: int) -> tuple[ServoReport, ...]:
         """Arm ``arm``'s servo reports in joint order, as ``Plant.reports()`` gives them
         (its column only: O(n), whatever N)."""
+        w = self.report_words(arm)
         r = self.row(arm)
-        s, regs = self._s, self._r
-        # the column as Python numbers: for n servos, scalar arithmetic beats numpy's
-        # per-call cost (signed_word rounds as signed_words does)
-        present, velocity, duty = (s[k][:, r].tolist() for k in ("present", "velocity", "duty"))
-        moving, angle_error, overload = (s[k][:, r].tolist()
-                                         for k in ("moving", "angle_error", "overload"))
-        enable, limit = regs["torque_enable"][:, r].tolist(), regs["torque_limit"][:, r].tolist()
+        moving, limit = self._s["moving"][:, r].tolist(), self._r["torque_limit"][:, r].tolist()
         return tuple(ServoReport(
-            position=int(present[i]), speed=signed_word(velocity[i] / self._speed_units[i]),
-            load=signed_word(duty[i] * 1023.0), voltage=self._voltage[i],
-            temperature=self._temperature[i], moving=int(moving[i]),
-            error=(ERROR_ANGLE_LIMIT if angle_error[i] else 0)
-            | (ERROR_OVERLOAD if overload[i] else 0),
-            torque_enable=int(enable[i]), torque_limit=int(limit[i])) for i in range(self.n))
+            position=w.position[i], speed=w.speed[i], load=w.load[i], voltage=self._voltage[i],
+            temperature=self._temperature[i], moving=int(moving[i]), error=w.error[i],
+            torque_enable=w.torque_enable[i], torque_limit=limit[i]) for i in range(self.n))

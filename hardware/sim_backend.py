@@ -87,9 +87,10 @@ def raw_goals(specs: Sequence[ServoSpec], directions: Sequence[float], position:
               speed: np.ndarray) -> tuple[list[int], list[int]]:
     """Checked goals (n,) rad and speeds (n,) rad/s as Goal Position and Moving Speed words
     (speeds as magnitudes, 1..1023 units: never 0, "no limit")."""
-    goals = [spec.position_to_raw(d * x)
-             for spec, d, x in zip(specs, directions, position, strict=True)]
-    speeds = [spec.speed_to_raw(abs(x)) for spec, x in zip(specs, speed, strict=True)]
+    goals = [spec.position_to_raw(d * x) for spec, d, x in
+             zip(specs, directions, np.asarray(position, dtype=float).tolist(), strict=True)]
+    speeds = [spec.speed_to_raw(abs(x))
+              for spec, x in zip(specs, np.asarray(speed, dtype=float).tolist(), strict=True)]
     return goals, speeds
 
 

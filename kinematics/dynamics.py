@@ -127,7 +127,7 @@ def newton_euler(model: SerialChain, q: np.ndarray, qd: np.ndarray, qdd: np.ndar
 
 def _gravity(model: SerialChain, gravity: object) -> list[float]:
     if gravity is None:
-        return [float(x) for x in model.gravity]
+        return np.asarray(model.gravity, dtype=float).tolist()
     return floats("gravity", gravity, 3)
 
 

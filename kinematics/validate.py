@@ -13,6 +13,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from kinematics.smallarrays import finite
+
 
 def vector(name: str, value: object, size: int | None = None) -> np.ndarray:
     """Return ``value`` as a finite float64 vector of ``size`` elements.
@@ -46,7 +48,7 @@ def floats(name: str, value: object, size: int) -> list[float]:
             vals = [float(v) for v in value]  # type: ignore[attr-defined]
     except (TypeError, ValueError):
         vals = []
-    if len(vals) != size or not all(math.isfinite(v) for v in vals):
+    if len(vals) != size or not finite(vals):
         vector(name, value, size)  # raises with the clear message
         raise ValueError(f"{name} must be {size} finite numbers")
     return vals
@@ -72,7 +74,7 @@ def scalar(name: str, value: object, *, positive: bool = False,
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(x):
+    if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {x}")
     if positive and x <= 0.0:
         raise ValueError(f"{name} must be > 0, got {x}")

@@ -126,6 +126,11 @@ def test_adding_and_removing_an_arm_leaves_the_others_unchanged() -> None:
         ref.step()
         batch.step()
     assert batch.arm_ids.tolist() == [0, 2, 3, 4]
+    assert [batch.row(a) for a in (0, 2, 3, 4)] == [0, 1, 2, 3]  # ids -> rows kept right
+    for gone in (1, extra):
+        with pytest.raises(ValueError, match="not in this plant"):
+            batch.row(gone)
+    assert all(batch.reports(a) == ref.reports(a) for a in (0, 2, 3, 4))
     assert np.array_equal(batch.q, ref.q)
     assert np.array_equal(batch.qd, ref.qd)
     assert np.array_equal(batch.present_position(), ref.present_position())

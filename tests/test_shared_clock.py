@@ -17,10 +17,18 @@ from control.loop import ControlLoop
 from control.params import Params
 from control.periodic import SharedClock
 from control.trajectory import minimum_jerk, thesis_line
-from hardware.batched_backend import BatchedArmBackend, add_sim_arm
-from hardware.batched_plant import BatchedPlant
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import SimBackend
+from hardware.batched_backend import (
+    POSITION_WORDS,
+    SIGNED_WORDS,
+    BatchedArmBackend,
+    add_sim_arm,
+    decode_words,
+    word_tables,
+)
+from hardware.batched_plant import BatchedPlant, ReportWords
+from hardware.servo import ServoReport
+from hardware.servo_spec import AX12A, RX24F
+from hardware.sim_backend import SimBackend, decode_reports
 from kinematics import load_robot
 
 MODEL = load_robot("receptionist_arm")
@@ -222,6 +230,25 @@ def test_batched_arm_backend_is_a_sim_backend_for_one_arm() -> None:
     assert be.estop() is True and plant.n_arms == 1  # close removes nothing
     plant.remove_arm(arm)
     assert be.estop() is True  # never raises, even with the arm gone
+
+
+def test_a_batched_arm_decodes_every_raw_word_as_a_sim_backend_does() -> None:
+    """BatchedArmBackend.read looks words up in tables (word_tables): for every Present
+    Position, Speed and Load word and error byte, of each servo model and direction, it
+    gives decode_reports' floats bit for bit (signed zeros included) and its names."""
+    specs, dirs = (RX24F, AX12A, RX24F), (1.0, -1.0, -1.0)
+    tables = [word_tables(s, d) for s, d in zip(specs, dirs, strict=True)]
+    for w in range(SIGNED_WORDS):
+        pos = [w % POSITION_WORDS, (w * 7) % POSITION_WORDS, POSITION_WORDS - 1 - w // 2]
+        words = ReportWords(position=pos, speed=[w, w ^ 0x400, w], load=[w ^ 0x400, w, w],
+                            error=[w & 0x7F, 0, (w >> 4) & 0x7F], torque_enable=[1, 0, w & 1])
+        reports = [ServoReport(position=p, speed=v, load=ld, voltage=120, temperature=30,
+                               moving=0, error=e, torque_enable=te, torque_limit=1023)
+                   for p, v, ld, e, te in zip(*words, strict=True)]
+        a, b = decode_words(words, tables, 0.25), decode_reports(reports, specs, dirs, 0.25)
+        for x, y in ((a.position, b.position), (a.velocity, b.velocity), (a.load, b.load)):
+            assert x.tobytes() == y.tobytes(), w
+        assert (a.t, a.errors, a.torque_on, a.alarms) == (b.t, b.errors, b.torque_on, b.alarms)
 
 
 def test_the_clock_thread_runs_attached_loops_and_stops() -> None:
