@@ -67,7 +67,7 @@ from control.params import DEFAULT, Params, loop_stability, stability_warning
 from control.periodic import DrivenPacer, Pacer, SharedClock
 from control.recorder import Recorder
 from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
-from kinematics.dynamics import rnea
+from kinematics.dynamics import dynamics_model
 from kinematics.ik import rmrc
 from kinematics.model import SerialChain
 from kinematics.redundancy import POSITION_ROWS, aim_gradient, null_space_rate, task_jacobian
@@ -194,6 +194,8 @@ class ControlLoop:
         self._fast_speed = self.max_speed * (1.0 - 1e-9)  # a reference this fast: a fault
         self.controller = ComplianceController(self.lower, self.upper, self.max_speed,
                                                mode=controller)
+        self._rnea = dynamics_model(model).rnea
+        self._gravity = np.asarray(model.gravity, dtype=float).tolist()
         self._params = params
         self._pending: Params | None = None
         self._commands: queue.SimpleQueue[Command] = queue.SimpleQueue()
@@ -395,7 +397,10 @@ class ControlLoop:
         q_cmd, qd_cmd, qdd_cmd = self._command(t, p.period)
         st = self._state
         assert st is not None
-        tau_dyn = rnea(self.model, q, qd, st.qdd_ref)
+        # τ_dyn, Newton–Euler of the measured motion (thesis eq. 2.41–2.50): the generated
+        # code kinematics.dynamics.rnea runs, without its checks (q, qd, θ̈_ref are finite)
+        tau_dyn = np.array(self._rnea(q.tolist(), qd.tolist(), st.qdd_ref.tolist(),
+                                      self._gravity))
         q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
         if not all_finite(q_ref, qd_ref, st.qdd_ref):
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "

@@ -353,7 +353,8 @@ class DrivenPacer:
         self._attached = False
         self._k0 = 0  # clock step of local time 0
         self._t_next = 0.0  # local time of the next period, s
-        self._k_due = 0  # the clock step it is due at (k0 + _steps_before(t_next, dt))
+        self._k_due = 0  # the clock step its next period runs at: the first k with
+        # (k − k0 + 0.5)·dt > t_next (k0 + _steps_before(t_next, dt))
         self._last_wall: float | None = None
         self._intervals: deque[float] = deque(maxlen=1000)
         self._gap_sum = 0.0  # sum of _intervals, kept as they come and go (read every frame)
@@ -408,10 +409,6 @@ class DrivenPacer:
             interval_mean_ms=total / count * 1e3 if count else None,
             overruns=base.overruns, skipped=round(base.skipped * scale),
             skipped_recent=round(base.skipped_recent * scale))
-
-    def _due(self, k: int) -> bool:
-        """Whether its next period runs at clock step ``k``: (k − k0 + 0.5)·dt > t_next."""
-        return self._attached and k >= self._k_due
 
     def _fire(self) -> None:
         """One period (in the clock's thread, the lock held); never raises."""
@@ -619,7 +616,7 @@ class SharedClock:
             try:
                 while i < len(self._pacers):  # a pacer started in a period runs this tick too
                     p = self._pacers[i]
-                    while p._due(k):
+                    while p._attached and k >= p._k_due:
                         p._fire()
                     i += 1
             finally:

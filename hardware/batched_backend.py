@@ -67,13 +67,12 @@ def decode_words(words: ReportWords, tables: Sequence[WordTables], t: float) -> 
     """An arm's report words (:meth:`BatchedPlant.report_words`) as the controller sees them,
     through each joint's :func:`word_tables`: what :func:`~hardware.sim_backend.decode_reports`
     makes of the same words."""
-    def column(k: int, values: list[int]) -> np.ndarray:
-        return np.array([tb[k][x] for tb, x in zip(tables, values, strict=True)])
-
-    return JointState(t=t, position=column(0, words.position), velocity=column(1, words.speed),
-                      load=column(2, words.load), errors=tuple(words.error),
-                      torque_on=tuple(bool(x) for x in words.torque_enable),
-                      alarms=tuple(p1.error_names(e) for e in words.error))
+    return JointState(
+        t=t, position=np.array([tb[0][x] for tb, x in zip(tables, words.position, strict=True)]),
+        velocity=np.array([tb[1][x] for tb, x in zip(tables, words.speed, strict=True)]),
+        load=np.array([tb[2][x] for tb, x in zip(tables, words.load, strict=True)]),
+        errors=tuple(words.error), torque_on=tuple(map(bool, words.torque_enable)),
+        alarms=tuple(map(p1.error_names, words.error)))
 
 
 def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
