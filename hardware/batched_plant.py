@@ -255,7 +255,7 @@ class BatchedPlant:
         for k in self._f:
             self._f[k] = np.delete(self._f[k], r, axis=-1)
         self._ids = np.delete(self._ids, r)
-        self._row_of = {int(a): i for i, a in enumerate(self._ids.tolist())}
+        self._row_of = {a: i for i, a in enumerate(self._ids.tolist())}
         keep = self._p_row != r
         self._drop_pushes(keep)
         self._p_row = np.where(self._p_row > r, self._p_row - 1, self._p_row)
