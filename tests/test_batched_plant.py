@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+import threading
+
 import numpy as np
 import pytest
 
@@ -79,6 +82,36 @@ def test_generated_dynamics_over_arms_equal_the_float_path(n_arms: int) -> None:
     ref = np.array([one.fd(list(q[:, k]), list(qd[:, k]), list(tau[:, k]), g, arm)
                     for k in range(n_arms)]).T
     assert fd.shape == (3, n_arms) and np.array_equal(fd, ref)
+
+
+def test_two_threads_running_the_generated_dynamics_each_get_their_own_results() -> None:
+    """The numpy fd writes into buffers (kinematics.batched_dynamics): two classes' clocks
+    stepping plants of the same model at once, switching threads every few operations,
+    still each get their own arms' accelerations, bit for bit."""
+    dyn = batched_dynamics(MODEL)
+    g, arm = [float(x) for x in MODEL.gravity], [3e-3] * 3
+    inputs = [[rng.uniform(-2.5, 2.5, (3, 50)) for _ in range(3)]  # as many arms: one size
+              for rng in (np.random.default_rng(5), np.random.default_rng(6))]
+    want = [dyn.fd(q, qd, tau, g, arm) for q, qd, tau in inputs]
+    wrong: list[int] = []
+
+    def run(i: int) -> None:
+        q, qd, tau = inputs[i]
+        for _ in range(200):
+            if not np.array_equal(dyn.fd(q, qd, tau, g, arm), want[i]):
+                wrong.append(i)
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads as often as the interpreter can
+    try:
+        threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(120.0)
+    finally:
+        sys.setswitchinterval(interval)
+    assert not any(t.is_alive() for t in threads) and wrong == []
 
 
 @pytest.mark.parametrize("float_arms", [FLOAT_ARMS, 0])  # the plant's path for a few arms; numpy's
