@@ -30,7 +30,8 @@ import os
 import re
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 from app.commands.scan import _ids
 from hardware.emulator import Faults, PtyEmulator, emulated_network
@@ -57,6 +58,8 @@ def _fraction(text: str) -> float:
     return v
 
 
+T = TypeVar("T")
+
 #: what ``--disturb`` takes
 DISTURB_FORMAT = ("JOINT:NM@S (joint index or name, torque in N·m along the joint's axis, "
                   "seconds after the emulator starts), e.g. 1:0.3@1.5")
@@ -68,17 +71,8 @@ def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, floa
     Raises:
         ValueError: one line naming the option, the value, what is wrong and the format.
     """
-    m = re.fullmatch(r"\s*([^:@]+):([^:@]+)@([^:@]+)\s*", text)
-    try:
-        if m is None:
-            raise ValueError("not JOINT:NM@S")
-        joint = joint_index(m[1], names)
-        torque, start = _number(m[2], "the torque"), _number(m[3], "the start")
-        if start < 0:
-            raise ValueError(f"the start must be >= 0 s, got {start:g}")
-    except ValueError as exc:
-        raise ValueError(f"--disturb {text!r}: {exc}; expected {DISTURB_FORMAT}") from None
-    return joint, torque, start
+    return _joint_event("--disturb", text, names, DISTURB_FORMAT,
+                        lambda middle: _number(middle, "the torque"), "the start")
 
 
 #: the flags ``--fault`` takes: Hardware Error Status bits by name
@@ -93,20 +87,31 @@ def parse_fault(text: str, names: Sequence[str]) -> tuple[int, HardwareError, fl
     Raises:
         ValueError: one line naming the option, the value, what is wrong and the format.
     """
+    def flag(middle: str) -> HardwareError:
+        found = FAULT_FLAGS.get(middle.strip().lower())
+        if found is None:
+            raise ValueError(f"no flag {middle.strip()!r}")
+        return found
+
+    return _joint_event("--fault", text, names, FAULT_FORMAT, flag, "the time")
+
+
+def _joint_event(option: str, text: str, names: Sequence[str], fmt: str,
+                 middle: Callable[[str], T], when: str) -> tuple[int, T, float]:
+    """``JOINT:X@S`` -> (joint index, ``middle(X)``, S >= 0 s); ValueError naming
+    ``option``, the value, what is wrong and ``fmt``."""
     m = re.fullmatch(r"\s*([^:@]+):([^:@]+)@([^:@]+)\s*", text)
     try:
         if m is None:
-            raise ValueError("not JOINT:FLAG@S")
+            raise ValueError(f"not {fmt.split(' ')[0]}")
         joint = joint_index(m[1], names)
-        flag = FAULT_FLAGS.get(m[2].strip().lower())
-        if flag is None:
-            raise ValueError(f"no flag {m[2].strip()!r}")
-        after = _number(m[3], "the time")
-        if after < 0:
-            raise ValueError(f"the time must be >= 0 s, got {after:g}")
+        value = middle(m[2])
+        at = _number(m[3], when)
+        if at < 0:
+            raise ValueError(f"{when} must be >= 0 s, got {at:g}")
     except ValueError as exc:
-        raise ValueError(f"--fault {text!r}: {exc}; expected {FAULT_FORMAT}") from None
-    return joint, flag, after
+        raise ValueError(f"{option} {text!r}: {exc}; expected {fmt}") from None
+    return joint, value, at
 
 
 def _number(text: str, name: str) -> float:
