@@ -223,9 +223,12 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
                 reader.addParam(i)
                 writer.addParam(i, list(goal[i]))
 
-            def sdk_cycle() -> None:
-                if reader.txRxPacket() != sdk.COMM_SUCCESS:
-                    raise RuntimeError("the SDK's SYNC_READ failed")
+            def sdk_cycle() -> None:  # up to 5 retries, as armlab's bus here
+                for _ in range(6):
+                    if reader.txRxPacket() == sdk.COMM_SUCCESS:
+                        break
+                else:
+                    raise RuntimeError("the SDK's SYNC_READ failed 6 times")
                 writer.txPacket()
 
             for _ in range(50):  # warm-up of both
