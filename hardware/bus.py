@@ -356,9 +356,16 @@ class Bus:
     def _send(self, packet: bytes) -> float:
         """Write a packet; return the s of earlier packets still on the wire before it
         (a reply can only come after the UART has sent everything queued)."""
-        try:
-            self._ser.reset_input_buffer()
-            self._ser.write(packet)
+        if not self._ser.is_open:  # its fd's number may belong to another file by now
+            raise self._lost("the port is closed")
+        try:  # the syscalls themselves, without pyserial's wait for a writable port after
+            termios.tcflush(self._fd, termios.TCIFLUSH)
+            try:
+                sent = os.write(self._fd, packet)
+            except BlockingIOError:
+                sent = 0
+            if sent < len(packet):  # the output buffer is full: pyserial waits for room
+                self._ser.write(packet[sent:])
         except (serial.SerialException, OSError, termios.error) as exc:
             raise self._lost(exc) from None
         now = time.monotonic()
@@ -405,7 +412,7 @@ class Bus:
                         return got
                     continue
                 try:
-                    status = p.decode_status(raw)
+                    status = p.decode_status(raw, checked=True)
                 except (p1.ProtocolError, p2.ProtocolError):  # an instruction: not ours
                     self.stats.corrupt += 1
                     continue

@@ -219,9 +219,12 @@ def status(servo_id: int, error: int = 0, params: bytes = b"") -> bytes:
     return encode_packet(servo_id, int(error) & 0x7F, params)
 
 
-def decode_status(packet: bytes) -> StatusPacket:
-    """Parse one complete status packet; :class:`ProtocolError` if it is malformed."""
-    servo_id, code, params = _split(packet)
+def decode_status(packet: bytes, *, checked: bool = False) -> StatusPacket:
+    """Parse one complete status packet; :class:`ProtocolError` if it is malformed.
+
+    ``checked``: its checksum is known to be right (a :class:`PacketParser` returned it),
+    so it is not summed again."""
+    servo_id, code, params = _split(packet, checked=checked)
     return StatusPacket(servo_id, ErrorBits(code & 0x7F), params)
 
 
@@ -255,14 +258,14 @@ def _check_span(address: int, length: int) -> None:
         raise ValueError(f"address {address} / length {length} must be bytes")
 
 
-def _split(packet: bytes) -> tuple[int, int, bytes]:
+def _split(packet: bytes, *, checked: bool = False) -> tuple[int, int, bytes]:
     packet = bytes(packet)
     if len(packet) < OVERHEAD or packet[:2] != HEADER:
         raise ProtocolError(f"not a packet: {packet.hex(' ')}")
     servo_id, length = packet[2], packet[3]
     if length < 2 or len(packet) != length + 4:
         raise ProtocolError(f"length byte {length} does not match {len(packet)} bytes")
-    if checksum(packet[2:-1]) != packet[-1]:
+    if not checked and checksum(packet[2:-1]) != packet[-1]:
         raise ProtocolError(f"bad checksum in {packet.hex(' ')}")
     return servo_id, packet[4], packet[5:-1]
 

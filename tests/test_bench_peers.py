@@ -65,3 +65,18 @@ def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
                 "ratio_ik_set"):
         assert math.isfinite(figures[key]) and figures[key] > 0, key
     assert figures["peer_ik_solved"] == 1.0
+
+
+def test_the_bus2_cycles_alternate_on_one_paced_emulator_and_report_their_figures():
+    """armlab's bus and the SDK take turns on one port; neither beats the paced wire."""
+    pytest.importorskip("dynamixel_sdk")
+    from app.benches.bus import OMX_SERVOS, protocol2_cycle_bytes
+    from app.benches.peers import bus2_cycles
+    from hardware.protocol1 import wire_time
+
+    out = bus2_cycles(True)
+    assert set(out) == {"armlab_bus2_cycle_ms", "peer_bus2_cycle_ms", "ratio_bus2"}
+    bound_ms = wire_time(protocol2_cycle_bytes(OMX_SERVOS), 1e6) * 1e3
+    for name in ("armlab_bus2_cycle_ms", "peer_bus2_cycle_ms"):
+        assert math.isfinite(out[name]) and out[name] > 0.95 * bound_ms, out
+    assert math.isfinite(out["ratio_bus2"]) and out["ratio_bus2"] > 0, out

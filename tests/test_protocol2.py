@@ -66,6 +66,11 @@ def test_table_crc_equals_the_bitwise_definition(data):
     assert p2.crc16(data) == _crc_bitwise(data)
 
 
+@given(st.binary(max_size=60), st.binary(max_size=60))
+def test_crc_continues_from_an_initial_value_across_odd_and_even_splits(a, b):
+    assert p2.crc16(b, p2.crc16(a)) == _crc_bitwise(a + b)
+
+
 def test_crc_check_value_of_crc16_buypass():
     assert p2.crc16(b"123456789") == 0xFEE8  # the catalogue's check value
 
