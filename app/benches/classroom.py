@@ -23,7 +23,8 @@ Figures:
         the moment all 30 private arms exist.
     classroom_30_frames_skipped_behind_pct: of the private pages' frames due, those not
         made because the page had not yet been sent the one before (``Publisher`` stats,
-        the whole run); ``classroom_30_pose_hz_median``: the median page's rate.
+        the whole run); ``classroom_30_pose_hz_median``: the median page's rate;
+        ``classroom_30_pages_dropped``: pages whose connection ended before the count did.
     classroom_30_client_cpu_share: CPU seconds per second of the process running the 30
         fake pages (one thread): near 1, they, not the server, may limit the rates (in a
         classroom each browser has a device of its own).
@@ -172,6 +173,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         "classroom_30_rss_growth_pct": 100.0 * (rss["end"] - start) / start,
         "classroom_30_client_cpu_share": res["client_cpu_share"],
         "classroom_30_frames_skipped_behind_pct": 100.0 * behind / max(1, made + behind),
+        "classroom_30_pages_dropped": res["pages_dropped"],
     }
 
 

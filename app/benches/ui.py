@@ -126,6 +126,9 @@ def client_main(argv: list[str] | None = None) -> int:
     dt = time.monotonic() - t0
     measuring.clear()
     b1 = [c.bytes_received for c in clients]
+    # a page whose connection ended before the count did (the server or the network
+    # closed it): its rates are 0, and this says why
+    dropped = [(i, repr(c._error)) for i, c in enumerate(clients) if c._closed.is_set()]
     for c in clients:
         c.close()
     pages.close()
@@ -153,6 +156,10 @@ def client_main(argv: list[str] | None = None) -> int:
         "client_cpu_share": float((cpu1.user + cpu1.system - cpu0.user - cpu0.system)
                                   / (wall1 - wall0)),
     }
+    out["pages_dropped"] = len(dropped)
+    if dropped:
+        print("pages whose connection ended before the count did:", dropped,
+              file=sys.stderr, flush=True)
     if args.my_arm:  # which pages, if any, fell behind (the figure is the lowest)
         print("own frames per page:", sorted(len(own_frames[i]) for i in range(args.clients)),
               file=sys.stderr, flush=True)
