@@ -137,6 +137,10 @@ def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | No
 
 WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
 PTY_MARGIN = 0.100  #: s on a pseudo-terminal (the emulator: a process, not a wire)
+#: s at most spent polling (not sleeping) for the last reply a transaction waits for: a
+#: woken thread comes back some 40 µs after the bytes, a polling one at once (the
+#: official SDK polls the whole wait; this keeps the CPU for the servos' turn-around)
+LAST_REPLY_POLL_S = 0.0003
 WIRE_RETRIES = 2  #: extra attempts after a lost or broken reply on a serial adapter
 PTY_RETRIES = 8  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.5 s or more
 
@@ -402,7 +406,9 @@ class Bus:
         while True:
             # past the deadline still look once (timeout 0): a client the OS paused
             # must not miss a reply that came in time
-            chunk = self._read_chunk(max(0.0, deadline - time.monotonic()))
+            last = len(want) - len(got) == 1 and not echo_pending
+            chunk = self._read_chunk(max(0.0, deadline - time.monotonic()),
+                                     poll=LAST_REPLY_POLL_S if last else 0.0)
             if chunk is None:
                 break
             for raw in parser.feed(chunk):
@@ -435,9 +441,25 @@ class Bus:
             log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
         return got
 
-    def _read_chunk(self, timeout: float) -> bytes | None:
-        """The bytes that arrive within ``timeout`` s (None: none did); :class:`LinkLost`
-        when the device is gone."""
+    def _read_chunk(self, timeout: float, *, poll: float = 0.0) -> bytes | None:
+        """The bytes that arrive within ``timeout`` s (None: none did), polled for the first
+        ``poll`` s, then waited for; :class:`LinkLost` when the device is gone."""
+        if poll > 0.0:
+            end = time.monotonic() + min(poll, timeout)
+            while True:
+                try:  # the port returns at once (VMIN 0, VTIME 0): b"" is "nothing yet"
+                    chunk = os.read(self._fd, 512)
+                except (BlockingIOError, InterruptedError):
+                    chunk = b""
+                except OSError as exc:
+                    raise self._lost(exc) from None
+                if chunk:
+                    self.stats.bytes_in += len(chunk)
+                    return chunk
+                now = time.monotonic()
+                if now >= end:
+                    timeout = max(0.0, timeout - min(poll, timeout))
+                    break
         while True:
             try:
                 ready, _, _ = select.select([self._fd], [], [], timeout)
