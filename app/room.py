@@ -374,9 +374,10 @@ class Room:
         k = 0
         while not self._stop.wait(1.0 / GHOST_HZ):
             k += 1
+            if k % TABLE_EVERY == 0:
+                collector.tidy(every_s=collector.TIDY_EVERY_S)  # what closed lessons left
             try:
                 self._tick(tables=k % TABLE_EVERY == 0)
-                collector.tidy(every_s=collector.TIDY_EVERY_S)  # what closed lessons left
             except Exception as exc:  # a page gone mid-update: next tick
                 print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200],
                       file=sys.stderr, flush=True)

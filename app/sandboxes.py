@@ -31,7 +31,7 @@ from app.backends import shipped_x_servo
 from control.backend import Backend
 from control.loop import ControlLoop
 from control.params import Params
-from control.periodic import HandOverLock, SharedClock
+from control.periodic import SharedClock
 from hardware.batched_backend import BatchedArmBackend, add_sim_arm
 from hardware.batched_plant import BatchedPlant
 from hardware.servo_spec import RX24F
@@ -103,11 +103,10 @@ class Sandboxes:
         self.max_arms = int(max_arms)
         self.idle_s = float(idle_s)
         self._now = clock
-        self._lock = HandOverLock()  # the clock lets a waiting page in between ticks
         self._plants: dict[str, BatchedPlant] = {}
         self._seats: dict[str, Seat] = {}
-        self.clock = SharedClock(self._step, dt=DT, realtime=realtime, lock=self._lock,
-                                 name="armlab-class")
+        self.clock = SharedClock(self._step, dt=DT, realtime=realtime, name="armlab-class")
+        self._lock = self.clock.lock  # a HandOverLock: a waiting page gets in between ticks
         self.clock.start()
         self._stop = threading.Event()
         self._sweeper = threading.Thread(target=self._sweep_often, name="armlab-seats",

@@ -164,6 +164,16 @@ class HeadlessClient:
 
     # -- lifetime -----------------------------------------------------------------
 
+    @property
+    def closed(self) -> bool:
+        """The connection has ended (closed here, by the server, or lost)."""
+        return self._closed.is_set()
+
+    @property
+    def error(self) -> BaseException | None:
+        """Why the connection failed or ended with an error (None: it did not)."""
+        return self._error
+
     def connect(self, timeout: float = 30.0) -> HeadlessClient:
         """Connect and introduce itself with a camera message; returns self."""
         self._started = True

@@ -414,7 +414,8 @@ class ControlLoop:
                 f"{self.model.joints[worst].name} exceeds {self.max_accel:g} "
                 f"(Kp {p.kp:g}, Kv {p.kv:g}, M_env {p.m_env:g}, D_env {p.d_env:g}, "
                 f"K_env {p.k_env:g}, K_f {p.k_f:g} at {p.period * 1e3:g} ms); torque off")
-        fast = np.abs(qd_ref) >= self._fast_speed
+        speed_ref = np.abs(qd_ref)
+        fast = speed_ref >= self._fast_speed
         if any(fast.tolist()):
             j = int(np.argmax(fast))
             raise _Fault(f"unstable: the reference speed of joint {self.model.joints[j].name} "
@@ -428,7 +429,7 @@ class ControlLoop:
                          f"{np.degrees(self.max_lag):.0f}° from its reference for "
                          f"{self.lag_time:g} s (blocked, overloaded or oscillating); torque off")
         goal = clamp(q_ref, self.lower, self.upper)
-        speed = np.minimum(np.abs(qd_ref), self.max_speed)
+        speed = np.minimum(speed_ref, self.max_speed)
         self.backend.write(goal, speed)
         self._record(t, q_cmd=q_cmd, q_ref=goal, q=q, error=q_cmd - q, qd_ref=qd_ref,
                      load=load, tau_load=st.tau_lpf, tau_dyn=tau_dyn, tau_ext=st.tau_ext,

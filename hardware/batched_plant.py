@@ -56,6 +56,7 @@ from hardware.servo import (
 from hardware.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
 from kinematics.batched_dynamics import batched_dynamics
 from kinematics.model import SerialChain
+from kinematics.smallarrays import clamp
 from kinematics.validate import index, scalar, vector
 
 #: The registers the firmware acts on, held per (joint, arm) as int64 arrays.
@@ -629,7 +630,7 @@ class BatchedPlant:
         velocity = self._dir * qd
         s["velocity"] = velocity
         present = np.rint(512.0 + angle * self._cpr)
-        present = np.minimum(np.maximum(present, 0.0), 1023.0).astype(np.int64)  # clip
+        present = clamp(present, 0.0, 1023.0).astype(np.int64)
         s["present"] = present
         present_f = present.astype(float)
         torque_limit = r["torque_limit"] & 0x3FF

@@ -443,27 +443,19 @@ class Bus:
 
     def _read_chunk(self, timeout: float, *, poll: float = 0.0) -> bytes | None:
         """The bytes that arrive within ``timeout`` s (None: none did), polled for the first
-        ``poll`` s, then waited for; :class:`LinkLost` when the device is gone."""
-        if poll > 0.0:
-            end = time.monotonic() + min(poll, timeout)
-            while True:
-                try:  # the port returns at once (VMIN 0, VTIME 0): b"" is "nothing yet"
-                    chunk = os.read(self._fd, 512)
-                except (BlockingIOError, InterruptedError):
-                    chunk = b""
-                except OSError as exc:
-                    raise self._lost(exc) from None
-                if chunk:
-                    self.stats.bytes_in += len(chunk)
-                    return chunk
-                now = time.monotonic()
-                if now >= end:
-                    timeout = max(0.0, timeout - min(poll, timeout))
-                    break
+        ``poll`` s (``select`` without sleeping), then waited for; :class:`LinkLost` when
+        the device is gone."""
+        now = time.monotonic()
+        deadline, poll_until = now + timeout, now + min(poll, timeout)
         while True:
+            now = time.monotonic()
+            polling = now < poll_until
             try:
-                ready, _, _ = select.select([self._fd], [], [], timeout)
+                ready, _, _ = select.select([self._fd], [], [],
+                                            0.0 if polling else max(0.0, deadline - now))
                 if not ready:
+                    if polling:
+                        continue
                     return None
                 chunk = os.read(self._fd, 512)
             except InterruptedError:

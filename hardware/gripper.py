@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from control.backend import GripperState
+from hardware import protocol2 as p2
 from hardware.plant import Plant
 from hardware.xseries import CURRENT_POSITION_D_GAIN, VELOCITY_UNIT, XSpec, x_table_for
 from hardware.xservo import XRegisters
@@ -76,8 +77,8 @@ class GripperServo:
 
     def __post_init__(self) -> None:
         who = f"gripper servo ID {self.servo_id} ({self.joint})"
-        if not 0 <= self.servo_id <= 252:
-            raise ValueError(f"{who}: ID outside 0..252")
+        if not 0 <= self.servo_id <= p2.MAX_ID:
+            raise ValueError(f"{who}: ID outside 0..{p2.MAX_ID}")
         values = (self.lower, self.upper, self.closed_angle, self.open_angle)
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f"{who}: its range and horn angles must be finite")

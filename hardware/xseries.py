@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 from hardware.control_table import EEPROM, RAM, ControlTable, Item
+from hardware.protocol2 import describe_hardware_error
 from hardware.servo_spec import RETURN_DELAY_UNIT, RPM
 
 COUNTS = 4096  #: position counts per turn
@@ -349,3 +350,11 @@ def lab_settings(spec: XSpec, *, torque_limit: float) -> tuple[tuple[str, int, s
             ("position_d_gain", CURRENT_POSITION_D_GAIN,
              f"position D gain {CURRENT_POSITION_D_GAIN} (the damping the current loop "
              "takes away)"))
+
+
+def hardware_alarm(bits: int, *, servo_id: int | None = None) -> str:
+    """What a person is told about a servo's Hardware Error Status ``bits``: the servo,
+    the flags by their e-manual names with the value, and the way back, e.g. "servo 12:
+    Overload (Hardware Error Status 0x20), cleared by a REBOOT (Reset sends it)"."""
+    who = "" if servo_id is None else f"servo {servo_id}: "
+    return f"{who}{describe_hardware_error(bits)}, cleared by a REBOOT (Reset sends it)"

@@ -42,7 +42,13 @@ from hardware.bus import BusError
 from hardware.dynamixel_backend import SAFE_SPEED, DynamixelBackend
 from hardware.gripper import GRIPPER_PROFILE_VELOCITY, decode_gripper, gripper_settings
 from hardware.joint_map import JointMap, default_joint_map, load_joint_map
-from hardware.xseries import VELOCITY_UNIT, OperatingMode, lab_mode, lab_settings
+from hardware.xseries import (
+    VELOCITY_UNIT,
+    OperatingMode,
+    hardware_alarm,
+    lab_mode,
+    lab_settings,
+)
 from kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.xseries")
@@ -297,14 +303,6 @@ class XSeriesBackend(DynamixelBackend):
         #: a profile velocity above Velocity Limit would be refused (Data Limit)
         self._vmax = [x["velocity_limit"] for x in limits]
         return self._narrowed(self._cw, self._ccw)
-
-
-def hardware_alarm(bits: int, *, servo_id: int | None = None) -> str:
-    """What a person is told about a servo's Hardware Error Status ``bits``: the servo,
-    the flags by their e-manual names with the value, and the way back, e.g. "servo 12:
-    Overload (Hardware Error Status 0x20), cleared by a REBOOT (Reset sends it)"."""
-    who = "" if servo_id is None else f"servo {servo_id}: "
-    return f"{who}{p2.describe_hardware_error(bits)}, cleared by a REBOOT (Reset sends it)"
 
 
 def _goal_data(values: dict[int, tuple[int, int]]) -> dict[int, bytes]:

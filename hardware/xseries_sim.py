@@ -37,11 +37,11 @@ from hardware.xseries import (
     VELOCITY_UNIT,
     OperatingMode,
     XSpec,
+    hardware_alarm,
     lab_mode,
     lab_settings,
     x_table_for,
 )
-from hardware.xseries_backend import hardware_alarm
 from hardware.xservo import XRegisters, XReport
 from kinematics.model import SerialChain
 from kinematics.validate import vector

@@ -34,6 +34,8 @@ BAUD = 1_000_000
 CYCLE_BYTES = 3 * (8 + 12) + 23
 #: the OpenManipulator-X's servos on the bus: four joints and the gripper
 OMX_SERVOS = 5
+#: their IDs (the shipped map: joints 11..14, the gripper 15)
+OMX_IDS = tuple(range(11, 11 + OMX_SERVOS))
 
 
 @contextlib.contextmanager

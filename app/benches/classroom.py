@@ -44,7 +44,7 @@ import numpy as np
 from control.commands import Push, RunTrajectory
 from control.loop import ControlLoop
 from control.params import Params
-from control.periodic import HandOverLock, SharedClock
+from control.periodic import SharedClock
 from control.trajectory import minimum_jerk
 from hardware.batched_backend import BatchedArmBackend, add_sim_arm
 from hardware.batched_plant import BatchedPlant
@@ -61,8 +61,8 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
     plant = BatchedPlant(model, RX24F, dt=1e-3)
-    lock = HandOverLock()
-    clock = SharedClock(plant.step, dt=plant.dt, realtime=False, lock=lock)
+    clock = SharedClock(plant.step, dt=plant.dt, realtime=False)
+    lock = clock.lock
     q0 = np.array([0.0, 0.3, 0.3])
     loops = []
     for _ in range(n_arms):

@@ -185,11 +185,11 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     """
     import dynamixel_sdk as sdk
 
-    from app.benches.bus import BAUD, paced_emulator
+    from app.benches.bus import BAUD, OMX_IDS, paced_emulator
     from hardware.bus import Bus
     from hardware.xseries_backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
 
-    ids = [11, 12, 13, 14, 15]  # the arm's and the gripper's, as the X-series backend's
+    ids = list(OMX_IDS)  # the arm's and the gripper's, as the X-series backend's
     rounds, block = (4, 75) if quick else (10, 200)
     goal = {i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}
 

@@ -128,12 +128,13 @@ def client_main(argv: list[str] | None = None) -> int:
     b1 = [c.bytes_received for c in clients]
     # a page whose connection ended before the count did (the server or the network
     # closed it): its rates are 0, and this says why
-    dropped = [(i, repr(c._error)) for i, c in enumerate(clients) if c._closed.is_set()]
+    dropped = [(i, repr(c.error)) for i, c in enumerate(clients) if c.closed]
     for c in clients:
         c.close()
     pages.close()
     cpu1, wall1 = os.times(), time.monotonic()
     lat = np.array(latencies) * 1e3 if latencies else np.array([np.nan])
+    own = [len(own_frames[i]) for i in range(args.clients)]  # each page's own frames
     out = {
         "bytes_per_client_per_s": float(np.mean([(b - a) / dt for a, b in zip(b0, b1,
                                                                                strict=True)])),
@@ -141,9 +142,8 @@ def client_main(argv: list[str] | None = None) -> int:
         "arm_pose_hz": float(np.mean([len(pose_frames[i]) / dt
                                       for i in range(args.clients)])),
         "plot_hz": float(np.mean([len(plot_frames[i]) / dt for i in range(args.clients)])),
-        "own_pose_hz_min": float(min(len(own_frames[i]) / dt for i in range(args.clients))),
-        "own_pose_hz_median": float(np.median([len(own_frames[i]) / dt
-                                               for i in range(args.clients)])),
+        "own_pose_hz_min": float(min(own) / dt),
+        "own_pose_hz_median": float(np.median(own) / dt),
         "own_arm_moved_hz_min": float(min(len(own_moved[i]) / dt
                                           for i in range(args.clients))),
         "bytes_per_client_per_s_max": float(max((b - a) / dt for a, b in zip(b0, b1,
@@ -161,8 +161,7 @@ def client_main(argv: list[str] | None = None) -> int:
         print("pages whose connection ended before the count did:", dropped,
               file=sys.stderr, flush=True)
     if args.my_arm:  # which pages, if any, fell behind (the figure is the lowest)
-        print("own frames per page:", sorted(len(own_frames[i]) for i in range(args.clients)),
-              file=sys.stderr, flush=True)
+        print("own frames per page:", sorted(own), file=sys.stderr, flush=True)
     print(json.dumps(out), flush=True)
     return 0
 

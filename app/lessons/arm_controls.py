@@ -225,7 +225,7 @@ class ArmControls:
 
     def push(self) -> None:
         """Push the hand as the Push tab says (the simulated arm)."""
-        if not isinstance(self.backend, Pushable):
+        if self.servos:
             raise ValueError("real servos: push the arm by hand")
         snap = self.loop.recorder.snapshot(0.2)
         if not len(snap["t"]) or not np.all(np.isfinite(snap["q"][-1])):
@@ -243,10 +243,9 @@ class ArmControls:
     # ================================================================== frames
 
     def pose_frame(self, snap: dict[str, np.ndarray]) -> None:
-        """Draw the force arrows at the hand for the newest sample of ``snap``."""
+        """Draw the force arrows at the hand for the newest sample of ``snap`` (its angles
+        finite: the lesson draws only those)."""
         q = snap["q"][-1]
-        if not np.all(np.isfinite(q)):
-            return
         T, J = fk_and_jacobian(self.model, q)
         push = self._push
         applied = push.force if push is not None and push.t0 <= snap["t"][-1] <= push.t1 \

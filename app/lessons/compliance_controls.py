@@ -178,17 +178,20 @@ def apply_gains(loop: ControlLoop, params: Params, *, servos: bool,
         raise ValueError(f"unstable gains are refused on real servos: "
                          f"{stability_warning(params)}")
     loop.set_params(params, force=True)
-    show_gain_warning(warning, params)
+    show_gain_warning(warning, params, unstable=unstable)
 
 
-def show_gain_warning(warning: viser.GuiHtmlHandle, params: Params) -> None:
+def show_gain_warning(warning: viser.GuiHtmlHandle, params: Params, *,
+                      unstable: bool | None = None) -> None:
     """Show what :func:`stability_warning` says of ``params`` in ``warning`` (hidden when
-    nothing): red for unstable gains, amber for a caution."""
+    nothing): red for unstable gains, amber for a caution (``unstable``: the caller's
+    :func:`loop_stability` verdict, None: found here)."""
     w = stability_warning(params)
     if w is None:
         warning.visible = False
         return
-    unstable = loop_stability(params).unstable
+    if unstable is None:
+        unstable = loop_stability(params).unstable
     color = "#b00020" if unstable else "#a15c00"
     head = "Unstable gains" if unstable else "Check the gains"
     warning.content = warning_html(head, w, color=color)

@@ -40,7 +40,6 @@ from control.observers import (
     ObserverState,
     TorqueJoint,
     disturbance_observer,
-    reaction_torque_observer,
     simulate_observers,
 )
 from kinematics.dynamics import bias_torques, mass_matrix
@@ -193,15 +192,10 @@ def rtob_series(t: np.ndarray, qd: np.ndarray, tau_m: np.ndarray, tau_known: np.
     Returns:
         (N,) τ̂_reac, N·m; the filter starts settled on the first reading.
     """
-    state = ObserverState(z=float(tau_m[0] + g_reac * j_n * qd[0] - tau_known[0]))
-    out = np.empty(len(t))
-    out[0] = tau_m[0] - tau_known[0]
-    for k in range(1, len(t)):
-        dt = max(float(t[k] - t[k - 1]), 1e-6)
-        out[k] = reaction_torque_observer(state, float(tau_m[k]), float(qd[k]),
-                                          float(tau_known[k]), j_n=j_n, kt_n=1.0,
-                                          g_reac=g_reac, dt=dt)
-    return out
+    # eq. 2.37 is eq. 2.36's filter with the known load taken out of its input
+    # (control.observers.reaction_torque_observer)
+    return dob_series(t, qd, np.asarray(tau_m) - np.asarray(tau_known), j_n=j_n,
+                      g_dis=g_reac)
 
 
 def step_index(x: np.ndarray) -> int:
