@@ -19,6 +19,7 @@ from app import theme
 from app.arm_view import ArmView
 from app.camera import View, show
 from kinematics.model import SerialChain
+from kinematics.smallarrays import all_finite
 
 #: Metres of arrow drawn per newton.
 ARROW_M_PER_N = 0.03
@@ -219,11 +220,45 @@ def estimated_hand_force(J: np.ndarray, tau_ext: np.ndarray) -> np.ndarray | Non
     torques (eq. 2.23): F = (J_vᵀ)⁺ (−τ_ext), the statics τ = J_vᵀ F solved by least
     squares (τ_ext is what the motors spend against the world, so the world applies
     −τ_ext). ``J`` (6, n) geometric Jacobian, ``tau_ext`` (n,) N·m; None while τ_ext is
-    not finite (compliance off)."""
+    not finite (compliance off).
+
+    Every page draws this every frame, so a J_v of full rank takes the normal equations'
+    3×3 solve, F = (J_v J_vᵀ)⁻¹ J_v (−τ_ext), in plain floats (the pseudo-inverse's F to
+    about 1e-16·cond(J_v)²); one near a singular pose (a stretched arm) takes the SVD."""
     tau_ext = np.asarray(tau_ext, dtype=float)
-    if not np.all(np.isfinite(tau_ext)):
+    if not all_finite(tau_ext):
         return None
-    return np.linalg.pinv(np.asarray(J, dtype=float)[:3].T) @ (-tau_ext)
+    Jv = np.asarray(J, dtype=float)[:3]
+    if Jv.shape[1] >= 3:
+        F = _solve3(*(Jv @ Jv.T).tolist(), (Jv @ -tau_ext).tolist())
+        if F is not None:
+            return np.array(F)
+    return np.linalg.pinv(Jv.T) @ (-tau_ext)
+
+
+#: ``_solve3`` leaves a system to the SVD when det(A) < this · (trace(A)/3)³ (A's
+#: condition number beyond about 1e8: J_v's beyond 1e4)
+SINGULAR_DET = 1e-8
+
+
+def _solve3(a: list[float], b: list[float], c: list[float],
+            r: list[float]) -> list[float] | None:
+    """x of [a; b; c] x = r for a symmetric positive semi-definite 3×3 by its adjugate, or
+    None when it is nearly singular (:data:`SINGULAR_DET`)."""
+    c00 = b[1] * c[2] - b[2] * c[1]
+    c01 = b[2] * c[0] - b[0] * c[2]
+    c02 = b[0] * c[1] - b[1] * c[0]
+    det = a[0] * c00 + a[1] * c01 + a[2] * c02
+    scale = (a[0] + b[1] + c[2]) / 3.0
+    if not det > SINGULAR_DET * scale ** 3:
+        return None
+    c11 = a[0] * c[2] - a[2] * c[0]
+    c12 = a[2] * b[0] - a[0] * b[2]
+    c22 = a[0] * b[1] - a[1] * b[0]
+    inv = 1.0 / det
+    return [(c00 * r[0] + c01 * r[1] + c02 * r[2]) * inv,
+            (c01 * r[0] + c11 * r[1] + c12 * r[2]) * inv,
+            (c02 * r[0] + c12 * r[1] + c22 * r[2]) * inv]
 
 
 def unit(v: np.ndarray) -> np.ndarray:
