@@ -45,7 +45,7 @@ def dash(i: int) -> tuple[int, ...] | None:
 
 
 def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
-             points: int) -> tuple[np.ndarray, list[np.ndarray]]:
+             points: int, index: np.ndarray | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
     """The last ``window_s`` seconds of (t, ys), one sample per time bin, spanning the window.
 
     Bins are ``window_s / points`` wide and aligned to t = 0, and each keeps its
@@ -58,6 +58,8 @@ def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
         ys: arrays of shape (N,).
         window_s: window length, s.
         points: number of bins (the result has at most ``points + 2`` samples).
+        index: :func:`decimation` of ``t`` with the same window and bins, when the caller
+            has it (charts of one record share it).
 
     Returns:
         (t (M,), [y (M,), ...]) with M <= points + 2.
@@ -65,17 +67,20 @@ def decimate(t: np.ndarray, ys: Sequence[np.ndarray], *, window_s: float,
     t = np.asarray(t, dtype=float)
     if t.size == 0:
         return t, [np.asarray(y, dtype=float) for y in ys]
-    start = t[-1] - window_s
-    keep = t > start
-    t = t[keep]
-    ys = [np.asarray(y, dtype=float)[keep] for y in ys]
-    width = window_s / max(points, 1)
-    bins = np.floor(t / width)
-    last = np.append(bins[1:] != bins[:-1], True)
-    t, ys = t[last], [y[last] for y in ys]
-    t = np.concatenate([[start], t])
-    ys = [np.concatenate([y[:1], y]) for y in ys]
-    return t, ys
+    if index is None:
+        index = decimation(t, window_s=window_s, points=points)
+    tt = t[index]
+    tt[0] = t[-1] - window_s
+    return tt, [np.asarray(y, dtype=float)[index] for y in ys]
+
+
+def decimation(t: np.ndarray, *, window_s: float, points: int) -> np.ndarray:
+    """The indices of the samples of ``t`` (N,) (increasing, N >= 1) that :func:`decimate`
+    keeps, the first of them twice (it is drawn again at the window's start)."""
+    kept = np.flatnonzero(t > t[-1] - window_s)
+    bins = np.floor(t[kept] / (window_s / max(points, 1)))
+    last = kept[np.append(bins[1:] != bins[:-1], True)]
+    return np.concatenate((last[:1], last))
 
 
 def _flat_since(ys: Sequence[np.ndarray], fresh: np.ndarray, last: np.ndarray) -> bool:
@@ -308,13 +313,16 @@ class LivePlot:
         #: s between updates while every line is flat (nothing to see but the window sliding)
         self.quiet_period = 1.0
 
-    def update(self, t: np.ndarray, ys: Sequence[np.ndarray], *, force: bool = False) -> bool:
+    def update(self, t: np.ndarray, ys: Sequence[np.ndarray], *, force: bool = False,
+               index: np.ndarray | None = None) -> bool:
         """Show the window ending at t[-1]; does nothing if nothing new arrived.
 
         Args:
             t: (N,) times, s.
             ys: one (N,) array per series.
             force: send even if the newest time did not change (after a unit change).
+            index: :func:`decimation` of ``t`` for this chart's window and points, when
+                the caller has it (charts of one record share it).
 
         Returns:
             True when data was sent.
@@ -332,7 +340,7 @@ class LivePlot:
             fresh = np.asarray(t) > self._last_t
             if _flat_since(ys, fresh, self._last_values):
                 return False
-        tt, yy = decimate(t, ys, window_s=self.window_s, points=self.points)
+        tt, yy = decimate(t, ys, window_s=self.window_s, points=self.points, index=index)
         if tt.size < 2:
             return False
         yy = fill_gaps(yy)

@@ -140,3 +140,33 @@ def test_a_thesis_preset_says_chapter_4_does_not_reproduce():
         assert lag in note and "thesis-readings" in note
     assert thesis_preset_note(PRESETS["well-damped default"]) == ""
     assert thesis_preset_note(Params(kp=3.8, kv=0.2)) == ""  # custom gains: no note
+
+
+def _decimate_by_masks(t, ys, window_s, points):
+    """decimate spelled as masks over every series (how it was first written)."""
+    start = t[-1] - window_s
+    keep = t > start
+    t, ys = t[keep], [y[keep] for y in ys]
+    bins = np.floor(t / (window_s / points))
+    last = np.append(bins[1:] != bins[:-1], True)
+    t, ys = t[last], [y[last] for y in ys]
+    return np.concatenate([[start], t]), [np.concatenate([y[:1], y]) for y in ys]
+
+
+def test_a_shared_decimation_keeps_what_masks_over_each_series_keep():
+    """Charts of one record share one decimation (app.lessons.compliance_plots): its
+    samples are those of masks over each series, for windows that start before, at and
+    inside the record."""
+    from app.plots import decimation
+
+    rng = np.random.default_rng(4)
+    for n, window in ((1, 10.0), (2, 10.0), (400, 3.0), (657, 10.0), (2000, 10.0)):
+        t = np.cumsum(rng.uniform(0.005, 0.03, n))
+        ys = [rng.normal(size=n), rng.normal(size=n)]
+        ref = _decimate_by_masks(t, ys, window, 100)
+        for got in (decimate(t, ys, window_s=window, points=100),
+                    decimate(t, ys, window_s=window, points=100,
+                             index=decimation(t, window_s=window, points=100))):
+            np.testing.assert_array_equal(got[0], ref[0])
+            for a, b in zip(got[1], ref[1], strict=True):
+                np.testing.assert_array_equal(a, b)

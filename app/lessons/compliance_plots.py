@@ -27,6 +27,7 @@ from app.plots import (
     TORQUE_SPAN_NM,
     LivePlot,
     SeriesSpec,
+    decimation,
     rebuild_plots,
 )
 from kinematics.units import KGF_CM_PER_NM
@@ -154,12 +155,15 @@ class JointPlots:
             col = {name: snap[name][:, j] for name in ("q_cmd", "q_ref", "q", "error",
                                                       "tau_load", "tau_dyn", "tau_ext",
                                                       "q_env")}
+            # the four charts share the record's times: one decimation for all
+            index = decimation(np.asarray(t, dtype=float), window_s=self.window_s,
+                               points=self.points)
             sent = 0
             sent += self.angle.update(t, (col["q_cmd"] * DEG, col["q_ref"] * DEG,
-                                          col["q"] * DEG), force=force)
-            sent += self.error.update(t, (col["error"] * DEG,), force=force)
+                                          col["q"] * DEG), force=force, index=index)
+            sent += self.error.update(t, (col["error"] * DEG,), force=force, index=index)
             sent += self.torque.update(t, (col["tau_load"] * k, col["tau_dyn"] * k),
-                                       force=force)
+                                       force=force, index=index)
             sent += self.external.update(t, (col["tau_ext"] * k, col["q_env"] * DEG),
-                                         force=force)
+                                         force=force, index=index)
             return sent
