@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,16 +34,15 @@ SEE_THROUGH_RGB = (190, 190, 200)
 CAPSULE_RADIUS = 0.015
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of two wxyz quaternions."""
+def _quat_mul(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float, float]:
+    """Hamilton product of two wxyz quaternions (in Python floats: every page poses its
+    arm's joints with it every frame)."""
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
 
 
 class ArmView:
@@ -98,9 +97,10 @@ class ArmView:
         self.link_frames: dict[str, viser.SceneNodeHandle] = by_child
         self.drawn_as = self._draw_fallbacks(server, root, urdf_path, package_paths, missing,
                                              color)
-        # (frame, origin (4, 4), origin quaternion, unit axis, joint type) per moving joint.
-        self._moving: list[tuple[viser.SceneNodeHandle, np.ndarray, np.ndarray, np.ndarray,
-                                 str]] = []
+        # (frame, origin (4, 4), origin quaternion, unit axis, joint type) per moving joint;
+        # the quaternion and axis as tuples of floats (set_q's arithmetic, every frame)
+        self._moving: list[tuple[viser.SceneNodeHandle, np.ndarray, tuple[float, ...],
+                                 tuple[float, ...], str]] = []
         names = _joint_names(model)
         for name in names:
             j = joints[name]
@@ -110,7 +110,8 @@ class ArmView:
             axis = axis / np.linalg.norm(axis)
             frame = by_child[j.child]
             frame.position = origin[:3, 3]
-            self._moving.append((frame, origin, q0, axis, j.type))
+            self._moving.append((frame, origin, tuple(q0.tolist()), tuple(axis.tolist()),
+                                 j.type))
         self.q = np.full(len(names), np.nan)
         self.set_q(np.zeros(len(names)) if isinstance(model, Quadruped) else model.neutral())
 
@@ -214,14 +215,16 @@ class ArmView:
         return drawn
 
 
-def _pose(frame: viser.SceneNodeHandle, origin: np.ndarray, q0: np.ndarray, axis: np.ndarray,
-          kind: str, value: float) -> None:
-    """Pose one joint's child frame at ``value`` (m for a prismatic joint, else rad)."""
+def _pose(frame: viser.SceneNodeHandle, origin: np.ndarray, q0: Sequence[float],
+          axis: Sequence[float], kind: str, value: float) -> None:
+    """Pose one joint's child frame at ``value`` (m for a prismatic joint, else rad);
+    ``q0`` the origin's wxyz quaternion, ``axis`` the unit joint axis."""
     if kind == "prismatic":  # parent <- child = origin · Trans(axis q)
-        frame.position = origin[:3, 3] + origin[:3, :3] @ (axis * value)
+        frame.position = origin[:3, 3] + origin[:3, :3] @ (np.asarray(axis) * value)
     else:  # parent <- child = origin · Rot(axis, q)
         h = 0.5 * value
-        frame.wxyz = _quat_mul(q0, np.array([math.cos(h), *(math.sin(h) * axis)]))
+        s = math.sin(h)
+        frame.wxyz = _quat_mul(q0, (math.cos(h), s * axis[0], s * axis[1], s * axis[2]))
 
 
 def _joint_names(model: SerialChain | Quadruped) -> tuple[str, ...]:

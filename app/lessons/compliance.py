@@ -76,6 +76,7 @@ from control.trajectory import (
 )
 from kinematics.fk import fk_and_jacobian
 from kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
+from kinematics.smallarrays import all_finite
 
 NAME = "compliance"
 TITLE = "Compliance control (thesis ch. 2–4)"
@@ -483,10 +484,10 @@ class ComplianceLesson(LessonBase):
         if len(snap["t"]) == 0:
             return
         q = snap["q"][-1]
-        if not np.all(np.isfinite(q)):
+        if not all_finite(q):
             return
         q_cmd = snap["q_cmd"][-1]
-        ghost = self.show_ghost.value and np.all(np.isfinite(q_cmd))
+        ghost = self.show_ghost.value and all_finite(q_cmd)
         rig.scene.ghost.root.visible = bool(ghost)
         rig.scene.set_pose(q, q_cmd if ghost else q)
         T, J = fk_and_jacobian(rig.model, q)  # one pass for the hand and the force estimate

@@ -147,7 +147,7 @@ class ComplianceScene:
 
     def add_trail(self, hand: np.ndarray, *, min_step: float = 0.003) -> None:
         """Drop a trail dot at ``hand`` (base frame) if it moved ``min_step`` m since the last."""
-        if self._trail_last is not None and np.linalg.norm(hand - self._trail_last) < min_step:
+        if self._trail_last is not None and math.dist(hand, self._trail_last) < min_step:
             return
         dot = self._trail[self._trail_next]
         dot.position = hand
@@ -192,7 +192,7 @@ class ForceArrows:
     @staticmethod
     def _arrow(handle: viser.ArrowsHandle, at: np.ndarray, force: np.ndarray | None, *,
                on: float = ARROW_MIN_N, off: float = ARROW_MIN_N) -> None:
-        size = float(np.linalg.norm(force)) if force is not None else 0.0
+        size = math.hypot(*force.tolist()) if force is not None else 0.0
         if not math.isfinite(size) or size < (off if handle.visible else on):
             handle.visible = False
             return
