@@ -104,15 +104,12 @@ class ArmView:
         names = _joint_names(model)
         for name in names:
             j = joints[name]
-            origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
-            q0 = vtf.SO3.from_matrix(origin[:3, :3]).wxyz
-            axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-            axis = axis / np.linalg.norm(axis)
+            origin, q0, axis = _joint_origin(j)
             frame = by_child[j.child]
             frame.position = origin[:3, 3]
-            self._moving.append((frame, origin, tuple(q0.tolist()), tuple(axis.tolist()),
-                                 j.type))
+            self._moving.append((frame, origin, q0, axis, j.type))
         self.q = np.full(len(names), np.nan)
+        self._off_chain: dict[str, list] = {}  # set_joint's joints, by name
         self.set_q(np.zeros(len(names)) if isinstance(model, Quadruped) else model.neutral())
 
     @property
@@ -134,19 +131,30 @@ class ArmView:
         """Pose the URDF joint ``name`` off the chain (a gripper's finger: m, or rad) at
         ``value``, and every joint that mimics it at multiplier · value + offset (the
         other finger)."""
+        posed = self._off_chain.get(name)
+        if posed is None:  # found once: a gripper's reading changes every frame it moves
+            posed = self._off_chain[name] = self._joints_moved_by(name)
+        for frame, origin, q0, axis, kind, multiplier, offset in posed:
+            _pose(frame, origin, q0, axis, kind, multiplier * float(value) + offset)
+
+    def _joints_moved_by(self, name: str) -> list[tuple[viser.SceneNodeHandle, np.ndarray,
+                                                        tuple[float, ...], tuple[float, ...],
+                                                        str, float, float]]:
+        """(frame, origin, origin quaternion, unit axis, type, multiplier, offset) of the
+        URDF joint ``name`` (1, 0) and of every joint that mimics it."""
+        out = []
         for j in self._urdf._urdf.joint_map.values():
             mimic = j.mimic
             if j.name == name:
-                v = float(value)
+                multiplier, offset = 1.0, 0.0
             elif mimic is not None and mimic.joint == name:
-                v = (mimic.multiplier if mimic.multiplier is not None else 1.0) * float(value) \
-                    + (mimic.offset or 0.0)
+                multiplier = mimic.multiplier if mimic.multiplier is not None else 1.0
+                offset = mimic.offset or 0.0
             else:
                 continue
-            origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
-            axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-            _pose(self.link_frames[j.child], origin, vtf.SO3.from_matrix(origin[:3, :3]).wxyz,
-                  axis / np.linalg.norm(axis), j.type, v)
+            out.append((self.link_frames[j.child], *_joint_origin(j), j.type,
+                        float(multiplier), float(offset)))
+        return out
 
     def see_through(self, link: str, *, opacity: float = 0.25) -> bool:
         """Draw ``link`` translucent, so that links behind it show (a body the arm stands
@@ -213,6 +221,15 @@ class ArmView:
                                          color=rgb, opacity=opacity)
             drawn[link.name] = kind
         return drawn
+
+
+def _joint_origin(j: yourdfpy.Joint) -> tuple[np.ndarray, tuple[float, ...], tuple[float, ...]]:
+    """A URDF joint's origin (4, 4), its wxyz quaternion and the unit joint axis (the two as
+    floats, for :func:`_pose`)."""
+    origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+    axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+    return (origin, tuple(vtf.SO3.from_matrix(origin[:3, :3]).wxyz.tolist()),
+            tuple((axis / np.linalg.norm(axis)).tolist()))
 
 
 def _pose(frame: viser.SceneNodeHandle, origin: np.ndarray, q0: Sequence[float],

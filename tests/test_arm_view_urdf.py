@@ -107,3 +107,22 @@ def test_a_link_drawn_see_through_hides_its_mesh_for_a_translucent_copy(server):
     assert copy.visible and copy.opacity == pytest.approx(0.3)  # ...and drawn translucent
     assert not view.see_through("no_such_link")
     assert not view.see_through("shoulder_pitch_link")  # a link with nothing to draw
+
+
+def test_a_finger_and_the_finger_that_mimics_it_slide_together(server):
+    """``set_joint`` poses the OpenManipulator-X's prismatic finger and its mimic (the other
+    finger, multiplier · value + offset from the URDF), again and again from the same
+    joints it found the first time."""
+    model = load_robot("open_manipulator_x")
+    view, _ = _draw(model, server)
+    joints = view._urdf._urdf.joint_map
+    left = joints["gripper_left_joint"]
+    (right,) = [j for j in joints.values()
+                if j.mimic is not None and j.mimic.joint == "gripper_left_joint"]
+    mult, off = right.mimic.multiplier or 1.0, right.mimic.offset or 0.0
+    for value in (0.0, 0.012, -0.005, 0.012):
+        view.set_joint("gripper_left_joint", value)
+        for j, v in ((left, value), (right, mult * value + off)):
+            axis = np.asarray(j.axis, dtype=float) / np.linalg.norm(j.axis)
+            want = j.origin[:3, 3] + j.origin[:3, :3] @ (axis * v)
+            np.testing.assert_allclose(view.link_frames[j.child].position, want, atol=1e-12)

@@ -82,6 +82,22 @@ def test_thesis_configuration_then_read_and_one_sync_write_per_cycle(tmp_path):
             b.close()
 
 
+def test_the_angle_limits_are_one_read_per_servo(tmp_path):
+    """CW and CCW limits (addresses 6 and 8) come in one 4-byte READ per servo: a late
+    2-byte answer cannot pass for either (issue 14's X-series finding, on protocol 1.0)."""
+    with emulator(log_dir=tmp_path) as emu:
+        b = DynamixelBackend(ARM, emu.port, timeout_margin=MARGIN)
+        try:
+            b.read()  # a round trip: every earlier packet has reached the emulator's log
+            reads = {p for p in emu.packets("rx") if p[4] == p1.Instruction.READ}
+            for i in (1, 3, 5):
+                assert p1.read(i, 6, 4) in reads
+                assert p1.read(i, 6, 2) not in reads and p1.read(i, 8, 2) not in reads
+            assert np.all(b.lower >= ARM.lower) and np.all(b.upper <= ARM.upper)
+        finally:
+            b.close()
+
+
 def test_goal_outside_the_servo_angle_limits_is_clamped_and_never_sent(tmp_path):
     with emulator(log_dir=tmp_path) as emu:
         with Bus(emu.port, timeout_margin=MARGIN) as bus:  # a technician set limits
