@@ -32,13 +32,21 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-try:  # private modules of viser: another release may move them (then nothing is patched)
-    from viser import _scene_handles
-    from viser._assignable_props_api import AssignablePropsBase, colors_to_uint8
-    from viser._scene_api import cast_vector
+# Private modules of viser: another release may move them (then that fix is not made).
+try:
     from viser.infra._async_message_buffer import AsyncMessageBuffer
 except ImportError:  # pragma: no cover - not this viser
     AsyncMessageBuffer = None  # type: ignore[assignment,misc]
+try:
+    from viser import _scene_handles
+    from viser._assignable_props_api import AssignablePropsBase, colors_to_uint8
+    from viser._scene_api import cast_vector
+
+    #: viser's own two functions, kept to compare against (tests/test_viser_fixes.py)
+    VISER_SET_POSE_VECTOR: Any = _scene_handles._set_pose_vector
+    VISER_CAST_VALUE_RECURSIVE: Any = AssignablePropsBase._cast_value_recursive
+except (ImportError, AttributeError):  # pragma: no cover - not this viser
+    VISER_SET_POSE_VECTOR = VISER_CAST_VALUE_RECURSIVE = None
 
 #: The words of the race's error (CPython's asyncio.Event.set over a changing deque).
 RACE = "mutated during iteration"
@@ -47,9 +55,9 @@ RACE = "mutated during iteration"
 def install() -> None:
     """Make ``AsyncMessageBuffer.push`` survive the waiter race, and pose and property
     writes cheap (idempotent; nothing on a viser without these private modules)."""
+    _install_fast_writes()
     if AsyncMessageBuffer is None:
         return
-    _install_fast_writes()
     push = AsyncMessageBuffer.push
     if getattr(push, "armlab_fixed", False):
         return
@@ -114,13 +122,9 @@ def _cast_value_recursive(self: Any, hint: Any, value: Any, prop_name: str) -> A
     return value
 
 
-#: viser's own two functions, kept to compare against (tests/test_viser_fixes.py)
-VISER_SET_POSE_VECTOR = _scene_handles._set_pose_vector
-VISER_CAST_VALUE_RECURSIVE = AssignablePropsBase._cast_value_recursive
-
-
 def _install_fast_writes() -> None:
-    if getattr(_scene_handles._set_pose_vector, "armlab_fixed", False):
+    if VISER_SET_POSE_VECTOR is None or getattr(_scene_handles._set_pose_vector,
+                                                "armlab_fixed", False):
         return
     _set_pose_vector.armlab_fixed = True  # type: ignore[attr-defined]
     _scene_handles._set_pose_vector = _set_pose_vector
