@@ -691,6 +691,17 @@ class Bus:
         item = table.item(name)
         return table.decode(name, self.read_bytes(servo_id, item.address, item.size))
 
+    def read_items(self, servo_id: int, names: Sequence[str]) -> dict[str, int]:
+        """Raw values of control-table items ``names`` (in address order) in one READ of the
+        span from the first to the last: a reply of the span's own length, which a late
+        answer to an earlier, shorter request cannot pass for (limits read one by one
+        could take another servo's word for a limit)."""
+        table = self.table_of(servo_id)
+        first, last = table.item(names[0]), table.item(names[-1])
+        raw = self.read_bytes(servo_id, first.address,
+                              last.address + last.size - first.address)
+        return {n: table.decode(n, raw[table.item(n).address - first.address:]) for n in names}
+
     def read_si(self, servo_id: int, name: str) -> float:
         """An item converted to SI (rad, rad/s, N·m, V, °C, s, bit/s)."""
         return self.table_of(servo_id).to_si(name, self.read(servo_id, name))

@@ -406,19 +406,12 @@ class DynamixelBackend(GoalLimits):
                 f"servo model (armlab scan --port {self.bus.port} shows what answers)")
 
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint limits: the map's, narrowed to each servo's CW..CCW angle limits.
-
-        Both limits come in one 4-byte READ per servo: the bus takes a late answer of
-        the expected length as the reply, and a 2-byte late answer (another servo's
-        word) could otherwise pass for a limit."""
-        cw, ccw = [], []
-        for i in self.map.ids:
-            table = self.bus.table_of(i)
-            lo, hi = table.item("cw_angle_limit"), table.item("ccw_angle_limit")
-            raw = self.bus.read_bytes(i, lo.address, hi.address + hi.size - lo.address)
-            cw.append(table.decode("cw_angle_limit", raw[:lo.size]))
-            at = hi.address - lo.address
-            ccw.append(table.decode("ccw_angle_limit", raw[at:at + hi.size]))
+        """Joint limits: the map's, narrowed to each servo's CW..CCW angle limits (both in
+        one READ a servo: :meth:`~hardware.bus.Bus.read_items`)."""
+        limits = [self.bus.read_items(i, ("cw_angle_limit", "ccw_angle_limit"))
+                  for i in self.map.ids]
+        cw = [x["cw_angle_limit"] for x in limits]
+        ccw = [x["ccw_angle_limit"] for x in limits]
         for j, a, b in zip(self.map.joints, cw, ccw, strict=True):
             if a == 0 and b == 0:
                 raise BackendError(

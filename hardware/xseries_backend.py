@@ -288,16 +288,9 @@ class XSeriesBackend(DynamixelBackend):
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit.
 
-        One READ of Velocity Limit, Max and Min Position Limit (44..55) a servo: a reply of
-        its own length, which a late answer to an earlier request (a slow link) cannot pass
-        for, as it could for one item (and a limit read wrong would let goals past it)."""
-        first, last = self.table.item(LIMIT_ITEMS[0]), self.table.item(LIMIT_ITEMS[-1])
-        at, length = first.address, last.address + last.size - first.address
-        limits = []
-        for i in self.map.ids:
-            raw = self._guard(self.bus.read_bytes, i, at, length)
-            limits.append({name: self.table.decode(name, raw[self.table.item(name).address - at:])
-                           for name in LIMIT_ITEMS})
+        One READ of Velocity Limit, Max and Min Position Limit (44..55) a servo
+        (:meth:`~hardware.bus.Bus.read_items`: a limit read wrong would let goals past it)."""
+        limits = [self._guard(self.bus.read_items, i, LIMIT_ITEMS) for i in self.map.ids]
         self._cw = [x["min_position_limit"] for x in limits]
         self._ccw = [x["max_position_limit"] for x in limits]
         #: a profile velocity above Velocity Limit would be refused (Data Limit)

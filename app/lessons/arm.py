@@ -48,6 +48,7 @@ from control.loop import ControlLoop
 from control.params import DEFAULT
 from control.trajectory import hold
 from kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
+from kinematics.smallarrays import all_finite
 
 NAME = "arm"
 TITLE = "Your arm: joints and hand target (any URDF)"
@@ -155,7 +156,7 @@ class ArmLesson(LessonBase):
         """(n,) rad the arm is at now: its newest recorded angles (a kept private arm), or
         the neutral pose (a loop that has not read the servos yet)."""
         snap = self.loop.recorder.snapshot(1.0)
-        if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
+        if len(snap["t"]) and all_finite(snap["q"][-1]):
             return np.asarray(snap["q"][-1], dtype=float)
         return self.model.neutral()
 
