@@ -4,4 +4,5 @@ import sys
 
 from app.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when a worker process (app.arm_process) imports it again
+    sys.exit(main())

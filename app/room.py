@@ -74,8 +74,8 @@ class Room:
 
     Args:
         lab: the lab (its server, lessons, E-STOP and url).
-        sandboxes: the private arms (default: a new :class:`Sandboxes`, started on the
-            first "My arm").
+        sandboxes: the private arms (default: a new :class:`Sandboxes`, started now: its
+            worker process is ready by the first "My arm").
 
     Attributes:
         roles: presenters and followers.
@@ -84,7 +84,8 @@ class Room:
     def __init__(self, lab: Lab, *, sandboxes: Sandboxes | None = None) -> None:
         self.lab = lab
         self.roles = Roles(lab.server, new_passcode())
-        self._sandboxes = sandboxes
+        self._sandboxes = Sandboxes(realtime=lab.options.realtime) if sandboxes is None \
+            else sandboxes
         self._pages: dict[int, _PageState] = {}
         self._lock = threading.RLock()
         self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
@@ -99,11 +100,8 @@ class Room:
 
     @property
     def sandboxes(self) -> Sandboxes:
-        """The class's private arms (started on first use)."""
-        with self._lock:
-            if self._sandboxes is None:
-                self._sandboxes = Sandboxes(realtime=self.lab.options.realtime)
-            return self._sandboxes
+        """The class's private arms."""
+        return self._sandboxes
 
     def private_lessons(self) -> dict[int, Any]:
         """Client id -> the lesson that page shows as "My arm" (pages showing one only)."""
@@ -157,7 +155,7 @@ class Room:
             state = self._pages.pop(client.client_id, None)
         if state is not None:
             self._close_private(state, gone=True)
-            if state.seat is not None and self._sandboxes is not None:
+            if state.seat is not None:
                 self._sandboxes.leave(state.seat, page=client.client_id)
 
     # -- the presenter -----------------------------------------------------------------
@@ -228,7 +226,7 @@ class Room:
             key = ask_item(state.client, SEAT_KEY, every=SEAT_ASK_S, within=SEAT_WAIT_S)
         except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
             return
-        if key and self._sandboxes is not None and self._sandboxes.has(key):
+        if key and self._sandboxes.has(key):
             state.seat = key
             state.view.value = MY_ARM  # fires _on_view
 
@@ -321,7 +319,7 @@ class Room:
             params = None
             if lesson is not None and getattr(lesson, "rig", None) is not None:
                 params = lesson.rig.loop.params
-            elif s.seat is not None and self._sandboxes is not None:
+            elif s.seat is not None:
                 params = self._sandboxes.kept_params(s.seat)
             figures = row_figures(lesson) if lesson is not None else (s.figures or {})
             rows.append(StudentRow(cid, self.roles.name(cid), str(s.view.value), params,
@@ -331,7 +329,7 @@ class Room:
     def _loop_of(self, client_id: int) -> Any:
         with self._lock:
             state = self._pages.get(client_id)
-        if state is None or state.seat is None or self._sandboxes is None:
+        if state is None or state.seat is None:
             return None
         return self._sandboxes.loop_of(state.seat)
 
@@ -410,5 +408,4 @@ class Room:
             states = list(self._pages.values())
         for state in states:
             self._close_private(state)
-        if self._sandboxes is not None:
-            self._sandboxes.close()
+        self._sandboxes.close()

@@ -1,16 +1,11 @@
-"""Every student's private arm ("My arm"): one batched plant, one thread, one loop per arm.
+"""Every student's private arm ("My arm"): seats that keep an arm across reloads.
 
-A class of students each gets a simulated thesis arm of their own. The arms of one
-link-length preset live in one :class:`hardware.batched_plant.BatchedPlant` (numpy
-over arms); one :class:`control.periodic.SharedClock` thread steps every plant at
-1 kHz and, in the same thread, each arm's :class:`control.loop.ControlLoop` when its
-period is due. A loop is the lesson's own (commands, trajectories, the step test,
-pushes, drags, recording, faults) over a :class:`hardware.batched_backend.BatchedArmBackend`:
-one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
-lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
-with X-series servos (the OpenManipulator-X) is simulated with their firmware model as
-its shared arm is (:class:`hardware.xseries_sim.XSimBackend`, a plant of its own that
-its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
+A class of students each gets a simulated arm of their own, the shared lesson's arm and
+loop (:mod:`app.class_arms`: batched plants, one clock, a ControlLoop per arm). The
+thesis arm's RX-24F arms run in a process of their own (:class:`app.arm_process.ArmProcess`),
+off the server's interpreter, so a room of pages and the shared arm's loop do not wait
+for the class's 1 kHz steps; an arm with X-series servos (the OpenManipulator-X) runs in
+the server, on a :class:`app.class_arms.ClassArms` made when the first is asked for.
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
@@ -27,15 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.arm_process import ArmProcess, RemoteArm
 from app.backends import shipped_x_servo
+from app.class_arms import Arm, ClassArms
 from control.backend import Backend
 from control.loop import ControlLoop
 from control.params import Params
-from control.periodic import SharedClock
-from hardware.batched_backend import BatchedArmBackend, add_sim_arm
-from hardware.batched_plant import BatchedPlant
-from hardware.servo_spec import RX24F
-from hardware.xseries_sim import XSimBackend
 from kinematics.model import SerialChain
 
 #: private arms one lab holds at most (the issue's default)
@@ -44,8 +36,6 @@ MAX_ARMS = 200
 IDLE_S = 600.0
 #: s between two looks for seats to free
 SWEEP_S = 15.0
-#: plant step, s (as the shared arm's SimBackend)
-DT = 1e-3
 
 
 class ClassFull(ValueError):
@@ -54,10 +44,16 @@ class ClassFull(ValueError):
 
 @dataclass
 class _Arm:
-    preset: str
-    arm: int | None  #: its index in the preset's batched plant (None: a plant of its own)
-    backend: Backend
-    loop: ControlLoop
+    host: ArmProcess | ClassArms  #: where it runs
+    arm: RemoteArm | Arm
+
+    @property
+    def preset(self) -> str:
+        return self.arm.preset
+
+    @property
+    def loop(self) -> ControlLoop:
+        return self.arm.loop  # type: ignore[return-value]  # a RemoteLoop quacks as one
 
 
 class Seat:
@@ -88,6 +84,11 @@ class Seat:
                                     history_s=history_s)
 
 
+def _ended(host: ArmProcess | ClassArms) -> bool:
+    """Whether ``host`` is a class process that has ended (its arms are gone)."""
+    return isinstance(host, ArmProcess) and host.ended is not None
+
+
 class Sandboxes:
     """The private arms of one lab (see the module docstring).
 
@@ -96,6 +97,9 @@ class Sandboxes:
         idle_s: s a seat whose page left is kept.
         realtime: step against the wall clock (False: as fast as possible, for tests).
         clock: monotonic seconds for the idle times (tests pass a fake one).
+
+    Attributes:
+        process: the worker process running the RX-24F arms.
     """
 
     def __init__(self, *, max_arms: int = MAX_ARMS, idle_s: float = IDLE_S,
@@ -103,19 +107,15 @@ class Sandboxes:
         self.max_arms = int(max_arms)
         self.idle_s = float(idle_s)
         self._now = clock
-        self._plants: dict[str, BatchedPlant] = {}
+        self._realtime = realtime
         self._seats: dict[str, Seat] = {}
-        self.clock = SharedClock(self._step, dt=DT, realtime=realtime, name="armlab-class")
-        self._lock = self.clock.lock  # a HandOverLock: a waiting page gets in between ticks
-        self.clock.start()
+        self._lock = threading.RLock()
+        self.process = ArmProcess(realtime=realtime)  # starts now: ready by the first arm
+        self._local: ClassArms | None = None  # X-series arms, made at the first
         self._stop = threading.Event()
         self._sweeper = threading.Thread(target=self._sweep_often, name="armlab-seats",
                                          daemon=True)
         self._sweeper.start()
-
-    def _step(self) -> None:
-        for plant in self._plants.values():
-            plant.step()
 
     @property
     def n_arms(self) -> int:
@@ -189,50 +189,38 @@ class Sandboxes:
     def _arm_for(self, seat: Seat, model: SerialChain, params: Params, *, preset: str,
                  q0: np.ndarray, history_s: float) -> tuple[Backend, ControlLoop]:
         with self._lock:
-            if seat.arm is not None and seat.arm.preset == preset:
-                return seat.arm.backend, seat.arm.loop
+            arm = seat.arm
+            if arm is not None and arm.preset == preset and not _ended(arm.host):
+                return arm.arm.backend, arm.loop  # type: ignore[return-value]
             self._free(seat)
-            x_spec = shipped_x_servo(model)
-            if x_spec is not None:  # X-series servos: their firmware model, one plant per arm
-                backend: Backend = XSimBackend(model, spec=x_spec, dt=DT, q0=q0)
-                arm = None
+            host: ArmProcess | ClassArms
+            if shipped_x_servo(model) is not None:  # X-series: in the server (see above)
+                if self._local is None:
+                    self._local = ClassArms(realtime=self._realtime)
+                host = self._local
             else:
-                plant = self._plants.get(preset)
-                if plant is None:
-                    plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
-                arm = add_sim_arm(plant, q0=q0, lock=self._lock)
-                backend = BatchedArmBackend(plant, arm, lock=self._lock)
-            try:
-                loop = ControlLoop(model, backend, params, controller="compliance",
-                                   history_s=history_s, clock=self.clock)
-            except BaseException:
-                backend.close()
-                if arm is not None:
-                    plant.remove_arm(arm)
-                raise
-            seat.arm = _Arm(preset, arm, backend, loop)
-            loop.start()
-            return backend, loop
+                if self.process.ended is not None:  # killed or crashed: a new one
+                    ended, self.process = self.process, ArmProcess(realtime=self._realtime)
+                    ended.close()
+                host = self.process
+            arm = host.add(model, params, preset=preset, q0=q0, history_s=history_s)
+            seat.arm = _Arm(host, arm)
+            return arm.backend, seat.arm.loop  # type: ignore[return-value]
 
     def _free(self, seat: Seat) -> None:  # holding self._lock
         arm, seat.arm = seat.arm, None
-        if arm is None:
-            return
-        arm.loop.shutdown(torque_off=True)
-        arm.backend.close()
-        if arm.arm is not None:
-            self._plants[arm.preset].remove_arm(arm.arm)
+        if arm is not None:
+            arm.host.free(arm.arm)  # type: ignore[arg-type]
 
     def close(self) -> None:
-        """Stop the class: the sweeper, the clock, then every loop (torque off) and arm.
-
-        The arms are freed holding the class's lock, after the clock stopped: a tick that
-        stepped a plant while one of its arms was taken out would leave the plant's arrays
-        of different widths."""
+        """Stop the class: the sweeper, then every arm (its loop with torque off) and the
+        process and clock that ran them."""
         self._stop.set()
-        self.clock.stop()
         with self._lock:
             seats = list(self._seats.values())
             self._seats.clear()
-            for seat in seats:
-                self._free(seat)
+            local = [s.arm.arm for s in seats
+                     if s.arm is not None and isinstance(s.arm.arm, Arm)]
+            if self._local is not None:
+                self._local.close(local)  # type: ignore[arg-type]
+            self.process.close()  # every arm in it freed with torque off

@@ -29,6 +29,7 @@ from types import ModuleType
 import viser
 
 from app import collector
+from app.arm_process import ArmProcess
 from app.camera import reframe, reframe_on_reshape
 from app.classroom import Roles
 from app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
@@ -214,6 +215,11 @@ class Lab:
             self.url = f"{self.base_url}/?token={self.token}"
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
             self.room: Room | None = Room(self) if options.classroom else None
+            #: the shared arm's own process in a simulated classroom: its loop's periods
+            #: wait for no page (app.arm_process)
+            self.arm_process: ArmProcess | None = (
+                ArmProcess(kind="own", realtime=options.realtime)
+                if options.classroom and options.backend == "sim" else None)
             #: the teacher's link: a page opened from it presents at once (classroom only)
             self.presenter_url: str | None = None if self.room is None else \
                 f"{self.url}&{PRESENTER_QUERY}={self.room.roles.passcode}"
@@ -223,6 +229,8 @@ class Lab:
         except BaseException:
             if getattr(self, "room", None) is not None:
                 self.room.close()
+            if getattr(self, "arm_process", None) is not None:
+                self.arm_process.close()
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
             raise
@@ -271,7 +279,8 @@ class Lab:
         o = self.options
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
                              realtime=o.realtime, tip_link=o.tip_link,
-                             package_paths=tuple(o.package_paths), joint_map=o.joint_map)
+                             package_paths=tuple(o.package_paths), joint_map=o.joint_map,
+                             arm_process=self.arm_process)
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
@@ -359,6 +368,8 @@ class Lab:
             if lesson is not None:
                 lesson.close()
         finally:
+            if self.arm_process is not None:
+                self.arm_process.close()
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
             collector.closed()  # what the lab kept is garbage now

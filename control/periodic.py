@@ -242,6 +242,7 @@ class RingBuffer:
         self._data = np.full((capacity, self.width), np.nan)
         self._head = 0  # next row to write
         self._count = 0  # rows kept (<= capacity)
+        self._written = 0  # rows ever written (a mirror's bookmark; :meth:`since`)
 
     @staticmethod
     def rows_for(seconds: float, period: float) -> int:
@@ -264,6 +265,7 @@ class RingBuffer:
             fill(row)
             self._head = (self._head + 1) % self.capacity
             self._count = min(self._count + 1, self.capacity)
+            self._written += 1
 
     def append(self, row: np.ndarray) -> None:
         """Write ``row`` (width,) over the oldest one."""
@@ -271,6 +273,25 @@ class RingBuffer:
             self._data[self._head] = row
             self._head = (self._head + 1) % self.capacity
             self._count = min(self._count + 1, self.capacity)
+            self._written += 1
+
+    def extend(self, rows: np.ndarray) -> None:
+        """Write ``rows`` (m, width), oldest first, over the oldest ones (a mirror taking
+        what :meth:`since` gave)."""
+        rows = np.asarray(rows, dtype=float).reshape(-1, self.width)[-self.capacity:]
+        with self._lock:
+            for row in rows:
+                self._data[self._head] = row
+                self._head = (self._head + 1) % self.capacity
+            self._count = min(self._count + len(rows), self.capacity)
+            self._written += len(rows)
+
+    def since(self, written: int) -> tuple[np.ndarray, int]:
+        """The rows written after the first ``written`` ever written (those still kept),
+        oldest first, as a copy, and the number written now (the next call's
+        ``written``): a mirror follows the buffer by what it was last given."""
+        with self._lock:
+            return self._last(max(0, min(self._written - written, self._count))), self._written
 
     def clear(self) -> None:
         with self._lock:

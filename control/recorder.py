@@ -84,6 +84,16 @@ class Recorder:
     def clear(self) -> None:
         self._ring.clear()
 
+    def since(self, written: int) -> tuple[np.ndarray, int]:
+        """The raw rows (t, wall, then each signal's n columns in :data:`SIGNALS` order)
+        appended after the first ``written`` ever appended, and the count now: what a
+        mirror of this recorder in another process is sent (:meth:`extend`)."""
+        return self._ring.since(written)
+
+    def extend(self, rows: np.ndarray) -> None:
+        """Append raw rows (m, 2 + len(SIGNALS)·n) as :meth:`since` gave them."""
+        self._ring.extend(rows)
+
     def resize(self, capacity: int) -> None:
         """Change the number of rows kept, keeping the newest ones."""
         self._ring.resize(capacity)

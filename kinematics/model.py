@@ -93,6 +93,12 @@ class SerialChain:
         """Number of movable joints."""
         return len(self.joints)
 
+    def __getstate__(self) -> dict[str, object]:
+        """The fields, without what was memoised from them (``_armlab_*``: the generated
+        dynamics, the limits' arrays), which the model makes again where it is unpickled
+        (the class's worker process)."""
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_armlab_")}
+
     @property
     def joint_names(self) -> tuple[str, ...]:
         return tuple(j.name for j in self.joints)

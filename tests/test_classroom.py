@@ -249,10 +249,8 @@ def test_my_arm_is_private(classroom):
 
 
 def test_a_full_class_says_so():
-    from app.sandboxes import Sandboxes
-
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
-        lab.room._sandboxes = Sandboxes(max_arms=1)
+        lab.room.sandboxes.max_arms = 1
         a, a_id = _joined(lab)
         b, b_id = _joined(lab)
         with a, b:
@@ -397,30 +395,30 @@ def test_a_page_with_its_own_arm_is_not_sent_the_shared_stream_and_catches_up(cl
 
 
 def test_closing_a_class_while_its_clock_steps_frees_every_arm():
-    """The lab closing (or a test ending) while the class's clock is stepping: every arm
-    is freed after the clock stopped, never while a tick steps its plant."""
-    from app.sandboxes import Sandboxes
+    """The class closing (the lab closing, or a test ending) while its clock is stepping:
+    every arm is freed after the clock stopped, never while a tick steps its plant."""
+    from app.class_arms import ClassArms
     from kinematics import load_robot
 
     model = load_robot("receptionist_arm", preset="18.5/25")
-    boxes = Sandboxes(realtime=True)
-    for k in range(12):
-        boxes.seat(f"seat{k}").arm_for(model, DEFAULT, preset="18.5/25",
-                                       q0=np.array([0.0, 0.3, 0.3]), history_s=1.0)
-    steps = boxes.clock.steps
-    wait_for(lambda: boxes.clock.steps > steps + 20, 30, "the clock stepping the arms")
+    arms = ClassArms(realtime=True)
+    held = [arms.add(model, DEFAULT, preset="18.5/25", q0=np.array([0.0, 0.3, 0.3]),
+                     history_s=1.0) for _ in range(12)]
+    steps = arms.clock.steps
+    wait_for(lambda: arms.clock.steps > steps + 20, 30, "the clock stepping the arms")
     seen = []  # per freed arm: (the clock still running, the class's lock held)
-    free = boxes._free
+    free = arms.free
 
-    def watched(seat) -> None:  # noqa: ANN001
-        seen.append((boxes.clock.alive, boxes._lock._is_owned()))
-        free(seat)
+    def watched(arm) -> None:  # noqa: ANN001
+        seen.append((arms.clock.alive, arms.lock._is_owned()))
+        free(arm)
 
-    boxes._free = watched
-    boxes.close()
+    arms.free = watched
+    arms.close(held)
     assert len(seen) == 12 and not any(alive for alive, _ in seen)
     assert all(locked for _, locked in seen)
-    assert boxes.n_arms == 0 and not boxes.clock.alive
+    assert not arms.clock.alive
+    assert all(not arm.loop.status.running and not arm.loop.status.torque_on for arm in held)
 
 
 def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():

@@ -29,6 +29,27 @@ def test_ring_keeps_the_newest_rows_and_finds_a_window_by_time():
         RingBuffer(2, 1)
 
 
+def test_a_mirror_fed_by_since_keeps_the_same_rows_through_wraps_and_resizes():
+    """A ring in another process follows one by ``since`` (the rows written after its
+    bookmark) and ``extend``: after bursts larger than the ring, empty calls and a resize
+    of both, it holds the same rows as the original."""
+    ring, mirror = RingBuffer(3, 7), RingBuffer(3, 7)
+    rng = np.random.default_rng(4)
+    bookmark, k = 0, 0
+    for burst in (0, 3, 5, 12, 1, 0, 7, 30, 2):  # 12 and 30: more than the ring keeps
+        for _ in range(burst):
+            ring.append(np.array([0.01 * k, *rng.normal(size=2)]))
+            k += 1
+        if burst == 1:  # the recorder resizes when the period changes: so does its mirror
+            ring.resize(4)
+            mirror.resize(4)
+        rows, bookmark = ring.since(bookmark)
+        assert len(rows) == min(burst, ring.capacity) and bookmark == k
+        mirror.extend(rows)
+        np.testing.assert_array_equal(mirror.rows(), ring.rows())
+    assert ring.since(bookmark)[0].shape == (0, 3) and len(mirror) == len(ring) == 4
+
+
 def test_pacer_runs_periods_headless_and_in_batches():
     calls: list[int] = []
     pacer = Pacer(lambda: calls.append(1), period=0.001, name="t", realtime=False,

@@ -19,8 +19,8 @@ Figures:
     classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
         ``_max``: the most any page received).
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
-    classroom_30_rss_growth_pct: the server process's memory growth over the run, from
-        the moment all 30 private arms exist.
+    classroom_30_rss_growth_pct: the server's memory growth over the run (its process and
+        the class's worker), from the moment all 30 private arms exist.
     classroom_30_frames_skipped_behind_pct: of the private pages' frames due, those not
         made because the page had not yet been sent the one before (``Publisher`` stats,
         the whole run); ``classroom_30_pose_hz_median``: the median page's rate;
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
@@ -88,13 +89,19 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
     return wall / (seconds / plant.dt)
 
 
-def _rss_bytes() -> int:
-    """Resident memory of this process (Linux /proc), bytes."""
-    with open("/proc/self/status") as status:
+def _rss_bytes(pid: int | str = "self") -> int:
+    """Resident memory of process ``pid`` (Linux /proc), bytes."""
+    with open(f"/proc/{pid}/status") as status:
         for line in status:
             if line.startswith("VmRSS:"):
                 return int(line.split()[1]) * 1024
-    raise OSError("no VmRSS in /proc/self/status")
+    raise OSError(f"no VmRSS in /proc/{pid}/status")
+
+
+def _server_rss(room: Any) -> int:
+    """The server's resident memory, bytes: its own process and the class's worker
+    (:class:`app.arm_process.ArmProcess`, where the private arms run)."""
+    return _rss_bytes() + _rss_bytes(room.sandboxes.process.pid)
 
 
 def _probe(lesson: object) -> None:
@@ -130,7 +137,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         while not stop.wait(0.5):
             lessons = room.private_lessons()
             if len(lessons) >= pages and "start" not in rss:
-                rss["start"] = _rss_bytes()
+                rss["start"] = _server_rss(room)
             for lesson in lessons.values():
                 if id(lesson) not in probed:  # a probe node in each of its frames
                     probed.add(id(lesson))
@@ -148,7 +155,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         lab.keep_running_the_line()
         player.start()
         res = _clients(lab.ws_url, pages, seconds, settle=settle, my_arm=True)
-        rss["end"] = _rss_bytes()
+        rss["end"] = _server_rss(room)
         jitter = lab.loop.status.jitter_p99_ms
         lab.check()
         lessons = room.private_lessons()

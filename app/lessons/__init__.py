@@ -37,6 +37,7 @@ import numpy as np
 import viser
 
 if TYPE_CHECKING:
+    from app.arm_process import ArmProcess
     from control.backend import Backend
     from control.loop import ControlLoop
     from control.params import Params
@@ -61,6 +62,9 @@ class LessonContext:
         joint_map: joint map file for "serial" (None: the robot's default map).
         arms: a student's private arm (:class:`ArmSource`): the lesson drives it instead
             of opening a backend and a loop of its own (None: the shared arm).
+        arm_process: where the shared simulated arm runs in a classroom (a worker
+            process of its own, :class:`app.arm_process.ArmProcess`; None: in the
+            server, as outside a classroom and on real servos).
     """
 
     robot: str = "receptionist_arm"
@@ -72,6 +76,7 @@ class LessonContext:
     package_paths: tuple[str, ...] = ()
     joint_map: str | None = None
     arms: ArmSource | None = None
+    arm_process: ArmProcess | None = None
 
 
 class ArmSource(Protocol):

@@ -23,13 +23,14 @@ simulated or on the bus) gets Open / Close buttons and a finger slider in mm, an
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 import viser
 import viser.transforms as vtf
 
 from app.arm_view import ArmView
-from app.backends import make_backend
+from app.backends import make_backend, shipped_x_servo
 from app.camera import View, show
 from app.lessons import ANY_URDF, LessonContext
 from app.lessons._common import LessonBase, close_in_turn, esc, guarded, set_content, status_html
@@ -129,17 +130,26 @@ class ArmLesson(LessonBase):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
         check_servo_arm(model)
         self.model = model
+        # a classroom's shared simulated arm runs in a process of its own (app.arm_process);
+        # one with X-series servos and their gripper stays here
+        remote = ctx.arms is None and ctx.arm_process is not None and \
+            shipped_x_servo(model) is None
         if ctx.arms is not None:  # a student's arm: kept for a reload, run by the class
             self.backend, self.loop = ctx.arms.arm_for(
                 model, DEFAULT, preset=private_key(ctx), q0=model.neutral(),
                 history_s=HISTORY_S)
             undo = None
+        elif remote:
+            arm = ctx.arm_process.add(model, DEFAULT, preset=private_key(ctx),  # type: ignore[union-attr]
+                                      q0=model.neutral(), history_s=HISTORY_S)
+            self.backend, self.loop = arm.backend, arm.loop  # type: ignore[assignment]
+            undo = partial(arm.loop.shutdown, torque_off=True)
         else:
             extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
             self.backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **extra)
             undo = self.backend.close
         with self.opening(undo):
-            if ctx.arms is None:
+            if ctx.arms is None and not remote:
                 self.loop = ControlLoop(model, self.backend, DEFAULT, controller="compliance",
                                         realtime=ctx.realtime, history_s=HISTORY_S)
             self.view = ArmView(server, model, root="/arm")

@@ -194,28 +194,40 @@ class ComplianceLesson(LessonBase):
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {self.ctx.robot} is not a serial arm")
         line = thesis_line(model)
-        if self.ctx.arms is not None:  # a student's arm: its loop runs in the class's thread
-            backend, loop = self.ctx.arms.arm_for(model, params, preset=preset, q0=line.q[0],
-                                                  history_s=HISTORY_S)
-            scene = ComplianceScene(
-                self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
-                root="/compliance", on_target=self._on_target, on_drag_hand=self._on_drag)
-            return Rig(preset, model, backend, loop, scene, line)
-        extra = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # start on the line
-        backend = make_backend(self.ctx.backend, model, port=self.ctx.port, baud=self.ctx.baud,
-                               **extra)
+        backend, loop = self._open_arm(model, params, preset=preset, q0=line.q[0])
         try:
-            loop = ControlLoop(model, backend, params, controller="compliance",
-                               realtime=self.ctx.realtime, history_s=HISTORY_S)
             scene = ComplianceScene(
                 self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
                 root="/compliance", on_target=self._on_target, on_drag_hand=self._on_drag)
         except BaseException:
-            backend.close()
+            if self.ctx.arms is None:  # (a student's arm stays with their seat)
+                _shut_arm(backend, loop)
             raise
         scene.hand.visible = not self.hardware  # real servos are pushed by a real hand
-        loop.start()
+        loop.start()  # (one already running goes on)
         return Rig(preset, model, backend, loop, scene, line)
+
+    def _open_arm(self, model: SerialChain, params: Params, *, preset: str,
+                  q0: np.ndarray) -> tuple[Backend, ControlLoop]:
+        """The arm the lesson drives and its loop: a student's (run by the class, kept by
+        their seat), a classroom's shared simulated arm (in a process of its own), or the
+        lab's backend opened here (its loop not started yet)."""
+        if self.ctx.arms is not None:
+            return self.ctx.arms.arm_for(model, params, preset=preset, q0=q0,
+                                         history_s=HISTORY_S)
+        if self.ctx.arm_process is not None:
+            arm = self.ctx.arm_process.add(model, params, preset=preset, q0=q0,
+                                           history_s=HISTORY_S)
+            return arm.backend, arm.loop  # type: ignore[return-value]  # their proxies
+        extra = {"q0": q0} if self.ctx.backend == "sim" else {}  # start on the line
+        backend = make_backend(self.ctx.backend, model, port=self.ctx.port, baud=self.ctx.baud,
+                               **extra)
+        try:
+            return backend, ControlLoop(model, backend, params, controller="compliance",
+                                        realtime=self.ctx.realtime, history_s=HISTORY_S)
+        except BaseException:
+            backend.close()
+            raise
 
     def _close_rig(self, rig: Rig) -> None:
         if self.ctx.arms is not None:  # the student's arm lives on for a reload; the page
@@ -225,13 +237,9 @@ class ComplianceLesson(LessonBase):
             rig.scene.remove()
             return
         try:
-            rig.loop.shutdown(torque_off=True)
-            rig.backend.estop()  # again, even after a link fault stopped the loop; never raises
+            _shut_arm(rig.backend, rig.loop)
         finally:
-            try:
-                rig.backend.close()
-            finally:
-                rig.scene.remove()
+            rig.scene.remove()
 
     def set_link_preset(self, preset: str) -> None:
         """Rebuild model, servos and loop for other link lengths (keeps the gains)."""
@@ -628,3 +636,13 @@ class ComplianceLesson(LessonBase):
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+
+
+def _shut_arm(backend: Backend, loop: ControlLoop) -> None:
+    """Stop ``loop`` with torque off, E-STOP ``backend`` again (even after a link fault
+    stopped the loop; never raises), then close it."""
+    try:
+        loop.shutdown(torque_off=True)
+        backend.estop()
+    finally:
+        backend.close()

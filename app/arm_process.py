@@ -1,0 +1,488 @@
+"""Simulated arms in a process of their own, mirrored into the server.
+
+A class of 30 private arms stepped at 1 kHz (:class:`app.class_arms.ClassArms`) costs
+about a third of one interpreter's time, and a paced control loop (the classroom's shared
+arm) waits for the GIL behind every thread of the server: the pages' publishers, the
+web server's event loop. So in a classroom these run in worker processes (a fresh
+interpreter, ``python -m app.arm_process``, talking over a socket pair as a
+``multiprocessing`` connection), each on a core the OS gives it, and the server keeps,
+per arm, what a lesson reads of it. One worker runs the class (``kind="class"``: the
+batched plants on one clock), another the shared arm (``kind="own"``:
+:class:`app.class_arms.OwnArms`, a ``SimBackend`` and a paced loop).
+
+- :class:`RemoteLoop`: the ``ControlLoop`` surface a lesson uses. ``status``,
+  ``recorder`` (a :class:`control.recorder.Recorder` the worker's rows are copied into),
+  ``spare_joints`` and ``gripper`` are mirrored: the worker sends every arm's status and
+  new rows every :data:`MIRROR_S` s in one message. ``post``, ``set_params`` go to the
+  worker's loop and wait for its answer, so a refused command raises here as it would in
+  process.
+- :class:`RemoteBackend`: E-STOP, the hand's push and drag, and the Servos panel's
+  ``plant.reports()``, each a call the worker answers.
+
+A call waits at most :data:`CALL_TIMEOUT_S` s (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a
+worker ends (killed, crashed), its arms' status says so as a fault and calls raise
+``BackendError``: the server and the other lessons go on.
+
+Messages (tuples; the server's ``Connection`` end sends calls, the worker's answers)::
+
+    server -> worker   (op, call_id, arm_id, *args)      op: add, post, set_params,
+                                                         estop, push, spring, read,
+                                                         reports, free
+                       ("close",)
+    worker -> server   ("ready",)
+                       ("reply", call_id, ok, value)     value: result or exception
+                       ("mirror", [(arm_id, status, rows, capacity, spare, gripper)...])
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import os
+import pickle
+import socket
+import subprocess
+import sys
+import threading
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.backend import BackendError, GripperState, JointState
+from control.commands import Command, UseSpareJoints
+from control.loop import LoopStatus
+from control.params import Params
+from control.recorder import Recorder
+from hardware.servo import ServoReport
+from kinematics.model import SerialChain
+
+#: s between two mirror messages (every arm's new rows and status)
+MIRROR_S = 0.02
+#: s a call waits for the worker's answer
+CALL_TIMEOUT_S = 20.0
+#: s an E-STOP waits for the worker's answer (then it says it could not be sure)
+ESTOP_TIMEOUT_S = 2.0
+#: what a worker runs: the class's private arms on one clock, or arms on threads of their own
+KINDS = ("class", "own")
+#: s the worker may take to start (a spawned interpreter imports numpy and the lab)
+START_TIMEOUT_S = 120.0
+
+
+class RemoteLoop:
+    """An arm's :class:`control.loop.ControlLoop`, running in a worker process,
+    as a lesson uses it (see the module docstring).
+
+    Attributes:
+        model: the arm. lower, upper: (n,) rad, the loop's joint limits.
+        recorder: the mirror of the loop's recorder (``snapshot``, ``to_csv``).
+    """
+
+    def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain, params: Params,
+                 *, lower: np.ndarray, upper: np.ndarray, capacity: int,
+                 status: LoopStatus) -> None:
+        self._owner = owner
+        self.arm_id = arm_id
+        self.model = model
+        self.lower = lower
+        self.upper = upper
+        self.recorder = Recorder(model.n, capacity, joint_names=model.joint_names)
+        self._params = params
+        self._status = status
+        self._spare = UseSpareJoints("off")
+        self._gripper: GripperState | None = None
+
+    @property
+    def params(self) -> Params:
+        """The parameters in force (as set through this proxy)."""
+        return self._params
+
+    def set_params(self, params: Params, *, force: bool = False) -> str | None:
+        """:meth:`ControlLoop.set_params` in the worker (refused gains raise ValueError)."""
+        warning = self._owner.call("set_params", self.arm_id, params, force)
+        self._params = params
+        return warning
+
+    def post(self, command: Command) -> None:
+        """:meth:`ControlLoop.post` in the worker (not a command: ValueError)."""
+        self._owner.call("post", self.arm_id, command)
+
+    @property
+    def status(self) -> LoopStatus:
+        """The loop's newest status (at most :data:`MIRROR_S` s old); a fault once the
+        worker has ended."""
+        dead = self._owner.ended
+        st = self._status
+        if dead is not None:
+            return dataclasses.replace(st, running=False, active=False, fault=dead)
+        return st
+
+    @property
+    def spare_joints(self) -> UseSpareJoints:
+        return self._spare
+
+    @property
+    def gripper(self) -> GripperState | None:
+        return self._gripper
+
+    def start(self) -> None:
+        """Nothing: the loop runs from the moment it was made."""
+
+    def shutdown(self, *, torque_off: bool = False, timeout: float = 2.0) -> None:
+        """Free the arm in the worker (its loop stops with torque off)."""
+        self._owner.free(self)
+
+    def _mirror(self, status: LoopStatus, rows: np.ndarray, capacity: int,
+                spare: UseSpareJoints, gripper: GripperState | None) -> None:
+        if capacity != self.recorder.capacity:
+            self.recorder.resize(capacity)
+        if len(rows):
+            self.recorder.extend(rows)
+        self._status = status
+        self._spare = spare
+        self._gripper = gripper
+
+
+class RemotePlant:
+    """The Servos panel's view of a private arm's simulated servos."""
+
+    def __init__(self, owner: ArmProcess, arm_id: int) -> None:
+        self._owner = owner
+        self._arm_id = arm_id
+
+    def reports(self) -> tuple[ServoReport, ...]:
+        """The arm's servo reports in joint order (raw words)."""
+        return self._owner.call("reports", self._arm_id)
+
+
+class RemoteBackend:
+    """An arm's backend in a worker process: what a lesson calls on it.
+
+    Implements ``control.backend.Pushable``; ``plant.reports()`` as a simulated backend's.
+    """
+
+    def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain) -> None:
+        self._owner = owner
+        self.arm_id = arm_id
+        self.n = model.n
+        self.plant = RemotePlant(owner, arm_id)
+
+    def read(self) -> JointState:
+        """Every joint as its servo reports it (the worker's ``read()``)."""
+        return self._owner.call("read", self.arm_id)
+
+    def estop(self) -> bool:
+        """Torque off on every servo of this arm now; never raises. False only when the
+        worker did not answer (an ended worker holds no torque: True)."""
+        try:
+            return bool(self._owner.call("estop", self.arm_id, timeout=ESTOP_TIMEOUT_S))
+        except BackendError:  # ended or freed: no arm holds torque; not answering: unsure
+            return self._owner.ended is not None or not self._owner.holds(self.arm_id)
+        except Exception:
+            return False
+
+    def close(self) -> None:
+        """Nothing: the owner frees the arm (:meth:`ArmProcess.free`)."""
+
+    def push(self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float) -> None:
+        """``Pushable.push`` in the worker."""
+        self._owner.call("push", self.arm_id, force, link, point, duration)
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """``Pushable.set_spring`` in the worker."""
+        self._owner.call("spring", self.arm_id, anchor, stiffness, link, point)
+
+
+@dataclasses.dataclass
+class RemoteArm:
+    """One arm of a :class:`ArmProcess` (as :class:`app.class_arms.Arm`)."""
+
+    preset: str
+    backend: RemoteBackend
+    loop: RemoteLoop
+
+
+class _Call:
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.ok = False
+        self.value: Any = None
+
+
+class ArmProcess:
+    """The worker process running the private arms, and its proxies (module docstring).
+
+    Args:
+        kind: "class" (private arms on one clock) or "own" (each its own loop thread).
+        realtime: step against the wall clock (False: as fast as possible, for tests).
+        mirror_s: s between two mirror messages.
+    """
+
+    def __init__(self, *, kind: str = "class", realtime: bool = True,
+                 mirror_s: float = MIRROR_S) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+        self.kind = kind
+        ours, theirs = socket.socketpair()
+        self._conn = Connection(ours.detach())
+        fd = theirs.detach()
+        env = dict(os.environ)  # the lab's packages, wherever this copy of them is
+        root = str(Path(__file__).resolve().parents[1])
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+        try:  # a fresh interpreter: never fork a server's threads, never rerun its script
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "app.arm_process", str(fd), str(int(realtime)),
+                 repr(float(mirror_s)), kind], pass_fds=(fd,), env=env, stdin=subprocess.DEVNULL)
+        finally:
+            os.close(fd)
+        self._send_lock = threading.Lock()
+        self._lock = threading.Lock()
+        self._calls: dict[int, _Call] = {}
+        self._loops: dict[int, RemoteLoop] = {}
+        self._ids = itertools.count(1)
+        self._ready = threading.Event()
+        self._ended: str | None = None
+        self._closing = False
+        self._receiver = threading.Thread(target=self._receive, name="armlab-class-mirror",
+                                          daemon=True)
+        self._receiver.start()
+
+    @property
+    def ended(self) -> str | None:
+        """Why the worker is gone (None while it runs)."""
+        return self._ended
+
+    @property
+    def pid(self) -> int | None:
+        """The worker's process id."""
+        return self._proc.pid
+
+    def add(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
+            history_s: float) -> RemoteArm:
+        """A new arm in the worker (:meth:`ClassArms.add`), its loop running."""
+        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
+            raise BackendError("the arm's simulation did not start; restart the lab")
+        arm_id = next(self._ids)
+        lower, upper, capacity, status = self.call("add", arm_id, model, params, preset,
+                                                   np.asarray(q0, dtype=float), history_s)
+        loop = RemoteLoop(self, arm_id, model, params, lower=lower, upper=upper,
+                          capacity=capacity, status=status)
+        with self._lock:
+            self._loops[arm_id] = loop
+        return RemoteArm(preset, RemoteBackend(self, arm_id, model), loop)
+
+    def free(self, arm: RemoteArm | RemoteLoop) -> None:
+        """Stop the arm's loop (torque off) and take it out of the worker; nothing when
+        the worker has ended."""
+        loop = arm.loop if isinstance(arm, RemoteArm) else arm
+        with self._lock:
+            if self._loops.pop(loop.arm_id, None) is None:
+                return
+        if self._ended is None:
+            self.call("free", loop.arm_id)
+
+    def holds(self, arm_id: int) -> bool:
+        """Whether arm ``arm_id`` is held (added and not freed)."""
+        with self._lock:
+            return arm_id in self._loops
+
+    def call(self, op: str, arm_id: int, *args: object,
+             timeout: float = CALL_TIMEOUT_S) -> Any:
+        """Run ``op`` on arm ``arm_id`` in the worker and return its answer (its exception
+        raised here).
+
+        Raises:
+            BackendError: the worker has ended or did not answer in
+                :data:`CALL_TIMEOUT_S` s.
+            ValueError: an argument that cannot be sent (not picklable).
+        """
+        if self._ended is not None:
+            raise BackendError(self._ended)
+        call_id = next(self._ids)
+        call = _Call()
+        with self._lock:
+            self._calls[call_id] = call
+        try:
+            try:
+                data = pickle.dumps((op, call_id, arm_id, *args), pickle.HIGHEST_PROTOCOL)
+            except Exception as exc:
+                raise ValueError(f"{op}: cannot be sent to the arm's simulation: {exc}"
+                                 ) from None
+            try:
+                with self._send_lock:
+                    self._conn.send_bytes(data)
+            except (OSError, ValueError) as exc:
+                raise BackendError(self._ended or f"the arm's simulation is gone: {exc}"
+                                   ) from None
+            if not call.done.wait(timeout):
+                raise BackendError(f"the arm's simulation did not answer {op!r} in "
+                                   f"{timeout:g} s")
+        finally:
+            with self._lock:
+                self._calls.pop(call_id, None)
+        if not call.ok:
+            raise call.value
+        return call.value
+
+    def close(self) -> None:
+        """Stop the worker (every arm's loop with torque off) and wait for it."""
+        self._closing = True
+        try:
+            with self._send_lock:
+                self._conn.send(("close",))
+        except (OSError, ValueError):
+            pass
+        try:
+            self._proc.wait(10.0)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait(5.0)
+        self._receiver.join(5.0)
+        self._conn.close()
+
+    def _receive(self) -> None:
+        while True:
+            try:
+                msg = self._conn.recv()
+            except (EOFError, OSError):
+                break
+            except Exception:  # noqa: S112 - a message that cannot be read: the next may
+                continue
+            if msg[0] == "mirror":
+                with self._lock:
+                    loops = self._loops
+                    for arm_id, *state in msg[1]:
+                        loop = loops.get(arm_id)
+                        if loop is not None:
+                            loop._mirror(*state)
+            elif msg[0] == "reply":
+                _, call_id, ok, value = msg
+                with self._lock:
+                    call = self._calls.get(call_id)
+                if call is not None:
+                    call.ok, call.value = ok, value
+                    call.done.set()
+            elif msg[0] == "ready":
+                self._ready.set()
+        try:
+            code: int | None = self._proc.wait(1.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        self._ended = ("the arm's process was closed" if self._closing else
+                       f"the arm's simulation stopped (exit code {code}); "
+                       "reload the page for a new arm")
+        self._ready.set()
+        with self._lock:
+            calls = list(self._calls.values())
+        for call in calls:
+            call.ok, call.value = False, BackendError(self._ended)
+            call.done.set()
+
+
+# ---------------------------------------------------------------------- the worker
+
+
+def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
+    """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
+    ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
+    says close or its end of the pipe closes."""
+    from app.class_arms import Arm, ClassArms, OwnArms
+
+    arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
+    held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
+    held_lock = threading.Lock()
+    send_lock = threading.Lock()
+    stop = threading.Event()
+
+    def send(msg: object) -> None:
+        with send_lock:
+            conn.send(msg)
+
+    def mirror() -> None:
+        while not stop.wait(mirror_s):
+            with held_lock:
+                items = list(held.items())
+            batch = []
+            for arm_id, (arm, bookmark) in items:
+                loop = arm.loop
+                status = loop.status  # first: the rows are at least as new as it says
+                rows, bookmark[0] = loop.recorder.since(bookmark[0])
+                batch.append((arm_id, status, rows, loop.recorder.capacity,
+                              loop.spare_joints, loop.gripper))
+            if batch:
+                try:
+                    send(("mirror", batch))
+                except (OSError, ValueError):
+                    return
+
+    def arm_of(arm_id: int) -> Arm:
+        with held_lock:
+            found = held.get(arm_id)
+        if found is None:
+            raise BackendError("this arm was freed (a reload of the page makes a new one)")
+        return found[0]
+
+    def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
+            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus]:
+        arm = arms.add(model, params, preset=preset, q0=q0, history_s=history_s)
+        with held_lock:
+            held[arm_id] = (arm, [0])
+        return arm.loop.lower, arm.loop.upper, arm.loop.recorder.capacity, arm.loop.status
+
+    def free(arm_id: int) -> None:
+        with held_lock:
+            found = held.pop(arm_id, None)
+        if found is not None:
+            arms.free(found[0])
+
+    ops: dict[str, Callable[..., object]] = {
+        "add": add,
+        "free": free,
+        "post": lambda i, cmd: arm_of(i).loop.post(cmd),
+        "set_params": lambda i, p, force: arm_of(i).loop.set_params(p, force=force),
+        "estop": lambda i: arm_of(i).backend.estop(),
+        "read": lambda i: arm_of(i).backend.read(),
+        "reports": lambda i: arm_of(i).backend.plant.reports(),
+        "push": lambda i, f, link, point, d: arm_of(i).backend.push(
+            f, link=link, point=point, duration=d),
+        "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
+            anchor, stiffness=k, link=link, point=point),
+    }
+    mirror_thread = threading.Thread(target=mirror, name="armlab-class-mirror", daemon=True)
+    mirror_thread.start()
+    send(("ready",))
+    try:
+        while True:
+            try:
+                msg = pickle.loads(conn.recv_bytes())
+            except (EOFError, OSError):
+                break
+            if msg[0] == "close":
+                break
+            op, call_id, *args = msg
+            try:
+                value, ok = ops[op](*args), True
+            except Exception as exc:
+                value, ok = exc, False
+            try:
+                send(("reply", call_id, ok, value))
+            except (pickle.PicklingError, TypeError, AttributeError) as exc:
+                send(("reply", call_id, False, RuntimeError(f"{op}: {exc}")))
+            except (OSError, ValueError):
+                break
+    finally:
+        stop.set()
+        mirror_thread.join(2.0)
+        with held_lock:
+            left = [arm for arm, _ in held.values()]
+            held.clear()
+        arms.close(left)
+        conn.close()
+
+
+if __name__ == "__main__":  # python -m app.arm_process FD REALTIME MIRROR_S KIND (ArmProcess)
+    serve(Connection(int(sys.argv[1])), bool(int(sys.argv[2])), float(sys.argv[3]),
+          sys.argv[4])

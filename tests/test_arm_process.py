@@ -1,0 +1,131 @@
+"""The students' private arms in a worker process (app/arm_process.py): what a lesson
+reads of an arm is mirrored without a gap, what it asks is answered (a refusal raised
+here), and a worker that dies leaves the server healthy and the next arm working."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+from _helpers import wait_for
+
+from app.arm_process import ArmProcess, RemoteBackend, RemoteLoop
+from app.sandboxes import Sandboxes
+from control.backend import BackendError, Pushable
+from control.commands import RunTrajectory
+from control.params import DEFAULT, Params
+from control.trajectory import minimum_jerk
+from kinematics import load_robot
+
+Q0 = np.array([0.0, 0.3, 0.3])
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_robot("receptionist_arm", preset="18.5/25")
+
+
+def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_a_gap(model):
+    """The arm's loop runs in another process; every period it records reaches the
+    server's mirror once, in order (the loop times are one period apart), and the arm
+    follows a trajectory posted from here to its goal."""
+    boxes = Sandboxes(realtime=True)
+    try:
+        backend, loop = boxes.seat("s").arm_for(model, DEFAULT, preset="18.5/25", q0=Q0,
+                                                history_s=4.0)
+        assert isinstance(loop, RemoteLoop) and isinstance(backend, RemoteBackend)
+        assert isinstance(backend, Pushable)
+        assert boxes.process.pid != os.getpid()
+        goal = Q0 + np.array([0.3, -0.2, 0.25])
+        loop.post(RunTrajectory(minimum_jerk(Q0, goal, 0.8)))
+        wait_for(lambda: loop.status.t > 2.0 and loop.status.trajectory is None, 60,
+                 "the trajectory played in the worker")
+        snap = loop.recorder.snapshot()
+        t = snap["t"]
+        assert len(t) > 100
+        np.testing.assert_allclose(np.diff(t), DEFAULT.period, atol=1e-9)  # no row lost
+        np.testing.assert_allclose(snap["q"][-1], goal, atol=np.radians(2.0))
+        np.testing.assert_allclose(backend.read().position, goal, atol=np.radians(2.0))
+        assert "q_theta1_rad" in loop.recorder.to_csv(DEFAULT)
+        assert len(backend.plant.reports()) == 3  # the Servos panel's read
+        assert loop.status.fault is None and loop.status.running
+    finally:
+        boxes.close()
+    assert boxes.process.ended == "the arm's process was closed"
+
+
+def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
+    """A refused command or gain raises in the server as it would in process; an
+    argument that cannot be sent at all is refused before it goes."""
+    proc = ArmProcess(realtime=True)
+    try:
+        arm = proc.add(model, DEFAULT, preset="18.5/25", q0=Q0, history_s=1.0)
+        loop = arm.loop
+        with pytest.raises(ValueError, match="not a loop command"):
+            loop.post("run")  # type: ignore[arg-type]
+        unstable = Params(kp=200.0, kv=0.0)
+        with pytest.raises(ValueError, match="gains refused"):
+            loop.set_params(unstable)
+        assert loop.params == DEFAULT
+        with pytest.raises(ValueError, match="cannot be sent"):
+            loop.post(lambda: None)  # type: ignore[arg-type]
+        assert loop.set_params(unstable, force=True) is not None  # the warning comes back
+        assert loop.params == unstable
+        assert loop.status.fault is None
+    finally:
+        proc.close()
+
+
+def test_a_worker_that_dies_is_told_and_the_next_arm_gets_a_new_one(model):
+    """The worker killed: the arm's status says so as a fault, calls raise BackendError
+    (E-STOP still answers: nothing holds torque), the server goes on, and the next arm
+    asked for runs in a new worker."""
+    boxes = Sandboxes(realtime=True)
+    try:
+        backend, loop = boxes.seat("a").arm_for(model, DEFAULT, preset="18.5/25", q0=Q0,
+                                                history_s=1.0)
+        wait_for(lambda: loop.status.t > 0.1, 60, "the arm running")
+        dead = boxes.process
+        os.kill(dead.pid, signal.SIGKILL)
+        wait_for(lambda: loop.status.fault is not None, 60, "the fault told")
+        assert "stopped" in loop.status.fault and "reload the page" in loop.status.fault
+        assert not loop.status.running
+        with pytest.raises(BackendError, match="stopped"):
+            loop.post(RunTrajectory(minimum_jerk(Q0, Q0 + 0.1, 0.5)))
+        assert backend.estop() is True
+        _, again = boxes.seat("a").arm_for(model, DEFAULT, preset="18.5/25", q0=Q0,
+                                           history_s=1.0)
+        assert again is not loop and boxes.process is not dead
+        wait_for(lambda: again.status.t > 0.1 and again.status.fault is None, 60,
+                 "the new arm running in a new worker")
+        assert boxes.n_arms == 1
+    finally:
+        boxes.close()
+
+
+def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
+    """With --classroom on the simulated backend the shared arm's loop runs in a worker
+    of its own (not the server, not the class's): E-STOP reaches it, the lesson's Reset
+    clears it, and closing the lab ends the worker. Without --classroom the arm stays in
+    the server as before."""
+    from app.lessons._loop_state import post_reset
+    from app.server import Lab, ServeOptions
+    from control.loop import ControlLoop
+
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        loop = lab.lesson.rig.loop
+        assert isinstance(loop, RemoteLoop) and lab.arm_process is not None
+        assert lab.arm_process.pid not in (os.getpid(), lab.room.sandboxes.process.pid)
+        wait_for(lambda: loop.status.t > 0.5 and loop.status.jitter_p99_ms is not None, 60,
+                 "the shared arm's paced loop running")
+        lab.estop()
+        wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 60,
+                 "the shared arm E-STOPPED")
+        post_reset(loop)
+        wait_for(lambda: loop.status.active and not loop.status.estopped, 60, "reset")
+        shared = lab.arm_process
+    assert shared.ended == "the arm's process was closed"
+    with Lab(ServeOptions(http_port=0)) as lab:
+        assert lab.arm_process is None and isinstance(lab.lesson.rig.loop, ControlLoop)
