@@ -29,7 +29,7 @@ Messages (tuples; the server's ``Connection`` end sends calls, the worker's answ
                                                          estop, push, spring, read,
                                                          reports, free
                        ("close",)
-    worker -> server   ("ready",)
+    worker -> server   ("ready", scheduling)
                        ("reply", call_id, ok, value)     value: result or exception
                        ("mirror", [(arm_id, status, rows, capacity, spare, gripper)...])
 """
@@ -40,6 +40,7 @@ import dataclasses
 import itertools
 import os
 import pickle
+import signal
 import socket
 import subprocess
 import sys
@@ -67,6 +68,13 @@ CALL_TIMEOUT_S = 20.0
 ESTOP_TIMEOUT_S = 2.0
 #: what a worker runs: the class's private arms on one clock, or arms on threads of their own
 KINDS = ("class", "own")
+#: real-time priority (SCHED_FIFO) a real-time "own" worker (the shared arm) asks for, where
+#: the OS allows it (root, CAP_SYS_NICE or an rtprio limit): its loop then wakes on time
+#: on a busy machine, as a robot's control loop does (ros2_control); refused, it runs as is
+SHARED_RT_PRIORITY = 10
+#: niceness the class's worker adds to its own: when the cores are busy, the shared arm's
+#: loop and the pages come before the students' 1 kHz steps
+CLASS_NICE = 5
 #: s the worker may take to start (a spawned interpreter imports numpy and the lab)
 START_TIMEOUT_S = 120.0
 
@@ -244,6 +252,9 @@ class ArmProcess:
         self._loops: dict[int, RemoteLoop] = {}
         self._ids = itertools.count(1)
         self._ready = threading.Event()
+        #: how the OS schedules the worker (:data:`SHARED_RT_PRIORITY`, :data:`CLASS_NICE`),
+        #: once it started
+        self.scheduling: str | None = None
         self._ended: str | None = None
         self._closing = False
         self._receiver = threading.Thread(target=self._receive, name="armlab-class-mirror",
@@ -366,6 +377,7 @@ class ArmProcess:
                     call.ok, call.value = ok, value
                     call.done.set()
             elif msg[0] == "ready":
+                self.scheduling = msg[1]
                 self._ready.set()
         try:
             code: int | None = self._proc.wait(1.0)
@@ -385,12 +397,27 @@ class ArmProcess:
 # ---------------------------------------------------------------------- the worker
 
 
+def _prioritise(kind: str, realtime: bool) -> str:
+    """Set this worker's scheduling for ``kind`` (only when ``realtime``: a loop run as
+    fast as possible must never hold a core at real-time priority) and say what it is."""
+    if not realtime:
+        return "normal"
+    if kind == "class":
+        return f"nice {os.nice(CLASS_NICE)}"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SHARED_RT_PRIORITY))
+    except (OSError, AttributeError):  # not allowed here (or not Linux): as any process
+        return "normal (real-time priority not allowed)"
+    return f"SCHED_FIFO {SHARED_RT_PRIORITY}"
+
+
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
     says close or its end of the pipe closes."""
     from app.class_arms import Arm, ClassArms, OwnArms
 
+    scheduling = _prioritise(kind, realtime)  # before any thread: they inherit it
     arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
     held_lock = threading.Lock()
@@ -453,7 +480,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
     }
     mirror_thread = threading.Thread(target=mirror, name="armlab-class-mirror", daemon=True)
     mirror_thread.start()
-    send(("ready",))
+    send(("ready", scheduling))
     try:
         while True:
             try:
@@ -484,5 +511,6 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
 
 
 if __name__ == "__main__":  # python -m app.arm_process FD REALTIME MIRROR_S KIND (ArmProcess)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's: it closes us
     serve(Connection(int(sys.argv[1])), bool(int(sys.argv[2])), float(sys.argv[3]),
           sys.argv[4])

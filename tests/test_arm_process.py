@@ -129,3 +129,30 @@ def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
     assert shared.ended == "the arm's process was closed"
     with Lab(ServeOptions(http_port=0)) as lab:
         assert lab.arm_process is None and isinstance(lab.lesson.rig.loop, ControlLoop)
+
+
+def test_each_worker_is_scheduled_as_it_says():
+    """The shared arm's real-time worker asks for SCHED_FIFO (taken where the OS allows
+    it, said otherwise); the class's worker is niced below the server; a worker run as
+    fast as possible never holds a real-time priority. Read back from the OS."""
+    from app.arm_process import CLASS_NICE, SHARED_RT_PRIORITY
+
+    own = ArmProcess(kind="own", realtime=True)
+    fast = ArmProcess(kind="own", realtime=False)
+    cls = ArmProcess(kind="class", realtime=True)
+    try:
+        for proc in (own, fast, cls):
+            wait_for(lambda p=proc: p.scheduling is not None, 120, "the worker started")
+        if own.scheduling == f"SCHED_FIFO {SHARED_RT_PRIORITY}":
+            assert os.sched_getscheduler(own.pid) == os.SCHED_FIFO
+            assert os.sched_getparam(own.pid).sched_priority == SHARED_RT_PRIORITY
+        else:
+            assert own.scheduling == "normal (real-time priority not allowed)"
+            assert os.sched_getscheduler(own.pid) == os.SCHED_OTHER
+        assert fast.scheduling == "normal" and os.sched_getscheduler(fast.pid) == os.SCHED_OTHER
+        expected = min(19, os.getpriority(os.PRIO_PROCESS, 0) + CLASS_NICE)
+        assert cls.scheduling == f"nice {expected}"
+        assert os.getpriority(os.PRIO_PROCESS, cls.pid) == expected
+    finally:
+        for proc in (own, fast, cls):
+            proc.close()

@@ -271,14 +271,18 @@ def test_dragging_the_hand_with_the_mouse_pulls_the_arm(page, lab):
     loop, model = lesson.rig.loop, lesson.rig.model
     _back_to_the_default_gains(page, loop)
 
-    def settled() -> bool:  # the arm at rest at home: under 0.5° of motion in 0.5 s
-        q = loop.recorder.snapshot(0.5)["q"]
+    def recent(seconds: float) -> np.ndarray:
+        return loop.recorder.snapshot(seconds)["q"]
+
+    def settled() -> bool:  # the arm at rest at home: under 2° of motion in 0.5 s (a loop
+        q = recent(0.5)  # made late by a busy machine keeps a holding arm wobbling by ~1°)
         if len(q) < 10 or not np.all(np.isfinite(q)):
             return False
-        return bool(np.all(np.ptp(q, axis=0) < np.radians(0.5)))
+        return bool(np.all(np.ptp(q, axis=0) < np.radians(2.0)))
 
-    wait_for(settled, 60, "the arm to settle at home")
-    q0 = loop.recorder.snapshot(0.1)["q"][-1]
+    wait_for(settled, 60, lambda: f"the arm to settle at home (moving "
+             f"{np.degrees(np.ptp(recent(0.5), axis=0)).round(2)}° in 0.5 s; {loop.status})")
+    q0 = recent(0.5).mean(axis=0)  # (the wobble averaged out, here and after the pull)
     tip = model.base_pose @ model.fk(q0)  # hand (grab sphere centre), world frame
     x, y = _on_screen(page, lab, tip[:3, 3])
     # Press on the hand's sphere and pull it 80 px to the left on the screen, then hold.
@@ -291,7 +295,7 @@ def test_dragging_the_hand_with_the_mouse_pulls_the_arm(page, lab):
     assert np.linalg.norm(anchor - p0) > 0.02  # the pointer went centimetres away
     t0 = loop.status.t
     wait_for(lambda: loop.status.t > t0 + 1.5, 30, "1.5 s of pulling")
-    p1 = model.fk(loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+    p1 = model.fk(recent(0.3).mean(axis=0))[:3, 3]
     pull = (anchor - p0) / np.linalg.norm(anchor - p0)
     assert float(pull @ (p1 - p0)) > 0.01  # the hand gave way more than 1 cm towards the pointer
     page.mouse.up()

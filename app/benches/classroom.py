@@ -18,7 +18,10 @@ Figures:
         (a resting arm sends no pose).
     classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
         ``_max``: the most any page received).
-    classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile.
+    classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile (its loop
+        runs in a worker process of its own, :mod:`app.arm_process`);
+        ``classroom_30_shared_loop_realtime_priority``: 1 when that worker got the
+        real-time priority it asks for (SCHED_FIFO: root or CAP_SYS_NICE), 0 otherwise.
     classroom_30_rss_growth_pct: the server's memory growth over the run (its process and
         the class's worker), from the moment all 30 private arms exist.
     classroom_30_frames_skipped_behind_pct: of the private pages' frames due, those not
@@ -157,6 +160,8 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         res = _clients(lab.ws_url, pages, seconds, settle=settle, my_arm=True)
         rss["end"] = _server_rss(room)
         jitter = lab.loop.status.jitter_p99_ms
+        shared = lab.lab.arm_process
+        fifo = shared is not None and (shared.scheduling or "").startswith("SCHED_FIFO")
         lab.check()
         lessons = room.private_lessons()
         made = sum(lesson.publisher.stats.pose_frames for lesson in lessons.values())
@@ -177,6 +182,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         "classroom_30_bytes_per_client_per_s": res["bytes_per_client_per_s"],
         "classroom_30_bytes_per_client_per_s_max": res["bytes_per_client_per_s_max"],
         "classroom_30_loop_jitter_p99_ms": float("nan") if jitter is None else float(jitter),
+        "classroom_30_shared_loop_realtime_priority": float(fifo),
         "classroom_30_rss_growth_pct": 100.0 * (rss["end"] - start) / start,
         "classroom_30_client_cpu_share": res["client_cpu_share"],
         "classroom_30_frames_skipped_behind_pct": 100.0 * behind / max(1, made + behind),
