@@ -221,7 +221,7 @@ class _Call:
 
 
 class ArmProcess:
-    """The worker process running the private arms, and its proxies (module docstring).
+    """A worker process running simulated arms, and their proxies (module docstring).
 
     Args:
         kind: "class" (private arms on one clock) or "own" (each its own loop thread).
@@ -257,7 +257,7 @@ class ArmProcess:
         self.scheduling: str | None = None
         self._ended: str | None = None
         self._closing = False
-        self._receiver = threading.Thread(target=self._receive, name="armlab-class-mirror",
+        self._receiver = threading.Thread(target=self._receive, name="armlab-arm-mirror",
                                           daemon=True)
         self._receiver.start()
 
@@ -420,6 +420,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
     scheduling = _prioritise(kind, realtime)  # before any thread: they inherit it
     arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
+    fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
     held_lock = threading.Lock()
     send_lock = threading.Lock()
     stop = threading.Event()
@@ -454,9 +455,8 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
 
     def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
             history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus]:
-        arm = arms.add(model, params, preset=preset, q0=q0, history_s=history_s)
-        with held_lock:
-            held[arm_id] = (arm, [0])
+        arm = fresh[arm_id] = arms.add(model, params, preset=preset, q0=q0,
+                                       history_s=history_s)
         return arm.loop.lower, arm.loop.upper, arm.loop.recorder.capacity, arm.loop.status
 
     def free(arm_id: int) -> None:
@@ -478,7 +478,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
             anchor, stiffness=k, link=link, point=point),
     }
-    mirror_thread = threading.Thread(target=mirror, name="armlab-class-mirror", daemon=True)
+    mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
     mirror_thread.start()
     send(("ready", scheduling))
     try:
@@ -500,11 +500,15 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                 send(("reply", call_id, False, RuntimeError(f"{op}: {exc}")))
             except (OSError, ValueError):
                 break
+            if fresh:  # (a mirror before the answer would name an arm the server lacks)
+                with held_lock:
+                    held.update((i, (arm, [0])) for i, arm in fresh.items())
+                fresh.clear()
     finally:
         stop.set()
         mirror_thread.join(2.0)
         with held_lock:
-            left = [arm for arm, _ in held.values()]
+            left = [arm for arm, _ in held.values()] + list(fresh.values())
             held.clear()
         arms.close(left)
         conn.close()

@@ -55,10 +55,16 @@ PANEL_LABEL = "armlab"
 #: default 5 ms would let the web server's message encoding delay a control period
 #: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
 GIL_SWITCH_INTERVAL = 0.0005
-#: s: the same in a classroom, where some 60 threads (a publisher per page, the class's
-#: clock) want the GIL: the web server's event loop then gets it back sooner (room of
-#: 30 pages, quiet machine: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
+#: s: the same in a classroom on real servos, where the shared loop shares the server
+#: with some 30 publishers, one per page: the web server's event loop and the loop get
+#: the GIL back sooner (room of 30 pages, quiet machine, the class's clock then in the
+#: server too: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
 CLASSROOM_SWITCH_INTERVAL = 0.00025
+#: s: in a simulated classroom, where no arm's loop runs in the server (app.arm_process),
+#: fewer forced switches between the pages' publishers leave more of the GIL to their
+#: frames (room of 30, alternating: 18–20 pose frames/s a page at 0.25 ms, 21–22 at 2 ms
+#: and 5 ms); 2 ms keeps a lesson's loop that runs here (hand, quadruped) on time.
+CLASSROOM_SIM_SWITCH_INTERVAL = 0.002
 
 
 class LabServer(viser.ViserServer):
@@ -185,8 +191,11 @@ class Lab:
         if name not in lessons:
             raise ValueError(f"lesson: unknown {name!r}; known: {', '.join(sorted(lessons))}")
         self._lessons = lessons
-        switch = CLASSROOM_SWITCH_INTERVAL if options.classroom else GIL_SWITCH_INTERVAL
-        sys.setswitchinterval(min(sys.getswitchinterval(), switch))
+        if options.classroom and options.backend == "sim":  # the lab owns the process
+            sys.setswitchinterval(CLASSROOM_SIM_SWITCH_INTERVAL)
+        else:
+            switch = CLASSROOM_SWITCH_INTERVAL if options.classroom else GIL_SWITCH_INTERVAL
+            sys.setswitchinterval(min(sys.getswitchinterval(), switch))
         self._lock = threading.RLock()
         self._closed = False
         self.token = options.token or new_token()
