@@ -4,7 +4,7 @@ A class of 30 private arms stepped at 1 kHz (:class:`app.class_arms.ClassArms`) 
 about a third of one interpreter's time, and a paced control loop (the classroom's shared
 arm) waits for the GIL behind every thread of the server: the pages' publishers, the
 web server's event loop. So in a classroom these run in worker processes (a fresh
-interpreter, ``python -m app.arm_process``, talking over a socket pair as a
+interpreter, ``python -m app.arm_worker``, talking over a socket pair as a
 ``multiprocessing`` connection), each on a core the OS gives it, and the server keeps,
 per arm, what a lesson reads of it. One worker runs the class (``kind="class"``: the
 batched plants on one clock), another the shared arm (``kind="own"``:
@@ -19,9 +19,10 @@ batched plants on one clock), another the shared arm (``kind="own"``:
 - :class:`RemoteBackend`: E-STOP, the hand's push and drag, and the Servos panel's
   ``plant.reports()``, each a call the worker answers.
 
-A call waits at most :data:`CALL_TIMEOUT_S` s (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a
-worker ends (killed, crashed), its arms' status says so as a fault and calls raise
-``BackendError``: the server and the other lessons go on.
+The worker's side is :mod:`app.arm_worker`. A call waits at most :data:`CALL_TIMEOUT_S` s
+(E-STOP: :data:`ESTOP_TIMEOUT_S`). When a worker ends (killed, crashed), its arms' status
+says so as a fault and calls raise ``BackendError``: the server and the other lessons go
+on.
 
 Messages (tuples; the server's ``Connection`` end sends calls, the worker's answers)::
 
@@ -40,12 +41,10 @@ import dataclasses
 import itertools
 import os
 import pickle
-import signal
 import socket
 import subprocess
 import sys
 import threading
-from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -68,13 +67,6 @@ CALL_TIMEOUT_S = 20.0
 ESTOP_TIMEOUT_S = 2.0
 #: what a worker runs: the class's private arms on one clock, or arms on threads of their own
 KINDS = ("class", "own")
-#: real-time priority (SCHED_FIFO) a real-time "own" worker (the shared arm) asks for, where
-#: the OS allows it (root, CAP_SYS_NICE or an rtprio limit): its loop then wakes on time
-#: on a busy machine, as a robot's control loop does (ros2_control); refused, it runs as is
-SHARED_RT_PRIORITY = 10
-#: niceness the class's worker adds to its own: when the cores are busy, the shared arm's
-#: loop and the pages come before the students' 1 kHz steps
-CLASS_NICE = 5
 #: s the worker may take to start (a spawned interpreter imports numpy and the lab)
 START_TIMEOUT_S = 120.0
 
@@ -242,7 +234,7 @@ class ArmProcess:
         env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
         try:  # a fresh interpreter: never fork a server's threads, never rerun its script
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "app.arm_process", str(fd), str(int(realtime)),
+                [sys.executable, "-m", "app.arm_worker", str(fd), str(int(realtime)),
                  repr(float(mirror_s)), kind], pass_fds=(fd,), env=env, stdin=subprocess.DEVNULL)
         finally:
             os.close(fd)
@@ -252,8 +244,8 @@ class ArmProcess:
         self._loops: dict[int, RemoteLoop] = {}
         self._ids = itertools.count(1)
         self._ready = threading.Event()
-        #: how the OS schedules the worker (:data:`SHARED_RT_PRIORITY`, :data:`CLASS_NICE`),
-        #: once it started
+        #: how the OS schedules the worker (:func:`app.arm_worker.prioritise`), once it
+        #: started
         self.scheduling: str | None = None
         self._ended: str | None = None
         self._closing = False
@@ -392,129 +384,3 @@ class ArmProcess:
         for call in calls:
             call.ok, call.value = False, BackendError(self._ended)
             call.done.set()
-
-
-# ---------------------------------------------------------------------- the worker
-
-
-def _prioritise(kind: str, realtime: bool) -> str:
-    """Set this worker's scheduling for ``kind`` (only when ``realtime``: a loop run as
-    fast as possible must never hold a core at real-time priority) and say what it is."""
-    if not realtime:
-        return "normal"
-    if kind == "class":
-        return f"nice {os.nice(CLASS_NICE)}"
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SHARED_RT_PRIORITY))
-    except (OSError, AttributeError):  # not allowed here (or not Linux): as any process
-        return "normal (real-time priority not allowed)"
-    return f"SCHED_FIFO {SHARED_RT_PRIORITY}"
-
-
-def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
-    """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
-    ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
-    says close or its end of the pipe closes."""
-    from app.class_arms import Arm, ClassArms, OwnArms
-
-    scheduling = _prioritise(kind, realtime)  # before any thread: they inherit it
-    arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
-    held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
-    fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
-    held_lock = threading.Lock()
-    send_lock = threading.Lock()
-    stop = threading.Event()
-
-    def send(msg: object) -> None:
-        with send_lock:
-            conn.send(msg)
-
-    def mirror() -> None:
-        while not stop.wait(mirror_s):
-            with held_lock:
-                items = list(held.items())
-            batch = []
-            for arm_id, (arm, bookmark) in items:
-                loop = arm.loop
-                status = loop.status  # first: the rows are at least as new as it says
-                rows, bookmark[0] = loop.recorder.since(bookmark[0])
-                batch.append((arm_id, status, rows, loop.recorder.capacity,
-                              loop.spare_joints, loop.gripper))
-            if batch:
-                try:
-                    send(("mirror", batch))
-                except (OSError, ValueError):
-                    return
-
-    def arm_of(arm_id: int) -> Arm:
-        with held_lock:
-            found = held.get(arm_id)
-        if found is None:
-            raise BackendError("this arm was freed (a reload of the page makes a new one)")
-        return found[0]
-
-    def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
-            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus]:
-        arm = fresh[arm_id] = arms.add(model, params, preset=preset, q0=q0,
-                                       history_s=history_s)
-        return arm.loop.lower, arm.loop.upper, arm.loop.recorder.capacity, arm.loop.status
-
-    def free(arm_id: int) -> None:
-        with held_lock:
-            found = held.pop(arm_id, None)
-        if found is not None:
-            arms.free(found[0])
-
-    ops: dict[str, Callable[..., object]] = {
-        "add": add,
-        "free": free,
-        "post": lambda i, cmd: arm_of(i).loop.post(cmd),
-        "set_params": lambda i, p, force: arm_of(i).loop.set_params(p, force=force),
-        "estop": lambda i: arm_of(i).backend.estop(),
-        "read": lambda i: arm_of(i).backend.read(),
-        "reports": lambda i: arm_of(i).backend.plant.reports(),
-        "push": lambda i, f, link, point, d: arm_of(i).backend.push(
-            f, link=link, point=point, duration=d),
-        "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
-            anchor, stiffness=k, link=link, point=point),
-    }
-    mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
-    mirror_thread.start()
-    send(("ready", scheduling))
-    try:
-        while True:
-            try:
-                msg = pickle.loads(conn.recv_bytes())
-            except (EOFError, OSError):
-                break
-            if msg[0] == "close":
-                break
-            op, call_id, *args = msg
-            try:
-                value, ok = ops[op](*args), True
-            except Exception as exc:
-                value, ok = exc, False
-            try:
-                send(("reply", call_id, ok, value))
-            except (pickle.PicklingError, TypeError, AttributeError) as exc:
-                send(("reply", call_id, False, RuntimeError(f"{op}: {exc}")))
-            except (OSError, ValueError):
-                break
-            if fresh:  # (a mirror before the answer would name an arm the server lacks)
-                with held_lock:
-                    held.update((i, (arm, [0])) for i, arm in fresh.items())
-                fresh.clear()
-    finally:
-        stop.set()
-        mirror_thread.join(2.0)
-        with held_lock:
-            left = [arm for arm, _ in held.values()] + list(fresh.values())
-            held.clear()
-        arms.close(left)
-        conn.close()
-
-
-if __name__ == "__main__":  # python -m app.arm_process FD REALTIME MIRROR_S KIND (ArmProcess)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's: it closes us
-    serve(Connection(int(sys.argv[1])), bool(int(sys.argv[2])), float(sys.argv[3]),
-          sys.argv[4])

@@ -12,8 +12,8 @@ its shared arm is (:class:`hardware.xseries_sim.XSimBackend`, a plant of its own
 its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 :class:`app.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a process
-of their own (:mod:`app.arm_process`, which hosts a ``ClassArms``) and the X-series
-ones in a ``ClassArms`` of its own.
+of their own (:mod:`app.arm_process`, whose worker :mod:`app.arm_worker` hosts a
+``ClassArms``) and the X-series ones in a ``ClassArms`` of its own.
 """
 
 from __future__ import annotations

@@ -108,8 +108,8 @@ def test_a_worker_that_dies_is_told_and_the_next_arm_gets_a_new_one(model):
 def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
     """With --classroom on the simulated backend the shared arm's loop runs in a worker
     of its own (not the server, not the class's): E-STOP reaches it, the lesson's Reset
-    clears it, and closing the lab ends the worker. Without --classroom the arm stays in
-    the server as before."""
+    clears it, another lesson frees it, and closing the lab ends the worker. An arm with
+    X-series servos and a gripper, and any arm without --classroom, stays in the server."""
     from app.lessons._loop_state import post_reset
     from app.server import Lab, ServeOptions
     from control.loop import ControlLoop
@@ -126,6 +126,11 @@ def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
         post_reset(loop)
         wait_for(lambda: loop.status.active and not loop.status.estopped, 60, "reset")
         shared = lab.arm_process
+        lab.switch("arm")  # the compliance arm freed; the OpenManipulator-X (X-series
+        arm_loop = lab.lesson.loop  # servos, a gripper) runs in the server
+        assert isinstance(arm_loop, ControlLoop) and not shared.holds(loop.arm_id)
+        wait_for(lambda: arm_loop.status.t > 0.5 and arm_loop.status.fault is None, 60,
+                 "the any-arm lesson's shared arm running")
     assert shared.ended == "the arm's process was closed"
     with Lab(ServeOptions(http_port=0)) as lab:
         assert lab.arm_process is None and isinstance(lab.lesson.rig.loop, ControlLoop)
@@ -135,7 +140,7 @@ def test_each_worker_is_scheduled_as_it_says():
     """The shared arm's real-time worker asks for SCHED_FIFO (taken where the OS allows
     it, said otherwise); the class's worker is niced below the server; a worker run as
     fast as possible never holds a real-time priority. Read back from the OS."""
-    from app.arm_process import CLASS_NICE, SHARED_RT_PRIORITY
+    from app.arm_worker import CLASS_NICE, SHARED_RT_PRIORITY
 
     own = ArmProcess(kind="own", realtime=True)
     fast = ArmProcess(kind="own", realtime=False)
@@ -156,3 +161,40 @@ def test_each_worker_is_scheduled_as_it_says():
     finally:
         for proc in (own, fast, cls):
             proc.close()
+
+
+def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints():
+    """The any-arm lesson's shared arm (a five-joint URDF arm, protocol-1.0 servos) in a
+    simulated classroom runs in the worker: a hand target and the spare joints' aim go
+    there, the aim comes back in the mirror, and the hand reaches the target."""
+    from pathlib import Path
+
+    from app.server import Lab, ServeOptions
+    from control.commands import SetTarget, UseSpareJoints
+
+    urdf = Path(__file__).parent / "data" / "five_joint_arm.urdf"
+    with Lab(ServeOptions(http_port=0, classroom=True, robot=str(urdf))) as lab:
+        lab.switch("arm")
+        lesson = lab.lesson
+        loop, model = lesson.loop, lesson.model
+        assert isinstance(loop, RemoteLoop)
+        q = np.array([0.2, 0.5, 1.5, 2.2, 0.4])  # (away from the singular stretched arm)
+        lesson.move_to(q)  # what a joint slider does
+
+        def moving() -> float:
+            return float(np.abs(loop.recorder.snapshot(0.1)["q"][-1] - q).max())
+
+        wait_for(lambda: moving() < np.radians(2.0), 60,
+                 lambda: f"the arm at its start ({np.degrees(moving()):.1f}° off)")
+        goal = model.fk(q)[:3, 3] + np.array([0.03, -0.03, 0.02])
+        loop.post(UseSpareJoints("limits"))
+        loop.post(SetTarget(goal))
+        wait_for(lambda: loop.spare_joints.aim == "limits", 60, "the aim mirrored")
+
+        def hand_error() -> float:
+            return float(np.linalg.norm(model.fk(loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+                                        - goal))
+
+        wait_for(lambda: hand_error() < 0.003, 60,
+                 lambda: f"the hand on the target ({hand_error():.4f} m away)")
+        assert loop.status.fault is None

@@ -1,0 +1,151 @@
+"""The worker side of :mod:`app.arm_process`: ``python -m app.arm_worker FD REALTIME
+MIRROR_S KIND`` runs simulated arms for the server at the other end of socket FD, sends
+their mirror every MIRROR_S s and answers the server's calls (the messages are listed in
+:mod:`app.arm_process`)."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+
+import numpy as np
+
+from app.class_arms import Arm, ClassArms, OwnArms
+from control.backend import BackendError
+from control.loop import LoopStatus
+from control.params import Params
+from kinematics.model import SerialChain
+
+#: real-time priority (SCHED_FIFO) a real-time "own" worker (the shared arm) asks for, where
+#: the OS allows it (root, CAP_SYS_NICE or an rtprio limit): its loop then wakes on time
+#: on a busy machine, as a robot's control loop does (ros2_control); refused, it runs as is
+SHARED_RT_PRIORITY = 10
+#: niceness the class's worker adds to its own: when the cores are busy, the shared arm's
+#: loop and the pages come before the students' 1 kHz steps
+CLASS_NICE = 5
+
+
+def prioritise(kind: str, realtime: bool) -> str:
+    """Set this worker's scheduling for ``kind`` (only when ``realtime``: a loop run as
+    fast as possible must never hold a core at real-time priority) and say what it is."""
+    if not realtime:
+        return "normal"
+    if kind == "class":
+        return f"nice {os.nice(CLASS_NICE)}"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SHARED_RT_PRIORITY))
+    except (OSError, AttributeError):  # not allowed here (or not Linux): as any process
+        return "normal (real-time priority not allowed)"
+    return f"SCHED_FIFO {SHARED_RT_PRIORITY}"
+
+
+def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
+    """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
+    ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
+    says close or its end of the pipe closes."""
+    scheduling = prioritise(kind, realtime)  # before any thread: they inherit it
+    arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
+    held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
+    fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
+    held_lock = threading.Lock()
+    send_lock = threading.Lock()
+    stop = threading.Event()
+
+    def send(msg: object) -> None:
+        with send_lock:
+            conn.send(msg)
+
+    def mirror() -> None:
+        while not stop.wait(mirror_s):
+            with held_lock:
+                items = list(held.items())
+            batch = []
+            for arm_id, (arm, bookmark) in items:
+                loop = arm.loop
+                status = loop.status  # first: the rows are at least as new as it says
+                rows, bookmark[0] = loop.recorder.since(bookmark[0])
+                batch.append((arm_id, status, rows, loop.recorder.capacity,
+                              loop.spare_joints, loop.gripper))
+            if batch:
+                try:
+                    send(("mirror", batch))
+                except (OSError, ValueError):
+                    return
+
+    def arm_of(arm_id: int) -> Arm:
+        with held_lock:
+            found = held.get(arm_id)
+        if found is None:
+            raise BackendError("this arm was freed (a reload of the page makes a new one)")
+        return found[0]
+
+    def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
+            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus]:
+        arm = fresh[arm_id] = arms.add(model, params, preset=preset, q0=q0,
+                                       history_s=history_s)
+        return arm.loop.lower, arm.loop.upper, arm.loop.recorder.capacity, arm.loop.status
+
+    def free(arm_id: int) -> None:
+        with held_lock:
+            found = held.pop(arm_id, None)
+        if found is not None:
+            arms.free(found[0])
+
+    ops: dict[str, Callable[..., object]] = {
+        "add": add,
+        "free": free,
+        "post": lambda i, cmd: arm_of(i).loop.post(cmd),
+        "set_params": lambda i, p, force: arm_of(i).loop.set_params(p, force=force),
+        "estop": lambda i: arm_of(i).backend.estop(),
+        "read": lambda i: arm_of(i).backend.read(),
+        "reports": lambda i: arm_of(i).backend.plant.reports(),
+        "push": lambda i, f, link, point, d: arm_of(i).backend.push(
+            f, link=link, point=point, duration=d),
+        "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
+            anchor, stiffness=k, link=link, point=point),
+    }
+    mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
+    mirror_thread.start()
+    send(("ready", scheduling))
+    try:
+        while True:
+            try:
+                msg = pickle.loads(conn.recv_bytes())
+            except (EOFError, OSError):
+                break
+            if msg[0] == "close":
+                break
+            op, call_id, *args = msg
+            try:
+                value, ok = ops[op](*args), True
+            except Exception as exc:
+                value, ok = exc, False
+            try:
+                send(("reply", call_id, ok, value))
+            except (pickle.PicklingError, TypeError, AttributeError) as exc:
+                send(("reply", call_id, False, RuntimeError(f"{op}: {exc}")))
+            except (OSError, ValueError):
+                break
+            if fresh:  # (a mirror before the answer would name an arm the server lacks)
+                with held_lock:
+                    held.update((i, (arm, [0])) for i, arm in fresh.items())
+                fresh.clear()
+    finally:
+        stop.set()
+        mirror_thread.join(2.0)
+        with held_lock:
+            left = [arm for arm, _ in held.values()] + list(fresh.values())
+            held.clear()
+        arms.close(left)
+        conn.close()
+
+
+if __name__ == "__main__":  # started by app.arm_process.ArmProcess
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's: it closes us
+    serve(Connection(int(sys.argv[1])), bool(int(sys.argv[2])), float(sys.argv[3]),
+          sys.argv[4])
