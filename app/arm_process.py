@@ -45,6 +45,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -52,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from control.backend import BackendError, GripperState, JointState
-from control.commands import Command, UseSpareJoints
+from control.commands import Command, EStop, UseSpareJoints
 from control.loop import LoopStatus
 from control.params import Params
 from control.recorder import Recorder
@@ -61,6 +62,8 @@ from kinematics.model import SerialChain
 
 #: s between two mirror messages (every arm's new rows and status)
 MIRROR_S = 0.02
+#: s without a mirror message after which a worker's arms are told as not answering
+STALE_S = 5.0
 #: s a call waits for the worker's answer
 CALL_TIMEOUT_S = 20.0
 #: s an E-STOP waits for the worker's answer (then it says it could not be sure)
@@ -106,17 +109,20 @@ class RemoteLoop:
         return warning
 
     def post(self, command: Command) -> None:
-        """:meth:`ControlLoop.post` in the worker (not a command: ValueError)."""
-        self._owner.call("post", self.arm_id, command)
+        """:meth:`ControlLoop.post` in the worker (not a command: ValueError). An E-STOP
+        waits at most :data:`ESTOP_TIMEOUT_S` s for its answer (then BackendError)."""
+        timeout = ESTOP_TIMEOUT_S if isinstance(command, EStop) else CALL_TIMEOUT_S
+        self._owner.call("post", self.arm_id, command, timeout=timeout)
 
     @property
     def status(self) -> LoopStatus:
-        """The loop's newest status (at most :data:`MIRROR_S` s old); a fault once the
-        worker has ended."""
-        dead = self._owner.ended
+        """The loop's newest status (about :data:`MIRROR_S` s old); a fault once the
+        worker has ended, or while it has sent nothing for :data:`STALE_S` s (stopped,
+        or starved of CPU: what the arm does then is not known here)."""
+        why = self._owner.ended or self._owner.silent()
         st = self._status
-        if dead is not None:
-            return dataclasses.replace(st, running=False, active=False, fault=dead)
+        if why is not None:
+            return dataclasses.replace(st, running=False, active=False, fault=why)
         return st
 
     @property
@@ -248,6 +254,7 @@ class ArmProcess:
         #: started
         self.scheduling: str | None = None
         self._ended: str | None = None
+        self._heard = time.monotonic()  #: when the worker last sent anything
         self._closing = False
         self._receiver = threading.Thread(target=self._receive, name="armlab-arm-mirror",
                                           daemon=True)
@@ -257,6 +264,15 @@ class ArmProcess:
     def ended(self) -> str | None:
         """Why the worker is gone (None while it runs)."""
         return self._ended
+
+    def silent(self) -> str | None:
+        """Why the arms' state is not known now (the worker, holding arms, sent nothing
+        for :data:`STALE_S` s), or None."""
+        quiet = time.monotonic() - self._heard
+        if quiet <= STALE_S or not self._ready.is_set():
+            return None
+        return (f"the arm's simulation has not answered for {quiet:.0f} s "
+                "(the machine may be overloaded)")
 
     @property
     def pid(self) -> int | None:
@@ -354,6 +370,7 @@ class ArmProcess:
                 break
             except Exception:  # noqa: S112 - a message that cannot be read: the next may
                 continue
+            self._heard = time.monotonic()
             if msg[0] == "mirror":
                 with self._lock:
                     loops = self._loops

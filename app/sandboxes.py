@@ -85,7 +85,7 @@ class Seat:
 
 
 def _ended(host: ArmProcess | ClassArms) -> bool:
-    """Whether ``host`` is a class process that has ended (its arms are gone)."""
+    """Whether ``host`` is a worker process that has ended (its arms are gone)."""
     return isinstance(host, ArmProcess) and host.ended is not None
 
 

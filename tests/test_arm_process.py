@@ -14,7 +14,7 @@ from _helpers import wait_for
 from app.arm_process import ArmProcess, RemoteBackend, RemoteLoop
 from app.sandboxes import Sandboxes
 from control.backend import BackendError, Pushable
-from control.commands import RunTrajectory
+from control.commands import EStop, RunTrajectory
 from control.params import DEFAULT, Params
 from control.trajectory import minimum_jerk
 from kinematics import load_robot
@@ -198,3 +198,28 @@ def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints(
         wait_for(lambda: hand_error() < 0.003, 60,
                  lambda: f"the hand on the target ({hand_error():.4f} m away)")
         assert loop.status.fault is None
+
+
+def test_a_worker_that_stops_answering_is_told_and_its_estop_lands_when_it_resumes(model):
+    """The worker frozen (SIGSTOP: a machine starved of CPU looks the same): the arm's
+    status says it is not answering, an E-STOP gives up waiting and says it could not be
+    sure, and the server goes on. Resumed, the worker applies the E-STOP it was sent."""
+    boxes = Sandboxes(realtime=True)
+    try:
+        backend, loop = boxes.seat("a").arm_for(model, DEFAULT, preset="18.5/25", q0=Q0,
+                                                history_s=1.0)
+        wait_for(lambda: loop.status.t > 0.1 and loop.status.torque_on, 60, "the arm running")
+        pid = boxes.process.pid
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            wait_for(lambda: loop.status.fault is not None, 60, "the silence told")
+            assert "has not answered" in loop.status.fault
+            with pytest.raises(BackendError, match="did not answer"):
+                loop.post(EStop())
+            assert backend.estop() is False  # not known to have landed: said so
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        wait_for(lambda: loop.status.fault is None and loop.status.estopped
+                 and not loop.status.torque_on, 60, "the E-STOP applied on resuming")
+    finally:
+        boxes.close()
