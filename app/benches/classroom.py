@@ -23,7 +23,7 @@ Figures:
         ``classroom_30_shared_loop_realtime_priority``: 1 when that worker got the
         real-time priority it asks for (SCHED_FIFO: root or CAP_SYS_NICE), 0 otherwise.
     classroom_30_rss_growth_pct: the server's memory growth over the run (its process and
-        the class's worker), from the moment all 30 private arms exist.
+        its two workers), from the moment all 30 private arms exist.
     classroom_30_frames_skipped_behind_pct: of the private pages' frames due, those not
         made because the page had not yet been sent the one before (``Publisher`` stats,
         the whole run); ``classroom_30_pose_hz_median``: the median page's rate;
@@ -102,9 +102,11 @@ def _rss_bytes(pid: int | str = "self") -> int:
 
 
 def _server_rss(room: Any) -> int:
-    """The server's resident memory, bytes: its own process and the class's worker
-    (:class:`app.arm_process.ArmProcess`, where the private arms run)."""
-    return _rss_bytes() + _rss_bytes(room.sandboxes.process.pid)
+    """The server's resident memory, bytes: its own process and its workers
+    (:class:`app.arm_process.ArmProcess`: the private arms', the shared arm's)."""
+    shared = room.lab.arm_process
+    return (_rss_bytes() + _rss_bytes(room.sandboxes.process.pid)
+            + (0 if shared is None else _rss_bytes(shared.pid)))
 
 
 def _probe(lesson: object) -> None:
