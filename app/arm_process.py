@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from app.class_arms import Arm
 from control.backend import BackendError, GripperState, JointState
 from control.commands import Command, EStop, UseSpareJoints
 from control.loop import LoopStatus
@@ -138,7 +139,7 @@ class RemoteLoop:
 
     def shutdown(self, *, torque_off: bool = False, timeout: float = 2.0) -> None:
         """Free the arm in the worker (its loop stops with torque off)."""
-        self._owner.free(self)
+        self._owner.free_id(self.arm_id)
 
     def _mirror(self, status: LoopStatus, rows: np.ndarray, capacity: int,
                 spare: UseSpareJoints, gripper: GripperState | None) -> None:
@@ -202,15 +203,6 @@ class RemoteBackend:
         self._owner.call("spring", self.arm_id, anchor, stiffness, link, point)
 
 
-@dataclasses.dataclass
-class RemoteArm:
-    """One arm of a :class:`ArmProcess` (as :class:`app.class_arms.Arm`)."""
-
-    preset: str
-    backend: RemoteBackend
-    loop: RemoteLoop
-
-
 class _Call:
     def __init__(self) -> None:
         self.done = threading.Event()
@@ -231,7 +223,6 @@ class ArmProcess:
                  mirror_s: float = MIRROR_S) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-        self.kind = kind
         ours, theirs = socket.socketpair()
         self._conn = Connection(ours.detach())
         fd = theirs.detach()
@@ -280,8 +271,9 @@ class ArmProcess:
         return self._proc.pid
 
     def add(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
-            history_s: float) -> RemoteArm:
-        """A new arm in the worker (:meth:`ClassArms.add`), its loop running."""
+            history_s: float) -> Arm:
+        """A new arm in the worker (:meth:`ClassArms.add` or :meth:`OwnArms.add`), its loop
+        running; its ``backend`` and ``loop`` are the server's proxies."""
         if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
             raise BackendError("the arm's simulation did not start; restart the lab")
         arm_id = next(self._ids)
@@ -291,17 +283,21 @@ class ArmProcess:
                           capacity=capacity, status=status)
         with self._lock:
             self._loops[arm_id] = loop
-        return RemoteArm(preset, RemoteBackend(self, arm_id, model), loop)
+        return Arm(preset, None, RemoteBackend(self, arm_id, model), loop)  # type: ignore[arg-type]
 
-    def free(self, arm: RemoteArm | RemoteLoop) -> None:
-        """Stop the arm's loop (torque off) and take it out of the worker; nothing when
-        the worker has ended."""
-        loop = arm.loop if isinstance(arm, RemoteArm) else arm
+    def free(self, arm: Arm) -> None:
+        """Stop ``arm``'s loop (torque off) and take it out of the worker (as
+        :meth:`ClassArms.free`)."""
+        self.free_id(arm.loop.arm_id)  # type: ignore[attr-defined]  # a RemoteLoop's
+
+    def free_id(self, arm_id: int) -> None:
+        """:meth:`free` by the arm's id; nothing when the worker has ended or the arm was
+        freed."""
         with self._lock:
-            if self._loops.pop(loop.arm_id, None) is None:
+            if self._loops.pop(arm_id, None) is None:
                 return
         if self._ended is None:
-            self.call("free", loop.arm_id)
+            self.call("free", arm_id)
 
     def holds(self, arm_id: int) -> bool:
         """Whether arm ``arm_id`` is held (added and not freed)."""

@@ -1,10 +1,13 @@
-"""Choosing a backend by name: ``make_backend("sim" | "serial", model, ...)``."""
+"""Choosing a backend by name: ``make_backend("sim" | "serial", model, ...)``; the
+compliance loop over one (``loop_over``)."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from control.backend import Backend
+from control.loop import ControlLoop
+from control.params import Params
 from kinematics.model import Quadruped, SerialChain
 
 KINDS = ("sim", "serial")
@@ -62,3 +65,15 @@ def shipped_x_servo(model: SerialChain) -> Any:
 
     spec = servo_table(default_servo(model.name)).spec
     return spec if spec.protocol == 2 else None
+
+
+def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any
+              ) -> ControlLoop:
+    """The compliance :class:`~control.loop.ControlLoop` of ``model`` over ``backend``
+    (``loop_kw``: ``realtime``, ``history_s``, ``clock``...), not started; ``backend`` is
+    closed when the loop cannot be made (bad parameters), and the error goes on."""
+    try:
+        return ControlLoop(model, backend, params, controller="compliance", **loop_kw)
+    except BaseException:
+        backend.close()
+        raise

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.backends import make_backend, shipped_x_servo
+from app.backends import loop_over, make_backend, shipped_x_servo
 from control.backend import Backend
 from control.loop import ControlLoop
 from control.params import Params
@@ -92,10 +92,8 @@ class ClassArms:
                 row = add_sim_arm(plant, q0=q0, lock=self.lock)
                 backend = BatchedArmBackend(plant, row, lock=self.lock)
             try:
-                loop = ControlLoop(model, backend, params, controller="compliance",
-                                   history_s=history_s, clock=self.clock)
-            except BaseException:
-                backend.close()
+                loop = loop_over(backend, model, params, history_s=history_s, clock=self.clock)
+            except BaseException:  # (the backend is closed)
                 if plant is not None and row is not None:
                     plant.remove_arm(row)
                 raise
@@ -138,14 +136,10 @@ class OwnArms:
             history_s: float) -> Arm:
         """A new simulated arm of ``model`` at ``q0`` (n,) rad, its compliance loop
         started (``preset`` names it)."""
-        backend = make_backend("sim", model, q0=q0)
-        try:
-            loop = ControlLoop(model, backend, params, controller="compliance",
-                               realtime=self.realtime, history_s=history_s)
-        except BaseException:
-            backend.close()
-            raise
+        loop = loop_over(make_backend("sim", model, q0=q0), model, params,
+                         realtime=self.realtime, history_s=history_s)
         loop.start()
+        backend = loop.backend
         return Arm(preset, None, backend, loop)
 
     def free(self, arm: Arm) -> None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.arm_process import ArmProcess, RemoteArm
+from app.arm_process import ArmProcess
 from app.backends import shipped_x_servo
 from app.class_arms import Arm, ClassArms
 from control.backend import Backend
@@ -45,7 +45,7 @@ class ClassFull(ValueError):
 @dataclass
 class _Arm:
     host: ArmProcess | ClassArms  #: where it runs
-    arm: RemoteArm | Arm
+    arm: Arm  #: (its backend and loop: the worker's proxies when ``host`` is one)
 
     @property
     def preset(self) -> str:
@@ -210,7 +210,7 @@ class Sandboxes:
     def _free(self, seat: Seat) -> None:  # holding self._lock
         arm, seat.arm = seat.arm, None
         if arm is not None:
-            arm.host.free(arm.arm)  # type: ignore[arg-type]
+            arm.host.free(arm.arm)
 
     def close(self) -> None:
         """Stop the class: the sweeper, then every arm (its loop with torque off) and the
@@ -219,8 +219,7 @@ class Sandboxes:
         with self._lock:
             seats = list(self._seats.values())
             self._seats.clear()
-            local = [s.arm.arm for s in seats
-                     if s.arm is not None and isinstance(s.arm.arm, Arm)]
             if self._local is not None:
-                self._local.close(local)  # type: ignore[arg-type]
+                self._local.close([s.arm.arm for s in seats
+                                   if s.arm is not None and s.arm.host is self._local])
             self.process.close()  # every arm in it freed with torque off

@@ -30,7 +30,6 @@ import viser
 import viser.transforms as vtf
 
 from app.arm_view import ArmView
-from app.backends import make_backend, shipped_x_servo
 from app.camera import View, show
 from app.lessons import ANY_URDF, LessonContext
 from app.lessons._common import LessonBase, close_in_turn, esc, guarded, set_content, status_html
@@ -41,11 +40,11 @@ from app.lessons._loop_state import (
     post_reset,
     stopped_state,
 )
+from app.lessons._servo_arm import open_arm, shut_arm
 from app.lessons.arm_controls import ArmControls
 from app.lessons.arm_gripper import GripperControls
 from app.lessons.compliance_servos import LinkMonitor
 from control.commands import EStop, RunTrajectory, SetTarget
-from control.loop import ControlLoop
 from control.params import DEFAULT
 from control.trajectory import hold
 from kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
@@ -130,28 +129,13 @@ class ArmLesson(LessonBase):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
         check_servo_arm(model)
         self.model = model
-        # a classroom's shared simulated arm runs in a process of its own (app.arm_process);
-        # one with X-series servos and their gripper stays here
-        remote = ctx.arms is None and ctx.arm_process is not None and \
-            shipped_x_servo(model) is None
-        if ctx.arms is not None:  # a student's arm: kept for a reload, run by the class
-            self.backend, self.loop = ctx.arms.arm_for(
-                model, DEFAULT, preset=private_key(ctx), q0=model.neutral(),
-                history_s=HISTORY_S)
-            undo = None
-        elif remote:
-            arm = ctx.arm_process.add(model, DEFAULT, preset=private_key(ctx),  # type: ignore[union-attr]
-                                      q0=model.neutral(), history_s=HISTORY_S)
-            self.backend, self.loop = arm.backend, arm.loop  # type: ignore[assignment]
-            undo = partial(arm.loop.shutdown, torque_off=True)
-        else:
-            extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
-            self.backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **extra)
-            undo = self.backend.close
+        extra = {"joint_map": ctx.joint_map} if ctx.backend != "sim" and ctx.joint_map else {}
+        self.backend, self.loop = open_arm(ctx, model, DEFAULT, preset=private_key(ctx),
+                                           q0=model.neutral(), history_s=HISTORY_S,
+                                           backend_kw=extra)
+        # a student's arm stays with their seat; the lab's is let go if the page fails
+        undo = None if ctx.arms is not None else partial(shut_arm, self.backend, self.loop)
         with self.opening(undo):
-            if ctx.arms is None and not remote:
-                self.loop = ControlLoop(model, self.backend, DEFAULT, controller="compliance",
-                                        realtime=ctx.realtime, history_s=HISTORY_S)
             self.view = ArmView(server, model, root="/arm")
             self._build_scene()
             self._build_gui()

@@ -22,7 +22,6 @@ from functools import partial
 import numpy as np
 import viser
 
-from app.backends import make_backend
 from app.inputs import guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
@@ -41,6 +40,7 @@ from app.lessons._loop_state import (
     post_reset,
     stopped_state,
 )
+from app.lessons._servo_arm import open_arm, shut_arm
 from app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
 from app.lessons.compliance_plots import JointPlots, joint_label
 from app.lessons.compliance_push import PushControls
@@ -194,40 +194,20 @@ class ComplianceLesson(LessonBase):
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {self.ctx.robot} is not a serial arm")
         line = thesis_line(model)
-        backend, loop = self._open_arm(model, params, preset=preset, q0=line.q[0])
+        start = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # on the line
+        backend, loop = open_arm(self.ctx, model, params, preset=preset, q0=line.q[0],
+                                 history_s=HISTORY_S, backend_kw=start)
         try:
             scene = ComplianceScene(
                 self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
                 root="/compliance", on_target=self._on_target, on_drag_hand=self._on_drag)
         except BaseException:
             if self.ctx.arms is None:  # (a student's arm stays with their seat)
-                _shut_arm(backend, loop)
+                shut_arm(backend, loop)
             raise
         scene.hand.visible = not self.hardware  # real servos are pushed by a real hand
         loop.start()  # (one already running goes on)
         return Rig(preset, model, backend, loop, scene, line)
-
-    def _open_arm(self, model: SerialChain, params: Params, *, preset: str,
-                  q0: np.ndarray) -> tuple[Backend, ControlLoop]:
-        """The arm the lesson drives and its loop: a student's (run by the class, kept by
-        their seat), a classroom's shared simulated arm (in a process of its own), or the
-        lab's backend opened here (its loop not started yet)."""
-        if self.ctx.arms is not None:
-            return self.ctx.arms.arm_for(model, params, preset=preset, q0=q0,
-                                         history_s=HISTORY_S)
-        if self.ctx.arm_process is not None:
-            arm = self.ctx.arm_process.add(model, params, preset=preset, q0=q0,
-                                           history_s=HISTORY_S)
-            return arm.backend, arm.loop  # type: ignore[return-value]  # their proxies
-        extra = {"q0": q0} if self.ctx.backend == "sim" else {}  # start on the line
-        backend = make_backend(self.ctx.backend, model, port=self.ctx.port, baud=self.ctx.baud,
-                               **extra)
-        try:
-            return backend, ControlLoop(model, backend, params, controller="compliance",
-                                        realtime=self.ctx.realtime, history_s=HISTORY_S)
-        except BaseException:
-            backend.close()
-            raise
 
     def _close_rig(self, rig: Rig) -> None:
         if self.ctx.arms is not None:  # the student's arm lives on for a reload; the page
@@ -237,7 +217,7 @@ class ComplianceLesson(LessonBase):
             rig.scene.remove()
             return
         try:
-            _shut_arm(rig.backend, rig.loop)
+            shut_arm(rig.backend, rig.loop)
         finally:
             rig.scene.remove()
 
@@ -636,13 +616,3 @@ class ComplianceLesson(LessonBase):
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
-
-
-def _shut_arm(backend: Backend, loop: ControlLoop) -> None:
-    """Stop ``loop`` with torque off, E-STOP ``backend`` again (even after a link fault
-    stopped the loop; never raises), then close it."""
-    try:
-        loop.shutdown(torque_off=True)
-        backend.estop()
-    finally:
-        backend.close()

@@ -1,0 +1,51 @@
+"""Where a servo-arm lesson's arm comes from, and how it is let go (a helper module, not
+a lesson; the compliance and your-own-arm lessons share it).
+
+Three places, by the lesson's context:
+
+- ``ctx.arms``: a student's own arm, run by the class and kept by their seat;
+- ``ctx.arm_process`` (a simulated classroom): the shared arm in its worker process
+  (:mod:`app.arm_process`), unless its X-series servos and gripper keep it in the server;
+- otherwise the lab's backend (``--backend``) opened here, its loop not started yet.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from app.backends import loop_over, make_backend, shipped_x_servo
+from app.lessons import LessonContext
+from control.backend import Backend
+from control.loop import ControlLoop
+from control.params import Params
+from kinematics.model import SerialChain
+
+
+def open_arm(ctx: LessonContext, model: SerialChain, params: Params, *, preset: str,
+             q0: np.ndarray, history_s: float, backend_kw: dict[str, Any] | None = None
+             ) -> tuple[Backend, ControlLoop]:
+    """The arm a lesson drives and its compliance loop (see the module docstring): a
+    student's or a worker's at ``q0`` (n,) rad when new, named ``preset``; the lab's
+    opened by ``make_backend(ctx.backend, model, port, baud, **backend_kw)``."""
+    if ctx.arms is not None:
+        return ctx.arms.arm_for(model, params, preset=preset, q0=q0, history_s=history_s)
+    if ctx.arm_process is not None and shipped_x_servo(model) is None:
+        arm = ctx.arm_process.add(model, params, preset=preset, q0=q0, history_s=history_s)
+        return arm.backend, arm.loop
+    backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,
+                           **(backend_kw or {}))
+    return backend, loop_over(backend, model, params, realtime=ctx.realtime,
+                              history_s=history_s)
+
+
+def shut_arm(backend: Backend, loop: ControlLoop) -> None:
+    """Stop ``loop`` with torque off, E-STOP ``backend`` again (even after a link fault
+    stopped the loop; never raises), then close it (not for a student's arm: their seat
+    keeps it)."""
+    try:
+        loop.shutdown(torque_off=True)
+        backend.estop()
+    finally:
+        backend.close()
