@@ -16,8 +16,9 @@ batched plants on one clock), another the shared arm (``kind="own"``:
   new rows every :data:`MIRROR_S` s in one message. ``post``, ``set_params`` go to the
   worker's loop and wait for its answer, so a refused command raises here as it would in
   process.
-- :class:`RemoteBackend`: E-STOP, the hand's push and drag, and the Servos panel's
-  ``plant.reports()``, each a call the worker answers.
+- :class:`RemoteBackend`: E-STOP, the hand's push and drag, each a call the worker
+  answers; the Servos panel's ``plant.reports()`` are mirrored too, every
+  :data:`REPORTS_S` s (a page's frame never waits for the worker).
 
 The worker's side is :mod:`app.arm_worker`. A call waits at most :data:`CALL_TIMEOUT_S` s
 (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a worker ends (killed, crashed), its arms' status
@@ -27,12 +28,12 @@ on.
 Messages (tuples; the server's ``Connection`` end sends calls, the worker's answers)::
 
     server -> worker   (op, call_id, arm_id, *args)      op: add, post, set_params,
-                                                         estop, push, spring, read,
-                                                         reports, free
+                                                         estop, push, spring, read, free
                        ("close",)
     worker -> server   ("ready", scheduling)
                        ("reply", call_id, ok, value)     value: result or exception
-                       ("mirror", [(arm_id, status, rows, capacity, spare, gripper)...])
+                       ("mirror", [(arm_id, status, rows, capacity, spare, gripper,
+                                    reports or None)...])
 """
 
 from __future__ import annotations
@@ -63,6 +64,8 @@ from kinematics.model import SerialChain
 
 #: s between two mirror messages (every arm's new rows and status)
 MIRROR_S = 0.02
+#: s between two mirrors of the arms' servo reports (the Servos panel shows them every s)
+REPORTS_S = 0.5
 #: s without a mirror message after which a worker's arms are told as not answering
 STALE_S = 5.0
 #: s a call waits for the worker's answer
@@ -86,7 +89,7 @@ class RemoteLoop:
 
     def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain, params: Params,
                  *, lower: np.ndarray, upper: np.ndarray, capacity: int,
-                 status: LoopStatus) -> None:
+                 status: LoopStatus, reports: tuple[ServoReport, ...] | None) -> None:
         self._owner = owner
         self.arm_id = arm_id
         self.model = model
@@ -97,6 +100,7 @@ class RemoteLoop:
         self._status = status
         self._spare = UseSpareJoints("off")
         self._gripper: GripperState | None = None
+        self._reports = reports
 
     @property
     def params(self) -> Params:
@@ -142,7 +146,8 @@ class RemoteLoop:
         self._owner.free_id(self.arm_id)
 
     def _mirror(self, status: LoopStatus, rows: np.ndarray, capacity: int,
-                spare: UseSpareJoints, gripper: GripperState | None) -> None:
+                spare: UseSpareJoints, gripper: GripperState | None,
+                reports: tuple[ServoReport, ...] | None) -> None:
         if capacity != self.recorder.capacity:
             self.recorder.resize(capacity)
         if len(rows):
@@ -150,18 +155,33 @@ class RemoteLoop:
         self._status = status
         self._spare = spare
         self._gripper = gripper
+        if reports is not None:
+            self._reports = reports
 
 
 class RemotePlant:
     """The Servos panel's view of a private arm's simulated servos."""
 
-    def __init__(self, owner: ArmProcess, arm_id: int) -> None:
+    def __init__(self, owner: ArmProcess, loop: RemoteLoop) -> None:
         self._owner = owner
-        self._arm_id = arm_id
+        self._loop = loop
 
     def reports(self) -> tuple[ServoReport, ...]:
-        """The arm's servo reports in joint order (raw words)."""
-        return self._owner.call("reports", self._arm_id)
+        """The arm's servo reports in joint order (raw words), as last mirrored (at most
+        about :data:`REPORTS_S` s old).
+
+        Raises:
+            BackendError: the worker has ended or is silent, or the arm was freed.
+        """
+        why = self._owner.ended or self._owner.silent()
+        if why is None and not self._owner.holds(self._loop.arm_id):
+            why = "this arm was freed (a reload of the page makes a new one)"
+        reports = self._loop._reports
+        if why is None and reports is None:
+            why = "these simulated servos give no reports"
+        if why is not None:
+            raise BackendError(why)
+        return reports
 
 
 class RemoteBackend:
@@ -170,11 +190,11 @@ class RemoteBackend:
     Implements ``control.backend.Pushable``; ``plant.reports()`` as a simulated backend's.
     """
 
-    def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain) -> None:
+    def __init__(self, owner: ArmProcess, loop: RemoteLoop) -> None:
         self._owner = owner
-        self.arm_id = arm_id
-        self.n = model.n
-        self.plant = RemotePlant(owner, arm_id)
+        self.arm_id = loop.arm_id
+        self.n = loop.model.n
+        self.plant = RemotePlant(owner, loop)
 
     def read(self) -> JointState:
         """Every joint as its servo reports it (the worker's ``read()``)."""
@@ -277,13 +297,13 @@ class ArmProcess:
         if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
             raise BackendError("the arm's simulation did not start; restart the lab")
         arm_id = next(self._ids)
-        lower, upper, capacity, status = self.call("add", arm_id, model, params, preset,
-                                                   np.asarray(q0, dtype=float), history_s)
+        lower, upper, capacity, status, reports = self.call(
+            "add", arm_id, model, params, preset, np.asarray(q0, dtype=float), history_s)
         loop = RemoteLoop(self, arm_id, model, params, lower=lower, upper=upper,
-                          capacity=capacity, status=status)
+                          capacity=capacity, status=status, reports=reports)
         with self._lock:
             self._loops[arm_id] = loop
-        return Arm(preset, None, RemoteBackend(self, arm_id, model), loop)  # type: ignore[arg-type]
+        return Arm(preset, None, RemoteBackend(self, loop), loop)  # type: ignore[arg-type]
 
     def free(self, arm: Arm) -> None:
         """Stop ``arm``'s loop (torque off) and take it out of the worker (as

@@ -5,6 +5,7 @@ their mirror every MIRROR_S s and answers the server's calls (the messages are l
 
 from __future__ import annotations
 
+import itertools
 import os
 import pickle
 import signal
@@ -15,10 +16,12 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
+from app.arm_process import REPORTS_S
 from app.class_arms import Arm, ClassArms, OwnArms
 from control.backend import BackendError
 from control.loop import LoopStatus
 from control.params import Params
+from hardware.servo import ServoReport
 from kinematics.model import SerialChain
 
 #: real-time priority (SCHED_FIFO) a real-time "own" worker (the shared arm) asks for, where
@@ -44,6 +47,12 @@ def prioritise(kind: str, realtime: bool) -> str:
     return f"SCHED_FIFO {SHARED_RT_PRIORITY}"
 
 
+def reports_of(arm: Arm) -> tuple[ServoReport, ...] | None:
+    """The arm's servo reports (the Servos panel's), or None for servos that give none."""
+    plant = getattr(arm.backend, "plant", None)
+    return None if plant is None else plant.reports()
+
+
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
@@ -61,7 +70,10 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             conn.send(msg)
 
     def mirror() -> None:
-        while not stop.wait(mirror_s):
+        reports_every = max(1, round(REPORTS_S / mirror_s))
+        for n in itertools.count(1):
+            if stop.wait(mirror_s):
+                return
             with held_lock:
                 items = list(held.items())
             batch = []
@@ -69,8 +81,12 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                 loop = arm.loop
                 status = loop.status  # first: the rows are at least as new as it says
                 rows, bookmark[0] = loop.recorder.since(bookmark[0])
+                try:
+                    reports = reports_of(arm) if n % reports_every == 0 else None
+                except ValueError:  # freed since the list was taken (its mirror is dropped)
+                    reports = None
                 batch.append((arm_id, status, rows, loop.recorder.capacity,
-                              loop.spare_joints, loop.gripper))
+                              loop.spare_joints, loop.gripper, reports))
             if batch:
                 try:
                     send(("mirror", batch))
@@ -85,10 +101,12 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         return found[0]
 
     def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
-            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus]:
+            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus,
+                                       tuple[ServoReport, ...] | None]:
         arm = fresh[arm_id] = arms.add(model, params, preset=preset, q0=q0,
                                        history_s=history_s)
-        return arm.loop.lower, arm.loop.upper, arm.loop.recorder.capacity, arm.loop.status
+        loop = arm.loop
+        return loop.lower, loop.upper, loop.recorder.capacity, loop.status, reports_of(arm)
 
     def free(arm_id: int) -> None:
         with held_lock:
@@ -103,7 +121,6 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         "set_params": lambda i, p, force: arm_of(i).loop.set_params(p, force=force),
         "estop": lambda i: arm_of(i).backend.estop(),
         "read": lambda i: arm_of(i).backend.read(),
-        "reports": lambda i: arm_of(i).backend.plant.reports(),
         "push": lambda i, f, link, point, d: arm_of(i).backend.push(
             f, link=link, point=point, duration=d),
         "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(

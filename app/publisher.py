@@ -10,10 +10,18 @@ frames rather than queueing them; a publisher of one page (``app.page.Page``)
 makes no frame while that page has not been sent the last one. Nothing is
 computed or sent while no browser is connected; the first browser to connect
 gets a full frame at once.
+
+A publisher makes its frames on a thread of its own, or on a :class:`FrameThread`
+it shares with others: a classroom's private pages share one, so thirty pages'
+frames are made one after another instead of by thirty threads taking the
+interpreter from each other (each handover of Python's GIL between threads costs
+a wake-up, and a late wake-up is a late frame).
 """
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import logging
 import threading
 import time
@@ -51,11 +59,13 @@ class Publisher:
             frame after a browser connects.
         pose_hz: scene update rate, Hz.
         plot_hz: chart update rate, Hz (at most ``pose_hz``).
+        frames: the thread that makes the frames, shared with other publishers (None: a
+            thread of this publisher's own).
     """
 
     def __init__(self, server: viser.ViserServer, *, pose: Callable[[], None],
                  plots: Callable[[bool], None], pose_hz: float = 30.0,
-                 plot_hz: float = 11.0) -> None:
+                 plot_hz: float = 11.0, frames: FrameThread | None = None) -> None:
         if not (0 < pose_hz <= 240 and 0 < plot_hz <= 240):
             raise ValueError(f"pose_hz, plot_hz: expected 0 < Hz <= 240, got {pose_hz}, "
                              f"{plot_hz}")
@@ -68,18 +78,27 @@ class Publisher:
         # a one-page "server" (app.page.Page) says when its page is behind
         self._behind: Callable[[], bool] | None = getattr(server, "behind", None)
         self._stop = threading.Event()
+        self._frames = frames
         self._thread = threading.Thread(target=self._run, name="armlab-publisher", daemon=True)
         self._hooks: list[Callable[[], None]] = []
+        # the schedule (perf_counter s) and whether a page was open at the last tick
+        self._next_pose = self._next_plot = 0.0
+        self._had_clients = False
 
     def add_frame_hook(self, hook: Callable[[], None]) -> None:
         """Call ``hook()`` inside each pose frame's atomic block (after ``pose``)."""
         self._hooks.append(hook)
 
     def start(self) -> None:
-        self._thread.start()
+        """Start making frames (on the shared frame thread if one was given)."""
+        self._next_pose = self._next_plot = time.perf_counter()
+        if self._frames is None:
+            self._thread.start()
+        else:
+            self._frames.add(self)
 
     def close(self, *, settle_s: float = CLOSE_SETTLE_S) -> None:
-        """Stop the thread (waits for the current frame).
+        """Stop making frames (waits for the current frame).
 
         If frames were sent, wait ``settle_s`` more: the page applies GUI updates once per
         rendered frame, after the removals of the same batch, so a lesson that removes its
@@ -87,37 +106,40 @@ class Publisher:
         component". The pause lets open pages apply that frame first.
         """
         self._stop.set()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
+        if self._frames is not None:
+            self._frames.remove(self)
+        elif self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
         if self.stats.pose_frames and settle_s > 0 and self.server.get_clients():
             self.server.flush()
             time.sleep(settle_s)
 
     def _run(self) -> None:
-        pose_period = 1.0 / self.pose_hz
-        plot_period = 1.0 / self.plot_hz
-        next_pose = next_plot = time.perf_counter()
-        had_clients = False
         while not self._stop.is_set():
-            now = time.perf_counter()
-            has_clients = bool(self.server.get_clients())
-            force = has_clients and not had_clients
-            pose_due, plot_due = now >= next_pose, now >= next_plot
-            if (has_clients and (pose_due or plot_due) and not force
-                    and self._behind is not None and self._behind()):
-                self.stats.skipped_behind += 1  # the last frame is still on its way
-            elif has_clients and (pose_due or plot_due or force):
-                self._frame(pose=pose_due or force, plots=plot_due or force, force=force)
-            elif not has_clients:
-                self.stats.skipped_idle += 1
-            had_clients = has_clients
-            # Advance each schedule; after a stall skip ahead instead of bursting.
-            if pose_due:
-                next_pose = max(next_pose + pose_period, now - pose_period)
-            if plot_due:
-                next_plot = max(next_plot + plot_period, now - plot_period)
-            delay = min(next_pose, next_plot) - time.perf_counter()
-            self._stop.wait(max(delay, 0.0))
+            self._stop.wait(max(self._tick() - time.perf_counter(), 0.0))
+
+    def _tick(self) -> float:
+        """Make the frames that are due; return when the next one is (perf_counter s)."""
+        now = time.perf_counter()
+        has_clients = bool(self.server.get_clients())
+        force = has_clients and not self._had_clients
+        pose_due, plot_due = now >= self._next_pose, now >= self._next_plot
+        if (has_clients and (pose_due or plot_due) and not force
+                and self._behind is not None and self._behind()):
+            self.stats.skipped_behind += 1  # the last frame is still on its way
+        elif has_clients and (pose_due or plot_due or force):
+            self._frame(pose=pose_due or force, plots=plot_due or force, force=force)
+        elif not has_clients:
+            self.stats.skipped_idle += 1
+        self._had_clients = has_clients
+        # Advance each schedule; after a stall skip ahead instead of bursting.
+        if pose_due:
+            self._next_pose = max(self._next_pose + 1.0 / self.pose_hz,
+                                  now - 1.0 / self.pose_hz)
+        if plot_due:
+            self._next_plot = max(self._next_plot + 1.0 / self.plot_hz,
+                                  now - 1.0 / self.plot_hz)
+        return min(self._next_pose, self._next_plot)
 
     def _frame(self, *, pose: bool, plots: bool, force: bool) -> None:
         t0 = t1 = time.perf_counter()
@@ -139,3 +161,76 @@ class Publisher:
             self.stats.errors += 1
             if self.stats.errors <= 3:
                 log.exception("publisher frame failed")
+
+
+class FrameThread:
+    """One thread that makes the frames of many publishers, each when it is due.
+
+    The publishers take turns in the order their frames fall due, so when the thread
+    cannot keep up every publisher's rate drops alike. A frame that raises is logged
+    by its publisher and the others go on.
+
+    Args:
+        name: the thread's name.
+    """
+
+    def __init__(self, *, name: str = "armlab-frames") -> None:
+        self._cond = threading.Condition()
+        self._due: list[tuple[float, int, Publisher]] = []  # a heap: (due, order, publisher)
+        self._members: set[Publisher] = set()
+        self._order = itertools.count()
+        self._busy: Publisher | None = None  # the publisher making a frame now
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread.start()
+
+    def add(self, publisher: Publisher) -> None:
+        """Make ``publisher``'s frames from now on (its first tick is due now)."""
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("FrameThread: closed")
+            self._members.add(publisher)
+            heapq.heappush(self._due, (time.perf_counter(), next(self._order), publisher))
+            self._cond.notify()
+
+    def remove(self, publisher: Publisher) -> None:
+        """Make no more of ``publisher``'s frames; wait for the one being made, if any
+        (unless called from one of those frames)."""
+        with self._cond:
+            self._members.discard(publisher)
+            self._due = [entry for entry in self._due if entry[2] is not publisher]
+            heapq.heapify(self._due)
+            if threading.current_thread() is not self._thread:
+                self._cond.wait_for(lambda: self._busy is not publisher, timeout=2.0)
+
+    def close(self) -> None:
+        """Stop the thread (after the frame being made)."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._closed:
+                    wait = self._due[0][0] - time.perf_counter() if self._due else None
+                    if wait is not None and wait <= 0:
+                        break
+                    self._cond.wait(wait)
+                if self._closed:
+                    return
+                _, order, publisher = heapq.heappop(self._due)
+                self._busy = publisher
+            due = time.perf_counter() + 1.0 / publisher.pose_hz
+            try:
+                due = publisher._tick()
+            except Exception:  # _frame logs a lesson's errors; this is the publisher's own
+                log.exception("publisher tick failed")
+            finally:
+                with self._cond:
+                    self._busy = None
+                    if publisher in self._members:
+                        heapq.heappush(self._due, (due, order, publisher))
+                    self._cond.notify_all()

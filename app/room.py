@@ -31,6 +31,7 @@ from app.muting import SharedStream
 from app.overview import GHOST_OFFSET, GHOST_RGBA, ClassOverview, StudentRow, row_figures
 from app.page import Page
 from app.page_js import ask_item
+from app.publisher import FrameThread
 from app.sandboxes import ClassFull, Sandboxes
 
 if TYPE_CHECKING:
@@ -90,6 +91,8 @@ class Room:
         self._lock = threading.RLock()
         self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
         self._stop = threading.Event()
+        #: makes the private pages' frames, one after another (app.publisher)
+        self._frames = FrameThread(name="armlab-private-frames")
         #: the shared lesson's updates, held back from pages that show their own arm
         self.stream = SharedStream(lab.server)
         lab.server.on_client_connect(self._welcome)
@@ -258,7 +261,7 @@ class Room:
                 state.view.value = FOLLOW
                 return
             ctx = replace(lab.lesson_ctx, backend="sim", port=None, baud=None,
-                          joint_map=None, arms=seat)
+                          joint_map=None, arms=seat, frames=self._frames)
             self.show_shared(state.client, shown=False)
             self.stream.hold(state.client.client_id)
             try:
@@ -408,4 +411,5 @@ class Room:
             states = list(self._pages.values())
         for state in states:
             self._close_private(state)
+        self._frames.close()
         self._sandboxes.close()

@@ -61,9 +61,10 @@ GIL_SWITCH_INTERVAL = 0.0005
 #: server too: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
 CLASSROOM_SWITCH_INTERVAL = 0.00025
 #: s: in a simulated classroom, where no arm's loop runs in the server (app.arm_process),
-#: fewer forced switches between the pages' publishers leave more of the GIL to their
-#: frames (room of 30, alternating: 18–20 pose frames/s a page at 0.25 ms, 21–22 at 2 ms
-#: and 5 ms); 2 ms keeps a lesson's loop that runs here (hand, quadruped) on time.
+#: fewer forced switches between the frame threads and the event loop leave more of the
+#: GIL to the pages' frames (room of 30, alternating: 18–20 pose frames/s a page at
+#: 0.25 ms, 21–22 at 2 ms and 5 ms); 2 ms keeps a lesson's loop that runs here (hand,
+#: quadruped) on time.
 CLASSROOM_SIM_SWITCH_INTERVAL = 0.002
 
 

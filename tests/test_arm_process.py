@@ -78,6 +78,31 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         proc.close()
 
 
+def test_the_servos_reports_are_mirrored_and_say_when_the_arm_is_gone(model):
+    """The Servos panel's reports come with the mirror (a page's frame never waits for
+    the worker): an E-STOP shows in them as torque off; a freed arm's, or an ended
+    worker's, raise BackendError saying so."""
+    proc = ArmProcess(realtime=True)
+    try:
+        arm = proc.add(model, DEFAULT, preset="18.5/25", q0=Q0, history_s=1.0)
+        reports = arm.backend.plant.reports()
+        assert len(reports) == 3 and all(r.torque_enable for r in reports)
+        assert all(r.voltage == 120 for r in reports)  # Present Voltage: 12.0 V, in 0.1 V
+        arm.loop.post(EStop())
+        wait_for(lambda: not any(r.torque_enable for r in arm.backend.plant.reports()), 60,
+                 "the E-STOP in the mirrored reports")
+        proc.free(arm)
+        with pytest.raises(BackendError, match="freed"):
+            arm.backend.plant.reports()
+        other = proc.add(model, DEFAULT, preset="18.5/25", q0=Q0, history_s=1.0)
+        os.kill(proc.pid, signal.SIGKILL)
+        wait_for(lambda: proc.ended is not None, 60, "the worker's end noticed")
+        with pytest.raises(BackendError, match="stopped"):
+            other.backend.plant.reports()
+    finally:
+        proc.close()
+
+
 def test_a_worker_that_dies_is_told_and_the_next_arm_gets_a_new_one(model):
     """The worker killed: the arm's status says so as a fault, calls raise BackendError
     (E-STOP still answers: nothing holds torque), the server goes on, and the next arm

@@ -38,6 +38,7 @@ import viser
 
 if TYPE_CHECKING:
     from app.arm_process import ArmProcess
+    from app.publisher import FrameThread
     from control.backend import Backend
     from control.loop import ControlLoop
     from control.params import Params
@@ -65,6 +66,8 @@ class LessonContext:
         arm_process: where the shared simulated arm runs in a classroom (a worker
             process of its own, :class:`app.arm_process.ArmProcess`; None: in the
             server, as outside a classroom and on real servos).
+        frames: the thread that makes the lesson's frames, shared with other lessons (a
+            classroom's private pages share one; None: a thread of the lesson's own).
     """
 
     robot: str = "receptionist_arm"
@@ -77,6 +80,7 @@ class LessonContext:
     joint_map: str | None = None
     arms: ArmSource | None = None
     arm_process: ArmProcess | None = None
+    frames: FrameThread | None = None
 
 
 class ArmSource(Protocol):

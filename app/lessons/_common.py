@@ -121,9 +121,10 @@ class LessonBase:
 
     def publish(self, *, pose: Callable[[], None], plots: Callable[[bool], None],
                 pose_hz: float, plot_hz: float) -> None:
-        """Start :attr:`publisher`: ``pose()`` at ``pose_hz``, ``plots(force)`` at ``plot_hz``."""
+        """Start :attr:`publisher`: ``pose()`` at ``pose_hz``, ``plots(force)`` at ``plot_hz``
+        (on the context's shared frame thread, if it has one)."""
         self.publisher = Publisher(self.server, pose=pose, plots=plots, pose_hz=pose_hz,
-                                   plot_hz=plot_hz)
+                                   plot_hz=plot_hz, frames=self.ctx.frames)
         self.publisher.start()
 
     def gui_handles(self) -> tuple[Any, ...]:
