@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import viser
 import viser.transforms as vtf
+from viser._messages import SetCameraLookAtMessage, SetCameraPositionMessage
 
 
 def connected(client: viser.ClientHandle) -> bool:
@@ -209,6 +210,13 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
         client.camera.look_at = tuple(look_at)  # after position, which drags look_at along
     except (AssertionError, ValueError, RuntimeError):
         return False  # not reported its camera yet: it starts at initial_camera
+    # viser sends no camera value equal to the page's last report; but a framing sent
+    # before that report may still be on its way (the page reshaped before it took it),
+    # and would then land last: so the framing is always sent (the newer of two waiting
+    # camera messages replaces the older)
+    send = client._websock_connection.queue_message  # type: ignore[attr-defined]
+    send(SetCameraPositionMessage(tuple(float(v) for v in position)))  # type: ignore[arg-type]
+    send(SetCameraLookAtMessage(tuple(float(v) for v in look_at)))  # type: ignore[arg-type]
     last_framing[client] = Framing(points, position, look_at, fov, aspect)
     return True
 

@@ -200,3 +200,25 @@ def test_an_orbit_is_left_alone_and_frame_brings_the_view_back():
         page.click("Frame")
         page.wait_for(lambda: page.camera_sets > sets, what="the camera to move")
         _shows_framing(page, lab, fov=FOV, aspect=1000 / 700)
+
+
+def test_a_page_that_reshapes_before_taking_a_framing_is_framed_for_its_last_shape():
+    """The race behind a reloaded page left framed for a narrower view than it has: the
+    page narrows and is framed for that, but widens again before the framing arrives,
+    reporting the camera it had, which is already the framing for its new shape. viser
+    sends nothing for a camera value equal to the page's last report, so the framing is
+    sent by hand: else the older one would land last and stay. (A lesson whose robot
+    stands still, so the framing for the wide view is the same to the last bit.)"""
+    with Lab(ServeOptions(http_port=0, lesson="ik_accuracy", realtime=False)) as lab, \
+            client_of(lab.server, token=lab.token) as page:
+        page.report_view(width=852, height=720, fov=FOV)
+        wide = _shows_framing(page, lab, fov=FOV, aspect=852 / 720)
+        had = {"position": tuple(map(float, wide.position)),
+               "look_at": tuple(map(float, wide.look_at))}
+        page.report_view(width=458, height=720, fov=FOV, **had)
+        narrow = _shows_framing(page, lab, fov=FOV, aspect=458 / 720)
+        assert not np.allclose(narrow.position, wide.position, atol=SAME_M)
+        # the page widens before it took the narrow framing: its camera is the wide one
+        page.report_view(width=852, height=720, fov=FOV, **had)
+        again = _shows_framing(page, lab, fov=FOV, aspect=852 / 720)
+        assert np.array_equal(again.position, wide.position)  # what the page reported
