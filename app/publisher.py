@@ -3,8 +3,9 @@
 It calls the lesson's ``pose`` function ``pose_hz`` times a second (30 by
 default) and its ``plots`` function ``plot_hz`` times a second (11: a margin
 over the 10 Hz the charts must reach). Each pose frame is one
-``server.atomic()`` block, so the links move together; chart frames are not
-(viser holds a page's whole stream while an atomic block is open). viser replaces
+``server.atomic()`` block, so the links move together; on the whole server chart
+frames are not (viser holds every page's stream while an atomic block is open),
+on one page (:class:`app.page.Page`) the whole frame is. viser replaces
 a pending update of a property by the newer one, so a slow browser skips stale
 frames rather than queueing them; a publisher of one page (``app.page.Page``)
 makes no frame while that page has not been sent the last one. Nothing is
@@ -20,6 +21,7 @@ a wake-up, and a late wake-up is a late frame).
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import itertools
 import logging
@@ -142,21 +144,27 @@ class Publisher:
         return min(self._next_pose, self._next_plot)
 
     def _frame(self, *, pose: bool, plots: bool, force: bool) -> None:
+        # A page's own frame (a one-page server) is one atomic block, charts included: the
+        # block holds only that page's messages, and viser wakes its sender once per block
+        # instead of once per message (a system call that lets another thread take the
+        # GIL, which the frame then waits to get back). On the whole server the charts stay
+        # outside: its block would hold every page's stream while a chart frame is made.
+        whole = self.server.atomic() if self._behind is not None else contextlib.nullcontext()
         t0 = t1 = time.perf_counter()
         try:
-            if pose:
-                with self.server.atomic():  # the links move together
-                    self._pose()
-                    for hook in self._hooks:
-                        hook()
-                t1 = time.perf_counter()
-                self.stats.pose_frames += 1
-                self.stats.last_pose_s = t1 - t0
-            if plots:  # not atomic: viser sends nothing to a page while an atomic block
-                # is open, and a slow chart frame would hold that page's poses back
-                self._plots(force)
-                self.stats.plot_frames += 1
-                self.stats.last_plot_s = time.perf_counter() - t1
+            with whole:
+                if pose:
+                    with self.server.atomic():  # the links move together
+                        self._pose()
+                        for hook in self._hooks:
+                            hook()
+                    t1 = time.perf_counter()
+                    self.stats.pose_frames += 1
+                    self.stats.last_pose_s = t1 - t0
+                if plots:
+                    self._plots(force)
+                    self.stats.plot_frames += 1
+                    self.stats.last_plot_s = time.perf_counter() - t1
         except Exception:  # one bad frame must not freeze every page: log it, go on
             self.stats.errors += 1
             if self.stats.errors <= 3:
