@@ -28,6 +28,9 @@ Figures:
         made because the page had not yet been sent the one before (``Publisher`` stats,
         the whole run); ``classroom_30_pose_hz_median``: the median page's rate;
         ``classroom_30_pages_dropped``: pages whose connection ended before the count did.
+    classroom_30_frames_made_hz_min: the lowest rate of pose frames any page's publisher
+        made (from the moment all 30 private arms exist to the end of the count): beside
+        ``classroom_30_pose_hz``, it tells a frame not made from one not delivered.
     classroom_30_client_cpu_share: CPU seconds per second of the process running the 30
         fake pages (one thread): near 1, they, not the server, may limit the rates (in a
         classroom each browser has a device of its own).
@@ -135,6 +138,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     assert room is not None
     stop = threading.Event()
     rss: dict[str, int] = {}
+    made_from: dict[int, tuple[float, int]] = {}  # lesson id -> (time, pose frames made)
 
     probed: set[int] = set()
 
@@ -143,6 +147,9 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
             lessons = room.private_lessons()
             if len(lessons) >= pages and "start" not in rss:
                 rss["start"] = _server_rss(room)
+                made_from.update((id(lesson), (time.monotonic(),
+                                               lesson.publisher.stats.pose_frames))
+                                 for lesson in lessons.values())
             for lesson in lessons.values():
                 if id(lesson) not in probed:  # a probe node in each of its frames
                     probed.add(id(lesson))
@@ -161,6 +168,10 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         player.start()
         res = _clients(lab.ws_url, pages, seconds, settle=settle, my_arm=True)
         rss["end"] = _server_rss(room)
+        now = time.monotonic()
+        made_hz = [(lesson.publisher.stats.pose_frames - made_from[id(lesson)][1])
+                   / (now - made_from[id(lesson)][0])
+                   for lesson in room.private_lessons().values() if id(lesson) in made_from]
         jitter = lab.loop.status.jitter_p99_ms
         shared = lab.lab.arm_process
         fifo = shared is not None and (shared.scheduling or "").startswith("SCHED_FIFO")
@@ -189,6 +200,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         "classroom_30_client_cpu_share": res["client_cpu_share"],
         "classroom_30_frames_skipped_behind_pct": 100.0 * behind / max(1, made + behind),
         "classroom_30_pages_dropped": res["pages_dropped"],
+        "classroom_30_frames_made_hz_min": min(made_hz, default=float("nan")),
     }
 
 
