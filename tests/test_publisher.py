@@ -57,6 +57,13 @@ class Counter:
         self.plots += 1
 
 
+@pytest.fixture
+def frames() -> Iterator[FrameThread]:
+    thread = FrameThread(name="test-frames")
+    yield thread
+    thread.close()
+
+
 def publish(counter: Counter, frames: FrameThread, *, pose_hz: float = 30.0,
             plot_hz: float = 11.0) -> Publisher:
     publisher = Publisher(counter.page, pose=counter.pose, plots=counter.plot,  # type: ignore[arg-type]
@@ -65,81 +72,65 @@ def publish(counter: Counter, frames: FrameThread, *, pose_hz: float = 30.0,
     return publisher
 
 
-def test_pages_share_one_thread_and_each_gets_its_frames() -> None:
-    frames = FrameThread(name="test-frames")
-    try:
-        with pages(3) as three:
-            counters = [Counter(p) for p in three]
-            publishers = [publish(c, frames) for c in counters]
-            wait_for(lambda: all(c.poses > 20 and c.plots > 5 for c in counters), 60.0,
-                     lambda: f"frames of every page: {[(c.poses, c.plots) for c in counters]}")
-            assert {name for c in counters for name in c.threads} == {"test-frames"}
-            assert not any(p._thread.is_alive() for p in publishers)  # no thread of their own
-            for publisher in publishers:
-                publisher.close(settle_s=0.0)
-    finally:
-        frames.close()
+def test_pages_share_one_thread_and_each_gets_its_frames(frames: FrameThread) -> None:
+    with pages(3) as three:
+        counters = [Counter(p) for p in three]
+        publishers = [publish(c, frames) for c in counters]
+        wait_for(lambda: all(c.poses > 20 and c.plots > 5 for c in counters), 60.0,
+                 lambda: f"frames of every page: {[(c.poses, c.plots) for c in counters]}")
+        assert {name for c in counters for name in c.threads} == {"test-frames"}
+        assert not any(p._thread.is_alive() for p in publishers)  # no thread of their own
+        for publisher in publishers:
+            publisher.close(settle_s=0.0)
 
 
-def test_a_failing_frame_or_a_closed_publisher_leaves_the_others_going() -> None:
-    frames = FrameThread()
-    try:
-        with pages(3) as three:
-            bad, gone, good = Counter(three[0], fail=True), Counter(three[1]), Counter(three[2])
-            publishers = [publish(c, frames) for c in (bad, gone, good)]
-            wait_for(lambda: gone.poses > 10 and bad.poses > 10, 60.0, "frames")
-            publishers[1].close(settle_s=0.0)
-            after_close = gone.poses
-            seen = good.poses
-            wait_for(lambda: good.poses > seen + 20, 60.0, "the good page's frames")
-            assert gone.poses == after_close  # none once close returned
-            assert publishers[0].stats.errors > 10 and publishers[2].stats.errors == 0
-            for publisher in (publishers[0], publishers[2]):
-                publisher.close(settle_s=0.0)
-    finally:
-        frames.close()
+def test_a_failing_frame_or_a_closed_publisher_leaves_the_others_going(frames: FrameThread) -> None:
+    with pages(3) as three:
+        bad, gone, good = Counter(three[0], fail=True), Counter(three[1]), Counter(three[2])
+        publishers = [publish(c, frames) for c in (bad, gone, good)]
+        wait_for(lambda: gone.poses > 10 and bad.poses > 10, 60.0, "frames")
+        publishers[1].close(settle_s=0.0)
+        after_close = gone.poses
+        seen = good.poses
+        wait_for(lambda: good.poses > seen + 20, 60.0, "the good page's frames")
+        assert gone.poses == after_close  # none once close returned
+        assert publishers[0].stats.errors > 10 and publishers[2].stats.errors == 0
+        for publisher in (publishers[0], publishers[2]):
+            publisher.close(settle_s=0.0)
 
 
-def test_close_waits_for_the_frame_being_made() -> None:
-    frames = FrameThread()
-    try:
-        with pages(1) as one:
-            inside, release = threading.Event(), threading.Event()
-            counter = Counter(one[0])
+def test_close_waits_for_the_frame_being_made(frames: FrameThread) -> None:
+    with pages(1) as one:
+        inside, release = threading.Event(), threading.Event()
+        counter = Counter(one[0])
 
-            def slow_pose() -> None:
-                inside.set()
-                release.wait(30.0)
+        def slow_pose() -> None:
+            inside.set()
+            release.wait(30.0)
 
-            publisher = Publisher(one[0], pose=slow_pose, plots=counter.plot,  # type: ignore[arg-type]
-                                  frames=frames)
-            publisher.start()
-            assert inside.wait(30.0)
-            closer = threading.Thread(target=publisher.close, kwargs={"settle_s": 0.0})
-            closer.start()
-            closer.join(0.3)
-            assert closer.is_alive()  # still in the frame
-            release.set()
-            closer.join(30.0)
-            assert not closer.is_alive()
-    finally:
-        frames.close()
+        publisher = Publisher(one[0], pose=slow_pose, plots=counter.plot,  # type: ignore[arg-type]
+                              frames=frames)
+        publisher.start()
+        assert inside.wait(30.0)
+        closer = threading.Thread(target=publisher.close, kwargs={"settle_s": 0.0})
+        closer.start()
+        closer.join(0.3)
+        assert closer.is_alive()  # still in the frame
+        release.set()
+        closer.join(30.0)
+        assert not closer.is_alive()
 
 
-def test_turns_are_fair_when_the_thread_cannot_keep_up() -> None:
-    frames = FrameThread()
-    try:
-        with pages(4) as four:
-            # 4 pages asking 200 frames/s each, every frame 2 ms: about 500 fit in a second
-            counters = [Counter(p, cost_s=0.002) for p in four]
-            publishers = [publish(c, frames, pose_hz=200.0, plot_hz=1.0) for c in counters]
-            wait_for(lambda: min(c.poses for c in counters) > 300, 120.0, "frames")
-            for publisher in publishers:
-                publisher.close(settle_s=0.0)
-            counts = [c.poses for c in counters]
-            assert min(counts) > 0.8 * max(counts), counts
-    finally:
-        frames.close()
+def test_turns_are_fair_when_the_thread_cannot_keep_up(frames: FrameThread) -> None:
+    with pages(4) as four:
+        # 4 pages asking 200 frames/s each, every frame 2 ms: about 500 fit in a second
+        counters = [Counter(p, cost_s=0.002) for p in four]
+        publishers = [publish(c, frames, pose_hz=200.0, plot_hz=1.0) for c in counters]
+        wait_for(lambda: min(c.poses for c in counters) > 300, 120.0, "frames")
+        for publisher in publishers:
+            publisher.close(settle_s=0.0)
+        counts = [c.poses for c in counters]
+        assert min(counts) > 0.8 * max(counts), counts
 
 
 def test_a_closed_frame_thread_takes_no_publisher() -> None:
