@@ -138,24 +138,30 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     assert room is not None
     stop = threading.Event()
     rss: dict[str, int] = {}
-    made_from: dict[int, tuple[float, int]] = {}  # lesson id -> (time, pose frames made)
-
-    probed: set[int] = set()
+    # lesson id -> the lesson, and (time, pose frames made) when all 30 arms existed and
+    # when last seen open (the pages close when the count ends, and their lessons with them)
+    seen: dict[int, Any] = {}
+    made_from: dict[int, tuple[float, int]] = {}
+    made_to: dict[int, tuple[float, int]] = {}
+    faults: list[str] = []
 
     def students_play() -> None:
         while not stop.wait(0.5):
             lessons = room.private_lessons()
+            now = time.monotonic()
             if len(lessons) >= pages and "start" not in rss:
                 rss["start"] = _server_rss(room)
-                made_from.update((id(lesson), (time.monotonic(),
-                                               lesson.publisher.stats.pose_frames))
+                made_from.update((id(lesson), (now, lesson.publisher.stats.pose_frames))
                                  for lesson in lessons.values())
             for lesson in lessons.values():
-                if id(lesson) not in probed:  # a probe node in each of its frames
-                    probed.add(id(lesson))
+                if id(lesson) not in seen:  # a probe node in each of its frames
+                    seen[id(lesson)] = lesson
                     _probe(lesson)
+                made_to[id(lesson)] = (now, lesson.publisher.stats.pose_frames)
                 rig = lesson.rig
                 st = None if rig is None else rig.loop.status
+                if st is not None and st.fault:
+                    faults.append(st.fault)
                 if st is not None and st.trajectory is None and st.active:
                     try:
                         lesson.run_line()
@@ -168,25 +174,20 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         player.start()
         res = _clients(lab.ws_url, pages, seconds, settle=settle, my_arm=True)
         rss["end"] = _server_rss(room)
-        now = time.monotonic()
-        made_hz = [(lesson.publisher.stats.pose_frames - made_from[id(lesson)][1])
-                   / (now - made_from[id(lesson)][0])
-                   for lesson in room.private_lessons().values() if id(lesson) in made_from]
         jitter = lab.loop.status.jitter_p99_ms
         shared = lab.lab.arm_process
         fifo = shared is not None and (shared.scheduling or "").startswith("SCHED_FIFO")
         lab.check()
-        lessons = room.private_lessons()
-        made = sum(lesson.publisher.stats.pose_frames for lesson in lessons.values())
-        behind = sum(lesson.publisher.stats.skipped_behind for lesson in lessons.values())
-        faults = [lesson.rig.loop.status.fault for lesson in lessons.values()
-                  if lesson.rig is not None and lesson.rig.loop.status.fault]
-        if faults:
-            raise RuntimeError(f"classroom bench: private arms faulted: {faults[:3]}")
     finally:
         stop.set()
         player.join(2.0)
         lab.close()
+    if faults:
+        raise RuntimeError(f"classroom bench: private arms faulted: {sorted(set(faults))[:3]}")
+    made = sum(lesson.publisher.stats.pose_frames for lesson in seen.values())
+    behind = sum(lesson.publisher.stats.skipped_behind for lesson in seen.values())
+    made_hz = [(made_to[i][1] - made_from[i][1]) / (made_to[i][0] - made_from[i][0])
+               for i in made_from if made_to[i][0] > made_from[i][0]]
     start = rss.get("start", rss["end"])
     return {
         "classroom_30_pose_hz": res["own_pose_hz_min"],
