@@ -64,6 +64,8 @@ from kinematics.model import SerialChain
 
 #: s between two mirror messages (every arm's new rows and status)
 MIRROR_S = 0.02
+#: what a freed arm's calls and reports say (the worker's side says the same)
+FREED = "this arm was freed (a reload of the page makes a new one)"
 #: s between two mirrors of the arms' servo reports (the Servos panel shows them every s)
 REPORTS_S = 0.5
 #: s without a mirror message after which a worker's arms are told as not answering
@@ -162,8 +164,7 @@ class RemoteLoop:
 class RemotePlant:
     """The Servos panel's view of a private arm's simulated servos."""
 
-    def __init__(self, owner: ArmProcess, loop: RemoteLoop) -> None:
-        self._owner = owner
+    def __init__(self, loop: RemoteLoop) -> None:
         self._loop = loop
 
     def reports(self) -> tuple[ServoReport, ...]:
@@ -173,9 +174,10 @@ class RemotePlant:
         Raises:
             BackendError: the worker has ended or is silent, or the arm was freed.
         """
-        why = self._owner.ended or self._owner.silent()
-        if why is None and not self._owner.holds(self._loop.arm_id):
-            why = "this arm was freed (a reload of the page makes a new one)"
+        owner = self._loop._owner
+        why = owner.ended or owner.silent()
+        if why is None and not owner.holds(self._loop.arm_id):
+            why = FREED
         reports = self._loop._reports
         if why is None and reports is None:
             why = "these simulated servos give no reports"
@@ -194,7 +196,7 @@ class RemoteBackend:
         self._owner = owner
         self.arm_id = loop.arm_id
         self.n = loop.model.n
-        self.plant = RemotePlant(owner, loop)
+        self.plant = RemotePlant(loop)
 
     def read(self) -> JointState:
         """Every joint as its servo reports it (the worker's ``read()``)."""

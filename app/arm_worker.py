@@ -16,7 +16,7 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from app.arm_process import REPORTS_S
+from app.arm_process import FREED, REPORTS_S
 from app.class_arms import Arm, ClassArms, OwnArms
 from control.backend import BackendError
 from control.loop import LoopStatus
@@ -97,7 +97,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         with held_lock:
             found = held.get(arm_id)
         if found is None:
-            raise BackendError("this arm was freed (a reload of the page makes a new one)")
+            raise BackendError(FREED)
         return found[0]
 
     def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,

@@ -56,8 +56,8 @@ PANEL_LABEL = "armlab"
 #: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
 GIL_SWITCH_INTERVAL = 0.0005
 #: s: the same in a classroom on real servos, where the shared loop shares the server
-#: with some 30 publishers, one per page: the web server's event loop and the loop get
-#: the GIL back sooner (room of 30 pages, quiet machine, the class's clock then in the
+#: with the pages' frame threads: the web server's event loop and the loop get the GIL
+#: back sooner (room of 30 pages, quiet machine, the class's clock then in the
 #: server too: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
 CLASSROOM_SWITCH_INTERVAL = 0.00025
 #: s: in a simulated classroom, where no arm's loop runs in the server (app.arm_process),
