@@ -166,6 +166,11 @@ class IKAccuracyLesson:
                        section_size=0.05, cell_color=(170, 200, 230),
                        section_color=(90, 140, 200), plane_color=(250, 250, 245),
                        plane_opacity=1.0, position=(0.1, 0.1, -0.0001))
+        for i, corner in enumerate(((-1, -1), (1, -1), (1, 1), (-1, 1))):
+            # empty frames at the paper's corners: the camera frames the whole paper, not
+            # only the arm on it (a grid is framed by its centre alone)
+            scene.add_frame(f"/ik/paper/corner{i}", show_axes=False,
+                            position=(0.15 * corner[0], 0.15 * corner[1], 0.0))
         base = np.asarray(self.model.base_pose, dtype=float)
         b = "/ik/base"
         self.base = scene.add_frame(b, show_axes=False, position=base[:3, 3])
