@@ -8,7 +8,8 @@ frames are not (viser holds every page's stream while an atomic block is open),
 on one page (:class:`app.page.Page`) the whole frame is. viser replaces
 a pending update of a property by the newer one, so a slow browser skips stale
 frames rather than queueing them; a publisher of one page (``app.page.Page``)
-makes no frame while that page has not been sent the last one. Nothing is
+makes no frame while that page has not been sent the last one: it looks again every
+:data:`BEHIND_RETRY_S` and gives the frame up only when the next one falls due. Nothing is
 computed or sent while no browser is connected; the first browser to connect
 gets a full frame at once.
 
@@ -36,6 +37,9 @@ log = logging.getLogger(__name__)
 
 #: Seconds :meth:`Publisher.close` waits for open pages to apply the last frame.
 CLOSE_SETTLE_S = 0.5
+#: Seconds after which a publisher of one page looks again when a frame fell due while
+#: the page had not yet been sent the last one.
+BEHIND_RETRY_S = 0.004
 
 
 @dataclass
@@ -46,6 +50,7 @@ class PublisherStats:
     plot_frames: int = 0
     skipped_idle: int = 0
     skipped_behind: int = 0  #: frames not made: the page had not been sent the last one
+    waited_behind: int = 0  #: looks again a little later, for the same reason
     errors: int = 0
     last_pose_s: float = 0.0  #: wall time spent in the last pose frame
     last_plot_s: float = 0.0  #: wall time spent in the last plot frame
@@ -128,7 +133,12 @@ class Publisher:
         pose_due, plot_due = now >= self._next_pose, now >= self._next_plot
         if (has_clients and (pose_due or plot_due) and not force
                 and self._behind is not None and self._behind()):
-            self.stats.skipped_behind += 1  # the last frame is still on its way
+            # the last frame is still on its way: look again shortly, and give this frame
+            # up only when the next one falls due (a frame late rather than none)
+            if now - min(self._next_pose, self._next_plot) < 1.0 / self.pose_hz:
+                self.stats.waited_behind += 1
+                return now + BEHIND_RETRY_S
+            self.stats.skipped_behind += 1
         elif has_clients and (pose_due or plot_due or force):
             self._frame(pose=pose_due or force, plots=plot_due or force, force=force)
         elif not has_clients:

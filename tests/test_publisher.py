@@ -139,3 +139,23 @@ def test_a_closed_frame_thread_takes_no_publisher() -> None:
     assert not frames._thread.is_alive()
     with pages(1) as one, pytest.raises(RuntimeError, match="closed"):
         publish(Counter(one[0]), frames)
+
+
+def test_a_page_not_yet_sent_its_last_frame_gets_no_new_one_until_it_is(
+        frames: FrameThread) -> None:
+    with pages(1) as one:
+        page = one[0]
+        counter = Counter(page)
+        publisher = publish(counter, frames)
+        stats = publisher.stats
+        wait_for(lambda: counter.poses > 5, 60.0, "frames")
+        with page.atomic():  # viser sends the page nothing while a block is open
+            skipped, waited = stats.skipped_behind, stats.waited_behind
+            # once a frame waits unsent, each frame due is looked at again, then given up
+            wait_for(lambda: stats.skipped_behind > skipped, 60.0, lambda: f"{stats}")
+            made = counter.poses
+            wait_for(lambda: stats.skipped_behind > skipped + 3
+                     and stats.waited_behind > waited, 60.0, lambda: f"{stats}")
+            assert counter.poses == made  # none made while the page is behind
+        wait_for(lambda: counter.poses > made + 5, 60.0, "frames once the page was sent")
+        publisher.close(settle_s=0.0)
