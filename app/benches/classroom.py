@@ -10,6 +10,11 @@ Figures:
         N · 1e-3 s / (wall time per simulated ms) for the largest N of (50, 100); a tenth
         of the arms play a step trajectory, a tenth are pushed.
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
+    sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
+        the design the batched plant replaced: 50 such loops, each over a plant of its own
+        stepped in Python (:class:`~hardware.sim_backend.SimBackend`);
+        ``sandboxes_batched_over_single``: the batched figure over it (the machine's speed
+        cancels out; the issue asks for about three times a per-arm design).
     classroom_30_pose_hz: a lab served with ``--classroom`` and 30 pages (headless
         clients in another process), each showing "My arm" and its arm playing the thesis
         line again and again while the shared arm does too: the lowest rate of frames of
@@ -48,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from control.backend import Backend
 from control.commands import Push, RunTrajectory
 from control.loop import ControlLoop
 from control.params import Params
@@ -56,25 +62,31 @@ from control.trajectory import minimum_jerk
 from hardware.batched_backend import BatchedArmBackend, add_sim_arm
 from hardware.batched_plant import BatchedPlant
 from hardware.servo_spec import RX24F
+from hardware.sim_backend import SimBackend
 from kinematics import load_robot
 
 LOOP_SIZES = (50, 100)
 
 
-def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0) -> float:
+def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
+                  batched: bool = True) -> float:
     """Wall seconds per simulated ms of ``n_arms`` ControlLoops (compliance, 16 ms, gains
-    of their own) on one SharedClock over one BatchedPlant at 1 ms, run headless for
-    ``seconds`` of class time after 0.1 s of warm-up."""
+    of their own) on one SharedClock, run headless for ``seconds`` of class time after
+    0.1 s of warm-up: over one BatchedPlant at 1 ms (``batched``, as "My arm" runs them),
+    or each over a plant of its own (:class:`~hardware.sim_backend.SimBackend`, stepped
+    per arm in Python at its loop's periods: the design the batched plant replaced)."""
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
     plant = BatchedPlant(model, RX24F, dt=1e-3)
-    clock = SharedClock(plant.step, dt=plant.dt, realtime=False)
+    clock = SharedClock(plant.step if batched else (lambda: None), dt=plant.dt,
+                        realtime=False)
     lock = clock.lock
     q0 = np.array([0.0, 0.3, 0.3])
     loops = []
     for _ in range(n_arms):
         q = q0 + rng.uniform(-0.2, 0.2, 3)
-        backend = BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)
+        backend: Backend = (BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)
+                            if batched else SimBackend(model, specs=RX24F, dt=plant.dt, q0=q))
         params = Params(kp=float(rng.uniform(10.0, 25.0)), kv=float(rng.uniform(3.0, 7.0)),
                         k_env=float(rng.uniform(8.0, 30.0)), period=0.016)
         loop = ControlLoop(model, backend, params, realtime=False, clock=clock)
@@ -213,5 +225,10 @@ def run(quick: bool) -> dict[str, float]:
         cost = loops_ms_cost(n, seconds=0.5 if quick else 2.0)
         out[f"class_loops_step_us_n{n}"] = cost * 1e6
     out["sandboxes_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / cost
+    n = LOOP_SIZES[0]
+    single = loops_ms_cost(n, seconds=0.5 if quick else 2.0, batched=False)
+    out["sandboxes_single_plants_realtime_per_core"] = n * 1e-3 / single
+    out["sandboxes_batched_over_single"] = (out["sandboxes_realtime_per_core"]
+                                            / out["sandboxes_single_plants_realtime_per_core"])
     out.update(room_of_30(seconds=20.0 if quick else 120.0))
     return out
