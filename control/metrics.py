@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import signal
 
 from control.compliance import integrate_reference, pd_reference_accel
+
+if TYPE_CHECKING:  # scipy.signal is imported where it is used: it costs every start 0.3 s
+    from scipy import signal
 
 
 def pd_natural_frequency(kp: float) -> float:
@@ -152,17 +155,23 @@ def _crossing(t: np.ndarray, x: np.ndarray, i: int, level: float) -> float:
 
 def pd_reference_model(kp: float, kv: float) -> signal.TransferFunction:
     """Thesis eq. 2.3: (Kv s + Kp) / (s² + Kv s + Kp), with its zero."""
+    from scipy import signal
+
     return signal.TransferFunction([kv, kp], [1.0, kv, kp])
 
 
 def pure_second_order(kp: float, kv: float) -> signal.TransferFunction:
     """The pure second-order part of 2.3: Kp / (s² + Kv s + Kp) (what 2.16–2.19 describe)."""
+    from scipy import signal
+
     return signal.TransferFunction([kp], [1.0, kv, kp])
 
 
 def environment_model(m_env: float, d_env: float, k_env: float,
                       k_f: float) -> signal.TransferFunction:
     """Thesis eq. 2.7: θ_env / τ_ext = K_f / (M_env s² + D_env s + K_env)."""
+    from scipy import signal
+
     return signal.TransferFunction([k_f], [m_env, d_env, k_env])
 
 
@@ -211,6 +220,8 @@ def step_report(kp: float, kv: float, *, period: float = 1e-3) -> dict[str, obje
     wn, z = pd_natural_frequency(kp), pd_damping(kp, kv)
     duration = step_duration(kp, kv)
     t, y = simulate_ideal_joint_step(kp, kv, period=period, duration=duration)
+    from scipy import signal
+
     t2, y2 = signal.step(pd_reference_model(kp, kv), T=np.arange(0.0, duration, period / 2))
     return {
         "kp": kp, "kv": kv, "omega_n": wn, "zeta": z,

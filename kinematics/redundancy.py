@@ -29,7 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from kinematics.fk import fk_and_jacobian
 from kinematics.model import SerialChain
@@ -304,6 +303,8 @@ def bounded_rate(J: np.ndarray, xdot: np.ndarray, lo: np.ndarray, hi: np.ndarray
     b = np.concatenate([xdot, s * preferred])
     # The current pose is inside the limits, so lo <= 0 <= hi and the box is never empty.
     lo_s, hi_s = np.minimum(lo, hi), np.maximum(lo, hi)
+    from scipy.optimize import lsq_linear  # here: importing it costs every start 0.3 s
+
     res = lsq_linear(A, b, bounds=(lo_s, hi_s + 1e-15), method="bvls")
     return np.clip(res.x, lo_s, hi_s)
 
