@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import signal
 
 from control import metrics
 from control.commands import Push, RunTrajectory
@@ -89,7 +90,7 @@ def test_measure_push_gives_the_static_gain_C_f_on_the_joint_pushed_hardest():
     t = np.arange(0.0, 4.0, 1e-3)
     tau = np.zeros((len(t), 3))
     tau[1:, 1], tau[1:, 2] = 0.05, 0.8  # a torque step at t = 1 ms; joint 2 feels most
-    _, y = metrics.signal.step(metrics.environment_model(m_env, d_env, k_env, k_f), T=t)
+    _, y = signal.step(metrics.environment_model(m_env, d_env, k_env, k_f), T=t)
     env = np.zeros((len(t), 3))
     env[:, 2] = 0.8 * y
     snap = {"t": 10.0 + t, "q_env": env, "tau_ext": tau}
