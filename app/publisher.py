@@ -159,12 +159,15 @@ class Publisher:
         # instead of once per message (a system call that lets another thread take the
         # GIL, which the frame then waits to get back). On the whole server the charts stay
         # outside: its block would hold every page's stream while a chart frame is made.
-        whole = self.server.atomic() if self._behind is not None else contextlib.nullcontext()
+        page = self._behind is not None
+        whole = self.server.atomic() if page else contextlib.nullcontext()
+        # the links move together: in the page's block, or in a block of their own
+        links = contextlib.nullcontext() if page else self.server.atomic()
         t0 = t1 = time.perf_counter()
         try:
             with whole:
                 if pose:
-                    with self.server.atomic():  # the links move together
+                    with links:
                         self._pose()
                         for hook in self._hooks:
                             hook()

@@ -77,8 +77,9 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     per arm in Python at its loop's periods: the design the batched plant replaced)."""
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
-    plant = BatchedPlant(model, RX24F, dt=1e-3)
-    clock = SharedClock(plant.step if batched else (lambda: None), dt=plant.dt,
+    dt = 1e-3
+    plant = BatchedPlant(model, RX24F, dt=dt) if batched else None
+    clock = SharedClock(plant.step if plant is not None else (lambda: None), dt=dt,
                         realtime=False)
     lock = clock.lock
     q0 = np.array([0.0, 0.3, 0.3])
@@ -86,7 +87,7 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     for _ in range(n_arms):
         q = q0 + rng.uniform(-0.2, 0.2, 3)
         backend: Backend = (BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)
-                            if batched else SimBackend(model, specs=RX24F, dt=plant.dt, q0=q))
+                            if plant is not None else SimBackend(model, specs=RX24F, dt=dt, q0=q))
         params = Params(kp=float(rng.uniform(10.0, 25.0)), kv=float(rng.uniform(3.0, 7.0)),
                         k_env=float(rng.uniform(8.0, 30.0)), period=0.016)
         loop = ControlLoop(model, backend, params, realtime=False, clock=clock)
@@ -104,7 +105,7 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     faults = sum(loop.status.fault is not None for loop, _ in loops)
     if faults:
         raise RuntimeError(f"bench class: {faults} of {n_arms} arms faulted")
-    return wall / (seconds / plant.dt)
+    return wall / (seconds / dt)
 
 
 def _rss_bytes(pid: int | str = "self") -> int:

@@ -57,6 +57,7 @@ ELBOW_LABELS = {"down": "elbow down (the paper)", "up": "elbow up"}
 TARGET_LIMIT_CM = 30.0  #: typed targets beyond ±30 cm are refused outright
 ARC_RADII = (0.030, 0.024, 0.018)  #: m, radius of each joint's servo-range arc
 ARC_Z = 0.012  #: m above the base plane
+PAPER_M = 0.30  #: m, side of the square of graph paper under the arm
 OK_RGB = (40, 170, 70)
 BAD_RGB = (220, 30, 30)
 GHOST_RGBA = (0.2, 0.8, 0.3, 0.35)
@@ -162,15 +163,15 @@ class IKAccuracyLesson:
             for mesh in view._urdf._meshes:
                 if mesh.name.endswith("/board/geometry_0"):
                     mesh.visible = False
-        scene.add_grid("/ik/paper", width=0.30, height=0.30, plane="xy", cell_size=0.01,
+        scene.add_grid("/ik/paper", width=PAPER_M, height=PAPER_M, plane="xy", cell_size=0.01,
                        section_size=0.05, cell_color=(170, 200, 230),
                        section_color=(90, 140, 200), plane_color=(250, 250, 245),
                        plane_opacity=1.0, position=(0.1, 0.1, -0.0001))
-        for i, corner in enumerate(((-1, -1), (1, -1), (1, 1), (-1, 1))):
+        half = PAPER_M / 2
+        for i, (x, y) in enumerate(((-half, -half), (half, -half), (half, half), (-half, half))):
             # empty frames at the paper's corners: the camera frames the whole paper, not
             # only the arm on it (a grid is framed by its centre alone)
-            scene.add_frame(f"/ik/paper/corner{i}", show_axes=False,
-                            position=(0.15 * corner[0], 0.15 * corner[1], 0.0))
+            scene.add_frame(f"/ik/paper/corner{i}", show_axes=False, position=(x, y, 0.0))
         base = np.asarray(self.model.base_pose, dtype=float)
         b = "/ik/base"
         self.base = scene.add_frame(b, show_axes=False, position=base[:3, 3])
