@@ -19,6 +19,9 @@ batched plants on one clock), another the shared arm (``kind="own"``:
 - :class:`RemoteBackend`: E-STOP, the hand's push and drag, each a call the worker
   answers; the Servos panel's ``plant.reports()`` are mirrored too, every
   :data:`REPORTS_S` s (a page's frame never waits for the worker).
+- :class:`app.remote_hand.RemoteHand`: a student's copy of the thesis's hand (the hand
+  lesson), one of the class worker's :class:`app.class_hands.ClassHands`, mirrored the
+  same way (its messages are listed there).
 
 The worker's side is :mod:`app.arm_worker`. A call waits at most :data:`CALL_TIMEOUT_S` s
 (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a worker ends (killed, crashed), its arms' status
@@ -28,12 +31,14 @@ on.
 Messages (tuples; the server's ``Connection`` end sends calls, the worker's answers)::
 
     server -> worker   (op, call_id, arm_id, *args)      op: add, post, set_params,
-                                                         estop, push, spring, read, free
+                                                         estop, push, spring, read, free;
+                                                         hand_add, hand_post, hand_free
                        ("close",)
     worker -> server   ("ready", scheduling)
                        ("reply", call_id, ok, value)     value: result or exception
                        ("mirror", [(arm_id, status, rows, capacity, spare, gripper,
                                     reports or None)...])
+                       ("hands", [...])                  (app.remote_hand)
 """
 
 from __future__ import annotations
@@ -54,11 +59,14 @@ from typing import Any
 import numpy as np
 
 from app.class_arms import Arm
+from app.remote_hand import RemoteHand
 from control.backend import BackendError, GripperState, JointState
 from control.commands import Command, EStop, UseSpareJoints
+from control.grip import GripParams
 from control.loop import LoopStatus
 from control.params import Params
 from control.recorder import Recorder
+from hardware.hand import GraspObject
 from hardware.servo import ServoReport
 from kinematics.model import SerialChain
 
@@ -261,6 +269,7 @@ class ArmProcess:
         self._lock = threading.Lock()
         self._calls: dict[int, _Call] = {}
         self._loops: dict[int, RemoteLoop] = {}
+        self._hands: dict[int, RemoteHand] = {}
         self._ids = itertools.count(1)
         self._ready = threading.Event()
         #: how the OS schedules the worker (:func:`app.arm_worker.prioritise`), once it
@@ -320,6 +329,31 @@ class ArmProcess:
                 return
         if self._ended is None:
             self.call("free", arm_id)
+
+    def add_hand(self, obj: GraspObject | None, params: GripParams, *,
+                 history_s: float) -> RemoteHand:
+        """A new hand in the worker's class of hands (:meth:`ClassHands.add`), open, around
+        ``obj`` with grasp settings ``params``; its proxy."""
+        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
+            raise BackendError("the hand's simulation did not start; restart the lab")
+        hand_id = next(self._ids)
+        model, dt, capacity, status, params, obj = self.call(
+            "hand_add", hand_id, obj, params, history_s)
+        hand = RemoteHand(self, hand_id, model=model, dt=dt, capacity=capacity,
+                          status=status, params=params, obj=obj)
+        with self._lock:
+            self._hands[hand_id] = hand
+        return hand
+
+    def free_hand(self, hand: RemoteHand) -> None:
+        """Take ``hand`` out of the worker's class (nothing when the worker has ended or the
+        hand was freed)."""
+        with self._lock:
+            if self._hands.pop(hand.hand_id, None) is None:
+                return
+        hand.freed = True
+        if self._ended is None:
+            self.call("hand_free", hand.hand_id)
 
     def holds(self, arm_id: int) -> bool:
         """Whether arm ``arm_id`` is held (added and not freed)."""
@@ -396,6 +430,13 @@ class ArmProcess:
                         loop = loops.get(arm_id)
                         if loop is not None:
                             loop._mirror(*state)
+            elif msg[0] == "hands":
+                with self._lock:
+                    hands = self._hands
+                    for hand_id, *state in msg[1]:
+                        hand = hands.get(hand_id)
+                        if hand is not None:
+                            hand._mirror(*state)
             elif msg[0] == "reply":
                 _, call_id, ok, value = msg
                 with self._lock:

@@ -18,9 +18,14 @@ import numpy as np
 
 from app.arm_process import FREED, REPORTS_S
 from app.class_arms import Arm, ClassArms, OwnArms
+from app.class_hands import FREED as HAND_FREED
+from app.class_hands import ClassHand, ClassHands
 from control.backend import BackendError
+from control.grip import GripModel, GripParams
+from control.grip_loop import Command, GripStatus
 from control.loop import LoopStatus
 from control.params import Params
+from hardware.hand import GraspObject
 from hardware.servo import ServoReport
 from kinematics.model import SerialChain
 
@@ -56,12 +61,17 @@ def reports_of(arm: Arm) -> tuple[ServoReport, ...] | None:
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
-    says close or its end of the pipe closes."""
+    says close or its end of the pipe closes; the class's hands too (a
+    :class:`ClassHands`, made at the first)."""
     scheduling = prioritise(kind, realtime)  # before any thread: they inherit it
     arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
     fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
     held_lock = threading.Lock()
+    class_hands: list[ClassHands] = []  # made at the first hand
+    #: hand id -> (hand, [rows mirrored, params and object last sent])
+    hands: dict[int, tuple[ClassHand, list]] = {}
+    fresh_hands: dict[int, ClassHand] = {}  # added, mirrored once the server has its answer
     send_lock = threading.Lock()
     stop = threading.Event()
 
@@ -87,11 +97,23 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                     reports = None
                 batch.append((arm_id, status, rows, loop.recorder.capacity,
                               loop.spare_joints, loop.gripper, reports))
-            if batch:
-                try:
+            with held_lock:
+                hand_items = list(hands.items())
+            hand_batch = []
+            for hand_id, (hand, sent) in hand_items:
+                status = hand.status  # first: the rows are at least as new as it says
+                rows, sent[0] = hand._ring.since(sent[0])
+                params = None if hand.params is sent[1] else hand.params
+                obj = None if hand.obj is sent[2] else (hand.obj,)
+                sent[1], sent[2] = hand.params, hand.obj
+                hand_batch.append((hand_id, status, rows, params, obj))
+            try:
+                if batch:
                     send(("mirror", batch))
-                except (OSError, ValueError):
-                    return
+                if hand_batch:
+                    send(("hands", hand_batch))
+            except (OSError, ValueError):
+                return
 
     def arm_of(arm_id: int) -> Arm:
         with held_lock:
@@ -107,6 +129,29 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                                        history_s=history_s)
         loop = arm.loop
         return loop.lower, loop.upper, loop.recorder.capacity, loop.status, reports_of(arm)
+
+    def hand_of(hand_id: int) -> ClassHand:
+        with held_lock:
+            found = hands.get(hand_id)
+        if found is None:
+            raise ValueError(HAND_FREED)
+        return found[0]
+
+    def hand_add(hand_id: int, obj: GraspObject | None, params: GripParams, history_s: float
+                 ) -> tuple[GripModel, float, int, GripStatus, GripParams, GraspObject | None]:
+        if not class_hands:
+            class_hands.append(ClassHands(realtime=realtime))
+        hand = fresh_hands[hand_id] = class_hands[0].add(obj, params, history_s=history_s)
+        return hand.model, hand.dt, hand._ring.capacity, hand.status, hand.params, hand.obj
+
+    def hand_free(hand_id: int) -> None:
+        with held_lock:
+            found = hands.pop(hand_id, None)
+        if found is not None:
+            class_hands[0].free(found[0])
+
+    def hand_post(hand_id: int, command: Command) -> None:
+        hand_of(hand_id).post(command)
 
     def free(arm_id: int) -> None:
         with held_lock:
@@ -125,6 +170,9 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             f, link=link, point=point, duration=d),
         "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
             anchor, stiffness=k, link=link, point=point),
+        "hand_add": hand_add,
+        "hand_post": hand_post,
+        "hand_free": hand_free,
     }
     mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
     mirror_thread.start()
@@ -152,6 +200,11 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                 with held_lock:
                     held.update((i, (arm, [0])) for i, arm in fresh.items())
                 fresh.clear()
+            if fresh_hands:  # (likewise)
+                with held_lock:
+                    hands.update((i, (hand, [0, hand.params, hand.obj]))
+                                 for i, hand in fresh_hands.items())
+                fresh_hands.clear()
     finally:
         stop.set()
         mirror_thread.join(2.0)
@@ -159,6 +212,8 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             left = [arm for arm, _ in held.values()] + list(fresh.values())
             held.clear()
         arms.close(left)
+        for made in class_hands:
+            made.close()
         conn.close()
 
 

@@ -9,8 +9,11 @@ the server, on a :class:`app.class_arms.ClassArms` made when the first is asked 
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
-recording. A seat whose page left longer ago is freed; a class already holding
-:data:`MAX_ARMS` arms refuses a new one with :class:`ClassFull`.
+recording. A seat also keeps its student's copy of the thesis's hand (the hand lesson):
+one of the class's hands on one loop (:class:`app.class_hands.ClassHands`) in the same
+worker process as the RX-24F arms (:class:`app.remote_hand.RemoteHand`). A seat whose
+page left longer ago is freed; a class whose seats already hold :data:`MAX_ARMS` arms or
+hands refuses a new one with :class:`ClassFull`.
 """
 
 from __future__ import annotations
@@ -25,9 +28,12 @@ import numpy as np
 from app.arm_process import ArmProcess
 from app.backends import shipped_x_servo
 from app.class_arms import Arm, ClassArms
+from app.remote_hand import RemoteHand
 from control.backend import Backend
+from control.grip import GripParams
 from control.loop import ControlLoop
 from control.params import Params
+from hardware.hand import GraspObject
 from kinematics.model import SerialChain
 
 #: private arms one lab holds at most (the issue's default)
@@ -66,6 +72,8 @@ class Seat:
         self.key = key
         self._owner = owner
         self.arm: _Arm | None = None
+        #: the student's hand (the hand lesson) and the worker that runs it
+        self.hand: tuple[ArmProcess, RemoteHand] | None = None
         self.left_at: float | None = None  #: monotonic time its last page left (None: open)
         #: the pages showing it (a reloaded page's new connection may come before the old
         #: one has gone)
@@ -82,6 +90,17 @@ class Seat:
         ``params`` (replacing an arm of another preset). Its loop is running."""
         return self._owner._arm_for(self, model, params, preset=preset, q0=q0,
                                     history_s=history_s)
+
+    def hand_for(self, obj: GraspObject, params: GripParams, *,
+                 history_s: float) -> RemoteHand:
+        """The seat's hand: the one it has (as it was left), or a new one, open, around
+        ``obj`` with grasp settings ``params``. It runs on the class's loop."""
+        return self._owner._hand_for(self, obj, params, history_s=history_s)
+
+    @property
+    def holds(self) -> bool:
+        """Whether the seat holds an arm or a hand."""
+        return self.arm is not None or self.hand is not None
 
 
 def _ended(host: ArmProcess | ClassArms) -> bool:
@@ -119,9 +138,9 @@ class Sandboxes:
 
     @property
     def n_arms(self) -> int:
-        """Private arms held now."""
+        """Seats holding a private arm or hand now."""
         with self._lock:
-            return sum(1 for s in self._seats.values() if s.arm is not None)
+            return sum(1 for s in self._seats.values() if s.holds)
 
     def has(self, key: str) -> bool:
         """Whether a seat of ``key`` is kept (its page open, or left less than
@@ -192,7 +211,7 @@ class Sandboxes:
             arm = seat.arm
             if arm is not None and arm.preset == preset and not _ended(arm.host):
                 return arm.arm.backend, arm.loop  # type: ignore[return-value]
-            self._free(seat)
+            self._free_arm(seat)
             host: ArmProcess | ClassArms
             if shipped_x_servo(model) is not None:  # X-series: in the server (see above)
                 if self._local is None:
@@ -207,10 +226,32 @@ class Sandboxes:
             seat.arm = _Arm(host, arm)
             return arm.backend, seat.arm.loop  # type: ignore[return-value]
 
-    def _free(self, seat: Seat) -> None:  # holding self._lock
+    def _hand_for(self, seat: Seat, obj: GraspObject, params: GripParams, *,
+                  history_s: float) -> RemoteHand:
+        with self._lock:
+            if seat.hand is not None and seat.hand[0].ended is None:
+                return seat.hand[1]
+            self._free_hand(seat)
+            if self.process.ended is not None:  # killed or crashed: a new one
+                ended, self.process = self.process, ArmProcess(realtime=self._realtime)
+                ended.close()
+            hand = self.process.add_hand(obj, params, history_s=history_s)
+            seat.hand = (self.process, hand)
+            return hand
+
+    def _free_arm(self, seat: Seat) -> None:  # holding self._lock
         arm, seat.arm = seat.arm, None
         if arm is not None:
             arm.host.free(arm.arm)
+
+    def _free(self, seat: Seat) -> None:  # holding self._lock
+        self._free_arm(seat)
+        self._free_hand(seat)
+
+    def _free_hand(self, seat: Seat) -> None:  # holding self._lock
+        held, seat.hand = seat.hand, None
+        if held is not None:
+            held[0].free_hand(held[1])
 
     def close(self) -> None:
         """Stop the class: the sweeper, then every arm (its loop with torque off) and the
@@ -222,4 +263,4 @@ class Sandboxes:
             if self._local is not None:
                 self._local.close([s.arm.arm for s in seats
                                    if s.arm is not None and s.arm.host is self._local])
-            self.process.close()  # every arm in it freed with torque off
+            self.process.close()  # every arm and hand in it freed, torque off

@@ -22,6 +22,8 @@ from control.grip import (
     N_FINGERS,
     GraspTrace,
     GripController,
+    GripModel,
+    GripParams,
     HandPlant,
     grasp_figures,
 )
@@ -92,7 +94,65 @@ class GripStatus:
     fault: str = ""
 
 
-class GripLoop:
+class GripRecord:
+    """A hand loop's record and status, as a lesson reads them (any thread).
+
+    Attributes:
+        dt: s, the control period (one record row each).
+        status: the loop's latest :class:`GripStatus`.
+    """
+
+    dt: float
+    status: GripStatus
+    _ring: RingBuffer
+
+    def post(self, command: Command) -> None:
+        """Run ``command`` before the loop's next period (ValueError: not a command)."""
+        raise NotImplementedError
+
+    def close_hand(self) -> None:
+        """Post a grasp (close with the force limit); :meth:`last_grasp` measures from it."""
+        self.post(CloseHand())
+
+    def open_hand(self) -> None:
+        """Post a release."""
+        self.post(OpenHand())
+
+    @staticmethod
+    def _record_for(history_s: float, dt: float) -> RingBuffer:
+        return RingBuffer(1 + N_FINGERS * len(COLUMNS), RingBuffer.rows_for(history_s, dt))
+
+    def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
+        """Copy of the record: "t" (m,) s and each of :data:`COLUMNS` (m, 3), oldest first.
+
+        ``window_s``: only the last that many seconds (None: everything kept).
+        """
+        rows = self._ring.rows(window_s)
+        out = {"t": rows[:, 0]}
+        for i, name in enumerate(COLUMNS):
+            out[name] = rows[:, 1 + N_FINGERS * i: 1 + N_FINGERS * (i + 1)]
+        return out
+
+    def last_grasp(self, force_limit: float, *, settle: float = 0.2
+                   ) -> dict[str, float | None] | None:
+        """:func:`control.grip.grasp_figures` of the record since the last close command.
+
+        Times are counted from the close. None before any close (or once the
+        close has left the record).
+        """
+        t0 = self.status.closed_at
+        if t0 is None:
+            return None
+        snap = self.snapshot()
+        keep = snap["t"] > t0
+        if not keep.any() or snap["t"][0] > t0 + self.dt:
+            return None
+        trace = GraspTrace(snap["t"][keep] - t0, snap["voltage"][keep], snap["current"][keep],
+                           snap["force"][keep], snap["estimate"][keep])
+        return grasp_figures(trace, force_limit, settle=settle)
+
+
+class GripLoop(GripRecord):
     """Runs ``controller`` on ``plant`` every ``controller.dt`` s.
 
     Args:
@@ -111,8 +171,7 @@ class GripLoop:
         self.controller = controller
         self.realtime = realtime
         self.dt = controller.dt
-        self._ring = RingBuffer(1 + N_FINGERS * len(COLUMNS),
-                                RingBuffer.rows_for(history_s, self.dt))
+        self._ring = self._record_for(history_s, self.dt)
         self._commands: deque[Command] = deque()
         self._pacer = Pacer(self._period, period=self.dt, name="armlab-grip",
                             realtime=realtime, batch_s=tick_s, max_catch_up=max_catch_up,
@@ -133,13 +192,20 @@ class GripLoop:
             raise ValueError(f"not a hand-loop command: {type(command).__name__}")
         self._commands.append(command)
 
-    def close_hand(self) -> None:
-        """Post a grasp (close with the force limit); :meth:`last_grasp` measures from it."""
-        self.post(CloseHand())
+    @property
+    def params(self) -> GripParams:
+        """The grasp's settings in force."""
+        return self.controller.params
 
-    def open_hand(self) -> None:
-        """Post a release."""
-        self.post(OpenHand())
+    @property
+    def model(self) -> GripModel:
+        """What the controller knows of the hand."""
+        return self.controller.model
+
+    @property
+    def obj(self) -> object:
+        """The object between the fingers (None: nothing)."""
+        return self.plant.obj
 
     def _apply(self, command: Command, plant: HandPlant, ctl: GripController) -> None:
         match command:
@@ -189,33 +255,3 @@ class GripLoop:
         ])
         self._ring.append(row)
         self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._pacer.running)
-
-    # --- reading (any thread) --------------------------------------------------------
-    def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
-        """Copy of the record: "t" (m,) s and each of :data:`COLUMNS` (m, 3), oldest first.
-
-        ``window_s``: only the last that many seconds (None: everything kept).
-        """
-        rows = self._ring.rows(window_s)
-        out = {"t": rows[:, 0]}
-        for i, name in enumerate(COLUMNS):
-            out[name] = rows[:, 1 + N_FINGERS * i: 1 + N_FINGERS * (i + 1)]
-        return out
-
-    def last_grasp(self, force_limit: float, *, settle: float = 0.2
-                   ) -> dict[str, float | None] | None:
-        """:func:`control.grip.grasp_figures` of the record since the last close command.
-
-        Times are counted from the close. None before any close (or once the
-        close has left the record).
-        """
-        t0 = self.status.closed_at
-        if t0 is None:
-            return None
-        snap = self.snapshot()
-        keep = snap["t"] > t0
-        if not keep.any() or snap["t"][0] > t0 + self.dt:
-            return None
-        trace = GraspTrace(snap["t"][keep] - t0, snap["voltage"][keep], snap["current"][keep],
-                           snap["force"][keep], snap["estimate"][keep])
-        return grasp_figures(trace, force_limit, settle=settle)

@@ -310,9 +310,9 @@ def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
 
 
 def test_my_arm_in_the_other_arm_lessons_is_private_too():
-    """The IK-accuracy, redundancy and any-arm lessons offer My arm as well: a student's
-    control moves their own copy, never the shared one; the hand and the quadruped (one
-    simulator thread each, not batched) say so and keep the page following."""
+    """The IK-accuracy, redundancy, any-arm and hand lessons offer My arm as well: a
+    student's control moves their own copy, never the shared one; the quadruped (one
+    simulator thread each, not batched) says so and keeps the page following."""
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         page, cid = _joined(lab)
         with page:
@@ -348,9 +348,18 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
                      "the own arm's first joint at 20°")
             assert abs(_q(shared)[0]) < np.radians(2.0)
 
-            lab.switch("hand")
+            mine = mine_for("hand")  # the class's hands, one loop for all
+            shared = lab.lesson.loop
+            page.set_value(mine.force.handle, 0.5)
+            wait_for(lambda: mine.loop.params.force_limit == 0.5, 30, "the own force limit")
+            page.click(mine.close_button)
+            wait_for(lambda: mine.loop.status.modes != ("idle",) * 3, 30, "the own hand closing")
+            assert shared.params.force_limit == 0.8 and shared.status.closed_at is None
+            assert mine.loop is not shared and lab.room.sandboxes.n_arms == 1
+
+            lab.switch("quadruped")
             page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
-                          "following the hand")
+                          "following the quadruped")
             page.set_value("View", "My arm")
             assert "no private arm" in page.wait_notification("No private arm here")
             assert lab.room.private_lesson(cid) is None
@@ -443,6 +452,35 @@ def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
         assert boxes.sweep() == 0 and boxes.has("k")  # kept for a reload
         now[0] += 2.0
         assert boxes.sweep() == 1 and not boxes.has("k") and boxes.n_arms == 0
+    finally:
+        boxes.close()
+
+
+def test_a_seat_keeps_its_students_hand_and_frees_it_when_idle():
+    """The hand lesson's private hand: a reload asks the seat again and gets the same
+    hand, as it was left; an idle seat frees it from the class's loop."""
+    from app.sandboxes import Sandboxes
+    from control.grip import GripParams
+    from hardware.hand import GraspObject
+
+    now = [0.0]
+    boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])
+    try:
+        hand = boxes.seat("k", page=1).hand_for(GraspObject(), GripParams(force_limit=0.6),
+                                                history_s=2.0)
+        hand.close_hand()
+        wait_for(lambda: hand.status.modes != ("idle",) * 3, 30, "the hand closing")
+        boxes.leave("k", page=1)
+        again = boxes.seat("k", page=2).hand_for(GraspObject(size=0.03), GripParams(),
+                                                  history_s=2.0)
+        assert again is hand and again.params.force_limit == 0.6
+        assert again.obj == GraspObject() and boxes.n_arms == 1
+        other = boxes.seat("j", page=3).hand_for(GraspObject(), GripParams(), history_s=2.0)
+        assert other is not hand and other.status.modes == ("idle",) * 3
+        boxes.leave("k", page=2)
+        now[0] += 601.0
+        assert boxes.sweep() == 1 and boxes.n_arms == 1
+        assert "freed" in hand.status.fault and not other.status.fault
     finally:
         boxes.close()
 

@@ -30,6 +30,11 @@ def wait_sim(lesson, seconds: float, *, timeout: float = 30.0) -> None:
         time.sleep(0.02)
 
 
+def force_now(lesson) -> np.ndarray:
+    """(3,) N, the fingertip forces of the loop's newest record row."""
+    return lesson.loop.snapshot(0.05)["force"][-1]
+
+
 def test_lesson_is_registered():
     module = all_lessons()["hand"]
     assert module.TITLE and module.HELP and module.ROBOTS == ("receptionist_arm",)
@@ -42,7 +47,7 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
         client.click(lesson.close_button)
         wait_for(lambda: lesson.loop.status.closed_at is not None)
         wait_sim(lesson, 2.0)
-        np.testing.assert_allclose(lesson.plant.contact_force, 0.4, rtol=0.10)
+        np.testing.assert_allclose(force_now(lesson), 0.4, rtol=0.10)
         # what the lesson shows is what `armlab experiment hand-grip` computes
         shown = lesson.loop.last_grasp(0.4)
         options = GripOptions(force=0.4, stiffness=1000.0, size=6.0, damping=1.0, lpf=None,
@@ -55,10 +60,10 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
         assert lesson.force_plot.updates > 0 and lesson.current_plot.updates > 0
         # a higher limit squeezes harder, read from the current alone
         client.set_value(lesson.force_slider, 1.0)
-        wait_for(lambda: lesson.controller.params.force_limit == 1.0)
+        wait_for(lambda: lesson.loop.params.force_limit == 1.0)
         wait_sim(lesson, 1.0)
-        np.testing.assert_allclose(lesson.plant.contact_force, 1.0, rtol=0.10)
-        assert lesson.controller.modes == ("holding",) * 3
+        np.testing.assert_allclose(force_now(lesson), 1.0, rtol=0.10)
+        assert lesson.loop.status.modes == ("holding",) * 3
 
 
 def test_open_releases_and_the_object_controls_change_the_object(lesson):
@@ -66,23 +71,23 @@ def test_open_releases_and_the_object_controls_change_the_object(lesson):
         client.click(lesson.close_button)
         wait_for(lambda: lesson.loop.status.closed_at is not None)
         wait_sim(lesson, 1.8)
-        assert lesson.plant.contact_force.min() > 0.7
+        assert force_now(lesson).min() > 0.7
         # the size cannot change while the fingers hold the object
         client.set_value(lesson.size_slider, 8.0)
         body = client.wait_notification("Value refused")
         assert "open the hand" in body
-        assert lesson.plant.obj.size == pytest.approx(0.06)
+        assert lesson.loop.obj.size == pytest.approx(0.06)
         client.click(lesson.open_button)
         wait_sim(lesson, 1.0)
         assert lesson.loop.status.modes == ("idle",) * 3
-        assert np.all(lesson.plant.contact_force == 0.0)
+        assert np.all(force_now(lesson) == 0.0)
         # open: a bigger, harder object
         client.set_value(lesson.size_slider, 8.0)
         client.set_value(lesson.presets, "hard")
         wait_for(lambda: lesson.stiffness.value == 5000.0 and lesson.size.value == 8.0)
         wait_sim(lesson, 0.05)
-        assert lesson.plant.obj.size == pytest.approx(0.08)
-        assert lesson.plant.obj.stiffness == 5000.0
+        assert lesson.loop.obj.size == pytest.approx(0.08)
+        assert lesson.loop.obj.stiffness == 5000.0
         assert lesson.scene.object.radius == pytest.approx(0.04)
 
 
@@ -93,8 +98,8 @@ def test_bad_typed_force_is_refused_and_the_lesson_goes_on(lesson, value):
         body = client.wait_notification("Value refused")
         assert body.startswith("force limit")
         assert lesson.force_slider.value == 0.8
-        assert lesson.controller.params.force_limit == 0.8
+        assert lesson.loop.params.force_limit == 0.8
         # still serving: a good value goes through
         client.set_value(lesson.force_slider, 0.5)
-        wait_for(lambda: lesson.controller.params.force_limit == 0.5)
+        wait_for(lambda: lesson.loop.params.force_limit == 0.5)
         assert lesson.loop.status.fault == ""

@@ -167,11 +167,12 @@ def client_main(argv: list[str] | None = None) -> int:
 
 
 def _clients(url: str, n: int, seconds: float, settle: float = 1.5, *,
-             my_arm: bool = False) -> dict[str, float]:
+             my_arm: bool = False, arm_prefix: str | None = None) -> dict[str, float]:
     res = subprocess.run(
         [sys.executable, "-m", "app.benches.ui", "--url", url, "--clients", str(n),
          "--seconds", str(seconds), "--settle", str(settle),
-         *(["--my-arm"] if my_arm else [])],
+         *(["--my-arm"] if my_arm else []),
+         *(["--arm-prefix", arm_prefix] if arm_prefix else [])],
         cwd=ROOT, capture_output=True, text=True,
         timeout=seconds + settle + 120 + (OWN_ARM_TIMEOUT_S if my_arm else 0.0))
     if res.returncode != 0:

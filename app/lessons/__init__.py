@@ -15,7 +15,7 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
   adds the lesson's GUI and scene to ``server`` and starts whatever runs
   behind it (a control loop), returning a handle;
 - ``PRIVATE`` (optional, default False): the lesson can be built on one page
-  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm ("My arm").
+  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm or hand ("My arm").
 
 The handle's ``close()`` stops what runs (loop shut down, hardware torque
 off) and removes everything the lesson added, so another lesson can be
@@ -39,9 +39,12 @@ import viser
 if TYPE_CHECKING:
     from app.arm_process import ArmProcess
     from app.publisher import FrameThread
+    from app.remote_hand import RemoteHand
     from control.backend import Backend
+    from control.grip import GripParams
     from control.loop import ControlLoop
     from control.params import Params
+    from hardware.hand import GraspObject
     from kinematics.model import SerialChain
 
 #: The lesson modules of this package (adding a lesson: add its module name here).
@@ -84,8 +87,8 @@ class LessonContext:
 
 
 class ArmSource(Protocol):
-    """Where a private lesson gets its arm (``app.sandboxes.Seat``): kept across the
-    lesson's closing, so a reload of the page finds the same arm."""
+    """Where a private lesson gets its arm (``app.sandboxes.Seat``) or the arm's hand:
+    kept across the lesson's closing, so a reload of the page finds the same one."""
 
     def kept(self) -> tuple[str, Params] | None:
         """(link preset, gains) of the arm already there, or None."""
@@ -94,6 +97,11 @@ class ArmSource(Protocol):
     def arm_for(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
                 history_s: float) -> tuple[Backend, ControlLoop]:
         """The arm for ``preset`` (the kept one, or a new one at ``q0``), its loop running."""
+        ...
+
+    def hand_for(self, obj: GraspObject, params: GripParams, *,
+                 history_s: float) -> RemoteHand:
+        """The student's hand (the kept one, or a new one, open, around ``obj``), running."""
         ...
 
 

@@ -16,7 +16,9 @@ loop's record and updates the scene (30 Hz) and charts (10 Hz).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import viser
@@ -28,7 +30,10 @@ from app.lessons.hand_scene import HandScene
 from app.plots import COLORS, LivePlot, SeriesSpec, dash
 from control.grip import GripController, GripModel, GripParams
 from control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
-from hardware.hand import MAX_STIFFNESS, GraspObject, HandSim, check_object, make_hand
+from hardware.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
+
+if TYPE_CHECKING:
+    from app.remote_hand import RemoteHand
 
 NAME = "hand"
 TITLE = "The hand: compliant grasp (thesis §2.4)"
@@ -42,6 +47,9 @@ TRY = ("Press **Close (grasp)**: each finger stops when its current says it hold
        "object with F.")
 ROBOTS = ("receptionist_arm",)
 ORDER = 30
+#: a student's page can hold a private copy: their own hand in the class
+#: (``ctx.arms.hand_for``: :mod:`app.class_hands` in the class's worker process)
+PRIVATE = True
 
 STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
 DEFAULT_FORCE = 0.8  #: N
@@ -52,6 +60,7 @@ DEFAULT_STIFFNESS = 1000.0
 WINDOW_S = 6.0  #: seconds shown on the charts
 FINGER_COLORS = (COLORS[0], COLORS[1], COLORS[4])
 ZERO_RGB = "#bbbbbb"
+FIGURES_S = 0.5  #: s between two workings-out of the last grasp's figures
 
 EXPLAIN = """\
 **How the hand knows its grip.** No force sensor: the current *I* of each motor
@@ -82,21 +91,29 @@ class HandLesson(LessonBase):
         pose_hz, plot_hz: scene and chart update rates.
 
     Attributes:
-        plant: the simulated hand.
-        loop: the control loop (read its ``status``, ``snapshot()``, ``last_grasp()``).
+        loop: the control loop (read its ``status``, ``params``, ``snapshot()``,
+            ``last_grasp()``): the lesson's own, or a student's hand in the class
+            (:class:`app.remote_hand.RemoteHand`, with ``ctx.arms``).
     """
 
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
+        self._figures_at = -math.inf  #: monotonic time the figures were last worked out
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
-        self.plant: HandSim = make_hand(size=self.obj.size, stiffness=self.obj.stiffness)
-        self.model = GripModel.of(self.plant)
-        self.controller = GripController(self.model, GripParams(force_limit=DEFAULT_FORCE))
-        self.loop = GripLoop(self.plant, self.controller, realtime=ctx.realtime,
-                             history_s=WINDOW_S + 4.0)
-        self.scene = HandScene(server, self.plant.finger, root="/hand")
+        params = GripParams(force_limit=DEFAULT_FORCE)
+        history_s = WINDOW_S + 4.0
+        self.loop: GripLoop | RemoteHand
+        if ctx.arms is None:
+            plant = make_hand(size=self.obj.size, stiffness=self.obj.stiffness)
+            self.loop = GripLoop(plant, GripController(GripModel.of(plant), params),
+                                 realtime=ctx.realtime, history_s=history_s)
+        else:  # a student's own hand, kept by their seat (as it was, on a reload)
+            self.loop = ctx.arms.hand_for(self.obj, params, history_s=history_s)
+            self.obj = self.loop.obj or self.obj
+        self.model = self.loop.model
+        self.scene = HandScene(server, self.model.finger, root="/hand")
         with self.opening(self.scene.remove):
             self.scene.set_object(self.obj.size, self.obj.stiffness)
             self._build_gui()
@@ -122,25 +139,26 @@ class HandLesson(LessonBase):
             fmax = math.floor(self.model.max_force() * 20.0) / 20.0
             self.force = guarded_slider(
                 gui, "Force limit F (N)", name="force limit", lo=0.05, hi=fmax, step=0.05,
-                initial=DEFAULT_FORCE, apply=self.set_force_limit,
+                initial=self.loop.params.force_limit, apply=self.set_force_limit,
                 hint="Grip force per finger; the controller reads it from the motor current")
             self.speed = guarded_slider(
                 gui, "Approach speed (cm/s)", name="approach speed", lo=0.5, hi=10.0,
-                step=0.5, initial=3.0, apply=self.set_approach_speed,
+                step=0.5, initial=self.loop.params.approach_speed * 100.0,
+                apply=self.set_approach_speed,
                 hint="Fingertip speed while closing: faster means a harder first touch")
             self.force_slider = self.force.handle
         objf = self._gui.add(gui.add_folder("Object", order=-60.0))
         with objf:
-            g = self.plant.finger
+            g = self.model.finger
             lo = math.ceil(g.min_size * 200.0) / 2.0  # cm, half-centimetre steps
             hi = math.floor(g.max_size * 200.0 - 1.0) / 2.0
             self.size = guarded_slider(
                 gui, "Size (cm)", name="size", lo=1.0, hi=hi, step=0.5,
-                initial=DEFAULT_SIZE_CM, apply=lambda v: self.set_object(size_cm=v),
+                initial=self.obj.size * 100.0, apply=lambda v: self.set_object(size_cm=v),
                 hint=f"Diameter of the cylinder; under {lo:g} cm the fingers close on nothing")
             self.stiffness = guarded_slider(
                 gui, "Stiffness (N/m)", name="stiffness", lo=100.0,
-                hi=min(20000.0, MAX_STIFFNESS), step=100.0, initial=DEFAULT_STIFFNESS,
+                hi=min(20000.0, MAX_STIFFNESS), step=100.0, initial=self.obj.stiffness,
                 apply=lambda v: self.set_object(stiffness=v),
                 hint="Contact stiffness of object and pad")
             self.size_slider = self.size.handle
@@ -186,7 +204,7 @@ class HandLesson(LessonBase):
 
     def set_force_limit(self, force: float) -> None:
         """New grip-force limit F, N (applied at the loop's next period). ValueError to refuse."""
-        replace(self.controller.params, force_limit=force)  # validates
+        replace(self.loop.params, force_limit=force)  # validates
         if force > self.model.max_force():
             raise ValueError(f"force limit must be <= {self.model.max_force():.2f} N")
         self.loop.post(SetGripParams(force_limit=force))
@@ -194,7 +212,7 @@ class HandLesson(LessonBase):
     def set_approach_speed(self, cm_per_s: float) -> None:
         """Fingertip approach speed, cm/s."""
         v = cm_per_s / 100.0
-        replace(self.controller.params, approach_speed=v)  # validates
+        replace(self.loop.params, approach_speed=v)  # validates
         self.loop.post(SetGripParams(approach_speed=v))
 
     def set_object(self, *, size_cm: float | None = None,
@@ -207,7 +225,7 @@ class HandLesson(LessonBase):
         with self._lock:
             size = self.obj.size if size_cm is None else size_cm / 100.0
             k = self.obj.stiffness if stiffness is None else stiffness
-            obj = check_object(replace(self.obj, size=size, stiffness=k), self.plant.finger)
+            obj = check_object(replace(self.obj, size=size, stiffness=k), self.model.finger)
             if size != self.obj.size and any(m != "idle" for m in self.loop.status.modes):
                 raise ValueError("open the hand before changing the object's size")
             self.obj = obj
@@ -221,23 +239,33 @@ class HandLesson(LessonBase):
         if len(snap["t"]) == 0:
             return
         self.scene.set_state(snap["angle"][-1], snap["force"][-1],
-                             self.controller.params.force_limit)
+                             self.loop.params.force_limit)
 
     def _plot_frame(self, force: bool) -> None:
         snap = self.loop.snapshot(WINDOW_S + 0.5)
         t = snap["t"]
         if len(t) < 2:
             return
-        limit = self.controller.params.force_limit
+        limit = self.loop.params.force_limit
         zero = np.zeros(len(t))
         self.current_plot.update(t, (*(snap["current"][:, i] for i in range(3)), zero),
                                  force=force)
         self.force_plot.update(t, (*(snap["force"][:, i] for i in range(3)),
                                    np.full(len(t), limit), snap["estimate"][:, 0], zero),
                                force=force)
-        self._update_status(snap, limit)
+        self._update_status(snap, limit, figures=force or self._figures_due())
 
-    def _update_status(self, snap: dict[str, np.ndarray], limit: float) -> None:
+    def _figures_due(self) -> bool:
+        """Whether the grasp's figures are to be worked out again (every
+        :data:`FIGURES_S` s: they read the whole record since the close)."""
+        now = time.monotonic()
+        if now - self._figures_at < FIGURES_S:
+            return False
+        self._figures_at = now
+        return True
+
+    def _update_status(self, snap: dict[str, np.ndarray], limit: float, *,
+                       figures: bool = True) -> None:
         st = self.loop.status
         modes = st.modes
         word = modes[0] if len(set(modes)) == 1 else ", ".join(modes)
@@ -250,6 +278,8 @@ class HandLesson(LessonBase):
             f"{', '.join(f'{x:.2f}' for x in f)} N · current "
             f"{', '.join(f'{x:.2f}' for x in cur)} A"))
         self.scene.set_label("closed on nothing" if modes[0] == "empty" else " ")
+        if not figures:
+            return
         fig = self.loop.last_grasp(limit)
         if fig is not None:
             self._grasp = (st.closed_at, fig)

@@ -32,6 +32,10 @@ def stiffness_rgb(stiffness: float) -> tuple[int, int, int]:
     return tuple(int(v) for v in (1 - a) * soft + a * hard)  # type: ignore[return-value]
 
 
+#: rad a finger must turn before the page is sent its new pose (0.006°: not visible)
+STILL_RAD = 1e-4
+
+
 def pad_rgb(force: float, limit: float) -> tuple[int, int, int]:
     """Fingertip colour for ``force`` N against the limit ``limit`` N."""
     a = float(np.clip(force / limit, 0.0, 1.0)) if limit > 0 else 0.0
@@ -57,6 +61,8 @@ class HandScene:
                            color=(235, 235, 240), position=(0.0, 0.0, -0.005))
         self.fingers: list[viser.FrameHandle] = []
         self.pads: list[viser.IcosphereHandle] = []
+        self._shown_phi = [g.open_angle] * len(g.azimuths)  #: what the page shows, rad
+        self._shown_rgb: list[tuple[int, int, int] | None] = [None] * len(g.azimuths)
         for i, az in enumerate(g.azimuths):
             hinge = (g.hinge_radius * math.cos(az), g.hinge_radius * math.sin(az), 0.0)
             # the 6 V gearmotor (24 x 10 x 12 mm) under the palm, pulling the tendon
@@ -89,7 +95,9 @@ class HandScene:
         In the finger's plane x is radial outward, so closing (phi > 0) turns +z
         towards −x: a rotation by −phi about the frame's y axis.
         """
-        return (vtf.SO3.from_z_radians(azimuth) @ vtf.SO3.from_y_radians(-phi)).wxyz
+        cz, sz = math.cos(0.5 * azimuth), math.sin(0.5 * azimuth)
+        cy, sy = math.cos(-0.5 * phi), math.sin(-0.5 * phi)
+        return np.array([cz * cy, -sz * sy, cz * sy, sz * cy])  # q_z(azimuth) ⊗ q_y(−phi)
 
     def set_object(self, size: float | None, stiffness: float) -> None:
         """Draw the object: a cylinder of diameter ``size`` m (None: no object)."""
@@ -101,13 +109,23 @@ class HandScene:
         self.object.visible = True
 
     def set_state(self, phi: np.ndarray, force: np.ndarray, limit: float) -> None:
-        """Pose the fingers at ``phi`` (3,) rad and show the fingertip forces (3,) N."""
+        """Pose the fingers at ``phi`` (3,) rad and show the fingertip forces (3,) N.
+
+        Sends only what the page would see change: a finger that turned by more than
+        :data:`STILL_RAD`, a pad whose colour changed, the arrows while a force shows (a
+        class of resting hands costs its pages nothing)."""
         g = self.g
         for i, az in enumerate(g.azimuths):
-            self.fingers[i].wxyz = self._finger_wxyz(az, float(phi[i]))
-            self.pads[i].color = pad_rgb(float(force[i]), limit)
+            if abs(float(phi[i]) - self._shown_phi[i]) > STILL_RAD:
+                self._shown_phi[i] = float(phi[i])
+                self.fingers[i].wxyz = self._finger_wxyz(az, float(phi[i]))
+            rgb = pad_rgb(float(force[i]), limit)
+            if rgb != self._shown_rgb[i]:
+                self._shown_rgb[i] = rgb
+                self.pads[i].color = rgb
         if np.max(force) < 0.01:
-            self.arrows.visible = False
+            if self.arrows.visible:
+                self.arrows.visible = False
             return
         tips = tip_positions(g, phi)
         az = np.asarray(g.azimuths)
