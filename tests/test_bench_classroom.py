@@ -1,6 +1,7 @@
 """The classroom bench's class of loops runs both ways (batched, and the per-arm reference it
-is compared with in the same run) with every arm's trajectory and push and no fault: its
-figures are figures of that work, never asserted here."""
+is compared with in the same run) with every arm's trajectory and push and no fault, and
+its room of private hands delivers: its figures are figures of that work, never asserted
+here."""
 
 from __future__ import annotations
 
@@ -15,3 +16,14 @@ from app.benches.classroom import loops_ms_cost
 def test_the_class_of_loops_runs_without_a_fault(batched: bool) -> None:
     cost = loops_ms_cost(12, seconds=0.2, batched=batched)  # raises if an arm faulted
     assert math.isfinite(cost) and cost > 0.0
+
+
+def test_a_room_of_pages_each_with_its_own_hand_gets_frames_of_it() -> None:
+    """Three pages choose My arm in the hand lesson; each draws its own hand (the clients
+    wait for that) and receives frames of its own lesson while the hands close and open;
+    no hand faults (the bench raises)."""
+    from app.benches.classroom import hand_room
+
+    res = hand_room(seconds=3.0, pages=3, settle=1.0)
+    assert res["classroom_30_hand_pose_hz"] > 0.0
+    assert res["classroom_30_hand_bytes_per_client_per_s"] > 0.0

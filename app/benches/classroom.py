@@ -1,4 +1,4 @@
-"""Classroom figures: private compliance-lesson arms per core, and a room of 30 pages.
+"""Classroom figures: private compliance-lesson arms per core, and rooms of 30 pages.
 
 Figures:
     sandboxes_realtime_per_core: arms (``receptionist_arm``, three RX-24F each) that one
@@ -40,6 +40,12 @@ Figures:
         fake pages (one thread): near 1, they, not the server, may limit the rates (in a
         classroom each browser has a device of its own).
     (120 s of the room, 20 s with ``--quick``.)
+    classroom_30_hand_pose_hz: the same room on the hand lesson: 30 pages each showing
+        its own hand (one row of the class's batched hands, :mod:`app.class_hands`, in the
+        class's worker), every hand closing and opening again and again; the lowest rate
+        of frames of its own lesson any page receives (``_median``: the median page's);
+        ``classroom_30_hand_bytes_per_client_per_s``: bytes per page per second (mean).
+        (60 s, 20 s with ``--quick``.)
 
 Median of repeats, ``time.perf_counter``; the machine is shared, so these are figures,
 never asserted by a test.
@@ -218,6 +224,50 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     }
 
 
+def hand_room(*, seconds: float, pages: int = 30, settle: float = 15.0) -> dict[str, float]:
+    """The classroom_30_hand figures (see the module docstring), counted for ``seconds``
+    from ``settle`` s after every page drew its own hand."""
+    from app.benches.ui import _clients
+    from app.server import Lab, ServeOptions
+
+    lab = Lab(ServeOptions(http_port=0, classroom=True, lesson="hand"))
+    room = lab.room
+    assert room is not None
+    stop = threading.Event()
+    seen: set[int] = set()
+    faults: list[str] = []
+
+    def students_grasp() -> None:  # every 3 s: close, then open 2 s later
+        for k in range(1, 1 << 30):
+            if stop.wait(0.5):
+                return
+            for lesson in room.private_lessons().values():
+                if id(lesson) not in seen:
+                    seen.add(id(lesson))
+                    _probe(lesson)
+                if lesson.loop.status.fault:
+                    faults.append(lesson.loop.status.fault)
+                if k % 6 == 0:
+                    lesson.close_hand()
+                elif k % 6 == 4:
+                    lesson.open_hand()
+
+    player = threading.Thread(target=students_grasp, name="bench-students", daemon=True)
+    try:
+        player.start()
+        res = _clients(lab.url.replace("http://", "ws://"), pages, seconds, settle=settle,
+                       my_arm=True, arm_prefix="/hand/finger")
+    finally:
+        stop.set()
+        player.join(2.0)
+        lab.close()
+    if faults:
+        raise RuntimeError(f"classroom bench: private hands faulted: {sorted(set(faults))[:3]}")
+    return {"classroom_30_hand_pose_hz": res["own_pose_hz_min"],
+            "classroom_30_hand_pose_hz_median": res["own_pose_hz_median"],
+            "classroom_30_hand_bytes_per_client_per_s": res["bytes_per_client_per_s"]}
+
+
 def run(quick: bool) -> dict[str, float]:
     """The figures above (about 1 min quick, 3 min otherwise)."""
     out: dict[str, float] = {}
@@ -232,4 +282,5 @@ def run(quick: bool) -> dict[str, float]:
     out["sandboxes_batched_over_single"] = (out["sandboxes_realtime_per_core"]
                                             / out["sandboxes_single_plants_realtime_per_core"])
     out.update(room_of_30(seconds=20.0 if quick else 120.0))
+    out.update(hand_room(seconds=20.0 if quick else 60.0))
     return out
