@@ -399,6 +399,28 @@ class BatchedPlant:
         self._p_point = np.vstack([self._p_point, p])
         self._p_until = np.append(self._p_until, self.t + d)
 
+    def push_rows(self, rows: Sequence[int] | np.ndarray, force_base: np.ndarray, *,
+                  link: int, point: np.ndarray, duration: float) -> None:
+        """:meth:`push` on many arms at once: on the arm in each row of ``rows`` (P,) the
+        force of the same row of ``force_base`` (P, 3) N, base frame, at ``point`` (3,) m in
+        link ``link``'s frame, for ``duration`` s from now (e.g. the floor on many feet; the
+        pushes go after the ones given before, in ``rows`` order). Bad input adds none."""
+        cols = self._rows(rows)
+        if isinstance(cols, slice):
+            raise ValueError("rows must name the arm rows to push, got None")
+        f = np.asarray(force_base, dtype=float)
+        if f.shape != (cols.size, 3) or not np.all(np.isfinite(f)):
+            raise ValueError(f"force_base must be finite, of shape ({cols.size}, 3), got "
+                             f"{f.shape}")
+        p = vector("point", point, 3)
+        k = self._link(link, "link")
+        d = scalar("duration", duration, nonnegative=True)
+        self._p_row = np.concatenate([self._p_row, cols])
+        self._p_link = np.concatenate([self._p_link, np.full(cols.size, k, dtype=np.int64)])
+        self._p_force = np.concatenate([self._p_force, f])
+        self._p_point = np.concatenate([self._p_point, np.tile(p, (cols.size, 1))])
+        self._p_until = np.concatenate([self._p_until, np.full(cols.size, self.t + d)])
+
     def set_spring(self, arm: int, anchor_base: np.ndarray | None, *, stiffness: float,
                    link: int, point: np.ndarray, damping: float = 0.0) -> None:
         """Pull ``point`` (3,) m on ``link`` of arm ``arm`` towards ``anchor_base`` (3,) m,

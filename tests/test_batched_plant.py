@@ -352,3 +352,33 @@ def test_spring_and_wall_go_with_their_arm() -> None:
         batch.set_spring(1, np.zeros(3), stiffness=-1.0, link=0, point=np.zeros(3))
     with pytest.raises(ValueError, match="arm 0"):
         batch.set_wall(0, None)
+
+
+def test_pushes_on_many_rows_at_once_equal_one_push_per_arm() -> None:
+    """``push_rows`` (the floor on many feet) as the same pushes one by one; bad input adds
+    none."""
+    _, one = _pair()
+    _, many = _pair()
+    forces = np.array([[0.0, 2.0, -1.0], [1.0, 0.0, 3.0], [-2.0, 1.0, 0.5]])
+    for k in range(300):
+        if k in (20, 150):
+            for arm, f in zip((4, 0, 2), forces * (1 + k / 100), strict=True):
+                one.push(arm, f, link=2, point=np.array([0.1, 0.0, 0.02]), duration=0.1)
+            many.push_rows([4, 0, 2], forces * (1 + k / 100), link=2,
+                           point=np.array([0.1, 0.0, 0.02]), duration=0.1)
+        one.step()
+        many.step()
+    assert np.array_equal(one.q, many.q) and np.array_equal(one.qd, many.qd)
+    _, ref = _pair()
+    for _ in range(300):
+        ref.step()
+    assert np.max(np.abs(ref.q - many.q)[[0, 2, 4]]) > 1e-4  # the pushes did something
+    for rows, f, link in (([0, 5], np.ones((2, 3)), 1), ([0, 1], np.ones((3, 3)), 1),
+                          ([0], np.array([[np.nan, 0.0, 0.0]]), 1), ([0], np.ones((1, 3)), 3),
+                          (None, np.ones((5, 3)), 1)):
+        with pytest.raises(ValueError, match="rows|force_base|link"):
+            many.push_rows(rows, f, link=link, point=np.zeros(3), duration=0.1)  # type: ignore[arg-type]
+    for _ in range(10):
+        one.step()
+        many.step()
+    assert np.array_equal(one.q, many.q)  # the bad pushes never were

@@ -1,0 +1,571 @@
+"""N simulated quadrupeds of one model stepped together: ``QuadrupedSimBackend``, numpy over
+robots.
+
+A classroom gives every student a private quadruped (12 AX-12A: legs RF, LF, RH, LH, each
+hip yaw, hip pitch, knee). Instead of N ``QuadrupedSimBackend`` objects (four ``Plant``
+each, stepped in Python), :class:`BatchedQuadrupeds` keeps one
+:class:`hardware.batched_plant.BatchedPlant` per leg chain (the four legs are different
+chains, in ``model.legs`` order), every robot an arm of each, and carries every robot's
+body as :class:`hardware.quadruped_sim.BodyOnLegs` does, for all robots at once:
+
+1. every :data:`~hardware.quadruped_sim.LOAD_STEP` s of a robot's own time (from the step
+   it joined) the floor plane its body rests on is found from where its feet really are
+   (:func:`rest_planes`, the vectorised :func:`kinematics.body_statics.rest_plane`), its
+   weight is shared among the feet that touch it (:func:`floor_forces`, the vectorised
+   :func:`~kinematics.body_statics.contact_forces`) and each contact foot is pushed by its
+   share along the floor's normal for LOAD_STEP (one :meth:`BatchedPlant.push_rows` per
+   leg for all robots due); a robot whose servos let go (any torque off) sits down on its
+   body, as does one whose feet no longer reach below its belly;
+2. then every leg plant steps once (:meth:`BatchedPlant.step`).
+
+The semantics are those of N ``QuadrupedSimBackend`` each synced to multiples of
+LOAD_STEP of its own time (the lesson's gait loop syncs every 20 ms):
+tests/test_batched_quadruped.py checks q, qd to 1e-9 and the servos' reports exactly.
+One difference: ``QuadrupedSimBackend.sync(t)`` renews the load at ``t`` too when ``t`` is
+not a multiple of LOAD_STEP of its time; here the renewals are every LOAD_STEP of the
+robot's time whatever its loop syncs to.
+
+:class:`BatchedQuadrupedBackend` is one robot of a batch behind the
+:class:`control.backend.Backend` protocol (12 joints, as ``QuadrupedSimBackend``), for a
+:class:`control.gait_loop.GaitLoop`. As :class:`hardware.batched_backend.BatchedArmBackend`,
+its ``sync`` does not step the batch (one clock thread steps it for every robot; ``sync``
+waits until the batch has reached the loop's time) unless it is made with ``drive=True``
+(a batch without a clock: ``sync`` steps the whole batch, every robot in it, to the time).
+
+Frames and units: forces and points as ``QuadrupedSimBackend``'s (each leg's hip-mount
+frame, the body frame's axes), N, m, s; joint angles rad, legs in order.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from control.backend import BackendError, GoalLimits, JointState
+from hardware.batched_backend import add_sim_arm, decode_words, word_tables
+from hardware.batched_plant import BatchedPlant, ReportWords
+from hardware.quadruped_sim import BELLY_RAMP, LEG_JOINTS, LOAD_STEP, G, total_mass
+from hardware.servo_spec import AX12A
+from hardware.sim_backend import raw_goals, servo_limits
+from kinematics.batched_dynamics import batched_dynamics
+from kinematics.body_statics import CONTACT_TOL, contact_forces
+from kinematics.model import Quadruped
+from kinematics.quadruped import LEGS, QuadrupedGeometry, foot_in_tibia
+from kinematics.validate import index, scalar, vector
+
+#: The link each foot is on (the tibia).
+FOOT_LINK = LEG_JOINTS - 1
+#: The four triangles of feet, in :func:`kinematics.body_statics.rest_plane`'s order.
+TRIANGLES = tuple(itertools.combinations(range(4), 3))
+
+
+# -- the body's statics over robots (kinematics.body_statics, numpy over R robots) ----------
+
+def feet_and_coms(model: Quadruped, q: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Feet (R, 4, 3) and centres of mass (R, 3) in the body frame, m, of R robots whose
+    legs are at ``q``: per leg in ``model.legs`` order its joint angles (R, 3) rad
+    (:func:`kinematics.body_statics.feet_and_com` over robots)."""
+    rows = q[0].shape[0]
+    feet = np.empty((rows, len(model.legs), 3))
+    total, moment = model.body_mass, np.zeros((rows, 3))
+    for i, (chain, qi) in enumerate(zip(model.legs.values(), q, strict=True)):
+        fr = batched_dynamics(chain).frames(np.ascontiguousarray(qi.T))  # (12 n, R)
+        rb, pb = chain.base_pose[:3, :3], chain.base_pose[:3, 3]
+
+        def body(j: int, x: np.ndarray, _fr: np.ndarray = fr, _rb: np.ndarray = rb,
+                 _pb: np.ndarray = pb) -> np.ndarray:
+            """Point ``x`` (3,) of link ``j`` in the body frame, (R, 3)."""
+            rot = _fr[12 * j:12 * j + 9].T.reshape(rows, 3, 3)
+            p = rot @ x + _fr[12 * j + 9:12 * j + 12].T
+            return p @ _rb.T + _pb
+
+        feet[:, i] = body(chain.n - 1, chain.tip[:3, 3])
+        for j, link in enumerate(chain.links):
+            moment += link.mass * body(j, link.com)
+            total += link.mass
+    return feet, moment / total
+
+
+def rest_planes(feet: np.ndarray, com: np.ndarray, *, tol: float = CONTACT_TOL
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`kinematics.body_statics.rest_plane` of R robots: feet (R, 4, 3), com (R, 3), m.
+
+    Returns:
+        (n, d, contact, ok): the floor's unit normal (R, 3), offset (R,) (the floor is
+        n·x = d), contact flags (R, 4), and (R,) whether three feet span a plane under
+        the body at all (where not, ``rest_plane`` raises; n, d, contact are then
+        meaningless).
+    """
+    rows = feet.shape[0]
+    normals = np.empty((rows, len(TRIANGLES), 3))
+    offsets = np.empty((rows, len(TRIANGLES)))
+    valid = np.empty((rows, len(TRIANGLES)), dtype=bool)
+    in_z = np.empty_like(valid)
+    in_n = np.empty_like(valid)
+    for t, tri in enumerate(TRIANGLES):
+        p = feet[:, list(tri)]  # (R, 3, 3)
+        nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        norm = np.sqrt(np.sum(nrm * nrm, axis=1))
+        ok = (norm >= 1e-12) & (np.abs(nrm[:, 2]) >= 0.5 * norm)
+        n = nrm / np.where(ok, norm, 1.0)[:, None] * np.where(nrm[:, 2] < 0, -1.0, 1.0)[:, None]
+        d = np.einsum("rc,rc->r", n, p[:, 0])
+        ok &= np.all(np.einsum("rkc,rc->rk", feet, n) >= d[:, None] - tol, axis=1)
+        normals[:, t], offsets[:, t], valid[:, t] = n, d, ok
+        # the centre of mass inside the triangle, seen along body z, then along n
+        edges = p[:, [1, 2, 0]] - p  # (R, 3 edges, 3)
+        to_c = com[:, None, :] - p
+        cross = np.cross(edges, to_c)  # (R, 3, 3)
+        for flags, s in ((in_z, cross[:, :, 2]), (in_n, np.einsum("rkc,rc->rk", cross, n))):
+            flags[:, t] = (s.min(axis=1) >= -1e-12) | (s.max(axis=1) <= 1e-12)
+    first_z, first_n = valid & in_z, valid & in_n
+    least_tilted = np.argmax(np.where(valid, normals[:, :, 2], -np.inf), axis=1)
+    choice = np.where(first_z.any(axis=1), np.argmax(first_z, axis=1),
+                      np.where(first_n.any(axis=1), np.argmax(first_n, axis=1), least_tilted))
+    r = np.arange(rows)
+    n, d = normals[r, choice], offsets[r, choice]
+    contact = np.abs(np.einsum("rkc,rc->rk", feet, n) - d[:, None]) <= tol
+    return n, d, contact, valid.any(axis=1)
+
+
+def floor_forces(feet: np.ndarray, com: np.ndarray, weight: np.ndarray, n: np.ndarray,
+                 contact: np.ndarray) -> np.ndarray:
+    """(R, 4) the floor's normal force on each foot, N: per robot
+    :func:`kinematics.body_statics.contact_forces` of its contact feet carrying ``weight``
+    (R,) N, 0 on the others (feet (R, 4, 3), com (R, 3), n (R, 3), contact (R, 4)).
+
+    Three or four contacts (every rest plane has three): the least-norm shares of the
+    moment balance for all robots at once; fewer: ``contact_forces`` per robot."""
+    rows = feet.shape[0]
+    f = np.zeros(contact.shape)
+    k = contact.sum(axis=1)
+    many = k >= 3
+    if many.any():
+        m = contact[many].astype(float)
+        nn = n[many]
+        e1 = np.stack([-nn[:, 2], np.zeros(len(nn)), nn[:, 0]], axis=1)  # n × y
+        e1 /= np.sqrt(np.sum(e1 * e1, axis=1))[:, None]
+        e2 = np.cross(nn, e1)
+        rel = feet[many] - com[many, None, :]
+        a = np.stack([m, np.einsum("rkc,rc->rk", rel, e1) * m,
+                      np.einsum("rkc,rc->rk", rel, e2) * m], axis=1)  # (R', 3, 4)
+        y = np.linalg.solve(a @ a.transpose(0, 2, 1),
+                            np.broadcast_to([1.0, 0.0, 0.0], (len(nn), 3))[..., None])
+        shares = np.clip((a.transpose(0, 2, 1) @ y)[..., 0], 0.0, None)
+        f[many] = weight[many, None] * shares / shares.sum(axis=1, keepdims=True)
+    for r in np.flatnonzero(~many & (k > 0)):  # not from a rest plane: as BodyOnLegs
+        f[r, contact[r]] = contact_forces(feet[r, contact[r]], com[r], float(weight[r]), n[r])
+    assert f.shape == (rows, contact.shape[1])
+    return f
+
+
+# -- the robots ---------------------------------------------------------------------------
+
+class BatchedQuadrupeds:
+    """N simulated quadrupeds of one model (AX-12A servos), stepped together at ``dt``.
+
+    Args:
+        model: the quadruped (``kinematics.load_robot("quadruped")``).
+        dt: plant step and servo tick, s; LOAD_STEP must be a whole number of steps.
+        body_mass: kg every robot's legs carry (default the whole robot; 0: legs unloaded).
+        belly: m from the body frame's origin down to the body's underside (BodyOnLegs').
+
+    Attributes:
+        legs: the four :class:`BatchedPlant` (one per leg chain, ``model.legs`` order);
+            robot id = its arm id in each, its row the same in each.
+        weight: N each robot's feet carry.
+
+    Robots are named by a stable id (:meth:`add`); rows are the robots in the order they
+    joined (as a BatchedPlant's arms). Not thread-safe: the owner holds a lock around
+    every use (the backends take the one they are given).
+    """
+
+    def __init__(self, model: Quadruped, *, dt: float = 1e-3, body_mass: float | None = None,
+                 belly: float = QuadrupedGeometry().body_size[2] / 2) -> None:
+        if not isinstance(model, Quadruped):
+            raise ValueError("model: BatchedQuadrupeds needs a Quadruped")
+        self.model = model
+        self.legs = tuple(BatchedPlant(chain, AX12A, dt=dt) for chain in model.legs.values())
+        self.dt = self.legs[0].dt
+        every = LOAD_STEP / self.dt
+        if abs(every - round(every)) > 1e-9:
+            raise ValueError(f"dt must divide LOAD_STEP = {LOAD_STEP} s, got {dt}")
+        self.load_every = int(round(every))  #: steps between load renewals
+        self.belly = scalar("belly", belly, nonnegative=True)
+        self.weight = G * (total_mass(model) if body_mass is None
+                           else scalar("body_mass", body_mass, nonnegative=True))
+        self._feet_points = [foot_in_tibia(leg) for leg in LEGS]
+        limits = [servo_limits(p.model, p.specs, p.directions) for p in self.legs]
+        self.lower = np.concatenate([lo for lo, _ in limits])  #: (12,) rad, servo limits
+        self.upper = np.concatenate([hi for _, hi in limits])  #: (12,) rad
+        self._k0 = np.zeros(0, dtype=np.int64)  # the step each robot joined at
+        self._tilt = np.zeros(0)
+        self._contact = np.zeros((0, len(self.legs)), dtype=bool)
+        self._forces = np.zeros((0, len(self.legs)))
+
+    # -- robots ---------------------------------------------------------------------
+
+    @property
+    def n_robots(self) -> int:
+        """N, the number of robots."""
+        return self.legs[0].n_arms
+
+    @property
+    def ids(self) -> np.ndarray:
+        """(N,) the id of the robot in each row."""
+        return self.legs[0].arm_ids
+
+    def row(self, robot: int) -> int:
+        """The row of robot id ``robot``; ValueError when there is no such robot."""
+        try:
+            return self.legs[0].row(robot)
+        except ValueError:
+            raise ValueError(f"robot must be a robot id in this batch (ids: "
+                             f"{self.ids.tolist()}), got {robot!r}") from None
+
+    def add(self, q0: Sequence[float] | np.ndarray | None = None, *,
+            torque_on: bool = True) -> int:
+        """A new robot at ``q0`` (12,) rad (default zeros), at rest, its servos as a fresh
+        ``QuadrupedSimBackend``'s (thesis registers, Angle Limits at the joint limits, goal
+        at ``q0``; torque on unless ``torque_on`` is False). Its time starts now. Returns
+        its id."""
+        n = LEG_JOINTS * len(self.legs)
+        q = np.zeros(n) if q0 is None else vector("q0", q0, n)
+        ids = {add_sim_arm(p, q0=q[LEG_JOINTS * k:LEG_JOINTS * (k + 1)], torque_on=torque_on)
+               for k, p in enumerate(self.legs)}
+        assert len(ids) == 1, "the leg plants' arm ids went apart"
+        self._k0 = np.append(self._k0, self.steps)
+        self._tilt = np.append(self._tilt, 0.0)
+        self._contact = np.vstack([self._contact, np.ones((1, len(self.legs)), dtype=bool)])
+        self._forces = np.vstack([self._forces, np.zeros((1, len(self.legs)))])
+        return ids.pop()
+
+    def remove(self, robot: int) -> None:
+        """Remove robot ``robot`` (its pushes and springs); the rows after it move up."""
+        r = self.row(robot)
+        for p in self.legs:
+            p.remove_arm(robot)
+        self._k0 = np.delete(self._k0, r)
+        self._tilt = np.delete(self._tilt, r)
+        self._contact = np.delete(self._contact, r, axis=0)
+        self._forces = np.delete(self._forces, r, axis=0)
+
+    # -- state ----------------------------------------------------------------------
+
+    @property
+    def steps(self) -> int:
+        """Steps taken since the batch was made."""
+        return self.legs[0].steps
+
+    @property
+    def t(self) -> float:
+        """The batch's time, s (steps · dt)."""
+        return self.legs[0].t
+
+    def time_of(self, robot: int) -> float:
+        """Robot ``robot``'s own time: s since it joined."""
+        return (self.steps - int(self._k0[self.row(robot)])) * self.dt
+
+    def behind(self, robot: int, t: float) -> bool:
+        """Whether the batch must step further for robot ``robot``'s time to reach ``t`` s
+        (to within dt/2, as ``Plant.advance_to``)."""
+        return (self.steps - int(self._k0[self.row(robot)]) + 0.5) * self.dt <= t
+
+    @property
+    def q(self) -> np.ndarray:
+        """(N, 12) true joint positions, rad, legs in order."""
+        return np.concatenate([p.q for p in self.legs], axis=1)
+
+    @property
+    def qd(self) -> np.ndarray:
+        """(N, 12) true joint velocities, rad/s."""
+        return np.concatenate([p.qd for p in self.legs], axis=1)
+
+    @property
+    def tilt_deg(self) -> np.ndarray:
+        """(N,) each body's tilt at its last load renewal, degrees."""
+        return self._tilt.copy()
+
+    @property
+    def contact(self) -> np.ndarray:
+        """(N, 4) which feet touched the floor then."""
+        return self._contact.copy()
+
+    @property
+    def forces(self) -> np.ndarray:
+        """(N, 4) the floor's normal force on each foot then, N."""
+        return self._forces.copy()
+
+    # -- forces ---------------------------------------------------------------------
+
+    def leg_of(self, link: int) -> tuple[BatchedPlant, int]:
+        """The leg plant of joint ``link`` (0..11) and the link in it."""
+        k = index("link", link, LEG_JOINTS * len(self.legs))
+        return self.legs[k // LEG_JOINTS], k % LEG_JOINTS
+
+    def push(self, robot: int, force: np.ndarray, *, link: int, point: np.ndarray,
+             duration: float) -> None:
+        """Apply ``force`` (3,) N, the leg's hip-mount frame, at ``point`` (3,) m in link
+        ``link``'s frame (0..11: leg ``link // 3``, its link ``link % 3``) of robot
+        ``robot`` for ``duration`` s from now."""
+        self.row(robot)
+        plant, i = self.leg_of(link)
+        plant.push(robot, force, link=i, point=point, duration=duration)
+
+    def set_spring(self, robot: int, anchor: np.ndarray | None, *, stiffness: float,
+                   link: int, point: np.ndarray) -> None:
+        """Pull ``point`` on ``link`` (0..11) of robot ``robot`` towards ``anchor`` (3,) m,
+        hip-mount frame, with ``stiffness`` N/m; None releases that leg's spring."""
+        self.row(robot)
+        plant, i = self.leg_of(link)
+        plant.set_spring(robot, anchor, stiffness=stiffness, link=i, point=point)
+
+    # -- stepping -------------------------------------------------------------------
+
+    def step(self) -> None:
+        """Renew the body load of the robots due (every LOAD_STEP of their time), then
+        step every leg plant once. FloatingPointError naming the robots that diverged
+        (after every leg has stepped)."""
+        if self.weight > 0.0 and self._k0.size:
+            due = np.flatnonzero((self.steps - self._k0) % self.load_every == 0)
+            if due.size:
+                self._load(due)
+        bad: list[int] = []
+        for p in self.legs:
+            try:
+                p.step()
+            except FloatingPointError:
+                bad.extend(p.diverged().tolist())
+        if bad:
+            raise FloatingPointError(f"robots {sorted(set(bad))} diverged at t = "
+                                     f"{self.t:.3f} s")
+
+    def advance_to(self, t: float) -> int:
+        """Step until the batch's time reaches ``t`` s (to within dt/2); returns the steps."""
+        target = scalar("t", t)
+        steps = 0
+        while (self.steps + 0.5) * self.dt <= target:
+            self.step()
+            steps += 1
+        return steps
+
+    def advance_robot_to(self, robot: int, t: float) -> int:
+        """Step the batch (every robot) until robot ``robot``'s own time reaches ``t`` s."""
+        target = scalar("t", t)
+        steps = 0
+        while self.behind(robot, target):
+            self.step()
+            steps += 1
+        return steps
+
+    def _load(self, rows: np.ndarray) -> None:
+        """:meth:`BodyOnLegs.load` for the robots in ``rows`` (R,), for LOAD_STEP from now."""
+        q = [p.q[rows] for p in self.legs]
+        holding = np.ones(rows.size, dtype=bool)
+        for p in self.legs:
+            holding &= np.all(p.register("torque_enable")[rows] != 0, axis=1)
+        feet, com = feet_and_coms(self.model, q)
+        n, d, contact, ok = rest_planes(feet, com)
+        contact &= (ok & holding)[:, None]  # no plane, or a servo let go: the body sits down
+        share = np.where(contact.any(axis=1),
+                         np.clip((-d - self.belly) / BELLY_RAMP, 0.0, 1.0), 0.0)
+        carried = share > 0.0
+        contact &= carried[:, None]
+        f = floor_forces(feet, com, share * self.weight, n, contact)
+        duration = self.load_every * self.dt
+        for i, plant in enumerate(self.legs):
+            on = f[:, i] > 0.0
+            if on.any():
+                plant.push_rows(rows[on], f[on, i, None] * n[on], link=FOOT_LINK,
+                                point=self._feet_points[i], duration=duration)
+        self._contact[rows], self._forces[rows] = contact, f
+        self._tilt[rows] = np.where(carried, np.degrees(np.arccos(np.clip(n[:, 2], -1.0, 1.0))),
+                                    0.0)
+
+
+# -- one robot as a Backend ------------------------------------------------------------------
+
+class RobotBody:
+    """One robot's body in a batch, read as :class:`BodyOnLegs` is (``backend.body``):
+    ``tilt_deg``, ``contact`` (4,), ``forces`` (4,) N at its last load renewal, ``weight``
+    N, ``q()`` (12,) rad. Every read holds ``lock``."""
+
+    def __init__(self, batch: BatchedQuadrupeds, robot: int, lock: threading.RLock) -> None:
+        self.batch = batch
+        self.robot = robot
+        self.weight = batch.weight
+        self._lock = lock
+
+    @property
+    def tilt_deg(self) -> float:
+        with self._lock:
+            return float(self.batch.tilt_deg[self.batch.row(self.robot)])
+
+    @property
+    def contact(self) -> np.ndarray:
+        with self._lock:
+            return self.batch.contact[self.batch.row(self.robot)]
+
+    @property
+    def forces(self) -> np.ndarray:
+        with self._lock:
+            return self.batch.forces[self.batch.row(self.robot)]
+
+    def q(self) -> np.ndarray:
+        """(12,) the legs' true joint angles now, rad."""
+        with self._lock:
+            return self.batch.q[self.batch.row(self.robot)]
+
+
+class BatchedQuadrupedBackend(GoalLimits):
+    """Robot id ``robot`` of ``batch`` behind the 12-joint ``Backend`` and ``Pushable``
+    protocols, as :class:`QuadrupedSimBackend` (joints legs in order; goals clamped to the
+    servos' limits; raw words written and read).
+
+    Args:
+        batch: the shared robots (the caller adds the robot first and removes it after
+            :meth:`close`).
+        robot: the robot's id in ``batch``.
+        lock: held around every use of the batch (the shared clock holds it while it steps).
+        drive: ``sync`` steps the whole batch itself (no clock); default: a clock steps it.
+        wait_s: most wall time ``sync`` waits for the clock, s (then BackendError).
+
+    Attributes:
+        batch: the shared :class:`BatchedQuadrupeds`. body: this robot's :class:`RobotBody`.
+
+    Time (``read().t``, ``sync``'s ``t``) is the robot's own (since it joined the batch).
+    The torque limits restored by ``set_torque(True)`` after an overload shutdown are the
+    robot's Torque Limit registers when the backend is made.
+    """
+
+    def __init__(self, batch: BatchedQuadrupeds, robot: int, *, lock: threading.RLock,
+                 drive: bool = False, wait_s: float = 1.0) -> None:
+        self.batch = batch
+        self.robot = int(robot)
+        self.drive = bool(drive)
+        self.wait_s = scalar("wait_s", wait_s, nonnegative=True)
+        self.body = RobotBody(batch, self.robot, lock)
+        self._lock = lock
+        self._lower, self._upper = batch.lower, batch.upper
+        self._tables = [word_tables(s, d) for p in batch.legs
+                        for s, d in zip(p.specs, p.directions, strict=True)]
+        with lock:
+            batch.row(self.robot)
+            self._torque_limits = [tuple(r.torque_limit for r in p.registers(self.robot))
+                                   for p in batch.legs]
+        self._t = 0.0
+        self._closed = False
+
+    # -- Backend protocol ---------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Number of joints (12)."""
+        return LEG_JOINTS * len(self.batch.legs)
+
+    @property
+    def t(self) -> float:
+        """The loop time of the last :meth:`sync`, s."""
+        return self._t
+
+    def sync(self, t: float) -> None:
+        """Bring the robot to loop time ``t`` s: ``drive``: step the batch (every robot)
+        until then; else wait for the clock to have stepped it there (BackendError after
+        ``wait_s``). A batch already past ``t`` is read where it is."""
+        t = scalar("t", t)
+        deadline = time.perf_counter() + self.wait_s
+        while True:
+            with self._lock:
+                self._check_open()
+                if self.drive:
+                    self.batch.advance_robot_to(self.robot, t)
+                if not self.batch.behind(self.robot, t):
+                    self._t = t
+                    return
+                now = self.batch.time_of(self.robot)
+            if time.perf_counter() >= deadline:
+                raise BackendError(f"the batch did not reach t = {t:.3f} s (it is at "
+                                   f"{now:.3f} s): is its clock running?")
+            time.sleep(self.batch.dt / 2)
+
+    def read(self) -> JointState:
+        """Every servo's report, legs in order (decoded raw words, quantised)."""
+        with self._lock:
+            self._check_open()
+            words = [p.report_words(self.robot) for p in self.batch.legs]
+            t = self.batch.time_of(self.robot)
+        merged = ReportWords(*([x for w in words for x in getattr(w, f)]
+                               for f in ReportWords._fields))
+        return decode_words(merged, self._tables, t)
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Goal positions (12,) rad and moving speeds (12,) rad/s, clamped per servo.
+
+        Raises:
+            ValueError: a wrong shape or a non-finite value (nothing is written).
+        """
+        p, s = self.checked_goal(position, speed)
+        legs = self.batch.legs
+        raw = [raw_goals(leg.specs, leg.directions, p[LEG_JOINTS * k:LEG_JOINTS * (k + 1)],
+                         s[LEG_JOINTS * k:LEG_JOINTS * (k + 1)]) for k, leg in enumerate(legs)]
+        with self._lock:
+            self._check_open()
+            for leg, (goals, speeds) in zip(legs, raw, strict=True):
+                leg.set_goal(self.robot, goals, speeds)
+
+    def set_torque(self, on: bool) -> None:
+        """Torque Enable on all 12 servos; switching on restores a Torque Limit an overload
+        shutdown set to 0 (as :meth:`SimBackend.set_torque`)."""
+        with self._lock:
+            self._check_open()
+            for leg, limits in zip(self.batch.legs, self._torque_limits, strict=True):
+                for j, (r, limit) in enumerate(zip(leg.registers(self.robot), limits,
+                                                   strict=True)):
+                    if on and r.torque_limit == 0:
+                        leg.set_registers(self.robot, j, torque_limit=limit)
+                leg.set_registers(self.robot, torque_enable=int(bool(on)))
+
+    def estop(self) -> bool:
+        """Torque off on all 12 servos now; never raises. True (a robot already removed
+        from the batch holds no torque either)."""
+        with self._lock:
+            for leg in self.batch.legs:
+                try:
+                    leg.set_registers(self.robot, torque_enable=0)
+                except ValueError:  # the owner removed the robot
+                    pass
+        return True
+
+    def close(self) -> None:
+        """Release the backend; later calls raise BackendError (the robot stays in the
+        batch, its torque as it is: the owner removes it)."""
+        with self._lock:
+            self._closed = True
+
+    # -- Pushable -------------------------------------------------------------------
+
+    def push(self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float) -> None:
+        """Apply ``force`` (3,) N, in the leg's hip-mount frame, at ``point`` (3,) m in the
+        frame of link ``link`` (0..11: leg ``link // 3``, its link ``link % 3``), for
+        ``duration`` s of simulated time."""
+        with self._lock:
+            self.batch.push(self.robot, force, link=link, point=point, duration=duration)
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """Pull ``point`` on ``link`` (0..11) towards ``anchor`` (hip-mount frame); None
+        releases that leg's spring."""
+        with self._lock:
+            self.batch.set_spring(self.robot, anchor, stiffness=stiffness, link=link,
+                                  point=point)
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise BackendError("the simulated quadruped is closed; open a new backend")
+
+
+__all__ = ["BatchedQuadrupeds", "BatchedQuadrupedBackend", "RobotBody", "feet_and_coms",
+           "rest_planes", "floor_forces", "FOOT_LINK"]
