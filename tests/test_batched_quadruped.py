@@ -9,6 +9,7 @@ import pytest
 
 from control.backend import BackendError
 from control.gait_loop import GaitLoop
+from control.periodic import SharedClock
 from control.walking import GaitSpec, Walker, plan_gait
 from hardware.batched_quadruped import (
     BatchedQuadrupedBackend,
@@ -228,18 +229,24 @@ def test_bad_input_raises_and_changes_nothing() -> None:
 
 
 def test_without_drive_sync_waits_for_the_clock_and_never_steps() -> None:
+    """A shared clock steps the batch (headless here: ``run_for``); ``sync`` only checks."""
     batch = BatchedQuadrupeds(MODEL, dt=DT)
-    lock = threading.RLock()
-    b = BatchedQuadrupedBackend(batch, batch.add(Q0), lock=lock, wait_s=0.0)
+    clock = SharedClock(batch.step, dt=DT, realtime=False)
+    b = BatchedQuadrupedBackend(batch, batch.add(Q0), lock=clock.lock, wait_s=0.0)
+    single = QuadrupedSimBackend(MODEL, q0=Q0, dt=DT)
     with pytest.raises(BackendError, match="clock"):
         b.sync(0.02)
     assert batch.steps == 0
-    batch.advance_to(0.02)  # what the clock's thread does
-    b.sync(0.02)
-    assert b.t == 0.02 and b.read().t == pytest.approx(0.02)
-    batch.advance_to(0.05)
-    b.sync(0.04)  # a batch past the loop's time is read where it is
-    assert b.read().t == pytest.approx(0.05)
+    for k in range(1, 11):
+        clock.run_for(PERIOD)
+        for x in (single, b):
+            x.sync(PERIOD * k)
+            x.write(_goal(0, PERIOD * k), _speed(0))
+        _same_state(single.read(), b.read())
+    assert b.t == pytest.approx(0.2) and batch.steps == 100
+    clock.run_for(0.03)
+    b.sync(0.21)  # a batch past the loop's time is read where it is
+    assert b.read().t == pytest.approx(0.23)
 
 
 def test_estop_torque_off_and_on_again_as_a_quadruped_backend() -> None:
