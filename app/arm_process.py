@@ -19,9 +19,10 @@ batched plants on one clock), another the shared arm (``kind="own"``:
 - :class:`RemoteBackend`: E-STOP, the hand's push and drag, each a call the worker
   answers; the Servos panel's ``plant.reports()`` are mirrored too, every
   :data:`REPORTS_S` s (a page's frame never waits for the worker).
-- :class:`app.remote_hand.RemoteHand`: a student's copy of the thesis's hand (the hand
-  lesson), one of the class worker's :class:`app.class_hands.ClassHands`, mirrored the
-  same way (its messages are listed there).
+- :class:`app.remote_hand.RemoteHand`, :class:`app.remote_gait.RemoteGait`: a student's
+  copy of the thesis's hand and of the seed 003 quadruped, one of the class worker's
+  :class:`app.class_hands.ClassHands` or :class:`app.class_quadrupeds.ClassQuadrupeds`,
+  mirrored the same way (their messages are listed there).
 
 The worker's side is :mod:`app.arm_worker`. A call waits at most :data:`CALL_TIMEOUT_S` s
 (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a worker ends (killed, crashed), its arms' status
@@ -32,13 +33,15 @@ Messages (tuples; the server's ``Connection`` end sends calls, the worker's answ
 
     server -> worker   (op, call_id, arm_id, *args)      op: add, post, set_params,
                                                          estop, push, spring, read, free;
-                                                         hand_add, hand_post, hand_free
+                                                         hand_add, hand_post, hand_free,
+                                                         quad_add, quad_post, quad_estop,
+                                                         quad_free
                        ("close",)
     worker -> server   ("ready", scheduling)
                        ("reply", call_id, ok, value)     value: result or exception
                        ("mirror", [(arm_id, status, rows, capacity, spare, gripper,
                                     reports or None)...])
-                       ("hands", [...])                  (app.remote_hand)
+                       ("hand", [...]), ("quad", [...])  (app.remote_hand, remote_gait)
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ from typing import Any
 import numpy as np
 
 from app.class_arms import Arm
+from app.remote_gait import RemoteGait
 from app.remote_hand import RemoteHand
 from control.backend import BackendError, GripperState, JointState
 from control.commands import Command, EStop, UseSpareJoints
@@ -66,12 +70,16 @@ from control.grip import GripParams
 from control.loop import LoopStatus
 from control.params import Params
 from control.recorder import Recorder
+from control.walking import GaitSpec
 from hardware.hand import GraspObject
 from hardware.servo import ServoReport
 from kinematics.model import SerialChain
 
 #: s between two mirror messages (every arm's new rows and status)
 MIRROR_S = 0.02
+#: what else a class's worker runs besides arms: a kind's proxy, ops (``KIND_add``,
+#: ``KIND_post``, ``KIND_free``) and mirror message are named by it
+MEMBER_KINDS = (RemoteHand.KIND, RemoteGait.KIND)
 #: what a freed arm's calls and reports say (the worker's side says the same)
 FREED = "this arm was freed (a reload of the page makes a new one)"
 #: s between two mirrors of the arms' servo reports (the Servos panel shows them every s)
@@ -269,7 +277,7 @@ class ArmProcess:
         self._lock = threading.Lock()
         self._calls: dict[int, _Call] = {}
         self._loops: dict[int, RemoteLoop] = {}
-        self._hands: dict[int, RemoteHand] = {}
+        self._members: dict[int, RemoteHand | RemoteGait] = {}  #: hands and quadrupeds
         self._ids = itertools.count(1)
         self._ready = threading.Event()
         #: how the OS schedules the worker (:func:`app.arm_worker.prioritise`), once it
@@ -334,26 +342,32 @@ class ArmProcess:
                  history_s: float) -> RemoteHand:
         """A new hand in the worker's class of hands (:meth:`ClassHands.add`), open, around
         ``obj`` with grasp settings ``params``; its proxy."""
-        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
-            raise BackendError("the hand's simulation did not start; restart the lab")
-        hand_id = next(self._ids)
-        model, dt, capacity, status, params, obj = self.call(
-            "hand_add", hand_id, obj, params, history_s)
-        hand = RemoteHand(self, hand_id, model=model, dt=dt, capacity=capacity,
-                          status=status, params=params, obj=obj)
-        with self._lock:
-            self._hands[hand_id] = hand
-        return hand
+        return self._add_member(RemoteHand, obj, params, history_s)  # type: ignore[return-value]
 
-    def free_hand(self, hand: RemoteHand) -> None:
-        """Take ``hand`` out of the worker's class (nothing when the worker has ended or the
-        hand was freed)."""
+    def add_quadruped(self, spec: GaitSpec, *, speed: float, history_s: float) -> RemoteGait:
+        """A new robot in the worker's class of quadrupeds (:meth:`ClassQuadrupeds.add`),
+        standing, its loop on the class's clock; its proxy."""
+        return self._add_member(RemoteGait, spec, speed, history_s)  # type: ignore[return-value]
+
+    def _add_member(self, kind: type[RemoteHand | RemoteGait], *args: object
+                    ) -> RemoteHand | RemoteGait:
+        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
+            raise BackendError("the class's simulation did not start; restart the lab")
+        member_id = next(self._ids)
+        made = kind(self, member_id, **self.call(f"{kind.KIND}_add", member_id, *args))
         with self._lock:
-            if self._hands.pop(hand.hand_id, None) is None:
+            self._members[member_id] = made
+        return made
+
+    def free_member(self, member: RemoteHand | RemoteGait) -> None:
+        """Take a hand or a quadruped out of the worker's class (its loop stops, torque
+        off); nothing when the worker has ended or it was freed."""
+        with self._lock:
+            if self._members.pop(member.member_id, None) is None:
                 return
-        hand.freed = True
+        member.freed = True
         if self._ended is None:
-            self.call("hand_free", hand.hand_id)
+            self.call(f"{member.KIND}_free", member.member_id)
 
     def holds(self, arm_id: int) -> bool:
         """Whether arm ``arm_id`` is held (added and not freed)."""
@@ -430,13 +444,13 @@ class ArmProcess:
                         loop = loops.get(arm_id)
                         if loop is not None:
                             loop._mirror(*state)
-            elif msg[0] == "hands":
+            elif msg[0] in MEMBER_KINDS:
                 with self._lock:
-                    hands = self._hands
-                    for hand_id, *state in msg[1]:
-                        hand = hands.get(hand_id)
-                        if hand is not None:
-                            hand._mirror(*state)
+                    members = self._members
+                    for member_id, *state in msg[1]:
+                        member = members.get(member_id)
+                        if member is not None:
+                            member._mirror(*state)
             elif msg[0] == "reply":
                 _, call_id, ok, value = msg
                 with self._lock:

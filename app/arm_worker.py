@@ -20,11 +20,15 @@ from app.arm_process import FREED, REPORTS_S
 from app.class_arms import Arm, ClassArms, OwnArms
 from app.class_hands import FREED as HAND_FREED
 from app.class_hands import ClassHand, ClassHands
+from app.class_quadrupeds import ClassQuadruped, ClassQuadrupeds
+from app.remote_gait import FREED as QUAD_FREED
 from control.backend import BackendError
-from control.grip import GripModel, GripParams
-from control.grip_loop import Command, GripStatus
+from control.gait_loop import Command as GaitCommand
+from control.grip import GripParams
+from control.grip_loop import Command as GripCommand
 from control.loop import LoopStatus
 from control.params import Params
+from control.walking import GaitSpec
 from hardware.hand import GraspObject
 from hardware.servo import ServoReport
 from kinematics.model import SerialChain
@@ -58,6 +62,93 @@ def reports_of(arm: Arm) -> tuple[ServoReport, ...] | None:
     return None if plant is None else plant.reports()
 
 
+class HandKind:
+    """The class's hands (:class:`ClassHands`) as the worker hosts them: the answers and
+    mirror items :class:`app.remote_hand.RemoteHand` expects."""
+
+    name = "hand"
+
+    @staticmethod
+    def host(realtime: bool) -> ClassHands:
+        return ClassHands(realtime=realtime)
+
+    @staticmethod
+    def add(host: ClassHands, obj: GraspObject | None, params: GripParams,
+            history_s: float) -> tuple[ClassHand, dict[str, object]]:
+        hand = host.add(obj, params, history_s=history_s)
+        return hand, {"model": hand.model, "dt": hand.dt, "capacity": hand._ring.capacity,
+                      "status": hand.status, "params": hand.params, "obj": hand.obj}
+
+    @staticmethod
+    def post(hand: ClassHand, command: GripCommand) -> None:
+        hand.post(command)
+
+    @staticmethod
+    def free(host: ClassHands, hand: ClassHand) -> None:
+        host.free(hand)
+
+    @staticmethod
+    def sent(hand: ClassHand) -> list:
+        """[rows mirrored, settings and object last sent] (all of them sent with ``add``)."""
+        return [0, hand.params, hand.obj]
+
+    @staticmethod
+    def item(member_id: int, hand: ClassHand, sent: list) -> tuple:
+        status = hand.status  # first: the rows are at least as new as it says
+        rows, sent[0] = hand._ring.since(sent[0])
+        params = None if hand.params is sent[1] else hand.params
+        obj = None if hand.obj is sent[2] else (hand.obj,)
+        sent[1], sent[2] = hand.params, hand.obj
+        return member_id, status, rows, params, obj
+
+
+class QuadKind:
+    """The class's quadrupeds (:class:`ClassQuadrupeds`) as the worker hosts them, for
+    :class:`app.remote_gait.RemoteGait`."""
+
+    name = "quad"
+
+    @staticmethod
+    def host(realtime: bool) -> ClassQuadrupeds:
+        return ClassQuadrupeds(realtime=realtime)
+
+    @staticmethod
+    def add(host: ClassQuadrupeds, spec: GaitSpec, speed: float, history_s: float
+            ) -> tuple[ClassQuadruped, dict[str, object]]:
+        made = host.add(spec, speed=speed, history_s=history_s)
+        loop = made.loop
+        return made, {"capacity": loop._ring.capacity, "status": loop.status,
+                      "state": loop.state, "spec": loop.walker.plan.spec}
+
+    @staticmethod
+    def post(made: ClassQuadruped, command: GaitCommand) -> None:
+        made.loop.post(command)
+
+    @staticmethod
+    def free(host: ClassQuadrupeds, made: ClassQuadruped) -> None:
+        host.free(made)
+
+    @staticmethod
+    def sent(made: ClassQuadruped) -> list:
+        """[rows mirrored, gait spec last sent]."""
+        return [0, made.loop.walker.plan.spec]
+
+    @staticmethod
+    def item(member_id: int, made: ClassQuadruped, sent: list) -> tuple:
+        loop = made.loop
+        status = loop.status
+        rows, sent[0] = loop._ring.since(sent[0])
+        spec = loop.walker.plan.spec
+        changed, sent[1] = (None if spec is sent[1] else spec), spec
+        return member_id, status, rows, loop.state, changed
+
+
+#: what a class's worker hosts besides arms, by the name its messages carry
+MEMBER_KINDS = {kind.name: kind for kind in (HandKind, QuadKind)}
+#: what a freed member's calls say
+MEMBER_FREED = {"hand": HAND_FREED, "quad": QUAD_FREED}
+
+
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
@@ -68,10 +159,10 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
     fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
     held_lock = threading.Lock()
-    class_hands: list[ClassHands] = []  # made at the first hand
-    #: hand id -> (hand, [rows mirrored, params and object last sent])
-    hands: dict[int, tuple[ClassHand, list]] = {}
-    fresh_hands: dict[int, ClassHand] = {}  # added, mirrored once the server has its answer
+    hosts: dict[str, object] = {}  # kind name -> its host, made at its first member
+    #: member id -> (kind name, the member, what its mirror last sent)
+    members: dict[int, tuple[str, object, list]] = {}
+    fresh_members: dict[int, tuple[str, object]] = {}  # mirrored once the server has them
     send_lock = threading.Lock()
     stop = threading.Event()
 
@@ -98,20 +189,16 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                 batch.append((arm_id, status, rows, loop.recorder.capacity,
                               loop.spare_joints, loop.gripper, reports))
             with held_lock:
-                hand_items = list(hands.items())
-            hand_batch = []
-            for hand_id, (hand, sent) in hand_items:
-                status = hand.status  # first: the rows are at least as new as it says
-                rows, sent[0] = hand._ring.since(sent[0])
-                params = None if hand.params is sent[1] else hand.params
-                obj = None if hand.obj is sent[2] else (hand.obj,)
-                sent[1], sent[2] = hand.params, hand.obj
-                hand_batch.append((hand_id, status, rows, params, obj))
+                member_items = list(members.items())
+            by_kind: dict[str, list] = {}
+            for member_id, (name, member, sent) in member_items:
+                by_kind.setdefault(name, []).append(
+                    MEMBER_KINDS[name].item(member_id, member, sent))
             try:
                 if batch:
                     send(("mirror", batch))
-                if hand_batch:
-                    send(("hands", hand_batch))
+                for name, items in by_kind.items():
+                    send((name, items))
             except (OSError, ValueError):
                 return
 
@@ -130,28 +217,32 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         loop = arm.loop
         return loop.lower, loop.upper, loop.recorder.capacity, loop.status, reports_of(arm)
 
-    def hand_of(hand_id: int) -> ClassHand:
+    def member_of(name: str, member_id: int) -> object:
         with held_lock:
-            found = hands.get(hand_id)
-        if found is None:
-            raise ValueError(HAND_FREED)
-        return found[0]
+            found = members.get(member_id)
+        if found is None or found[0] != name:
+            raise ValueError(MEMBER_FREED[name])
+        return found[1]
 
-    def hand_add(hand_id: int, obj: GraspObject | None, params: GripParams, history_s: float
-                 ) -> tuple[GripModel, float, int, GripStatus, GripParams, GraspObject | None]:
-        if not class_hands:
-            class_hands.append(ClassHands(realtime=realtime))
-        hand = fresh_hands[hand_id] = class_hands[0].add(obj, params, history_s=history_s)
-        return hand.model, hand.dt, hand._ring.capacity, hand.status, hand.params, hand.obj
+    def member_add(name: str, member_id: int, *args: object) -> dict[str, object]:
+        kind_of = MEMBER_KINDS[name]
+        if name not in hosts:
+            hosts[name] = kind_of.host(realtime)
+        member, reply = kind_of.add(hosts[name], *args)
+        fresh_members[member_id] = (name, member)
+        return reply
 
-    def hand_free(hand_id: int) -> None:
+    def member_free(name: str, member_id: int) -> None:
         with held_lock:
-            found = hands.pop(hand_id, None)
+            found = members.pop(member_id, None)
         if found is not None:
-            class_hands[0].free(found[0])
+            MEMBER_KINDS[name].free(hosts[name], found[1])
 
-    def hand_post(hand_id: int, command: Command) -> None:
-        hand_of(hand_id).post(command)
+    def member_ops(name: str) -> dict[str, Callable[..., object]]:
+        kind_of = MEMBER_KINDS[name]
+        return {f"{name}_add": lambda i, *args: member_add(name, i, *args),
+                f"{name}_post": lambda i, cmd: kind_of.post(member_of(name, i), cmd),
+                f"{name}_free": lambda i: member_free(name, i)}
 
     def free(arm_id: int) -> None:
         with held_lock:
@@ -170,9 +261,9 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             f, link=link, point=point, duration=d),
         "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
             anchor, stiffness=k, link=link, point=point),
-        "hand_add": hand_add,
-        "hand_post": hand_post,
-        "hand_free": hand_free,
+        **member_ops("hand"),
+        **member_ops("quad"),
+        "quad_estop": lambda i: member_of("quad", i).loop.estop(),
     }
     mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
     mirror_thread.start()
@@ -200,11 +291,11 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
                 with held_lock:
                     held.update((i, (arm, [0])) for i, arm in fresh.items())
                 fresh.clear()
-            if fresh_hands:  # (likewise)
+            if fresh_members:  # (likewise)
                 with held_lock:
-                    hands.update((i, (hand, [0, hand.params, hand.obj]))
-                                 for i, hand in fresh_hands.items())
-                fresh_hands.clear()
+                    members.update((i, (name, member, MEMBER_KINDS[name].sent(member)))
+                                   for i, (name, member) in fresh_members.items())
+                fresh_members.clear()
     finally:
         stop.set()
         mirror_thread.join(2.0)
@@ -212,8 +303,8 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             left = [arm for arm, _ in held.values()] + list(fresh.values())
             held.clear()
         arms.close(left)
-        for made in class_hands:
-            made.close()
+        for host in hosts.values():
+            host.close()  # type: ignore[attr-defined]
         conn.close()
 
 

@@ -26,7 +26,6 @@ import numpy as np
 from control.batched_grip import BatchedGrip
 from control.grip import MODES, N_FINGERS, GripModel, GripParams
 from control.grip_loop import (
-    COMMANDS,
     CloseHand,
     Command,
     GripRecord,
@@ -68,11 +67,8 @@ class ClassHand(GripRecord):
         self.closed_at: float | None = None
         self._ring = self._record_for(history_s, self.dt)
 
-    def post(self, command: Command) -> None:
-        """Apply ``command`` before the class's next period (ValueError: not a command, or
-        this hand was freed)."""
-        if not isinstance(command, COMMANDS):
-            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
+    def _send(self, command: Command) -> None:
+        """To the class's next period (ValueError: this hand was freed)."""
         self._owner._post(self.hand, command)
 
     @property

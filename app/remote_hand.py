@@ -14,8 +14,8 @@ Messages (besides the arms', :mod:`app.arm_process`)::
     server -> worker   ("hand_add", call_id, hand_id, obj, params, history_s)
                        ("hand_post", call_id, hand_id, command)
                        ("hand_free", call_id, hand_id)
-    worker -> server   ("hands", [(hand_id, status, rows, params or None,
-                                   (obj,) or None)...])
+    worker -> server   ("hand", [(hand_id, status, rows, params or None,
+                                  (obj,) or None)...])
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import numpy as np
 
 from app.class_hands import FREED
 from control.grip import GripModel, GripParams
-from control.grip_loop import COLUMNS, COMMANDS, Command, GripRecord, GripStatus
+from control.grip_loop import COLUMNS, Command, GripRecord, GripStatus
 from control.periodic import RingBuffer
 from hardware.hand import N_FINGERS, GraspObject
 
@@ -39,17 +39,19 @@ class RemoteHand(GripRecord):
     """A hand of the worker's :class:`app.class_hands.ClassHands` (module docstring).
 
     Attributes:
-        hand_id: its id in the worker.
+        member_id: its id in the worker.
         model: what its controller knows of the hand.
         params: the grasp's settings in force, as last mirrored.
         obj: the object between the fingers (None: nothing), as last mirrored.
     """
 
-    def __init__(self, owner: ArmProcess, hand_id: int, *, model: GripModel, dt: float,
+    KIND = "hand"
+
+    def __init__(self, owner: ArmProcess, member_id: int, *, model: GripModel, dt: float,
                  capacity: int, status: GripStatus, params: GripParams,
                  obj: GraspObject | None) -> None:
         self._owner = owner
-        self.hand_id = hand_id
+        self.member_id = member_id
         self.model = model
         self.dt = dt
         self.params = params
@@ -58,12 +60,10 @@ class RemoteHand(GripRecord):
         self.freed = False  #: set when its seat let it go (the worker's hand is gone)
         self._ring = RingBuffer(1 + N_FINGERS * len(COLUMNS), capacity)
 
-    def post(self, command: Command) -> None:
-        """Post ``command`` to the worker's hand (ValueError: not a command, or the hand was
-        freed; ``BackendError``: the worker has ended or does not answer)."""
-        if not isinstance(command, COMMANDS):
-            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
-        self._owner.call("hand_post", self.hand_id, command)
+    def _send(self, command: Command) -> None:
+        """To the worker's hand, waiting for its answer (ValueError: the hand was freed;
+        ``BackendError``: the worker has ended or does not answer)."""
+        self._owner.call("hand_post", self.member_id, command)
 
     @property
     def status(self) -> GripStatus:  # type: ignore[override]

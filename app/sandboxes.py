@@ -9,11 +9,13 @@ the server, on a :class:`app.class_arms.ClassArms` made when the first is asked 
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
-recording. A seat also keeps its student's copy of the thesis's hand (the hand lesson):
-one of the class's hands on one loop (:class:`app.class_hands.ClassHands`) in the same
-worker process as the RX-24F arms (:class:`app.remote_hand.RemoteHand`). A seat whose
-page left longer ago is freed; a class whose seats already hold :data:`MAX_ARMS` arms or
-hands refuses a new one with :class:`ClassFull`.
+recording. A seat also keeps its student's copy of the thesis's hand (the hand lesson)
+and of the seed 003 quadruped: each one of the class's, batched on one clock
+(:mod:`app.class_hands`, :mod:`app.class_quadrupeds`), the hands in the same worker
+process as the RX-24F arms, the quadrupeds in one of their own
+(:class:`app.remote_hand.RemoteHand`, :class:`app.remote_gait.RemoteGait`).
+A seat whose page left longer ago is freed; a class whose seats already hold
+:data:`MAX_ARMS` arms (hands, quadrupeds) refuses a new one with :class:`ClassFull`.
 """
 
 from __future__ import annotations
@@ -28,11 +30,13 @@ import numpy as np
 from app.arm_process import ArmProcess
 from app.backends import shipped_x_servo
 from app.class_arms import Arm, ClassArms
+from app.remote_gait import RemoteGait
 from app.remote_hand import RemoteHand
 from control.backend import Backend
 from control.grip import GripParams
 from control.loop import ControlLoop
 from control.params import Params
+from control.walking import GaitSpec
 from hardware.hand import GraspObject
 from kinematics.model import SerialChain
 
@@ -42,6 +46,9 @@ MAX_ARMS = 200
 IDLE_S = 600.0
 #: s between two looks for seats to free
 SWEEP_S = 15.0
+#: what runs in a worker process of its own rather than in the class's (beside its arms
+#: and hands): the quadrupeds, whose class costs about a core for thirty robots
+OWN_PROCESS = (RemoteGait.KIND,)
 
 
 class ClassFull(ValueError):
@@ -72,8 +79,9 @@ class Seat:
         self.key = key
         self._owner = owner
         self.arm: _Arm | None = None
-        #: the student's hand (the hand lesson) and the worker that runs it
-        self.hand: tuple[ArmProcess, RemoteHand] | None = None
+        #: the student's hand and quadruped, by kind ("hand", "quad"), and the worker that
+        #: runs each
+        self.members: dict[str, tuple[ArmProcess, RemoteHand | RemoteGait]] = {}
         self.left_at: float | None = None  #: monotonic time its last page left (None: open)
         #: the pages showing it (a reloaded page's new connection may come before the old
         #: one has gone)
@@ -95,12 +103,20 @@ class Seat:
                  history_s: float) -> RemoteHand:
         """The seat's hand: the one it has (as it was left), or a new one, open, around
         ``obj`` with grasp settings ``params``. It runs on the class's loop."""
-        return self._owner._hand_for(self, obj, params, history_s=history_s)
+        return self._owner._member_for(  # type: ignore[return-value]
+            self, RemoteHand.KIND, lambda p: p.add_hand(obj, params, history_s=history_s))
+
+    def quadruped_for(self, spec: GaitSpec, *, speed: float, history_s: float) -> RemoteGait:
+        """The seat's quadruped: the one it has (as it was left), or a new one standing,
+        to walk ``spec`` at ``speed`` cycles/s. It walks on the class's clock."""
+        return self._owner._member_for(  # type: ignore[return-value]
+            self, RemoteGait.KIND,
+            lambda p: p.add_quadruped(spec, speed=speed, history_s=history_s))
 
     @property
     def holds(self) -> bool:
-        """Whether the seat holds an arm or a hand."""
-        return self.arm is not None or self.hand is not None
+        """Whether the seat holds an arm, a hand or a quadruped."""
+        return self.arm is not None or bool(self.members)
 
 
 def _ended(host: ArmProcess | ClassArms) -> bool:
@@ -131,6 +147,7 @@ class Sandboxes:
         self._lock = threading.RLock()
         self.process = ArmProcess(realtime=realtime)  # starts now: ready by the first arm
         self._local: ClassArms | None = None  # X-series arms, made at the first
+        self._own: dict[str, ArmProcess] = {}  # kind -> its worker (OWN_PROCESS), at the first
         self._stop = threading.Event()
         self._sweeper = threading.Thread(target=self._sweep_often, name="armlab-seats",
                                          daemon=True)
@@ -138,7 +155,7 @@ class Sandboxes:
 
     @property
     def n_arms(self) -> int:
-        """Seats holding a private arm or hand now."""
+        """Seats holding a private arm, hand or quadruped now."""
         with self._lock:
             return sum(1 for s in self._seats.values() if s.holds)
 
@@ -226,18 +243,33 @@ class Sandboxes:
             seat.arm = _Arm(host, arm)
             return arm.backend, seat.arm.loop  # type: ignore[return-value]
 
-    def _hand_for(self, seat: Seat, obj: GraspObject, params: GripParams, *,
-                  history_s: float) -> RemoteHand:
+    def _member_for(self, seat: Seat, kind: str,
+                    add: Callable[[ArmProcess], RemoteHand | RemoteGait]
+                    ) -> RemoteHand | RemoteGait:
         with self._lock:
-            if seat.hand is not None and seat.hand[0].ended is None:
-                return seat.hand[1]
-            self._free_hand(seat)
+            held = seat.members.get(kind)
+            if held is not None and held[0].ended is None:
+                return held[1]
+            self._free_member(seat, kind)
+            process = self._process_for(kind)
+            made = add(process)
+            seat.members[kind] = (process, made)
+            return made
+
+    def _process_for(self, kind: str) -> ArmProcess:  # holding self._lock
+        """The worker for a member of ``kind``: the class's, or (:data:`OWN_PROCESS`) one of
+        its own; a new one for a worker that has ended."""
+        if kind not in OWN_PROCESS:
             if self.process.ended is not None:  # killed or crashed: a new one
                 ended, self.process = self.process, ArmProcess(realtime=self._realtime)
                 ended.close()
-            hand = self.process.add_hand(obj, params, history_s=history_s)
-            seat.hand = (self.process, hand)
-            return hand
+            return self.process
+        process = self._own.get(kind)
+        if process is None or process.ended is not None:
+            if process is not None:
+                process.close()
+            process = self._own[kind] = ArmProcess(realtime=self._realtime)
+        return process
 
     def _free_arm(self, seat: Seat) -> None:  # holding self._lock
         arm, seat.arm = seat.arm, None
@@ -246,12 +278,13 @@ class Sandboxes:
 
     def _free(self, seat: Seat) -> None:  # holding self._lock
         self._free_arm(seat)
-        self._free_hand(seat)
+        for kind in list(seat.members):
+            self._free_member(seat, kind)
 
-    def _free_hand(self, seat: Seat) -> None:  # holding self._lock
-        held, seat.hand = seat.hand, None
+    def _free_member(self, seat: Seat, kind: str) -> None:  # holding self._lock
+        held = seat.members.pop(kind, None)
         if held is not None:
-            held[0].free_hand(held[1])
+            held[0].free_member(held[1])
 
     def close(self) -> None:
         """Stop the class: the sweeper, then every arm (its loop with torque off) and the
@@ -263,4 +296,5 @@ class Sandboxes:
             if self._local is not None:
                 self._local.close([s.arm.arm for s in seats
                                    if s.arm is not None and s.arm.host is self._local])
-            self.process.close()  # every arm and hand in it freed, torque off
+            for process in (self.process, *self._own.values()):
+                process.close()  # every arm, hand and quadruped in it freed, torque off

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from control.batch_rows import BatchRows
 from control.grip import (
     MODES,
     N_FINGERS,
@@ -51,8 +52,7 @@ class BatchedGrip:
     def __init__(self, model: GripModel, *, dt: float = 1.0e-3) -> None:
         self.model = model
         self.dt = float(dt)
-        self._ids: list[int] = []
-        self._next_id = 0
+        self._rows = BatchRows()
         self._params: list[GripParams] = []
         self._p = {name: np.empty((0, 1)) for name in COLUMNS}
         self._mode = np.empty((0, N_FINGERS), dtype=np.int8)
@@ -62,14 +62,11 @@ class BatchedGrip:
 
     @property
     def ids(self) -> tuple[int, ...]:
-        return tuple(self._ids)
+        return self._rows.ids
 
     def row(self, hand: int) -> int:
         """The row of controller ``hand`` (ValueError: no such one)."""
-        try:
-            return self._ids.index(hand)
-        except ValueError:
-            raise ValueError(f"no hand {hand!r} in this batch") from None
+        return self._rows.row(hand)
 
     def add(self, params: GripParams | None = None) -> int:
         """A new controller, idle, its hand open; returns its id (a force limit the motors
@@ -84,19 +81,17 @@ class BatchedGrip:
             self._p[name] = np.concatenate([self._p[name], [[getattr(params, name)]]])
         self._mode = np.concatenate([self._mode, np.full((1, N_FINGERS), IDLE, np.int8)])
         self._params.append(params)
-        hand, self._next_id = self._next_id, self._next_id + 1
-        self._ids.append(hand)
-        return hand
+        return self._rows.join()
 
     def remove(self, hand: int) -> None:
         """Take controller ``hand`` out."""
-        r = self.row(hand)
+        r = self._rows.leave(hand)
         for name in MEMORY:
             self._m[name] = np.delete(self._m[name], r, axis=0)
         for name in COLUMNS:
             self._p[name] = np.delete(self._p[name], r, axis=0)
         self._mode = np.delete(self._mode, r, axis=0)
-        del self._params[r], self._ids[r]
+        del self._params[r]
 
     # -- commands (GripController's, for one hand) -------------------------------------
 

@@ -1,6 +1,7 @@
 """The quadruped's walking loop: a :class:`Walker` driving 12 servos through a Backend.
 
-Every period (20 ms by default) the loop thread
+Every period (20 ms by default; periods at loop times 0, P, 2P, ...) the loop's thread
+(or, with ``clock=``, a :class:`~control.periodic.SharedClock`'s: a class's quadrupeds)
 
 1. runs the commands the UI posted (go, stop, new plan, speed, reset, e-stop);
 2. brings the backend to the loop time and reads the servos (positions as they
@@ -30,7 +31,7 @@ import numpy as np
 
 from control.backend import Backend, BackendError
 from control.commands import EStop, Reset
-from control.periodic import Pacer, RingBuffer
+from control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
 
 #: Record layout: name -> number of columns (t first).
@@ -118,61 +119,36 @@ class GaitStatus:
     running: bool = False
 
 
-class GaitLoop:
-    """Runs ``walker`` on ``backend`` every ``period`` s.
+class GaitRecord:
+    """A gait loop's commands, record and figures, as a lesson uses them (any thread).
 
-    Args:
-        walker: the gait player.
-        backend: 12 servos in the walker's joint order, or None (animation only).
-        period: control period, s.
-        realtime: pace by the wall clock (False: as fast as possible, for tests).
-        speed: gait speed, cycles/s.
-        to_servo: (..., 12) joint angles -> (..., 12) horn angles from the servo centre, rad
-            (a joint map's ``to_servo``; it must broadcast over rows); default identity.
-        history_s: seconds of record kept.
+    Attributes:
+        status: the loop's latest :class:`GaitStatus`.
+        state: the walker's latest :class:`WalkState` (what the scene draws).
+        to_servo: joint angles -> horn angles (see :class:`GaitLoop`).
     """
 
-    def __init__(self, walker: Walker, backend: Backend | None, *, period: float = 0.02,
-                 realtime: bool = True, speed: float = 0.5,
-                 to_servo: Callable[[np.ndarray], np.ndarray] | None = None,
-                 history_s: float = 20.0, tick_s: float = 0.01,
-                 max_catch_up: float = 0.1) -> None:
-        if not (math.isfinite(period) and 0.001 <= period <= 0.2):
-            raise ValueError(f"period must be in [0.001, 0.2] s, got {period}")
-        self.walker = walker
-        self.backend = backend
-        self.period = float(period)
-        self.realtime = realtime
-        self.to_servo = to_servo or (lambda q: np.asarray(q, dtype=float))
-        self._speed = SetSpeed(speed).speed  # validates
-        self._ring = RingBuffer(sum(COLUMNS.values()), RingBuffer.rows_for(history_s, self.period))
-        self._commands: deque[Command] = deque()
-        self._pacer = Pacer(self._period, period=self.period, name="armlab-gait",
-                            realtime=realtime, batch_s=tick_s, max_catch_up=max_catch_up,
-                            idle_s=0.002, on_exit=self._stopped)
-        self._t = 0.0
-        self._walking = False
-        self._stopping = False
-        self._rest_at: float | None = None  # phase at which a stop completes
-        self._fault = ""
-        self._torque = backend is not None
-        self._torque_sent = False  # torque on is sent at the first period with servos
-        self._last_goal = np.full(12, np.nan)
-        self._ramp: tuple[np.ndarray, float] | None = None  # (from q, start time)
-        self.state: WalkState = walker.state()
-        self.status = self._make_status()
+    status: GaitStatus
+    state: WalkState
+    _ring: RingBuffer
 
-    # --- commands (any thread) ---------------------------------------------------------
+    def to_servo(self, q: np.ndarray) -> np.ndarray:
+        """(..., 12) joint angles -> horn angles from the servo centre, rad (identity)."""
+        return np.asarray(q, dtype=float)
 
     def post(self, command: Command) -> None:
-        """Apply ``command`` in the loop thread before its next period.
+        """Apply ``command`` before the loop's next period.
 
         Raises:
-            ValueError: not one of :data:`COMMANDS`.
+            ValueError: not one of :data:`COMMANDS` (or the loop refuses it).
         """
         if not isinstance(command, COMMANDS):
             raise ValueError(f"not a gait-loop command: {type(command).__name__}")
-        self._commands.append(command)
+        self._send(command)
+
+    def _send(self, command: Command) -> None:
+        """Hand a checked command to whatever runs the loop."""
+        raise NotImplementedError
 
     def go(self, plan: GaitPlan) -> None:
         """Post :class:`Walk`."""
@@ -198,6 +174,110 @@ class GaitLoop:
         """Stop, back to the origin at phase 0; torque on again and stand up (after an
         e-stop or a fault)."""
         self.post(Reset())
+
+
+    # --- reading (any thread) ------------------------------------------------------------
+
+    def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
+        """Copy of the record, oldest first: each of :data:`COLUMNS` as (m,) or (m, k).
+
+        ``feet`` is (m, 12): the four feet's world x, y, z in leg order.
+        ``q_cmd`` is the goal sent one period before ``q`` was read (without servos: the
+        commanded angles; NaN before the first); ``q`` is NaN without servos; ``walking``
+        is 1 while the gait runs (after standing up).
+        """
+        rows = self._ring.rows(window_s)
+        out, c = {}, 0
+        for name, width in COLUMNS.items():
+            out[name] = rows[:, c] if width == 1 else rows[:, c:c + width]
+            c += width
+        return out
+
+    def servo_angles_deg(self, snap: dict[str, np.ndarray]
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Eq. 4.1's inputs from a :meth:`snapshot`: ``ok`` (N,) marks the walking samples
+        with finite angles; their commanded and reported horn angles (M, 12), degrees."""
+        cmd, act = snap["q_cmd"], snap["q"]
+        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(cmd), axis=1) \
+            & np.all(np.isfinite(act), axis=1)
+        return (ok, servo_angle_deg(self.to_servo(cmd[ok])),
+                servo_angle_deg(self.to_servo(act[ok])))
+
+    def angle_error(self, window_s: float | None = None) -> dict[str, object] | None:
+        """Seed 003 eq. 4.1 over the walking samples of the last ``window_s`` s.
+
+        Commanded = the goal sent (IK angle + the servo's set point), actual = the
+        position the servo reported one period later, both as horn angles in degrees from
+        the servo's raw 0 (:func:`control.walking.servo_angle_deg`).
+
+        Returns:
+            None without walking samples read from servos; else ``mean_pct`` (mean |%| over
+            all servos), ``per_servo_pct`` (3,) by servo number in the leg (1 hip yaw,
+            2 hip pitch, 3 knee), ``per_joint_pct`` (12,), ``samples``.
+        """
+        ok, cmd, act = self.servo_angles_deg(self.snapshot(window_s))
+        if not ok.any():
+            return None
+        per_joint = np.array([mean_angle_error_pct(cmd[:, j], act[:, j]) for j in range(12)])
+        per_servo = per_joint.reshape(4, 3).mean(axis=0)
+        return {"mean_pct": mean_angle_error_pct(cmd, act), "per_servo_pct": per_servo,
+                "per_joint_pct": per_joint, "samples": int(ok.sum())}
+
+
+class GaitLoop(GaitRecord):
+    """Runs ``walker`` on ``backend`` every ``period`` s.
+
+    Args:
+        walker: the gait player.
+        backend: 12 servos in the walker's joint order, or None (animation only).
+        period: control period, s.
+        realtime: pace by the wall clock (False: as fast as possible, for tests).
+        speed: gait speed, cycles/s.
+        to_servo: (..., 12) joint angles -> (..., 12) horn angles from the servo centre, rad
+            (a joint map's ``to_servo``; it must broadcast over rows); default identity.
+        history_s: seconds of record kept.
+        clock: run the periods on this :class:`SharedClock` (with the world it steps: a
+            class's private quadrupeds) instead of a thread of the loop's own.
+    """
+
+    def __init__(self, walker: Walker, backend: Backend | None, *, period: float = 0.02,
+                 realtime: bool = True, speed: float = 0.5,
+                 to_servo: Callable[[np.ndarray], np.ndarray] | None = None,
+                 history_s: float = 20.0, tick_s: float = 0.01,
+                 max_catch_up: float = 0.1, clock: SharedClock | None = None) -> None:
+        if not (math.isfinite(period) and 0.001 <= period <= 0.2):
+            raise ValueError(f"period must be in [0.001, 0.2] s, got {period}")
+        self.walker = walker
+        self.backend = backend
+        self.period = float(period)
+        self.realtime = realtime
+        if to_servo is not None:
+            self.to_servo = to_servo  # type: ignore[method-assign]
+        self._speed = SetSpeed(speed).speed  # validates
+        self._ring = RingBuffer(sum(COLUMNS.values()), RingBuffer.rows_for(history_s, self.period))
+        self._commands: deque[Command] = deque()
+        self._pacer: Pacer | DrivenPacer = (
+            Pacer(self._period, period=self.period, name="armlab-gait", realtime=realtime,
+                  batch_s=tick_s, max_catch_up=max_catch_up, idle_s=0.002,
+                  on_exit=self._stopped)
+            if clock is None else clock.pacer(self._period, period=self.period,
+                                               name="armlab-gait"))
+        self._t = -self.period  #: time of the last period run (the first is at 0)
+        self._walking = False
+        self._stopping = False
+        self._rest_at: float | None = None  # phase at which a stop completes
+        self._fault = ""
+        self._torque = backend is not None
+        self._torque_sent = False  # torque on is sent at the first period with servos
+        self._last_goal = np.full(12, np.nan)
+        self._ramp: tuple[np.ndarray, float] | None = None  # (from q, start time)
+        self.state: WalkState = walker.state()
+        self.status = self._make_status()
+
+    # --- commands (any thread) ---------------------------------------------------------
+
+    def _send(self, command: Command) -> None:
+        self._commands.append(command)
 
     def estop(self) -> None:
         """Torque off at the next period (from any thread; never raises) and stop walking.
@@ -281,7 +361,7 @@ class GaitLoop:
     def _period(self) -> None:
         while self._commands:
             self._apply(self._commands.popleft())
-        self._t += self.period
+        self._t += self.period  # periods at 0, P, 2P, ...: the backend is brought there
         t = self._t
         q_meas = np.full(12, np.nan)
         servos = self.backend is not None and not self._fault
@@ -335,55 +415,8 @@ class GaitLoop:
     def _make_status(self) -> GaitStatus:
         spec = self.walker.plan.spec
         return GaitStatus(
-            t=self._t, walking=self._walking, stopping=self._stopping, command=spec.command,
-            gait=spec.gait, speed=self._speed,
+            t=max(self._t, 0.0), walking=self._walking, stopping=self._stopping,
+            command=spec.command, gait=spec.gait, speed=self._speed,
             servos=self.backend is not None and not self._fault, torque_on=self._torque,
             standing_up=self._ramp is not None and self._t - self._ramp[1] < STAND_UP_S,
             fault=self._fault, running=self._pacer.running)
-
-    # --- reading (any thread) ------------------------------------------------------------
-
-    def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
-        """Copy of the record, oldest first: each of :data:`COLUMNS` as (m,) or (m, k).
-
-        ``feet`` is (m, 12): the four feet's world x, y, z in leg order.
-        ``q_cmd`` is the goal sent one period before ``q`` was read (without servos: the
-        commanded angles; NaN before the first); ``q`` is NaN without servos; ``walking``
-        is 1 while the gait runs (after standing up).
-        """
-        rows = self._ring.rows(window_s)
-        out, c = {}, 0
-        for name, width in COLUMNS.items():
-            out[name] = rows[:, c] if width == 1 else rows[:, c:c + width]
-            c += width
-        return out
-
-    def servo_angles_deg(self, snap: dict[str, np.ndarray]
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Eq. 4.1's inputs from a :meth:`snapshot`: ``ok`` (N,) marks the walking samples
-        with finite angles; their commanded and reported horn angles (M, 12), degrees."""
-        cmd, act = snap["q_cmd"], snap["q"]
-        ok = (snap["walking"] > 0.5) & np.all(np.isfinite(cmd), axis=1) \
-            & np.all(np.isfinite(act), axis=1)
-        return (ok, servo_angle_deg(self.to_servo(cmd[ok])),
-                servo_angle_deg(self.to_servo(act[ok])))
-
-    def angle_error(self, window_s: float | None = None) -> dict[str, object] | None:
-        """Seed 003 eq. 4.1 over the walking samples of the last ``window_s`` s.
-
-        Commanded = the goal sent (IK angle + the servo's set point), actual = the
-        position the servo reported one period later, both as horn angles in degrees from
-        the servo's raw 0 (:func:`control.walking.servo_angle_deg`).
-
-        Returns:
-            None without walking samples read from servos; else ``mean_pct`` (mean |%| over
-            all servos), ``per_servo_pct`` (3,) by servo number in the leg (1 hip yaw,
-            2 hip pitch, 3 knee), ``per_joint_pct`` (12,), ``samples``.
-        """
-        ok, cmd, act = self.servo_angles_deg(self.snapshot(window_s))
-        if not ok.any():
-            return None
-        per_joint = np.array([mean_angle_error_pct(cmd[:, j], act[:, j]) for j in range(12)])
-        per_servo = per_joint.reshape(4, 3).mean(axis=0)
-        return {"mean_pct": mean_angle_error_pct(cmd, act), "per_servo_pct": per_servo,
-                "per_joint_pct": per_joint, "samples": int(ok.sum())}

@@ -107,7 +107,17 @@ class GripRecord:
     _ring: RingBuffer
 
     def post(self, command: Command) -> None:
-        """Run ``command`` before the loop's next period (ValueError: not a command)."""
+        """Apply ``command`` before the loop's next period.
+
+        Raises:
+            ValueError: not one of :data:`COMMANDS` (or the loop refuses it).
+        """
+        if not isinstance(command, COMMANDS):
+            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
+        self._send(command)
+
+    def _send(self, command: Command) -> None:
+        """Hand a checked command to whatever runs the loop."""
         raise NotImplementedError
 
     def close_hand(self) -> None:
@@ -182,14 +192,7 @@ class GripLoop(GripRecord):
         self.status = GripStatus(t=plant.t, modes=controller.modes)
 
     # --- commands (any thread) -----------------------------------------------------
-    def post(self, command: Command) -> None:
-        """Apply ``command`` in the loop thread before its next period.
-
-        Raises:
-            ValueError: not one of :data:`COMMANDS`.
-        """
-        if not isinstance(command, COMMANDS):
-            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
+    def _send(self, command: Command) -> None:
         self._commands.append(command)
 
     @property

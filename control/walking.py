@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinematics.body_statics import implied_tilt_deg
+from kinematics.body_statics import implied_tilts_deg
 from kinematics.gait import (
     CRAWL_SEQUENCE,
     GaitCycle,
@@ -379,6 +379,6 @@ def mean_angle_error_pct(commanded_deg: np.ndarray, actual_deg: np.ndarray) -> f
 
 def walking_tilts_deg(model: Quadruped, snap: dict[str, np.ndarray]) -> np.ndarray:
     """(M,) body tilt (degrees) the reported angles imply, over a gait-loop snapshot's walking
-    samples with finite readings (:func:`kinematics.body_statics.implied_tilt_deg`)."""
+    samples with finite readings (:func:`kinematics.body_statics.implied_tilts_deg`)."""
     ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q"]), axis=1)
-    return np.array([implied_tilt_deg(model, q) for q in snap["q"][ok]])
+    return implied_tilts_deg(model, snap["q"][ok])

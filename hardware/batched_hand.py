@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from control.batch_rows import BatchRows
 from hardware.hand import N_FINGERS, GraspObject, HandParams, check_object, rc_alpha
 from kinematics.validate import scalar
 
@@ -46,8 +47,7 @@ class BatchedHand:
     def __init__(self, params: HandParams | None = None) -> None:
         self.params = params if params is not None else HandParams()
         self.t = 0.0
-        self._ids: list[int] = []
-        self._next_id = 0
+        self._rows = BatchRows()
         self._objects: list[GraspObject | None] = []
         self._obj = np.empty((3, 0, 1))  # radius, stiffness, damping per row (each (N, 1))
         self._s = {name: np.empty((0, N_FINGERS)) for name in STATE}
@@ -56,19 +56,16 @@ class BatchedHand:
 
     @property
     def n_hands(self) -> int:
-        return len(self._ids)
+        return len(self._rows)
 
     @property
     def ids(self) -> tuple[int, ...]:
         """The hands' ids in row order."""
-        return tuple(self._ids)
+        return self._rows.ids
 
     def row(self, hand: int) -> int:
         """The row of hand ``hand`` (ValueError: no such hand)."""
-        try:
-            return self._ids.index(hand)
-        except ValueError:
-            raise ValueError(f"no hand {hand!r} in this batch") from None
+        return self._rows.row(hand)
 
     def add(self, obj: GraspObject | None = None) -> int:
         """A new hand, open and at rest, around ``obj`` (None: nothing); returns its id."""
@@ -79,17 +76,15 @@ class BatchedHand:
             self._s[name] = np.concatenate([self._s[name], rest[name]])
         self._obj = np.concatenate([self._obj, self._columns(obj)], axis=1)
         self._objects.append(obj)
-        hand, self._next_id = self._next_id, self._next_id + 1
-        self._ids.append(hand)
-        return hand
+        return self._rows.join()
 
     def remove(self, hand: int) -> None:
         """Take hand ``hand`` out (ValueError: no such hand)."""
-        r = self.row(hand)
+        r = self._rows.leave(hand)
         for name in STATE:
             self._s[name] = np.delete(self._s[name], r, axis=0)
         self._obj = np.delete(self._obj, r, axis=1)
-        del self._objects[r], self._ids[r]
+        del self._objects[r]
 
     def reset(self, hand: int) -> None:
         """Hand ``hand`` open and at rest again (its object stays)."""

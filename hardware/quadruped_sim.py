@@ -37,6 +37,9 @@ from kinematics.validate import scalar, vector
 LEG_JOINTS = 3
 G = 9.81  #: m/s²
 LOAD_STEP = 0.01  #: s between renewals of the body's load on the legs
+#: s, the plant step and servo tick the lab's simulated legs use (eq. 4.1 figures agree with
+#: 1 ms to 0.01 %, at half the cost)
+SIM_DT = 2e-3
 BELLY_RAMP = 0.01  #: m over which the body's underside takes its weight off the feet
 
 
@@ -224,4 +227,4 @@ class QuadrupedSimBackend(GoalLimits):
             leg.set_spring(anchor, stiffness=stiffness, link=i, point=point)
 
 
-__all__ = ["QuadrupedSimBackend", "BodyOnLegs", "LEG_JOINTS", "total_mass"]
+__all__ = ["QuadrupedSimBackend", "BodyOnLegs", "LEG_JOINTS", "SIM_DT", "total_mass"]

@@ -26,9 +26,11 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from kinematics.batched_dynamics import batched_dynamics
 from kinematics.model import Quadruped
 
 #: A foot within this distance of the rest plane touches the floor, m.
@@ -185,5 +187,123 @@ def tilt_deg(n: np.ndarray) -> float:
     return math.degrees(math.acos(float(np.clip(n[2], -1.0, 1.0))))
 
 
+#: The four triangles of feet, in :func:`rest_plane`'s order.
+TRIANGLES = tuple(itertools.combinations(range(4), 3))
+
+
+# -- over robots: the functions above, numpy over R robots (a class of quadrupeds) -------
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b over the last axis (3): ``numpy.cross``'s products, without its overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def feet_and_coms(model: Quadruped, q: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Feet (R, 4, 3) and centres of mass (R, 3) in the body frame, m, of R robots whose
+    legs are at ``q``: per leg in ``model.legs`` order its joint angles (R, 3) rad
+    (:func:`feet_and_com` over robots)."""
+    rows = q[0].shape[0]
+    feet = np.empty((rows, len(model.legs), 3))
+    total, moment = model.body_mass, np.zeros((rows, 3))
+    for i, (chain, qi) in enumerate(zip(model.legs.values(), q, strict=True)):
+        fr = batched_dynamics(chain).frames(np.ascontiguousarray(qi.T)).reshape(chain.n, 12, rows)
+        rot = fr[:, :9].transpose(0, 2, 1).reshape(chain.n, rows, 3, 3)  # base <- link
+        origin = fr[:, 9:].transpose(0, 2, 1)  # (n, R, 3)
+        rb, pb = chain.base_pose[:3, :3], chain.base_pose[:3, 3]
+        tip = rot[-1] @ chain.tip[:3, 3] + origin[-1]
+        feet[:, i] = tip @ rb.T + pb
+        coms = np.array([link.com for link in chain.links])  # (n, 3), link frames
+        masses = np.array([link.mass for link in chain.links])
+        at = np.einsum("lrij,lj->lri", rot, coms) + origin  # (n, R, 3), base frame
+        moment += np.einsum("l,lri->ri", masses, at @ rb.T + pb)
+        total += float(masses.sum())
+    return feet, moment / total
+
+
+def rest_planes(feet: np.ndarray, com: np.ndarray, *, tol: float = CONTACT_TOL
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`rest_plane` of R robots: feet (R, 4, 3), com (R, 3), m.
+
+    Returns:
+        (n, d, contact, ok): the floor's unit normal (R, 3), offset (R,) (the floor is
+        n·x = d), contact flags (R, 4), and (R,) whether three feet span a plane under
+        the body at all (where not, ``rest_plane`` raises; n, d, contact are then
+        meaningless).
+    """
+    rows = feet.shape[0]
+    p = feet[:, np.array(TRIANGLES)]  # (R, 4 triangles, 3 corners, 3)
+    nrm = _cross(p[:, :, 1] - p[:, :, 0], p[:, :, 2] - p[:, :, 0])  # (R, 4, 3)
+    norm = np.sqrt(np.sum(nrm * nrm, axis=2))
+    valid = (norm >= 1e-12) & (np.abs(nrm[:, :, 2]) >= 0.5 * norm)  # not degenerate, <= 60°
+    normals = nrm / (np.where(valid, norm, 1.0) * np.where(nrm[:, :, 2] < 0, -1.0, 1.0))[..., None]
+    offsets = np.sum(normals * p[:, :, 0], axis=2)
+    # a resting face: no foot below it
+    valid &= np.all(np.einsum("rkc,rtc->rtk", feet, normals) >= offsets[..., None] - tol, axis=2)
+    # the centre of mass inside the triangle, seen along body z, then along the face's normal
+    cross = _cross(p[:, :, [1, 2, 0]] - p, com[:, None, None, :] - p)  # (R, 4, 3 edges, 3)
+    s_z = cross[..., 2]
+    s_n = np.sum(cross * normals[:, :, None, :], axis=3)
+    in_z = (s_z.min(axis=2) >= -1e-12) | (s_z.max(axis=2) <= 1e-12)
+    in_n = (s_n.min(axis=2) >= -1e-12) | (s_n.max(axis=2) <= 1e-12)
+    first_z, first_n = valid & in_z, valid & in_n
+    least_tilted = np.argmax(np.where(valid, normals[:, :, 2], -np.inf), axis=1)
+    choice = np.where(first_z.any(axis=1), np.argmax(first_z, axis=1),
+                      np.where(first_n.any(axis=1), np.argmax(first_n, axis=1), least_tilted))
+    r = np.arange(rows)
+    n, d = normals[r, choice], offsets[r, choice]
+    contact = np.abs(np.einsum("rkc,rc->rk", feet, n) - d[:, None]) <= tol
+    return n, d, contact, valid.any(axis=1)
+
+
+def floor_forces(feet: np.ndarray, com: np.ndarray, weight: np.ndarray, n: np.ndarray,
+                 contact: np.ndarray) -> np.ndarray:
+    """(R, 4) the floor's normal force on each foot, N: per robot
+    :func:`contact_forces` of its contact feet carrying ``weight``
+    (R,) N, 0 on the others (feet (R, 4, 3), com (R, 3), n (R, 3), contact (R, 4)).
+
+    Three or four contacts (every rest plane has three): the least-norm shares of the
+    moment balance for all robots at once; fewer: ``contact_forces`` per robot."""
+    rows = feet.shape[0]
+    f = np.zeros(contact.shape)
+    k = contact.sum(axis=1)
+    many = k >= 3
+    if many.any():
+        m = contact[many].astype(float)
+        nn = n[many]
+        e1 = np.stack([-nn[:, 2], np.zeros(len(nn)), nn[:, 0]], axis=1)  # n × y
+        e1 /= np.sqrt(np.sum(e1 * e1, axis=1))[:, None]
+        e2 = _cross(nn, e1)
+        rel = feet[many] - com[many, None, :]
+        a = np.stack([m, np.einsum("rkc,rc->rk", rel, e1) * m,
+                      np.einsum("rkc,rc->rk", rel, e2) * m], axis=1)  # (R', 3, 4)
+        y = np.linalg.solve(a @ a.transpose(0, 2, 1),
+                            np.broadcast_to([1.0, 0.0, 0.0], (len(nn), 3))[..., None])
+        shares = np.clip((a.transpose(0, 2, 1) @ y)[..., 0], 0.0, None)
+        f[many] = weight[many, None] * shares / shares.sum(axis=1, keepdims=True)
+    for r in np.flatnonzero(~many & (k > 0)):  # not from a rest plane: as BodyOnLegs
+        f[r, contact[r]] = contact_forces(feet[r, contact[r]], com[r], float(weight[r]), n[r])
+    assert f.shape == (rows, contact.shape[1])
+    return f
+
+
+def implied_tilts_deg(model: Quadruped, q: np.ndarray) -> np.ndarray:
+    """:func:`implied_tilt_deg` of M poses ``q`` (M, 12) rad at once, degrees (M,).
+
+    Raises:
+        ValueError: a pose with no three feet under the body (as :func:`rest_pose`).
+    """
+    q = np.asarray(q, dtype=float).reshape(-1, 12)
+    if not len(q):
+        return np.zeros(0)
+    feet, com = feet_and_coms(model, [q[:, 3 * k:3 * k + 3] for k in range(len(model.legs))])
+    n, _, _, ok = rest_planes(feet, com)
+    if not ok.all():
+        raise ValueError("no three feet span a floor under the body")
+    return np.degrees(np.arccos(np.clip(n[:, 2], -1.0, 1.0)))
+
+
 __all__ = ["CONTACT_TOL", "rest_plane", "contact_forces", "tilt_deg", "feet_and_com",
+           "feet_and_coms", "rest_planes", "floor_forces", "implied_tilts_deg",
            "feet_in_body", "rest_pose", "implied_tilt_deg"]

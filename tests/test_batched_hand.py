@@ -113,7 +113,7 @@ def test_bad_input_to_the_batch_raises_and_changes_nothing():
         batch.step(np.ones((2, 3)), 1e-3)
     with pytest.raises(ValueError, match="does not fit"):
         batch.set_object(hand, GraspObject(size=0.5))
-    with pytest.raises(ValueError, match="no hand"):
+    with pytest.raises(ValueError, match="no member"):
         batch.remove(99)
     with pytest.raises(ValueError, match="finite"):
         grip.update(np.array([[np.inf, 0.0, 0.0]]))

@@ -6,20 +6,24 @@ import threading
 
 import numpy as np
 import pytest
+from _helpers import wait_for
 
 from control.backend import BackendError
 from control.gait_loop import GaitLoop
 from control.periodic import SharedClock
 from control.walking import GaitSpec, Walker, plan_gait
-from hardware.batched_quadruped import (
-    BatchedQuadrupedBackend,
-    BatchedQuadrupeds,
+from hardware.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+from hardware.quadruped_sim import G, QuadrupedSimBackend, total_mass
+from kinematics.body_statics import (
+    contact_forces,
+    feet_and_com,
     feet_and_coms,
     floor_forces,
+    implied_tilt_deg,
+    implied_tilts_deg,
+    rest_plane,
     rest_planes,
 )
-from hardware.quadruped_sim import G, QuadrupedSimBackend, total_mass
-from kinematics.body_statics import contact_forces, feet_and_com, rest_plane
 from kinematics.model import load_robot
 
 MODEL = load_robot("quadruped")
@@ -79,6 +83,11 @@ def test_the_statics_over_robots_equal_body_statics_per_robot() -> None:
         want = np.zeros(4)
         want[contact_r] = contact_forces(feet_r[contact_r], com_r, weight[r], n_r)
         np.testing.assert_allclose(f[r], want, rtol=0, atol=1e-12)
+    # the tilts the lesson's servo tab shows (seed 003: 3.6-5.7° on flat ground), all at once
+    tilts = implied_tilts_deg(MODEL, q)
+    np.testing.assert_allclose(tilts, [implied_tilt_deg(MODEL, qr) for qr in q],
+                               rtol=0, atol=1e-9)
+    assert implied_tilts_deg(MODEL, np.zeros((0, 12))).shape == (0,)
 
 
 def test_fewer_than_three_contacts_share_as_contact_forces_does() -> None:
@@ -291,3 +300,60 @@ def test_a_gait_loop_walks_one_robot_of_a_batch_as_it_walks_a_quadruped_backend(
     assert ea["mean_pct"] == eb["mean_pct"]
     assert batch.forces[batch.row(other)].sum() == 0.0  # torque off beside it: sat down
     assert batch.forces[batch.row(robot)].sum() == pytest.approx(total_mass(MODEL) * G)
+
+
+def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> None:
+    """The classroom's way (app/class_quadrupeds.py): the loop's periods run on the clock
+    that steps the batch (``GaitLoop(clock=)``), the backend only checks the time. The
+    record equals the loop's own on a QuadrupedSimBackend, row for row."""
+    plan = plan_gait(GaitSpec())
+    alone = GaitLoop(Walker(plan), QuadrupedSimBackend(MODEL, q0=Q0, dt=DT), period=PERIOD,
+                     realtime=False)
+    batch = BatchedQuadrupeds(MODEL, dt=DT)
+    clock = SharedClock(batch.step, dt=DT, realtime=False)
+    batch.add(Q0 + OFFSETS[1])  # a neighbour, walking nowhere
+    robot = batch.add(Q0)
+    loop = GaitLoop(Walker(plan), BatchedQuadrupedBackend(batch, robot, lock=clock.lock),
+                    period=PERIOD, realtime=False, clock=clock)
+    alone.go(plan)
+    alone.run_for(2.5)
+    loop.go(plan)
+    loop.start()
+    clock.run_for(2.5)
+    a, b = alone.snapshot(), loop.snapshot()
+    assert len(a["t"]) == len(b["t"]) == 125
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+    assert a["walking"][-1] == 1.0 and not loop.status.fault
+    assert loop.angle_error()["mean_pct"] == alone.angle_error()["mean_pct"]
+
+
+def test_the_class_walks_each_students_robot_on_its_own() -> None:
+    """app/class_quadrupeds.py: robots on the class's clock (its step CLASS_DT); one walks,
+    its neighbour stands; an E-STOP sits that one down alone; a freed robot is gone."""
+    from app.class_quadrupeds import CLASS_DT, ClassQuadrupeds
+
+    hands_off = ClassQuadrupeds(realtime=False)
+    try:
+        walker = hands_off.add(GaitSpec(), speed=0.5, history_s=10.0)
+        stander = hands_off.add(GaitSpec(gait="crawl"), speed=0.5, history_s=10.0)
+        assert hands_off.batch.dt == CLASS_DT and hands_off.n_robots == 2
+        walker.loop.go(plan_gait(GaitSpec()))
+        wait_for(lambda: walker.loop.status.t > 3.0, 120, "three seconds of walking")
+        assert walker.loop.status.walking and not stander.loop.status.walking
+        assert not walker.loop.status.fault and not stander.loop.status.fault
+        err = walker.loop.angle_error()
+        assert err is not None and 0.3 < err["mean_pct"] < 5.0  # eq. 4.1, as on its own
+        row = hands_off.batch.row
+        assert hands_off.batch.forces[row(stander.robot)].sum() == pytest.approx(
+            total_mass(MODEL) * G)
+        walker.loop.estop()
+        wait_for(lambda: not walker.loop.status.torque_on, 30, "the E-STOP")
+        wait_for(lambda: hands_off.batch.forces[row(walker.robot)].sum() == 0.0, 30,
+                 "the body sitting down")
+        assert stander.loop.status.torque_on
+        hands_off.free(walker)
+        hands_off.free(walker)  # twice: nothing
+        assert hands_off.n_robots == 1 and hands_off.batch.ids == (stander.robot,)
+    finally:
+        hands_off.close()

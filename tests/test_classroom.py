@@ -310,9 +310,8 @@ def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
 
 
 def test_my_arm_in_the_other_arm_lessons_is_private_too():
-    """The IK-accuracy, redundancy, any-arm and hand lessons offer My arm as well: a
-    student's control moves their own copy, never the shared one; the quadruped (one
-    simulator thread each, not batched) says so and keeps the page following."""
+    """The IK-accuracy, redundancy, any-arm, hand and quadruped lessons offer My arm as
+    well: a student's control moves their own copy, never the shared one."""
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         page, cid = _joined(lab)
         with page:
@@ -357,11 +356,31 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
             assert shared.params.force_limit == 0.8 and shared.status.closed_at is None
             assert mine.loop is not shared and lab.room.sandboxes.n_arms == 1
 
-            lab.switch("quadruped")
+            mine = mine_for("quadruped")  # the class's quadrupeds, one clock for all
+            shared = lab.lesson.loop
+            page.click(mine.direction_buttons["forward"])
+            wait_for(lambda: mine.loop.status.walking, 60, "the own robot walking")
+            wait_for(lambda: len(mine.loop.snapshot(1.0)["t"]) > 10, 60, "its record")
+            assert not mine.loop.status.fault and mine.has_servos
+            assert not shared.status.walking and mine.loop is not shared
+
+
+def test_a_lesson_without_a_private_copy_keeps_the_page_following(monkeypatch):
+    """A lesson module without ``PRIVATE`` (a lesson added later) says so and keeps the
+    page following the teacher."""
+    from app.lessons import redundancy
+
+    monkeypatch.delattr(redundancy, "PRIVATE")
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        page, cid = _joined(lab)
+        with page:
+            lab.switch("redundancy")
             page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
-                          "following the quadruped")
+                          "the page following the redundancy lesson")
             page.set_value("View", "My arm")
             assert "no private arm" in page.wait_notification("No private arm here")
+            page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
+                          "following again")
             assert lab.room.private_lesson(cid) is None
 
 
@@ -456,31 +475,40 @@ def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
         boxes.close()
 
 
-def test_a_seat_keeps_its_students_hand_and_frees_it_when_idle():
-    """The hand lesson's private hand: a reload asks the seat again and gets the same
-    hand, as it was left; an idle seat frees it from the class's loop."""
+def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle():
+    """The hand and quadruped lessons' private copies: a reload asks the seat again and
+    gets the same hand and robot, as they were left; an idle seat frees them from the
+    class's worker."""
     from app.sandboxes import Sandboxes
     from control.grip import GripParams
+    from control.walking import GaitSpec, plan_gait
     from hardware.hand import GraspObject
 
     now = [0.0]
     boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])
     try:
-        hand = boxes.seat("k", page=1).hand_for(GraspObject(), GripParams(force_limit=0.6),
-                                                history_s=2.0)
+        seat = boxes.seat("k", page=1)
+        hand = seat.hand_for(GraspObject(), GripParams(force_limit=0.6), history_s=2.0)
+        robot = seat.quadruped_for(GaitSpec(gait="crawl"), speed=0.4, history_s=5.0)
         hand.close_hand()
+        robot.go(robot_plan := plan_gait(GaitSpec(gait="crawl")))
         wait_for(lambda: hand.status.modes != ("idle",) * 3, 30, "the hand closing")
+        wait_for(lambda: robot.status.walking, 60, "the robot walking")
+        assert robot_plan.spec == robot.spec and robot.status.speed == pytest.approx(0.4)
         boxes.leave("k", page=1)
-        again = boxes.seat("k", page=2).hand_for(GraspObject(size=0.03), GripParams(),
-                                                  history_s=2.0)
+        seat = boxes.seat("k", page=2)  # the reload
+        again = seat.hand_for(GraspObject(size=0.03), GripParams(), history_s=2.0)
         assert again is hand and again.params.force_limit == 0.6
         assert again.obj == GraspObject() and boxes.n_arms == 1
+        assert seat.quadruped_for(GaitSpec(), speed=0.5, history_s=5.0) is robot
+        assert robot.spec.gait == "crawl"
         other = boxes.seat("j", page=3).hand_for(GraspObject(), GripParams(), history_s=2.0)
         assert other is not hand and other.status.modes == ("idle",) * 3
         boxes.leave("k", page=2)
         now[0] += 601.0
         assert boxes.sweep() == 1 and boxes.n_arms == 1
         assert "freed" in hand.status.fault and not other.status.fault
+        assert "freed" in robot.status.fault
     finally:
         boxes.close()
 

@@ -15,7 +15,8 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
   adds the lesson's GUI and scene to ``server`` and starts whatever runs
   behind it (a control loop), returning a handle;
 - ``PRIVATE`` (optional, default False): the lesson can be built on one page
-  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm or hand ("My arm").
+  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm, hand or quadruped
+  ("My arm").
 
 The handle's ``close()`` stops what runs (loop shut down, hardware torque
 off) and removes everything the lesson added, so another lesson can be
@@ -39,11 +40,13 @@ import viser
 if TYPE_CHECKING:
     from app.arm_process import ArmProcess
     from app.publisher import FrameThread
+    from app.remote_gait import RemoteGait
     from app.remote_hand import RemoteHand
     from control.backend import Backend
     from control.grip import GripParams
     from control.loop import ControlLoop
     from control.params import Params
+    from control.walking import GaitSpec
     from hardware.hand import GraspObject
     from kinematics.model import SerialChain
 
@@ -102,6 +105,10 @@ class ArmSource(Protocol):
     def hand_for(self, obj: GraspObject, params: GripParams, *,
                  history_s: float) -> RemoteHand:
         """The student's hand (the kept one, or a new one, open, around ``obj``), running."""
+        ...
+
+    def quadruped_for(self, spec: GaitSpec, *, speed: float, history_s: float) -> RemoteGait:
+        """The student's quadruped (the kept one, or a new one standing), its loop running."""
         ...
 
 

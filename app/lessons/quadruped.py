@@ -22,11 +22,13 @@ the loop's latest state at 30 Hz and the charts at 10 Hz.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
+import time
 from dataclasses import replace
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
@@ -56,11 +58,14 @@ from control.walking import (
     plan_gait,
     walking_tilts_deg,
 )
-from hardware.quadruped_sim import QuadrupedSimBackend
+from hardware.quadruped_sim import SIM_DT, QuadrupedSimBackend
 from kinematics.gait import SineParams
-from kinematics.model import Quadruped, load_robot
+from kinematics.model import Quadruped, SerialChain, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
 from kinematics.units import deg
+
+if TYPE_CHECKING:
+    from app.remote_gait import RemoteGait
 
 NAME = "quadruped"
 TITLE = "Quadruped gait: trot, crawl and stability (seed 003)"
@@ -75,6 +80,9 @@ HELP = ("The seed 003 quadruped walks by the sine pattern (A step length, B foot
 TRY = ("Press **Forward** and watch the stability margin while two legs swing.")
 ROBOTS = ("quadruped",)
 ORDER = 30
+#: a student's page can hold a private copy: their own robot in the class
+#: (``ctx.arms.quadruped_for``: :mod:`app.class_quadrupeds` in the class's worker process)
+PRIVATE = True
 
 #: The paper's mean commanded-vs-servo angle error (seed 003 §4.1.2), %.
 PAPER_ERROR_PCT = 1.201
@@ -87,12 +95,18 @@ GAIT_SLIDERS: dict[str, tuple[str, float, float, float, str, float]] = {
     "alpha": ("α heading (°)", 45.0, 135.0, 5.0, "alpha_deg", 1.0),
 }
 SPEED_RANGE = (0.05, 1.5)
-#: Plant step and servo tick of the simulated legs, s (eq. 4.1 figures agree with 1 ms
-#: to 0.01 %, at half the cost).
-SIM_DT = 2e-3
 COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
                   "right": "Turn right"}
+#: s between two workings-out of the Servos tab's table (10 s of record each)
+TABLE_S = 1.0
 SERVO_NAMES = ("servo 1 (hip yaw θ1)", "servo 2 (hip pitch θ2)", "servo 3 (knee θ3)")
+
+
+@functools.cache
+def _robot(name: str) -> SerialChain | Quadruped:
+    """``load_robot(name)``, once per process: every page's copy of the lesson (a classroom)
+    shares the model and the dynamics compiled for it on first use (the Servos tab's tilts)."""
+    return load_robot(name)
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
@@ -135,19 +149,29 @@ class QuadrupedLesson(LessonBase):
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
-        model = load_robot(ctx.robot)
+        self._table_at = -math.inf  #: monotonic time the Servos tab was last worked out
+        model = _robot(ctx.robot)
         if not isinstance(model, Quadruped):
             raise ValueError(f"robot: {ctx.robot} is not a quadruped")
         self.model = model
         self.geom = QuadrupedGeometry()
         self.spec = GaitSpec()
         self.plan = plan_gait(self.spec, self.geom)
-        walker = Walker(self.plan)
-        self.backend, self.servo_message = open_servos(model, ctx, walker.state().q)
-        to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
-        self.loop = GaitLoop(
-            walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
-            realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
+        self.loop: GaitLoop | RemoteGait
+        if ctx.arms is None:
+            walker = Walker(self.plan)
+            self.backend, self.servo_message = open_servos(model, ctx, walker.state().q)
+            to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
+            self.loop = GaitLoop(
+                walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
+                realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
+        else:  # a student's own robot, kept by their seat (as it was left, on a reload)
+            self.backend, self.servo_message = None, ""
+            self.loop = ctx.arms.quadruped_for(self.spec, speed=0.5, history_s=20.0)
+            self.spec = self.loop.spec
+            self.plan = plan_gait(self.spec, self.geom)
+        #: whether simulated or real servos walk (False: the gait alone)
+        self.has_servos = self.backend is not None or ctx.arms is not None
         with self.opening(self.backend.close if self.backend is not None else None):
             self._build_gui()
             self.scene = QuadrupedScene(server, model, root="/quadruped")
@@ -211,7 +235,8 @@ class QuadrupedLesson(LessonBase):
                                        hint="Carry the view along as the robot walks")
         self.speed = guarded_slider(gui, "Gait speed (cycles/s)", name="gait speed",
                                     lo=SPEED_RANGE[0], hi=SPEED_RANGE[1], step=0.05,
-                                    initial=0.5, apply=self.loop.set_speed,
+                                    initial=self.loop.status.speed,
+                                    apply=self.loop.set_speed,
                                     hint="Gait cycles per second")
 
     def _build_gait_tab(self, gui: viser.GuiApi) -> None:
@@ -352,7 +377,10 @@ class QuadrupedLesson(LessonBase):
             self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force)
             self.error_plot.update(t, tuple(self._error_series(snap)), force=force)
         self._update_status(self.loop.status)
-        self._update_servo_table()
+        now = time.monotonic()
+        if force or now - self._table_at >= TABLE_S:  # 10 s of eq. 4.1 and tilts
+            self._table_at = now
+            self._update_servo_table()
 
     def _error_series(self, snap: dict[str, np.ndarray]) -> list[np.ndarray]:
         """Per sample, |eq. 4.1| averaged over the four legs for servo 1, 2, 3 (NaN when not
@@ -367,7 +395,7 @@ class QuadrupedLesson(LessonBase):
         state = self.loop.state
         if st.fault:
             head, color = f"servos stopped: {st.fault} (press Reset)", "#b00020"
-        elif self.backend is not None and not st.torque_on:
+        elif self.has_servos and not st.torque_on:
             head, color = "E-STOPPED: torque off (press Reset)", "#b00020"
         elif st.standing_up:
             head, color = "standing up", "#555"
@@ -376,8 +404,10 @@ class QuadrupedLesson(LessonBase):
             head, color = f"{what}: {st.gait} at {st.speed:g} cycles/s", "#1f5eea"
         else:
             head, color = "standing: press a direction", "#2e7d32"
-        if self.backend is None:
+        if not self.has_servos:
             servos = "no servos (gait only)"
+        elif self.ctx.arms is not None:
+            servos = "12 simulated AX-12A (your own robot)"
         elif self.ctx.backend == "sim":
             servos = "12 simulated AX-12A"
         else:
@@ -397,7 +427,7 @@ class QuadrupedLesson(LessonBase):
     def _update_servo_table(self) -> None:
         tilts = walking_tilts_deg(self.model, self.loop.snapshot(10.0))
         set_content(self.servo_table, servo_markdown(
-            self.servo_error(10.0), has_servos=self.backend is not None, where=self.ctx.backend,
+            self.servo_error(10.0), has_servos=self.has_servos, where=self.ctx.backend,
             tilts=tilts))
 
     # ================================================================== lifetime

@@ -28,7 +28,7 @@ from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot
 from kinematics.model import Quadruped, load_robot
 from kinematics.quadruped import LEGS, QuadrupedGeometry
 
-SIM_DT = 2e-3  #: plant step of the simulated legs, s
+SIM_DT = 2e-3  #: plant step of the simulated legs, s (hardware.quadruped_sim.SIM_DT)
 
 
 def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples: int = 36,
