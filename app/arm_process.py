@@ -64,6 +64,7 @@ import numpy as np
 from app.class_arms import Arm
 from app.remote_gait import RemoteGait
 from app.remote_hand import RemoteHand
+from app.worker_link import CALL_TIMEOUT_S, ESTOP_TIMEOUT_S
 from control.backend import BackendError, GripperState, JointState
 from control.commands import Command, EStop, UseSpareJoints
 from control.grip import GripParams
@@ -86,10 +87,6 @@ FREED = "this arm was freed (a reload of the page makes a new one)"
 REPORTS_S = 0.5
 #: s without a mirror message after which a worker's arms are told as not answering
 STALE_S = 5.0
-#: s a call waits for the worker's answer
-CALL_TIMEOUT_S = 20.0
-#: s an E-STOP waits for the worker's answer (then it says it could not be sure)
-ESTOP_TIMEOUT_S = 2.0
 #: what a worker runs: the class's private arms on one clock, or arms on threads of their own
 KINDS = ("class", "own")
 #: s the worker may take to start (a spawned interpreter imports numpy and the lab)

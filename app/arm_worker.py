@@ -76,7 +76,7 @@ class HandKind:
     def add(host: ClassHands, obj: GraspObject | None, params: GripParams,
             history_s: float) -> tuple[ClassHand, dict[str, object]]:
         hand = host.add(obj, params, history_s=history_s)
-        return hand, {"model": hand.model, "dt": hand.dt, "capacity": hand._ring.capacity,
+        return hand, {"model": hand.model, "dt": hand.dt, "capacity": hand.capacity,
                       "status": hand.status, "params": hand.params, "obj": hand.obj}
 
     @staticmethod
@@ -95,7 +95,7 @@ class HandKind:
     @staticmethod
     def item(member_id: int, hand: ClassHand, sent: list) -> tuple:
         status = hand.status  # first: the rows are at least as new as it says
-        rows, sent[0] = hand._ring.since(sent[0])
+        rows, sent[0] = hand.rows_since(sent[0])
         params = None if hand.params is sent[1] else hand.params
         obj = None if hand.obj is sent[2] else (hand.obj,)
         sent[1], sent[2] = hand.params, hand.obj
@@ -117,7 +117,7 @@ class QuadKind:
             ) -> tuple[ClassQuadruped, dict[str, object]]:
         made = host.add(spec, speed=speed, history_s=history_s)
         loop = made.loop
-        return made, {"capacity": loop._ring.capacity, "status": loop.status,
+        return made, {"capacity": loop.capacity, "status": loop.status,
                       "state": loop.state, "spec": loop.walker.plan.spec}
 
     @staticmethod
@@ -137,7 +137,7 @@ class QuadKind:
     def item(member_id: int, made: ClassQuadruped, sent: list) -> tuple:
         loop = made.loop
         status = loop.status
-        rows, sent[0] = loop._ring.since(sent[0])
+        rows, sent[0] = loop.rows_since(sent[0])
         spec = loop.walker.plan.spec
         changed, sent[1] = (None if spec is sent[1] else spec), spec
         return member_id, status, rows, loop.state, changed
@@ -152,8 +152,8 @@ MEMBER_FREED = {"hand": HAND_FREED, "quad": QUAD_FREED}
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
-    says close or its end of the pipe closes; the class's hands too (a
-    :class:`ClassHands`, made at the first)."""
+    says close or its end of the pipe closes; and the class's hands and quadrupeds
+    (:data:`MEMBER_KINDS`, each kind's host made at its first member)."""
     scheduling = prioritise(kind, realtime)  # before any thread: they inherit it
     arms = ClassArms(realtime=realtime) if kind == "class" else OwnArms(realtime=realtime)
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])

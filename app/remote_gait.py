@@ -15,17 +15,14 @@ the worker's loop and wait for its answer. Its messages are the hand's
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from app.worker_link import ESTOP_TIMEOUT_S, WorkerLink
 from control.backend import BackendError
 from control.gait_loop import COLUMNS, Command, GaitRecord, GaitStatus
 from control.periodic import RingBuffer
 from control.walking import GaitSpec, WalkState
-
-if TYPE_CHECKING:
-    from app.arm_process import ArmProcess
 
 #: what a freed robot's status says
 FREED = "this quadruped was freed (a reload of the page makes a new one)"
@@ -43,7 +40,7 @@ class RemoteGait(GaitRecord):
 
     KIND = "quad"
 
-    def __init__(self, owner: ArmProcess, member_id: int, *, capacity: int,
+    def __init__(self, owner: WorkerLink, member_id: int, *, capacity: int,
                  status: GaitStatus, state: WalkState, spec: GaitSpec) -> None:
         self._owner = owner
         self.member_id = member_id
@@ -61,8 +58,6 @@ class RemoteGait(GaitRecord):
     def estop(self) -> None:
         """Torque off at the worker's loop's next period; never raises (waits at most
         ``ESTOP_TIMEOUT_S`` s for the worker)."""
-        from app.arm_process import ESTOP_TIMEOUT_S
-
         try:
             self._owner.call("quad_estop", self.member_id, timeout=ESTOP_TIMEOUT_S)
         except (BackendError, ValueError):  # gone, freed (no torque) or not answering

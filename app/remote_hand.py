@@ -21,18 +21,15 @@ Messages (besides the arms', :mod:`app.arm_process`)::
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from app.class_hands import FREED
+from app.worker_link import WorkerLink
 from control.grip import GripModel, GripParams
 from control.grip_loop import COLUMNS, Command, GripRecord, GripStatus
 from control.periodic import RingBuffer
 from hardware.hand import N_FINGERS, GraspObject
-
-if TYPE_CHECKING:
-    from app.arm_process import ArmProcess
 
 
 class RemoteHand(GripRecord):
@@ -47,7 +44,7 @@ class RemoteHand(GripRecord):
 
     KIND = "hand"
 
-    def __init__(self, owner: ArmProcess, member_id: int, *, model: GripModel, dt: float,
+    def __init__(self, owner: WorkerLink, member_id: int, *, model: GripModel, dt: float,
                  capacity: int, status: GripStatus, params: GripParams,
                  obj: GraspObject | None) -> None:
         self._owner = owner

@@ -132,6 +132,16 @@ class GaitRecord:
     state: WalkState
     _ring: RingBuffer
 
+    @property
+    def capacity(self) -> int:
+        """Rows the record keeps."""
+        return self._ring.capacity
+
+    def rows_since(self, written: int) -> tuple[np.ndarray, int]:
+        """The record's rows after the first ``written`` ever written, and the number
+        written now (:meth:`control.periodic.RingBuffer.since`: a mirror's bookmark)."""
+        return self._ring.since(written)
+
     def to_servo(self, q: np.ndarray) -> np.ndarray:
         """(..., 12) joint angles -> horn angles from the servo centre, rad (identity)."""
         return np.asarray(q, dtype=float)

@@ -132,6 +132,16 @@ class GripRecord:
     def _record_for(history_s: float, dt: float) -> RingBuffer:
         return RingBuffer(1 + N_FINGERS * len(COLUMNS), RingBuffer.rows_for(history_s, dt))
 
+    @property
+    def capacity(self) -> int:
+        """Rows the record keeps."""
+        return self._ring.capacity
+
+    def rows_since(self, written: int) -> tuple[np.ndarray, int]:
+        """The record's rows after the first ``written`` ever written, and the number
+        written now (:meth:`control.periodic.RingBuffer.since`: a mirror's bookmark)."""
+        return self._ring.since(written)
+
     def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
         """Copy of the record: "t" (m,) s and each of :data:`COLUMNS` (m, 3), oldest first.
 

@@ -27,3 +27,11 @@ def test_a_room_of_pages_each_with_its_own_hand_gets_frames_of_it() -> None:
     res = hand_room(seconds=3.0, pages=3, settle=1.0)
     assert res["classroom_30_hand_pose_hz"] > 0.0
     assert res["classroom_30_hand_bytes_per_client_per_s"] > 0.0
+
+
+@pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_backends"))
+def test_the_class_of_quadrupeds_walks_without_a_fault(batched: bool) -> None:
+    from app.benches.classroom import quadrupeds_cost
+
+    cost = quadrupeds_cost(3, seconds=0.2, batched=batched)  # raises if a robot stopped
+    assert math.isfinite(cost) and cost > 0.0

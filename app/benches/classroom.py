@@ -40,6 +40,14 @@ Figures:
         fake pages (one thread): near 1, they, not the server, may limit the rates (in a
         classroom each browser has a device of its own).
     (120 s of the room, 20 s with ``--quick``.)
+    quadrupeds_class_s_per_s_n1 / _n30: wall seconds per simulated second of a class of N
+        private quadrupeds walking the trot (:mod:`app.class_quadrupeds`: one
+        ``BatchedQuadrupeds`` at ``CLASS_DT``, every robot's ``GaitLoop`` on its
+        ``SharedClock``; headless ``run_for``, after standing up);
+        ``quadrupeds_realtime_per_core``: robots one core keeps walking in real time that
+        way (N = 30); ``quadrupeds_batched_over_single_n30``: 30 robots each on a
+        ``QuadrupedSimBackend`` of its own at the same step, over the batch, measured in
+        the same run.
     classroom_30_hand_pose_hz: the same room on the hand lesson: 30 pages each showing
         its own hand (one row of the class's batched hands, :mod:`app.class_hands`, in the
         class's worker), every hand closing and opening again and again; the lowest rate
@@ -224,6 +232,53 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     }
 
 
+def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
+    """Wall s per simulated s of ``n`` quadrupeds walking the trot at the class's step:
+    batched on one clock (as :class:`app.class_quadrupeds.ClassQuadrupeds`), or (the
+    reference) each a ``GaitLoop`` on a ``QuadrupedSimBackend`` of its own."""
+    from app.class_quadrupeds import CLASS_DT, PERIOD
+    from control.gait_loop import STAND_UP_S, GaitLoop
+    from control.walking import GaitSpec, Walker, plan_gait
+    from hardware.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+    from hardware.quadruped_sim import QuadrupedSimBackend
+
+    model = load_robot("quadruped")
+    plan = plan_gait(GaitSpec())
+    q0 = Walker(plan).state().q
+    loops: list[GaitLoop] = []
+    if batched:
+        batch = BatchedQuadrupeds(model, dt=CLASS_DT)  # type: ignore[arg-type]
+        clock = SharedClock(batch.step, dt=CLASS_DT, realtime=False)
+        for _ in range(n):
+            backend = BatchedQuadrupedBackend(batch, batch.add(q0), lock=clock.lock)
+            loops.append(GaitLoop(Walker(plan), backend, period=PERIOD, realtime=False,
+                                  clock=clock))
+        for loop in loops:
+            loop.go(plan)
+            loop.start()
+
+        def run(s: float) -> None:
+            clock.run_for(s)
+    else:
+        for _ in range(n):
+            backend = QuadrupedSimBackend(model, q0=q0, dt=CLASS_DT)  # type: ignore[arg-type]
+            loops.append(GaitLoop(Walker(plan), backend, period=PERIOD, realtime=False))
+        for loop in loops:
+            loop.go(plan)
+
+        def run(s: float) -> None:
+            for loop in loops:
+                loop.run_for(s)
+    run(STAND_UP_S)  # up on its feet, then count the walking
+    t0 = time.perf_counter()
+    run(seconds)
+    cost = (time.perf_counter() - t0) / seconds
+    faults = [loop.status.fault for loop in loops if loop.status.fault]
+    if faults or not all(loop.status.walking for loop in loops):
+        raise RuntimeError(f"classroom bench: quadrupeds stopped: {faults[:2]}")
+    return cost
+
+
 def hand_room(*, seconds: float, pages: int = 30, settle: float = 15.0) -> dict[str, float]:
     """The classroom_30_hand figures (see the module docstring), counted for ``seconds``
     from ``settle`` s after every page drew its own hand."""
@@ -281,6 +336,12 @@ def run(quick: bool) -> dict[str, float]:
     out["sandboxes_single_plants_realtime_per_core"] = n * 1e-3 / single
     out["sandboxes_batched_over_single"] = (out["sandboxes_realtime_per_core"]
                                             / out["sandboxes_single_plants_realtime_per_core"])
+    walk_s = 1.0 if quick else 4.0
+    for n in (1, 30):
+        out[f"quadrupeds_class_s_per_s_n{n}"] = quadrupeds_cost(n, seconds=walk_s)
+    out["quadrupeds_realtime_per_core"] = 30.0 / out["quadrupeds_class_s_per_s_n30"]
+    out["quadrupeds_batched_over_single_n30"] = quadrupeds_cost(
+        30, seconds=walk_s / 2, batched=False) / out["quadrupeds_class_s_per_s_n30"]
     out.update(room_of_30(seconds=20.0 if quick else 120.0))
     out.update(hand_room(seconds=20.0 if quick else 60.0))
     return out
