@@ -158,20 +158,25 @@ class QuadrupedLesson(LessonBase):
         self.spec = GaitSpec()
         self.plan = plan_gait(self.spec, self.geom)
         self.loop: GaitLoop | RemoteGait
-        if ctx.arms is None:
+        #: the worker the shared robot walks in (a simulated classroom), or None
+        self._worker = ctx.arm_process if ctx.arms is None and ctx.backend == "sim" else None
+        if ctx.arms is None and self._worker is None:
             walker = Walker(self.plan)
             self.backend, self.servo_message = open_servos(model, ctx, walker.state().q)
             to_servo = getattr(getattr(self.backend, "map", None), "to_servo", None)
             self.loop = GaitLoop(
                 walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
                 realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
+        elif ctx.arms is None:  # a simulated classroom: the shared robot off the server's GIL
+            self.backend, self.servo_message = None, ""
+            self.loop = self._worker.add_quadruped(self.spec, speed=0.5, history_s=20.0)
         else:  # a student's own robot, kept by their seat (as it was left, on a reload)
             self.backend, self.servo_message = None, ""
             self.loop = ctx.arms.quadruped_for(self.spec, speed=0.5, history_s=20.0)
             self.spec = self.loop.spec
             self.plan = plan_gait(self.spec, self.geom)
         #: whether simulated or real servos walk (False: the gait alone)
-        self.has_servos = self.backend is not None or ctx.arms is not None
+        self.has_servos = self.backend is not None or not isinstance(self.loop, GaitLoop)
         with self.opening(self.backend.close if self.backend is not None else None):
             self._build_gui()
             self.scene = QuadrupedScene(server, model, root="/quadruped")
@@ -408,6 +413,8 @@ class QuadrupedLesson(LessonBase):
             servos = "no servos (gait only)"
         elif self.ctx.arms is not None:
             servos = "12 simulated AX-12A (your own robot)"
+        elif self._worker is not None:
+            servos = "12 simulated AX-12A (in the class's simulation process)"
         elif self.ctx.backend == "sim":
             servos = "12 simulated AX-12A"
         else:
@@ -435,7 +442,9 @@ class QuadrupedLesson(LessonBase):
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove everything."""
         if self.mark_closed():
+            free = None if self._worker is None else partial(self._worker.free_member, self.loop)
             close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
+                          free,
                           self.backend.close if self.backend is not None else None,
                           self.scene.remove, self._gui.remove_all)
 
