@@ -31,6 +31,7 @@ import numpy as np
 
 from control.backend import Backend, BackendError
 from control.commands import EStop, Reset
+from control.loop_record import LoopRecord
 from control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
 from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
 
@@ -119,7 +120,7 @@ class GaitStatus:
     running: bool = False
 
 
-class GaitRecord:
+class GaitRecord(LoopRecord):
     """A gait loop's commands, record and figures, as a lesson uses them (any thread).
 
     Attributes:
@@ -131,34 +132,12 @@ class GaitRecord:
     status: GaitStatus
     state: WalkState
     _ring: RingBuffer
-
-    @property
-    def capacity(self) -> int:
-        """Rows the record keeps."""
-        return self._ring.capacity
-
-    def rows_since(self, written: int) -> tuple[np.ndarray, int]:
-        """The record's rows after the first ``written`` ever written, and the number
-        written now (:meth:`control.periodic.RingBuffer.since`: a mirror's bookmark)."""
-        return self._ring.since(written)
+    COMMANDS = COMMANDS
+    WHAT = "gait-loop"
 
     def to_servo(self, q: np.ndarray) -> np.ndarray:
         """(..., 12) joint angles -> horn angles from the servo centre, rad (identity)."""
         return np.asarray(q, dtype=float)
-
-    def post(self, command: Command) -> None:
-        """Apply ``command`` before the loop's next period.
-
-        Raises:
-            ValueError: not one of :data:`COMMANDS` (or the loop refuses it).
-        """
-        if not isinstance(command, COMMANDS):
-            raise ValueError(f"not a gait-loop command: {type(command).__name__}")
-        self._send(command)
-
-    def _send(self, command: Command) -> None:
-        """Hand a checked command to whatever runs the loop."""
-        raise NotImplementedError
 
     def go(self, plan: GaitPlan) -> None:
         """Post :class:`Walk`."""

@@ -27,6 +27,7 @@ from control.grip import (
     HandPlant,
     grasp_figures,
 )
+from control.loop_record import LoopRecord
 from control.periodic import Pacer, RingBuffer
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
@@ -94,7 +95,7 @@ class GripStatus:
     fault: str = ""
 
 
-class GripRecord:
+class GripRecord(LoopRecord):
     """A hand loop's record and status, as a lesson reads them (any thread).
 
     Attributes:
@@ -105,20 +106,8 @@ class GripRecord:
     dt: float
     status: GripStatus
     _ring: RingBuffer
-
-    def post(self, command: Command) -> None:
-        """Apply ``command`` before the loop's next period.
-
-        Raises:
-            ValueError: not one of :data:`COMMANDS` (or the loop refuses it).
-        """
-        if not isinstance(command, COMMANDS):
-            raise ValueError(f"not a hand-loop command: {type(command).__name__}")
-        self._send(command)
-
-    def _send(self, command: Command) -> None:
-        """Hand a checked command to whatever runs the loop."""
-        raise NotImplementedError
+    COMMANDS = COMMANDS
+    WHAT = "hand-loop"
 
     def close_hand(self) -> None:
         """Post a grasp (close with the force limit); :meth:`last_grasp` measures from it."""
@@ -131,16 +120,6 @@ class GripRecord:
     @staticmethod
     def _record_for(history_s: float, dt: float) -> RingBuffer:
         return RingBuffer(1 + N_FINGERS * len(COLUMNS), RingBuffer.rows_for(history_s, dt))
-
-    @property
-    def capacity(self) -> int:
-        """Rows the record keeps."""
-        return self._ring.capacity
-
-    def rows_since(self, written: int) -> tuple[np.ndarray, int]:
-        """The record's rows after the first ``written`` ever written, and the number
-        written now (:meth:`control.periodic.RingBuffer.since`: a mirror's bookmark)."""
-        return self._ring.since(written)
 
     def snapshot(self, window_s: float | None = None) -> dict[str, np.ndarray]:
         """Copy of the record: "t" (m,) s and each of :data:`COLUMNS` (m, 3), oldest first.

@@ -18,15 +18,16 @@ def test_the_class_of_loops_runs_without_a_fault(batched: bool) -> None:
     assert math.isfinite(cost) and cost > 0.0
 
 
-def test_a_room_of_pages_each_with_its_own_hand_gets_frames_of_it() -> None:
-    """Three pages choose My arm in the hand lesson; each draws its own hand (the clients
-    wait for that) and receives frames of its own lesson while the hands close and open;
-    no hand faults (the bench raises)."""
-    from app.benches.classroom import hand_room
+@pytest.mark.parametrize("lesson", ("hand", "quadruped"))
+def test_a_room_of_pages_each_with_its_own_copy_gets_frames_of_it(lesson: str) -> None:
+    """Three pages choose My arm in the hand or quadruped lesson; each draws its own robot
+    (the clients wait for that) and receives frames of its own lesson while the students
+    play; no copy faults (the bench raises)."""
+    from app.benches.classroom import private_room
 
-    res = hand_room(seconds=3.0, pages=3, settle=1.0)
-    assert res["classroom_30_hand_pose_hz"] > 0.0
-    assert res["classroom_30_hand_bytes_per_client_per_s"] > 0.0
+    res = private_room(lesson, seconds=3.0, pages=3, settle=1.0)
+    assert res[f"classroom_30_{lesson}_pose_hz"] > 0.0
+    assert res[f"classroom_30_{lesson}_bytes_per_client_per_s"] > 0.0
 
 
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_backends"))

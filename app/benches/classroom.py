@@ -48,12 +48,14 @@ Figures:
         way (N = 30); ``quadrupeds_batched_over_single_n30``: 30 robots each on a
         ``QuadrupedSimBackend`` of its own at the same step, over the batch, measured in
         the same run.
-    classroom_30_hand_pose_hz: the same room on the hand lesson: 30 pages each showing
-        its own hand (one row of the class's batched hands, :mod:`app.class_hands`, in the
-        class's worker), every hand closing and opening again and again; the lowest rate
-        of frames of its own lesson any page receives (``_median``: the median page's);
-        ``classroom_30_hand_bytes_per_client_per_s``: bytes per page per second (mean).
-        (60 s, 20 s with ``--quick``.)
+    classroom_30_hand_pose_hz, classroom_30_quadruped_pose_hz: the same room on the hand
+        and the quadruped lessons: 30 pages each showing its own hand (one row of the
+        class's batched hands, :mod:`app.class_hands`, in the class's worker), every hand
+        closing and opening again and again; or its own quadruped (one robot of the
+        class's, :mod:`app.class_quadrupeds`, in a worker of their own), walking and
+        stopping: the lowest rate of frames of its own lesson any page receives
+        (``_median``: the median page's); ``..._bytes_per_client_per_s``: bytes per page
+        per second (mean). (60 s each, 20 s with ``--quick``.)
 
 Median of repeats, ``time.perf_counter``; the machine is shared, so these are figures,
 never asserted by a test.
@@ -63,6 +65,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -279,48 +282,64 @@ def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
     return cost
 
 
-def hand_room(*, seconds: float, pages: int = 30, settle: float = 15.0) -> dict[str, float]:
-    """The classroom_30_hand figures (see the module docstring), counted for ``seconds``
-    from ``settle`` s after every page drew its own hand."""
+#: per lesson of :func:`private_room`: the node name a page's own robot turns (the clients
+#: wait until every page drew its own), and what every student does every 0.5 s tick k
+ROOMS: dict[str, tuple[str, Callable[[Any, int], object]]] = {
+    # close every 3 s, open 2 s later
+    "hand": ("/hand/finger", lambda lesson, k: lesson.close_hand() if k % 6 == 0 else
+             lesson.open_hand() if k % 6 == 4 else None),
+    # walk forward for 7 s, stop, walk again 3 s later
+    "quadruped": ("/quadruped/", lambda lesson, k: lesson.walk("forward") if k % 20 == 1 else
+                  lesson.stop() if k % 20 == 15 else None),
+}
+
+
+def private_room(lesson: str, *, seconds: float, pages: int = 30,
+                 settle: float = 15.0) -> dict[str, float]:
+    """The classroom_30_<lesson> figures (see the module docstring): ``pages`` pages each
+    with its own copy of ``lesson`` (a key of :data:`ROOMS`), counted for ``seconds`` from
+    ``settle`` s after every page drew its own robot."""
     from app.benches.ui import _clients
     from app.server import Lab, ServeOptions
 
-    lab = Lab(ServeOptions(http_port=0, classroom=True, lesson="hand"))
+    prefix, play = ROOMS[lesson]
+    lab = Lab(ServeOptions(http_port=0, classroom=True, lesson=lesson))
     room = lab.room
     assert room is not None
     stop = threading.Event()
     seen: set[int] = set()
     faults: list[str] = []
 
-    def students_grasp() -> None:  # every 3 s: close, then open 2 s later
+    def students_play() -> None:
         for k in range(1, 1 << 30):
             if stop.wait(0.5):
                 return
-            for lesson in room.private_lessons().values():
-                if id(lesson) not in seen:
-                    seen.add(id(lesson))
-                    _probe(lesson)
-                if lesson.loop.status.fault:
-                    faults.append(lesson.loop.status.fault)
-                if k % 6 == 0:
-                    lesson.close_hand()
-                elif k % 6 == 4:
-                    lesson.open_hand()
+            for own in room.private_lessons().values():
+                if id(own) not in seen:
+                    seen.add(id(own))
+                    _probe(own)
+                if own.loop.status.fault:
+                    faults.append(own.loop.status.fault)
+                try:
+                    play(own, k)
+                except (ValueError, RuntimeError):  # a page closing its lesson meanwhile
+                    pass
 
-    player = threading.Thread(target=students_grasp, name="bench-students", daemon=True)
+    player = threading.Thread(target=students_play, name="bench-students", daemon=True)
     try:
         player.start()
         res = _clients(lab.url.replace("http://", "ws://"), pages, seconds, settle=settle,
-                       my_arm=True, arm_prefix="/hand/finger")
+                       my_arm=True, arm_prefix=prefix)
     finally:
         stop.set()
         player.join(2.0)
         lab.close()
     if faults:
-        raise RuntimeError(f"classroom bench: private hands faulted: {sorted(set(faults))[:3]}")
-    return {"classroom_30_hand_pose_hz": res["own_pose_hz_min"],
-            "classroom_30_hand_pose_hz_median": res["own_pose_hz_median"],
-            "classroom_30_hand_bytes_per_client_per_s": res["bytes_per_client_per_s"]}
+        raise RuntimeError(f"classroom bench: private {lesson} copies faulted: "
+                           f"{sorted(set(faults))[:3]}")
+    return {f"classroom_30_{lesson}_pose_hz": res["own_pose_hz_min"],
+            f"classroom_30_{lesson}_pose_hz_median": res["own_pose_hz_median"],
+            f"classroom_30_{lesson}_bytes_per_client_per_s": res["bytes_per_client_per_s"]}
 
 
 def run(quick: bool) -> dict[str, float]:
@@ -343,5 +362,6 @@ def run(quick: bool) -> dict[str, float]:
     out["quadrupeds_batched_over_single_n30"] = quadrupeds_cost(
         30, seconds=walk_s / 2, batched=False) / out["quadrupeds_class_s_per_s_n30"]
     out.update(room_of_30(seconds=20.0 if quick else 120.0))
-    out.update(hand_room(seconds=20.0 if quick else 60.0))
+    for lesson in ROOMS:
+        out.update(private_room(lesson, seconds=20.0 if quick else 60.0))
     return out
