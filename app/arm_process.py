@@ -310,8 +310,7 @@ class ArmProcess:
             history_s: float) -> Arm:
         """A new arm in the worker (:meth:`ClassArms.add` or :meth:`OwnArms.add`), its loop
         running; its ``backend`` and ``loop`` are the server's proxies."""
-        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
-            raise BackendError("the arm's simulation did not start; restart the lab")
+        self._wait_ready()
         arm_id = next(self._ids)
         lower, upper, capacity, status, reports = self.call(
             "add", arm_id, model, params, preset, np.asarray(q0, dtype=float), history_s)
@@ -320,6 +319,12 @@ class ArmProcess:
         with self._lock:
             self._loops[arm_id] = loop
         return Arm(preset, None, RemoteBackend(self, loop), loop)  # type: ignore[arg-type]
+
+    def _wait_ready(self) -> None:
+        """Wait for the worker to have started (BackendError when it did not in
+        :data:`START_TIMEOUT_S` s)."""
+        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
+            raise BackendError("the class's simulation did not start; restart the lab")
 
     def free(self, arm: Arm) -> None:
         """Stop ``arm``'s loop (torque off) and take it out of the worker (as
@@ -348,8 +353,7 @@ class ArmProcess:
 
     def _add_member(self, kind: type[RemoteHand | RemoteGait], *args: object
                     ) -> RemoteHand | RemoteGait:
-        if not self._ready.wait(START_TIMEOUT_S) and self._ended is None:
-            raise BackendError("the class's simulation did not start; restart the lab")
+        self._wait_ready()
         member_id = next(self._ids)
         made = kind(self, member_id, **self.call(f"{kind.KIND}_add", member_id, *args))
         with self._lock:

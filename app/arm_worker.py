@@ -67,6 +67,7 @@ class HandKind:
     mirror items :class:`app.remote_hand.RemoteHand` expects."""
 
     name = "hand"
+    freed = HAND_FREED  #: what a freed hand's calls say
 
     @staticmethod
     def host(realtime: bool) -> ClassHands:
@@ -107,6 +108,7 @@ class QuadKind:
     :class:`app.remote_gait.RemoteGait`."""
 
     name = "quad"
+    freed = QUAD_FREED
 
     @staticmethod
     def host(realtime: bool) -> ClassQuadrupeds:
@@ -145,8 +147,6 @@ class QuadKind:
 
 #: what a class's worker hosts besides arms, by the name its messages carry
 MEMBER_KINDS = {kind.name: kind for kind in (HandKind, QuadKind)}
-#: what a freed member's calls say
-MEMBER_FREED = {"hand": HAND_FREED, "quad": QUAD_FREED}
 
 
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
@@ -221,7 +221,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         with held_lock:
             found = members.get(member_id)
         if found is None or found[0] != name:
-            raise ValueError(MEMBER_FREED[name])
+            raise ValueError(MEMBER_KINDS[name].freed)
         return found[1]
 
     def member_add(name: str, member_id: int, *args: object) -> dict[str, object]:

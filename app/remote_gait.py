@@ -18,9 +18,9 @@ import dataclasses
 
 import numpy as np
 
-from app.worker_link import ESTOP_TIMEOUT_S, WorkerLink
+from app.worker_link import ESTOP_TIMEOUT_S, RemoteMember, WorkerLink
 from control.backend import BackendError
-from control.gait_loop import COLUMNS, Command, GaitRecord, GaitStatus
+from control.gait_loop import COLUMNS, GaitRecord, GaitStatus
 from control.periodic import RingBuffer
 from control.walking import GaitSpec, WalkState
 
@@ -28,7 +28,7 @@ from control.walking import GaitSpec, WalkState
 FREED = "this quadruped was freed (a reload of the page makes a new one)"
 
 
-class RemoteGait(GaitRecord):
+class RemoteGait(RemoteMember, GaitRecord):
     """A robot of the worker's :class:`app.class_quadrupeds.ClassQuadrupeds` (module
     docstring).
 
@@ -39,21 +39,15 @@ class RemoteGait(GaitRecord):
     """
 
     KIND = "quad"
+    FREED = FREED
 
     def __init__(self, owner: WorkerLink, member_id: int, *, capacity: int,
                  status: GaitStatus, state: WalkState, spec: GaitSpec) -> None:
-        self._owner = owner
-        self.member_id = member_id
+        super().__init__(owner, member_id)
         self.spec = spec
         self.state = state
-        self.freed = False
         self._status = status
         self._ring = RingBuffer(sum(COLUMNS.values()), capacity)
-
-    def _send(self, command: Command) -> None:
-        """To the worker's loop, waiting for its answer (``BackendError``: the worker has
-        ended or does not answer)."""
-        self._owner.call("quad_post", self.member_id, command)
 
     def estop(self) -> None:
         """Torque off at the worker's loop's next period; never raises (waits at most
@@ -67,14 +61,11 @@ class RemoteGait(GaitRecord):
     def status(self) -> GaitStatus:  # type: ignore[override]
         """The loop's newest status (about ``MIRROR_S`` s old); a fault once freed, once the
         worker has ended, or while it has sent nothing for ``STALE_S`` s."""
-        why = FREED if self.freed else self._owner.ended or self._owner.silent()
+        why = self._fault()
         st = self._status
         if why is not None:
             return dataclasses.replace(st, running=False, servos=False, fault=why)
         return st
-
-    def start(self) -> None:
-        """Nothing: the robot walks on the class's clock from the moment it was made."""
 
     def shutdown(self, *, torque_off: bool = True) -> None:
         """Nothing: the robot stays with its student's seat (the seat frees it)."""

@@ -25,14 +25,14 @@ import dataclasses
 import numpy as np
 
 from app.class_hands import FREED
-from app.worker_link import WorkerLink
+from app.worker_link import RemoteMember, WorkerLink
 from control.grip import GripModel, GripParams
-from control.grip_loop import COLUMNS, Command, GripRecord, GripStatus
+from control.grip_loop import COLUMNS, GripRecord, GripStatus
 from control.periodic import RingBuffer
 from hardware.hand import N_FINGERS, GraspObject
 
 
-class RemoteHand(GripRecord):
+class RemoteHand(RemoteMember, GripRecord):
     """A hand of the worker's :class:`app.class_hands.ClassHands` (module docstring).
 
     Attributes:
@@ -43,37 +43,28 @@ class RemoteHand(GripRecord):
     """
 
     KIND = "hand"
+    FREED = FREED
 
     def __init__(self, owner: WorkerLink, member_id: int, *, model: GripModel, dt: float,
                  capacity: int, status: GripStatus, params: GripParams,
                  obj: GraspObject | None) -> None:
-        self._owner = owner
-        self.member_id = member_id
+        super().__init__(owner, member_id)
         self.model = model
         self.dt = dt
         self.params = params
         self.obj = obj
         self._status = status
-        self.freed = False  #: set when its seat let it go (the worker's hand is gone)
         self._ring = RingBuffer(1 + N_FINGERS * len(COLUMNS), capacity)
-
-    def _send(self, command: Command) -> None:
-        """To the worker's hand, waiting for its answer (ValueError: the hand was freed;
-        ``BackendError``: the worker has ended or does not answer)."""
-        self._owner.call("hand_post", self.member_id, command)
 
     @property
     def status(self) -> GripStatus:  # type: ignore[override]
         """The hand's newest state (about ``MIRROR_S`` s old); a fault once it was freed, the
         worker has ended or while it has sent nothing for ``STALE_S`` s."""
-        why = FREED if self.freed else self._owner.ended or self._owner.silent()
+        why = self._fault()
         st = self._status
         if why is not None:
             return dataclasses.replace(st, running=False, fault=why)
         return st
-
-    def start(self) -> None:
-        """Nothing: the hand runs from the moment it was made."""
 
     def shutdown(self) -> None:
         """Nothing: the hand stays with its student's seat (the seat frees it)."""

@@ -235,10 +235,7 @@ class Sandboxes:
                     self._local = ClassArms(realtime=self._realtime)
                 host = self._local
             else:
-                if self.process.ended is not None:  # killed or crashed: a new one
-                    ended, self.process = self.process, ArmProcess(realtime=self._realtime)
-                    ended.close()
-                host = self.process
+                host = self._process_for("arm")
             arm = host.add(model, params, preset=preset, q0=q0, history_s=history_s)
             seat.arm = _Arm(host, arm)
             return arm.backend, seat.arm.loop  # type: ignore[return-value]
@@ -257,10 +254,11 @@ class Sandboxes:
             return made
 
     def _process_for(self, kind: str) -> ArmProcess:  # holding self._lock
-        """The worker for a member of ``kind``: the class's, or (:data:`OWN_PROCESS`) one of
-        its own; a new one for a worker that has ended."""
+        """The worker for an arm or a member of ``kind``: the class's, or
+        (:data:`OWN_PROCESS`) one of its own; a new one for a worker that has ended (killed
+        or crashed)."""
         if kind not in OWN_PROCESS:
-            if self.process.ended is not None:  # killed or crashed: a new one
+            if self.process.ended is not None:
                 ended, self.process = self.process, ArmProcess(realtime=self._realtime)
                 ended.close()
             return self.process

@@ -9,7 +9,9 @@ and the HTML of the status and warning lines.
 from __future__ import annotations
 
 import html
+import math
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -200,6 +202,23 @@ def set_content(handle: Any, text: str) -> None:
     """Show ``text`` in an HTML or markdown element; sent to the pages only if it changed."""
     if handle.content != text:
         handle.content = text
+
+
+class Every:
+    """A chart frame's slower chore (a table of the last 10 s, a grasp's figures): due at
+    most once every ``period_s`` s of wall time, or when the frame is forced (a fresh page)."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = float(period_s)
+        self._at = -math.inf  #: monotonic time it was last due
+
+    def due(self, *, force: bool = False) -> bool:
+        """Whether the chore is to be done now (and, if so, it counts as done)."""
+        now = time.monotonic()
+        if not force and now - self._at < self.period_s:
+            return False
+        self._at = now
+        return True
 
 
 def close_in_turn(*steps: Callable[[], object] | None) -> None:

@@ -16,7 +16,6 @@ loop's record and updates the scene (30 Hz) and charts (10 Hz).
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -25,7 +24,7 @@ import viser
 
 from app.inputs import guarded_slider
 from app.lessons import LessonContext
-from app.lessons._common import LessonBase, close_in_turn, guarded, set_content, status_html
+from app.lessons._common import Every, LessonBase, close_in_turn, guarded, set_content, status_html
 from app.lessons.hand_scene import HandScene
 from app.plots import COLORS, LivePlot, SeriesSpec, dash
 from control.grip import GripController, GripModel, GripParams
@@ -100,7 +99,8 @@ class HandLesson(LessonBase):
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
-        self._figures_at = -math.inf  #: monotonic time the figures were last worked out
+        #: the grasp's figures read the whole record since the close: not every chart frame
+        self._figures = Every(FIGURES_S)
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
         params = GripParams(force_limit=DEFAULT_FORCE)
         history_s = WINDOW_S + 4.0
@@ -253,16 +253,7 @@ class HandLesson(LessonBase):
         self.force_plot.update(t, (*(snap["force"][:, i] for i in range(3)),
                                    np.full(len(t), limit), snap["estimate"][:, 0], zero),
                                force=force)
-        self._update_status(snap, limit, figures=force or self._figures_due())
-
-    def _figures_due(self) -> bool:
-        """Whether the grasp's figures are to be worked out again (every
-        :data:`FIGURES_S` s: they read the whole record since the close)."""
-        now = time.monotonic()
-        if now - self._figures_at < FIGURES_S:
-            return False
-        self._figures_at = now
-        return True
+        self._update_status(snap, limit, figures=self._figures.due(force=force))
 
     def _update_status(self, snap: dict[str, np.ndarray], limit: float, *,
                        figures: bool = True) -> None:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import functools
 import math
 import threading
-import time
 from dataclasses import replace
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -37,6 +36,7 @@ from app.backends import make_backend
 from app.inputs import GuardedNumber, guarded_slider
 from app.lessons import LessonContext
 from app.lessons._common import (
+    Every,
     LessonBase,
     close_in_turn,
     guarded,
@@ -149,7 +149,7 @@ class QuadrupedLesson(LessonBase):
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
-        self._table_at = -math.inf  #: monotonic time the Servos tab was last worked out
+        self._table = Every(TABLE_S)  #: when the Servos tab is worked out again
         model = _robot(ctx.robot)
         if not isinstance(model, Quadruped):
             raise ValueError(f"robot: {ctx.robot} is not a quadruped")
@@ -382,9 +382,7 @@ class QuadrupedLesson(LessonBase):
             self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force)
             self.error_plot.update(t, tuple(self._error_series(snap)), force=force)
         self._update_status(self.loop.status)
-        now = time.monotonic()
-        if force or now - self._table_at >= TABLE_S:  # 10 s of eq. 4.1 and tilts
-            self._table_at = now
+        if self._table.due(force=force):  # 10 s of eq. 4.1 and tilts
             self._update_servo_table()
 
     def _error_series(self, snap: dict[str, np.ndarray]) -> list[np.ndarray]:
