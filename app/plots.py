@@ -1,10 +1,11 @@
 """Live uPlot charts for the lab: short time windows, decimated, resent only when changed.
 
-viser resends every array of a uPlot chart on each assignment (float64, no
-append), so a chart costs ``(series + 1) * points * 8`` bytes per update per
-browser. Windows are therefore short (about 10 s) and decimated to a fixed
-grid of ``points`` bins; the bins are aligned to absolute time so a curve does
-not shimmer as the window slides.
+viser resends every array of a uPlot chart on each assignment (no append), so a
+chart costs ``(series + 1) * points * 4`` bytes per update per browser: the arrays go as
+float32 (the page makes a Float32Array of each; seven digits are more than a chart
+shows, and half of float64's bytes). Windows are therefore short (about 10 s) and
+decimated to a fixed grid of ``points`` bins; the bins are aligned to absolute time so a
+curve does not shimmer as the window slides.
 
 The x axis is time relative to the newest sample, from −window to 0 exactly,
 and the chart's x scale is pinned to that range (:func:`fixed_x`). Left to
@@ -95,7 +96,7 @@ def _flat_since(ys: Sequence[np.ndarray], fresh: np.ndarray, last: np.ndarray) -
 def fill_gaps(ys: Sequence[np.ndarray]) -> list[np.ndarray]:
     """Series without NaN, for a chart that cannot show gaps.
 
-    The page's arrays are float64 and uPlot treats NaN as a number (its autoscale
+    The page's arrays are typed (float32) and uPlot treats NaN as a number (its autoscale
     breaks), so each NaN takes the nearest earlier finite value (the first finite
     value before it); a series with no finite value at all copies the first series
     that has one (drawn underneath it, so it does not show).
@@ -118,6 +119,20 @@ def fill_gaps(ys: Sequence[np.ndarray]) -> list[np.ndarray]:
     backup = next((y for y in out if y is not None), None)
     return [y if y is not None else (backup.copy() if backup is not None
                                      else np.zeros(len(ys[0]))) for y in out]
+
+
+def set_chart_data(handle: viser.GuiUplotHandle, arrays: Sequence[np.ndarray]) -> None:
+    """Send a chart's arrays to its pages as float32 and keep them as its data.
+
+    ``handle.data = ...`` casts every array to float64 (viser's prop hint), so this sets
+    the prop and queues its update itself: the same ``GuiUpdateMessage`` viser sends, at
+    4 bytes a value. RuntimeError on a removed chart, as viser's own assignment."""
+    impl = handle._impl
+    if impl.removed:
+        raise RuntimeError(f"Cannot assign to 'data' on a removed {type(handle).__name__}.")
+    data = tuple(np.array(a, dtype=np.float32) for a in arrays)  # copies: never aliased
+    impl.props.data = data
+    handle._queue_update("data", data)
 
 
 def fixed_x(lo: float, hi: float) -> dict:
@@ -346,7 +361,7 @@ class LivePlot:
         yy = fill_gaps(yy)
         x = tt - tt[-1]
         x[0], x[-1] = -self.window_s, 0.0  # the data spans the whole pinned axis
-        self.handle.data = (x, *yy)
+        set_chart_data(self.handle, (x, *yy))
         self._fit(yy)
         self._last_t = newest
         self._last_sent = now

@@ -37,6 +37,9 @@ import numpy as np
 #: s a running pacer's :meth:`Pacer.stats` is reused: it sums up the last 1000 wake-ups,
 #: and every page reads it in every frame (30 private arms share one clock's statistics).
 STATS_TTL_S = 0.2
+#: s of each wait a paced loop spends spinning (:func:`sleep_until`): a 16 ms control
+#: period's start within microseconds (``loop_jitter_p99_ms``)
+SPIN_S = 0.0015
 
 
 @dataclass(frozen=True)
@@ -75,6 +78,9 @@ class Pacer:
         catch: exceptions of ``step`` that end the thread (passed to ``on_exit``).
         on_exit: called in the thread as it ends, with the caught exception or None.
         recent_s: the window of :attr:`PaceStats.skipped_recent`, s.
+        spin_s: the last part of each wait spent spinning rather than asleep, s: wake-ups
+            within microseconds of their time, for a core's time while it spins (0: sleep
+            all the way, waking ~0.1 ms late; enough for a simulated world's clock).
     """
 
     def __init__(self, step: Callable[[], None], *, period: float, name: str,
@@ -82,7 +88,7 @@ class Pacer:
                  max_catch_up: float | None = None, idle_s: float = 0.002,
                  catch: tuple[type[Exception], ...] = (),
                  on_exit: Callable[[Exception | None], None] | None = None,
-                 recent_s: float = 10.0) -> None:
+                 recent_s: float = 10.0, spin_s: float = SPIN_S) -> None:
         self.step = step
         self.period = float(period)
         self.name = name
@@ -93,6 +99,7 @@ class Pacer:
         self.catch = catch
         self.on_exit = on_exit
         self.recent_s = recent_s
+        self.spin_s = float(spin_s)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
@@ -188,7 +195,7 @@ class Pacer:
         while not self._stop.is_set():
             per_wake = self._per_wake()
             wake_at = start + (done + per_wake - 1) * period
-            sleep_until(wake_at, self._stop)
+            sleep_until(wake_at, self._stop, spin_s=self.spin_s)
             if self._stop.is_set():
                 break
             now = time.perf_counter()
@@ -212,15 +219,17 @@ class Pacer:
                 period, start, done = self.period, time.perf_counter(), 0
 
 
-def sleep_until(deadline: float, stop: threading.Event) -> None:
-    """Sleep to ``deadline`` (perf_counter s): coarse sleep, then a short spin for precision;
-    returns early when ``stop`` is set."""
+def sleep_until(deadline: float, stop: threading.Event, *, spin_s: float = SPIN_S) -> None:
+    """Sleep to ``deadline`` (perf_counter s): coarse sleep, then ``spin_s`` s of spinning
+    (yielding the interpreter) for precision; returns early when ``stop`` is set."""
     while True:
         left = deadline - time.perf_counter()
         if left <= 0 or stop.is_set():
             return
-        if left > 0.002:
-            time.sleep(left - 0.0015)
+        if spin_s <= 0.0:
+            time.sleep(left)
+        elif left > spin_s + 0.0005:
+            time.sleep(left - spin_s)
         elif left > 0.0002:
             time.sleep(0)
         # else spin the last 0.2 ms
@@ -536,8 +545,9 @@ class SharedClock:
     Args:
         step: one world step of ``dt`` (e.g. ``BatchedPlant.step``).
         dt: s per tick.
-        realtime: pace ticks by the wall clock (a :class:`Pacer` of period ``dt``); False:
-            as fast as possible.
+        realtime: pace ticks by the wall clock (a :class:`Pacer` of period ``dt``, which
+            sleeps all the way to each wake-up: no spinning, ``spin_s`` 0); False: as fast
+            as possible.
         lock: held around each tick (default a new :class:`HandOverLock`; share it with
             whatever else touches the world, e.g. the backends). Between two ticks the
             clock lets the threads waiting on a HandOverLock in first (at most
@@ -573,7 +583,8 @@ class SharedClock:
         self._pacers: list[DrivenPacer] = []
         self._ticking = False
         self._pacer = Pacer(self._tick, period=self.dt, name=name, realtime=realtime,
-                            batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up)
+                            batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up,
+                            spin_s=0.0)  # a simulated world: ~0.1 ms late costs nothing
 
     @property
     def steps(self) -> int:

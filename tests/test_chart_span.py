@@ -130,3 +130,29 @@ def test_an_axis_without_a_span_scales_to_its_data_alone():
         assert plot.ranges == {} and plot.handle.scales["y"] == {"auto": True}
     finally:
         server.stop()
+
+
+def test_a_chart_update_reaches_the_page_as_float32_arrays_of_its_window():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        plot = LivePlot(server.gui, title="Joint angle", y_label="angle (°)", window_s=2.0,
+                        points=50, series=(SeriesSpec("actual θ", "#000000"),))
+        with client_of(server) as page:
+            t = np.arange(0.0, 4.0, 0.01)
+            y = 30.0 + 10.0 * np.sin(t)
+            plot.update(t, [y])
+
+            def data():
+                charts = [e for e in page.gui.values() if e.kind == "GuiUplotMessage"]
+                d = charts[0].props.get("data") if charts else None
+                return d if d is not None and len(d[0]) > 2 else None
+
+            page.wait_for(lambda: data() is not None, what="the chart's data")
+            x, shown = data()
+            # 4 bytes a value: half of float64's, at the precision the chart draws
+            assert x.dtype == np.float32 and shown.dtype == np.float32
+            assert x[0] == -2.0 and x[-1] == 0.0 and np.all(np.diff(x) > 0)
+            assert len(x) <= 52
+            np.testing.assert_allclose(shown, np.interp(x + t[-1], t, y), atol=0.2)
+    finally:
+        server.stop()

@@ -7,11 +7,13 @@ import urllib.request
 
 import numpy as np
 import pytest
+import viser
 from _emulator import emulator
 from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.quadruped import build
+from app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail, nearest_on_polygon
 from control.walking import (
     angle_error_pct,
     mean_angle_error_pct,
@@ -108,6 +110,48 @@ def test_walking_forward_the_stance_feet_stay_put_and_a_changes_the_stride(lesso
         snap = walk_for(lesson, 1.05)
         assert stride(snap) == pytest.approx(2 * 0.06, rel=0.02)
         assert stance_slip(snap) < 1e-3
+
+
+def test_a_foot_trail_sends_its_newest_piece_only_and_keeps_the_recent_points():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        trail = FootTrail(server.scene, "/trail", (0, 0, 255), points=20, chunk=4)
+        assert trail.last is None and len(trail.segments()) == 0
+        pts = [np.array([0.01 * i, 0.002 * i * i, 0.0]) for i in range(50)]
+        changed = []
+        for p in pts:
+            before = [piece.points.copy() for piece in trail.pieces]
+            trail.add(p)
+            changed.append(sum(not np.array_equal(b, piece.points)
+                               for b, piece in zip(before, trail.pieces, strict=True)))
+        assert max(changed) == 1  # one piece (4 segments) re-sent per point, not the trail
+        segs = trail.segments()
+        assert 19 <= len(segs) <= 24  # at least points - 1 segments, at most a piece more
+        k = len(segs)  # the newest points, joined in order
+        np.testing.assert_allclose(segs[:, 0], np.array(pts[-k - 1:-1]), atol=1e-6)
+        np.testing.assert_allclose(segs[:, 1], np.array(pts[-k:]), atol=1e-6)
+        trail.clear()
+        assert trail.last is None and len(trail.segments()) == 0
+        trail.add(pts[0])
+        trail.add(pts[1])
+        np.testing.assert_allclose(trail.segments(), np.array([[pts[0], pts[1]]]), atol=1e-6)
+    finally:
+        server.stop()
+
+
+def test_walking_each_foot_leaves_a_trail_that_ends_where_it_is(lesson):
+    with client_of(lesson.server) as client:
+        client.click(lesson.direction_buttons["forward"])
+        walk_for(lesson, 2.5)
+        wait_for(lambda: all(len(t.segments()) >= TRAIL_POINTS - 1
+                             for t in lesson.scene.trails.values()))
+        feet = lesson.loop.state.feet
+        for i, trail in enumerate(lesson.scene.trails.values()):
+            segs = trail.segments()
+            np.testing.assert_array_equal(segs[1:, 0], segs[:-1, 1])  # one line
+            assert np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1).min() >= 0.002 - 1e-6
+            # the trail follows the foot on the floor (within the frames since)
+            assert np.linalg.norm(segs[-1, 1] - feet[i]) < 0.05
 
 
 def test_turn_and_back_buttons_change_the_motion(lesson):
@@ -250,3 +294,23 @@ def test_estop_switches_the_twelve_servos_off_and_reset_stands_up_again(lesson):
         wait_for(lambda: not lesson.loop.status.standing_up)
         assert lesson.loop.state.stance.all()  # standing on four feet at the start
         assert lesson.loop.state.margin > 0.05
+
+
+@pytest.mark.parametrize("hull", [
+    [[0.1, 0.2]],
+    [[0.0, 0.0], [0.2, 0.1]],
+    [[0.0, 0.0], [0.2, 0.0], [0.1, 0.15]],
+    [[0.0, 0.0], [0.2, 0.0], [0.2, 0.2], [0.0, 0.2]],
+])
+def test_the_margin_ends_on_the_support_polygons_nearest_boundary_point(hull):
+    hull = np.array(hull)
+    closed = len(hull) > 2
+    ends = list(zip(hull, np.roll(hull, -1, axis=0) if closed else hull[1:], strict=False))
+    s = np.linspace(0.0, 1.0, 2001)[:, None]
+    boundary = (np.concatenate([a + s * (b - a) for a, b in ends]) if ends else hull)
+    rng = np.random.default_rng(3)
+    for p in rng.uniform(-0.1, 0.3, (50, 2)):
+        near = nearest_on_polygon(p, hull)
+        best = np.linalg.norm(boundary - p, axis=1).min()
+        assert np.linalg.norm(near - p) == pytest.approx(best, abs=2e-4)
+        assert np.linalg.norm(boundary - near, axis=1).min() < 2e-4  # on the boundary

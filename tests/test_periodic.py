@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
 import pytest
 from _helpers import wait_for
 
-from control.periodic import Pacer, RingBuffer
+from control.periodic import SPIN_S, Pacer, RingBuffer, SharedClock, sleep_until
 
 
 def test_ring_keeps_the_newest_rows_and_finds_a_window_by_time():
@@ -88,3 +89,21 @@ def test_a_stalled_period_skips_time_instead_of_racing_and_says_so():
     # no burst of catch-up periods: in the 20 ms after it, at most what the clock allows
     # (4 periods, +1 for phase); a burst would run the 11 missed periods at once
     assert sum(resumed < t <= resumed + 0.02 for t in starts) <= 5
+
+
+def test_a_wait_without_spin_sleeps_to_its_deadline_and_burns_no_core():
+    stop = threading.Event()
+    for spin_s in (0.0, SPIN_S):
+        deadline = time.perf_counter() + 0.05
+        cpu = time.thread_time()
+        sleep_until(deadline, stop, spin_s=spin_s)
+        used = time.thread_time() - cpu
+        assert time.perf_counter() >= deadline  # never early
+        if spin_s == 0.0:  # asleep all the way: a spinning wait would use ~spin_s of CPU
+            assert used < 0.005, used
+    # a simulated world's clock waits that way (its ticks need no microseconds)
+    assert SharedClock(lambda: None, dt=0.001)._pacer.spin_s == 0.0
+    stop.set()
+    cpu = time.thread_time()
+    sleep_until(time.perf_counter() + 10.0, stop)  # a stopped loop does not wait
+    assert time.thread_time() - cpu < 0.005

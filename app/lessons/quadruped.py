@@ -45,7 +45,15 @@ from app.lessons._common import (
     warning_html,
 )
 from app.lessons.quadruped_scene import QuadrupedScene
-from app.plots import ANGLE_SPAN_DEG, COLORS, LivePlot, SeriesSpec, dash, rebuild_plots
+from app.plots import (
+    ANGLE_SPAN_DEG,
+    COLORS,
+    LivePlot,
+    SeriesSpec,
+    dash,
+    decimation,
+    rebuild_plots,
+)
 from control.backend import Backend, BackendError
 from control.gait_loop import GaitLoop, GaitStatus
 from control.walking import (
@@ -95,6 +103,10 @@ GAIT_SLIDERS: dict[str, tuple[str, float, float, float, str, float]] = {
     "alpha": ("α heading (°)", 45.0, 135.0, 5.0, "alpha_deg", 1.0),
 }
 SPEED_RANGE = (0.05, 1.5)
+#: s of record every chart shows, and the points it is decimated to (one grid: a frame
+#: finds the record's bins once for the five charts)
+CHART_WINDOW_S = 8.0
+CHART_POINTS = 128
 COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
                   "right": "Turn right"}
 #: s between two workings-out of the Servos tab's table (10 s of record each)
@@ -262,7 +274,7 @@ class QuadrupedLesson(LessonBase):
         self._leg = "RF"
         self._leg_stale = False
         self._plot_lock = threading.Lock()
-        kw = {"window_s": 8.0, "points": 128, "height": 130}
+        kw = {"window_s": CHART_WINDOW_S, "points": CHART_POINTS, "height": 130}
         with container:
             self.leg_picker = gui.add_button_group("Leg", LEGS, order=1.0,
                                                    hint="The leg the joint charts show")
@@ -291,7 +303,8 @@ class QuadrupedLesson(LessonBase):
         with self.charts:
             self.joint_plots = [
                 LivePlot(gui, title=f"Leg {self._leg}: {SERVO_NAMES[j]}", y_label="angle (°)",
-                         order=10.0 + j, height=130, window_s=8.0, points=128, series=(
+                         order=10.0 + j, height=130, window_s=CHART_WINDOW_S,
+                         points=CHART_POINTS, series=(
                              SeriesSpec("commanded", COLORS[0], (6, 4)),
                              SeriesSpec("servo", COLORS[2])), y_span=ANGLE_SPAN_DEG)
                 for j in range(3)]
@@ -376,11 +389,15 @@ class QuadrupedLesson(LessonBase):
             leg = self._leg
         if len(t) >= 2:
             i = LEGS.index(leg)
+            # the five charts share a window and a grid: the record's bins found once
+            index = decimation(t, window_s=CHART_WINDOW_S, points=CHART_POINTS)
             for j, plot in enumerate(self.joint_plots):
                 plot.update(t, (deg(snap["q_cmd"][:, 3 * i + j]), deg(snap["q"][:, 3 * i + j])),
-                            force=force)
-            self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force)
-            self.error_plot.update(t, tuple(self._error_series(snap)), force=force)
+                            force=force, index=index)
+            self.margin_plot.update(t, (snap["margin"] * 100.0, np.zeros(len(t))), force=force,
+                                    index=index)
+            self.error_plot.update(t, tuple(self._error_series(snap)), force=force,
+                                   index=index)
         self._update_status(self.loop.status)
         if self._table.due(force=force):  # 10 s of eq. 4.1 and tilts
             self._update_servo_table()

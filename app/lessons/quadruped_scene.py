@@ -4,7 +4,8 @@
   pose, its legs at the angles the servos report (or the commanded ones);
 - each foot's path over one gait cycle, drawn in the body frame (it travels with the
   body): the sine pattern's shape;
-- each foot's recent trail on the floor (world), one colour per leg;
+- each foot's recent trail on the floor (world), one colour per leg, in pieces of
+  :data:`TRAIL_CHUNK` segments (:class:`FootTrail`: a frame sends only the piece that grew);
 - the support polygon (the stance feet's convex hull) on the floor, green when the
   centre of mass projects inside it, red otherwise (a line for two feet);
 - the centre of mass, its projection on the floor, and the shortest segment from
@@ -14,11 +15,9 @@
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 import viser
-import viser.transforms as vtf
 
 from app import theme
 from app.arm_view import ArmView
@@ -32,26 +31,31 @@ LEG_RGB = {"RF": (31, 94, 234), "LF": (232, 130, 12), "RH": (194, 24, 91), "LH":
 STABLE_RGB = (46, 160, 60)
 UNSTABLE_RGB = (220, 30, 30)
 COM_RGB = (20, 20, 20)
+#: points of a foot's trail shown at least (2 mm apart)
 TRAIL_POINTS = 80
+#: segments in a piece of a trail: while a foot moves, each frame sends its newest piece
+#: (8 segments, 0.2 kB) rather than the whole trail (80 points a foot, 7.6 kB for four)
+TRAIL_CHUNK = 8
 FLOOR_Z = 0.001
 
 
 def nearest_on_polygon(p: np.ndarray, hull: np.ndarray) -> np.ndarray:
-    """(2,) point of the polygon's boundary (or segment, or point) nearest to ``p`` (2,)."""
-    if len(hull) == 1:
-        return hull[0].copy()
-    best, best_d = hull[0], math.inf
-    edges = len(hull) if len(hull) > 2 else 1
+    """(2,) point of the polygon's boundary (or segment, or point) nearest to ``p`` (2,)
+    (in floats: a page's frame finds it for a polygon of at most four corners)."""
+    px, py = (float(v) for v in p[:2])
+    pts = hull.tolist()
+    best, best_d = pts[0], math.inf
+    edges = len(pts) if len(pts) > 2 else len(pts) - 1
     for i in range(edges):
-        a, b = hull[i], hull[(i + 1) % len(hull)]
-        ab = b - a
-        L2 = float(ab @ ab)
-        t = 0.0 if L2 == 0 else min(1.0, max(0.0, float((p - a) @ ab) / L2))
-        c = a + t * ab
-        d = float(np.linalg.norm(p - c))
+        (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
+        abx, aby = bx - ax, by - ay
+        l2 = abx * abx + aby * aby
+        t = 0.0 if l2 == 0 else min(1.0, max(0.0, ((px - ax) * abx + (py - ay) * aby) / l2))
+        cx, cy = ax + t * abx, ay + t * aby
+        d = math.hypot(px - cx, py - cy)
         if d < best_d:
-            best, best_d = c, d
-    return np.asarray(best, dtype=float)
+            best, best_d = [cx, cy], d
+    return np.array(best, dtype=float)
 
 
 def _segments(points: np.ndarray, closed: bool) -> np.ndarray:
@@ -59,6 +63,64 @@ def _segments(points: np.ndarray, closed: bool) -> np.ndarray:
     if closed:
         return np.stack([p, np.roll(p, -1, axis=0)], axis=1)
     return np.stack([p[:-1], p[1:]], axis=1)
+
+
+class FootTrail:
+    """One foot's recent trail as a ring of line-segment nodes of :data:`TRAIL_CHUNK`
+    segments each: a new point re-sends the newest piece only; a full piece stays as it is
+    until the ring comes round to it again (then the oldest piece goes at once).
+
+    Args:
+        scene: the server's scene API.
+        name: the node holding the pieces (``name/0``, ``name/1``, ...).
+        rgb: the line's colour.
+        points: points shown at least.
+        chunk: segments per piece.
+    """
+
+    def __init__(self, scene: viser.SceneApi, name: str, rgb: tuple[int, int, int], *,
+                 points: int = TRAIL_POINTS, chunk: int = TRAIL_CHUNK) -> None:
+        self.chunk = chunk
+        # enough pieces that the full ones alone hold points - 1 segments
+        pieces = -(-(points - 1) // chunk) + 1
+        self.pieces = [scene.add_line_segments(f"{name}/{i}",
+                                               np.zeros((chunk, 2, 3), np.float32), rgb,
+                                               thickness=0.004, visible=False)
+                       for i in range(pieces)]
+        self._k = 0  # the piece growing now
+        self._points: list[np.ndarray] = []  # its points (the first: the last one's end)
+
+    @property
+    def last(self) -> np.ndarray | None:
+        """(3,) the newest point, m (None: the trail is empty)."""
+        return self._points[-1] if self._points else None
+
+    def add(self, p: np.ndarray) -> None:
+        """Extend the trail to ``p`` (3,) m, world frame."""
+        self._points.append(np.asarray(p, dtype=np.float32))
+        if len(self._points) < 2:
+            return
+        piece = self.pieces[self._k]
+        pts = np.array(self._points + [self._points[-1]] * (self.chunk + 1 - len(self._points)))
+        piece.points = np.stack([pts[:-1], pts[1:]], axis=1)  # unused ends: zero length
+        piece.visible = True
+        if len(self._points) == self.chunk + 1:  # full: the next piece starts at its end
+            self._k = (self._k + 1) % len(self.pieces)
+            self.pieces[self._k].visible = False  # the oldest piece, to be written over
+            self._points = [self._points[-1]]
+
+    def clear(self) -> None:
+        """Hide the trail and start it again."""
+        for piece in self.pieces:
+            piece.visible = False
+        self._k, self._points = 0, []
+
+    def segments(self) -> np.ndarray:
+        """(S, 2, 3) the segments shown, oldest first (zero-length ones left out), m."""
+        order = self.pieces[self._k + 1:] + self.pieces[:self._k + 1]
+        segs = [np.asarray(p.points) for p in order if p.visible]
+        out = np.concatenate(segs) if segs else np.zeros((0, 2, 3), np.float32)
+        return out[np.any(out[:, 0] != out[:, 1], axis=1)]
 
 
 class QuadrupedScene:
@@ -82,10 +144,8 @@ class QuadrupedScene:
         self.paths = scene.add_line_segments(f"{root}/robot/foot_paths",
                                              np.zeros((4, 2, 3), np.float32), (0, 0, 0),
                                              thickness=0.003)
-        self.trails = scene.add_line_segments(f"{root}/trails", np.zeros((4, 2, 3), np.float32),
-                                              (0, 0, 0), thickness=0.004, visible=False)
-        self._trail: dict[str, deque[np.ndarray]] = {leg: deque(maxlen=TRAIL_POINTS)
-                                                     for leg in LEGS}
+        self.trails = {leg: FootTrail(scene, f"{root}/trails/{leg}", LEG_RGB[leg])
+                       for leg in LEGS}
         self.support = scene.add_line_segments(f"{root}/support",
                                                np.zeros((1, 2, 3), np.float32), STABLE_RGB,
                                                thickness=0.006)
@@ -101,6 +161,11 @@ class QuadrupedScene:
                                             anchor="bottom-left")
         self.stable: bool | None = None
         self._followed: np.ndarray | None = None
+        # what the page was last sent: body pose, support polygon, centre of mass, margin
+        self._body: tuple[float, ...] | None = None
+        self._hull: bytes | None = None
+        self._com: tuple[float, ...] | None = None
+        self._margin: tuple[float, ...] | None = None
         show(server, View(roots=(root,), direction=(-0.2, 0.6, -0.5)))  # front left, above
 
     def set_foot_paths(self, plan: GaitPlan) -> None:
@@ -114,41 +179,50 @@ class QuadrupedScene:
         self.paths.colors = np.concatenate(cols)
 
     def clear_trails(self) -> None:
-        for d in self._trail.values():
-            d.clear()
-        self.trails.visible = False
+        for trail in self.trails.values():
+            trail.clear()
 
     def set_state(self, state: WalkState, q: np.ndarray | None = None) -> None:
         """Pose the robot (body from ``state``, legs at ``q`` (12,) rad, default the
-        commanded angles) and draw trails, support polygon, centre of mass and margin."""
-        x, y, z, yaw = state.body
-        self.robot.root.position = (float(x), float(y), float(z))
-        self.robot.root.wxyz = vtf.SO3.from_z_radians(float(yaw)).wxyz
+        commanded angles) and draw trails, support polygon, centre of mass and margin.
+        A node is sent only when it changed (a page's frame, 30 times a second)."""
+        body = tuple(state.body.tolist())
+        if body != self._body:
+            x, y, z, yaw = body
+            self.robot.root.position = (x, y, z)
+            self.robot.root.wxyz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))  # about z
+            self._body = body
         legs = state.q if q is None or not np.all(np.isfinite(q)) else q
         self.robot.set_q(legs)
         self._update_trails(state.feet)
         stable = state.margin > 0.0
         color = STABLE_RGB if stable else UNSTABLE_RGB
         hull = state.support
-        if len(hull) >= 2:
-            pts = np.column_stack([hull, np.full(len(hull), FLOOR_Z)])
-            self.support.points = _segments(pts, closed=len(hull) > 2)
-            self.support.visible = True
-        else:
-            self.support.visible = False
-        com = state.com
-        floor = np.array([com[0], com[1], FLOOR_Z])
-        self.com.position = com
-        self.com_floor.position = floor
-        self.plumb.points = np.array([[com, floor]], np.float32)
+        key = hull.tobytes()
+        if key != self._hull:
+            if len(hull) >= 2:
+                pts = np.column_stack([hull, np.full(len(hull), FLOOR_Z)])
+                self.support.points = _segments(pts, closed=len(hull) > 2)
+                self.support.visible = True
+            else:
+                self.support.visible = False
+            self._hull = key
+        cx, cy, cz = state.com.tolist()
+        if (cx, cy, cz) != self._com:
+            self.com.position = (cx, cy, cz)
+            self.com_floor.position = (cx, cy, FLOOR_Z)
+            self.plumb.points = np.array([[[cx, cy, cz], [cx, cy, FLOOR_Z]]], np.float32)
+            self.margin_label.position = (cx, cy, FLOOR_Z + 0.01)
+            self._com = (cx, cy, cz)
         if len(hull):
-            near = nearest_on_polygon(com[:2], hull)
-            self.margin_line.points = np.array([[floor, [near[0], near[1], FLOOR_Z]]],
-                                               np.float32)
+            nx, ny = nearest_on_polygon(np.array([cx, cy]), hull).tolist()
+            if (cx, cy, nx, ny) != self._margin:
+                self.margin_line.points = np.array([[[cx, cy, FLOOR_Z], [nx, ny, FLOOR_Z]]],
+                                                   np.float32)
+                self._margin = (cx, cy, nx, ny)
             self.margin_line.visible = True
         else:
             self.margin_line.visible = False
-        self.margin_label.position = floor + np.array([0.0, 0.0, 0.01])
         self.margin_label.text = f"margin {state.margin * 100:+.1f} cm"
         if stable != self.stable:
             rgb = np.array(color, dtype=np.uint8)
@@ -158,22 +232,12 @@ class QuadrupedScene:
             self.stable = stable
 
     def _update_trails(self, feet: np.ndarray, *, min_step: float = 0.002) -> None:
-        changed = False
+        """Extend each foot's trail to where it is, when it moved ``min_step`` m since."""
         for i, leg in enumerate(LEGS):
-            d = self._trail[leg]
-            if not d or np.linalg.norm(feet[i] - d[-1]) >= min_step:
-                d.append(np.array(feet[i], dtype=float))
-                changed = True
-        if not changed or min(len(d) for d in self._trail.values()) < 2:
-            return
-        segs, cols = [], []
-        for leg, d in self._trail.items():
-            s = _segments(np.array(d), closed=False)
-            segs.append(s)
-            cols.append(np.broadcast_to(np.array(LEG_RGB[leg], np.uint8), s.shape).copy())
-        self.trails.points = np.concatenate(segs)
-        self.trails.colors = np.concatenate(cols)
-        self.trails.visible = True
+            trail = self.trails[leg]
+            last = trail.last
+            if last is None or math.dist(feet[i], last.tolist()) >= min_step:
+                trail.add(feet[i])
 
     def follow(self, body_xy: np.ndarray) -> None:
         """Carry every page's camera along with the body (keeping its view direction)."""
