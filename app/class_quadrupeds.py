@@ -4,9 +4,9 @@ The quadruped lesson's own robot is a :class:`control.gait_loop.GaitLoop` over a
 :class:`hardware.quadruped_sim.QuadrupedSimBackend` (four simulated legs of AX-12A
 servos carrying the body). A copy per student would cost a third of a core each. So the
 class's quadrupeds live in one :class:`hardware.batched_quadruped.BatchedQuadrupeds`
-(one batched plant per leg chain, the body's load for every robot at once), stepped by
-one :class:`control.periodic.SharedClock` thread, and each student's ``GaitLoop`` runs
-on that clock (``clock=``) over a
+(one batched plant per group of alike legs, the body's load for every robot at once),
+stepped by one :class:`control.periodic.SharedClock` thread, and each student's
+``GaitLoop`` runs on that clock (``clock=``) over a
 :class:`hardware.batched_quadruped.BatchedQuadrupedBackend`: the lesson's own loop, its
 commands, record and eq. 4.1 figures, not a lookalike.
 

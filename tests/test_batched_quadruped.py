@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -12,8 +13,14 @@ from control.backend import BackendError
 from control.gait_loop import GaitLoop
 from control.periodic import SharedClock
 from control.walking import GaitSpec, Walker, plan_gait
-from hardware.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+from hardware.batched_quadruped import (
+    BatchedQuadrupedBackend,
+    BatchedQuadrupeds,
+    leg_groups,
+    same_dynamics,
+)
 from hardware.quadruped_sim import G, QuadrupedSimBackend, total_mass
+from hardware.servo_spec import AX12A, RX24F
 from kinematics.body_statics import (
     contact_forces,
     feet_and_com,
@@ -24,7 +31,7 @@ from kinematics.body_statics import (
     rest_plane,
     rest_planes,
 )
-from kinematics.model import load_robot
+from kinematics.model import Quadruped, load_robot
 
 MODEL = load_robot("quadruped")
 DT = 2e-3  #: the lesson's SIM_DT
@@ -272,6 +279,163 @@ def test_estop_torque_off_and_on_again_as_a_quadruped_backend() -> None:
         _same_state(single.read(), b.read())
     assert single.body.forces.sum() == pytest.approx(total_mass(MODEL) * G)
     np.testing.assert_allclose(batch.q[0], single.body.q(), rtol=0, atol=1e-9)
+
+
+# -- legs of the same dynamics share a plant -------------------------------------------------
+
+def _leg_changed(model: Quadruped, leg: str, **change: object) -> Quadruped:
+    """A copy of ``model`` whose leg ``leg`` has one thing changed: ``link_mass`` (scale of
+    the knee link's mass), ``com``/``inertia`` (of the knee link), ``axis``/``origin``/
+    ``lower`` (of the knee joint), or a chain field (``tip``, ``gravity``, ``base_pose``,
+    ``name``)."""
+    chain = model.legs[leg]
+    links, joints = list(chain.links), list(chain.joints)
+    for key, value in change.items():
+        if key == "link_mass":
+            links[2] = dataclasses.replace(links[2], mass=links[2].mass * float(value))
+        elif key in ("com", "inertia"):
+            links[2] = dataclasses.replace(links[2], **{key: value})
+        elif key in ("axis", "origin", "lower"):
+            joints[2] = dataclasses.replace(joints[2], **{key: value})
+        else:
+            chain = dataclasses.replace(chain, **{key: value})
+    chain = dataclasses.replace(chain, links=tuple(links), joints=tuple(joints))
+    return dataclasses.replace(model, legs={**model.legs, leg: chain})
+
+
+def _legs_alike(model: Quadruped) -> Quadruped:
+    """``model`` with every leg built as RF is (its own name and hip mount kept)."""
+    rf = model.legs["RF"]
+    return dataclasses.replace(model, legs={
+        name: dataclasses.replace(rf, name=chain.name, base_pose=chain.base_pose)
+        for name, chain in model.legs.items()})
+
+
+HEAVY_RH = _leg_changed(MODEL, "RH", link_mass=1.5)
+ALIKE = _legs_alike(MODEL)
+
+
+def test_legs_of_the_same_dynamics_share_a_plant() -> None:
+    """The lab's model: RF with RH, LF with LH, two plants of 2N arms whose rows interleave
+    by join order; each robot has one arm per leg, found by robot id."""
+    batch = BatchedQuadrupeds(MODEL, dt=DT)
+    assert batch.groups == ((0, 2), (1, 3)) and len(batch.plants) == 2
+    assert [leg.name for leg in batch.legs] == ["RF", "LF", "RH", "LH"]
+    assert [leg.plant for leg in batch.legs] == [batch.plants[i] for i in (0, 1, 0, 1)]
+    robots = [batch.add(Q0 + OFFSETS[i]) for i in range(3)]
+    batch.remove(robots[1])
+    robots[1] = batch.add(Q0 + OFFSETS[3])
+    assert [p.n_arms for p in batch.plants] == [6, 6]
+    assert [leg.rows.tolist() for leg in batch.legs] == [[0, 2, 4], [0, 2, 4],
+                                                         [1, 3, 5], [1, 3, 5]]
+    for r, robot in enumerate(batch.ids.tolist()):
+        arms = batch.arms_of(robot)
+        assert [p for p, _ in arms] == [leg.plant for leg in batch.legs]
+        assert [p.row(a) for p, a in arms] == [leg.rows[r] for leg in batch.legs]
+        assert [leg.arm(robot) for leg in batch.legs] == [a for _, a in arms]
+    np.testing.assert_array_equal(batch.q, Q0 + np.array([OFFSETS[i] for i in (0, 2, 3)]))
+    for k, leg in enumerate(batch.legs):
+        np.testing.assert_array_equal(leg.q, batch.q[:, 3 * k:3 * k + 3])
+    with pytest.raises(ValueError, match="robot"):
+        batch.arms_of(7)
+
+
+@pytest.mark.parametrize(("change", "same"), [
+    ({"link_mass": 1.0 + 1e-12}, False), ({"com": np.array([0.0, -0.05, 1e-9])}, False),
+    ({"inertia": np.diag([2.536e-05, 7.2e-07, 2.6e-05])}, False),
+    ({"axis": np.array([-1.0, 0.0, 0.0])}, False),
+    ({"origin": np.eye(4)}, False),
+    ({"lower": -2.0}, False), ({"tip": np.eye(4)}, False),
+    ({"gravity": np.array([0.0, 0.0, -9.8])}, False),
+    ({"base_pose": np.eye(4)}, True), ({"name": "elsewhere"}, True), ({}, True)])
+def test_same_dynamics_compares_everything_but_names_and_the_hip_mount(
+        change: dict[str, object], same: bool) -> None:
+    changed = _leg_changed(MODEL, "RH", **change)
+    assert same_dynamics(changed.legs["RF"], changed.legs["RH"]) is same
+    batch = BatchedQuadrupeds(changed, dt=DT)
+    assert batch.groups == (((0, 2), (1, 3)) if same else ((0,), (1, 3), (2,)))
+
+
+def test_legs_with_other_servos_or_directions_get_plants_of_their_own() -> None:
+    chains = [MODEL.legs["RF"], MODEL.legs["RH"], MODEL.legs["RF"], MODEL.legs["LF"]]
+    specs = [(AX12A,) * 3, (AX12A,) * 3, (AX12A, RX24F, AX12A), (AX12A,) * 3]
+    dirs = [(1.0,) * 3, (1.0, -1.0, 1.0), (1.0,) * 3, (1.0,) * 3]
+    assert leg_groups(chains, specs, dirs) == ((0,), (1,), (2,), (3,))
+    assert leg_groups(chains, [(AX12A,) * 3] * 4, [(1,) * 3] * 4) == ((0, 1, 2), (3,))
+    assert len(BatchedQuadrupeds(ALIKE, dt=DT).plants) == 1
+
+
+@pytest.mark.parametrize(("model", "groups"), [
+    (MODEL, ((0, 2), (1, 3))), (HEAVY_RH, ((0,), (1, 3), (2,))), (ALIKE, ((0, 1, 2, 3),))],
+    ids=["lab", "heavy-RH", "alike"])
+def test_robots_joining_and_leaving_mid_run_match_separate_backends(
+        model: Quadruped, groups: tuple[tuple[int, ...], ...]) -> None:
+    """However the legs are grouped, every robot equals a ``QuadrupedSimBackend`` of the
+    model started when it joined (q, qd to 1e-9, the words exactly), as robots leave and
+    join between load renewals (their arms' rows in the shared plants move and
+    interleave), one pushed on its RH foot and one dragged by its LF knee."""
+    batch = BatchedQuadrupeds(model, dt=DT)
+    assert batch.groups == groups
+    assert [p.model is model.legs[list(model.legs)[g[0]]]
+            for p, g in zip(batch.plants, groups, strict=True)] == [True] * len(groups)
+    lock = threading.RLock()
+    live: dict[int, tuple[int, int, QuadrupedSimBackend, BatchedQuadrupedBackend]] = {}
+
+    def join(i: int) -> None:  # robot i of OFFSETS, at this step
+        q0 = Q0 + OFFSETS[i]
+        robot = batch.add(q0)
+        live[i] = (robot, batch.steps, QuadrupedSimBackend(model, q0=q0, dt=DT),
+                   BatchedQuadrupedBackend(batch, robot, lock=lock))
+
+    def leave(i: int) -> None:
+        robot, _, _, backend = live.pop(i)
+        backend.close()
+        batch.remove(robot)
+
+    events = {0: lambda: [join(0), join(1), join(2)], 63: lambda: leave(1),
+              87: lambda: join(3), 151: lambda: leave(0), 173: lambda: join(1)}
+    worst = 0.0
+    checks = 0
+    for k in range(320):
+        if k in events:
+            events[k]()
+        for i, (robot, k0, single, backend) in live.items():
+            own = k - k0
+            if own % 5 == 0:  # a load renewal of its own: compare
+                single.sync(own * DT)
+                row = batch.row(robot)
+                qd_single = np.concatenate([leg.plant.qd for leg in single.legs])
+                worst = max(worst, float(np.max(np.abs(batch.q[row] - single.body.q()))),
+                            float(np.max(np.abs(batch.qd[row] - qd_single))))
+                _same_state(single.read(), backend.read())
+                assert backend.body.forces == pytest.approx(single.body.forces, abs=1e-9)
+                checks += 1
+            for b in (single, backend):
+                if own % 10 == 0:  # a gait period of its own: new goals
+                    b.write(_goal(i, own * DT), _speed(i))
+                if own == 20 and i == 2:
+                    b.push(np.array([1.0, -2.0, 6.0]), link=8, point=np.array([0.0, -0.1, 0.0]),
+                           duration=0.2)
+                if own == 30 and i == 3:
+                    b.set_spring(np.array([0.05, 0.15, -0.05]), stiffness=40.0, link=4,
+                                 point=np.zeros(3))
+        batch.step()
+    assert worst <= 1e-9 and checks > 150
+    assert sorted(live) == [1, 2, 3] and batch.n_robots == 3
+    assert [p.n_arms for p in batch.plants] == [3 * len(g) for g in groups]
+    moved = np.abs(batch.q - (Q0 + np.array([OFFSETS[i] for i in (2, 3, 1)])))
+    assert np.all(moved.max(axis=1) > 0.02)
+
+
+def test_a_diverged_robot_is_named_by_its_robot_id() -> None:
+    batch = BatchedQuadrupeds(HEAVY_RH, dt=DT, body_mass=0.0)
+    robots = [batch.add(Q0) for _ in range(3)]
+    batch.remove(robots[0])
+    rh = batch.legs[2]
+    rh.plant.set_state(rh.arm(robots[2]), Q0[6:9], np.array([0.0, 1e300, 0.0]))
+    with np.errstate(all="ignore"), pytest.raises(
+            FloatingPointError, match=rf"robots \[{robots[2]}\] diverged"):
+        batch.step()
 
 
 # -- the gait loop ------------------------------------------------------------------------
