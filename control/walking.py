@@ -329,7 +329,7 @@ class Walker:
         R = np.array([[c, -s_], [s_, c]])
         com = np.array([*(R @ com_b[:2] + body[:2]), com_b[2] + body[2]])
         support = support_polygon(feet[stance, :2])
-        margin = stability_margin(com[:2], feet[stance, :2])
+        margin = stability_margin(com[:2], feet[stance, :2], hull=support)
         return WalkState(self.phase, 360.0 * self._u, angles, body, feet, stance, com,
                          margin, support)
 

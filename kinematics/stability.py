@@ -31,7 +31,7 @@ def support_polygon(feet_xy: np.ndarray) -> np.ndarray:
     Returns:
         (h, 2) hull vertices, h <= k (h = 2 for feet on a line, 1 for one foot).
     """
-    pts = sorted({(float(x), float(y)) for x, y in np.asarray(feet_xy, dtype=float)})
+    pts = sorted({(x, y) for x, y in np.asarray(feet_xy, dtype=float).reshape(-1, 2).tolist()})
     if len(pts) <= 2:
         return np.array(pts, dtype=float).reshape(-1, 2)
 
@@ -52,14 +52,28 @@ def support_polygon(feet_xy: np.ndarray) -> np.ndarray:
     return np.array(hull, dtype=float)
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    ab = b - a
-    L2 = float(ab @ ab)
-    t = 0.0 if L2 == 0.0 else min(1.0, max(0.0, float((p - a) @ ab) / L2))
-    return float(np.linalg.norm(p - (a + t * ab)))
+def nearest_on_polygon(p: np.ndarray, hull: np.ndarray) -> np.ndarray:
+    """(2,) point of the polygon ``hull`` (h, 2)'s boundary nearest to ``p`` (2,): on its
+    edges, on the segment for h = 2, the point for h = 1. Floats, not numpy: a walking
+    robot's loop and each of its pages find it every period for at most four corners."""
+    px, py = (float(v) for v in p[:2])
+    pts = np.asarray(hull, dtype=float).tolist()
+    best, best_d = pts[0], math.inf
+    edges = len(pts) if len(pts) > 2 else len(pts) - 1
+    for i in range(edges):
+        (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
+        abx, aby = bx - ax, by - ay
+        l2 = abx * abx + aby * aby
+        t = 0.0 if l2 == 0.0 else min(1.0, max(0.0, ((px - ax) * abx + (py - ay) * aby) / l2))
+        cx, cy = ax + t * abx, ay + t * aby
+        d = math.hypot(px - cx, py - cy)
+        if d < best_d:
+            best, best_d = [cx, cy], d
+    return np.array(best, dtype=float)
 
 
-def stability_margin(com_xy: np.ndarray, feet_xy: np.ndarray) -> float:
+def stability_margin(com_xy: np.ndarray, feet_xy: np.ndarray, *,
+                     hull: np.ndarray | None = None) -> float:
     """Static stability margin, m: distance from the centre-of-mass projection to the
     nearest edge of the support polygon, positive inside, negative outside.
 
@@ -70,21 +84,19 @@ def stability_margin(com_xy: np.ndarray, feet_xy: np.ndarray) -> float:
     Args:
         com_xy: (2,) projection of the centre of mass on the floor.
         feet_xy: (k, 2) stance feet on the floor.
+        hull: their :func:`support_polygon`, when the caller has it.
     """
-    p = np.asarray(com_xy, dtype=float)[:2]
-    hull = support_polygon(feet_xy)
+    px, py = (float(v) for v in np.asarray(com_xy, dtype=float)[:2])
+    hull = support_polygon(feet_xy) if hull is None else hull
     if len(hull) == 0:
         return -math.inf
-    if len(hull) == 1:
-        return -float(np.linalg.norm(p - hull[0]))
-    if len(hull) == 2:
-        return -_segment_distance(p, hull[0], hull[1])
-    d = min(_segment_distance(p, hull[i], hull[(i + 1) % len(hull)]) for i in range(len(hull)))
-    inside = all(
-        (hull[(i + 1) % len(hull)][0] - hull[i][0]) * (p[1] - hull[i][1])
-        - (hull[(i + 1) % len(hull)][1] - hull[i][1]) * (p[0] - hull[i][0]) >= 0.0
-        for i in range(len(hull))
-    )
+    nx, ny = nearest_on_polygon(np.array([px, py]), hull).tolist()
+    d = math.hypot(px - nx, py - ny)
+    if len(hull) <= 2:
+        return -d
+    pts = hull.tolist()
+    inside = all((bx - ax) * (py - ay) - (by - ay) * (px - ax) >= 0.0
+                 for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True))
     return d if inside else -d
 
 

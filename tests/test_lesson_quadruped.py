@@ -13,7 +13,7 @@ from _helpers import client_of, served_lesson, wait_for
 
 from app.lessons import LessonContext, all_lessons
 from app.lessons.quadruped import build
-from app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail, nearest_on_polygon
+from app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail
 from control.walking import (
     angle_error_pct,
     mean_angle_error_pct,
@@ -294,23 +294,3 @@ def test_estop_switches_the_twelve_servos_off_and_reset_stands_up_again(lesson):
         wait_for(lambda: not lesson.loop.status.standing_up)
         assert lesson.loop.state.stance.all()  # standing on four feet at the start
         assert lesson.loop.state.margin > 0.05
-
-
-@pytest.mark.parametrize("hull", [
-    [[0.1, 0.2]],
-    [[0.0, 0.0], [0.2, 0.1]],
-    [[0.0, 0.0], [0.2, 0.0], [0.1, 0.15]],
-    [[0.0, 0.0], [0.2, 0.0], [0.2, 0.2], [0.0, 0.2]],
-])
-def test_the_margin_ends_on_the_support_polygons_nearest_boundary_point(hull):
-    hull = np.array(hull)
-    closed = len(hull) > 2
-    ends = list(zip(hull, np.roll(hull, -1, axis=0) if closed else hull[1:], strict=False))
-    s = np.linspace(0.0, 1.0, 2001)[:, None]
-    boundary = (np.concatenate([a + s * (b - a) for a, b in ends]) if ends else hull)
-    rng = np.random.default_rng(3)
-    for p in rng.uniform(-0.1, 0.3, (50, 2)):
-        near = nearest_on_polygon(p, hull)
-        best = np.linalg.norm(boundary - p, axis=1).min()
-        assert np.linalg.norm(near - p) == pytest.approx(best, abs=2e-4)
-        assert np.linalg.norm(boundary - near, axis=1).min() < 2e-4  # on the boundary

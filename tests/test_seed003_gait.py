@@ -20,7 +20,7 @@ from kinematics.gait import (
     walk,
 )
 from kinematics.quadruped import LEGS
-from kinematics.stability import stability_margin, support_polygon
+from kinematics.stability import nearest_on_polygon, stability_margin, support_polygon
 
 P = SineParams(A=0.05, B=0.11, C=0.025, D=0.085)
 
@@ -163,3 +163,23 @@ def test_cli_prints_one_cycle():
     assert r["warnings"] == []
     s = r["rows"][0]
     assert set(s["angles_deg"]) == set(LEGS) and len(s["feet_m"]["RF"]) == 3
+
+
+@pytest.mark.parametrize("hull", [
+    [[0.1, 0.2]],
+    [[0.0, 0.0], [0.2, 0.1]],
+    [[0.0, 0.0], [0.2, 0.0], [0.1, 0.15]],
+    [[0.0, 0.0], [0.2, 0.0], [0.2, 0.2], [0.0, 0.2]],
+])
+def test_the_margin_ends_on_the_support_polygons_nearest_boundary_point(hull):
+    hull = np.array(hull)
+    closed = len(hull) > 2
+    ends = list(zip(hull, np.roll(hull, -1, axis=0) if closed else hull[1:], strict=False))
+    s = np.linspace(0.0, 1.0, 2001)[:, None]
+    boundary = (np.concatenate([a + s * (b - a) for a, b in ends]) if ends else hull)
+    rng = np.random.default_rng(3)
+    for p in rng.uniform(-0.1, 0.3, (50, 2)):
+        near = nearest_on_polygon(p, hull)
+        best = np.linalg.norm(boundary - p, axis=1).min()
+        assert np.linalg.norm(near - p) == pytest.approx(best, abs=2e-4)
+        assert np.linalg.norm(boundary - near, axis=1).min() < 2e-4  # on the boundary

@@ -25,6 +25,7 @@ from app.camera import View, connected, show
 from control.walking import GaitPlan, WalkState
 from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS
+from kinematics.stability import nearest_on_polygon
 
 #: One colour per leg (RF, LF, RH, LH).
 LEG_RGB = {"RF": (31, 94, 234), "LF": (232, 130, 12), "RH": (194, 24, 91), "LH": (46, 125, 50)}
@@ -37,25 +38,6 @@ TRAIL_POINTS = 80
 #: (8 segments, 0.2 kB) rather than the whole trail (80 points a foot, 7.6 kB for four)
 TRAIL_CHUNK = 8
 FLOOR_Z = 0.001
-
-
-def nearest_on_polygon(p: np.ndarray, hull: np.ndarray) -> np.ndarray:
-    """(2,) point of the polygon's boundary (or segment, or point) nearest to ``p`` (2,)
-    (in floats: a page's frame finds it for a polygon of at most four corners)."""
-    px, py = (float(v) for v in p[:2])
-    pts = hull.tolist()
-    best, best_d = pts[0], math.inf
-    edges = len(pts) if len(pts) > 2 else len(pts) - 1
-    for i in range(edges):
-        (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
-        abx, aby = bx - ax, by - ay
-        l2 = abx * abx + aby * aby
-        t = 0.0 if l2 == 0 else min(1.0, max(0.0, ((px - ax) * abx + (py - ay) * aby) / l2))
-        cx, cy = ax + t * abx, ay + t * aby
-        d = math.hypot(px - cx, py - cy)
-        if d < best_d:
-            best, best_d = [cx, cy], d
-    return np.array(best, dtype=float)
 
 
 def _segments(points: np.ndarray, closed: bool) -> np.ndarray:
