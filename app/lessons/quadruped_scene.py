@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import viser
@@ -71,36 +72,43 @@ class FootTrail:
                        for i in range(pieces)]
         self._k = 0  # the piece growing now
         self._points: list[np.ndarray] = []  # its points (the first: the last one's end)
+        # the page's frame thread adds, a button's callback clears
+        self._lock = threading.Lock()
 
     @property
     def last(self) -> np.ndarray | None:
         """(3,) the newest point, m (None: the trail is empty)."""
-        return self._points[-1] if self._points else None
+        points = self._points
+        return points[-1] if points else None
 
     def add(self, p: np.ndarray) -> None:
         """Extend the trail to ``p`` (3,) m, world frame."""
-        self._points.append(np.asarray(p, dtype=np.float32))
-        if len(self._points) < 2:
-            return
-        piece = self.pieces[self._k]
-        pts = np.array(self._points + [self._points[-1]] * (self.chunk + 1 - len(self._points)))
-        piece.points = np.stack([pts[:-1], pts[1:]], axis=1)  # unused ends: zero length
-        piece.visible = True
-        if len(self._points) == self.chunk + 1:  # full: the next piece starts at its end
-            self._k = (self._k + 1) % len(self.pieces)
-            self.pieces[self._k].visible = False  # the oldest piece, to be written over
-            self._points = [self._points[-1]]
+        with self._lock:
+            points = self._points
+            points.append(np.asarray(p, dtype=np.float32))
+            if len(points) < 2:
+                return
+            pts = np.array(points + [points[-1]] * (self.chunk + 1 - len(points)))
+            piece = self.pieces[self._k]
+            piece.points = np.stack([pts[:-1], pts[1:]], axis=1)  # unused ends: zero length
+            piece.visible = True
+            if len(points) == self.chunk + 1:  # full: the next piece starts at its end
+                self._k = (self._k + 1) % len(self.pieces)
+                self.pieces[self._k].visible = False  # the oldest piece, to be written over
+                self._points = [points[-1]]
 
     def clear(self) -> None:
         """Hide the trail and start it again."""
-        for piece in self.pieces:
-            piece.visible = False
-        self._k, self._points = 0, []
+        with self._lock:
+            for piece in self.pieces:
+                piece.visible = False
+            self._k, self._points = 0, []
 
     def segments(self) -> np.ndarray:
         """(S, 2, 3) the segments shown, oldest first (zero-length ones left out), m."""
-        order = self.pieces[self._k + 1:] + self.pieces[:self._k + 1]
-        segs = [np.asarray(p.points) for p in order if p.visible]
+        with self._lock:
+            order = self.pieces[self._k + 1:] + self.pieces[:self._k + 1]
+            segs = [np.asarray(p.points) for p in order if p.visible]
         out = np.concatenate(segs) if segs else np.zeros((0, 2, 3), np.float32)
         return out[np.any(out[:, 0] != out[:, 1], axis=1)]
 
