@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -218,6 +219,31 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
     send(SetCameraPositionMessage(tuple(float(v) for v in position)))  # type: ignore[arg-type]
     send(SetCameraLookAtMessage(tuple(float(v) for v in look_at)))  # type: ignore[arg-type]
     last_framing[client] = Framing(points, position, look_at, fov, aspect)
+    return True
+
+
+def carry(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
+    """Move ``client``'s camera and the point it looks at by ``offset`` (3,) m, world: the
+    view travels without turning (a walking robot's page follows it).
+
+    viser's ``camera.position`` does the same and then works the camera's orientation
+    out again from its look-at point (an SO3 from a matrix, every frame of every page); a
+    translation keeps the orientation, so this moves the page's two points in viser's
+    record of its camera and sends them. False if the page has gone or has not reported
+    its camera yet."""
+    state = client.camera._state  # type: ignore[attr-defined]
+    if not connected(client) or state.update_timestamp == 0.0:
+        return False
+    dx, dy, dz = (float(v) for v in offset)
+    position = state.position + (dx, dy, dz)
+    look_at = state.look_at + (dx, dy, dz)
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(look_at))):
+        return False
+    state.position, state.look_at = position, look_at
+    state.update_timestamp = time.time()
+    send = client._websock_connection.queue_message  # type: ignore[attr-defined]
+    send(SetCameraPositionMessage(tuple(position.tolist())))  # type: ignore[arg-type]
+    send(SetCameraLookAtMessage(tuple(look_at.tolist())))  # type: ignore[arg-type]
     return True
 
 

@@ -18,6 +18,7 @@ Frames: world x, y on the floor (z = 0), z up; body pose (x, y, z, yaw); legs in
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -156,12 +157,23 @@ def plan_gait(spec: GaitSpec | None = None, geom: QuadrupedGeometry | None = Non
               ) -> GaitPlan:
     """Sample one cycle of ``spec`` and walk it (seed 003 Table 1.1, eq. 3.1-3.9).
 
+    The plans of the last :data:`PLANS_KEPT` (spec, geometry) pairs are kept: a class
+    pressing Forward together, or a student going back to a gait, plans it once (a plan
+    takes tens of ms). A plan is shared, so its arrays are read-only.
+
     Raises:
         ValueError: for bad parameters, or when a foot of the cycle is out of the leg's
             reach (the message names the parameters to change).
     """
-    spec = spec or GaitSpec()
-    geom = geom or QuadrupedGeometry()
+    return _plan(spec or GaitSpec(), geom or QuadrupedGeometry())
+
+
+#: plans :func:`plan_gait` keeps
+PLANS_KEPT = 64
+
+
+@functools.lru_cache(maxsize=PLANS_KEPT)
+def _plan(spec: GaitSpec, geom: QuadrupedGeometry) -> GaitPlan:
     p = spec.params
     if spec.gait == "trot":
         cycle = trot(p, samples=spec.samples, directions=trot_directions(spec.command))
@@ -183,9 +195,14 @@ def plan_gait(spec: GaitSpec | None = None, geom: QuadrupedGeometry | None = Non
     com = np.array([centre_of_mass({leg: angles[j, i] for i, leg in enumerate(LEGS)}, geom)
                     for j in range(T)])
     margins = cycle_margins(cycle, two, angles, geom)
-    return GaitPlan(spec, geom, cycle, angles, True, two.body[:T + 1].copy(),
+    plan = GaitPlan(spec, geom, cycle, angles, True, two.body[:T + 1].copy(),
                     two.feet_world[:T + 1].copy(), feet_body, com, margins,
                     float(np.max(two.slip)))
+    for held in (plan, cycle):
+        for value in vars(held).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+    return plan
 
 
 def _se2(pose: np.ndarray) -> np.ndarray:

@@ -222,3 +222,28 @@ def test_a_page_that_reshapes_before_taking_a_framing_is_framed_for_its_last_sha
         page.report_view(width=852, height=720, fov=FOV, **had)
         again = _shows_framing(page, lab, fov=FOV, aspect=852 / 720)
         assert np.array_equal(again.position, wide.position)  # what the page reported
+
+
+def test_carry_moves_a_pages_camera_and_its_look_at_without_turning_it():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        with client_of(server) as page:
+            (client,) = server.get_clients().values()
+            page.wait_for(lambda: client.camera._state.update_timestamp != 0.0,
+                          what="the page's camera report")
+            before = (client.camera.position.copy(), client.camera.look_at.copy(),
+                      client.camera.wxyz.copy())
+            assert camera.carry(client, (0.05, -0.02, 0.0))
+            np.testing.assert_allclose(client.camera.position, before[0] + (0.05, -0.02, 0.0))
+            np.testing.assert_allclose(client.camera.look_at, before[1] + (0.05, -0.02, 0.0))
+            np.testing.assert_array_equal(client.camera.wxyz, before[2])  # not turned
+            want = tuple((before[0] + (0.05, -0.02, 0.0)).tolist())
+            page.wait_for(lambda: page.camera.get("position") == pytest.approx(want),
+                          what="the carried camera on the page")
+            assert page.camera["look_at"] == pytest.approx(
+                tuple((before[1] + (0.05, -0.02, 0.0)).tolist()))
+            # a non-finite offset moves nothing
+            assert not camera.carry(client, (math.nan, 0.0, 0.0))
+            np.testing.assert_allclose(client.camera.position, want)
+    finally:
+        server.stop()

@@ -9,6 +9,7 @@ import io
 import json
 import math
 from contextlib import redirect_stdout
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -183,3 +184,18 @@ def test_when_the_servos_let_go_the_body_sits_down_and_the_legs_carry_nothing():
         backend.write(q0, np.full(12, 2.0))
         backend.sync(0.02 * k)
     assert backend.body.forces.sum() == pytest.approx(total_mass(model) * G)
+
+
+def test_a_plan_is_made_once_per_spec_and_shared_read_only():
+    spec = GaitSpec(command="left")
+    plan = plan_gait(spec)
+    assert plan_gait(GaitSpec(command="left")) is plan  # a class pressing "left" together
+    assert plan_gait(GaitSpec(command="right")) is not plan
+    for arr in (plan.angles, plan.body, plan.feet_world, plan.feet_body, plan.com_body,
+                plan.margins, plan.cycle.feet, plan.cycle.stance):
+        with pytest.raises(ValueError, match="read-only"):
+            arr[0] = 0.0
+    with pytest.raises(ValueError, match="reach"):  # a refusal is not kept: it says so again
+        plan_gait(GaitSpec(params=replace(GaitSpec().params, D=0.2)))
+    with pytest.raises(ValueError, match="reach"):
+        plan_gait(GaitSpec(params=replace(GaitSpec().params, D=0.2)))

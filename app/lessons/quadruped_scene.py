@@ -22,7 +22,7 @@ import viser
 
 from app import theme
 from app.arm_view import ArmView
-from app.camera import View, connected, show
+from app.camera import View, carry, show
 from control.walking import GaitPlan, WalkState
 from kinematics.model import Quadruped
 from kinematics.quadruped import LEGS
@@ -240,12 +240,7 @@ class QuadrupedScene:
             return
         self._followed = xy
         for client in self.server.get_clients().values():
-            if not connected(client):
-                continue
-            try:
-                client.camera.position = client.camera.position + np.array([*step, 0.0])
-            except (AssertionError, ValueError, RuntimeError):
-                pass  # a page that has not reported its camera yet
+            carry(client, (*step.tolist(), 0.0))  # nothing for a page without a camera yet
 
     def remove(self) -> None:
         self.root.remove()
