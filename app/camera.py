@@ -215,11 +215,18 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
     # before that report may still be on its way (the page reshaped before it took it),
     # and would then land last: so the framing is always sent (the newer of two waiting
     # camera messages replaces the older)
+    _send_view(client, position, look_at)
+    last_framing[client] = Framing(points, position, look_at, fov, aspect)
+    return True
+
+
+def _send_view(client: viser.ClientHandle, position: Sequence[float],
+               look_at: Sequence[float]) -> None:
+    """Queue the page's camera position and look-at point (3,) m, whatever viser last
+    heard of them."""
     send = client._websock_connection.queue_message  # type: ignore[attr-defined]
     send(SetCameraPositionMessage(tuple(float(v) for v in position)))  # type: ignore[arg-type]
     send(SetCameraLookAtMessage(tuple(float(v) for v in look_at)))  # type: ignore[arg-type]
-    last_framing[client] = Framing(points, position, look_at, fov, aspect)
-    return True
 
 
 def carry(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
@@ -241,9 +248,7 @@ def carry(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
         return False
     state.position, state.look_at = position, look_at
     state.update_timestamp = time.time()
-    send = client._websock_connection.queue_message  # type: ignore[attr-defined]
-    send(SetCameraPositionMessage(tuple(position.tolist())))  # type: ignore[arg-type]
-    send(SetCameraLookAtMessage(tuple(look_at.tolist())))  # type: ignore[arg-type]
+    _send_view(client, position.tolist(), look_at.tolist())
     return True
 
 

@@ -248,7 +248,7 @@ class GaitLoop(GaitRecord):
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._period, period=self.period, name="armlab-gait", realtime=realtime,
                   batch_s=tick_s, max_catch_up=max_catch_up, idle_s=0.002,
-                  on_exit=self._stopped, spin_s=0.0)
+                  on_exit=self._stopped)
             if clock is None else clock.pacer(self._period, period=self.period,
                                                name="armlab-gait"))
         self._t = -self.period  #: time of the last period run (the first is at 0)

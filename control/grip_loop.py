@@ -175,7 +175,7 @@ class GripLoop(GripRecord):
         self._pacer = Pacer(self._period, period=self.dt, name="armlab-grip",
                             realtime=realtime, batch_s=tick_s, max_catch_up=max_catch_up,
                             idle_s=0.0005, catch=(ValueError, RuntimeError, FloatingPointError),
-                            on_exit=self._stopped, spin_s=0.0)
+                            on_exit=self._stopped)
         self._current = plant.step(np.zeros(N_FINGERS), self.dt)
         self._closed_at: float | None = None
         self.status = GripStatus(t=plant.t, modes=controller.modes)

@@ -64,7 +64,7 @@ from control.commands import (
 )
 from control.compliance import MODES, ComplianceController, ControllerState, Mode
 from control.params import DEFAULT, Params, loop_stability, stability_warning
-from control.periodic import DrivenPacer, Pacer, SharedClock
+from control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
 from control.recorder import Recorder
 from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
 from kinematics.dynamics import dynamics_model
@@ -224,7 +224,8 @@ class ControlLoop:
         self._await_reset = False  # a link found again stays torque-off until a Reset
         self._gripper: GripperState | None = None  # the newest gripper reading
         self._pacer: Pacer | DrivenPacer = (
-            Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime)
+            Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime,
+                  spin_s=SPIN_S)  # a period's start within microseconds
             if clock is None else
             clock.pacer(self._tick, period=params.period, name="armlab-control"))
         self._warning = stability_warning(params)

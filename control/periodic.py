@@ -37,8 +37,8 @@ import numpy as np
 #: s a running pacer's :meth:`Pacer.stats` is reused: it sums up the last 1000 wake-ups,
 #: and every page reads it in every frame (30 private arms share one clock's statistics).
 STATS_TTL_S = 0.2
-#: s of each wait a paced loop spends spinning (:func:`sleep_until`): a 16 ms control
-#: period's start within microseconds (``loop_jitter_p99_ms``)
+#: s of each wait a control loop's pacer spends spinning (:func:`sleep_until`): a 16 ms
+#: control period's start within microseconds (``loop_jitter_p99_ms``)
 SPIN_S = 0.0015
 
 
@@ -78,9 +78,10 @@ class Pacer:
         catch: exceptions of ``step`` that end the thread (passed to ``on_exit``).
         on_exit: called in the thread as it ends, with the caught exception or None.
         recent_s: the window of :attr:`PaceStats.skipped_recent`, s.
-        spin_s: the last part of each wait spent spinning rather than asleep, s: wake-ups
-            within microseconds of their time, for a core's time while it spins (0: sleep
-            all the way, waking ~0.1 ms late; enough for a simulated world's clock).
+        spin_s: the last part of each wait spent spinning rather than asleep, s (default
+            0: sleep all the way, waking ~0.1 ms late, enough for a simulated world's clock
+            and the gait and grip loops; :data:`SPIN_S` for a control loop's periods within
+            microseconds, for a core's time while it spins).
     """
 
     def __init__(self, step: Callable[[], None], *, period: float, name: str,
@@ -88,7 +89,7 @@ class Pacer:
                  max_catch_up: float | None = None, idle_s: float = 0.002,
                  catch: tuple[type[Exception], ...] = (),
                  on_exit: Callable[[Exception | None], None] | None = None,
-                 recent_s: float = 10.0, spin_s: float = SPIN_S) -> None:
+                 recent_s: float = 10.0, spin_s: float = 0.0) -> None:
         self.step = step
         self.period = float(period)
         self.name = name
@@ -219,7 +220,7 @@ class Pacer:
                 period, start, done = self.period, time.perf_counter(), 0
 
 
-def sleep_until(deadline: float, stop: threading.Event, *, spin_s: float = SPIN_S) -> None:
+def sleep_until(deadline: float, stop: threading.Event, *, spin_s: float = 0.0) -> None:
     """Sleep to ``deadline`` (perf_counter s): coarse sleep, then ``spin_s`` s of spinning
     (yielding the interpreter) for precision; returns early when ``stop`` is set."""
     while True:
@@ -546,8 +547,7 @@ class SharedClock:
         step: one world step of ``dt`` (e.g. ``BatchedPlant.step``).
         dt: s per tick.
         realtime: pace ticks by the wall clock (a :class:`Pacer` of period ``dt``, which
-            sleeps all the way to each wake-up: no spinning, ``spin_s`` 0); False: as fast
-            as possible.
+            sleeps all the way to each wake-up); False: as fast as possible.
         lock: held around each tick (default a new :class:`HandOverLock`; share it with
             whatever else touches the world, e.g. the backends). Between two ticks the
             clock lets the threads waiting on a HandOverLock in first (at most
@@ -583,8 +583,7 @@ class SharedClock:
         self._pacers: list[DrivenPacer] = []
         self._ticking = False
         self._pacer = Pacer(self._tick, period=self.dt, name=name, realtime=realtime,
-                            batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up,
-                            spin_s=0.0)  # a simulated world: ~0.1 ms late costs nothing
+                            batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up)
 
     @property
     def steps(self) -> int:

@@ -67,10 +67,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.backend import BackendError, GoalLimits, JointState
+from control.batch_rows import BatchRows
 from hardware.batched_backend import add_sim_arm, decode_words, word_tables
 from hardware.batched_plant import BatchedPlant, ReportWords
 from hardware.quadruped_sim import BELLY_RAMP, LEG_JOINTS, LOAD_STEP, G, total_mass
-from hardware.servo import ServoRegisters
 from hardware.servo_spec import AX12A, ServoSpec
 from hardware.sim_backend import raw_goals, servo_limits
 from kinematics.body_statics import feet_and_coms, floor_forces, rest_planes
@@ -163,11 +163,6 @@ class BatchedLeg:
         """(N, 3) this leg's true joint positions, rad, robot rows."""
         return self.plant.q[self.batch._leg_rows[self.index]]
 
-    @property
-    def qd(self) -> np.ndarray:
-        """(N, 3) this leg's true joint velocities, rad/s, robot rows."""
-        return self.plant.qd[self.batch._leg_rows[self.index]]
-
     def register(self, name: str) -> np.ndarray:
         """(N, 3) register ``name`` of this leg's servos, robot rows."""
         return self.plant.register(name)[self.batch._leg_rows[self.index]]
@@ -175,23 +170,6 @@ class BatchedLeg:
     def present_position(self) -> np.ndarray:
         """(N, 3) Present Position words of this leg's servos, robot rows."""
         return self.plant.present_position()[self.batch._leg_rows[self.index]]
-
-    def registers(self, robot: int) -> tuple[ServoRegisters, ...]:
-        """Robot ``robot``'s registers of this leg, per joint (:meth:`BatchedPlant.registers`)."""
-        return self.plant.registers(self.arm(robot))
-
-    def set_registers(self, robot: int, joint: int | None = None, **values: int) -> None:
-        """:meth:`BatchedPlant.set_registers` on robot ``robot``'s arm of this leg."""
-        self.plant.set_registers(self.arm(robot), joint, **values)
-
-    def set_goal(self, robot: int, goal_position: Sequence[int],
-                 moving_speed: Sequence[int] | None = None) -> None:
-        """:meth:`BatchedPlant.set_goal` on robot ``robot``'s arm of this leg."""
-        self.plant.set_goal(self.arm(robot), goal_position, moving_speed)
-
-    def report_words(self, robot: int) -> ReportWords:
-        """:meth:`BatchedPlant.report_words` of robot ``robot``'s arm of this leg."""
-        return self.plant.report_words(self.arm(robot))
 
     def push(self, robot: int, force: np.ndarray, *, link: int, point: np.ndarray,
              duration: float) -> None:
@@ -259,9 +237,7 @@ class BatchedQuadrupeds:
         limits = [servo_limits(leg.model, leg.specs, leg.directions) for leg in self.legs]
         self.lower = np.concatenate([lo for lo, _ in limits])  #: (12,) rad, servo limits
         self.upper = np.concatenate([hi for _, hi in limits])  #: (12,) rad
-        self._next_id = 0
-        self._ids = np.zeros(0, dtype=np.int64)  # robot id per row
-        self._row_of: dict[int, int] = {}  # robot id -> row
+        self._rows = BatchRows()  # the robots' ids in row order
         self._arms: dict[int, tuple[int, ...]] = {}  # robot id -> its arm id per leg
         self._robot_of: list[dict[int, int]] = [{} for _ in self.plants]  # arm id -> robot
         self._leg_rows = np.zeros((len(self.legs), 0), dtype=np.int64)  # (4, N) plant rows
@@ -275,21 +251,22 @@ class BatchedQuadrupeds:
     @property
     def n_robots(self) -> int:
         """N, the number of robots."""
-        return int(self._ids.size)
+        return len(self._rows)
 
     @property
     def ids(self) -> np.ndarray:
         """(N,) the id of the robot in each row."""
-        return self._ids.copy()
+        return np.array(self._rows.ids, dtype=np.int64)
 
     def row(self, robot: int) -> int:
         """The row of robot id ``robot``; ValueError when there is no such robot."""
-        r = (None if isinstance(robot, bool) or not isinstance(robot, int | np.integer)
-             else self._row_of.get(int(robot)))
-        if r is None:
-            raise ValueError(f"robot must be a robot id in this batch (ids: "
-                             f"{self._ids.tolist()}), got {robot!r}")
-        return r
+        if not isinstance(robot, bool) and isinstance(robot, int | np.integer):
+            try:
+                return self._rows.row(int(robot))
+            except ValueError:
+                pass
+        raise ValueError(f"robot must be a robot id in this batch (ids: "
+                         f"{list(self._rows.ids)}), got {robot!r}")
 
     def arms_of(self, robot: int) -> tuple[tuple[BatchedPlant, int], ...]:
         """Robot ``robot``'s arms: per leg (``model.legs`` order) its plant and arm id."""
@@ -318,12 +295,10 @@ class BatchedQuadrupeds:
             for leg, arm in zip(self.legs, arms, strict=False):
                 leg.plant.remove_arm(arm)
             raise
-        robot = self._next_id
-        self._next_id += 1
+        robot = self._rows.join()
         self._arms[robot] = tuple(arms)
         for k, arm in enumerate(arms):
             self._robot_of[self._plant_of_leg[k]][arm] = robot
-        self._ids = np.append(self._ids, robot)
         self._k0 = np.append(self._k0, self.steps)
         self._tilt = np.append(self._tilt, 0.0)
         self._contact = np.vstack([self._contact, np.ones((1, len(self.legs)), dtype=bool)])
@@ -334,11 +309,11 @@ class BatchedQuadrupeds:
     def remove(self, robot: int) -> None:
         """Remove robot ``robot`` (its arms, pushes and springs); the rows after it move up."""
         r = self.row(robot)
+        self._rows.leave(int(robot))
         arms = self._arms.pop(int(robot))
         for k, (leg, arm) in enumerate(zip(self.legs, arms, strict=True)):
             leg.plant.remove_arm(arm)
             del self._robot_of[self._plant_of_leg[k]][arm]
-        self._ids = np.delete(self._ids, r)
         self._k0 = np.delete(self._k0, r)
         self._tilt = np.delete(self._tilt, r)
         self._contact = np.delete(self._contact, r, axis=0)
@@ -348,8 +323,7 @@ class BatchedQuadrupeds:
     def _reindex(self) -> None:
         """Rows of the robots and, per leg, of their arms in its plant (after a join or a
         leave: the plants' rows moved)."""
-        ids = self._ids.tolist()
-        self._row_of = {robot: i for i, robot in enumerate(ids)}
+        ids = self._rows.ids
         rows = np.empty((len(self.legs), len(ids)), dtype=np.int64)
         for p, legs in zip(self.plants, self.groups, strict=True):
             at = {arm: i for i, arm in enumerate(p.arm_ids.tolist())}

@@ -15,6 +15,7 @@ Shapes: points on the floor are (k, 2) arrays (x, y), m.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -52,7 +53,7 @@ def support_polygon(feet_xy: np.ndarray) -> np.ndarray:
     return np.array(hull, dtype=float)
 
 
-def nearest_on_polygon(p: np.ndarray, hull: np.ndarray) -> np.ndarray:
+def nearest_on_polygon(p: Sequence[float] | np.ndarray, hull: np.ndarray) -> np.ndarray:
     """(2,) point of the polygon ``hull`` (h, 2)'s boundary nearest to ``p`` (2,): on its
     edges, on the segment for h = 2, the point for h = 1. Floats, not numpy: a walking
     robot's loop and each of its pages find it every period for at most four corners."""
@@ -72,7 +73,7 @@ def nearest_on_polygon(p: np.ndarray, hull: np.ndarray) -> np.ndarray:
     return np.array(best, dtype=float)
 
 
-def stability_margin(com_xy: np.ndarray, feet_xy: np.ndarray, *,
+def stability_margin(com_xy: Sequence[float] | np.ndarray, feet_xy: np.ndarray, *,
                      hull: np.ndarray | None = None) -> float:
     """Static stability margin, m: distance from the centre-of-mass projection to the
     nearest edge of the support polygon, positive inside, negative outside.
@@ -86,11 +87,11 @@ def stability_margin(com_xy: np.ndarray, feet_xy: np.ndarray, *,
         feet_xy: (k, 2) stance feet on the floor.
         hull: their :func:`support_polygon`, when the caller has it.
     """
-    px, py = (float(v) for v in np.asarray(com_xy, dtype=float)[:2])
+    px, py = (float(v) for v in com_xy[:2])
     hull = support_polygon(feet_xy) if hull is None else hull
     if len(hull) == 0:
         return -math.inf
-    nx, ny = nearest_on_polygon(np.array([px, py]), hull).tolist()
+    nx, ny = nearest_on_polygon((px, py), hull).tolist()
     d = math.hypot(px - nx, py - ny)
     if len(hull) <= 2:
         return -d

@@ -88,9 +88,9 @@ class FootTrail:
             points.append(np.asarray(p, dtype=np.float32))
             if len(points) < 2:
                 return
-            pts = np.array(points + [points[-1]] * (self.chunk + 1 - len(points)))
             piece = self.pieces[self._k]
-            piece.points = np.stack([pts[:-1], pts[1:]], axis=1)  # unused ends: zero length
+            pad = [points[-1]] * (self.chunk + 1 - len(points))  # unused ends: zero length
+            piece.points = _segments(np.array(points + pad), closed=False)
             piece.visible = True
             if len(points) == self.chunk + 1:  # full: the next piece starts at its end
                 self._k = (self._k + 1) % len(self.pieces)
@@ -205,7 +205,7 @@ class QuadrupedScene:
             self.margin_label.position = (cx, cy, FLOOR_Z + 0.01)
             self._com = (cx, cy, cz)
         if len(hull):
-            nx, ny = nearest_on_polygon(np.array([cx, cy]), hull).tolist()
+            nx, ny = nearest_on_polygon((cx, cy), hull).tolist()
             if (cx, cy, nx, ny) != self._margin:
                 self.margin_line.points = np.array([[[cx, cy, FLOOR_Z], [nx, ny, FLOOR_Z]]],
                                                    np.float32)
