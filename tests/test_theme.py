@@ -66,6 +66,10 @@ def _label_scales(page) -> list[float]:
             if "font_screen_scale" in n.get("SceneNodeUpdateMessage", {})]
 
 
+#: the compliance lesson's 3D labels (its shoulder's and the thesis path's)
+COMPLIANCE_LABELS = 2
+
+
 @pytest.fixture(scope="module")
 def lab():
     from app.server import Lab, ServeOptions
@@ -85,10 +89,12 @@ def test_one_page_switches_to_projector_the_others_and_the_arm_do_not(lab):
         assert not lab.page_style.is_projector(a_id)
         # a's own switch, as its person clicks it
         a.set_value(lab.page_style.switch(a_id), True)
-        a.wait_for(lambda: min(_tick_px(a)) >= 18.0 and "22px" in _sheet(a), 60.0,
-                   "a's charts and sheet in projector sizes")
-        assert _label_scales(a) and min(_label_scales(a)) >= theme.LABEL_SCALE[True]
-        assert a.local_storage[theme.PROJECTOR_KEY] == "1"  # kept in a's browser
+        # the sizes go out one element after another: wait for the last of them, whichever
+        a.wait_for(lambda: min(_tick_px(a)) >= 18.0 and "22px" in _sheet(a)
+                   and len(_label_scales(a)) == COMPLIANCE_LABELS
+                   and a.local_storage.get(theme.PROJECTOR_KEY) == "1", 60.0,
+                   "a's charts, sheet and 3D labels in projector sizes, kept in its browser")
+        assert min(_label_scales(a)) >= theme.LABEL_SCALE[True]
         # b, the server's own handles and the arm are untouched
         assert max(_tick_px(b)) < 18.0 and "14px" in _sheet(b) and not _label_scales(b)
         assert "14px" in lab.page_style.sheet.content
@@ -101,9 +107,9 @@ def test_one_page_switches_to_projector_the_others_and_the_arm_do_not(lab):
                    "the new lesson's charts in normal sizes on b")
         # and back off
         a.set_value(lab.page_style.switch(a_id), False)
-        a.wait_for(lambda: max(_tick_px(a)) < 18.0 and "14px" in _sheet(a), 60.0,
-                   "a back to normal sizes")
-        assert a.local_storage[theme.PROJECTOR_KEY] == "0"
+        a.wait_for(lambda: max(_tick_px(a)) < 18.0 and "14px" in _sheet(a)
+                   and a.local_storage.get(theme.PROJECTOR_KEY) == "0", 60.0,
+                   "a back to normal sizes, kept in its browser")
     lab.switch("compliance")
 
 
