@@ -111,13 +111,14 @@ def test_a_push_moves_the_hand_and_it_comes_back(omx, page):
     before = _at_rest(lesson)
     page.set_value("Direction", "down (with gravity)")
     page.set_value("Push force (N)", 3.0)
-    page.set_value("Duration (s)", 1.0)
-    wait_for(lambda: lesson.controls.pushes.duration == 1.0
-             and lesson.controls.pushes.force == 3.0, 30.0, "3 N for 1 s in the lesson")
+    page.set_value("Duration (s)", 2.0)
+    wait_for(lambda: lesson.controls.pushes.duration == 2.0
+             and lesson.controls.pushes.force == 3.0, 30.0, "3 N for 2 s in the lesson")
     page.click("Push")
+    # the status says so only while the push acts: look for it first
+    wait_for(lambda: "pushing 3 N" in lesson.status.content, 30.0, "the status saying so")
     wait_for(lambda: before[2] - _hand(lesson)[2] > 0.01, 30.0,
              lambda: f"the hand pushed 1 cm down (it is {_hand(lesson) - before} m off)")
-    wait_for(lambda: "pushing 3 N" in lesson.status.content, 30.0, "the status saying so")
     wait_for(lambda: np.linalg.norm(_hand(lesson) - before) < 0.005, 60.0,
              lambda: f"the hand back (it is {_hand(lesson) - before} m off)")
     wait_for(lambda: "gave way" in lesson.controls.pushes.result.content, 60.0,
@@ -175,7 +176,8 @@ def test_spare_joints_keep_the_hand_on_the_target_and_leave_the_limits(omx, page
 def test_a_five_joint_urdf_arm_has_the_controls_and_two_spare_joints():
     with Lab(ServeOptions(robot=str(DATA / "five_joint_arm.urdf"), http_port=0)) as lab, \
             client_of(lab.server, token=lab.token) as page:
-        page.wait_for(lambda: page.shows(AIM) and page.shows("Push"), 60.0, "the controls")
+        page.wait_for(lambda: page.shows(AIM) and page.shows("Push") and page.shows("Joint"),
+                      60.0, "the controls")
         assert any("**2 spare**" in str(e.props.get("_markdown", "")) for e in page.gui.values())
         # five long joint names: the charts' joint picker is a dropdown, all joints in it
         assert page.find("Joint").kind == "GuiDropdownMessage"

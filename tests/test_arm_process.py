@@ -34,7 +34,7 @@ def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_
     boxes = Sandboxes(realtime=True)
     try:
         backend, loop = boxes.seat("s").arm_for(model, DEFAULT, preset="18.5/25", q0=Q0,
-                                                history_s=4.0)
+                                                history_s=30.0)
         assert isinstance(loop, RemoteLoop) and isinstance(backend, RemoteBackend)
         assert isinstance(backend, Pushable)
         assert boxes.process.pid != os.getpid()
@@ -44,7 +44,7 @@ def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_
                  "the trajectory played in the worker")
         snap = loop.recorder.snapshot()
         t = snap["t"]
-        assert len(t) > 100 and t[0] == 0.0  # (4 s kept: the first period is there)
+        assert len(t) > 100 and t[0] == 0.0  # (30 s kept: the first period is there)
         np.testing.assert_allclose(np.diff(t), DEFAULT.period, atol=1e-9)  # no row lost
         np.testing.assert_allclose(snap["q"][-1], goal, atol=np.radians(2.0))
         np.testing.assert_allclose(backend.read().position, goal, atol=np.radians(2.0))

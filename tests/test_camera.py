@@ -238,10 +238,11 @@ def test_carry_moves_a_pages_camera_and_its_look_at_without_turning_it():
             np.testing.assert_allclose(client.camera.look_at, before[1] + (0.05, -0.02, 0.0))
             np.testing.assert_array_equal(client.camera.wxyz, before[2])  # not turned
             want = tuple((before[0] + (0.05, -0.02, 0.0)).tolist())
-            page.wait_for(lambda: page.camera.get("position") == pytest.approx(want),
-                          what="the carried camera on the page")
-            assert page.camera["look_at"] == pytest.approx(
-                tuple((before[1] + (0.05, -0.02, 0.0)).tolist()))
+            want_at = tuple((before[1] + (0.05, -0.02, 0.0)).tolist())
+            # position and look-at go out as two messages: wait for both
+            page.wait_for(lambda: page.camera.get("position") == pytest.approx(want)
+                          and page.camera.get("look_at") == pytest.approx(want_at),
+                          what="the carried camera and its look-at on the page")
             # a non-finite offset moves nothing
             assert not camera.carry(client, (math.nan, 0.0, 0.0))
             np.testing.assert_allclose(client.camera.position, want)

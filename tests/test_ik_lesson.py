@@ -147,6 +147,9 @@ def test_bad_typed_target_is_refused_and_the_server_goes_on(lesson, value):
         client.set_value(lesson.x_input, value)
         body = client.wait_notification("Value refused")
         assert body.startswith("target X (cm)")
-        assert lesson.target == before and lesson.x_input.value == pytest.approx(before[0] * 100)
+        # the page is told first, then its input is put back
+        wait_for(lambda: lesson.x_input.value == pytest.approx(before[0] * 100), 30.0,
+                 "the input put back")
+        assert lesson.target == before
         client.set_value(lesson.x_input, 6.0)
         wait_for(lambda: shown(lesson, 6.0, before[1] * 100))

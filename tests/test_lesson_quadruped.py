@@ -145,6 +145,11 @@ def test_walking_each_foot_leaves_a_trail_that_ends_where_it_is(lesson):
         walk_for(lesson, 2.5)
         wait_for(lambda: all(len(t.segments()) >= TRAIL_POINTS - 1
                              for t in lesson.scene.trails.values()))
+        # freeze the walk (the loop runs unpaced), then let a frame draw where it ended
+        lesson.loop.shutdown(torque_off=False)
+        frames = lesson.publisher.stats.pose_frames
+        wait_for(lambda: lesson.publisher.stats.pose_frames > frames + 1, 30.0,
+                 "a frame after the walk stopped")
         feet = lesson.loop.state.feet
         for i, trail in enumerate(lesson.scene.trails.values()):
             segs = trail.segments()
@@ -185,9 +190,11 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
         walk_for(lesson, 1.0)
-    # Halt first: every figure below must come from the same, finished record.
+    # Halt first: every figure below must come from the same, finished record (the loop
+    # runs unpaced and would go on recording, sliding the walk out of the windows).
     lesson.stop()
     wait_for(lambda: not lesson.loop.status.walking, timeout=30.0)
+    lesson.loop.shutdown(torque_off=False)
     err = lesson.servo_error(None)
     snap = lesson.loop.snapshot()
     ok = (snap["walking"] > 0.5) & np.isfinite(snap["q"]).all(axis=1) \

@@ -61,8 +61,8 @@ def test_a_software_page_alone_gets_the_plain_look_and_a_gpu_page_keeps_the_full
         with _page(lab, SOFTWARE[0], soft_seen):
             wait_for(lambda: len(set(lab.server.get_clients()) - known) == 1, 60, "the page")
             soft = _only(lab, known)
-            wait_for(lambda: lab.looks.is_plain(soft), 60, "the plain look")
-            assert lab.looks.settled(soft)
+            wait_for(lambda: lab.looks.is_plain(soft) and lab.looks.settled(soft), 60,
+                     "the plain look, settled")
             wait_for(lambda: any(m["type"] == "EnableLightsMessage" for m in soft_seen), 60,
                      "the page to get the lights without shadows")
             env = [m for m in soft_seen if m["type"] == "EnvironmentMapMessage"]

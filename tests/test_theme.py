@@ -137,4 +137,5 @@ def test_serve_projector_is_the_default_of_a_browser_without_a_choice():
             fresh.wait_for(lambda: _tick_px(fresh) and min(_tick_px(fresh)) >= 18.0, 60.0,
                            "projector charts on the fresh page")
             assert theme.PROJECTOR_KEY not in fresh.local_storage  # the default is no choice
-            assert max(_tick_px(chose)) < 18.0
+            chose.wait_for(lambda: _tick_px(chose) and max(_tick_px(chose)) < 18.0, 60.0,
+                           "normal charts on the page that chose them")

@@ -17,6 +17,7 @@ from urllib.parse import parse_qs
 
 import pytest
 from _emulator import emulator
+from _helpers import wait_for
 
 from hardware import protocol1 as p1
 
@@ -106,14 +107,13 @@ def test_serial_lab_switches_torque_off_when_stopped(tmp_path):
         try:
             with urllib.request.urlopen(url, timeout=10) as reply:
                 assert reply.status == 200
-            time.sleep(1.0)
+            wait_for(lambda: len(emu.packets("rx")) > 10, 60.0, "the lab talking to the servos")
         finally:
             code, out, err = stop(proc, signal.SIGTERM)
         assert code == 0, err
-        time.sleep(0.3)
-        packets = emu.packets("rx")
-    assert packets, "the lab never talked to the servos"
-    assert _torque_off_packets(packets[-20:]), "the last packets do not switch torque off"
+        # the emulator logs what it received in its own time: wait for the last packets
+        wait_for(lambda: _torque_off_packets(emu.packets("rx")[-20:]), 30.0,
+                 "the last packets to switch torque off")
 
 
 def _next_line(proc: subprocess.Popen) -> str:
