@@ -116,11 +116,14 @@ def client_of(server: viser.ViserServer, *, timeout: float = 30.0,
         yield client
 
 
-def settled(server: viser.ViserServer, page: HeadlessClient, timeout: float = 60.0) -> None:
-    """Return once ``page`` holds every control ``server`` had made before this call.
+def settled(server: viser.ViserServer | viser.ClientHandle, page: HeadlessClient,
+            timeout: float = 60.0) -> None:
+    """Return once ``page`` holds every message ``server`` had queued before this call.
 
-    One websocket carries the server's messages in order: a marker added now arrives after
-    all of them (then it is removed again)."""
+    viser keeps order within a stream: a marker added now arrives after all of them (then
+    it is removed again). A server's own messages (the shared controls) are one stream, a
+    page's own (its camera, its own controls) another: pass the page's ClientHandle for
+    those."""
     marker = f"settled {time.monotonic_ns()}"
     handle = server.gui.add_markdown(marker)
     try:

@@ -194,7 +194,7 @@ def test_an_orbit_is_left_alone_and_frame_brings_the_view_back():
         page.wait_for(lambda: np.allclose(client.camera.position, (2.0, 2.0, 2.0)),
                       what="the server to hear the orbit")
         sets = page.camera_sets
-        settled(lab.server, page)
+        settled(client, page)  # (the page's own stream, which carries its camera)
         assert page.camera_sets == sets  # the server left the orbit alone
         page.wait_for(lambda: page.shows("Frame"), what="the Frame button")
         page.click("Frame")
