@@ -233,9 +233,14 @@ def test_garbage_message_does_not_kill_the_server(lab, client):
                  "wxyz": (1.0, 0.0, 0.0, 0.0), "position": (nan, 0.0, 0.0), "owner": ""})
     client.drag(scene.hand.name, "start", start=(0.0, 0.0, 1.0), end=(nan, nan, nan))
     client.drag(scene.hand.name, "end", start=(0.0, 0.0, 1.0), end=(nan, nan, nan))
-    time.sleep(0.3)
+    # a good drag after them: once it has taken hold and let go, the server has handled
+    # the drag events sent before it (they start in the order they came)
+    hand = tuple(scene.hand.position)
+    client.drag(scene.hand.name, "start", start=hand, end=hand)
+    wait_for(lambda: lab.lesson._drag_anchor is not None, 30.0, "the good drag to hold")
+    client.drag(scene.hand.name, "end", start=hand, end=hand)
+    wait_for(lambda: lab.lesson._drag_anchor is None, 30.0, "the good drag to let go")
     assert loop.status.fault is None and loop.status.active
-    assert lab.lesson._drag_anchor is None
     client.set_value(KP, "not a number")  # viser cannot even cast it
     client.send({"type": "NoSuchMessage", "x": 1})  # viser drops this client's connection
     steps = loop.status.steps
