@@ -156,6 +156,7 @@ class HeadlessClient:
         self._own_loop = loop is None
         self._loop = asyncio.new_event_loop() if loop is None else loop
         self._started = False
+        self._open_timeout = 30.0
         self._ws: websockets.asyncio.client.ClientConnection | None = None
         self._connected = threading.Event()
         self._closed = threading.Event()
@@ -177,6 +178,7 @@ class HeadlessClient:
     def connect(self, timeout: float = 30.0) -> HeadlessClient:
         """Connect and introduce itself with a camera message; returns self."""
         self._started = True
+        self._open_timeout = timeout  # the handshake's too (websockets' own default: 10 s)
         if self._own_loop:
             self._thread.start()
         else:  # a loop already running in another thread (:class:`SharedLoop`)
@@ -220,6 +222,7 @@ class HeadlessClient:
             async with websockets.asyncio.client.connect(
                 self.url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
                 compression=None, additional_headers=self.headers or None,
+                open_timeout=self._open_timeout,
             ) as ws:
                 self._ws = ws
                 self._connected.set()

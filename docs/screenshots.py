@@ -46,6 +46,7 @@ def _picture(lab: Lab, browser, size: tuple[int, int], path: Path) -> None:
     """Open the lab's page at ``size``, wait for its framed view and charts, save ``path``."""
     known = set(lab.server.get_clients())
     page = browser.new_page(viewport={"width": size[0], "height": size[1]})
+    page.set_default_timeout(PATIENCE * 1000)  # a click, a screenshot: Playwright's 30 s
     try:
         page.goto(lab.url)
         _until(lambda: new_page_client(lab, known) is not None, "the page to connect")

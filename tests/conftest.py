@@ -17,6 +17,18 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile("ci")
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _switch_interval():
+    """Each module starts with the interpreter's thread switch interval as the run began:
+    a lab and a real-time loop lower it for their process (app.server, control.loop), and
+    a module's timing must not depend on which modules ran before it."""
+    import sys
+
+    interval = sys.getswitchinterval()
+    yield
+    sys.setswitchinterval(interval)
+
+
 @pytest.fixture(scope="module")
 def lab():
     """The whole lab on a free port (one per test module)."""

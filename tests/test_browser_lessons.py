@@ -26,7 +26,7 @@ from _helpers import (
 
 from app.lessons import all_lessons, lesson_order
 
-pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]  # every lesson, drawn in software
 Image = pytest.importorskip("PIL.Image")
 
 #: Part of the 3D canvas to judge: below the notifications (fractions of the canvas

@@ -310,6 +310,7 @@ def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
         assert lab.lesson.rig.loop.params.kp == shared_kp
 
 
+@pytest.mark.timeout(900)  # five lessons and a third worker process
 def test_my_arm_in_the_other_arm_lessons_is_private_too():
     """The IK-accuracy, redundancy, any-arm, hand and quadruped lessons offer My arm as
     well: a student's control moves their own copy, never the shared one."""
@@ -432,10 +433,15 @@ def test_closing_a_class_while_its_clock_steps_frees_every_arm():
 
     model = load_robot("receptionist_arm", preset="18.5/25")
     arms = ClassArms(realtime=True)
-    held = [arms.add(model, DEFAULT, preset="18.5/25", q0=np.array([0.0, 0.3, 0.3]),
-                     history_s=1.0) for _ in range(12)]
-    steps = arms.clock.steps
-    wait_for(lambda: arms.clock.steps > steps + 20, 30, "the clock stepping the arms")
+    held: list = []
+    try:
+        held += [arms.add(model, DEFAULT, preset="18.5/25", q0=np.array([0.0, 0.3, 0.3]),
+                          history_s=1.0) for _ in range(12)]
+        steps = arms.clock.steps
+        wait_for(lambda: arms.clock.steps > steps + 20, 30, "the clock stepping the arms")
+    except BaseException:
+        arms.close(held)  # no real-time clock left running into the tests after this one
+        raise
     seen = []  # per freed arm: (the clock still running, the class's lock held)
     free = arms.free
 

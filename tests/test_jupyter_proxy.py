@@ -201,6 +201,7 @@ def test_the_gate_reads_armlab_token_and_sends_only_proxied_root_requests_to_ind
 
 
 @pytest.mark.realtime  # a Jupyter server and a lab on the wall clock
+@pytest.mark.timeout(900)  # two servers started, each given 120 s
 def test_the_launcher_tile_serves_the_lab_and_a_slider_reaches_the_loop(jupyter):
     base, proc, log_tail = jupyter
     t0 = time.monotonic()
