@@ -260,11 +260,9 @@ class BatchedQuadrupeds:
 
     def row(self, robot: int) -> int:
         """The row of robot id ``robot``; ValueError when there is no such robot."""
-        if not isinstance(robot, bool) and isinstance(robot, int | np.integer):
-            try:
-                return self._rows.row(int(robot))
-            except ValueError:
-                pass
+        if (not isinstance(robot, bool) and isinstance(robot, int | np.integer)
+                and int(robot) in self._arms):
+            return self._rows.row(int(robot))
         raise ValueError(f"robot must be a robot id in this batch (ids: "
                          f"{list(self._rows.ids)}), got {robot!r}")
 

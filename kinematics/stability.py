@@ -53,13 +53,14 @@ def support_polygon(feet_xy: np.ndarray) -> np.ndarray:
     return np.array(hull, dtype=float)
 
 
-def nearest_on_polygon(p: Sequence[float] | np.ndarray, hull: np.ndarray) -> np.ndarray:
-    """(2,) point of the polygon ``hull`` (h, 2)'s boundary nearest to ``p`` (2,): on its
+def nearest_on_polygon(p: Sequence[float] | np.ndarray, hull: np.ndarray
+                       ) -> tuple[float, float]:
+    """(x, y) point of the polygon ``hull`` (h, 2)'s boundary nearest to ``p`` (2,): on its
     edges, on the segment for h = 2, the point for h = 1. Floats, not numpy: a walking
     robot's loop and each of its pages find it every period for at most four corners."""
     px, py = (float(v) for v in p[:2])
     pts = np.asarray(hull, dtype=float).tolist()
-    best, best_d = pts[0], math.inf
+    best, best_d = (pts[0][0], pts[0][1]), math.inf
     edges = len(pts) if len(pts) > 2 else len(pts) - 1
     for i in range(edges):
         (ax, ay), (bx, by) = pts[i], pts[(i + 1) % len(pts)]
@@ -69,8 +70,8 @@ def nearest_on_polygon(p: Sequence[float] | np.ndarray, hull: np.ndarray) -> np.
         cx, cy = ax + t * abx, ay + t * aby
         d = math.hypot(px - cx, py - cy)
         if d < best_d:
-            best, best_d = [cx, cy], d
-    return np.array(best, dtype=float)
+            best, best_d = (cx, cy), d
+    return best
 
 
 def stability_margin(com_xy: Sequence[float] | np.ndarray, feet_xy: np.ndarray, *,
@@ -91,7 +92,7 @@ def stability_margin(com_xy: Sequence[float] | np.ndarray, feet_xy: np.ndarray, 
     hull = support_polygon(feet_xy) if hull is None else hull
     if len(hull) == 0:
         return -math.inf
-    nx, ny = nearest_on_polygon((px, py), hull).tolist()
+    nx, ny = nearest_on_polygon((px, py), hull)
     d = math.hypot(px - nx, py - ny)
     if len(hull) <= 2:
         return -d

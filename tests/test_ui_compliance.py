@@ -50,6 +50,12 @@ def hand(lab, q: np.ndarray) -> np.ndarray:  # noqa: ANN001
     return lab.lesson.rig.model.fk(q)[:3, 3]
 
 
+def hand_in_world(lab) -> np.ndarray:  # noqa: ANN001
+    """(3,) the hand now, in the scene's world frame (where a page's drag lands), m."""
+    p = hand(lab, loop_of(lab).recorder.snapshot(0.1)["q"][-1])
+    return (lab.lesson.rig.model.base_pose @ np.append(p, 1.0))[:3]
+
+
 def test_page_loads_on_loopback(lab):
     assert lab.url.startswith("http://127.0.0.1:")
     with urllib.request.urlopen(lab.url, timeout=30) as reply:
@@ -249,9 +255,7 @@ def test_garbage_message_does_not_kill_the_server(lab, client):
     client.drag(scene.hand.name, "end", start=(0.0, 0.0, 1.0), end=(nan, nan, nan))
     # a good drag after them: once it has taken hold and let go, the server has handled
     # the drag events sent before it (they start in the order they came)
-    at = lab.lesson.rig.model.base_pose @ np.append(
-        hand(lab, loop.recorder.snapshot(0.1)["q"][-1]), 1.0)  # the hand, world frame
-    where = tuple(at[:3])  # (held where it is: no pull)
+    where = tuple(hand_in_world(lab))  # (held where it is: no pull)
     client.drag(scene.hand.name, "start", start=where, end=where)
     wait_for(lambda: lab.lesson._drag_anchor is not None, 30.0, "the good drag to hold")
     client.drag(scene.hand.name, "end", start=where, end=where)
@@ -274,11 +278,10 @@ def test_disconnect_mid_run_and_mid_drag_leaves_the_server_healthy(lab, client):
     c2.click("Run thesis line")
     wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run")
     grab = lesson.rig.scene.hand.name
-    p = hand(lab, loop.recorder.snapshot(0.1)["q"][-1])
-    world = lesson.rig.model.base_pose @ np.append(p, 1.0)
-    pull = world[:3] + np.array([0.0, 0.0, 0.05])
-    c2.drag(grab, "start", start=tuple(world[:3]), end=tuple(pull))
-    c2.drag(grab, "update", start=tuple(world[:3]), end=tuple(pull))
+    world = hand_in_world(lab)
+    pull = world + np.array([0.0, 0.0, 0.05])
+    c2.drag(grab, "start", start=tuple(world), end=tuple(pull))
+    c2.drag(grab, "update", start=tuple(world), end=tuple(pull))
     wait_for(lambda: lesson._drag_anchor is not None, 30.0, "the spring to attach")
     c2.close()  # the tab closes mid-run, mid-drag
     wait_for(lambda: lesson._drag_anchor is None, 30.0, "the spring to be released")

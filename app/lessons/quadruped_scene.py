@@ -205,7 +205,7 @@ class QuadrupedScene:
             self.margin_label.position = (cx, cy, FLOOR_Z + 0.01)
             self._com = (cx, cy, cz)
         if len(hull):
-            nx, ny = nearest_on_polygon((cx, cy), hull).tolist()
+            nx, ny = nearest_on_polygon((cx, cy), hull)
             if (cx, cy, nx, ny) != self._margin:
                 self.margin_line.points = np.array([[[cx, cy, FLOOR_Z], [nx, ny, FLOOR_Z]]],
                                                    np.float32)
