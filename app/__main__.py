@@ -2,7 +2,7 @@
 
 import sys
 
-from app.cli import main
+from armlab.app.cli import main
 
-if __name__ == "__main__":  # not when a worker process (app.arm_process) imports it again
+if __name__ == "__main__":  # not when a worker process imports it again
     sys.exit(main())

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from control.backend import Backend
-from control.loop import ControlLoop
-from control.params import Params
-from kinematics.model import Quadruped, SerialChain
+from armlab.control.backend import Backend
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.kinematics.model import Quadruped, SerialChain
 
 KINDS = ("sim", "serial")
 
@@ -21,27 +21,27 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
         kind: "sim" (simulated arm and servos, the default of the lab) or "serial"
             (Dynamixel servos, real or emulated, on a serial port).
         model: the robot's serial chain, or the quadruped (12 servos; "sim" gives
-            ``hardware.quadruped_sim.QuadrupedSimBackend``, its legs carrying the body).
+            ``armlab.hardware.sim.quadruped.QuadrupedSimBackend``, its legs carrying the body).
         port, baud: serial port and bit rate (for "serial" only).
         **kw: passed to the backend's constructor (e.g. ``q0``, ``specs``, ``dt`` for "sim").
 
     Raises:
         ValueError: unknown kind or options that do not fit it.
-        control.backend.BackendError: the serial port or its servos cannot be opened.
+        armlab.control.backend.BackendError: the serial port or its servos cannot be opened.
     """
     if kind == "sim":
         if port is not None or baud is not None:
             raise ValueError("the sim backend takes no port or baud (those are for serial)")
         if isinstance(model, Quadruped):
-            from hardware.quadruped_sim import QuadrupedSimBackend
+            from armlab.hardware.sim.quadruped import QuadrupedSimBackend
 
             return QuadrupedSimBackend(model, **kw)
-        from hardware.sim_backend import SimBackend
+        from armlab.hardware.backends.sim import SimBackend
 
         spec = shipped_x_servo(model)
         if spec is not None and "specs" not in kw:  # an arm that ships with X-series servos
-            from hardware.joint_map import default_joint_map
-            from hardware.xseries_sim import XSimBackend
+            from armlab.hardware.backends.joint_map import default_joint_map
+            from armlab.hardware.backends.xseries_sim import XSimBackend
 
             kw.setdefault("gripper", default_joint_map(model).gripper)  # its own servo
             return XSimBackend(model, spec=spec, **kw)  # type: ignore[arg-type]
@@ -49,7 +49,7 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
     if kind == "serial":
         if port is None:
             raise ValueError("the serial backend needs a port (e.g. /dev/ttyUSB0)")
-        from hardware.xseries_backend import open_servo_backend  # pyserial only when asked
+        from armlab.hardware.backends.xseries import open_servo_backend  # pyserial only when asked
 
         if baud is not None:
             kw["baud"] = baud
@@ -58,10 +58,10 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
 
 
 def shipped_x_servo(model: SerialChain) -> Any:
-    """The X-series servo (``hardware.xseries.XSpec``) an arm ships with, which its
+    """The X-series servo (``armlab.hardware.servos.xseries.XSpec``) an arm ships with, which its
     simulation models (the OpenManipulator-X's XM430-W350), or None: the arm is
     simulated with RX-24F servos, as the thesis arm."""
-    from hardware.joint_map import default_servo, servo_table
+    from armlab.hardware.backends.joint_map import default_servo, servo_table
 
     spec = servo_table(default_servo(model.name)).spec
     return spec if spec.protocol == 2 else None
@@ -69,7 +69,7 @@ def shipped_x_servo(model: SerialChain) -> Any:
 
 def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any
               ) -> ControlLoop:
-    """The compliance :class:`~control.loop.ControlLoop` of ``model`` over ``backend``
+    """The compliance :class:`~armlab.control.loop.ControlLoop` of ``model`` over ``backend``
     (``loop_kw``: ``realtime``, ``history_s``, ``clock``...), not started; ``backend`` is
     closed when the loop cannot be made (bad parameters), and the error goes on."""
     try:

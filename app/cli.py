@@ -10,12 +10,12 @@ import argparse
 import importlib
 import sys
 
-from app import commands
-from control.backend import BackendError
+from armlab.app import commands
+from armlab.control.backend import BackendError
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
-    """The top-level parser with one subparser per module of ``app.commands.COMMANDS``.
+    """The top-level parser with one subparser per module of ``armlab.app.commands.COMMANDS``.
 
     Only the subcommand named in ``argv`` gets its options built (some of them
     import the experiments, scipy or viser), so ``armlab emulate`` starts fast;

@@ -8,7 +8,7 @@ token per start, as Jupyter does) and this gate checks every websocket upgrade b
 viser sees it, answering HTTP 403 (no state is ever sent) unless
 
 - the request presents the token: ``?token=`` (or ``?armlab_token=``, the name used
-  behind Jupyter, whose login owns ``?token=``: :mod:`app.jupyter`) on the websocket URL
+  behind Jupyter, whose login owns ``?token=``: :mod:`armlab.app.jupyter`) on the websocket URL
   (scripts, the headless client) or the ``armlab_token`` cookie, which the lab sets on
   the page it serves for a URL with the right token (``HttpOnly; SameSite=Strict``:
   another site's page never sends it; no ``Path``: the page's folder, so behind
@@ -49,7 +49,7 @@ COOKIE = "armlab_token"
 #: the cookie a presenter link (``?presenter=PASSCODE``) leaves in the browser, named
 #: ``armlab_presenter_<start>`` (:attr:`Gate.presenter_cookie`: a link of an earlier
 #: start, whose passcode is gone, is not even read); the classroom reads it when the
-#: page's websocket opens (app.room), not the gate
+#: page's websocket opens (armlab.app.classroom.room), not the gate
 PRESENTER_COOKIE = "armlab_presenter"
 PRESENTER_QUERY = "presenter"
 _TOKEN_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_")
@@ -91,7 +91,7 @@ class Gate:
 
     def presented_in_query(self, request: Request) -> bool:
         """The request's URL carries the right ``?token=`` or ``?armlab_token=`` (the name
-        used behind Jupyter, whose own login reads ``?token=``: :mod:`app.jupyter`)."""
+        used behind Jupyter, whose own login reads ``?token=``: :mod:`armlab.app.jupyter`)."""
         query = parse_qs(urlsplit(request.path).query)
         values = query.get("token", []) + query.get(COOKIE, [])
         return any(self._matches(v) for v in values)
@@ -173,7 +173,7 @@ def _query_has(request: Request, key: str) -> bool:
     return key in parse_qs(urlsplit(request.path).query, keep_blank_values=True)
 
 
-#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (app.jupyter)
+#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (armlab.app.jupyter)
 PROXY_PREFIX_HEADER = "X-Forwarded-Context"
 
 

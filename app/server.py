@@ -2,14 +2,14 @@
 
 ``Lab`` owns the :class:`LabServer` (a ``viser.ViserServer`` that refuses the
 public share tunnel) and the lesson currently shown. Lessons live in
-``app.lessons``; the lab builds the one chosen for the robot and lets the page
+``armlab.app.lessons``; the lab builds the one chosen for the robot and lets the page
 switch between lessons. The E-STOP button belongs to the lab, not to a lesson,
 so it stays at the top of the control panel whatever lesson is open.
 
 Security: the server binds to loopback unless told otherwise (a robot must not
 be commandable from the whole network by default), never opens the share
 tunnel (it needs the internet and would expose the robot), and its websocket is
-behind :mod:`app.gate`: only the lab's own page, opened from the URL with the
+behind :mod:`armlab.app.gate`: only the lab's own page, opened from the URL with the
 token, gets the robot's state and controls.
 """
 
@@ -28,13 +28,12 @@ from types import ModuleType
 
 import viser
 
-from app import collector
-from app.arm_process import ArmProcess
-from app.camera import reframe, reframe_on_reshape
-from app.classroom import Roles
-from app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
-from app.inputs import UpdateScreen
-from app.lessons import (
+from armlab.app import collector
+from armlab.app.classroom.roles import Roles
+from armlab.app.classroom.room import Room
+from armlab.app.classroom.worker_process import ArmProcess
+from armlab.app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
+from armlab.app.lessons import (
     LessonContext,
     LessonHandle,
     all_lessons,
@@ -42,12 +41,13 @@ from app.lessons import (
     lesson_order,
     works_with,
 )
-from app.look import Looks
-from app.panels import install as install_panels
-from app.room import Room
-from app.stop_first import install as install_stop_first
-from app.theme import PageStyle
-from app.viser_fixes import install as install_viser_fixes
+from armlab.app.page.camera import reframe, reframe_on_reshape
+from armlab.app.page.inputs import UpdateScreen
+from armlab.app.page.look import Looks
+from armlab.app.page.panels import install as install_panels
+from armlab.app.page.stop_first import install as install_stop_first
+from armlab.app.page.theme import PageStyle
+from armlab.app.viser_ext.fixes import install as install_viser_fixes
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -60,7 +60,8 @@ GIL_SWITCH_INTERVAL = 0.0005
 #: back sooner (room of 30 pages, quiet machine, the class's clock then in the
 #: server too: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
 CLASSROOM_SWITCH_INTERVAL = 0.00025
-#: s: in a simulated classroom, where no arm's loop runs in the server (app.arm_process),
+#: s: in a simulated classroom, where no arm's loop runs in the server
+#: (armlab.app.classroom.worker_process),
 #: fewer forced switches between the frame threads and the event loop leave more of the
 #: GIL to the pages' frames (room of 30, alternating: 18–20 pose frames/s a page at
 #: 0.25 ms, 21–22 at 2 ms and 5 ms); 2 ms keeps a lesson's loop that runs here (hand,
@@ -104,13 +105,13 @@ class ServeOptions:
             possible, for tests).
         token: the access token the page's URL carries (None: a new random one).
         projector: large text on pages whose browser has not chosen (each page has its
-            own "Projector" switch, kept in its browser: :mod:`app.theme`).
-        classroom: roles (:mod:`app.classroom`): only a page that typed the passcode
+            own "Projector" switch, kept in its browser: :mod:`armlab.app.page.theme`).
+        classroom: roles (:mod:`armlab.app.classroom.roles`): only a page that typed the passcode
             changes the shared arm; every page may press E-STOP.
         tip_link, package_paths, joint_map: for a robot given as a URDF file (see
-            :class:`app.lessons.LessonContext`).
+            :class:`armlab.app.lessons.LessonContext`).
         plain_on_software: a page whose browser draws WebGL on the CPU gets the plain
-            look (:mod:`app.look`); False keeps the full look on every page.
+            look (:mod:`armlab.app.page.look`); False keeps the full look on every page.
     """
 
     robot: str = "receptionist_arm"
@@ -172,13 +173,14 @@ class Lab:
 
     Attributes:
         server: the :class:`LabServer`.
-        token: the access token (:mod:`app.gate`).
+        token: the access token (:mod:`armlab.app.gate`).
         base_url: ``http://HOST:PORT`` (no token); HOST is this machine's network address
             when the lab listens on every interface.
         url: ``base_url/?token=TOKEN``: the page, with the token that opens it (what
             students type or scan).
         local_url: the same page through loopback (what this process itself loads).
-        room: the classroom's pages, roles and private arms (:class:`app.room.Room`), with
+        room: the classroom's pages, roles and private arms
+        (:class:`armlab.app.classroom.room.Room`), with
             ``options.classroom`` only; None otherwise.
         lesson: handle of the open lesson (None while switching).
         lesson_ctx: what the open lesson was built for.
@@ -215,7 +217,7 @@ class Lab:
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
             install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
             install_panels(self.server)  # a browser's collapsed side panels kept on reload
-            # a page drawing WebGL on the CPU gets the plain look (app.look)
+            # a page drawing WebGL on the CPU gets the plain look (armlab.app.page.look)
             self.looks = Looks(self.server, plain_on_software=options.plain_on_software)
             port = self.server.get_port()
             wildcard = options.host in WILDCARD_HOSTS
@@ -226,7 +228,7 @@ class Lab:
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
             self.room: Room | None = Room(self) if options.classroom else None
             #: the shared arm's own process in a simulated classroom: its loop's periods
-            #: wait for no page (app.arm_process)
+            #: wait for no page (armlab.app.classroom.worker_process)
             self.arm_process: ArmProcess | None = (
                 ArmProcess(kind="own", realtime=options.realtime)
                 if options.classroom and options.backend == "sim" else None)
@@ -268,7 +270,7 @@ class Lab:
             order=-90.0, visible=len(ordered) > 1,
             hint="Switch to another lesson (stops the current one)")
         self.lesson_dropdown.on_update(self._on_lesson_picked)
-        # each page its own Projector switch, kept in its browser (app.theme)
+        # each page its own Projector switch, kept in its browser (armlab.app.page.theme)
         self.page_style = PageStyle(self.server, projector=self.options.projector,
                                     order=-80.0)
 
@@ -318,7 +320,7 @@ class Lab:
                 self.lesson = None
                 collector.closed()
             try:
-                self._open(name)  # its scene frames itself on every open page (app.camera)
+                self._open(name)  # its scene frames itself on every open page (page.camera)
             except (ValueError, OSError, RuntimeError):
                 self._open(previous)  # back to the lesson that worked
                 self.lesson_dropdown.value = self._lessons[previous].TITLE

@@ -1,4 +1,4 @@
 """Controllers, observers, the control loop and headless experiments.
 
-Sees servos only through :class:`control.backend.Backend`; never imports viser or pyserial.
+Sees servos only through :class:`armlab.control.backend.Backend`; never imports viser or pyserial.
 """

@@ -1,7 +1,7 @@
 """The one interface the controller sees of the servos: the ``Backend`` protocol.
 
-Two implementations exist: ``hardware.sim_backend.SimBackend`` (a simulated
-arm and its servos) and ``hardware.dynamixel_backend.DynamixelBackend`` (real
+Two implementations exist: ``armlab.hardware.backends.sim.SimBackend`` (a simulated
+arm and its servos) and ``armlab.hardware.backends.dynamixel.DynamixelBackend`` (real
 or emulated servos over a serial port). The control loop works on either and
 never imports viser or pyserial.
 
@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from kinematics.smallarrays import all_finite, clamp
+from armlab.kinematics.smallarrays import all_finite, clamp
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
-"""N grasp controllers updated together: :class:`control.grip.GripController`, numpy over hands.
+"""N grasp controllers updated together: :class:`armlab.control.grip.GripController`, numpy over
+hands.
 
-The classroom's private hands (:class:`hardware.batched_hand.BatchedHand`) each need the
+The classroom's private hands (:class:`armlab.hardware.sim.batched_hand.BatchedHand`) each need the
 thesis hand's compliant grasp (§2.4, §3.1.1). :class:`BatchedGrip` runs
 :meth:`GripController.update`'s law for every hand at once: the sensorless state from
 the back-EMF, then per finger the open law or the close law (approach with the current
@@ -10,7 +11,7 @@ gives way), each branch a mask over the (N, 3) arrays (hand, finger) instead of 
 off). tests/test_batched_grip.py checks N controllers against N ``GripController`` to
 1e-9 over whole grasps.
 
-Rows and ids as :class:`hardware.batched_hand.BatchedHand`'s: :meth:`BatchedGrip.add`
+Rows and ids as :class:`armlab.hardware.sim.batched_hand.BatchedHand`'s: :meth:`BatchedGrip.add`
 returns a stable id; rows are the hands in the order they joined.
 """
 
@@ -18,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from control.batch_rows import BatchRows
-from control.grip import (
+from armlab.control.batch_rows import BatchRows
+from armlab.control.grip import (
     MODES,
     N_FINGERS,
     OPEN_GAIN,
@@ -30,7 +31,7 @@ from control.grip import (
     back_emf_speed,
     unfilter_current,
 )
-from kinematics.hand import contact_lever, motor_torque
+from armlab.kinematics.hand import contact_lever, motor_torque
 
 IDLE, OPENING, CLOSING, SQUEEZING, HOLDING, EMPTY = range(len(MODES))
 #: GripParams fields held per hand as an (N, 1) column
@@ -139,12 +140,12 @@ class BatchedGrip:
     # -- what the UI reads ---------------------------------------------------------------
 
     def modes(self, hand: int) -> tuple[str, ...]:
-        """``hand``'s fingers' modes (:data:`control.grip.MODES`)."""
+        """``hand``'s fingers' modes (:data:`armlab.control.grip.MODES`)."""
         return tuple(MODES[k] for k in self._mode[self.row(hand)])
 
     @property
     def mode_codes(self) -> np.ndarray:
-        """(N, 3) every finger's mode as its index in :data:`control.grip.MODES`."""
+        """(N, 3) every finger's mode as its index in :data:`armlab.control.grip.MODES`."""
         return self._mode.copy()
 
     @property

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.compliance import MODES, Mode
-from control.trajectory import JointTrajectory
-from kinematics.redundancy import AIMS
-from kinematics.validate import scalar, vector
+from armlab.control.compliance import MODES, Mode
+from armlab.control.trajectory import JointTrajectory
+from armlab.kinematics.redundancy import AIMS
+from armlab.kinematics.validate import scalar, vector
 
 #: 1/s, the largest null-space gain k_a (seed 002 eq. 2) a person may set
 MAX_NULL_SPACE_GAIN = 10.0
@@ -113,7 +113,7 @@ class SetTarget:
 @dataclass(frozen=True)
 class UseSpareJoints:
     """While the hand follows a target (``SetTarget``), move the joints it does not need
-    (n > 3) towards ``aim`` (a key of ``kinematics.redundancy.AIMS``: "off", "limits",
+    (n > 3) towards ``aim`` (a key of ``armlab.kinematics.redundancy.AIMS``: "off", "limits",
     "manipulability", "both") by seed 002's gradient projection with gain ``gain`` (k_a
     of eq. 2, 1/s). Turned on while the arm holds, the hand's place becomes the target."""
 

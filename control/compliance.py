@@ -22,11 +22,11 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from control.backend import JointState
-from kinematics.smallarrays import clamp
+from armlab.control.backend import JointState
+from armlab.kinematics.smallarrays import clamp
 
-if TYPE_CHECKING:  # annotations only: control.params imports control.metrics, which imports us
-    from control.params import Params
+if TYPE_CHECKING:  # annotations only: .params imports .metrics, which imports us
+    from armlab.control.params import Params
 
 Mode = Literal["none", "pd", "compliance"]
 MODES: tuple[str, ...] = ("none", "pd", "compliance")

@@ -1,7 +1,7 @@
 """The quadruped's walking loop: a :class:`Walker` driving 12 servos through a Backend.
 
 Every period (20 ms by default; periods at loop times 0, P, 2P, ...) the loop's thread
-(or, with ``clock=``, a :class:`~control.periodic.SharedClock`'s: a class's quadrupeds)
+(or, with ``clock=``, a :class:`~armlab.control.periodic.SharedClock`'s: a class's quadrupeds)
 
 1. runs the commands the UI posted (go, stop, new plan, speed, reset, e-stop);
 2. brings the backend to the loop time and reads the servos (positions as they
@@ -13,7 +13,7 @@ Every period (20 ms by default; periods at loop times 0, P, 2P, ...) the loop's 
    with moving speeds that reach them within about a period.
 
 The body's weight is the plant's business: the simulated legs and the emulator
-carry it themselves (``hardware.quadruped_sim.BodyOnLegs``), as real legs do.
+carry it themselves (``armlab.hardware.sim.quadruped.BodyOnLegs``), as real legs do.
 
 Without a backend (no servos) the loop only plays the walker, so the lesson still
 shows the gait. One writer: the loop thread owns walker, backend and record; the UI
@@ -29,11 +29,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.backend import Backend, BackendError
-from control.commands import EStop, Reset
-from control.loop_record import LoopRecord
-from control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
-from control.walking import GaitPlan, Walker, WalkState, mean_angle_error_pct, servo_angle_deg
+from armlab.control.backend import Backend, BackendError
+from armlab.control.commands import EStop, Reset
+from armlab.control.loop_record import LoopRecord
+from armlab.control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
+from armlab.control.walking import (
+    GaitPlan,
+    Walker,
+    WalkState,
+    mean_angle_error_pct,
+    servo_angle_deg,
+)
 
 #: Record layout: name -> number of columns (t first).
 COLUMNS: dict[str, int] = {"t": 1, "walking": 1, "phase": 1, "q_cmd": 12, "q": 12,
@@ -84,7 +90,7 @@ class SetInPlace:
     in_place: bool
 
 
-#: What the gait loop takes (``control.commands.Reset`` and ``EStop`` as the arm's loop).
+#: What the gait loop takes (``armlab.control.commands.Reset`` and ``EStop`` as the arm's loop).
 Command = Walk | SetPlan | StopWalking | SetSpeed | SetInPlace | Reset | EStop
 COMMANDS = (Walk, SetPlan, StopWalking, SetSpeed, SetInPlace, Reset, EStop)
 
@@ -197,7 +203,7 @@ class GaitRecord(LoopRecord):
 
         Commanded = the goal sent (IK angle + the servo's set point), actual = the
         position the servo reported one period later, both as horn angles in degrees from
-        the servo's raw 0 (:func:`control.walking.servo_angle_deg`).
+        the servo's raw 0 (:func:`armlab.control.walking.servo_angle_deg`).
 
         Returns:
             None without walking samples read from servos; else ``mean_pct`` (mean |%| over

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from control.grip import (
+from armlab.control.grip import (
     N_FINGERS,
     GraspTrace,
     GripController,
@@ -27,8 +27,8 @@ from control.grip import (
     HandPlant,
     grasp_figures,
 )
-from control.loop_record import LoopRecord
-from control.periodic import Pacer, RingBuffer
+from armlab.control.loop_record import LoopRecord
+from armlab.control.periodic import Pacer, RingBuffer
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
 COLUMNS: dict[str, str] = {
@@ -134,7 +134,7 @@ class GripRecord(LoopRecord):
 
     def last_grasp(self, force_limit: float, *, settle: float = 0.2
                    ) -> dict[str, float | None] | None:
-        """:func:`control.grip.grasp_figures` of the record since the last close command.
+        """:func:`armlab.control.grip.grasp_figures` of the record since the last close command.
 
         Times are counted from the close. None before any close (or once the
         close has left the record).
@@ -155,7 +155,7 @@ class GripLoop(GripRecord):
     """Runs ``controller`` on ``plant`` every ``controller.dt`` s.
 
     Args:
-        plant: the hand (e.g. ``hardware.hand.HandSim``).
+        plant: the hand (e.g. ``armlab.hardware.sim.hand.HandSim``).
         controller: the grasp controller.
         realtime: pace the loop by the wall clock (False: as fast as possible).
         history_s: seconds of record kept.

@@ -2,7 +2,7 @@
 
 ``ControlLoop`` runs at the fixed period ``params.period`` either in its own
 thread paced by the wall clock (``start()`` / ``shutdown()``), on a
-:class:`~control.periodic.SharedClock` with other loops and the world it steps
+:class:`~armlab.control.periodic.SharedClock` with other loops and the world it steps
 (``clock=``; a class's private arms), or stepped as fast as possible by the caller
 (``step()``, ``run_for(seconds)``) for headless runs and tests. Backend time is
 the loop's own clock k·T, so a simulated arm gives the same numbers paced or not.
@@ -23,7 +23,7 @@ growing), a servo error or a ``BackendError`` stops the controller: torque goes
 off (``backend.estop()``), ``status.fault`` says why, nothing escapes the
 thread; ``Reset`` starts again from where the arm is. A lost link (a
 ``BackendError``) is retried once a second on a backend that can reconnect
-(:class:`~control.backend.Reconnectable`), or at once on ``Reconnect``; the link
+(:class:`~armlab.control.backend.Reconnectable`), or at once on ``Reconnect``; the link
 found again is configured and left torque-off until ``Reset``.
 """
 
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control.backend import (
+from armlab.control.backend import (
     Backend,
     BackendError,
     GripperState,
@@ -47,7 +47,7 @@ from control.backend import (
     Pushable,
     Reconnectable,
 )
-from control.commands import (
+from armlab.control.commands import (
     COMMANDS,
     Command,
     EStop,
@@ -62,17 +62,17 @@ from control.commands import (
     Stop,
     UseSpareJoints,
 )
-from control.compliance import MODES, ComplianceController, ControllerState, Mode
-from control.params import DEFAULT, Params, loop_stability, stability_warning
-from control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
-from control.recorder import Recorder
-from control.trajectory import JointTrajectory, approach_duration, minimum_jerk
-from kinematics.dynamics import dynamics_model
-from kinematics.ik import rmrc
-from kinematics.model import SerialChain
-from kinematics.redundancy import POSITION_ROWS, aim_gradient, null_space_rate, task_jacobian
-from kinematics.smallarrays import all_finite, clamp
-from kinematics.validate import scalar
+from armlab.control.compliance import MODES, ComplianceController, ControllerState, Mode
+from armlab.control.params import DEFAULT, Params, loop_stability, stability_warning
+from armlab.control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
+from armlab.control.recorder import Recorder
+from armlab.control.trajectory import JointTrajectory, approach_duration, minimum_jerk
+from armlab.kinematics.dynamics import dynamics_model
+from armlab.kinematics.ik import rmrc
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.redundancy import POSITION_ROWS, aim_gradient, null_space_rate, task_jacobian
+from armlab.kinematics.smallarrays import all_finite, clamp
+from armlab.kinematics.validate import scalar
 
 DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
 TARGET_SPEED = 0.156  #: m/s hand speed when following a target (thesis: 2.5 mm / 16 ms)
@@ -109,7 +109,7 @@ class LoopStatus:
             servos may still hold torque (retried once a second until it goes out).
         link_down: the backend's link failed and is not back (retried once a second on a
             backend that can reconnect); Reset and Run do nothing until it is.
-        warning: :func:`control.params.stability_warning` of the current parameters.
+        warning: :func:`armlab.control.params.stability_warning` of the current parameters.
     """
 
     running: bool
@@ -157,7 +157,7 @@ class ControlLoop:
         clock: run the periods on this :class:`SharedClock` (with other loops and the world
             it steps) instead of a thread of the loop's own; ``start``/``shutdown`` attach
             and detach the loop. The backend's ``sync`` then finds its world already at
-            the loop's time (e.g. ``hardware.batched_backend.BatchedArmBackend``).
+            the loop's time (e.g. ``armlab.hardware.backends.batched.BatchedArmBackend``).
     """
 
     def __init__(self, model: SerialChain, backend: Backend, params: Params | None = None, *,
@@ -166,14 +166,14 @@ class ControlLoop:
                  lag_time: float = 0.5, target_speed: float = TARGET_SPEED,
                  clock: SharedClock | None = None) -> None:
         if not isinstance(backend, Backend):
-            raise ValueError(f"backend must implement control.backend.Backend, got "
+            raise ValueError(f"backend must implement armlab.control.backend.Backend, got "
                              f"{type(backend).__name__}")
         if backend.n != model.n:
             raise ValueError(f"backend has {backend.n} joints but the model {model.name!r} "
                              f"has {model.n}")
         params = DEFAULT if params is None else params
         if not isinstance(params, Params):
-            raise ValueError(f"params must be a control.params.Params, got "
+            raise ValueError(f"params must be a armlab.control.params.Params, got "
                              f"{type(params).__name__}")
         if controller not in MODES:
             raise ValueError(f"controller must be one of {', '.join(MODES)}, got {controller!r}")
@@ -251,7 +251,7 @@ class ControlLoop:
             ValueError: not a Params, or unstable gains without ``force``.
         """
         if not isinstance(params, Params):
-            raise ValueError(f"params must be a control.params.Params, got "
+            raise ValueError(f"params must be a armlab.control.params.Params, got "
                              f"{type(params).__name__}")
         warning = stability_warning(params)
         if loop_stability(params).unstable and not force:
@@ -399,7 +399,7 @@ class ControlLoop:
         st = self._state
         assert st is not None
         # τ_dyn, Newton–Euler of the measured motion (thesis eq. 2.41–2.50): the generated
-        # code kinematics.dynamics.rnea runs, without its checks (q, qd, θ̈_ref are finite)
+        # code armlab.kinematics.dynamics.rnea runs, without its checks (q, qd, θ̈_ref are finite)
         tau_dyn = np.array(self._rnea(q.tolist(), qd.tolist(), st.qdd_ref.tolist(),
                                       self._gravity))
         q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
@@ -407,7 +407,7 @@ class ControlLoop:
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "
                          "torque off")
         # the checks below reduce with Python's max/any over tolist(): on a few joints
-        # numpy's reductions cost more than the arithmetic (kinematics.smallarrays)
+        # numpy's reductions cost more than the arithmetic (armlab.kinematics.smallarrays)
         if max(np.abs(st.qdd_ref).tolist()) > self.max_accel:
             worst = int(np.argmax(np.abs(st.qdd_ref)))
             raise _Fault(

@@ -1,16 +1,17 @@
 """What a lesson uses of a loop that takes commands and records rows, in any thread.
 
-The hand's :class:`control.grip_loop.GripLoop` and the quadruped's
-:class:`control.gait_loop.GaitLoop`, and the server's proxies of such loops running in a
-worker process (``app.remote_hand``, ``app.remote_gait``), share this surface; their
-records are :class:`control.periodic.RingBuffer` rows.
+The hand's :class:`armlab.control.grip_loop.GripLoop` and the quadruped's
+:class:`armlab.control.gait_loop.GaitLoop`, and the server's proxies of such loops running in a
+worker process (``armlab.app.classroom.remote_hand``, ``armlab.app.classroom.remote_gait``), share
+this surface; their
+records are :class:`armlab.control.periodic.RingBuffer` rows.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from control.periodic import RingBuffer
+from armlab.control.periodic import RingBuffer
 
 
 class LoopRecord:
@@ -45,5 +46,5 @@ class LoopRecord:
 
     def rows_since(self, written: int) -> tuple[np.ndarray, int]:
         """The record's rows after the first ``written`` ever written, and the number
-        written now (:meth:`control.periodic.RingBuffer.since`: a mirror's bookmark)."""
+        written now (:meth:`armlab.control.periodic.RingBuffer.since`: a mirror's bookmark)."""
         return self._ring.since(written)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from control.compliance import integrate_reference, pd_reference_accel
+from armlab.control.compliance import integrate_reference, pd_reference_accel
 
 if TYPE_CHECKING:  # scipy.signal is imported where it is used: it costs every start 0.3 s
     from scipy import signal

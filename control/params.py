@@ -28,8 +28,8 @@ from typing import Literal
 
 import numpy as np
 
-from control.metrics import overshoot_pct, pd_damping
-from kinematics.validate import scalar
+from armlab.control.metrics import overshoot_pct, pd_damping
+from armlab.kinematics.validate import scalar
 
 Law = Literal["2.6", "2.26"]
 LAWS: tuple[str, ...] = ("2.6", "2.26")

@@ -1,6 +1,6 @@
 """What every loop of the lab shares: one pacer for its periods and one ring buffer for its
-record (``control.loop.ControlLoop``, ``control.gait_loop.GaitLoop``,
-``control.grip_loop.GripLoop``).
+record (``armlab.control.loop.ControlLoop``, ``armlab.control.gait_loop.GaitLoop``,
+``armlab.control.grip_loop.GripLoop``).
 
 :class:`Pacer` runs one period of loop time per ``step()`` call, in its own thread or
 now. Real time: it wakes every ``batch_s`` of wall time (one period when ``batch_s`` is
@@ -14,7 +14,7 @@ measures how late each wake-up was (jitter) and the time between wake-ups. Not r
 writer appends in place (no allocation per period), any thread takes a copy of the last
 seconds (found by bisection on time), thinned if asked.
 
-(``control.recorder.Recorder`` is a RingBuffer with a named column per signal.)
+(``armlab.control.recorder.Recorder`` is a RingBuffer with a named column per signal.)
 
 :class:`SharedClock` steps one world (e.g. a class's ``BatchedPlant``) and the loops
 attached to it in lockstep, in one thread: each loop gets a :class:`DrivenPacer` from

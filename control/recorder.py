@@ -31,8 +31,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from control.params import Params
-from control.periodic import RingBuffer
+from armlab.control.params import Params
+from armlab.control.periodic import RingBuffer
 
 SIGNALS: tuple[str, ...] = ("q_cmd", "q_ref", "q", "error", "qd_ref", "load", "tau_load",
                             "tau_dyn", "tau_ext", "q_env")
@@ -41,7 +41,7 @@ UNITS = {"q_cmd": "rad", "q_ref": "rad", "q": "rad", "error": "rad", "qd_ref": "
 
 
 class Recorder:
-    """The last ``capacity`` periods of every signal: a :class:`~control.periodic.RingBuffer`
+    """The last ``capacity`` periods of every signal: a :class:`~armlab.control.periodic.RingBuffer`
     with one named column per joint and signal.
 
     Args:

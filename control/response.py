@@ -1,6 +1,6 @@
 """Step and push responses on a recording: what the student ran, measured (thesis eq. 2.11–2.19).
 
-Pure functions over a recorder snapshot (:meth:`control.recorder.Recorder.snapshot`:
+Pure functions over a recorder snapshot (:meth:`armlab.control.recorder.Recorder.snapshot`:
 ``"t"`` (N,) and (N, n) signals ``"q"``, ``"q_cmd"``, ``"q_env"``, ``"tau_ext"``,
 ``"error"``), so they run in a test or a script without a server:
 
@@ -11,7 +11,7 @@ Pure functions over a recorder snapshot (:meth:`control.recorder.Recorder.snapsh
 - :func:`hand_excursion`: how far a push moved the hand, and how near it came back;
 - :func:`line_errors`: the largest |θ_cmd − θ| of a run.
 
-The figures are :func:`control.metrics.measure_step`'s, with ωn and ζ read back from
+The figures are :func:`armlab.control.metrics.measure_step`'s, with ωn and ζ read back from
 the measured overshoot and peak time (the inverses of eq. 2.16–2.17).
 """
 
@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control import metrics
-from control.params import Params
-from control.trajectory import JointTrajectory
-from kinematics.model import SerialChain
+from armlab.control import metrics
+from armlab.control.params import Params
+from armlab.control.trajectory import JointTrajectory
+from armlab.kinematics.model import SerialChain
 
 MIN_STEP = math.radians(0.5)  #: rad; a smaller step is refused (the slider moves by 1°)
 
@@ -40,7 +40,7 @@ class Measured:
         omega_n: rad/s, from Tp and %OS (underdamped responses only).
         zeta: from %OS (underdamped only).
         overshoot_pct, peak_time_s, rise_time_s, settling_time_s: as in
-            :class:`control.metrics.StepMetrics`.
+            :class:`armlab.control.metrics.StepMetrics`.
         static_gain: final / input (C_f for a push: rad per N·m), or None.
     """
 

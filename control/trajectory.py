@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.ik import rmrc
-from kinematics.model import SerialChain
-from kinematics.validate import scalar, vector
+from armlab.kinematics.ik import rmrc
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.validate import scalar, vector
 
 #: Thesis ch. 4: start and end of the line, m, base frame.
 THESIS_LINE_START = np.array([-0.11322, 0.07653, 0.0])

@@ -1,9 +1,9 @@
 """The seed 003 quadruped walking in time: a gait cycle planned once, played at any phase.
 
 :func:`plan_gait` samples one cycle of the trot (seed 003 Table 1.1, diagonals in
-phase) or of the statically stable crawl (``kinematics.gait.crawl``), with the leg
+phase) or of the statically stable crawl (``armlab.kinematics.gait.crawl``), with the leg
 IK (eq. 3.1-3.9), the body carried across the floor by its stance feet
-(``kinematics.gait.walk``), the centre of mass and the static stability margin of
+(``armlab.kinematics.gait.walk``), the centre of mass and the static stability margin of
 every sample. :class:`Walker` plays such a plan continuously: the phase advances
 by ``cycles/s × dt``, samples are interpolated, and each new cycle starts where the
 last one left the body, so the robot walks on for as long as it is told. A new
@@ -13,7 +13,7 @@ the body never jumps.
 :func:`angle_error_pct` is the paper's eq. 4.1 (commanded vs servo angle).
 
 Frames: world x, y on the floor (z = 0), z up; body pose (x, y, z, yaw); legs in
-``kinematics.quadruped.LEGS`` order (RF, LF, RH, LH), joints per leg (θ1, θ2, θ3).
+``armlab.kinematics.quadruped.LEGS`` order (RF, LF, RH, LH), joints per leg (θ1, θ2, θ3).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinematics.body_statics import implied_tilts_deg
-from kinematics.gait import (
+from armlab.kinematics.body_statics import implied_tilts_deg
+from armlab.kinematics.gait import (
     CRAWL_SEQUENCE,
     GaitCycle,
     SineParams,
@@ -35,10 +35,10 @@ from kinematics.gait import (
     trot,
     walk,
 )
-from kinematics.model import Quadruped
-from kinematics.quadruped import LEGS, QuadrupedGeometry, leg_to_body
-from kinematics.stability import centre_of_mass, stability_margin, support_polygon
-from kinematics.validate import scalar
+from armlab.kinematics.model import Quadruped
+from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry, leg_to_body
+from armlab.kinematics.stability import centre_of_mass, stability_margin, support_polygon
+from armlab.kinematics.validate import scalar
 
 GAITS = ("trot", "crawl")
 #: Crawl walking backwards: the forward sequence (hind leg before the front leg of the
@@ -396,6 +396,6 @@ def mean_angle_error_pct(commanded_deg: np.ndarray, actual_deg: np.ndarray) -> f
 
 def walking_tilts_deg(model: Quadruped, snap: dict[str, np.ndarray]) -> np.ndarray:
     """(M,) body tilt (degrees) the reported angles imply, over a gait-loop snapshot's walking
-    samples with finite readings (:func:`kinematics.body_statics.implied_tilts_deg`)."""
+    samples with finite readings (:func:`armlab.kinematics.body_statics.implied_tilts_deg`)."""
     ok = (snap["walking"] > 0.5) & np.all(np.isfinite(snap["q"]), axis=1)
     return implied_tilts_deg(model, snap["q"][ok])

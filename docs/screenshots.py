@@ -2,7 +2,7 @@
 
 Starts the lab on a free loopback port (simulated arm), opens it in Debian's headless
 Chromium (the Chromium and flags of the browser tests) at 1280x720, opens each lesson
-in turn, waits until the page shows the lesson's framed view (``app.camera.shown``)
+in turn, waits until the page shows the lesson's framed view (``armlab.app.page.camera.shown``)
 and its controls ("Try this"), closes the browser's "software WebGL" notice and saves
 ``docs/img/<lesson>.png``; then ``docs/img/phone.png``, the first lesson on a 390x844
 phone. Run: ``python docs/screenshots.py [--out DIR] [LESSON ...]``.
@@ -21,9 +21,9 @@ sys.path.insert(0, str(ROOT / "tests"))  # the browser tests' Chromium (_helpers
 
 from _helpers import CHROMIUM, CHROMIUM_ARGS, new_page_client  # noqa: E402
 
-from app import camera  # noqa: E402
-from app.lessons import all_lessons, lesson_order  # noqa: E402
-from app.server import Lab, ServeOptions  # noqa: E402
+from armlab.app.lessons import all_lessons, lesson_order  # noqa: E402
+from armlab.app.page import camera  # noqa: E402
+from armlab.app.server import Lab, ServeOptions  # noqa: E402
 
 #: (width, height) of the lesson pictures, CSS px (a 720p projector).
 SIZE = (1280, 720)
@@ -70,7 +70,7 @@ def take(out: Path, lessons: Sequence[str] = ()) -> list[Path]:
     names = list(lessons) or [m.NAME for m in sorted(all_lessons().values(), key=lesson_order)]
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    # (the full look: the pictures show what a page drawing on a GPU shows, app.look)
+    # (the full look: the pictures show what a page drawing on a GPU shows, armlab.app.page.look)
     with Lab(ServeOptions(http_port=0, lesson=names[0], plain_on_software=False)) as lab, \
             sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,

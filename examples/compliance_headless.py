@@ -15,14 +15,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from control import metrics
-from control.commands import Push
-from control.loop import ControlLoop
-from control.params import DEFAULT
-from control.response import measure_push
-from control.trajectory import thesis_line
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control import metrics
+from armlab.control.commands import Push
+from armlab.control.loop import ControlLoop
+from armlab.control.params import DEFAULT
+from armlab.control.response import measure_push
+from armlab.control.trajectory import thesis_line
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
 
 arm = load_robot("receptionist_arm")
 home = thesis_line(arm).q[0]  # the start of chapter 4's line

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from control.trajectory import THESIS_LINE_END, THESIS_LINE_START, THESIS_Q_GUESS
-from kinematics import load_robot
-from kinematics.ik import rmrc
+from armlab.control.trajectory import THESIS_LINE_END, THESIS_LINE_START, THESIS_Q_GUESS
+from armlab.kinematics import load_robot
+from armlab.kinematics.ik import rmrc
 
 arm = load_robot("receptionist_arm")  # L1 = 18.5 cm, L2 = 25 cm, base frame = thesis frame
 print("joints:", ", ".join(arm.joint_names))

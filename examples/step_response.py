@@ -18,14 +18,14 @@ import math
 import sys
 from dataclasses import replace
 
-from control import metrics
-from control.commands import RunTrajectory
-from control.loop import ControlLoop
-from control.params import DEFAULT
-from control.response import measure_step, plan_step
-from control.trajectory import thesis_line
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control import metrics
+from armlab.control.commands import RunTrajectory
+from armlab.control.loop import ControlLoop
+from armlab.control.params import DEFAULT
+from armlab.control.response import measure_step, plan_step
+from armlab.control.trajectory import thesis_line
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
 
 kp, kv = (float(sys.argv[1]), float(sys.argv[2])) if len(sys.argv) == 3 else (DEFAULT.kp,
                                                                                 DEFAULT.kv)

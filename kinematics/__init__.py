@@ -1,6 +1,6 @@
 """Robot models and pure kinematics/dynamics functions (no I/O, no threads, no viser)."""
 
-from kinematics.model import (
+from armlab.kinematics.model import (
     Quadruped,
     SerialChain,
     URDFError,

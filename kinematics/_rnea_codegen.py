@@ -1,11 +1,11 @@
 """Straight-line code for one chain's Newton–Euler recursion (private: the plant's fast path).
 
 :func:`dynamics_model` unrolls the recursion of thesis eq. 2.41–2.50 joint by joint for
-one :class:`~kinematics.model.SerialChain` into plain Python float code, with every
+one :class:`~armlab.kinematics.model.SerialChain` into plain Python float code, with every
 product by a structural zero or one of the model (axis components, frame offsets,
 inertia entries) folded away. That keeps one RNEA call on a 3-joint arm in the
 microseconds without numpy overhead on tiny arrays. The equations are read in
-:func:`kinematics.dynamics.newton_euler`, the readable recursion that a test compares
+:func:`armlab.kinematics.dynamics.newton_euler`, the readable recursion that a test compares
 this code with on every shipped robot; this module only writes them out as code.
 
 Model/data separation follows Pinocchio: the chain is never changed; the per-model
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.model import SerialChain
+from armlab.kinematics.model import SerialChain
 
 Sym = float | str | tuple[float, str]  # generated-code scalar: constant, name, or k * name
 Vec = list[Sym]

@@ -1,6 +1,6 @@
 """The generated Newton–Euler code of one chain, run over many arms at once (numpy over arms).
 
-:func:`kinematics._rnea_codegen.dynamics_model` writes thesis eq. 2.41–2.50 out as
+:func:`armlab.kinematics._rnea_codegen.dynamics_model` writes thesis eq. 2.41–2.50 out as
 straight-line float code. That code uses only ``+ - * /``, float constants, tuple
 unpacking of its arguments and ``_sin``/``_cos``; compiled again with ``numpy.sin`` and
 ``numpy.cos`` in their place, the *same source* runs on arrays of shape (N,) (one entry
@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinematics._rnea_codegen import dynamics_model
-from kinematics.model import SerialChain
+from armlab.kinematics._rnea_codegen import dynamics_model
+from armlab.kinematics.model import SerialChain
 
 _Fn = Callable[..., tuple[object, ...]]
 

@@ -16,7 +16,7 @@ body frame (from the joint angles the servos actually hold) and the centre of ma
 
 The servos' compliance enters through the feet's positions: a loaded leg's servos
 give way (J^T f on each joint against its compliance margin, slope and punch; see
-``hardware.quadruped_sim``), the foot rises in the body frame, and the plane
+``armlab.hardware.sim.quadruped``), the foot rises in the body frame, and the plane
 through the deflected contact feet is the body's pose.
 
 Frames: body frame x forward, y left, z up; feet (4, 3) in ``LEGS`` order, m.
@@ -30,8 +30,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from kinematics.batched_dynamics import batched_dynamics
-from kinematics.model import Quadruped
+from armlab.kinematics.batched_dynamics import batched_dynamics
+from armlab.kinematics.model import Quadruped
 
 #: A foot within this distance of the rest plane touches the floor, m.
 CONTACT_TOL = 1e-3
@@ -135,7 +135,7 @@ def feet_and_com(model: Quadruped, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """Feet (4, 3) and centre of mass (3,) in the body frame for the joint angles ``q`` (12,)
     rad (legs in order), m: one pass over each leg's link poses.
 
-    The centre of mass is :func:`kinematics.stability.centre_of_mass_model`'s (the body's
+    The centre of mass is :func:`armlab.kinematics.stability.centre_of_mass_model`'s (the body's
     own at the body origin).
     """
     q = np.asarray(q, dtype=float).reshape(len(model.legs), -1)

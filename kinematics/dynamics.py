@@ -13,23 +13,23 @@ Two implementations of one recursion:
 - :func:`newton_euler` is the text to read beside the thesis: one commented step per
   equation, plain numpy over the chain. It is the test oracle.
 - :func:`rnea` and the functions after it run the same recursion as straight-line code
-  generated once per chain (``kinematics._rnea_codegen``), fast enough for the plant's
+  generated once per chain (``armlab.kinematics._rnea_codegen``), fast enough for the plant's
   1 kHz RK4; tests/test_dynamics.py checks it equals :func:`newton_euler` to 1e-12 on
   every shipped robot.
 
-Points on links (their Jacobians, forces there) are in :mod:`kinematics.points`; the
-thesis's simplified closed forms of §3.4 in :mod:`kinematics.thesis_dynamics`.
+Points on links (their Jacobians, forces there) are in :mod:`armlab.kinematics.points`; the
+thesis's simplified closed forms of §3.4 in :mod:`armlab.kinematics.thesis_dynamics`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinematics._rnea_codegen import DynamicsModel, dynamics_model
-from kinematics.model import SerialChain
-from kinematics.points import link_frames, point_jacobian6
-from kinematics.transforms import rot_axis
-from kinematics.validate import floats, matrix, vector
+from armlab.kinematics._rnea_codegen import DynamicsModel, dynamics_model
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.points import link_frames, point_jacobian6
+from armlab.kinematics.transforms import rot_axis
+from armlab.kinematics.validate import floats, matrix, vector
 
 __all__ = ["DynamicsModel", "dynamics_model", "newton_euler", "rnea", "gravity_torques",
            "bias_torques", "mass_matrix", "forward_dynamics", "kinetic_energy",

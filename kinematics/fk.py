@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinematics._rnea_codegen import dynamics_model
-from kinematics.model import SerialChain
-from kinematics.transforms import rot_axis
-from kinematics.validate import vector
+from armlab.kinematics._rnea_codegen import dynamics_model
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.transforms import rot_axis
+from armlab.kinematics.validate import vector
 
 
 def _motion(joint, qi: float) -> np.ndarray:
@@ -69,8 +69,8 @@ def fk_and_jacobian(
 
     Computed together as straight-line float code generated once per chain (the
     product of eq. 3.8–3.12 unrolled, structural zeros and ones folded away; see
-    ``kinematics._rnea_codegen``): a few microseconds for a short chain, which is what
-    the IK loops (:mod:`kinematics.ik`) need. :func:`link_poses` is the same product
+    ``armlab.kinematics._rnea_codegen``): a few microseconds for a short chain, which is what
+    the IK loops (:mod:`armlab.kinematics.ik`) need. :func:`link_poses` is the same product
     written as 4x4 matrices, to read.
 
     Args:

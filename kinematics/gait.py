@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.leg_ik import leg_ik
-from kinematics.quadruped import (
+from armlab.kinematics.leg_ik import leg_ik
+from armlab.kinematics.quadruped import (
     DEFAULT_GEOMETRY,
     LEGS,
     SIDE,
@@ -31,8 +31,8 @@ from kinematics.quadruped import (
     hip_position,
     leg_to_body,
 )
-from kinematics.stability import centre_of_mass, stability_margin
-from kinematics.validate import scalar
+from armlab.kinematics.stability import centre_of_mass, stability_margin
+from armlab.kinematics.validate import scalar
 
 #: Trot (seed 003 §2.4, §3.3.1): diagonal legs share a phase index.
 TROT_PHASE = {"RF": 0, "LH": 0, "LF": 1, "RH": 1}
@@ -333,7 +333,7 @@ def cycle_angles(cycle: GaitCycle, geom: QuadrupedGeometry = DEFAULT_GEOMETRY, *
 
 def cycle_margins(cycle: GaitCycle, moved: Walk, angles: np.ndarray,
                   geom: QuadrupedGeometry = DEFAULT_GEOMETRY) -> np.ndarray:
-    """(T,) static stability margin of every sample, m (kinematics.stability)."""
+    """(T,) static stability margin of every sample, m (armlab.kinematics.stability)."""
     T = len(cycle.omega_deg)
     out = np.empty(T)
     for j in range(T):

@@ -46,9 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.fk import fk_and_jacobian
-from kinematics.model import SerialChain
-from kinematics.validate import floats, scalar
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.validate import floats, scalar
 
 #: |det J| / |J|_F^m below this counts as singular (scale-free; 0 at a singularity).
 SINGULAR_RATIO = 1e-6

@@ -4,7 +4,7 @@ The leg frame (the seed's x, y, z; origin on the hip-yaw axis at the hip-pitch a
 x points forward along the body, y outward from the body (the direction the leg
 reaches at θ1 = 0), z up. For the right legs this frame is the mirror image of the left
 legs' one, as in the seed, which uses one formula for all four legs;
-:func:`kinematics.quadruped.leg_to_body` maps it into the body frame.
+:func:`armlab.kinematics.quadruped.leg_to_body` maps it into the body frame.
 
 Joints: θ1 hip yaw (from the outward axis towards forward), θ2 hip pitch (femur angle
 *below* the horizontal), θ3 knee (tibia bend, downward positive). With the seed's
@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from kinematics.validate import scalar
+from armlab.kinematics.validate import scalar
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinematics.transforms import homogeneous, rpy_matrix
+from armlab.kinematics.transforms import homogeneous, rpy_matrix
 
 ROBOTS_DIR = Path(__file__).with_name("robots")
 #: Gravity in the URDF's root frame (the viewer's world: z up).
@@ -127,19 +127,19 @@ class SerialChain:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """(4, 4) end-effector pose in the base frame at joint vector q (n,)."""
-        from kinematics.fk import fk
+        from armlab.kinematics.fk import fk
 
         return fk(self, q)
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) pose of every moving link frame in the base frame."""
-        from kinematics.fk import link_poses
+        from armlab.kinematics.fk import link_poses
 
         return link_poses(self, q)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(6, n) geometric Jacobian of the end effector, linear rows first, base frame."""
-        from kinematics.fk import jacobian
+        from armlab.kinematics.fk import jacobian
 
         return jacobian(self, q)
 

@@ -2,16 +2,16 @@
 
 Base-frame quantities of a point fixed in one link's frame (thesis eq. 3.14–3.15 applied
 to any point, not only the tip). The link frames come from the chain's compiled
-kinematics (:func:`kinematics._rnea_codegen.dynamics_model`).
+kinematics (:func:`armlab.kinematics._rnea_codegen.dynamics_model`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinematics._rnea_codegen import dynamics_model
-from kinematics.model import SerialChain
-from kinematics.validate import floats, vector
+from armlab.kinematics._rnea_codegen import dynamics_model
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.validate import floats, vector
 
 
 def point_position(model: SerialChain, q: np.ndarray, link: int, point: np.ndarray) -> np.ndarray:

@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.fk import fk_and_jacobian
-from kinematics.model import SerialChain
-from kinematics.validate import matrix, scalar, vector
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.validate import matrix, scalar, vector
 
 #: Task rows of the 6 x n geometric Jacobian used for a planar arm: base-frame x and y.
 PLANAR_ROWS = (0, 1)

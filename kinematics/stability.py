@@ -19,8 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from kinematics.model import Quadruped
-from kinematics.quadruped import DEFAULT_GEOMETRY, LEGS, QuadrupedGeometry, leg_to_body
+from armlab.kinematics.model import Quadruped
+from armlab.kinematics.quadruped import DEFAULT_GEOMETRY, LEGS, QuadrupedGeometry, leg_to_body
 
 
 def support_polygon(feet_xy: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
 """The thesis's simplified closed forms of the receptionist arm's dynamics (§3.4), for
-comparison with the general recursion (:func:`kinematics.dynamics.rnea`; docs/dynamics.md).
+comparison with the general recursion (:func:`armlab.kinematics.dynamics.rnea`; docs/dynamics.md).
 """
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from kinematics.validate import vector
+from armlab.kinematics.validate import vector
 
 
 def thesis_closed_form(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from kinematics.smallarrays import finite
+from armlab.kinematics.smallarrays import finite
 
 
 def vector(name: str, value: object, size: int | None = None) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 - :func:`wait_for`: poll a condition the server side reaches in its own time.
 - :func:`served_lesson`: a lesson built on a real viser server on a free port.
-- :func:`client_of`: a headless client (:class:`app.wsclient.HeadlessClient`, what the
+- :func:`client_of`: a headless client
+  (:class:`armlab.app.testing.wsclient.HeadlessClient`, what the
   page sends on the wire) connected to a server, once the server counts it as a client.
 - :func:`project`: points in a camera's view, as the framing tests judge them.
 - The Chromium the browser tests drive, its flags, the console messages that
@@ -22,8 +23,8 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.lessons import LessonContext
-from app.wsclient import HeadlessClient
+from armlab.app.lessons import LessonContext
+from armlab.app.testing.wsclient import HeadlessClient
 
 CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
 CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
@@ -106,7 +107,7 @@ def served_lesson(build: Callable[[viser.ViserServer, LessonContext], Any],
 @contextmanager
 def client_of(server: viser.ViserServer, *, timeout: float = 30.0,
               token: str | None = None) -> Iterator[HeadlessClient]:
-    """A headless client of ``server`` (presenting ``token`` for a gated lab, app.gate),
+    """A headless client of ``server`` (presenting ``token`` for a gated lab, armlab.app.gate),
     returned once the server has registered it."""
     before = set(server.get_clients())
     query = f"/?token={token}" if token else ""
@@ -153,8 +154,8 @@ def project(points: np.ndarray, position, look_at, up, fov: float, aspect: float
 
 def wait_look_settled(lab: Any, known: set[int]) -> None:
     """Wait until the page of ``lab`` that connected after ``known`` (client ids) has its
-    look for good: app.look (a page drawing WebGL in software turns plain once it has
-    named its renderer, which changes every pixel between two pictures) and app.theme
+    look for good: armlab.app.page.look (a page drawing WebGL in software turns plain once it has
+    named its renderer, which changes every pixel between two pictures) and armlab.app.page.theme
     (a page whose browser chose Projector gets its sizes once it has said so)."""
     wait_for(lambda: any(lab.looks.settled(cid) and lab.page_style.settled(cid)
                          for cid in lab.server.get_clients() if cid not in known),

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.lessons.arm import check_servo_arm
-from app.server import Lab, ServeOptions
-from hardware.joint_map import draft_joint_map, load_joint_map
-from hardware.scan import Found
-from kinematics import load_robot
+from armlab.app.lessons.arm import check_servo_arm
+from armlab.app.server import Lab, ServeOptions
+from armlab.hardware.backends.joint_map import draft_joint_map, load_joint_map
+from armlab.hardware.wire.scan import Found
+from armlab.kinematics import load_robot
 from tests._emulator import ROOT, emulator
 from tests._helpers import client_of, wait_for
 
@@ -130,8 +130,8 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
 
 def test_dragging_the_hand_target_moves_open_manipulator_x_there():
     """The IK target drag on the shipped OpenManipulator-X, simulated, through the page."""
-    from app.lessons import LessonContext
-    from app.lessons.arm import build
+    from armlab.app.lessons import LessonContext
+    from armlab.app.lessons.arm import build
     from tests._helpers import served_lesson
 
     with served_lesson(build, LessonContext(robot="open_manipulator_x")) as lesson:
@@ -153,7 +153,7 @@ def test_dragging_the_hand_target_moves_open_manipulator_x_there():
 
 
 def test_teach_tab_names_default_and_narrowed_limits():
-    from app.lessons.arm import limits_markdown
+    from armlab.app.lessons.arm import limits_markdown
 
     model = load_robot(DATA / "mobile_manipulator.urdf", tip_link="tcp_link")
     half = math.radians(150.0)  # an AX-12A's range narrows the ±180° default and ±3 rad

@@ -1,5 +1,6 @@
 """The any-arm lesson's compliance controls and spare joints, served by the real lab on a
-free port and driven by a headless client sending what a browser sends (app.wsclient).
+free port and driven by a headless client sending what a browser sends
+(armlab.app.testing.wsclient).
 
 The shipped OpenManipulator-X (4 joints, one spare for a hand position) and the 5-joint
 arm of tests/data/five_joint_arm.urdf (two spare), simulated, their loops on the wall
@@ -15,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.server import Lab, ServeOptions
-from control.params import DEFAULT
-from kinematics.redundancy import joint_limit_criterion
+from armlab.app.server import Lab, ServeOptions
+from armlab.control.params import DEFAULT
+from armlab.kinematics.redundancy import joint_limit_criterion
 from tests._helpers import client_of, wait_for
 
 pytestmark = pytest.mark.realtime  # served labs whose loops run on the wall clock

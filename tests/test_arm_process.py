@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from app.arm_process import ArmProcess, RemoteBackend, RemoteLoop
-from app.sandboxes import Sandboxes
-from control.backend import BackendError, Pushable
-from control.commands import EStop, RunTrajectory
-from control.params import DEFAULT, Params
-from control.trajectory import minimum_jerk
-from kinematics import load_robot
+from armlab.app.classroom.sandboxes import Sandboxes
+from armlab.app.classroom.worker_process import ArmProcess, RemoteBackend, RemoteLoop
+from armlab.control.backend import BackendError, Pushable
+from armlab.control.commands import EStop, RunTrajectory
+from armlab.control.params import DEFAULT, Params
+from armlab.control.trajectory import minimum_jerk
+from armlab.kinematics import load_robot
 
 Q0 = np.array([0.0, 0.3, 0.3])
 
@@ -135,9 +135,9 @@ def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
     of its own (not the server, not the class's): E-STOP reaches it, the lesson's Reset
     clears it, another lesson frees it, and closing the lab ends the worker. An arm with
     X-series servos and a gripper, and any arm without --classroom, stays in the server."""
-    from app.lessons._loop_state import post_reset
-    from app.server import Lab, ServeOptions
-    from control.loop import ControlLoop
+    from armlab.app.lessons._loop_state import post_reset
+    from armlab.app.server import Lab, ServeOptions
+    from armlab.control.loop import ControlLoop
 
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         loop = lab.lesson.rig.loop
@@ -165,7 +165,7 @@ def test_each_worker_is_scheduled_as_it_says():
     """The shared arm's real-time worker asks for SCHED_FIFO (taken where the OS allows
     it, said otherwise); the class's worker is niced below the server; a worker run as
     fast as possible never holds a real-time priority. Read back from the OS."""
-    from app.arm_worker import CLASS_NICE, SHARED_RT_PRIORITY
+    from armlab.app.classroom.worker import CLASS_NICE, SHARED_RT_PRIORITY
 
     own = ArmProcess(kind="own", realtime=True)
     fast = ArmProcess(kind="own", realtime=False)
@@ -194,8 +194,8 @@ def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints(
     there, the aim comes back in the mirror, and the hand reaches the target."""
     from pathlib import Path
 
-    from app.server import Lab, ServeOptions
-    from control.commands import SetTarget, UseSpareJoints
+    from armlab.app.server import Lab, ServeOptions
+    from armlab.control.commands import SetTarget, UseSpareJoints
 
     urdf = Path(__file__).parent / "data" / "five_joint_arm.urdf"
     with Lab(ServeOptions(http_port=0, classroom=True, robot=str(urdf))) as lab:

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from app.class_hands import ClassHands
-from control.batched_grip import BatchedGrip
-from control.experiments.hand import GripOptions, run_grip
-from control.grip import GripController, GripModel, GripParams
-from control.grip_loop import MotorsOff, SetGripParams, SetObject
-from hardware.batched_hand import STATE, BatchedHand
-from hardware.hand import GraspObject, HandParams, HandSim, make_hand
+from armlab.app.classroom.class_hands import ClassHands
+from armlab.control.batched_grip import BatchedGrip
+from armlab.control.experiments.hand import GripOptions, run_grip
+from armlab.control.grip import GripController, GripModel, GripParams
+from armlab.control.grip_loop import MotorsOff, SetGripParams, SetObject
+from armlab.hardware.sim.batched_hand import STATE, BatchedHand
+from armlab.hardware.sim.hand import GraspObject, HandParams, HandSim, make_hand
 
 #: a class of five: objects of every kind (none, soft, hard, the slider's stiffest)
 OBJECTS = (GraspObject(0.06, 1000.0, 1.0), None, GraspObject(0.04, 5000.0, 2.0),

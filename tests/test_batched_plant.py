@@ -8,15 +8,20 @@ import threading
 import numpy as np
 import pytest
 
-from control.params import Params
-from hardware.batched_plant import BatchedPlant
-from hardware.plant import Plant
-from hardware.servo import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD, IDEAL, ServoParams
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import thesis_registers
-from kinematics import load_robot
-from kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
-from kinematics.dynamics import dynamics_model
+from armlab.control.params import Params
+from armlab.hardware.backends.sim import thesis_registers
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.sim.batched_plant import BatchedPlant
+from armlab.hardware.sim.dynamixel_servo import (
+    ERROR_ANGLE_LIMIT,
+    ERROR_OVERLOAD,
+    IDEAL,
+    ServoParams,
+)
+from armlab.hardware.sim.plant import Plant
+from armlab.kinematics import load_robot
+from armlab.kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
+from armlab.kinematics.dynamics import dynamics_model
 
 MODEL = load_robot("receptionist_arm")
 N = 5
@@ -85,7 +90,7 @@ def test_generated_dynamics_over_arms_equal_the_float_path(n_arms: int) -> None:
 
 
 def test_two_threads_running_the_generated_dynamics_each_get_their_own_results() -> None:
-    """The numpy fd writes into buffers (kinematics.batched_dynamics): two classes' clocks
+    """The numpy fd writes into buffers (armlab.kinematics.batched_dynamics): two classes' clocks
     stepping plants of the same model at once, switching threads every few operations,
     still each get their own arms' accelerations, bit for bit."""
     dyn = batched_dynamics(MODEL)
@@ -117,7 +122,7 @@ def test_two_threads_running_the_generated_dynamics_each_get_their_own_results()
 @pytest.mark.parametrize("float_arms", [FLOAT_ARMS, 0])  # the plant's path for a few arms; numpy's
 def test_batched_plant_equals_n_single_plants_over_one_second(float_arms: int,
                                                               monkeypatch) -> None:  # noqa: ANN001
-    monkeypatch.setattr("kinematics.batched_dynamics.FLOAT_ARMS", float_arms)
+    monkeypatch.setattr("armlab.kinematics.batched_dynamics.FLOAT_ARMS", float_arms)
     singles, batch = _pair()
     worst = 0.0
     for k in range(1000):

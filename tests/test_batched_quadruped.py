@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from control.backend import BackendError
-from control.gait_loop import GaitLoop
-from control.periodic import SharedClock
-from control.walking import GaitSpec, Walker, plan_gait
-from hardware.batched_quadruped import (
+from armlab.control.backend import BackendError
+from armlab.control.gait_loop import GaitLoop
+from armlab.control.periodic import SharedClock
+from armlab.control.walking import GaitSpec, Walker, plan_gait
+from armlab.hardware.servos.servo_spec import AX12A, RX24F
+from armlab.hardware.sim.batched_quadruped import (
     BatchedQuadrupedBackend,
     BatchedQuadrupeds,
     leg_groups,
     same_dynamics,
 )
-from hardware.quadruped_sim import G, QuadrupedSimBackend, total_mass
-from hardware.servo_spec import AX12A, RX24F
-from kinematics.body_statics import (
+from armlab.hardware.sim.quadruped import G, QuadrupedSimBackend, total_mass
+from armlab.kinematics.body_statics import (
     contact_forces,
     feet_and_com,
     feet_and_coms,
@@ -31,7 +31,7 @@ from kinematics.body_statics import (
     rest_plane,
     rest_planes,
 )
-from kinematics.model import Quadruped, load_robot
+from armlab.kinematics.model import Quadruped, load_robot
 
 MODEL = load_robot("quadruped")
 DT = 2e-3  #: the lesson's SIM_DT
@@ -495,7 +495,7 @@ def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> Non
 def test_the_class_walks_each_students_robot_on_its_own() -> None:
     """app/class_quadrupeds.py: robots on the class's clock (its step CLASS_DT); one walks,
     its neighbour stands; an E-STOP sits that one down alone; a freed robot is gone."""
-    from app.class_quadrupeds import CLASS_DT, ClassQuadrupeds
+    from armlab.app.classroom.class_quadrupeds import CLASS_DT, ClassQuadrupeds
 
     hands_off = ClassQuadrupeds(realtime=False)
     try:

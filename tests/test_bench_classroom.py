@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from app.benches.classroom import loops_ms_cost
+from armlab.app.benches.classroom import loops_ms_cost
 
 
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_plants"))
@@ -23,7 +23,7 @@ def test_a_room_of_pages_each_with_its_own_copy_gets_frames_of_it(lesson: str) -
     """Three pages choose My arm in the hand or quadruped lesson; each draws its own robot
     (the clients wait for that) and receives frames of its own lesson while the students
     play; no copy faults (the bench raises)."""
-    from app.benches.classroom import private_room
+    from armlab.app.benches.classroom import private_room
 
     res = private_room(lesson, seconds=3.0, pages=3, settle=1.0)
     assert res[f"classroom_30_{lesson}_pose_hz"] > 0.0
@@ -32,7 +32,7 @@ def test_a_room_of_pages_each_with_its_own_copy_gets_frames_of_it(lesson: str) -
 
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_backends"))
 def test_the_class_of_quadrupeds_walks_without_a_fault(batched: bool) -> None:
-    from app.benches.classroom import quadrupeds_cost
+    from armlab.app.benches.classroom import quadrupeds_cost
 
     cost = quadrupeds_cost(3, seconds=0.2, batched=batched)  # raises if a robot stopped
     assert math.isfinite(cost) and cost > 0.0

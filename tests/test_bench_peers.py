@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import main
-from kinematics import load_robot
-from kinematics.dynamics import rnea
+from armlab.app.cli import main
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import rnea
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_without_the_extra_peers_says_how_to_install_it_in_one_line():
     """The peers are optional: where they cannot be imported, one line and exit 2."""
     hide = ("import sys; sys.modules['mujoco'] = None; sys.modules['pinocchio'] = None; "
-            "from app.cli import main; sys.exit(main(['bench', '--peers', '--quick']))")
+            "from armlab.app.cli import main; sys.exit(main(['bench', '--peers', '--quick']))")
     run = subprocess.run([sys.executable, "-c", hide], cwd=ROOT, capture_output=True,
                          text=True, timeout=120)
     assert run.returncode == 2
@@ -40,7 +40,7 @@ def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
     mujoco = pytest.importorskip("mujoco")
     import pinocchio as pin
 
-    from app.benches.peers import mujoco_model, pinocchio_ik, run
+    from armlab.app.benches.peers import mujoco_model, pinocchio_ik, run
 
     arm = load_robot("receptionist_arm")
     q, qd, qdd = np.array([0.3, -0.5, 1.1]), np.array([0.4, -0.2, 0.6]), np.array([1.0, 2, 3])
@@ -70,9 +70,9 @@ def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
 def test_the_bus2_cycles_alternate_on_one_paced_emulator_and_report_their_figures():
     """armlab's bus and the SDK take turns on one port; neither beats the paced wire."""
     pytest.importorskip("dynamixel_sdk")
-    from app.benches.bus import OMX_SERVOS, protocol2_cycle_bytes
-    from app.benches.peers import bus2_cycles
-    from hardware.protocol1 import wire_time
+    from armlab.app.benches.bus import OMX_SERVOS, protocol2_cycle_bytes
+    from armlab.app.benches.peers import bus2_cycles
+    from armlab.hardware.wire.protocol1 import wire_time
 
     out = bus2_cycles(True)
     assert set(out) == {"armlab_bus2_cycle_ms", "peer_bus2_cycle_ms", "ratio_bus2"}

@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from app.benches import ui
+from armlab.app.benches import ui
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 from _helpers import wait_for
 
-from app.server import Lab, ServeOptions
-from control.params import DEFAULT
+from armlab.app.server import Lab, ServeOptions
+from armlab.control.params import DEFAULT
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 

@@ -1,7 +1,7 @@
 """The lab in a real headless Chromium (Playwright driving Debian's /usr/bin/chromium).
 
 What a person sees and does: the page loads without console errors, gets the plain
-look (headless Chromium draws WebGL in software: app.look), the 3D view shows the arm,
+look (headless Chromium draws WebGL in software: armlab.app.page.look), the 3D view shows the arm,
 moving the Kp slider changes the controller, Run fills the charts, one click on Step
 shows its Tp and %OS beside the button, the CSV download
 arrives with the recorded rows, the preset picker restores the
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from _helpers import chart_x_ranges, expected_console, view_png, wait_for
 
-from app import camera
-from app.plots import ANGLE_SPAN_DEG
-from control.params import DEFAULT
+from armlab.app.page import camera
+from armlab.app.page.plots import ANGLE_SPAN_DEG
+from armlab.control.params import DEFAULT
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
 

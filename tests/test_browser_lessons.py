@@ -24,7 +24,7 @@ from _helpers import (
     wait_look_settled,
 )
 
-from app.lessons import all_lessons, lesson_order
+from armlab.app.lessons import all_lessons, lesson_order
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]  # every lesson, drawn in software
 Image = pytest.importorskip("PIL.Image")
@@ -95,7 +95,8 @@ def settled_view(page, previous: np.ndarray | None, *, timeout: float = 90.0) ->
 
 def charts_show_all_their_data(page) -> bool:  # noqa: ANN001
     """True when every chart on the page has an x range, and it spans exactly its data
-    (the lab's charts pin their x range to their data's extent: ``app.plots.fixed_x``)."""
+    (the lab's charts pin their x range to their data's extent:
+    ``armlab.app.page.plots.fixed_x``)."""
     return all(lo is not None and hi is not None and lo == first and hi == last
                for lo, hi, first, last in chart_x_ranges(page))
 

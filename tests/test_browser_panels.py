@@ -1,6 +1,6 @@
 """Collapsed side panels in a real headless Chromium: a side collapsed with one click
 (viser's "Collapse panel area") frames the robot again for the space gained, stays
-collapsed after a reload of the page (app.panels keeps it in the browser), and a lesson
+collapsed after a reload of the page (armlab.app.page.panels keeps it in the browser), and a lesson
 switch with a side collapsed frames the new lesson for the view the page has.
 """
 
@@ -11,9 +11,9 @@ import json
 import pytest
 from _helpers import new_page_client, wait_for, wait_look_settled
 
-from app import camera
-from app.page_js import LOCAL_STORAGE_PREFIX
-from app.panels import PANELS_KEY
+from armlab.app.page import camera
+from armlab.app.page.panels import PANELS_KEY
+from armlab.app.viser_ext.page_js import LOCAL_STORAGE_PREFIX
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 
@@ -43,7 +43,8 @@ def _view_aspect(pg) -> float:
 def _framed_as_drawn(client, pg, what: str, *, since=None, wider_than: float = 0.0
                      ) -> camera.Framing:
     """Wait until the page shows a framing (newer than ``since``; for a view wider than
-    ``wider_than`` by more than app.camera.RESHAPE) made for its 3D view as the page draws
+    ``wider_than`` by more than armlab.app.page.camera.RESHAPE) made for its 3D view as the page
+    draws
     it now (the canvas's box, not a shape the page had while its panels were still
     docking); return it."""
     def framed() -> bool:

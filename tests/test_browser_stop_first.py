@@ -1,4 +1,4 @@
-"""E-STOP first (app.stop_first), in a real headless Chromium.
+"""E-STOP first (armlab.app.page.stop_first), in a real headless Chromium.
 
 At 1920x1080: the first Tab after the page loads focuses E-STOP, which is at least
 44 px tall, and Esc presses it wherever the focus is. On a 390x844 phone: the robot is
@@ -14,7 +14,7 @@ from _helpers import new_page_client as _client
 from _helpers import wait_for
 from test_browser_framing import _height_span
 
-from app import camera
+from armlab.app.page import camera
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from control.backend import Backend, BackendError
-from hardware import protocol1 as p1
-from hardware.bus import Bus, NoReply, WrongModel
-from hardware.dynamixel_backend import DynamixelBackend
-from hardware.joint_map import JointMap, JointServo, load_joint_map
-from hardware.servo_spec import RX24F
-from kinematics.model import load_robot
+from armlab.control.backend import Backend, BackendError
+from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.hardware.backends.joint_map import JointMap, JointServo, load_joint_map
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.wire.bus import Bus, NoReply, WrongModel
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 
@@ -215,9 +215,9 @@ def test_a_torque_off_that_cannot_be_sent_is_never_reported_as_sent():
 
     from _helpers import wait_for
 
-    from app.server import Lab, ServeOptions
-    from app.wsclient import HeadlessClient
-    from control.commands import EStop
+    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.testing.wsclient import HeadlessClient
+    from armlab.control.commands import EStop
 
     with emulator() as emu:
         with Lab(ServeOptions(backend="serial", port=emu.port, http_port=0)) as lab, \

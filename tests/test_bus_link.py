@@ -12,10 +12,10 @@ import serial
 from _emulator import ROOT, emulator
 from _helpers import wait_for
 
-from hardware import protocol1 as p1
-from hardware.bus import Bus, NoReply, PortError, ftdi_latency_check
-from hardware.control_table import AX12A_TABLE, RX24F_TABLE
-from hardware.scan import scan
+from armlab.hardware.servos.control_table import AX12A_TABLE, RX24F_TABLE
+from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.wire.bus import Bus, NoReply, PortError, ftdi_latency_check
+from armlab.hardware.wire.scan import scan
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 
@@ -66,7 +66,7 @@ def test_sync_write_is_one_23_byte_packet_and_moves_every_goal(emu):
 
 
 def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model():
-    from hardware.bus import WrongModel
+    from armlab.hardware.wire.bus import WrongModel
 
     with emulator("--ids", "4,9,200", "--servo", "AX-12A", "--robot", "receptionist_arm") as emu:
         found = scan(emu.port, (1_000_000,), margin=0.05)  # a process answers, not a wire

@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from control.experiments.observers import servo_observers
-from hardware.xseries import XM430_W350
-from hardware.xseries_backend import XSeriesBackend
-from kinematics.model import load_robot
+from armlab.control.experiments.observers import servo_observers
+from armlab.hardware.backends.xseries import XSeriesBackend
+from armlab.hardware.servos.xseries import XM430_W350
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

@@ -1,6 +1,6 @@
 """Protocol 2.0 over a real pseudo-terminal: ``armlab emulate`` serving X-series servos
 (the OpenManipulator-X's five XM430-W350: the arm's IDs 11..14 and the gripper's 15) and
-:class:`hardware.bus.Bus` opened with ``protocol=2``.
+:class:`armlab.hardware.wire.bus.Bus` opened with ``protocol=2``.
 
 The e-manual's PING answer byte for byte; named reads and writes through the X-series
 table; one SYNC_READ and one BULK_READ for every servo; the error numbers a person
@@ -18,10 +18,10 @@ import pytest
 from _emulator import emulator
 from _helpers import wait_for
 
-from hardware import protocol2 as p2
-from hardware.bus import Bus, NoReply
-from hardware.xseries import CENTRE, XM430_W350_TABLE
-from kinematics import load_robot
+from armlab.hardware.servos.xseries import CENTRE, XM430_W350_TABLE
+from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.wire.bus import Bus, NoReply
+from armlab.kinematics import load_robot
 
 IDS = (11, 12, 13, 14)
 OMX = ("--robot", "open_manipulator_x")
@@ -119,8 +119,8 @@ def test_a_protocol_1_bus_hears_nothing_and_names_the_protocol():
 
 
 def test_scan_finds_the_x_series_servos_and_their_protocol():
-    from hardware.joint_map import draft_joint_map
-    from hardware.scan import scan
+    from armlab.hardware.backends.joint_map import draft_joint_map
+    from armlab.hardware.wire.scan import scan
 
     with emulator(*OMX) as emu:
         found = scan(emu.port, (57_600, 1_000_000), ids=range(0, 20))
@@ -136,7 +136,7 @@ def test_scan_finds_the_x_series_servos_and_their_protocol():
 
 
 def test_scan_of_a_protocol_1_bus_names_protocol_1():
-    from hardware.scan import scan
+    from armlab.hardware.wire.scan import scan
 
     with emulator("--ids", "1,3,5") as emu:
         found = scan(emu.port, (1_000_000,), ids=range(0, 8))

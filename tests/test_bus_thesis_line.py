@@ -1,6 +1,6 @@
 """The thesis-line compliance experiment end to end through the serial backend + emulator.
 
-The same ``control.experiments.thesis.run_line`` (ControlLoop, compliance law,
+The same ``armlab.control.experiments.thesis.run_line`` (ControlLoop, compliance law,
 16 ms period) drives once the emulated servos over a real pty and once the
 simulated backend; the emulated arm's angles must follow the simulated ones. Two arms:
 the thesis's (three RX-24F, protocol 1.0, DynamixelBackend / SimBackend) and the
@@ -19,15 +19,15 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from control.experiments.thesis import line_plan, run_line
-from control.params import preset
-from hardware.dynamixel_backend import DynamixelBackend
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import SimBackend
-from hardware.xseries import XM430_W350
-from hardware.xseries_backend import XSeriesBackend
-from hardware.xseries_sim import XSimBackend
-from kinematics.model import load_robot
+from armlab.control.experiments.thesis import line_plan, run_line
+from armlab.control.params import preset
+from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.backends.xseries import XSeriesBackend
+from armlab.hardware.backends.xseries_sim import XSimBackend
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.servos.xseries import XM430_W350
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

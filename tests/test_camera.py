@@ -1,7 +1,7 @@
 """The robot is the picture: each lesson's camera frames its own robot and task.
 
-:func:`app.camera.frame_points` puts the camera just far enough back for every framed
-point to lie within ``FILL`` of the view's edges; :func:`app.camera.node_points` finds
+:func:`armlab.app.page.camera.frame_points` puts the camera just far enough back for every framed
+point to lie within ``FILL`` of the view's edges; :func:`armlab.app.page.camera.node_points` finds
 the framed points in the scene graph (world poses composed down the node names, hidden
 nodes left out). Then, on the wire (a headless page reporting its view as a browser
 does): every lesson frames its robot over at least 40 % of the view's height at a
@@ -21,13 +21,13 @@ from _helpers import client_of, project, settled
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app import camera
-from app.camera import FILL, View, frame_points, node_points
-from app.lessons import all_lessons
-from app.lessons.compliance_scene import TRAIL_DOTS, ComplianceScene
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
-from kinematics import load_robot
+from armlab.app.lessons import all_lessons
+from armlab.app.lessons.compliance_scene import TRAIL_DOTS, ComplianceScene
+from armlab.app.page import camera
+from armlab.app.page.camera import FILL, View, frame_points, node_points
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
+from armlab.kinematics import load_robot
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 

@@ -1,7 +1,7 @@
 """Charts that tell the truth about size: an axis never spans less than its quantity's
 smallest span, so an arm at rest shows its position steps as the small ripple they are.
 
-``fit_range`` is the rule; a :class:`~app.plots.LivePlot` on a real viser server shows
+``fit_range`` is the rule; a :class:`~armlab.app.page.plots.LivePlot` on a real viser server shows
 what a page receives (a headless client): the pinned y range at rest, after a step,
 and back at rest once the step has left the window.
 """
@@ -17,7 +17,7 @@ from _helpers import client_of
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app.plots import (
+from armlab.app.page.plots import (
     ANGLE_SPAN_DEG,
     HEADROOM,
     SHRINK,
@@ -27,7 +27,7 @@ from app.plots import (
     fit_range,
     nice_step,
 )
-from hardware.servo_spec import SPECS
+from armlab.hardware.servos.servo_spec import SPECS
 
 RX24F_STEP_DEG = math.degrees(SPECS[24].position_unit)  # 0.29°
 

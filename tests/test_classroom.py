@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from app.classroom import (
+from armlab.app.classroom.roles import (
     PASSCODE_ALPHABET,
     PASSCODE_LENGTH,
     Guesses,
@@ -19,9 +19,9 @@ from app.classroom import (
     normal_passcode,
     qr_svg,
 )
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
-from control.params import DEFAULT
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
+from armlab.control.params import DEFAULT
 
 
 class FakeClock:
@@ -265,7 +265,7 @@ def test_a_full_class_says_so():
 
 
 def test_a_disconnect_mid_drag_lets_go_of_the_students_arm(classroom):
-    from kinematics.fk import fk
+    from armlab.kinematics.fk import fk
 
     lab = classroom
     page, cid = _joined(lab)
@@ -370,7 +370,7 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
 def test_a_lesson_without_a_private_copy_keeps_the_page_following(monkeypatch):
     """A lesson module without ``PRIVATE`` (a lesson added later) says so and keeps the
     page following the teacher."""
-    from app.lessons import redundancy
+    from armlab.app.lessons import redundancy
 
     monkeypatch.delattr(redundancy, "PRIVATE")
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
@@ -428,8 +428,8 @@ def test_a_page_with_its_own_arm_is_not_sent_the_shared_stream_and_catches_up(cl
 def test_closing_a_class_while_its_clock_steps_frees_every_arm():
     """The class closing (the lab closing, or a test ending) while its clock is stepping:
     every arm is freed after the clock stopped, never while a tick steps its plant."""
-    from app.class_arms import ClassArms
-    from kinematics import load_robot
+    from armlab.app.classroom.class_arms import ClassArms
+    from armlab.kinematics import load_robot
 
     model = load_robot("receptionist_arm", preset="18.5/25")
     arms = ClassArms(realtime=True)
@@ -461,8 +461,8 @@ def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
     """A reload: the new page takes the seat before the old page's goodbye. The late
     goodbye must not start the idle timer under the new page (its arm would be freed
     while shown); once no page shows it, the arm is kept ``idle_s`` s, then freed."""
-    from app.sandboxes import Sandboxes
-    from kinematics import load_robot
+    from armlab.app.classroom.sandboxes import Sandboxes
+    from armlab.kinematics import load_robot
 
     now = [0.0]
     boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])
@@ -487,10 +487,10 @@ def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle()
     """The hand and quadruped lessons' private copies: a reload asks the seat again and
     gets the same hand and robot, as they were left; an idle seat frees them from the
     class's worker."""
-    from app.sandboxes import Sandboxes
-    from control.grip import GripParams
-    from control.walking import GaitSpec, plan_gait
-    from hardware.hand import GraspObject
+    from armlab.app.classroom.sandboxes import Sandboxes
+    from armlab.control.grip import GripParams
+    from armlab.control.walking import GaitSpec, plan_gait
+    from armlab.hardware.sim.hand import GraspObject
 
     now = [0.0]
     boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])
@@ -523,14 +523,14 @@ def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle()
 
 def test_a_private_open_manipulator_x_has_its_x_series_servos():
     """A student's own OpenManipulator-X is simulated with its XM430-W350 firmware model,
-    as the shared one is (app.backends.make_backend), not with the thesis arm's RX-24F:
+    as the shared one is (armlab.app.backends.make_backend), not with the thesis arm's RX-24F:
     it reports currents and turns to a goal; freeing it closes it."""
-    from app.sandboxes import Sandboxes
-    from control.commands import RunTrajectory
-    from control.trajectory import minimum_jerk
-    from hardware.xseries import XM430_W350
-    from hardware.xseries_sim import XSimBackend
-    from kinematics import load_robot
+    from armlab.app.classroom.sandboxes import Sandboxes
+    from armlab.control.commands import RunTrajectory
+    from armlab.control.trajectory import minimum_jerk
+    from armlab.hardware.backends.xseries_sim import XSimBackend
+    from armlab.hardware.servos.xseries import XM430_W350
+    from armlab.kinematics import load_robot
 
     model = load_robot("open_manipulator_x")
     boxes = Sandboxes(realtime=False)

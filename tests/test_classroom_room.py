@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from app.benches.classroom import room_of_30
+from armlab.app.benches.classroom import room_of_30
 
 pytestmark = [pytest.mark.realtime, pytest.mark.timeout(900)]
 

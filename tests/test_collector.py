@@ -1,4 +1,4 @@
-"""The garbage collector kept out of the loops' way (app.collector): what a lab keeps is
+"""The garbage collector kept out of the loops' way (armlab.app.collector): what a lab keeps is
 frozen, a closed lesson's garbage is freed at the next tidy, not before."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import gc
 import weakref
 
-from app import collector
+from armlab.app import collector
 
 
 class _Node:

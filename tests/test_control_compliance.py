@@ -6,13 +6,13 @@ import functools
 import numpy as np
 import pytest
 
-from control.backend import JointState
-from control.commands import Push
-from control.compliance import ComplianceController, ControllerState, environment_step, lpf
-from control.loop import ControlLoop
-from control.params import Params
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control.backend import JointState
+from armlab.control.commands import Push
+from armlab.control.compliance import ComplianceController, ControllerState, environment_step, lpf
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")
 POSE = np.array([0.6, 0.3, 1.2])  # arm raised and bent: every joint carries the push

@@ -7,9 +7,9 @@ from contextlib import redirect_stderr, redirect_stdout
 
 import pytest
 
-from app.cli import build_parser, main
-from app.commands.experiment import options_of
-from control.experiments import all_experiments
+from armlab.app.cli import build_parser, main
+from armlab.app.commands.experiment import options_of
+from armlab.control.experiments import all_experiments
 
 
 def run_json(capsys, *argv: str) -> dict:
@@ -170,7 +170,7 @@ def test_thesis_readings_refuses_an_unknown_reading(capsys):
 
 @pytest.mark.parametrize("preset,lag", [("thesis Table 4.1", 19.5), ("thesis conclusion", 21.1)])
 def test_thesis_presets_pd_lag_is_what_the_teach_tab_says(capsys, preset, lag):
-    from app.lessons.compliance_teach import THESIS_PRESET_PD_LAG_DEG
+    from armlab.app.lessons.compliance_teach import THESIS_PRESET_PD_LAG_DEG
 
     r = run_json(capsys, "thesis-line", "--controller", "pd", "--preset", preset, "--push", "0")
     assert max(r["max_angle_error_deg"]) == pytest.approx(lag, abs=0.1)

@@ -6,13 +6,13 @@ import time
 import numpy as np
 import pytest
 
-from control.backend import BackendError, JointState
-from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Stop
-from control.loop import ControlLoop
-from control.params import Params
-from control.trajectory import minimum_jerk, thesis_line
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control.backend import BackendError, JointState
+from armlab.control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Stop
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.trajectory import minimum_jerk, thesis_line
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")
 POSE = np.array([0.6, 0.3, 1.2])

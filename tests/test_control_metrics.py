@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from control import metrics
+from armlab.control import metrics
 
 
 def test_formulas_with_the_thesis_gains():

@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from app.cli import main
-from control.experiments.observers import observers
+from armlab.app.cli import main
+from armlab.control.experiments.observers import observers
 
 
 @pytest.mark.parametrize("g", [100.0, 400.0])

@@ -3,8 +3,13 @@
 import numpy as np
 import pytest
 
-from control.observers import TorqueJoint, friction_torque, gravity_torque, simulate_observers
-from kinematics.hand import (
+from armlab.control.observers import (
+    TorqueJoint,
+    friction_torque,
+    gravity_torque,
+    simulate_observers,
+)
+from armlab.kinematics.hand import (
     GRIPPER_KT,
     OZ_IN,
     FingerGeometry,

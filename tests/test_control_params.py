@@ -5,7 +5,14 @@ import math
 
 import pytest
 
-from control.params import PARAM_SPECS, PRESETS, Params, loop_stability, preset, stability_warning
+from armlab.control.params import (
+    PARAM_SPECS,
+    PRESETS,
+    Params,
+    loop_stability,
+    preset,
+    stability_warning,
+)
 
 
 def test_thesis_presets_carry_the_thesis_numbers():

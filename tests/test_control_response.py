@@ -1,4 +1,4 @@
-"""Step and push responses measured on a recording (control.response), without a server."""
+"""Step and push responses measured on a recording (armlab.control.response), without a server."""
 
 from __future__ import annotations
 
@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from control import metrics
-from control.commands import Push, RunTrajectory
-from control.loop import ControlLoop
-from control.params import Params
-from control.response import line_errors, measure_push, measure_step, plan_step
-from control.trajectory import thesis_line
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control import metrics
+from armlab.control.commands import Push, RunTrajectory
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.response import line_errors, measure_push, measure_step, plan_step
+from armlab.control.trajectory import thesis_line
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")
 LOWER = np.array([-1.0, -1.0, -1.0])

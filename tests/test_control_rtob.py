@@ -10,15 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from control.experiments.observers import (
+from armlab.control.experiments.observers import (
     SERVO_G,
     SERVO_PERIOD,
     dob_series,
     known_torques,
     rtob_series,
 )
-from kinematics import load_robot
-from kinematics.dynamics import gravity_torques, mass_matrix, rnea
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import gravity_torques, mass_matrix, rnea
 
 OMX = load_robot("open_manipulator_x")
 SHOULDER = 1

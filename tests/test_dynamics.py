@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import load_robot
-from kinematics.dynamics import (
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import (
     bias_torques,
     dynamics_model,
     forward_dynamics,
@@ -18,10 +18,10 @@ from kinematics.dynamics import (
     potential_energy,
     rnea,
 )
-from kinematics.fk import link_poses
-from kinematics.model import chain_from_urdf
-from kinematics.points import point_force_torques, point_jacobian, point_position
-from kinematics.thesis_dynamics import thesis_closed_form
+from armlab.kinematics.fk import link_poses
+from armlab.kinematics.model import chain_from_urdf
+from armlab.kinematics.points import point_force_torques, point_jacobian, point_position
+from armlab.kinematics.thesis_dynamics import thesis_closed_form
 
 # The thesis's arm: L1 = 18.5 cm, L2 = 25 cm, m1 = 176 g, m2 = 190 g, g = 9.81.
 L1, L2, M1, M2, G = 0.185, 0.25, 0.176, 0.19, 9.81
@@ -237,7 +237,7 @@ def test_compiled_model_is_built_once_and_readable():
 def shipped_chains() -> list[tuple[str, object]]:
     """Every serial chain the lab ships: each URDF in kinematics/robots (a quadruped's four
     legs). The hand's fingers are planar tendon linkages (kinematics/hand.py), not chains."""
-    from kinematics.model import ROBOTS_DIR, Quadruped
+    from armlab.kinematics.model import ROBOTS_DIR, Quadruped
 
     out = []
     for path in sorted(ROBOTS_DIR.glob("*.urdf")):

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from hardware import protocol1 as p1
-from hardware.dynamixel_backend import DynamixelBackend
-from hardware.emulator import emulated_network
-from hardware.scan import scan
-from kinematics.model import load_robot
+from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.hardware.emulator.bus import emulated_network
+from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.wire.scan import scan
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control import metrics
-from control.params import DEFAULT
-from control.trajectory import THESIS_LINE_END, THESIS_LINE_START, THESIS_Q_GUESS
-from kinematics import load_robot
+from armlab.control import metrics
+from armlab.control.params import DEFAULT
+from armlab.control.trajectory import THESIS_LINE_END, THESIS_LINE_START, THESIS_Q_GUESS
+from armlab.kinematics import load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 

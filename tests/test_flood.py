@@ -6,7 +6,7 @@ never timed assertions here.
 
 import pytest
 
-from app.benches import flood
+from armlab.app.benches import flood
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 

@@ -17,12 +17,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.gate import DROPS
-from app.inputs import UpdateScreen, why_bad_value
-from app.lessons import all_lessons
-from app.lessons.compliance_controls import slider_label
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.gate import DROPS
+from armlab.app.lessons import all_lessons
+from armlab.app.lessons.compliance_controls import slider_label
+from armlab.app.page.inputs import UpdateScreen, why_bad_value
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
 pytestmark = pytest.mark.timeout(600)
 

@@ -19,9 +19,9 @@ from _helpers import wait_for
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from app.gate import COOKIE, PRESENTER_COOKIE, Gate, check_token
-from app.wsclient import HeadlessClient
-from control.params import DEFAULT
+from armlab.app.gate import COOKIE, PRESENTER_COOKIE, Gate, check_token
+from armlab.app.testing.wsclient import HeadlessClient
+from armlab.control.params import DEFAULT
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 

@@ -19,22 +19,22 @@ import pytest
 from _emulator import emulator, goal_positions
 from _helpers import client_of, wait_for
 
-from app.backends import make_backend
-from app.server import Lab, ServeOptions
-from control.backend import BackendError
-from control.commands import SetGripper
-from control.loop import ControlLoop
-from hardware.gripper import (
+from armlab.app.backends import make_backend
+from armlab.app.server import Lab, ServeOptions
+from armlab.control.backend import BackendError
+from armlab.control.commands import SetGripper
+from armlab.control.loop import ControlLoop
+from armlab.hardware.backends.gripper import (
     GRIPPER_CURRENT,
     OMX_CLOSED_ANGLE,
     OMX_OPEN_ANGLE,
     open_manipulator_gripper,
 )
-from hardware.joint_map import default_joint_map, draft_joint_map, load_joint_map
-from hardware.scan import Found
-from hardware.xseries import XM430_W350, OperatingMode
-from hardware.xseries_backend import XSeriesBackend
-from kinematics.model import load_robot
+from armlab.hardware.backends.joint_map import default_joint_map, draft_joint_map, load_joint_map
+from armlab.hardware.backends.xseries import XSeriesBackend
+from armlab.hardware.servos.xseries import XM430_W350, OperatingMode
+from armlab.hardware.wire.scan import Found
+from armlab.kinematics.model import load_robot
 
 OMX = load_robot("open_manipulator_x")
 GRIPPER = open_manipulator_gripper(OMX.urdf_path)
@@ -78,7 +78,7 @@ def test_a_drafted_map_names_the_fifth_servo_the_gripper(tmp_path):
 @REALTIME
 def test_emulate_serves_the_gripper_servo_after_the_given_ids():
     """``--ids`` names the chain's servos; the gripper's takes the next ID."""
-    from hardware.scan import scan
+    from armlab.hardware.wire.scan import scan
 
     with emulator("--robot", "open_manipulator_x", "--ids", "1,2,3,4") as emu:
         found = scan(emu.port, (1_000_000,), ids=range(0, 8))

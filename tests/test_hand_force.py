@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.lessons.compliance_scene import _solve3, estimated_hand_force
-from kinematics import load_robot
-from kinematics.fk import fk_and_jacobian
+from armlab.app.lessons.compliance_scene import _solve3, estimated_hand_force
+from armlab.kinematics import load_robot
+from armlab.kinematics.fk import fk_and_jacobian
 
 
 def _pinv_force(J: np.ndarray, tau: np.ndarray) -> np.ndarray:

@@ -8,17 +8,17 @@ import math
 import numpy as np
 import pytest
 
-from app.cli import main
-from control.experiments.hand import GripOptions, run_grip
-from control.grip import (
+from armlab.app.cli import main
+from armlab.control.experiments.hand import GripOptions, run_grip
+from armlab.control.grip import (
     GripController,
     GripModel,
     GripParams,
     grasp_figures,
     simulate_grasp,
 )
-from hardware.hand import DCMotor, GraspObject, HandParams, HandSim, make_hand
-from kinematics.hand import OZ_IN, FingerGeometry, motor_torque
+from armlab.hardware.sim.hand import DCMotor, GraspObject, HandParams, HandSim, make_hand
+from armlab.kinematics.hand import OZ_IN, FingerGeometry, motor_torque
 
 #: Documented "never crushes" margin: the peak fingertip force stays within 2 % of
 #: the limit for objects up to 5000 N/m (the controller's docstring explains why).
@@ -185,7 +185,7 @@ def test_a_very_light_grip_is_still_held_and_the_first_touch_stays_small():
 
 def test_the_hand_loop_takes_typed_commands_that_compose():
     """Two parameter changes posted before a period both apply; a closure is refused."""
-    from control.grip_loop import CloseHand, GripLoop, SetGripParams
+    from armlab.control.grip_loop import CloseHand, GripLoop, SetGripParams
 
     plant = make_hand(size=0.06, stiffness=1000.0)
     controller = GripController(GripModel.of(plant), GripParams(force_limit=1.0))

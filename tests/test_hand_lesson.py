@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from app.lessons import LessonContext, all_lessons
-from app.lessons.hand import build
-from control.experiments.hand import GripOptions, run_grip
-from hardware.hand import make_hand
+from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons.hand import build
+from armlab.control.experiments.hand import GripOptions, run_grip
+from armlab.hardware.sim.hand import make_hand
 
 
 @pytest.fixture

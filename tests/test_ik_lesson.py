@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from app.cli import main
-from app.lessons import LessonContext
-from app.lessons.ik_accuracy import BAD_RGB, OK_RGB, build
-from control.experiments.seed004_data import TABLE1
-from kinematics.planar_ik import fk
+from armlab.app.cli import main
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons.ik_accuracy import BAD_RGB, OK_RGB, build
+from armlab.control.experiments.seed004_data import TABLE1
+from armlab.kinematics.planar_ik import fk
 
 IN_RANGE_ROWS = [*range(1, 6), *range(20, 25)]
 

@@ -42,9 +42,9 @@ pytest.importorskip("jupyter_server_proxy")
 from websockets.datastructures import Headers  # noqa: E402
 from websockets.http11 import Request, Response  # noqa: E402
 
-from app.gate import COOKIE, Gate  # noqa: E402
-from app.jupyter import TOKEN_ENV, setup_armlab  # noqa: E402
-from app.wsclient import HeadlessClient  # noqa: E402
+from armlab.app.gate import COOKIE, Gate  # noqa: E402
+from armlab.app.jupyter import TOKEN_ENV, setup_armlab  # noqa: E402
+from armlab.app.testing.wsclient import HeadlessClient  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 JUPYTER_TOKEN = "jupyter-test-token-4f1c"

@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import Quadruped, URDFError, load_robot
-from kinematics.fk import fk, fk_and_jacobian, jacobian
-from kinematics.model import ROBOT_FILES, ROBOTS_DIR, chain_from_urdf
+from armlab.kinematics import Quadruped, URDFError, load_robot
+from armlab.kinematics.fk import fk, fk_and_jacobian, jacobian
+from armlab.kinematics.model import ROBOT_FILES, ROBOTS_DIR, chain_from_urdf
 
 PRESETS = [("18.5/25", 0.185, 0.25), ("18.5/18.5", 0.185, 0.185), ("17/25", 0.17, 0.25)]
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from kinematics import Quadruped, load_robot
-from kinematics.ik import (
+from armlab.kinematics import Quadruped, load_robot
+from armlab.kinematics.ik import (
     damped_inverse,
     dls,
     halved_step,
@@ -21,7 +21,7 @@ from kinematics.ik import (
     reach_bound,
     rmrc,
 )
-from kinematics.model import ROBOT_FILES, ROBOTS_DIR
+from armlab.kinematics.model import ROBOT_FILES, ROBOTS_DIR
 
 TOL = 1e-4  # 0.1 mm
 PRESETS = ["18.5/25", "18.5/18.5", "17/25"]
@@ -158,7 +158,7 @@ _ARMS = {preset: load_robot("receptionist_arm", preset=preset) for preset in PRE
 _arm = _ARMS["18.5/25"]
 #: theta0 within ±85°: the last 5° before its ±90° limit, which is also the pole where
 #: theta1 spins the arm about itself, hold a sliver of near-stretched targets that end on
-#: a local minimum 0.1-0.5 mm away (documented in kinematics.ik).
+#: a local minimum 0.1-0.5 mm away (documented in armlab.kinematics.ik).
 _THETA0 = np.radians(85.0)
 
 

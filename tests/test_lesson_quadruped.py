@@ -11,16 +11,16 @@ import viser
 from _emulator import emulator
 from _helpers import client_of, served_lesson, wait_for
 
-from app.lessons import LessonContext, all_lessons
-from app.lessons.quadruped import build
-from app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail
-from control.walking import (
+from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons.quadruped import build
+from armlab.app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail
+from armlab.control.walking import (
     angle_error_pct,
     mean_angle_error_pct,
     servo_angle_deg,
     walking_tilts_deg,
 )
-from hardware.servo_spec import AX12A
+from armlab.hardware.servos.servo_spec import AX12A
 
 
 @pytest.fixture

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from app.lessons import LessonContext, all_lessons
-from app.lessons.redundancy import SHOWN_MODES, build
-from control.experiments.seed002 import circle
+from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons.redundancy import SHOWN_MODES, build
+from armlab.control.experiments.seed002 import circle
 
 
 @pytest.fixture(scope="module")

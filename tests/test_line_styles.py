@@ -15,12 +15,12 @@ import pytest
 from _browser_style import chart_props
 from _helpers import served_lesson, settled
 
-from app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
-from app.plots import COLORS, distinct_styles
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
+from armlab.app.page.plots import COLORS, distinct_styles
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
-#: Okabe-Ito (app.plots.COLORS) and the greys of zero and limit lines
+#: Okabe-Ito (armlab.app.page.plots.COLORS) and the greys of zero and limit lines
 GREYS = {"#999999", "#bbbbbb", "#777777"}
 
 

@@ -1,5 +1,5 @@
-"""The plain look for pages drawing WebGL in software (app.look), without a browser: the
-renderer names, and a served lab asking a headless page (app.wsclient answers the
+"""The plain look for pages drawing WebGL in software (armlab.app.page.look), without a browser: the
+renderer names, and a served lab asking a headless page (armlab.app.testing.wsclient answers the
 server's localStorage questions as a page does)."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ from __future__ import annotations
 import pytest
 from _helpers import wait_for
 
-from app.look import RENDERER_KEY, is_software
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.page.look import RENDERER_KEY, is_software
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
 #: WebGL renderer names as browsers report them (UNMASKED_RENDERER_WEBGL)
 SOFTWARE = ("ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero) (0x0000C0DE)), "

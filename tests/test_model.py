@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from kinematics import load_robot
+from armlab.kinematics import load_robot
 
 
 def thesis_fk(t1: float, t0: float, t2: float, L1: float, L2: float) -> np.ndarray:

@@ -9,15 +9,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.cli import main
-from app.commands.emulate import parse_disturbance
-from control.experiments.observers import dob_series, servo_observers, step_figures, step_index
-from hardware.plant import Plant
-from hardware.servo import IDEAL
-from hardware.sim_backend import SimBackend
-from hardware.xseries import XL430_W250, XM430_W350
-from hardware.xseries_sim import XSimBackend
-from kinematics import load_robot
+from armlab.app.cli import main
+from armlab.app.commands.emulate import parse_disturbance
+from armlab.control.experiments.observers import (
+    dob_series,
+    servo_observers,
+    step_figures,
+    step_index,
+)
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.backends.xseries_sim import XSimBackend
+from armlab.hardware.servos.xseries import XL430_W250, XM430_W350
+from armlab.hardware.sim.dynamixel_servo import IDEAL
+from armlab.hardware.sim.plant import Plant
+from armlab.kinematics import load_robot
 
 OMX = load_robot("open_manipulator_x")
 NAMES = OMX.joint_names

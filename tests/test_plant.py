@@ -1,15 +1,16 @@
-"""The simulated arm: rigid body + servos + pushes, springs and a wall (hardware.plant)."""
+"""The simulated arm: rigid body + servos + pushes, springs and a wall
+(armlab.hardware.sim.plant)."""
 
 import numpy as np
 import pytest
 
-from hardware.plant import Plant
-from hardware.servo import IDEAL, ServoRegisters
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import thesis_registers
-from kinematics import load_robot
-from kinematics.dynamics import potential_energy
-from kinematics.points import point_force_torques, point_position
+from armlab.hardware.backends.sim import thesis_registers
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.sim.dynamixel_servo import IDEAL, ServoRegisters
+from armlab.hardware.sim.plant import Plant
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import potential_energy
+from armlab.kinematics.points import point_force_torques, point_position
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""Publishers making their frames on one shared thread (app.publisher.FrameThread): every
+"""Publishers making their frames on one shared thread (armlab.app.page.publisher.FrameThread):
+every
 page gets its frames, a failing frame or a closed publisher leaves the others going, and
 the turns are fair when the thread cannot keep up. Real viser server, headless pages."""
 
@@ -12,8 +13,8 @@ from contextlib import ExitStack, contextmanager
 import pytest
 import viser
 
-from app.page import Page
-from app.publisher import FrameThread, Publisher
+from armlab.app.classroom.private_page import Page
+from armlab.app.page.publisher import FrameThread, Publisher
 from tests._helpers import client_of, wait_for
 
 

@@ -7,10 +7,10 @@ from contextlib import redirect_stdout
 import numpy as np
 import pytest
 
-from app.cli import main
-from control.experiments.seed002 import circle
-from kinematics import load_robot
-from kinematics.redundancy import (
+from armlab.app.cli import main
+from armlab.control.experiments.seed002 import circle
+from armlab.kinematics import load_robot
+from armlab.kinematics.redundancy import (
     MODES,
     CircleTask,
     bounded_rate,

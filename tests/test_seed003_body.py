@@ -14,18 +14,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from app.cli import main
-from control.experiments.seed003 import walk_on_servos
-from control.gait_loop import GaitLoop
-from control.walking import GaitSpec, Walker, plan_gait
-from hardware.quadruped_sim import G, QuadrupedSimBackend, total_mass
-from kinematics.body_statics import (
+from armlab.app.cli import main
+from armlab.control.experiments.seed003 import walk_on_servos
+from armlab.control.gait_loop import GaitLoop
+from armlab.control.walking import GaitSpec, Walker, plan_gait
+from armlab.hardware.sim.quadruped import G, QuadrupedSimBackend, total_mass
+from armlab.kinematics.body_statics import (
     contact_forces,
     implied_tilt_deg,
     rest_plane,
     tilt_deg,
 )
-from kinematics.model import load_robot
+from armlab.kinematics.model import load_robot
 
 #: Feet of a trot on its RF-LH diagonal: the other two lifted by H, body frame, m.
 H = 0.02

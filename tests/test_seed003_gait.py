@@ -7,8 +7,8 @@ from contextlib import redirect_stdout
 import numpy as np
 import pytest
 
-from app.cli import main
-from kinematics.gait import (
+from armlab.app.cli import main
+from armlab.kinematics.gait import (
     TROT_PHASE,
     SineParams,
     crawl,
@@ -19,8 +19,8 @@ from kinematics.gait import (
     trot,
     walk,
 )
-from kinematics.quadruped import LEGS
-from kinematics.stability import nearest_on_polygon, stability_margin, support_polygon
+from armlab.kinematics.quadruped import LEGS
+from armlab.kinematics.stability import nearest_on_polygon, stability_margin, support_polygon
 
 P = SineParams(A=0.05, B=0.11, C=0.025, D=0.085)
 

@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from viser.extras import ViserUrdf
 
-from kinematics import load_robot
-from kinematics.leg_ik import LegGeometry, leg_fk, leg_ik
-from kinematics.model import ROBOTS_DIR, quadruped_from_urdf
-from kinematics.quadruped import (
+from armlab.kinematics import load_robot
+from armlab.kinematics.leg_ik import LegGeometry, leg_fk, leg_ik
+from armlab.kinematics.model import ROBOTS_DIR, quadruped_from_urdf
+from armlab.kinematics.quadruped import (
     LEGS,
     QuadrupedGeometry,
     body_to_leg,
@@ -23,7 +23,7 @@ from kinematics.quadruped import (
     leg_to_body,
     quadruped_urdf,
 )
-from kinematics.stability import centre_of_mass, centre_of_mass_model
+from armlab.kinematics.stability import centre_of_mass, centre_of_mass_model
 
 SEED_ROBOTS = ("redundant_planar", "planar_servo_arm", "quadruped")
 
@@ -127,7 +127,7 @@ def test_seed_robot_loads_in_yourdfpy_and_viser(name):
 
 def test_foot_point_of_the_geometry_is_the_urdf_foot():
     """The floor's push on a stance foot (gait loop) lands where the URDF puts the foot."""
-    from kinematics.quadruped import LEGS, foot_in_tibia
+    from armlab.kinematics.quadruped import LEGS, foot_in_tibia
 
     robot = load_robot("quadruped")
     for leg in LEGS:

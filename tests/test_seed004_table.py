@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.cli import main
-from control.experiments.seed004_data import TABLE1
-from kinematics import load_robot
-from kinematics.planar_ik import (
+from armlab.app.cli import main
+from armlab.control.experiments.seed004_data import TABLE1
+from armlab.kinematics import load_robot
+from armlab.kinematics.planar_ik import (
     PlanarArm,
     elbow_angle,
     elbow_cosine,

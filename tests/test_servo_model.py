@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hardware.plant import Plant
-from hardware.servo import (
+from armlab.hardware.servos.servo_spec import AX12A, DIRECTION_BIT, RX24F
+from armlab.hardware.sim.dynamixel_servo import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
     ServoModel,
@@ -15,8 +15,8 @@ from hardware.servo import (
     compliance_duty,
     effective_slope,
 )
-from hardware.servo_spec import AX12A, DIRECTION_BIT, RX24F
-from kinematics.model import chain_from_urdf
+from armlab.hardware.sim.plant import Plant
+from armlab.kinematics.model import chain_from_urdf
 
 NO_FRICTION = ServoParams(coulomb_friction=0.0, viscous_friction=0.0)
 

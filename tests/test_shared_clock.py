@@ -10,14 +10,14 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from app.lessons.compliance_servos import read_health
-from control.backend import Backend, BackendError, Pushable
-from control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring
-from control.loop import ControlLoop
-from control.params import Params
-from control.periodic import SharedClock
-from control.trajectory import minimum_jerk, thesis_line
-from hardware.batched_backend import (
+from armlab.app.lessons.compliance_servos import read_health
+from armlab.control.backend import Backend, BackendError, Pushable
+from armlab.control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Spring
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.periodic import SharedClock
+from armlab.control.trajectory import minimum_jerk, thesis_line
+from armlab.hardware.backends.batched import (
     POSITION_WORDS,
     SIGNED_WORDS,
     BatchedArmBackend,
@@ -25,11 +25,11 @@ from hardware.batched_backend import (
     decode_words,
     word_tables,
 )
-from hardware.batched_plant import BatchedPlant, ReportWords
-from hardware.servo import ServoReport
-from hardware.servo_spec import AX12A, RX24F
-from hardware.sim_backend import SimBackend, decode_reports
-from kinematics import load_robot
+from armlab.hardware.backends.sim import SimBackend, decode_reports
+from armlab.hardware.servos.servo_spec import AX12A, RX24F
+from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
+from armlab.hardware.sim.dynamixel_servo import ServoReport
+from armlab.kinematics import load_robot
 
 MODEL = load_robot("receptionist_arm")
 DT = 1e-3

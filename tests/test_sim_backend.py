@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from app.backends import make_backend
-from control.backend import Backend, BackendError, Pushable
-from hardware.servo import ERROR_OVERLOAD
-from hardware.servo_spec import AX12A, RX24F
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.app.backends import make_backend
+from armlab.control.backend import Backend, BackendError, Pushable
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.servos.servo_spec import AX12A, RX24F
+from armlab.hardware.sim.dynamixel_servo import ERROR_OVERLOAD
+from armlab.kinematics import load_robot
 
 
 @pytest.fixture(scope="module")

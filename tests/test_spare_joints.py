@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.backends import make_backend
-from control.commands import MAX_NULL_SPACE_GAIN, SetTarget, UseSpareJoints
-from control.loop import SPARE_MAX_SPEED, ControlLoop
-from kinematics import load_robot
-from kinematics.redundancy import (
+from armlab.app.backends import make_backend
+from armlab.control.commands import MAX_NULL_SPACE_GAIN, SetTarget, UseSpareJoints
+from armlab.control.loop import SPARE_MAX_SPEED, ControlLoop
+from armlab.kinematics import load_robot
+from armlab.kinematics.redundancy import (
     AIMS,
     POSITION_ROWS,
     aim_gradient,

@@ -10,9 +10,9 @@ import re
 import pytest
 from _helpers import wait_for
 
-from app import theme
-from app.commands import serve
-from app.wsclient import HeadlessClient
+from armlab.app.commands import serve
+from armlab.app.page import theme
+from armlab.app.testing.wsclient import HeadlessClient
 
 
 def test_serve_projector_flag_parses():
@@ -72,7 +72,7 @@ COMPLIANCE_LABELS = 2
 
 @pytest.fixture(scope="module")
 def lab():
-    from app.server import Lab, ServeOptions
+    from armlab.app.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0)) as running:
         yield running
@@ -126,7 +126,7 @@ def test_a_reload_keeps_the_browser_choice(lab):
 
 
 def test_serve_projector_is_the_default_of_a_browser_without_a_choice():
-    from app.server import Lab, ServeOptions
+    from armlab.app.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, projector=True)) as lab:
         fresh, fresh_id = _page(lab)

@@ -8,9 +8,9 @@ import re
 import pytest
 from _helpers import settled
 
-from app.lessons import all_lessons
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.lessons import all_lessons
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
 
 @pytest.mark.parametrize("name", sorted(all_lessons()))

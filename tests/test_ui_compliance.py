@@ -1,5 +1,5 @@
 """The compliance lesson served by a real viser server on a free port, driven over its
-websocket by a headless client that sends what a browser sends (app.wsclient).
+websocket by a headless client that sends what a browser sends (armlab.app.testing.wsclient).
 
 One lab for the module (the control loop runs in real time at 16 ms); each test
 leaves the arm reset and holding.
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from _helpers import settled, wait_for
 
-from app.wsclient import HeadlessClient
-from control.params import DEFAULT, PRESETS, loop_stability
+from armlab.app.testing.wsclient import HeadlessClient
+from armlab.control.params import DEFAULT, PRESETS, loop_stability
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 

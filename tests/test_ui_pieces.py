@@ -7,9 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from app.inputs import check_number
-from app.lessons.compliance_servos import ServoHealth, advice
-from app.lessons.compliance_teach import (
+from armlab.app.lessons.compliance_servos import ServoHealth, advice
+from armlab.app.lessons.compliance_teach import (
     Chapter4,
     LiveValues,
     chapter4_markdown,
@@ -17,12 +16,13 @@ from app.lessons.compliance_teach import (
     equations_markdown,
     thesis_preset_note,
 )
-from app.plots import decimate, fill_gaps
-from control import metrics
-from control.metrics import omega_from_peak, zeta_from_overshoot
-from control.params import PRESETS, Params
-from control.response import measure_response
-from hardware.protocol1 import error_names
+from armlab.app.page.inputs import check_number
+from armlab.app.page.plots import decimate, fill_gaps
+from armlab.control import metrics
+from armlab.control.metrics import omega_from_peak, zeta_from_overshoot
+from armlab.control.params import PRESETS, Params
+from armlab.control.response import measure_response
+from armlab.hardware.wire.protocol1 import error_names
 
 
 def test_decimate_keeps_the_window_and_a_few_hundred_points():
@@ -154,10 +154,10 @@ def _decimate_by_masks(t, ys, window_s, points):
 
 
 def test_a_shared_decimation_keeps_what_masks_over_each_series_keep():
-    """Charts of one record share one decimation (app.lessons.compliance_plots): its
+    """Charts of one record share one decimation (armlab.app.lessons.compliance_plots): its
     samples are those of masks over each series, for windows that start before, at and
     inside the record."""
-    from app.plots import decimation
+    from armlab.app.page.plots import decimation
 
     rng = np.random.default_rng(4)
     for n, window in ((1, 10.0), (2, 10.0), (400, 3.0), (657, 10.0), (2000, 10.0)):

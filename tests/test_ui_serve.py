@@ -19,7 +19,7 @@ import pytest
 from _emulator import emulator
 from _helpers import wait_for
 
-from hardware import protocol1 as p1
+from armlab.hardware.wire import protocol1 as p1
 
 pytestmark = pytest.mark.realtime  # `armlab serve` processes on the wall clock
 
@@ -157,8 +157,8 @@ def test_serve_a_urdf_with_its_tip_link_and_a_package_path():
     """``armlab serve --robot FILE.urdf --tip-link LINK --package-path DIR``, as a person
     types it: the page gets a slider per joint of the chain to that link, and the meshes
     the package path finds are drawn (only the ones still missing are named, once)."""
-    from app.wsclient import HeadlessClient
-    from kinematics import load_robot
+    from armlab.app.testing.wsclient import HeadlessClient
+    from armlab.kinematics import load_robot
 
     data = ROOT / "tests" / "data"
     urdf = data / "mobile_manipulator.urdf"

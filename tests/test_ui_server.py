@@ -6,9 +6,9 @@ import time
 
 import pytest
 
-from app.lessons import all_lessons, default_lesson
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.lessons import all_lessons, default_lesson
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 

@@ -3,7 +3,7 @@
 The three files in tests/data are written in three publishers' styles (a ROS mobile
 manipulator, Franka's Panda, a hobby 2-joint arm). Forward kinematics is checked
 against a computation written here from the file's numbers with plain homogeneous
-transforms, independent of kinematics.transforms and kinematics.fk.
+transforms, independent of armlab.kinematics.transforms and armlab.kinematics.fk.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import URDFError, load_robot
-from kinematics.model import CONTINUOUS_LIMIT
-from kinematics.urdf import resolve_resource
+from armlab.kinematics import URDFError, load_robot
+from armlab.kinematics.model import CONTINUOUS_LIMIT
+from armlab.kinematics.urdf import resolve_resource
 
 DATA = Path(__file__).with_name("data")
 MOBILE = DATA / "mobile_manipulator.urdf"

@@ -1,4 +1,4 @@
-"""app.viser_fixes: a GUI call from a callback thread that meets viser's waiter race
+"""armlab.app.viser_ext.fixes: a GUI call from a callback thread that meets viser's waiter race
 (``deque mutated during iteration`` from the direct ``asyncio.Event.set``) still reaches
 the page, and the lab's code never sees the error. The race itself needs a busy machine;
 here the buffer's event raises it on demand, once."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import viser
 from _helpers import client_of
 
-from app import viser_fixes
+from armlab.app.viser_ext import fixes as viser_fixes
 
 
 def test_a_gui_call_that_meets_the_race_reaches_the_page():

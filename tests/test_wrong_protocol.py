@@ -13,11 +13,11 @@ from __future__ import annotations
 import pytest
 from _emulator import emulator
 
-from control.backend import BackendError
-from hardware.bus import Bus
-from hardware.joint_map import default_joint_map
-from hardware.xseries_backend import open_servo_backend
-from kinematics.model import load_robot
+from armlab.control.backend import BackendError
+from armlab.hardware.backends.joint_map import default_joint_map
+from armlab.hardware.backends.xseries import open_servo_backend
+from armlab.hardware.wire.bus import Bus
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator over a pseudo-terminal
 

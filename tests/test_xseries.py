@@ -7,8 +7,7 @@ import math
 
 import pytest
 
-from hardware import protocol2 as p2
-from hardware.xseries import (
+from armlab.hardware.servos.xseries import (
     X_TABLES,
     XL330_M288_TABLE,
     XL430_W250_TABLE,
@@ -16,6 +15,7 @@ from hardware.xseries import (
     OperatingMode,
     x_table_for,
 )
+from armlab.hardware.wire import protocol2 as p2
 
 #: e-manual control table: (name, address, bytes), the same on the three models
 SHARED = [("model_number", 0, 2), ("firmware_version", 6, 1), ("id", 7, 1), ("baud_rate", 8, 1),

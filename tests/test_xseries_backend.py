@@ -26,15 +26,20 @@ import pytest
 from _emulator import ROOT, emulator, goal_positions
 from _helpers import client_of, wait_for
 
-from app.backends import make_backend
-from app.server import Lab, ServeOptions
-from hardware import protocol2 as p2
-from hardware.bus import Bus
-from hardware.joint_map import default_joint_map
-from hardware.xseries import CENTRE, CURRENT_POSITION_D_GAIN, OperatingMode, x_table_for
-from hardware.xseries_backend import XSeriesBackend, open_servo_backend
-from kinematics.dynamics import gravity_torques
-from kinematics.model import load_robot
+from armlab.app.backends import make_backend
+from armlab.app.server import Lab, ServeOptions
+from armlab.hardware.backends.joint_map import default_joint_map
+from armlab.hardware.backends.xseries import XSeriesBackend, open_servo_backend
+from armlab.hardware.servos.xseries import (
+    CENTRE,
+    CURRENT_POSITION_D_GAIN,
+    OperatingMode,
+    x_table_for,
+)
+from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.wire.bus import Bus
+from armlab.kinematics.dynamics import gravity_torques
+from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

@@ -13,14 +13,14 @@ import math
 import numpy as np
 import pytest
 
-from app.backends import make_backend
-from control.experiments.thesis import line_plan, run_line
-from control.params import preset
-from hardware.sim_backend import SimBackend
-from hardware.xseries import CURRENT_POSITION_D_GAIN, XM430_W350, OperatingMode
-from hardware.xseries_sim import XSimBackend
-from kinematics import load_robot
-from kinematics.dynamics import rnea
+from armlab.app.backends import make_backend
+from armlab.control.experiments.thesis import line_plan, run_line
+from armlab.control.params import preset
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.backends.xseries_sim import XSimBackend
+from armlab.hardware.servos.xseries import CURRENT_POSITION_D_GAIN, XM430_W350, OperatingMode
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import rnea
 
 OMX = load_robot("open_manipulator_x")
 COUNT = XM430_W350.position_unit

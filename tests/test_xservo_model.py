@@ -22,25 +22,25 @@ import math
 import numpy as np
 import pytest
 
-from app.commands.emulate import parse_fault
-from hardware.plant import Plant
-from hardware.protocol2 import HardwareError
-from hardware.servo import ServoParams
-from hardware.xseries import (
+from armlab.app.commands.emulate import parse_fault
+from armlab.hardware.servos.xseries import (
     CENTRE,
     XL430_W250,
     XM430_W350,
     XM430_W350_TABLE,
     OperatingMode,
 )
-from hardware.xservo import (
+from armlab.hardware.sim.dynamixel_servo import ServoParams
+from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.xseries_servo import (
     HW_OVERLOAD,
     PROFILE_VELOCITY_UNIT,
     PWM_FULL,
     XRegisters,
     XServoModel,
 )
-from kinematics import load_robot
+from armlab.hardware.wire.protocol2 import HardwareError
+from armlab.kinematics import load_robot
 
 OMX = load_robot("open_manipulator_x")
 UNIT = XM430_W350.position_unit
@@ -198,7 +198,7 @@ def test_a_bad_emulate_fault_gets_one_line_naming_the_flags(text, why):
 
 
 def test_the_emulator_refuses_fault_on_protocol_1_servos_before_it_serves(capsys):
-    from app.cli import main
+    from armlab.app.cli import main
 
     assert main(["emulate", "--robot", "receptionist_arm", "--fault", "1:overload@1"]) == 2
     out, err = capsys.readouterr()

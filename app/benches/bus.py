@@ -23,11 +23,17 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from hardware import protocol2 as p2
-from hardware.dynamixel_backend import DynamixelBackend
-from hardware.protocol1 import wire_time
-from hardware.xseries_backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN, XSeriesBackend
-from kinematics.model import load_robot
+from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.hardware.backends.xseries import (
+    GOAL_AT,
+    GOAL_LEN,
+    PRESENT_AT,
+    PRESENT_LEN,
+    XSeriesBackend,
+)
+from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.wire.protocol1 import wire_time
+from armlab.kinematics.model import load_robot
 
 BAUD = 1_000_000
 #: bytes per cycle for three servos: READ 36..41 (8) + its status (12), three times; SYNC_WRITE

@@ -3,9 +3,10 @@
 Figures:
     sandboxes_realtime_per_core: arms (``receptionist_arm``, three RX-24F each) that one
         core keeps at 1 kHz in real time as "My arm" runs them: every arm its own
-        :class:`~control.loop.ControlLoop` (compliance, 16 ms: commands, trajectory,
-        recorder, run-time checks) over a :class:`~hardware.batched_backend.BatchedArmBackend`,
-        all on one :class:`~control.periodic.SharedClock` over one BatchedPlant at 1 ms
+        :class:`~armlab.control.loop.ControlLoop` (compliance, 16 ms: commands, trajectory,
+        recorder, run-time checks) over a
+        :class:`~armlab.hardware.backends.batched.BatchedArmBackend`,
+        all on one :class:`~armlab.control.periodic.SharedClock` over one BatchedPlant at 1 ms
         (headless: ``SharedClock.run_for`` of 2 s of class time, the median of 3 classes of
         different gains; one of 0.5 s quick):
         N · 1e-3 s / (wall time per simulated ms) for the largest N of (50, 100); a tenth
@@ -13,7 +14,7 @@ Figures:
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
     sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
         the design the batched plant replaced: 50 such loops, each over a plant of its own
-        stepped in Python (:class:`~hardware.sim_backend.SimBackend`);
+        stepped in Python (:class:`~armlab.hardware.backends.sim.SimBackend`);
         ``sandboxes_batched_over_single``: the batched figure over it (the machine's speed
         cancels out; the issue asks for about three times a per-arm design).
     classroom_30_pose_hz: a lab served with ``--classroom`` and 30 pages (headless
@@ -25,7 +26,7 @@ Figures:
     classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
         ``_max``: the most any page received).
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile (its loop
-        runs in a worker process of its own, :mod:`app.arm_process`);
+        runs in a worker process of its own, :mod:`armlab.app.classroom.worker_process`);
         ``classroom_30_shared_loop_realtime_priority``: 1 when that worker got the
         real-time priority it asks for (SCHED_FIFO: root or CAP_SYS_NICE), 0 otherwise.
     classroom_30_rss_growth_pct: the server's memory growth over the run (its process and
@@ -42,7 +43,7 @@ Figures:
         classroom each browser has a device of its own).
     (120 s of the room, 20 s with ``--quick``.)
     quadrupeds_class_s_per_s_n1 / _n30: wall seconds per simulated second of a class of N
-        private quadrupeds walking the trot (:mod:`app.class_quadrupeds`: one
+        private quadrupeds walking the trot (:mod:`armlab.app.classroom.class_quadrupeds`: one
         ``BatchedQuadrupeds`` at ``CLASS_DT``, every robot's ``GaitLoop`` on its
         ``SharedClock``; headless ``run_for``, after standing up);
         ``quadrupeds_realtime_per_core``: robots one core keeps walking in real time that
@@ -51,9 +52,11 @@ Figures:
         the same run.
     classroom_30_hand_pose_hz, classroom_30_quadruped_pose_hz: the same room on the hand
         and the quadruped lessons: 30 pages each showing its own hand (one row of the
-        class's batched hands, :mod:`app.class_hands`, in the class's worker), every hand
+        class's batched hands, :mod:`armlab.app.classroom.class_hands`, in the class's worker),
+        every hand
         closing and opening again and again; or its own quadruped (one robot of the
-        class's, :mod:`app.class_quadrupeds`, in a worker of their own), walking and
+        class's, :mod:`armlab.app.classroom.class_quadrupeds`, in a worker of their own), walking
+        and
         stopping: the lowest rate of frames of its own lesson any page receives
         (``_median``: the median page's); ``..._bytes_per_client_per_s``: bytes per page
         per second (mean). (60 s each, 20 s with ``--quick``.)
@@ -71,17 +74,17 @@ from typing import Any
 
 import numpy as np
 
-from control.backend import Backend
-from control.commands import Push, RunTrajectory
-from control.loop import ControlLoop
-from control.params import Params
-from control.periodic import SharedClock
-from control.trajectory import minimum_jerk
-from hardware.batched_backend import BatchedArmBackend, add_sim_arm
-from hardware.batched_plant import BatchedPlant
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
+from armlab.control.backend import Backend
+from armlab.control.commands import Push, RunTrajectory
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.periodic import SharedClock
+from armlab.control.trajectory import minimum_jerk
+from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.sim.batched_plant import BatchedPlant
+from armlab.kinematics import load_robot
 
 LOOP_SIZES = (50, 100)
 #: runs of each class whose median is quoted (one with ``--quick``)
@@ -93,7 +96,7 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     """Wall seconds per simulated ms of ``n_arms`` ControlLoops (compliance, 16 ms, gains
     of their own) on one SharedClock, run headless for ``seconds`` of class time after
     0.1 s of warm-up: over one BatchedPlant at 1 ms (``batched``, as "My arm" runs them),
-    or each over a plant of its own (:class:`~hardware.sim_backend.SimBackend`, stepped
+    or each over a plant of its own (:class:`~armlab.hardware.backends.sim.SimBackend`, stepped
     per arm in Python at its loop's periods: the design the batched plant replaced)."""
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
@@ -139,7 +142,8 @@ def _rss_bytes(pid: int | str = "self") -> int:
 
 def _server_rss(room: Any) -> int:
     """The server's resident memory, bytes: its own process and its workers
-    (:class:`app.arm_process.ArmProcess`: the private arms', the shared arm's)."""
+    (:class:`armlab.app.classroom.worker_process.ArmProcess`: the private arms', the shared
+    arm's)."""
     shared = room.lab.arm_process
     return (_rss_bytes() + _rss_bytes(room.sandboxes.process.pid)
             + (0 if shared is None else _rss_bytes(shared.pid)))
@@ -148,7 +152,7 @@ def _server_rss(room: Any) -> int:
 def _probe(lesson: object) -> None:
     """A hidden node of ``lesson``'s page that each of its frames moves (the bench counts
     them as the page receives them)."""
-    from app.benches.ui import OWN_PROBE
+    from armlab.app.benches.ui import OWN_PROBE
 
     node = lesson.server.scene.add_frame(OWN_PROBE, show_axes=False,  # type: ignore[attr-defined]
                                          visible=False)
@@ -164,7 +168,7 @@ def _probe(lesson: object) -> None:
 def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict[str, float]:
     """The classroom_30 figures (see the module docstring), counted for ``seconds`` from
     ``settle`` s after every page drew its own arm."""
-    from app.benches.ui import _clients, _Instrumented
+    from armlab.app.benches.ui import _clients, _Instrumented
 
     lab = _Instrumented(classroom=True)
     room = lab.lab.room
@@ -240,13 +244,14 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
 
 def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
     """Wall s per simulated s of ``n`` quadrupeds walking the trot at the class's step:
-    batched on one clock (as :class:`app.class_quadrupeds.ClassQuadrupeds`), or (the
+    batched on one clock (as :class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`), or
+    (the
     reference) each a ``GaitLoop`` on a ``QuadrupedSimBackend`` of its own."""
-    from app.class_quadrupeds import CLASS_DT, PERIOD
-    from control.gait_loop import STAND_UP_S, GaitLoop
-    from control.walking import GaitSpec, Walker, plan_gait
-    from hardware.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
-    from hardware.quadruped_sim import QuadrupedSimBackend
+    from armlab.app.classroom.class_quadrupeds import CLASS_DT, PERIOD
+    from armlab.control.gait_loop import STAND_UP_S, GaitLoop
+    from armlab.control.walking import GaitSpec, Walker, plan_gait
+    from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+    from armlab.hardware.sim.quadruped import QuadrupedSimBackend
 
     model = load_robot("quadruped")
     plan = plan_gait(GaitSpec())
@@ -302,8 +307,8 @@ def private_room(lesson: str, *, seconds: float, pages: int = 30,
     """The classroom_30_<lesson> figures (see the module docstring): ``pages`` pages each
     with its own copy of ``lesson`` (a key of :data:`ROOMS`), counted for ``seconds`` from
     ``settle`` s after every page drew its own robot."""
-    from app.benches.ui import _clients
-    from app.server import Lab, ServeOptions
+    from armlab.app.benches.ui import _clients
+    from armlab.app.server import Lab, ServeOptions
 
     prefix, play = ROOMS[lesson]
     lab = Lab(ServeOptions(http_port=0, classroom=True, lesson=lesson))

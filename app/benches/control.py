@@ -6,16 +6,16 @@ import time
 
 import numpy as np
 
-from app.benches import median_us
-from control.backend import JointState
-from control.commands import RunTrajectory
-from control.compliance import ComplianceController, ControllerState
-from control.loop import ControlLoop
-from control.params import Params
-from control.trajectory import thesis_line
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
-from kinematics.dynamics import rnea
+from armlab.app.benches import median_us
+from armlab.control.backend import JointState
+from armlab.control.commands import RunTrajectory
+from armlab.control.compliance import ComplianceController, ControllerState
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.trajectory import thesis_line
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import rnea
 
 
 def run(quick: bool) -> dict[str, float]:

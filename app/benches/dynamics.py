@@ -6,10 +6,10 @@ import time
 
 import numpy as np
 
-from app.benches import median_us
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
-from kinematics.dynamics import newton_euler, rnea
+from armlab.app.benches import median_us
+from armlab.hardware.backends.sim import SimBackend
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import newton_euler, rnea
 
 
 def run(quick: bool) -> dict[str, float]:

@@ -15,8 +15,8 @@ import tempfile
 import threading
 import time
 
-from app.server import Lab, ServeOptions
-from app.wsclient import HeadlessClient
+from armlab.app.server import Lab, ServeOptions
+from armlab.app.testing.wsclient import HeadlessClient
 
 ARM_PREFIX = "/compliance/arm/"
 SLIDER = "Push force (N)"

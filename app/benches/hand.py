@@ -8,7 +8,7 @@ Figures (median microseconds per call):
         under 2000 means the lesson can run in real time.
     hands_period_us_n1 / _n30 / _n100: one 1 ms period of a class of N hands, all holding
         (``BatchedGrip.update`` and ``BatchedHand.step``: what the classroom's private
-        hands cost per period, :mod:`app.class_hands`).
+        hands cost per period, :mod:`armlab.app.classroom.class_hands`).
     hands_realtime_per_core: hands one core keeps at 1 kHz that way (N = 100).
     hands_batched_over_single_n30: 30 single hands' periods (plant step and update,
         measured in the same run) over the batch's period for 30.
@@ -20,11 +20,11 @@ import time
 
 import numpy as np
 
-from app.benches import median_us
-from control.batched_grip import BatchedGrip
-from control.grip import GripController, GripModel, GripParams, simulate_grasp
-from hardware.batched_hand import BatchedHand
-from hardware.hand import GraspObject, make_hand
+from armlab.app.benches import median_us
+from armlab.control.batched_grip import BatchedGrip
+from armlab.control.grip import GripController, GripModel, GripParams, simulate_grasp
+from armlab.hardware.sim.batched_hand import BatchedHand
+from armlab.hardware.sim.hand import GraspObject, make_hand
 
 CLASS_SIZES = (1, 30, 100)
 

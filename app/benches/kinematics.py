@@ -3,7 +3,7 @@
 Figures (median microseconds per call):
     fk_us: end-effector pose, thesis eq. 3.13 (``SerialChain.fk``).
     jacobian_us: geometric Jacobian, thesis eq. 3.17 (``SerialChain.jacobian``).
-    fk_and_jacobian_us: both in one pass (``kinematics.fk.fk_and_jacobian``, what IK uses).
+    fk_and_jacobian_us: both in one pass (``armlab.kinematics.fk.fk_and_jacobian``, what IK uses).
     rmrc_us: one RMRC solve (thesis eq. 3.16-3.22) to 0.1 mm from the neutral pose
         (arm hanging straight down, q = 0) to a reachable target; the calls cycle
         through 16 fixed targets, the FK of poses drawn inside the middle half of the
@@ -16,10 +16,10 @@ import itertools
 
 import numpy as np
 
-from app.benches import median_us
-from kinematics import SerialChain, load_robot
-from kinematics.fk import fk_and_jacobian
-from kinematics.ik import rmrc
+from armlab.app.benches import median_us
+from armlab.kinematics import SerialChain, load_robot
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.ik import rmrc
 
 
 def rmrc_targets(model: SerialChain, count: int = 16) -> np.ndarray:

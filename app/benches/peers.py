@@ -5,9 +5,9 @@ Everything runs in this process, on ``kinematics/robots/receptionist_arm.urdf`` 
 thesis arm, three joints), armlab's figure measured in the same run as the peer's:
 
 - ``peer_rnea_us`` / ``armlab_rnea_us``: one inverse-dynamics call (``pinocchio.rnea``
-  / ``kinematics.dynamics.rnea``) at the same q, q̇, q̈; their torques agree to 1e-9.
+  / ``armlab.kinematics.dynamics.rnea``) at the same q, q̇, q̈; their torques agree to 1e-9.
 - ``peer_ik_us`` / ``armlab_rmrc_us``: one position IK solve to 0.1 mm from q = 0 to
-  the same 16 targets (``app.benches.kinematics.rmrc_targets``): Pinocchio's damped
+  the same 16 targets (``armlab.app.benches.kinematics.rmrc_targets``): Pinocchio's damped
   least-squares loop (forwardKinematics, frame Jacobian, ``(J Jᵀ + λI)⁻¹``, integrate;
   λ = 1e-6, full steps, at most 200 iterations, no joint limits) against armlab's RMRC
   (thesis eq. 3.16–3.22, which keeps the joint limits). ``peer_ik_solved`` is the share
@@ -19,14 +19,14 @@ thesis arm, three joints), armlab's figure measured in the same run as the peer'
   of a simulated arm whose servos hold a goal: MuJoCo's RK4 with a Python position-servo
   law (PD on the joint, clipped at the RX-24F's stall torque) written into
   ``qfrc_applied`` before each ``mj_step``, against armlab's plant (its own RK4 and the
-  RX-24F servo model, ``hardware.plant``).
+  RX-24F servo model, ``armlab.hardware.sim.plant``).
 - ``peer_bus2_cycle_ms`` / ``armlab_bus2_cycle_ms``: one SYNC_READ of present current,
   velocity and position (126..135) of the OpenManipulator-X's five XM430-W350 (IDs
   11..15, the gripper's included) plus one SYNC_WRITE of profile velocity and goal
   (112..119), protocol 2.0 at 1 Mbps on the same paced emulator (``armlab emulate
   --pace --robot open_manipulator_x``, return delay 0 as the X-series backend configures
   it): the SDK's ``GroupSyncRead.txRxPacket`` + ``GroupSyncWrite.txPacket`` against
-  ``hardware.bus.Bus.sync_read`` + ``sync_write``; medians over cycles, taken in
+  ``armlab.hardware.wire.bus.Bus.sync_read`` + ``sync_write``; medians over cycles, taken in
   alternating blocks (200 of armlab's, 200 of the SDK's, ten rounds) on the one port.
 - ``ratio_*``: armlab's time over the peer's (below 1: armlab is faster); ``ratio_bus2``
   is the median of the rounds' ratios.
@@ -44,13 +44,13 @@ from typing import Any
 
 import numpy as np
 
-from app.benches import median_us
-from app.benches.kinematics import rmrc_targets
-from hardware.servo_spec import RX24F
-from hardware.sim_backend import SimBackend
-from kinematics import load_robot
-from kinematics.dynamics import rnea
-from kinematics.ik import rmrc
+from armlab.app.benches import median_us
+from armlab.app.benches.kinematics import rmrc_targets
+from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.kinematics import load_robot
+from armlab.kinematics.dynamics import rnea
+from armlab.kinematics.ik import rmrc
 
 INSTALL = ("pip install -e '.[bench]'  (MuJoCo, Pinocchio and the Dynamixel SDK, for "
            "armlab bench --peers)")
@@ -185,9 +185,9 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     """
     import dynamixel_sdk as sdk
 
-    from app.benches.bus import BAUD, OMX_IDS, paced_emulator
-    from hardware.bus import Bus
-    from hardware.xseries_backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
+    from armlab.app.benches.bus import BAUD, OMX_IDS, paced_emulator
+    from armlab.hardware.backends.xseries import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
+    from armlab.hardware.wire.bus import Bus
 
     ids = list(OMX_IDS)  # the arm's and the gripper's, as the X-series backend's
     rounds, block = (4, 75) if quick else (10, 200)

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import itertools
 
-from app.benches import median_us
-from control.experiments.seed004_data import TABLE1
-from kinematics.planar_ik import solve
+from armlab.app.benches import median_us
+from armlab.control.experiments.seed004_data import TABLE1
+from armlab.kinematics.planar_ik import solve
 
 
 def run(quick: bool) -> dict[str, float]:

@@ -2,7 +2,7 @@
 
 The lab runs in this process at its defaults (simulated arm, compliance lesson)
 with the thesis line played over and over, so the arm and the charts keep
-moving. Fake browsers (:class:`app.wsclient.HeadlessClient`, the page's own
+moving. Fake browsers (:class:`armlab.app.testing.wsclient.HeadlessClient`, the page's own
 websocket protocol) run in a *separate* process, as real browsers would, so
 their decoding does not load the server's interpreter.
 
@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def client_main(argv: list[str] | None = None) -> int:
     """Entry point of the client process: connect N pages, listen, print JSON stats."""
-    from app.wsclient import HeadlessClient, SharedLoop
+    from armlab.app.testing.wsclient import HeadlessClient, SharedLoop
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--url", required=True)
@@ -169,7 +169,7 @@ def client_main(argv: list[str] | None = None) -> int:
 def _clients(url: str, n: int, seconds: float, settle: float = 1.5, *,
              my_arm: bool = False, arm_prefix: str | None = None) -> dict[str, float]:
     res = subprocess.run(
-        [sys.executable, "-m", "app.benches.ui", "--url", url, "--clients", str(n),
+        [sys.executable, "-m", "armlab.app.benches.ui", "--url", url, "--clients", str(n),
          "--seconds", str(seconds), "--settle", str(settle),
          *(["--my-arm"] if my_arm else []),
          *(["--arm-prefix", arm_prefix] if arm_prefix else [])],
@@ -189,7 +189,7 @@ class _Instrumented:
     """The lab plus the bench's probe: sample times and a probe node in every frame."""
 
     def __init__(self, *, classroom: bool = False) -> None:
-        from app.server import Lab, ServeOptions
+        from armlab.app.server import Lab, ServeOptions
 
         self.lab = Lab(ServeOptions(http_port=0, classroom=classroom))
         lesson = self.lab.lesson

@@ -1,4 +1,4 @@
-"""``armlab bench``: median timings of the hot paths (see ``app.benches``)."""
+"""``armlab bench``: median timings of the hot paths (see ``armlab.app.benches``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 import platform
 import sys
 
-from app.benches import run_all
+from armlab.app.benches import run_all
 
 NAME = "bench"
 HELP = "measure the hot paths (FK, IK, dynamics, bus, UI) and print median figures"
@@ -16,7 +16,8 @@ HELP = "measure the hot paths (FK, IK, dynamics, bus, UI) and print median figur
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one flat JSON object")
     parser.add_argument("--quick", action="store_true", help="fewer repeats (rougher figures)")
-    parser.add_argument("--only", metavar="GROUP", help="run one group (a module of app.benches)")
+    parser.add_argument("--only", metavar="GROUP",
+                        help="run one group (a module of armlab.app.benches)")
     parser.add_argument("--peers", action="store_true",
                         help="also run MuJoCo and Pinocchio on the same URDF and print armlab's "
                              "figures beside theirs (needs the optional bench extra)")
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.peers or args.only == "peers":
-        from app.benches.peers import INSTALL, missing
+        from armlab.app.benches.peers import INSTALL, missing
 
         if missing():
             print(f"armlab bench --peers needs {', '.join(missing())}: {INSTALL}",

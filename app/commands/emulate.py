@@ -33,16 +33,16 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
-from app.commands.scan import _ids
-from hardware.emulator import Faults, PtyEmulator, emulated_network
-from hardware.emulator_x import emulated_x_network
-from hardware.joint_map import default_joint_map
-from hardware.plant import Plant
-from hardware.protocol2 import HardwareError
-from hardware.servo_spec import value_from_baud
-from hardware.xseries import X_TABLES
-from kinematics.model import SerialChain, load_robot
-from kinematics.validate import joint_index
+from armlab.app.commands.scan import _ids
+from armlab.hardware.backends.joint_map import default_joint_map
+from armlab.hardware.emulator.bus import Faults, PtyEmulator, emulated_network
+from armlab.hardware.emulator.xseries import emulated_x_network
+from armlab.hardware.servos.servo_spec import value_from_baud
+from armlab.hardware.servos.xseries import X_TABLES
+from armlab.hardware.sim.plant import Plant
+from armlab.hardware.wire.protocol2 import HardwareError
+from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.validate import joint_index
 
 NAME = "emulate"
 HELP = "serve simulated servos of a robot on a pseudo-terminal (prints 'port: /dev/pts/N')"

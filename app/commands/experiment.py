@@ -12,7 +12,7 @@ import typing
 from collections.abc import Callable
 from typing import Any
 
-from control.experiments import BackendOptions, Experiment, all_experiments
+from armlab.control.experiments import BackendOptions, Experiment, all_experiments
 
 NAME = "experiment"
 HELP = "run a headless experiment (seed tables, thesis runs) and print its figures"
@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_options(parser: argparse.ArgumentParser, options: type) -> None:
     """One option ``--field-name`` per field of an experiment's options dataclass
-    (``control.experiments.option``): its type, default, choices and help."""
+    (``armlab.control.experiments.option``): its type, default, choices and help."""
     hints = typing.get_type_hints(options)
     for f in dataclasses.fields(options):
         kind, choices = _value_type(hints[f.name])
@@ -84,7 +84,7 @@ def _fmt(v: Any) -> str:
 def _backend_factory(options: BackendOptions) -> Any:
     """``factory(model, **sim_options)`` opening the backend chosen by --backend/--port/--baud
     (options such as ``q0`` only reach the simulator)."""
-    from app.backends import make_backend
+    from armlab.app.backends import make_backend
 
     def factory(model: Any, **kw: Any) -> Any:
         if options.backend != "sim":
@@ -97,8 +97,8 @@ def _backend_factory(options: BackendOptions) -> Any:
 
 
 def _hand_plant(options: Any) -> Any:
-    """``hardware.hand.make_hand``: the simulated three-finger hand."""
-    from hardware.hand import make_hand
+    """``armlab.hardware.sim.hand.make_hand``: the simulated three-finger hand."""
+    from armlab.hardware.sim.hand import make_hand
 
     return make_hand
 

@@ -8,8 +8,8 @@ import sys
 import time
 from dataclasses import asdict
 
-from hardware.bus import BusError
-from hardware.scan import (
+from armlab.hardware.wire.bus import BusError
+from armlab.hardware.wire.scan import (
     ALL_IDS,
     COMMON_BAUDS,
     DEFAULT_BAUDS,
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     if args.robot is not None:
         if args.write_map is None:
             raise ValueError("--robot is for --write-map (it names the map's joints)")
-        from kinematics.model import SerialChain, load_robot
+        from armlab.kinematics.model import SerialChain, load_robot
 
         model = load_robot(args.robot, tip_link=args.tip_link)
         if not isinstance(model, SerialChain):
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if tty:
         print("\r" + " " * 40 + "\r", end="", file=sys.stderr)
     if args.write_map is not None:
-        from hardware.joint_map import draft_joint_map
+        from armlab.hardware.backends.joint_map import draft_joint_map
 
         text = draft_joint_map(found, model)  # ValueError names the joint and the servo
         with open(args.write_map, "w") as out:

@@ -15,7 +15,8 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
   adds the lesson's GUI and scene to ``server`` and starts whatever runs
   behind it (a control loop), returning a handle;
 - ``PRIVATE`` (optional, default False): the lesson can be built on one page
-  (:class:`app.page.Page`) with ``ctx.arms``, a student's private arm, hand or quadruped
+  (:class:`armlab.app.classroom.private_page.Page`) with ``ctx.arms``, a student's private arm,
+  hand or quadruped
   ("My arm").
 
 The handle's ``close()`` stops what runs (loop shut down, hardware torque
@@ -38,17 +39,17 @@ import numpy as np
 import viser
 
 if TYPE_CHECKING:
-    from app.arm_process import ArmProcess
-    from app.publisher import FrameThread
-    from app.remote_gait import RemoteGait
-    from app.remote_hand import RemoteHand
-    from control.backend import Backend
-    from control.grip import GripParams
-    from control.loop import ControlLoop
-    from control.params import Params
-    from control.walking import GaitSpec
-    from hardware.hand import GraspObject
-    from kinematics.model import SerialChain
+    from armlab.app.classroom.remote_gait import RemoteGait
+    from armlab.app.classroom.remote_hand import RemoteHand
+    from armlab.app.classroom.worker_process import ArmProcess
+    from armlab.app.page.publisher import FrameThread
+    from armlab.control.backend import Backend
+    from armlab.control.grip import GripParams
+    from armlab.control.loop import ControlLoop
+    from armlab.control.params import Params
+    from armlab.control.walking import GaitSpec
+    from armlab.hardware.sim.hand import GraspObject
+    from armlab.kinematics.model import SerialChain
 
 #: The lesson modules of this package (adding a lesson: add its module name here).
 LESSONS: tuple[str, ...] = ("arm", "compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
@@ -70,7 +71,8 @@ class LessonContext:
         arms: a student's private arm (:class:`ArmSource`): the lesson drives it instead
             of opening a backend and a loop of its own (None: the shared arm).
         arm_process: where the shared simulated arm runs in a classroom (a worker
-            process of its own, :class:`app.arm_process.ArmProcess`; None: in the
+            process of its own, :class:`armlab.app.classroom.worker_process.ArmProcess`; None: in
+            the
             server, as outside a classroom and on real servos).
         frames: the thread that makes the lesson's frames, shared with other lessons (a
             classroom's private pages share one; None: a thread of the lesson's own).
@@ -90,7 +92,8 @@ class LessonContext:
 
 
 class ArmSource(Protocol):
-    """Where a private lesson gets its arm (``app.sandboxes.Seat``) or the arm's hand:
+    """Where a private lesson gets its arm (``armlab.app.classroom.sandboxes.Seat``) or the arm's
+    hand:
     kept across the lesson's closing, so a reload of the page finds the same one."""
 
     def kept(self) -> tuple[str, Params] | None:

@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import viser
 
-from app.inputs import notify
-from app.publisher import Publisher
+from armlab.app.page.inputs import notify
+from armlab.app.page.publisher import Publisher
 
 if TYPE_CHECKING:
-    from app.lessons import LessonContext
+    from armlab.app.lessons import LessonContext
 
 H = TypeVar("H")
 

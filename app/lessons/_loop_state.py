@@ -3,7 +3,7 @@ helper module, not a lesson): the red state of the status line (a torque-off tha
 not be sent, E-STOP, a fault) and why an action on a stopped loop did nothing.
 
 Shared by the lessons that drive a servo arm through a
-:class:`~control.loop.ControlLoop` (compliance, your own arm), so a lost link, an
+:class:`~armlab.control.loop.ControlLoop` (compliance, your own arm), so a lost link, an
 unreliable one, a servo's alarm or an E-STOP reads the same in each.
 """
 
@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import time
 
-from app.lessons._common import esc
-from app.lessons.compliance_servos import LinkMonitor
-from control.commands import Reconnect, Reset
-from control.loop import ControlLoop, LoopStatus
+from armlab.app.lessons._common import esc
+from armlab.app.lessons.compliance_servos import LinkMonitor
+from armlab.control.commands import Reconnect, Reset
+from armlab.control.loop import ControlLoop, LoopStatus
 
 #: Status when an e-stop's torque-off write could not go out (the link is gone).
 UNSENT_BANNER = "Torque off could not be sent: switch the servo power off"
@@ -66,7 +66,7 @@ def post_reset(loop: ControlLoop) -> None:
 
 def link_note(monitor: LinkMonitor, backend: object) -> str:
     """HTML of the status line's orange note while the link to the servos needs many
-    retries (:class:`~app.lessons.compliance_servos.LinkMonitor` of ``backend``'s bus
+    retries (:class:`~armlab.app.lessons.compliance_servos.LinkMonitor` of ``backend``'s bus
     counters); "" otherwise."""
     text = monitor.warning(getattr(backend, "stats", None), time.monotonic())
     return "" if text is None else \

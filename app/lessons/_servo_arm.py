@@ -5,7 +5,8 @@ Three places, by the lesson's context:
 
 - ``ctx.arms``: a student's own arm, run by the class and kept by their seat;
 - ``ctx.arm_process`` (a simulated classroom): the shared arm in its worker process
-  (:mod:`app.arm_process`), unless its X-series servos and gripper keep it in the server;
+  (:mod:`armlab.app.classroom.worker_process`), unless its X-series servos and gripper keep it in
+  the server;
 - otherwise the lab's backend (``--backend``) opened here, its loop not started yet.
 """
 
@@ -15,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from app.backends import loop_over, make_backend, shipped_x_servo
-from app.lessons import LessonContext
-from control.backend import Backend
-from control.loop import ControlLoop
-from control.params import Params
-from kinematics.model import SerialChain
+from armlab.app.backends import loop_over, make_backend, shipped_x_servo
+from armlab.app.lessons import LessonContext
+from armlab.control.backend import Backend
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.kinematics.model import SerialChain
 
 
 def open_arm(ctx: LessonContext, model: SerialChain, params: Params, *, preset: str,

@@ -2,8 +2,8 @@
 
 Any serial chain of 1 to 7 revolute joints (``armlab serve --robot PATH.urdf
 --tip-link LINK``, or the shipped ``open_manipulator_x``) runs the thesis's
-compliance controller (eq. 2.6/2.20, :mod:`control.compliance`) through the same
-:class:`~control.loop.ControlLoop` as the receptionist arm, on the simulated arm
+compliance controller (eq. 2.6/2.20, :mod:`armlab.control.compliance`) through the same
+:class:`~armlab.control.loop.ControlLoop` as the receptionist arm, on the simulated arm
 or on Dynamixel servos (``--backend serial --joint-map MAP.toml``). A slider per
 joint moves that joint (minimum-jerk approach, degrees in the page, limits from
 the URDF narrowed to the servos'); dragging the hand target makes the loop follow
@@ -11,13 +11,13 @@ it by resolved-motion rate control (position only, so a 4+ joint arm is redundan
 for it). The Teach tab lists every joint's limits and says which come from a
 stated default (a continuous joint whose file gives none).
 
-The compliance lesson's controls run on it too (:mod:`app.lessons.arm_controls`): the
+The compliance lesson's controls run on it too (:mod:`armlab.app.lessons.arm_controls`): the
 gains and the virtual environment with presets, a push at the hand, live charts of any
 joint; and an arm of more than 3 joints may use its spare joints (seed 002's gradient
 projection) to stay away from its limits or gain manipulability while the hand follows
 the target. An arm whose gripper has its own servo (the OpenManipulator-X's ID 15,
 simulated or on the bus) gets Open / Close buttons and a finger slider in mm, and the
-3D view's fingers follow the servo (:mod:`app.lessons.arm_gripper`).
+3D view's fingers follow the servo (:mod:`armlab.app.lessons.arm_gripper`).
 """
 
 from __future__ import annotations
@@ -29,26 +29,33 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from app.arm_view import ArmView
-from app.camera import View, show
-from app.lessons import ANY_URDF, LessonContext
-from app.lessons._common import LessonBase, close_in_turn, esc, guarded, set_content, status_html
-from app.lessons._loop_state import (
+from armlab.app.lessons import ANY_URDF, LessonContext
+from armlab.app.lessons._common import (
+    LessonBase,
+    close_in_turn,
+    esc,
+    guarded,
+    set_content,
+    status_html,
+)
+from armlab.app.lessons._loop_state import (
     STOPPED_COLOR,
     check_running,
     link_note,
     post_reset,
     stopped_state,
 )
-from app.lessons._servo_arm import open_arm, shut_arm
-from app.lessons.arm_controls import ArmControls
-from app.lessons.arm_gripper import GripperControls
-from app.lessons.compliance_servos import LinkMonitor
-from control.commands import EStop, RunTrajectory, SetTarget
-from control.params import DEFAULT
-from control.trajectory import hold
-from kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
-from kinematics.smallarrays import all_finite
+from armlab.app.lessons._servo_arm import open_arm, shut_arm
+from armlab.app.lessons.arm_controls import ArmControls
+from armlab.app.lessons.arm_gripper import GripperControls
+from armlab.app.lessons.compliance_servos import LinkMonitor
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.camera import View, show
+from armlab.control.commands import EStop, RunTrajectory, SetTarget
+from armlab.control.params import DEFAULT
+from armlab.control.trajectory import hold
+from armlab.kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
+from armlab.kinematics.smallarrays import all_finite
 
 NAME = "arm"
 TITLE = "Your arm: joints and hand target (any URDF)"
@@ -70,7 +77,7 @@ HISTORY_S = 20.0
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> ArmLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return ArmLesson(server, ctx)
 
 
@@ -112,7 +119,7 @@ def limits_markdown(model: SerialChain, lower: np.ndarray, upper: np.ndarray) ->
 
 
 class ArmLesson(LessonBase):
-    """The any-arm lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The any-arm lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Attributes:
         model: the chain from the URDF.

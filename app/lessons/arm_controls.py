@@ -1,22 +1,23 @@
-"""The any-arm lesson's compliance and redundancy controls (composed by :mod:`app.lessons.arm`).
+"""The any-arm lesson's compliance and redundancy controls (composed by
+:mod:`armlab.app.lessons.arm`).
 
 The receptionist arm's compliance lesson on any arm, from its reusable pieces:
 
-- a **Gains** tab: :class:`~app.lessons.compliance_controls.GainControls` (Kp, Kv, M_env,
+- a **Gains** tab: :class:`~armlab.app.lessons.compliance_controls.GainControls` (Kp, Kv, M_env,
   D_env, K_env, K_f, the period, presets, guarded inputs) applied to the arm's loop by
-  :func:`~app.lessons.compliance_controls.apply_gains`, the gain warning under the status;
-- a **Push** tab: :class:`~app.lessons.compliance_push.PushControls` with directions
+  :func:`~armlab.app.lessons.compliance_controls.apply_gains`, the gain warning under the status;
+- a **Push** tab: :class:`~armlab.app.lessons.compliance_push.PushControls` with directions
   that mean the same on any arm (away from its base, sideways, down, ...); once the arm
-  has come back the push is measured (:func:`control.response.hand_excursion`,
-  :func:`control.response.measure_push`). Real servos are pushed by hand: the purple
+  has come back the push is measured (:func:`armlab.control.response.hand_excursion`,
+  :func:`armlab.control.response.measure_push`). Real servos are pushed by hand: the purple
   arrow and the τ_ext chart show what the controller estimates;
 - a **Spare joints** tab, seed 002 on an n-joint arm: what the joints that the hand's
   position (3 coordinates) leaves free aim for while the hand follows its target
-  (:class:`control.commands.UseSpareJoints`), with the manipulability and the nearest
+  (:class:`armlab.control.commands.UseSpareJoints`), with the manipulability and the nearest
   joint limit read out; an arm of 3 joints or fewer is told why it has none;
-- the **Live charts** panel (:class:`~app.lessons.compliance_plots.JointPlots`, any one
+- the **Live charts** panel (:class:`~armlab.app.lessons.compliance_plots.JointPlots`, any one
   joint of the n) and the force arrows at the hand
-  (:class:`~app.lessons.compliance_scene.ForceArrows`).
+  (:class:`~armlab.app.lessons.compliance_scene.ForceArrows`).
 
 UI callbacks only post commands and swap parameters; the publisher's frames read the
 loop's recorder and status (:meth:`ArmControls.pose_frame`, :meth:`ArmControls.plot_frame`).
@@ -32,32 +33,32 @@ from dataclasses import dataclass
 import numpy as np
 import viser
 
-from app.inputs import guarded_slider
-from app.lessons._common import LessonGui, esc, guarded, set_content
-from app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
-from app.lessons.compliance_plots import JointPlots, joint_label
-from app.lessons.compliance_push import PushControls
-from app.lessons.compliance_scene import ForceArrows, estimated_hand_force
-from app.lessons.compliance_teach import (
+from armlab.app.lessons._common import LessonGui, esc, guarded, set_content
+from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
+from armlab.app.lessons.compliance_plots import JointPlots, joint_label
+from armlab.app.lessons.compliance_push import PushControls
+from armlab.app.lessons.compliance_scene import ForceArrows, estimated_hand_force
+from armlab.app.lessons.compliance_teach import (
     design_table,
     equations_markdown,
     latest_values,
     measured_line,
 )
-from control.backend import Backend, Pushable
-from control.commands import MAX_NULL_SPACE_GAIN, Push, UseSpareJoints
-from control.loop import ControlLoop
-from control.response import Measured, hand_excursion, measure_push
-from kinematics.fk import fk_and_jacobian
-from kinematics.model import SerialChain
-from kinematics.redundancy import POSITION_ROWS, manipulability, task_jacobian
+from armlab.app.page.inputs import guarded_slider
+from armlab.control.backend import Backend, Pushable
+from armlab.control.commands import MAX_NULL_SPACE_GAIN, Push, UseSpareJoints
+from armlab.control.loop import ControlLoop
+from armlab.control.response import Measured, hand_excursion, measure_push
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.redundancy import POSITION_ROWS, manipulability, task_jacobian
 
 #: Push directions offered on any arm, seen from its base (see :func:`push_direction`).
 PUSH_DIRECTIONS = ("down (with gravity)", "up", "away from the base", "towards the base",
                    "sideways, left (seen from the base)", "sideways, right (seen from the base)")
 #: s after a push ends before it is measured (the arm comes back)
 SETTLE_S = 2.0
-#: The spare joints' aims as the dropdown shows them (keys of kinematics.redundancy.AIMS).
+#: The spare joints' aims as the dropdown shows them (keys of armlab.kinematics.redundancy.AIMS).
 AIM_LABELS = {"off": "off (plain RMRC)", "limits": "away from the joint limits",
               "manipulability": "more manipulability", "both": "both"}
 #: cm³ per m³: w of a position task (3 rows of metres) is shown in cm³

@@ -1,6 +1,6 @@
 """The arm lesson's gripper: Open / Close buttons, a slider of the finger's travel (mm) and
 a readout, for an arm whose backend drives a gripper's own servo (the OpenManipulator-X's
-ID 15, simulated or on the bus: :class:`control.backend.Gripping`); the 3D view's fingers
+ID 15, simulated or on the bus: :class:`armlab.control.backend.Gripping`); the 3D view's fingers
 (the URDF's finger joint and the one that mimics it) follow what the servo reports.
 """
 
@@ -10,14 +10,14 @@ import math
 
 import viser
 
-from app.arm_view import ArmView
-from app.lessons._common import esc, guarded, set_content
-from app.lessons._loop_state import check_running
-from control.backend import Backend, Gripping
-from control.commands import SetGripper
-from control.loop import ControlLoop
-from hardware.joint_map import ROBOT_GRIPPERS
-from kinematics.model import SerialChain
+from armlab.app.lessons._common import esc, guarded, set_content
+from armlab.app.lessons._loop_state import check_running
+from armlab.app.page.arm_view import ArmView
+from armlab.control.backend import Backend, Gripping
+from armlab.control.commands import SetGripper
+from armlab.control.loop import ControlLoop
+from armlab.hardware.backends.joint_map import ROBOT_GRIPPERS
+from armlab.kinematics.model import SerialChain
 
 #: The Teach tab's words on the gripper (an arm that drives one).
 TEACH = ("**Gripper**: its own servo, in current-based position control (operating mode "
@@ -34,7 +34,7 @@ class GripperControls:
     Args:
         gui: the server's GUI.
         model: the arm (for the Teach tab's note on a private arm).
-        backend: the arm's backend (a :class:`~control.backend.Gripping` one drives it).
+        backend: the arm's backend (a :class:`~armlab.control.backend.Gripping` one drives it).
         loop: the arm's control loop (goals go through it; it reads the fingers).
         view: the 3D arm whose fingers follow the servo.
 

@@ -2,7 +2,7 @@
 
 What a teacher opens in front of a class: the receptionist robot's arm, its
 gains and virtual environment on sliders, live charts, a hand that pushes the
-arm. Behind it a :class:`control.loop.ControlLoop` runs the controller on the
+arm. Behind it a :class:`armlab.control.loop.ControlLoop` runs the controller on the
 simulated arm (default) or on Dynamixel servos (``--backend serial``).
 
 Data flow (one writer per piece of state): sliders build a validated
@@ -22,9 +22,8 @@ from functools import partial
 import numpy as np
 import viser
 
-from app.inputs import guarded_slider
-from app.lessons import LessonContext
-from app.lessons._common import (
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
     esc,
@@ -33,20 +32,20 @@ from app.lessons._common import (
     set_content,
     status_html,
 )
-from app.lessons._loop_state import (
+from armlab.app.lessons._loop_state import (
     STOPPED_COLOR,
     check_running,
     link_note,
     post_reset,
     stopped_state,
 )
-from app.lessons._servo_arm import open_arm, shut_arm
-from app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
-from app.lessons.compliance_plots import JointPlots, joint_label
-from app.lessons.compliance_push import PushControls
-from app.lessons.compliance_scene import ComplianceScene, estimated_hand_force
-from app.lessons.compliance_servos import LinkMonitor, safe_health_html
-from app.lessons.compliance_teach import (
+from armlab.app.lessons._servo_arm import open_arm, shut_arm
+from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
+from armlab.app.lessons.compliance_plots import JointPlots, joint_label
+from armlab.app.lessons.compliance_push import PushControls
+from armlab.app.lessons.compliance_scene import ComplianceScene, estimated_hand_force
+from armlab.app.lessons.compliance_servos import LinkMonitor, safe_health_html
+from armlab.app.lessons.compliance_teach import (
     Chapter4,
     chapter4_markdown,
     design_table,
@@ -55,8 +54,9 @@ from app.lessons.compliance_teach import (
     measured_line,
     thesis_preset_note,
 )
-from control.backend import Backend, Pushable
-from control.commands import (
+from armlab.app.page.inputs import guarded_slider
+from armlab.control.backend import Backend, Pushable
+from armlab.control.commands import (
     EStop,
     Push,
     Reconnect,
@@ -65,18 +65,18 @@ from control.commands import (
     Spring,
     Stop,
 )
-from control.loop import ControlLoop, LoopStatus
-from control.params import DEFAULT, Params
-from control.response import Measured, line_errors, measure_push, measure_step, plan_step
-from control.trajectory import (
+from armlab.control.loop import ControlLoop, LoopStatus
+from armlab.control.params import DEFAULT, Params
+from armlab.control.response import Measured, line_errors, measure_push, measure_step, plan_step
+from armlab.control.trajectory import (
     THESIS_LINE_END,
     THESIS_LINE_START,
     JointTrajectory,
     thesis_line,
 )
-from kinematics.fk import fk_and_jacobian
-from kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
-from kinematics.smallarrays import all_finite
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
+from armlab.kinematics.smallarrays import all_finite
 
 NAME = "compliance"
 TITLE = "Compliance control (thesis ch. 2–4)"
@@ -107,7 +107,7 @@ PRIVATE = True
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> ComplianceLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return ComplianceLesson(server, ctx)
 
 
@@ -148,7 +148,7 @@ class Rig:
 
 
 class ComplianceLesson(LessonBase):
-    """The compliance lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The compliance lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Args:
         server: the viser server.

@@ -1,6 +1,6 @@
 """Gain sliders and presets of the compliance lesson.
 
-Each slider is a :class:`app.inputs.GuardedNumber`: a typed value that is not a
+Each slider is a :class:`armlab.app.page.inputs.GuardedNumber`: a typed value that is not a
 finite number inside the slider's range is refused with a notification and the
 slider goes back. A good value builds a new, validated :class:`Params` and hands
 it to ``apply`` (which swaps it into the control loop at its next period). A
@@ -13,7 +13,7 @@ inputs never applies anything again and needs no re-entry flag.
 
 :func:`apply_gains` is the ``apply`` every arm lesson gives it: the parameters go to
 the control loop (unstable gains refused on real servos) and the warning line under
-the status says what :func:`control.params.stability_warning` finds.
+the status says what :func:`armlab.control.params.stability_warning` finds.
 """
 
 from __future__ import annotations
@@ -24,10 +24,17 @@ from dataclasses import fields, replace
 
 import viser
 
-from app.inputs import GuardedNumber, notify
-from app.lessons._common import warning_html
-from control.loop import ControlLoop
-from control.params import LAWS, PARAM_SPECS, PRESETS, Params, loop_stability, stability_warning
+from armlab.app.lessons._common import warning_html
+from armlab.app.page.inputs import GuardedNumber, notify
+from armlab.control.loop import ControlLoop
+from armlab.control.params import (
+    LAWS,
+    PARAM_SPECS,
+    PRESETS,
+    Params,
+    loop_stability,
+    stability_warning,
+)
 
 #: Slider value shown = SI value × scale (the period is shown in ms).
 DISPLAY_SCALE = {"period": 1000.0}

@@ -10,7 +10,7 @@ whose joint names would not fit on a phone's row of buttons):
 
 Showing one joint keeps a frame of charts near 10 KB (12 arrays of 101 float64),
 about 110 kB/s per browser at 11 Hz while the arm moves. Picking another joint or
-torque unit replaces the four charts (see :class:`app.plots.LivePlot`).
+torque unit replaces the four charts (see :class:`armlab.app.page.plots.LivePlot`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.plots import (
+from armlab.app.page.plots import (
     ANGLE_SPAN_DEG,
     COLORS,
     TORQUE_SPAN_NM,
@@ -30,7 +30,7 @@ from app.plots import (
     decimation,
     rebuild_plots,
 )
-from kinematics.units import KGF_CM_PER_NM
+from armlab.kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / np.pi
 TORQUE_UNITS = ("N·m", "kgf·cm")

@@ -1,10 +1,10 @@
 """The push controls of the arm lessons: force, direction, duration and the Push button.
 
 A push is a force at the hand for a short time, given to the simulated arm through
-its backend's :class:`control.backend.Pushable` (the lesson posts a
-:class:`control.commands.Push`). Real servos are pushed by a hand: there the inputs
+its backend's :class:`armlab.control.backend.Pushable` (the lesson posts a
+:class:`armlab.control.commands.Push`). Real servos are pushed by a hand: there the inputs
 and the button are hidden and the lesson says so. The values pass
-:class:`app.inputs.GuardedNumber` guards: a typed NaN or out-of-range number is
+:class:`armlab.app.page.inputs.GuardedNumber` guards: a typed NaN or out-of-range number is
 refused with one notification and the slider goes back.
 """
 
@@ -14,8 +14,8 @@ from collections.abc import Callable
 
 import viser
 
-from app.inputs import guarded_slider
-from app.lessons._common import guarded
+from armlab.app.lessons._common import guarded
+from armlab.app.page.inputs import guarded_slider
 
 
 class PushControls:

@@ -15,11 +15,11 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from app import theme
-from app.arm_view import ArmView
-from app.camera import View, show
-from kinematics.model import SerialChain
-from kinematics.smallarrays import all_finite
+from armlab.app.page import theme
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.camera import View, show
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.smallarrays import all_finite
 
 #: Metres of arrow drawn per newton.
 ARROW_M_PER_N = 0.03

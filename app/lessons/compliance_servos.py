@@ -12,8 +12,8 @@ from __future__ import annotations
 import html
 from dataclasses import dataclass
 
-from control.backend import Backend, BackendError
-from hardware.protocol1 import ErrorBits, error_names
+from armlab.control.backend import Backend, BackendError
+from armlab.hardware.wire.protocol1 import ErrorBits, error_names
 
 #: What to do about each protocol 1.0 error bit (their names: ``protocol1.error_names``).
 ERROR_ADVICE: dict[ErrorBits, str] = {

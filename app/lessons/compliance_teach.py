@@ -2,9 +2,9 @@
 
 Pure functions from (parameters, recorded signals) to Markdown, so the panel's
 text can be tested without a browser. Design figures come from
-:mod:`control.metrics` (thesis eq. 2.11–2.19); measured ones from the last
+:mod:`armlab.control.metrics` (thesis eq. 2.11–2.19); measured ones from the last
 step (PD loop) or push (environment) the student ran, measured by
-:mod:`control.response`.
+:mod:`armlab.control.response`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control import metrics
-from control.params import PRESETS, Params
-from control.response import Measured
-from kinematics.units import KGF_CM_PER_NM
+from armlab.control import metrics
+from armlab.control.params import PRESETS, Params
+from armlab.control.response import Measured
+from armlab.kinematics.units import KGF_CM_PER_NM
 
 DEG = 180.0 / math.pi
 

@@ -6,10 +6,10 @@ return spring; the only sensors are the motor currents, and tau = K_t·I
 stiffness with a grip-force limit F and watches the currents and finger forces:
 the hand stops closing when the current says it holds the object with F.
 
-Data flow (one writer per piece of state): a :class:`control.grip_loop.GripLoop`
-thread steps the simulated hand (:mod:`hardware.hand`) and the controller
-(:mod:`control.grip`) every millisecond; buttons and sliders post commands the
-loop runs at its next period; a :class:`app.publisher.Publisher` reads the
+Data flow (one writer per piece of state): a :class:`armlab.control.grip_loop.GripLoop`
+thread steps the simulated hand (:mod:`armlab.hardware.sim.hand`) and the controller
+(:mod:`armlab.control.grip`) every millisecond; buttons and sliders post commands the
+loop runs at its next period; a :class:`armlab.app.page.publisher.Publisher` reads the
 loop's record and updates the scene (30 Hz) and charts (10 Hz).
 """
 
@@ -22,17 +22,24 @@ from typing import TYPE_CHECKING
 import numpy as np
 import viser
 
-from app.inputs import guarded_slider
-from app.lessons import LessonContext
-from app.lessons._common import Every, LessonBase, close_in_turn, guarded, set_content, status_html
-from app.lessons.hand_scene import HandScene
-from app.plots import COLORS, LivePlot, SeriesSpec, dash
-from control.grip import GripController, GripModel, GripParams
-from control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
-from hardware.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons._common import (
+    Every,
+    LessonBase,
+    close_in_turn,
+    guarded,
+    set_content,
+    status_html,
+)
+from armlab.app.lessons.hand_scene import HandScene
+from armlab.app.page.inputs import guarded_slider
+from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec, dash
+from armlab.control.grip import GripController, GripModel, GripParams
+from armlab.control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
+from armlab.hardware.sim.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
 
 if TYPE_CHECKING:
-    from app.remote_hand import RemoteHand
+    from armlab.app.classroom.remote_hand import RemoteHand
 
 NAME = "hand"
 TITLE = "The hand: compliant grasp (thesis §2.4)"
@@ -47,7 +54,7 @@ TRY = ("Press **Close (grasp)**: each finger stops when its current says it hold
 ROBOTS = ("receptionist_arm",)
 ORDER = 30
 #: a student's page can hold a private copy: their own hand in the class
-#: (``ctx.arms.hand_for``: :mod:`app.class_hands` in the class's worker process)
+#: (``ctx.arms.hand_for``: :mod:`armlab.app.classroom.class_hands` in the class's worker process)
 PRIVATE = True
 
 STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
@@ -77,12 +84,12 @@ object. Try a hard object and a fast approach: the first touch is an impact.
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> HandLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return HandLesson(server, ctx)
 
 
 class HandLesson(LessonBase):
-    """The hand lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The hand lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Args:
         server: the viser server.
@@ -92,7 +99,7 @@ class HandLesson(LessonBase):
     Attributes:
         loop: the control loop (read its ``status``, ``params``, ``snapshot()``,
             ``last_grasp()``): the lesson's own, or a student's hand in the class
-            (:class:`app.remote_hand.RemoteHand`, with ``ctx.arms``).
+            (:class:`armlab.app.classroom.remote_hand.RemoteHand`, with ``ctx.arms``).
     """
 
     def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
@@ -174,7 +181,7 @@ class HandLesson(LessonBase):
             kw = {"window_s": WINDOW_S, "points": 200}
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
             # line at F rather than an auto-zoomed band around it; its axis spans at least
-            # CURRENT_SPAN_A / FORCE_SPAN_N (app.plots.fit_range)
+            # CURRENT_SPAN_A / FORCE_SPAN_N (armlab.app.page.plots.fit_range)
             self.current_plot = LivePlot(gui, title="Motor current (measured)", y_label="A",
                                          series=(*(SeriesSpec(f"finger {i + 1}", c, dash(i))
                                                    for i, c in enumerate(FINGER_COLORS)),

@@ -2,7 +2,7 @@
 
 The planar three-link arm (6.5 / 10.5 / 6.5 cm) on graph paper. The student
 drags a target in the arm's plane (or types it) and sees the paper's geometric
-IK (:mod:`kinematics.planar_ik`): the elbow branch, the three 0–180° servo
+IK (:mod:`armlab.kinematics.planar_ik`): the elbow branch, the three 0–180° servo
 ranges drawn on the joints (red when the solution leaves them), the whole-degree
 servo command (none / round / truncate as the paper's software does) and the
 target against the FK of what the servos are sent. "Run the paper's table"
@@ -25,18 +25,18 @@ import numpy as np
 import viser
 import viser.uplot
 
-from app import theme
-from app.arm_view import ArmView
-from app.camera import View, show
-from app.inputs import check_number, notify
-from app.lessons import LessonContext
-from app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
-from app.plots import COLORS, SeriesSpec, dash, fixed_x, uplot_series
-from control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
-from control.experiments.seed004 import table
-from control.experiments.seed004_data import TABLE1
-from kinematics.model import SerialChain, load_robot
-from kinematics.planar_ik import PlanarArm, PlanarIKResult, in_range_alternative, solve
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
+from armlab.app.page import theme
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.camera import View, show
+from armlab.app.page.inputs import check_number, notify
+from armlab.app.page.plots import COLORS, SeriesSpec, dash, fixed_x, uplot_series
+from armlab.control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
+from armlab.control.experiments.seed004 import table
+from armlab.control.experiments.seed004_data import TABLE1
+from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.planar_ik import PlanarArm, PlanarIKResult, in_range_alternative, solve
 
 NAME = "ik_accuracy"
 TITLE = "IK accuracy: planar servo arm (seed 004)"
@@ -66,7 +66,7 @@ TABLE_COLUMNS = ("paper R", "paper |X1Y1 − target|", "lab |X1Y1 − target|")
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> IKAccuracyLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return IKAccuracyLesson(server, ctx)
 
 
@@ -115,7 +115,7 @@ def workspace_message(X: float, Y: float, r: PlanarIKResult, arm: PlanarArm) -> 
 
 
 class IKAccuracyLesson:
-    """The IK-accuracy lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The IK-accuracy lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Attributes:
         result: the solve for the current target (commanded = rounded angles).

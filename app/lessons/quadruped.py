@@ -9,14 +9,14 @@ gait speed; buttons walk forward, back, or turn. The scene shows every foot's pa
 over a cycle, trails on the floor, the support polygon, the centre of mass and the
 static stability margin.
 
-Behind it a :class:`control.gait_loop.GaitLoop` drives 12 AX-12A servos: simulated
-(:class:`hardware.quadruped_sim.QuadrupedSimBackend`, the legs loaded by the body's
+Behind it a :class:`armlab.control.gait_loop.GaitLoop` drives 12 AX-12A servos: simulated
+(:class:`armlab.hardware.sim.quadruped.QuadrupedSimBackend`, the legs loaded by the body's
 weight while they stand) or on a serial port (``DynamixelBackend``: real servos, or
 ``armlab emulate --robot quadruped``). The servo tab reports the paper's eq. 4.1,
 the commanded-vs-servo angle error in percent, from the servos' own feedback.
 
 Data flow as in the compliance lesson: UI callbacks validate input, plan the gait
-(``control.walking.plan_gait``) and post it to the loop; a :class:`Publisher` draws
+(``armlab.control.walking.plan_gait``) and post it to the loop; a :class:`Publisher` draws
 the loop's latest state at 30 Hz and the charts at 10 Hz.
 """
 
@@ -32,10 +32,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import viser
 
-from app.backends import make_backend
-from app.inputs import GuardedNumber, guarded_slider
-from app.lessons import LessonContext
-from app.lessons._common import (
+from armlab.app.backends import make_backend
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons._common import (
     Every,
     LessonBase,
     close_in_turn,
@@ -44,8 +43,9 @@ from app.lessons._common import (
     status_html,
     warning_html,
 )
-from app.lessons.quadruped_scene import QuadrupedScene
-from app.plots import (
+from armlab.app.lessons.quadruped_scene import QuadrupedScene
+from armlab.app.page.inputs import GuardedNumber, guarded_slider
+from armlab.app.page.plots import (
     ANGLE_SPAN_DEG,
     COLORS,
     LivePlot,
@@ -54,9 +54,9 @@ from app.plots import (
     decimation,
     rebuild_plots,
 )
-from control.backend import Backend, BackendError
-from control.gait_loop import GaitLoop, GaitStatus
-from control.walking import (
+from armlab.control.backend import Backend, BackendError
+from armlab.control.gait_loop import GaitLoop, GaitStatus
+from armlab.control.walking import (
     COMMANDS,
     GAITS,
     GaitPlan,
@@ -66,14 +66,14 @@ from control.walking import (
     plan_gait,
     walking_tilts_deg,
 )
-from hardware.quadruped_sim import SIM_DT, QuadrupedSimBackend
-from kinematics.gait import SineParams
-from kinematics.model import Quadruped, SerialChain, load_robot
-from kinematics.quadruped import LEGS, QuadrupedGeometry
-from kinematics.units import deg
+from armlab.hardware.sim.quadruped import SIM_DT, QuadrupedSimBackend
+from armlab.kinematics.gait import SineParams
+from armlab.kinematics.model import Quadruped, SerialChain, load_robot
+from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
+from armlab.kinematics.units import deg
 
 if TYPE_CHECKING:
-    from app.remote_gait import RemoteGait
+    from armlab.app.classroom.remote_gait import RemoteGait
 
 NAME = "quadruped"
 TITLE = "Quadruped gait: trot, crawl and stability (seed 003)"
@@ -89,7 +89,8 @@ TRY = ("Press **Forward** and watch the stability margin while two legs swing.")
 ROBOTS = ("quadruped",)
 ORDER = 30
 #: a student's page can hold a private copy: their own robot in the class
-#: (``ctx.arms.quadruped_for``: :mod:`app.class_quadrupeds` in the class's worker process)
+#: (``ctx.arms.quadruped_for``: :mod:`armlab.app.classroom.class_quadrupeds` in the class's worker
+#: process)
 PRIVATE = True
 
 #: The paper's mean commanded-vs-servo angle error (seed 003 §4.1.2), %.
@@ -122,7 +123,7 @@ def _robot(name: str) -> SerialChain | Quadruped:
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return QuadrupedLesson(server, ctx)
 
 
@@ -136,7 +137,7 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
     if ctx.backend == "sim":
         return QuadrupedSimBackend(model, q0=q0, dt=SIM_DT), ""
     try:
-        # the reply timeout is the bus's own (hardware.bus: a wire's or an emulator's)
+        # the reply timeout is the bus's own (armlab.hardware.wire.bus: a wire's or an emulator's)
         backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)  # type: ignore[arg-type]
     except (BackendError, ValueError, OSError) as exc:
         return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs RF, LF, RH, LH, "
@@ -150,7 +151,7 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
 
 
 class QuadrupedLesson(LessonBase):
-    """The quadruped lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The quadruped lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Args:
         server: the viser server.
@@ -298,7 +299,7 @@ class QuadrupedLesson(LessonBase):
 
     def _build_joint_charts(self) -> None:
         """The three joint charts of the chosen leg (rebuilt, not retitled, on a change:
-        see ``app.plots.LivePlot``)."""
+        see ``armlab.app.page.plots.LivePlot``)."""
         gui = self.server.gui
         with self.charts:
             self.joint_plots = [

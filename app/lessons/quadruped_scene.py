@@ -1,6 +1,6 @@
 """The quadruped lesson's 3D scene: robot, floor, foot paths, support polygon, centre of mass.
 
-- the robot from its URDF (:class:`app.arm_view.ArmView`), its root frame at the body
+- the robot from its URDF (:class:`armlab.app.page.arm_view.ArmView`), its root frame at the body
   pose, its legs at the angles the servos report (or the commanded ones);
 - each foot's path over one gait cycle, drawn in the body frame (it travels with the
   body): the sine pattern's shape;
@@ -20,13 +20,13 @@ import threading
 import numpy as np
 import viser
 
-from app import theme
-from app.arm_view import ArmView
-from app.camera import View, carry, show
-from control.walking import GaitPlan, WalkState
-from kinematics.model import Quadruped
-from kinematics.quadruped import LEGS
-from kinematics.stability import nearest_on_polygon
+from armlab.app.page import theme
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.camera import View, carry, show
+from armlab.control.walking import GaitPlan, WalkState
+from armlab.kinematics.model import Quadruped
+from armlab.kinematics.quadruped import LEGS
+from armlab.kinematics.stability import nearest_on_polygon
 
 #: One colour per leg (RF, LF, RH, LH).
 LEG_RGB = {"RF": (31, 94, 234), "LF": (232, 130, 12), "RH": (194, 24, 91), "LH": (46, 125, 50)}

@@ -10,7 +10,8 @@ scene; charts show each joint angle inside its limit band, the manipulability an
 position error over the whole run (the paper's figures).
 
 "Run" calls the same functions as ``armlab experiment seed002-circle``
-(``kinematics.redundancy.simulate_circle`` then ``control.experiments.seed002.summarise``)
+(``armlab.kinematics.redundancy.simulate_circle`` then
+``armlab.control.experiments.seed002.summarise``)
 for every mode with the gains on the sliders, in a worker thread; the figures
 table shows exactly what the experiment prints. A :class:`Publisher` plays the
 runs back at the chosen playback speed (scene at 30 Hz; the charts are sent once per run).
@@ -27,9 +28,8 @@ from typing import Any
 import numpy as np
 import viser
 
-from app.inputs import guarded_slider, notify
-from app.lessons import LessonContext
-from app.lessons._common import (
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
     esc,
@@ -37,17 +37,23 @@ from app.lessons._common import (
     set_content,
     status_html,
 )
-from app.lessons.redundancy_plots import RedundancyPlots
-from app.lessons.redundancy_scene import MODE_COLORS, MODE_LABELS, RedundancyScene, arm_points
-from control.experiments.seed002 import SETTLE_S, summarise
-from kinematics.model import SerialChain, load_robot
-from kinematics.redundancy import (
+from armlab.app.lessons.redundancy_plots import RedundancyPlots
+from armlab.app.lessons.redundancy_scene import (
+    MODE_COLORS,
+    MODE_LABELS,
+    RedundancyScene,
+    arm_points,
+)
+from armlab.app.page.inputs import guarded_slider, notify
+from armlab.control.experiments.seed002 import SETTLE_S, summarise
+from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.redundancy import (
     MODES,
     CircleRun,
     CircleTask,
     simulate_circle,
 )
-from kinematics.units import deg
+from armlab.kinematics.units import deg
 
 NAME = "redundancy"
 TITLE = "Redundancy and joint limits (seed 002)"
@@ -72,7 +78,7 @@ SPEED_RANGE = (0.05, 1.0)
 
 
 def build(server: viser.ViserServer, ctx: LessonContext) -> RedundancyLesson:
-    """Open the lesson on ``server`` (see :mod:`app.lessons`)."""
+    """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return RedundancyLesson(server, ctx)
 
 
@@ -166,7 +172,7 @@ method; bottom: the guaranteed method.
 
 
 class RedundancyLesson(LessonBase):
-    """The redundancy lesson on ``server`` (a :class:`app.lessons.LessonHandle`).
+    """The redundancy lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Args:
         server: the viser server.

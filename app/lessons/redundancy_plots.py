@@ -9,8 +9,8 @@ the scene), drawn once a run is computed (the 3D view plays it back):
 4. Yoshikawa's manipulability w = sqrt(det(J Jᵀ));
 5. the position-error norm |x_d − x|, mm.
 
-Unlike the live charts (``app.plots.LivePlot``, a window sliding with "now"), the
-x axis is the run's own time, pinned to [0, duration] (``app.plots.fixed_x``).
+Unlike the live charts (``armlab.app.page.plots.LivePlot``, a window sliding with "now"), the
+x axis is the run's own time, pinned to [0, duration] (``armlab.app.page.plots.fixed_x``).
 """
 
 from __future__ import annotations
@@ -20,11 +20,11 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
-from app.lessons.redundancy_scene import MODE_COLORS
-from app.plots import SeriesSpec, fixed_x, uplot_series
-from kinematics.model import SerialChain
-from kinematics.redundancy import CircleRun
-from kinematics.units import deg
+from armlab.app.lessons.redundancy_scene import MODE_COLORS
+from armlab.app.page.plots import SeriesSpec, fixed_x, uplot_series
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.redundancy import CircleRun
+from armlab.kinematics.units import deg
 
 LIMIT_COLOR = "#777777"
 BAND_FILL = "rgba(46, 125, 50, 0.10)"

@@ -23,17 +23,17 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from app import theme
-from app.arm_view import ArmView
-from app.camera import View, show
-from app.plots import COLORS
-from kinematics.model import SerialChain
-from kinematics.redundancy import circle_target, task_jacobian
+from armlab.app.page import theme
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.camera import View, show
+from armlab.app.page.plots import COLORS
+from armlab.kinematics.model import SerialChain
+from armlab.kinematics.redundancy import circle_target, task_jacobian
 
 #: Mode -> (column, row) of its panel; row 0 is the top row (no joint limits).
 GRID = {"1": (0.0, 0), "3": (1.0, 0), "2": (0.0, 1), "4": (1.0, 1), "bounded": (0.5, 2)}
 ROWS = 3
-#: Mode -> colour (hex, as in the plots; the Okabe-Ito palette of ``app.plots.COLORS``).
+#: Mode -> colour (hex, as in the plots; the Okabe-Ito palette of ``armlab.app.page.plots.COLORS``).
 MODE_COLORS = {"1": COLORS[0], "2": COLORS[1], "3": COLORS[5], "4": COLORS[4],
                "bounded": COLORS[3]}
 #: Mode -> short label shown above its panel.

@@ -60,7 +60,8 @@ class Experiment:
             human-readable table (None: print the dict's top-level items).
         needs: names of factories the caller passes to ``run`` as keyword arguments
             (control/ never imports hardware/), e.g. "hand_plant" =
-            ``hardware.hand.make_hand``, "backend_factory" (with :class:`BackendOptions`).
+            ``armlab.hardware.sim.hand.make_hand``, "backend_factory" (with
+            :class:`BackendOptions`).
     """
 
     name: str

@@ -1,14 +1,14 @@
 """``armlab experiment hand-grip``: the thesis's hand closes on an object with a force limit.
 
 Thesis §2.4/§3.1.1: three fingers, each pulled by a 6 V DC gearmotor whose
-current gives its torque (eq. 2.29). The grasp (:mod:`control.grip`) closes
+current gives its torque (eq. 2.29). The grasp (:mod:`armlab.control.grip`) closes
 until each finger holds the object with the force limit F, estimated from the
 current alone. The figures show whether it does, for an object of any size
 and stiffness: steady grip force (≈ F), peak force (never much above F), time
 to grasp, final motor current.
 
 The simulated hand comes from the CLI as the factory ``hand_plant``
-(``hardware.hand.make_hand``): control/ never imports hardware/.
+(``armlab.hardware.sim.hand.make_hand``): control/ never imports hardware/.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from control.experiments import Experiment, option
-from control.grip import GripController, GripModel, GripParams, grasp_figures, simulate_grasp
-from kinematics.validate import scalar
+from armlab.control.experiments import Experiment, option
+from armlab.control.grip import GripController, GripModel, GripParams, grasp_figures, simulate_grasp
+from armlab.kinematics.validate import scalar
 
 CONTROL_PERIOD = 1.0e-3  #: s, the controller's period (the plant steps at 0.1 ms inside)
 

@@ -33,18 +33,18 @@ from typing import Any
 
 import numpy as np
 
-from control.backend import Backend, CurrentSensing
-from control.experiments import BackendOptions, Experiment, option
-from control.observers import (
+from armlab.control.backend import Backend, CurrentSensing
+from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.observers import (
     ObserverRun,
     ObserverState,
     TorqueJoint,
     disturbance_observer,
     simulate_observers,
 )
-from kinematics.dynamics import bias_torques, mass_matrix
-from kinematics.model import SerialChain, load_robot
-from kinematics.validate import index, joint_index, scalar, vector
+from armlab.kinematics.dynamics import bias_torques, mass_matrix
+from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.validate import index, joint_index, scalar, vector
 
 DECIMATE = 20  #: CSV rows: every 20th sample (2 ms at the 0.1 ms step)
 SIM_STEP, SIM_AT, SIM_DURATION, SIM_G = 0.004, 0.5, 1.5, 200.0  #: the simulation's defaults
@@ -193,7 +193,7 @@ def rtob_series(t: np.ndarray, qd: np.ndarray, tau_m: np.ndarray, tau_known: np.
         (N,) τ̂_reac, N·m; the filter starts settled on the first reading.
     """
     # eq. 2.37 is eq. 2.36's filter with the known load taken out of its input
-    # (control.observers.reaction_torque_observer)
+    # (armlab.control.observers.reaction_torque_observer)
     return dob_series(t, qd, np.asarray(tau_m) - np.asarray(tau_known), j_n=j_n,
                       g_dis=g_reac)
 

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from control.experiments import Experiment, option
-from kinematics.model import SerialChain, load_robot
-from kinematics.redundancy import (
+from armlab.control.experiments import Experiment, option
+from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.redundancy import (
     MODES,
     CircleRun,
     CircleTask,

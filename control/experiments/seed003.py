@@ -9,7 +9,7 @@ body (default), or servos on ``--backend serial --port`` (the emulator's legs ca
 too). From the servos' reports come seed 003's two figures: the eq. 4.1 error
 (commanded vs reported angle, per servo number and overall; the seed: 1.201 %, servo 2
 worst) and the body's tilt that the deflected legs imply on flat ground (the seed:
-3.6–5.7°, :func:`kinematics.body_statics.implied_tilt_deg`).
+3.6–5.7°, :func:`armlab.kinematics.body_statics.implied_tilt_deg`).
 """
 
 from __future__ import annotations
@@ -21,14 +21,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from control.experiments import BackendOptions, Experiment, option
-from control.gait_loop import STAND_UP_S, GaitLoop
-from control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
-from kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
-from kinematics.model import Quadruped, load_robot
-from kinematics.quadruped import LEGS, QuadrupedGeometry
+from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.gait_loop import STAND_UP_S, GaitLoop
+from armlab.control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
+from armlab.kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
+from armlab.kinematics.model import Quadruped, load_robot
+from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 
-SIM_DT = 2e-3  #: plant step of the simulated legs, s (hardware.quadruped_sim.SIM_DT)
+SIM_DT = 2e-3  #: plant step of the simulated legs, s (armlab.hardware.sim.quadruped.SIM_DT)
 
 
 def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples: int = 36,

@@ -13,9 +13,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from control.experiments import Experiment, option
-from control.experiments.seed004_data import TABLE1
-from kinematics.planar_ik import ELBOWS, ROUNDINGS, PlanarArm, in_range_alternative, solve
+from armlab.control.experiments import Experiment, option
+from armlab.control.experiments.seed004_data import TABLE1
+from armlab.kinematics.planar_ik import ELBOWS, ROUNDINGS, PlanarArm, in_range_alternative, solve
 
 
 def _deg(angles: tuple[float, ...]) -> list[float]:

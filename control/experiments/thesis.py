@@ -24,14 +24,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from control.backend import Backend, Pushable
-from control.commands import Push, RunTrajectory
-from control.compliance import Mode
-from control.experiments import BackendOptions, Experiment, option
-from control.loop import APPROACH_MIN, ControlLoop
-from control.metrics import step_report
-from control.params import PRESETS, Law, Params, preset
-from control.trajectory import (
+from armlab.control.backend import Backend, Pushable
+from armlab.control.commands import Push, RunTrajectory
+from armlab.control.compliance import Mode
+from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.loop import APPROACH_MIN, ControlLoop
+from armlab.control.metrics import step_report
+from armlab.control.params import PRESETS, Law, Params, preset
+from armlab.control.trajectory import (
     THESIS_PERIOD,
     JointTrajectory,
     approach_duration,
@@ -39,7 +39,7 @@ from control.trajectory import (
     minimum_jerk,
     thesis_line,
 )
-from kinematics.model import SerialChain, load_robot
+from armlab.kinematics.model import SerialChain, load_robot
 
 BackendFactory = Callable[..., Backend]
 
@@ -229,7 +229,7 @@ def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 @dataclass(frozen=True)
 class StepOptions:
-    """Options of ``step`` (see :func:`control.metrics.step_report`)."""
+    """Options of ``step`` (see :func:`armlab.control.metrics.step_report`)."""
 
     kp: float = option(3.8, "Kp, 1/s² (default: thesis 3.8)")
     kv: float = option(0.2, "Kv, 1/s (default: thesis 0.2)")

@@ -6,7 +6,7 @@ position controller 6° to over 20°, the PD loop under 6°, compliance under a
 push over 15° on servo 3 (all command minus actual, max |θ_cmd − θ|). Read in SI
 the PD loop lags 19.5°. This study tries every reading of the gains and units the
 firmware could have used, on the lab's simulated arm through the lab's loop
-(:func:`control.experiments.thesis.thesis_line_figures`), and says for each which
+(:func:`armlab.control.experiments.thesis.thesis_line_figures`), and says for each which
 of the three figures it reproduces:
 
 - ``SI``: Kp 1/s², Kv 1/s, as the lab reads them.
@@ -25,7 +25,7 @@ of the three figures it reproduces:
 
 Readings whose gains fall outside the lab's parameter ranges are not run: their
 ideal-joint pole radius and their pole through the servos' lag
-(:func:`control.params.servo_loop_pole`) are reported instead.
+(:func:`armlab.control.params.servo_loop_pole`) are reported instead.
 """
 
 from __future__ import annotations
@@ -36,12 +36,12 @@ from typing import Any
 
 import numpy as np
 
-from control.experiments import BackendOptions, Experiment, option
-from control.experiments.thesis import BackendFactory, thesis_line_figures
-from control.params import PRESETS, Params, integrated_pd_matrix, servo_loop_pole
-from control.trajectory import THESIS_PERIOD
-from kinematics.model import load_robot
-from kinematics.units import KGF_CM_PER_NM
+from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.experiments.thesis import BackendFactory, thesis_line_figures
+from armlab.control.params import PRESETS, Params, integrated_pd_matrix, servo_loop_pole
+from armlab.control.trajectory import THESIS_PERIOD
+from armlab.kinematics.model import load_robot
+from armlab.kinematics.units import KGF_CM_PER_NM
 
 COUNT_DEG = 300.0 / 1023.0  #: degrees per Dynamixel position count (RX-24F, AX-12A)
 PUSH_N = 3.0  #: the thesis-line experiment's push, N
@@ -95,7 +95,7 @@ def readings(period: float = THESIS_PERIOD) -> list[Reading]:
 def pole_radius(kp: float, kv: float, period: float, *, explicit: bool) -> float:
     """Spectral radius of the reference loop on an ideal joint (>= 1: it diverges).
 
-    Semi-implicit Euler (the lab's order, :func:`control.params.integrated_pd_matrix`)
+    Semi-implicit Euler (the lab's order, :func:`armlab.control.params.integrated_pd_matrix`)
     or explicit Euler, state (θ, θ̇): θ += T θ̇, θ̇ += T (−Kp θ − Kv θ̇).
     """
     T = period

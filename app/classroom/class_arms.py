@@ -1,0 +1,161 @@
+"""Private arms on one clock: the class's simulation, without the seats that own the arms.
+
+The arms of one link-length preset live in one
+:class:`armlab.hardware.sim.batched_plant.BatchedPlant`
+(numpy over arms); one :class:`armlab.control.periodic.SharedClock` thread steps every plant at
+1 kHz and, in the same thread, each arm's :class:`armlab.control.loop.ControlLoop` when its
+period is due. A loop is the lesson's own (commands, trajectories, the step test,
+pushes, drags, recording, faults) over a
+:class:`armlab.hardware.backends.batched.BatchedArmBackend`:
+one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
+lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
+with X-series servos (the OpenManipulator-X) is simulated with their firmware model as
+its shared arm is (:class:`armlab.hardware.backends.xseries_sim.XSimBackend`, a plant of its own
+that
+its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
+
+:class:`armlab.app.classroom.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a
+process
+of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
+:mod:`armlab.app.classroom.worker` hosts a
+``ClassArms``) and the X-series ones in a ``ClassArms`` of its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from armlab.app.backends import loop_over, make_backend, shipped_x_servo
+from armlab.control.backend import Backend
+from armlab.control.loop import ControlLoop
+from armlab.control.params import Params
+from armlab.control.periodic import SharedClock
+from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
+from armlab.hardware.backends.xseries_sim import XSimBackend
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.sim.batched_plant import BatchedPlant
+from armlab.kinematics.model import SerialChain
+
+#: plant step, s (as the shared arm's SimBackend)
+DT = 1e-3
+
+
+@dataclass
+class Arm:
+    """One private arm of a :class:`ClassArms`.
+
+    Attributes:
+        preset: the link-length preset it was made for.
+        row: its id in the preset's batched plant (None: a plant of its own).
+        backend, loop: what the lesson drives (the loop runs on the class's clock).
+    """
+
+    preset: str
+    row: int | None
+    backend: Backend
+    loop: ControlLoop
+
+
+class ClassArms:
+    """Private arms stepped together (see the module docstring); the clock runs from the
+    start.
+
+    Args:
+        realtime: step against the wall clock (False: as fast as possible, for tests).
+
+    Attributes:
+        clock: the :class:`SharedClock` every arm's loop runs on.
+        lock: the clock's lock (held while it ticks; taken to add and free arms).
+    """
+
+    def __init__(self, *, realtime: bool = True) -> None:
+        self._plants: dict[str, BatchedPlant] = {}
+        self.clock = SharedClock(self._step, dt=DT, realtime=realtime, name="armlab-class")
+        self.lock = self.clock.lock  # a HandOverLock: a waiting thread gets in between ticks
+        self.clock.start()
+
+    def _step(self) -> None:
+        for plant in self._plants.values():
+            plant.step()
+
+    def add(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
+            history_s: float) -> Arm:
+        """A new arm of ``model`` (link lengths ``preset``) at ``q0`` (n,) rad with gains
+        ``params``, its compliance loop (``history_s`` s recorded) started on the clock."""
+        with self.lock:
+            x_spec = shipped_x_servo(model)
+            plant: BatchedPlant | None = None
+            if x_spec is not None:  # X-series servos: their firmware model, one plant per arm
+                backend: Backend = XSimBackend(model, spec=x_spec, dt=DT, q0=q0)
+                row = None
+            else:
+                plant = self._plants.get(preset)
+                if plant is None:
+                    plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
+                row = add_sim_arm(plant, q0=q0, lock=self.lock)
+                backend = BatchedArmBackend(plant, row, lock=self.lock)
+            try:
+                loop = loop_over(backend, model, params, history_s=history_s, clock=self.clock)
+            except BaseException:  # (the backend is closed)
+                if plant is not None and row is not None:
+                    plant.remove_arm(row)
+                raise
+            loop.start()
+            return Arm(preset, row, backend, loop)
+
+    def free(self, arm: Arm) -> None:
+        """Stop ``arm``'s loop (torque off), close its backend and take it out of its plant."""
+        with self.lock:
+            arm.loop.shutdown(torque_off=True)
+            arm.backend.close()
+            if arm.row is not None:
+                self._plants[arm.preset].remove_arm(arm.row)
+
+    def close(self, arms: list[Arm] | tuple[Arm, ...] = ()) -> None:
+        """Stop the clock, then free ``arms`` (the ones still held).
+
+        The arms are freed holding the lock, after the clock stopped: a tick that stepped
+        a plant while one of its arms was taken out would leave the plant's arrays of
+        different widths."""
+        self.clock.stop()
+        with self.lock:
+            for arm in arms:
+                self.free(arm)
+
+
+class OwnArms:
+    """Arms each on a thread of its own, as a lesson runs its arm in the server: a
+    :class:`armlab.hardware.backends.sim.SimBackend` and a paced ``ControlLoop`` per arm (the
+    shared arm of a classroom, in a process of its own: :mod:`armlab.app.classroom.worker_process`).
+
+    Args:
+        realtime: pace each loop by the wall clock (False: as fast as possible).
+    """
+
+    def __init__(self, *, realtime: bool = True) -> None:
+        self.realtime = realtime
+
+    def add(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
+            history_s: float) -> Arm:
+        """A new simulated arm of ``model`` at ``q0`` (n,) rad, its compliance loop
+        started (``preset`` names it)."""
+        loop = loop_over(make_backend("sim", model, q0=q0), model, params,
+                         realtime=self.realtime, history_s=history_s)
+        loop.start()
+        backend = loop.backend
+        return Arm(preset, None, backend, loop)
+
+    def free(self, arm: Arm) -> None:
+        """Stop ``arm``'s loop with torque off and close its backend."""
+        try:
+            arm.loop.shutdown(torque_off=True)
+            arm.backend.estop()
+        finally:
+            arm.backend.close()
+
+    def close(self, arms: list[Arm] | tuple[Arm, ...] = ()) -> None:
+        """Free ``arms`` (the ones still held)."""
+        for arm in arms:
+            self.free(arm)

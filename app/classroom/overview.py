@@ -1,0 +1,144 @@
+"""The presenter's class overview: who is there, their gains, the figures of their last run.
+
+A table on every presenter's page (refreshed once a second), a "Student" picker and
+two buttons: "Show" draws that student's arm as a ghost beside the shared one (on every
+page: the projector shows it), "Use these gains" copies the student's gains to the
+shared arm through the shared lesson's own validation and gain warning.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+from armlab.app.lessons._common import esc
+from armlab.control.params import Params
+
+#: what the picker shows when nobody is picked
+NOBODY = "—"
+#: m: where the ghost of a student's arm stands beside the shared one (world y)
+GHOST_OFFSET = (0.0, 0.55, 0.0)
+GHOST_RGBA = (0.2, 0.6, 0.9, 0.45)
+
+
+@dataclass(frozen=True)
+class StudentRow:
+    """One student as the overview shows them.
+
+    Attributes:
+        client_id: their page. name: what they typed, or automatic.
+        view: "Follow the teacher" or "My arm".
+        params: the gains of their arm (None: no arm yet).
+        max_error_deg: max |θ_cmd − θ| of their last free thesis-line run, ° (any joint).
+        overshoot_pct, settling_s: of their last step test.
+        yield_deg: how far their last pushed line run moved from the free one, °.
+    """
+
+    client_id: int
+    name: str
+    view: str
+    params: Params | None = None
+    max_error_deg: float | None = None
+    overshoot_pct: float | None = None
+    settling_s: float | None = None
+    yield_deg: float | None = None
+
+    @property
+    def label(self) -> str:
+        """How the picker names them."""
+        return f"{self.name} (#{self.client_id})"
+
+
+def _max(x: np.ndarray | None) -> float | None:
+    if x is None or not np.any(np.isfinite(x)):
+        return None
+    return float(np.nanmax(np.abs(x)))
+
+
+def row_figures(lesson: object) -> dict[str, float | None]:
+    """The last-run figures of a student's private compliance lesson (None: not run)."""
+    ch4 = getattr(lesson, "chapter4", None)
+    step = getattr(lesson, "measured_pd", None)
+    return {"max_error_deg": _max(getattr(ch4, "free", None)),
+            "yield_deg": _max(getattr(ch4, "yield_deg", None)),
+            "overshoot_pct": getattr(step, "overshoot_pct", None),
+            "settling_s": getattr(step, "settling_time_s", None)}
+
+
+def _fmt(x: float | None, spec: str) -> str:
+    return "—" if x is None or not math.isfinite(x) else format(x, spec)
+
+
+def overview_html(rows: list[StudentRow]) -> str:
+    """The overview table (HTML), one row per student."""
+    if not rows:
+        return "<i>No students yet: they join by the url or the QR code.</i>"
+    head = ("<tr><th>student</th><th>view</th><th>Kp</th><th>Kv</th><th>max err °</th>"
+            "<th>%OS</th><th>Ts s</th><th>yield °</th></tr>")
+    body = []
+    for r in rows:
+        kp = None if r.params is None else r.params.kp
+        kv = None if r.params is None else r.params.kv
+        body.append(
+            f"<tr><td>{esc(r.label)}</td><td>{'own arm' if r.view == 'My arm' else 'follows'}"
+            f"</td><td>{_fmt(kp, '.3g')}</td><td>{_fmt(kv, '.3g')}</td>"
+            f"<td>{_fmt(r.max_error_deg, '.2f')}</td><td>{_fmt(r.overshoot_pct, '.1f')}</td>"
+            f"<td>{_fmt(r.settling_s, '.2f')}</td><td>{_fmt(r.yield_deg, '.2f')}</td></tr>")
+    return ("<table style='font-size:0.8em;border-collapse:collapse;width:100%'>"
+            f"{head}{''.join(body)}</table>")
+
+
+class ClassOverview:
+    """The overview on one presenter's page (its own GUI: ``client.gui``).
+
+    Args:
+        client: the presenter's page.
+        on_show: called with the picked student's client id (None: hide the ghost).
+        on_use: called with the picked student's client id; returns the message to show.
+    """
+
+    def __init__(self, client: viser.ClientHandle, *, on_show: Callable[[int | None], None],
+                 on_use: Callable[[int], str]) -> None:
+        self.client = client
+        self._ids: dict[str, int] = {}
+        gui = client.gui
+        with gui.add_folder("Class", order=-93.0, expand_by_default=True):
+            self.table = gui.add_html(overview_html([]))
+            self.pick = gui.add_dropdown("Student", (NOBODY,), initial_value=NOBODY)
+            self.show = gui.add_button("Show", icon=viser.Icon.EYE,
+                                       hint="Draw this student's arm as a ghost beside "
+                                            "the shared one (on every page)")
+            self.use = gui.add_button("Use these gains", icon=viser.Icon.COPY,
+                                      hint="Copy this student's gains to the shared arm "
+                                           "(checked as any gain change)")
+        self.show.on_click(lambda _e: on_show(self.picked()))
+        self.use.on_click(lambda _e: self._use(on_use))
+
+    def picked(self) -> int | None:
+        """Client id of the picked student, or None."""
+        return self._ids.get(str(self.pick.value))
+
+    def _use(self, on_use: Callable[[int], str]) -> None:
+        cid = self.picked()
+        if cid is None:
+            self.client.add_notification("Pick a student", "Choose one in Student first.",
+                                         auto_close_seconds=5.0)
+            return
+        self.client.add_notification("Gains", on_use(cid), auto_close_seconds=8.0)
+
+    def refresh(self, rows: list[StudentRow]) -> None:
+        """Show ``rows`` (sent to the page only when something changed)."""
+        html = overview_html(rows)
+        if self.table.content != html:
+            self.table.content = html
+        ids = {r.label: r.client_id for r in rows}
+        options = (NOBODY, *ids)
+        if tuple(self.pick.options) != options:
+            keep = self.pick.value if self.pick.value in options else NOBODY
+            self.pick.options = options
+            self.pick.value = keep
+        self._ids = ids

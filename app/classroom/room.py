@@ -1,0 +1,422 @@
+"""The classroom's pages (``armlab serve --classroom``): roles, "My arm", the join QR code.
+
+Every page that joins gets, of its own (``client.gui``, seen by that page only): a
+role line, a "Passcode" field, a "Your name" field and a "View" switch between
+"Follow the teacher" (the shared arm, read-only: :class:`armlab.app.classroom.roles.Roles`
+refuses a follower's changes) and "My arm" (a private copy of the open lesson on the
+page, driving the student's own simulated arm: :mod:`armlab.app.classroom.sandboxes`). While a page
+shows its own arm, the shared lesson's panel is hidden on that page only, the
+private arm's scene nodes, named as the shared ones, are drawn there in their place,
+and the shared lesson's updates are held back from it (:mod:`armlab.app.classroom.muting`: the
+server
+does not serialise a stream the page does not show).
+"""
+
+from __future__ import annotations
+
+import secrets
+import sys
+import threading
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import viser
+from viser._messages import GuiUpdateMessage
+
+from armlab.app import collector
+from armlab.app.classroom.muting import SharedStream
+from armlab.app.classroom.overview import (
+    GHOST_OFFSET,
+    GHOST_RGBA,
+    ClassOverview,
+    StudentRow,
+    row_figures,
+)
+from armlab.app.classroom.private_page import Page
+from armlab.app.classroom.roles import Roles, address_of, new_passcode, presenter_link_code, qr_svg
+from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
+from armlab.app.lessons._common import remove_quietly
+from armlab.app.page.arm_view import ArmView
+from armlab.app.page.inputs import UpdateScreen, notify
+from armlab.app.page.publisher import FrameThread
+from armlab.app.viser_ext.page_js import ask_item
+
+if TYPE_CHECKING:
+    from armlab.app.server import Lab
+
+#: the role line of a page that follows the teacher
+FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
+                 "E-STOP works for everyone.")
+#: the role line of the presenter's page
+PRESENTER_TEXT = "**You present.** Your changes move the shared arm."
+#: the role line of a page showing its own arm
+MY_ARM_TEXT = ("**My arm.** Your own simulated arm: nothing you do here reaches the "
+               "teacher's arm or anyone else's.")
+FOLLOW, MY_ARM = "Follow the teacher", "My arm"
+#: the browser's localStorage key holding its seat (a reload finds its arm again)
+SEAT_KEY = "armlab_seat"
+#: s a page has to say which seat it has (a loaded classroom laptop or a phone can take
+#: tens of seconds to run a reloaded page), and s between questions
+SEAT_WAIT_S = 180.0
+SEAT_ASK_S = 4.0
+#: Hz of the ghost's pose; the overview tables refresh every :data:`TABLE_EVERY` ticks
+GHOST_HZ = 10.0
+TABLE_EVERY = 10
+
+
+@dataclass
+class _PageState:
+    client: viser.ClientHandle
+    role: viser.GuiMarkdownHandle
+    code: viser.GuiTextHandle
+    view: viser.GuiDropdownHandle
+    screen: UpdateScreen
+    seat: str | None = None
+    private: Any = None  #: the page's own lesson, while it shows "My arm"
+    figures: dict[str, float | None] | None = None  #: of its own lesson when it closed
+    overview: ClassOverview | None = None  #: a presenter's class overview
+
+
+class Room:
+    """The classroom side of a :class:`armlab.app.server.Lab` (see the module docstring).
+
+    Args:
+        lab: the lab (its server, lessons, E-STOP and url).
+        sandboxes: the private arms (default: a new :class:`Sandboxes`, started now: its
+            worker process is ready by the first "My arm").
+
+    Attributes:
+        roles: presenters and followers.
+    """
+
+    def __init__(self, lab: Lab, *, sandboxes: Sandboxes | None = None) -> None:
+        self.lab = lab
+        self.roles = Roles(lab.server, new_passcode())
+        self._sandboxes = Sandboxes(realtime=lab.options.realtime) if sandboxes is None \
+            else sandboxes
+        self._pages: dict[int, _PageState] = {}
+        self._lock = threading.RLock()
+        self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
+        self._stop = threading.Event()
+        #: makes the private pages' frames, one after another (armlab.app.page.publisher)
+        self._frames = FrameThread(name="armlab-private-frames")
+        #: the shared lesson's updates, held back from pages that show their own arm
+        self.stream = SharedStream(lab.server)
+        lab.server.on_client_connect(self._welcome)
+        lab.server.on_client_disconnect(self._goodbye)
+        self._ticker = threading.Thread(target=self._tick_often, name="armlab-room",
+                                        daemon=True)
+        self._ticker.start()
+
+    @property
+    def sandboxes(self) -> Sandboxes:
+        """The class's private arms."""
+        return self._sandboxes
+
+    def private_lessons(self) -> dict[int, Any]:
+        """Client id -> the lesson that page shows as "My arm" (pages showing one only)."""
+        with self._lock:
+            return {cid: s.private for cid, s in self._pages.items() if s.private is not None}
+
+    def pages(self) -> dict[int, str]:
+        """Client id -> what that page shows and whether it holds a seat (for a person
+        reading a log or a failed test)."""
+        with self._lock:
+            return {cid: f"{'presenter' if self.roles.is_presenter(cid) else s.view.value}"
+                         f"{', seat' if s.seat else ''}{', own lesson' if s.private else ''}"
+                    for cid, s in self._pages.items()}
+
+    def private_lesson(self, client_id: int) -> Any:
+        """The lesson page ``client_id`` shows as "My arm", or None."""
+        with self._lock:
+            state = self._pages.get(client_id)
+            return None if state is None else state.private
+
+    # -- pages joining and leaving -------------------------------------------------
+
+    def _welcome(self, client: viser.ClientHandle) -> None:
+        gui = client.gui
+        screen = UpdateScreen(self.lab.server, gui=gui)  # the page's own controls
+        # One atomic block: the page gets its fields only with their callbacks in place
+        # (a page quick to choose My arm would otherwise change the View unheard).
+        with client.atomic():
+            role = gui.add_markdown(FOLLOWER_TEXT, order=-97.0)
+            view = gui.add_dropdown("View", (FOLLOW, MY_ARM), initial_value=FOLLOW,
+                                    order=-96.5, hint="Follow the teacher's arm, or try your "
+                                                      "own gains on your own simulated arm")
+            code = gui.add_text("Passcode", "", order=-96.0,
+                                hint="The teacher types the passcode armlab serve printed")
+            name = gui.add_text("Your name", "", order=-95.0,
+                                hint="Shown to the teacher (e.g. when you press E-STOP)")
+            state = _PageState(client, role, code, view, screen)
+            with self._lock:
+                self._pages[client.client_id] = state
+            name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
+            code.on_update(lambda _e: self._on_passcode(state))
+            view.on_update(lambda _e: self._on_view(state))
+        self._presenter_link(state)
+        threading.Thread(target=self._find_seat, args=(state,), daemon=True,
+                         name="armlab-seat").start()
+
+    def _goodbye(self, client: viser.ClientHandle) -> None:
+        self.roles.forget(client.client_id)
+        self.stream.forget(client.client_id)
+        with self._lock:
+            state = self._pages.pop(client.client_id, None)
+        if state is not None:
+            self._close_private(state, gone=True)
+            if state.seat is not None:
+                self._sandboxes.leave(state.seat, page=client.client_id)
+
+    # -- the presenter -----------------------------------------------------------------
+
+    def _on_passcode(self, state: _PageState) -> None:
+        typed = state.code.value
+        if len(typed.strip()) < len(self.roles.passcode):
+            return  # still typing
+        state.code.value = ""
+        self._try_passcode(state, typed, refused="Passcode refused", then="", seconds=8.0)
+
+    def _presenter_link(self, state: _PageState) -> None:
+        """A page opened from the presenter link (``armlab serve`` prints it) presents at
+        once; its passcode is checked, and counted, as a typed one."""
+        code = presenter_link_code(self.lab.server, state.client.client_id,
+                                   self.lab.gate.presenter_cookie)
+        if code is not None:
+            self._try_passcode(state, code, refused="Presenter link refused",
+                               then=". Type the passcode into the Passcode field.",
+                               seconds=12.0)
+
+    def _try_passcode(self, state: _PageState, code: str, *, refused: str, then: str,
+                      seconds: float) -> None:
+        """The page presents if ``code`` is the passcode (checked and counted by
+        :meth:`Roles.try_passcode`); else one notification ``refused`` saying why."""
+        cid = state.client.client_id
+        why = self.roles.try_passcode(cid, code, key=address_of(self.lab.server, cid))
+        if why is None:
+            self._present(state)
+            return
+        state.client.add_notification(refused, why + then, color="red",
+                                      auto_close_seconds=seconds)
+
+    def _present(self, state: _PageState) -> None:
+        """Page ``state`` now presents: its Passcode and View fields go, the students' QR
+        code and the class overview come."""
+        if state.view.value != FOLLOW:
+            state.view.value = FOLLOW  # a presenter drives the shared arm
+        state.code.remove()
+        state.view.remove()
+        state.role.content = PRESENTER_TEXT
+        gui = state.client.gui
+        with gui.add_folder("Students join", order=-94.0, expand_by_default=False):
+            gui.add_html(f"<div style='text-align:center'>{qr_svg(self.lab.url)}"
+                         f"<div style='font-size:0.85em;word-break:break-all'>"
+                         f"{self.lab.url}</div></div>")
+        state.overview = ClassOverview(state.client, on_show=self.show_ghost,
+                                       on_use=self.use_gains)
+        state.client.add_notification("You present", "You now change the shared arm.",
+                                      color="green", auto_close_seconds=5.0)
+
+    def tell_presenters(self, title: str, body: str) -> None:
+        """A red notification on every presenter's page."""
+        clients = self.lab.server.get_clients()
+        for cid in self.roles.presenters():
+            if (client := clients.get(cid)) is not None:
+                client.add_notification(title, body, color="red", auto_close_seconds=15.0)
+
+    # -- "My arm" -------------------------------------------------------------------------
+
+    def _find_seat(self, state: _PageState) -> None:
+        """A reload: if the browser holds a seat that is still kept, show its arm again.
+
+        Asked every :data:`SEAT_ASK_S` s until the page answers, leaves, or
+        :data:`SEAT_WAIT_S` s have passed: a page that has only just connected may not
+        answer the first question, and a busy one answers late."""
+        try:
+            key = ask_item(state.client, SEAT_KEY, every=SEAT_ASK_S, within=SEAT_WAIT_S)
+        except (TimeoutError, RuntimeError):  # no answer, the page left, no localStorage
+            return
+        if key and self._sandboxes.has(key):
+            state.seat = key
+            state.view.value = MY_ARM  # fires _on_view
+
+    def _seat_of(self, state: _PageState) -> str:
+        if state.seat is None:
+            state.seat = secrets.token_urlsafe(16)
+            state.client.local_storage.set_item(SEAT_KEY, state.seat)
+        return state.seat
+
+    def _on_view(self, state: _PageState) -> None:
+        with self._lock:
+            if state.view.value == FOLLOW:
+                self._close_private(state)
+                return
+            if state.private is not None:
+                return
+            lab = self.lab
+            module = lab.lesson_module
+            if not getattr(module, "PRIVATE", False):
+                notify(state.client, "No private arm here",
+                       f"The lesson {module.TITLE!r} has no private arm yet; you follow "
+                       "the teacher.")
+                state.view.value = FOLLOW
+                return
+            try:
+                seat = self.sandboxes.seat(self._seat_of(state), page=state.client.client_id)
+            except ClassFull as exc:
+                notify(state.client, "The class is full", str(exc))
+                state.view.value = FOLLOW
+                return
+            ctx = replace(lab.lesson_ctx, backend="sim", port=None, baud=None,
+                          joint_map=None, arms=seat, frames=self._frames)
+            self.show_shared(state.client, shown=False)
+            self.stream.hold(state.client.client_id)
+            try:
+                state.private = module.build(Page(state.client), ctx)
+                collector.keep()  # the page's lesson lives as long as the page
+            except BaseException:
+                self.stream.release(state.client)
+                self.show_shared(state.client, shown=True)
+                state.view.value = FOLLOW
+                raise
+            state.role.content = MY_ARM_TEXT
+
+    def _close_private(self, state: _PageState, *, gone: bool = False) -> None:
+        """Close the page's own lesson (its arm is kept); unless the page is ``gone``,
+        show the shared lesson there again."""
+        with self._lock:
+            lesson, state.private = state.private, None
+        if lesson is None:
+            return
+        state.figures = row_figures(lesson)
+        lesson.close()
+        collector.closed()
+        if not gone:
+            self.stream.release(state.client)  # the shared lesson as it is now, then live
+            self.show_shared(state.client, shown=True)
+            state.role.content = FOLLOWER_TEXT
+
+    def lesson_changed(self) -> None:
+        """The shared lesson was replaced: pages showing their own arm follow again."""
+        with self._lock:
+            states = [s for s in self._pages.values() if s.private is not None]
+        for state in states:
+            self._close_private(state)
+            state.view.value = FOLLOW
+            notify(state.client, "The teacher opened another lesson",
+                   "You follow the teacher again; choose My arm to try it yourself.")
+
+    def show_shared(self, client: viser.ClientHandle, *, shown: bool) -> None:
+        """Show or hide the shared lesson's panel on ``client``'s page only."""
+        lesson = self.lab.lesson
+        handles = lesson.gui_handles() if hasattr(lesson, "gui_handles") else ()
+        for handle in handles:
+            visible = bool(handle.visible) and shown
+            client._websock_connection.queue_message(  # type: ignore[attr-defined]
+                GuiUpdateMessage(handle._impl.uuid, {"visible": visible}))
+
+    # -- the class overview ------------------------------------------------------------
+
+    def rows(self) -> list[StudentRow]:
+        """Every student (a page that does not present), as the overview shows them."""
+        with self._lock:
+            states = [s for s in self._pages.values()
+                      if not self.roles.is_presenter(s.client.client_id)]
+        rows = []
+        for s in states:
+            cid = s.client.client_id
+            lesson = s.private
+            params = None
+            if lesson is not None and getattr(lesson, "rig", None) is not None:
+                params = lesson.rig.loop.params
+            elif s.seat is not None:
+                params = self._sandboxes.kept_params(s.seat)
+            figures = row_figures(lesson) if lesson is not None else (s.figures or {})
+            rows.append(StudentRow(cid, self.roles.name(cid), str(s.view.value), params,
+                                   **figures))
+        return sorted(rows, key=lambda r: r.client_id)
+
+    def _loop_of(self, client_id: int) -> Any:
+        with self._lock:
+            state = self._pages.get(client_id)
+        if state is None or state.seat is None:
+            return None
+        return self._sandboxes.loop_of(state.seat)
+
+    def show_ghost(self, client_id: int | None) -> None:
+        """Draw the arm of student ``client_id`` as a ghost beside the shared one on every
+        page (None: remove it)."""
+        with self._lock:
+            old, self._ghost = self._ghost, None
+            if old is not None:
+                old[1].remove()
+            loop = None if client_id is None else self._loop_of(client_id)
+            if client_id is None:
+                return
+            if loop is None:
+                self.tell_presenters("Nothing to show", "That student has no arm of their own "
+                                     "yet (they choose My arm).")
+                return
+            ghost = ArmView(self.lab.server, loop.model, root="/class/ghost", color=GHOST_RGBA)
+            ghost.root.position = GHOST_OFFSET
+            self._ghost = (client_id, ghost)
+
+    def use_gains(self, client_id: int) -> str:
+        """Copy student ``client_id``'s gains to the shared arm; what happened, for a person."""
+        loop = self._loop_of(client_id)
+        gains = getattr(self.lab.lesson, "gains", None)
+        if loop is None:
+            return "That student has no arm of their own yet: no gains to copy."
+        if gains is None:
+            return "The open lesson has no gains to set."
+        params = loop.params
+        try:
+            gains.set_params(params)
+        except ValueError as exc:
+            return f"Not copied: {exc}"
+        return (f"The shared arm now has {self.roles.name(client_id)}'s gains: Kp {params.kp:g}, "
+                f"Kv {params.kv:g}, M_env {params.m_env:g}, D_env {params.d_env:g}, "
+                f"K_env {params.k_env:g}, K_f {params.k_f:g}.")
+
+    def _tick_often(self) -> None:
+        k = 0
+        while not self._stop.wait(1.0 / GHOST_HZ):
+            k += 1
+            if k % TABLE_EVERY == 0:
+                collector.tidy(every_s=collector.TIDY_EVERY_S)  # what closed lessons left
+            try:
+                self._tick(tables=k % TABLE_EVERY == 0)
+            except Exception as exc:  # a page gone mid-update: next tick
+                print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200],
+                      file=sys.stderr, flush=True)
+
+    def _tick(self, *, tables: bool) -> None:
+        with self._lock:
+            ghost = self._ghost
+            overviews = [s.overview for s in self._pages.values() if s.overview is not None]
+        if ghost is not None:
+            loop = self._loop_of(ghost[0])
+            if loop is None:
+                self.show_ghost(None)
+            else:
+                snap = loop.recorder.snapshot(0.1)
+                if len(snap["t"]):
+                    ghost[1].set_q(snap["q"][-1])
+        if tables and overviews:
+            rows = self.rows()
+            for overview in overviews:
+                overview.refresh(rows)
+
+    def close(self) -> None:
+        """Close every private lesson and the class's arms."""
+        self._stop.set()
+        with self._lock:
+            ghost, self._ghost = self._ghost, None
+        if ghost is not None:
+            remove_quietly(ghost[1].root)
+        with self._lock:
+            states = list(self._pages.values())
+        for state in states:
+            self._close_private(state)
+        self._frames.close()
+        self._sandboxes.close()

@@ -1,0 +1,187 @@
+"""The gripper's servo of an arm: on ROBOTIS's OpenManipulator-X one XM430-W350 (ID 15)
+opens and closes both fingers.
+
+**Finger and horn.** The URDF draws the gripper as the prismatic ``gripper_left_joint``
+(finger travel x, m; the right finger mimics it). The servo turns a horn angle a (rad
+from the centre, raw 2048) that the gripper's linkage turns into finger travel; the lab
+takes the two linearly related, as ROBOTIS's own ROS 2 driver does
+(``open_manipulator_x_system.ros2_control.xacro`` of ROBOTIS-GIT/open_manipulator,
+"revolute to prismatic gripper": horn 0.92 rad at x = -0.010 m, closed; -1.52 rad at
+x = 0.019 m, open). The gripper's range is the URDF's finger limit (-0.010..0.019 m)
+converted to the horn (:meth:`GripperServo.to_servo`): the horn turns through 2.44 rad
+(140°) for 29 mm of finger travel, 11.9 mm a radian.
+
+**Grip.** The servo runs in current-based position control (operating mode 5, which
+ROBOTIS's e-manual requires for the gripper module, "Basic Operation"), so Goal
+Current bounds its torque whatever the position error: squeezing an object, the
+fingers press with at most :data:`GRIPPER_CURRENT` × torque constant at the horn, and
+never more. ROBOTIS's open_manipulator_libs gives the OpenManipulator-X's gripper Goal
+Current 200 (0.54 A) and the tool of its planar manipulator 100; the lab takes the
+gentler 100 counts of the XM430 (0.27 A, 0.48 N·m at the horn: by virtual work about
+20 N on each finger, :meth:`GripperServo.finger_force`).
+
+**Load** (the emulator's and the simulator's gripper): the horn drives the two fingers'
+mass through the linkage, :func:`reflected_inertia` (ROBOTIS's tool mass for the
+gripper in open_manipulator_libs, 2 × 32.2 g, taken as the moving fingers), on top of
+the servo's own rotor; the fingers stop at the ends of their travel (a finger closing
+on nothing reaches its limit). Their weight along the travel is neglected (0.6 N of
+fingers, 7 mN·m at the horn, well under the gear friction).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from armlab.control.backend import GripperState
+from armlab.hardware.servos.xseries import (
+    CURRENT_POSITION_D_GAIN,
+    VELOCITY_UNIT,
+    XSpec,
+    x_table_for,
+)
+from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.xseries_servo import XRegisters
+from armlab.hardware.wire import protocol2 as p2
+from armlab.kinematics.model import Joint, Link, SerialChain, joint_limits
+
+#: The OpenManipulator-X's finger joint in its URDF.
+OMX_FINGER_JOINT = "gripper_left_joint"
+#: rad, the horn at the finger's closed and open ends (ROBOTIS's ROS 2 driver, above).
+OMX_CLOSED_ANGLE, OMX_OPEN_ANGLE = 0.92, -1.52
+#: kg, the two fingers the horn moves (ROBOTIS open_manipulator_libs: 2 × 3.2218127e-02).
+FINGERS_MASS = 2 * 3.2218127e-02
+#: A, the gripper's Goal Current: 100 counts of the XM430-W350's 2.69 mA (see above).
+GRIPPER_CURRENT = 100 * 2.69e-3
+#: rad/s of the horn between goals: open to closed in about 1 s; and as the Profile
+#: Velocity counts (0.229 rpm) its goals are sent with.
+GRIPPER_SPEED = 2.5
+GRIPPER_PROFILE_VELOCITY = round(GRIPPER_SPEED / VELOCITY_UNIT)
+
+
+@dataclass(frozen=True)
+class GripperServo:
+    """The servo that drives an arm's gripper and how its horn moves the finger.
+
+    Attributes:
+        servo_id: its Dynamixel ID (15 on the OpenManipulator-X).
+        joint: the URDF's finger joint it drives (prismatic, m).
+        lower, upper: m, the finger's range (closed, open): the URDF's limits.
+        closed_angle, open_angle: rad from the horn's centre at ``lower`` and ``upper``.
+    """
+
+    servo_id: int
+    joint: str
+    lower: float
+    upper: float
+    closed_angle: float
+    open_angle: float
+
+    def __post_init__(self) -> None:
+        who = f"gripper servo ID {self.servo_id} ({self.joint})"
+        if not 0 <= self.servo_id <= p2.MAX_ID:
+            raise ValueError(f"{who}: ID outside 0..{p2.MAX_ID}")
+        values = (self.lower, self.upper, self.closed_angle, self.open_angle)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"{who}: its range and horn angles must be finite")
+        if not self.lower < self.upper:
+            raise ValueError(f"{who}: closed {self.lower} m must be below open {self.upper} m")
+        if abs(self.open_angle - self.closed_angle) < 1e-6:
+            raise ValueError(f"{who}: the horn angles closed and open must differ")
+
+    @property
+    def ratio(self) -> float:
+        """dx/da, m of finger travel per rad of the horn (negative on the OMX)."""
+        return (self.upper - self.lower) / (self.open_angle - self.closed_angle)
+
+    def to_servo(self, x: float) -> float:
+        """Finger position x (m) -> horn angle a (rad): a = a_closed + (x − lower) / ratio."""
+        return self.closed_angle + (float(x) - self.lower) / self.ratio
+
+    def to_finger(self, a: float) -> float:
+        """Horn angle a (rad) -> finger position x (m): x = lower + ratio · (a − a_closed)."""
+        return self.lower + self.ratio * (float(a) - self.closed_angle)
+
+    def clamp(self, x: float) -> float:
+        """A finger goal (m) inside [lower, upper]; ValueError for a non-finite one."""
+        x = float(x)
+        if not math.isfinite(x):
+            raise ValueError(f"gripper goal must be a finite position in m, got {x}")
+        return min(max(x, self.lower), self.upper)
+
+    @property
+    def angle_range(self) -> tuple[float, float]:
+        """(lowest, highest) horn angle of the finger's range, rad."""
+        return tuple(sorted((self.closed_angle, self.open_angle)))  # type: ignore[return-value]
+
+    def finger_force(self, torque: float) -> float:
+        """Horn torque (N·m) -> the force each of the two fingers presses with (N), by
+        virtual work: tau · da = 2 F · dx, so F = tau / (2 |dx/da|)."""
+        return float(torque) / (2.0 * abs(self.ratio))
+
+
+def open_manipulator_gripper(urdf_path: str | Path, *, servo_id: int = 15) -> GripperServo:
+    """The OpenManipulator-X's gripper servo, its range read from the URDF's finger joint.
+
+    Raises:
+        armlab.kinematics.model.URDFError: the file has no ``gripper_left_joint`` with limits.
+    """
+    lower, upper = joint_limits(urdf_path, OMX_FINGER_JOINT)
+    return GripperServo(servo_id, OMX_FINGER_JOINT, lower, upper, OMX_CLOSED_ANGLE,
+                        OMX_OPEN_ANGLE)
+
+
+def reflected_inertia(gripper: GripperServo, *, mass: float = FINGERS_MASS) -> float:
+    """kg·m² the fingers add at the horn: their kinetic energy ½ m ẋ² with ẋ = (dx/da) ȧ
+    is that of an inertia m (dx/da)² turning at ȧ."""
+    return mass * gripper.ratio ** 2
+
+
+def gripper_chain(gripper: GripperServo) -> SerialChain:
+    """The gripper's load as a one-joint chain a :class:`~armlab.hardware.sim.plant.Plant` moves:
+    the
+    horn's revolute joint (about the vertical, so gravity does no work) carrying
+    :func:`reflected_inertia`, its limits the horn angles at the fingers' ends."""
+    lo, hi = gripper.angle_range
+    inertia = np.diag([0.0, 0.0, reflected_inertia(gripper)])
+    joint = Joint(f"{gripper.joint} (servo horn)", "revolute", np.eye(4),
+                  np.array([0.0, 0.0, 1.0]), lo, hi, math.inf, math.inf)
+    return SerialChain("gripper", (joint,), (Link("fingers", 0.0, np.zeros(3), inertia),),
+                       base_pose=np.eye(4), tip=np.eye(4), gravity=np.array([0.0, 0.0, -9.81]))
+
+
+def gripper_plant(gripper: GripperServo, spec: XSpec, *, dt: float = 1e-3,
+                  registers: XRegisters | None = None) -> Plant:
+    """The gripper's servo firmware moving its load (:func:`gripper_chain`), horn at its
+    centre, the fingers' ends as the plant's joint stops. ``registers``: the servo's
+    (default: its power-on values, as an emulated servo starts)."""
+    return Plant(gripper_chain(gripper), spec, dt=dt,
+                 registers=None if registers is None else [registers])
+
+
+def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:
+    """The RAM items the lab sets on a gripper's servo in current-based position control,
+    as (item, raw value, a line for the log): Goal Current :data:`GRIPPER_CURRENT` (never
+    above the model's Current Limit) and the Position D Gain the arm's servos get."""
+    limit = x_table_for(spec.model_number).item("current_limit").default
+    raw = min(spec.current_to_raw(GRIPPER_CURRENT), int(limit))
+    torque = spec.raw_to_torque(raw)
+    return (("goal_current", raw, f"goal current {raw} ({spec.raw_to_current(raw):.2f} A: "
+             f"at most {torque:.2f} N·m at the horn, a gentle grip)"),
+            ("position_d_gain", CURRENT_POSITION_D_GAIN,
+             f"position D gain {CURRENT_POSITION_D_GAIN}"))
+
+
+def decode_gripper(gripper: GripperServo, spec: XSpec, *, position: int, velocity: int,
+                   current: int, torque_on: bool, alarm: str = "") -> GripperState:
+    """The gripper servo's raw Present Position, Velocity and Current as the finger's
+    position m, speed m/s, the horn's torque N·m and the force of each finger N."""
+    effort = spec.raw_to_torque(current)
+    return GripperState(joint=gripper.joint,
+                        position=gripper.to_finger(spec.raw_to_position(position)),
+                        velocity=gripper.ratio * spec.raw_to_velocity(velocity),
+                        effort=effort, force=gripper.finger_force(effort),
+                        torque_on=torque_on, alarm=alarm)

@@ -1,0 +1,778 @@
+"""A Dynamixel servo bus over pyserial (protocol 1.0 or 2.0): one transaction at a time,
+bounded retries.
+
+Thesis §3.5: the controller sends an instruction packet, then waits for the
+status packet before the next one (half duplex). :class:`Bus` does that for
+any number of threads (a lock around each transaction), with a timeout
+computed from the bytes on the wire, the baud and the servo's return delay
+instead of the official SDK's fixed ~34 ms, a bounded number of retries
+(counted in :attr:`Bus.stats`), optional echo cancellation for half-duplex
+TTL adapters that hear their own transmission, and optional RS-485 mode for
+native UARTs (not applicable on USB adapters and ptys, which is fine).
+
+Every failure a person can cause ends in one :class:`BusError` line that says
+what to do: port missing, permission denied (dialout group), port busy, no
+reply (power, baud, ID, protocol), wrong model, link lost.
+
+One bus speaks one protocol (``Bus(port, protocol=2)`` for X-series servos): the
+packets differ (:mod:`armlab.hardware.wire.protocol1`, :mod:`armlab.hardware.wire.protocol2`), the
+timing and
+the named access through the servo's control table do not. Protocol 2.0 adds reads of
+many servos in one request (:meth:`Bus.sync_read`, :meth:`Bus.bulk_read`) and REBOOT.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import logging
+import os
+import select
+import struct
+import termios
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+import serial
+
+from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
+from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
+from armlab.hardware.servos.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
+from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.wire.protocol1 import wire_time
+
+log = logging.getLogger("armlab.bus")
+
+TIOCGRS485 = 0x542E
+#: The protocols a bus speaks (one at a time).
+PROTOCOLS = (1, 2)
+#: Error bits that mean "this write was refused" (the others describe the servo's state).
+REFUSED = p1.ErrorBits.RANGE | p1.ErrorBits.INSTRUCTION | p1.ErrorBits.CHECKSUM
+SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
+
+
+class BusError(OSError):
+    """The bus cannot do what was asked; the message says what to check.
+
+    An OSError (an I/O failure), which a command line prints as one line; the
+    backend over the bus (:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend`)
+    hands it to the control loop as a :class:`~armlab.control.backend.BackendError`.
+    """
+
+
+class PortError(BusError):
+    """The serial port cannot be opened (missing, permission, busy)."""
+
+
+class NoReply(BusError):
+    """A servo did not answer after every retry."""
+
+
+class WrongModel(BusError):
+    """A servo answered with another model number than expected."""
+
+
+class LinkLost(BusError):
+    """The serial device went away in the middle of a transaction."""
+
+
+@dataclass
+class BusStats:
+    """Counters since the bus was opened.
+
+    Attributes:
+        transactions: instruction packets sent.
+        replies: valid status packets received.
+        retries: packets sent again after a timeout or a broken reply.
+        timeouts: waits that ended with no valid reply.
+        corrupt: replies dropped for a bad checksum or wrong length/ID.
+        failures: transactions that ran out of retries.
+        bytes_out, bytes_in: bytes written and read.
+    """
+
+    transactions: int = 0
+    replies: int = 0
+    retries: int = 0
+    timeouts: int = 0
+    corrupt: int = 0
+    failures: int = 0
+    bytes_out: int = 0
+    bytes_in: int = 0
+
+
+def reply_timeout(request: int, reply: int, baud: float, return_delay: int, margin: float) -> float:
+    """Seconds to wait for a status packet: wire time of request + reply, the servo's
+    return delay (2 µs a unit, thesis §2.3) and a margin for the adapter and the OS."""
+    return wire_time(request + reply, baud) + RETURN_DELAY_UNIT * return_delay + margin
+
+
+def ftdi_latency_ms(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:
+    """The FTDI latency timer of ``port`` in ms, or None when it is not a usb-serial device."""
+    dev = Path(os.path.realpath(port)).name
+    try:
+        return int((sysfs / dev / "latency_timer").read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | None:
+    """Warn when an FTDI adapter's latency timer will cost ~16 ms per transaction.
+
+    Returns None when the port is not a usb-serial device or the timer is 1 ms,
+    otherwise a one-line message naming the fix.
+    """
+    value = ftdi_latency_ms(port, sysfs=sysfs)
+    if value is None or value <= 1:
+        return None
+    timer = sysfs / Path(os.path.realpath(port)).name / "latency_timer"
+    return (
+        f"{port}: FTDI latency timer is {value} ms, so every servo reply waits up to {value} ms; "
+        f"fix: echo 1 | sudo tee {timer}  (or a udev rule ATTR{{latency_timer}}=\"1\")"
+    )
+
+
+WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
+PTY_MARGIN = 0.100  #: s on a pseudo-terminal (the emulator: a process, not a wire)
+#: s at most spent polling (not sleeping) for the last reply a transaction waits for: a
+#: woken thread comes back some 40 µs after the bytes, a polling one at once (the
+#: official SDK polls the whole wait; this keeps the CPU for the servos' turn-around)
+LAST_REPLY_POLL_S = 0.0003
+WIRE_RETRIES = 2  #: extra attempts after a lost or broken reply on a serial adapter
+PTY_RETRIES = 8  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.5 s or more
+
+
+def is_pty(port: str) -> bool:
+    """``port`` is (a link to) a pseudo-terminal, e.g. ``armlab emulate``'s /dev/pts/N."""
+    return os.path.realpath(port).startswith("/dev/pts/")
+
+
+def open_port(port: str, baud: float, *, exclusive: bool = True) -> serial.Serial:
+    """Open ``port`` 8N1 at ``baud``; :class:`PortError` with the fix for the usual failures."""
+    try:
+        return serial.Serial(port, int(round(baud)), timeout=0, write_timeout=1.0,
+                             exclusive=exclusive)
+    except serial.SerialException as exc:
+        code = exc.errno
+        if code == errno.ENOENT or not os.path.exists(port):
+            raise PortError(
+                f"serial port {port} not found: is the adapter plugged in? "
+                "(ls /dev/ttyUSB* /dev/ttyACM* /dev/serial/by-id/)"
+            ) from None
+        if code == errno.EACCES:
+            raise PortError(
+                f"permission denied on {port}: add yourself to the dialout group "
+                "(sudo usermod -aG dialout $USER, then log out and in)"
+            ) from None
+        if code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK):
+            raise PortError(
+                f"serial port {port} is busy: another program (another armlab, "
+                "Dynamixel Wizard, ModemManager) has it open"
+            ) from None
+        raise PortError(f"cannot open serial port {port}: {exc}") from None
+
+
+class Bus:
+    """Protocol 1.0 or 2.0 on one serial port.
+
+    Args:
+        port: device path (/dev/ttyUSB0, /dev/pts/N of the emulator).
+        baud: bit/s (1 000 000 in the thesis).
+        retries: extra attempts after a timeout or a broken reply (bounded; None: 2 on a
+            serial adapter, 8 on a pseudo-terminal).
+        timeout_margin: s added to the computed wire time of each reply (None: 20 ms
+            on a serial adapter, 100 ms on a pseudo-terminal, whose "servos" are a process
+            on this computer that answers when the scheduler lets it); raised to the
+            adapter's FTDI latency timer + 5 ms where that is longer (a 16 ms timer
+            would otherwise time out every reply).
+        echo: the adapter echoes what it sends (half-duplex TTL with TX and RX tied).
+        rs485: switch a native UART into kernel RS-485 mode (not applicable on a
+            USB adapter or a pty; noted in :attr:`notes`, not an error).
+        table: control table assumed for servos not yet identified (None: the RX-24F's
+            on protocol 1.0, the XM430-W350's on 2.0).
+        exclusive: lock the port against other programs.
+        protocol: 1 (AX, RX, MX servos) or 2 (X-series).
+
+    Attributes:
+        stats: :class:`BusStats` counters.
+        notes: one-line remarks from opening (latency timer, RS-485 not applicable).
+        errors: last error reported by each servo ID (protocol 1.0: its error bits;
+            2.0: its :class:`~armlab.hardware.wire.protocol2.StatusError`).
+        late_ids: IDs whose status packet came while the bus waited for another servo's
+            (a late reply: the scan pings them again).
+        tables: control table of each identified servo ID.
+        status_return_level: what each ID answers (2 = everything, 1 = READ only).
+        return_delay: each ID's return delay setting (2 µs units).
+    """
+
+    def __init__(self, port: str, baud: float = 1_000_000, *, retries: int | None = None,
+                 timeout_margin: float | None = None, echo: bool = False, rs485: bool = False,
+                 table: ControlTable | None = None, exclusive: bool = True, protocol: int = 1):
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"protocol: 1 (AX, RX, MX servos) or 2 (X-series), got {protocol!r}")
+        if retries is None:
+            retries = PTY_RETRIES if is_pty(port) else WIRE_RETRIES
+        if retries < 0:
+            raise ValueError(f"retries must be >= 0, got {retries}")
+        if timeout_margin is None:
+            timeout_margin = PTY_MARGIN if is_pty(port) else WIRE_MARGIN
+        if not timeout_margin > 0:
+            raise ValueError(f"timeout_margin must be > 0 s, got {timeout_margin}")
+        self.port = port
+        self.protocol = protocol
+        self._p = p1 if protocol == 1 else p2
+        if table is None:
+            table = RX24F_TABLE if protocol == 1 else XM430_W350_TABLE
+        self.retries = int(retries)
+        self.timeout_margin = float(timeout_margin)
+        self.echo = bool(echo)
+        self.table = table
+        self.stats = BusStats()
+        self.notes: list[str] = []
+        self.errors: dict[int, p1.ErrorBits | p2.StatusError] = {}
+        self.late_ids: set[int] = set()
+        self.tables: dict[int, ControlTable] = {}
+        self.status_return_level: dict[int, int] = {}
+        self.return_delay: dict[int, int] = {}
+        self._lock = threading.Lock()
+        self._baud = float(baud)
+        self._tx_free = 0.0  # monotonic time the UART will have sent all queued bytes
+        self._ser = open_port(port, baud, exclusive=exclusive)
+        self._fd = self._ser.fileno()
+        if rs485:
+            self._enable_rs485()
+        latency = ftdi_latency_ms(port)
+        if latency is not None:
+            self.timeout_margin = max(self.timeout_margin, latency / 1000.0 + 0.005)
+        note = ftdi_latency_check(port)
+        if note:
+            self.notes.append(note)
+            log.warning(note)
+
+    # -- port ---------------------------------------------------------------
+
+    @property
+    def baud(self) -> float:
+        return self._baud
+
+    def set_baud(self, baud: float) -> None:
+        """Talk at another rate from now on (after the servos were told to switch)."""
+        with self._lock:
+            try:
+                self._ser.baudrate = int(round(baud))
+            except (serial.SerialException, OSError, ValueError) as exc:
+                raise BusError(f"cannot set {self.port} to {baud:g} bps: {exc}") from None
+            self._baud = float(baud)
+
+    def close(self) -> None:
+        """Release the port (idempotent)."""
+        with self._lock:
+            if self._ser.is_open:
+                self._ser.close()
+
+    def __enter__(self) -> Bus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _enable_rs485(self) -> None:
+        try:
+            fcntl.ioctl(self._fd, TIOCGRS485, bytearray(32))
+        except OSError as exc:
+            if exc.errno == errno.ENOTTY:
+                note = f"{self.port}: RS-485 mode not applicable (USB adapter or pty)"
+                self.notes.append(note)
+                log.info(note)
+                return
+            raise PortError(f"cannot query RS-485 mode on {self.port}: {exc}") from None
+        import serial.rs485
+
+        self._ser.rs485_mode = serial.rs485.RS485Settings(
+            rts_level_for_tx=True, rts_level_for_rx=False
+        )
+        self.notes.append(f"{self.port}: kernel RS-485 mode on")
+
+    # -- transactions -------------------------------------------------------
+
+    def status_length(self, data_bytes: int = 0) -> int:
+        """Bytes of a status packet carrying ``data_bytes`` of data, in this bus's protocol
+        (before protocol 2.0's byte stuffing)."""
+        if self.protocol == 1:
+            return p1.OVERHEAD + data_bytes
+        return p2.status_length(data_bytes)
+
+    @property
+    def broadcast_id(self) -> int:
+        """The ID every servo listens to (0xFE in both protocols; no servo answers it)."""
+        return self._p.BROADCAST_ID
+
+    def _id_of(self, packet: bytes) -> int:
+        """The ID an encoded packet is sent to (or comes from)."""
+        return packet[2] if self.protocol == 1 else packet[4]
+
+    def transact(self, packet: bytes, *, reply: bool, reply_length: int | None = None,
+                 tries: int | None = None, margin: float | None = None
+                 ) -> p1.StatusPacket | p2.StatusPacket | None:
+        """Send one instruction packet; return its status packet (None when none is due).
+
+        ``reply_length``: bytes of the expected status packet (default: one without
+        data). Retries up to ``tries - 1`` more times (default ``retries + 1`` tries in
+        all) on a timeout or a broken reply; :class:`NoReply` when all fail.
+        """
+        servo_id = self._id_of(packet)
+        if reply_length is None:
+            reply_length = self.status_length()
+        tries = self.retries + 1 if tries is None else max(1, int(tries))
+        delay = self.return_delay.get(servo_id, 254)
+        want = {servo_id: reply_length - self.status_length()}
+        with self._lock:
+            for attempt in range(tries):
+                if attempt:
+                    self.stats.retries += 1
+                backlog = self._send(packet)
+                timeout = backlog + reply_timeout(
+                    len(packet), reply_length, self._baud, delay,
+                    self.timeout_margin if margin is None else margin)
+                if not reply:
+                    if self.echo:
+                        self._receive(packet, {}, timeout=timeout, echo_only=True)
+                    return None
+                statuses = self._receive(packet, want, timeout=timeout)
+                if statuses:
+                    return statuses[servo_id]
+            self.stats.failures += 1
+        raise self._no_reply([servo_id], tries)
+
+    def _no_reply(self, ids: list[int], tries: int, what: str = "") -> NoReply:
+        who = f"servo {ids[0]}" if len(ids) == 1 else \
+            f"servos {', '.join(str(i) for i in ids)}"
+        return NoReply(
+            f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
+            f"after {tries} tries: check the servos' power (a U2D2 supplies none), "
+            f"the baud (armlab scan --port {self.port}), the ID, and that they speak "
+            f"protocol {self.protocol}.0"
+        )
+
+    def _send(self, packet: bytes) -> float:
+        """Write a packet; return the s of earlier packets still on the wire before it
+        (a reply can only come after the UART has sent everything queued)."""
+        if not self._ser.is_open:  # its fd's number may belong to another file by now
+            raise self._lost("the port is closed")
+        try:  # the syscalls themselves, without pyserial's wait for a writable port after
+            termios.tcflush(self._fd, termios.TCIFLUSH)
+            try:
+                sent = os.write(self._fd, packet)
+            except BlockingIOError:
+                sent = 0
+            if sent < len(packet):  # the output buffer is full: pyserial waits for room
+                self._ser.write(packet[sent:])
+        except (serial.SerialException, OSError, termios.error) as exc:
+            raise self._lost(exc) from None
+        now = time.monotonic()
+        backlog = max(0.0, self._tx_free - now)
+        self._tx_free = now + backlog + wire_time(len(packet), self._baud)
+        self.stats.transactions += 1
+        self.stats.bytes_out += len(packet)
+        return backlog
+
+    def _lost(self, exc: BaseException) -> LinkLost:
+        return LinkLost(
+            f"lost the serial link on {self.port} ({exc}): is the adapter unplugged, "
+            "the servo power off, or the emulator stopped?"
+        )
+
+    def _receive(self, request: bytes, want: dict[int, int], *, timeout: float,
+                 echo_only: bool = False, protocol: ModuleType | None = None
+                 ) -> dict[int, p1.StatusPacket | p2.StatusPacket]:
+        """The status packets of the servos in ``want`` (ID -> bytes of data each answers
+        with) that arrive within ``timeout`` s; all of them, or those that came when the
+        wait ended (a timeout, or a broken reply after which nothing more is pending).
+
+        ``protocol``: the packet module (:mod:`~armlab.hardware.wire.protocol1` or
+        :mod:`~armlab.hardware.wire.protocol2`) to parse with, when not the bus's own (a probe of
+        the
+        other protocol: its answers are not kept in :attr:`errors`)."""
+        own = protocol is None or protocol is self._p
+        p = self._p if protocol is None else protocol
+        parser = p.PacketParser()
+        deadline = time.monotonic() + timeout
+        echo_pending = self.echo
+        if echo_pending:
+            deadline += wire_time(len(request), self._baud)
+        got: dict[int, p1.StatusPacket | p2.StatusPacket] = {}
+        while True:
+            # past the deadline still look once (timeout 0): a client the OS paused
+            # must not miss a reply that came in time
+            last = len(want) - len(got) == 1 and not echo_pending
+            chunk = self._read_chunk(max(0.0, deadline - time.monotonic()),
+                                     poll=LAST_REPLY_POLL_S if last else 0.0)
+            if chunk is None:
+                break
+            for raw in parser.feed(chunk):
+                if echo_pending and raw == request:
+                    echo_pending = False
+                    if echo_only:
+                        return got
+                    continue
+                try:
+                    status = p.decode_status(raw, checked=True)
+                except (p1.ProtocolError, p2.ProtocolError):  # an instruction: not ours
+                    self.stats.corrupt += 1
+                    continue
+                if want.get(status.servo_id) != len(status.params) or status.servo_id in got:
+                    log.debug("stray packet %s waiting for %s", raw.hex(" "), request.hex(" "))
+                    self.stats.corrupt += 1
+                    self.late_ids.add(status.servo_id)
+                    continue
+                self.stats.replies += 1
+                if own:
+                    self.errors[status.servo_id] = status.error
+                got[status.servo_id] = status
+                if len(got) == len(want):
+                    return got
+            if _broken(parser) and not parser.pending:
+                break  # a broken reply: retry now rather than wait out the timeout
+        self.stats.timeouts += 1
+        self.stats.corrupt += _broken(parser)
+        if not echo_only:
+            log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
+        return got
+
+    def _read_chunk(self, timeout: float, *, poll: float = 0.0) -> bytes | None:
+        """The bytes that arrive within ``timeout`` s (None: none did), polled for the first
+        ``poll`` s (``select`` without sleeping), then waited for; :class:`LinkLost` when
+        the device is gone."""
+        now = time.monotonic()
+        deadline, poll_until = now + timeout, now + min(poll, timeout)
+        while True:
+            now = time.monotonic()
+            polling = now < poll_until
+            try:
+                ready, _, _ = select.select([self._fd], [], [],
+                                            0.0 if polling else max(0.0, deadline - now))
+                if not ready:
+                    if polling:
+                        continue
+                    return None
+                chunk = os.read(self._fd, 512)
+            except InterruptedError:
+                continue
+            except OSError as exc:
+                raise self._lost(exc) from None
+            if not chunk:
+                raise self._lost("device returned no data")
+            self.stats.bytes_in += len(chunk)
+            return chunk
+
+    def collect_late(self, seconds: float) -> set[int]:
+        """Listen ``seconds`` for status packets no request waits for (replies the machine
+        held back past their timeout); their IDs join :attr:`late_ids`, which is returned."""
+        parser = self._p.PacketParser()
+        deadline = time.monotonic() + seconds
+        with self._lock:
+            while (left := deadline - time.monotonic()) > 0:
+                chunk = self._read_chunk(left)
+                if chunk is None:
+                    break
+                for raw in parser.feed(chunk):
+                    self.late_ids.add(self._id_of(raw))
+        return self.late_ids
+
+    # -- instructions -------------------------------------------------------
+
+    def ping(self, servo_id: int, *, tries: int | None = None,
+             margin: float | None = None) -> p1.StatusPacket | p2.StatusPacket:
+        """PING one servo (answers at every status return level; on protocol 2.0 with its
+        model number and firmware version as data)."""
+        status = self.transact(self._p.ping(servo_id), reply=True, tries=tries, margin=margin,
+                               reply_length=self.status_length(0 if self.protocol == 1 else 3))
+        assert status is not None
+        return status
+
+    def broadcast_ping(self, ids: list[int] | range | None = None, *,
+                       margin: float | None = None) -> dict[int, p2.StatusPacket]:
+        """PING to broadcast (protocol 2.0): every servo answers, one after the other.
+
+        Waits as long as answers from all of ``ids`` (default every ID, 0..252) would
+        take, plus ``margin`` (default the bus's); returns the ones that came, by ID."""
+        if self.protocol != 2:
+            raise ValueError("a broadcast PING is answered on protocol 2.0 only (on 1.0 "
+                             "every servo would answer at once): ping each ID")
+        ids = list(range(p2.MAX_ID + 1) if ids is None else ids)
+        packet = p2.ping(p2.BROADCAST_ID)
+        each = wire_time(self.status_length(3), self._baud) + RETURN_DELAY_UNIT * 254
+        with self._lock:
+            backlog = self._send(packet)
+            timeout = backlog + wire_time(len(packet), self._baud) + len(ids) * each + \
+                (self.timeout_margin if margin is None else margin)
+            answers = self._receive(packet, {i: 3 for i in ids}, timeout=timeout)
+        return answers  # type: ignore[return-value]
+
+    def ping_other_protocol(self, ids: Sequence[int]) -> tuple[int, list[int]]:
+        """Which servos answer a PING in the protocol this bus does *not* speak, at its baud.
+
+        How a backend tells "nothing answers here" from "servos of the other family answer
+        here" (a joint map naming the wrong servo model): protocol 2.0 is asked with one
+        broadcast PING, which every servo on the bus answers whatever its ID; protocol 1.0
+        has no such PING (every servo would answer at once), so each of ``ids`` gets its
+        own. Only PINGs are sent: nothing is written to any servo. On a pseudo-terminal the
+        PINGs go twice (the machine may hold answers back). A lost link answers nothing.
+
+        Returns:
+            (the other protocol, 1 or 2; the IDs that answered in it, sorted; empty when
+            none did).
+        """
+        other, p = (2, p2) if self.protocol == 1 else (1, p1)
+        tries = 2 if is_pty(self.port) else 1
+        if other == 2:
+            asks = [(p2.ping(p2.BROADCAST_ID), {i: 3 for i in range(p2.MAX_ID + 1)})]
+        else:
+            asks = [(p1.ping(i), {i: 0}) for i in ids if 0 <= i <= p1.MAX_ID]
+        heard: set[int] = set()
+        try:
+            with self._lock:
+                for _ in range(tries):
+                    for packet, want in asks:
+                        if set(want) <= heard:
+                            continue
+                        backlog = self._send(packet)
+                        # every servo that answers a broadcast waits for the one before it
+                        replies = len(want) * (p2.status_length(3) if other == 2
+                                               else p1.OVERHEAD)
+                        timeout = backlog + reply_timeout(len(packet), replies, self._baud,
+                                                          254 * len(want), self.timeout_margin)
+                        heard |= set(self._receive(packet, want, timeout=timeout, protocol=p))
+        except BusError:
+            pass
+        return other, sorted(heard)
+
+    def read_bytes(self, servo_id: int, address: int, length: int) -> bytes:
+        """READ ``length`` bytes at ``address`` of one servo (its error kept in ``errors``)."""
+        if servo_id == self._p.BROADCAST_ID:
+            raise ValueError("servo_id: READ cannot be broadcast (nobody would answer)")
+        status = self.transact(self._p.read(servo_id, address, length), reply=True,
+                               reply_length=self.status_length(length))
+        assert status is not None
+        return status.params
+
+    def _answers_writes(self, servo_id: int) -> bool:
+        return servo_id != self._p.BROADCAST_ID and self.status_return_level.get(servo_id, 2) >= 2
+
+    def write_bytes(self, servo_id: int, address: int, data: bytes
+                    ) -> p1.StatusPacket | p2.StatusPacket | None:
+        """WRITE ``data`` at ``address``; raise :class:`~armlab.hardware.wire.protocol1.ServoError`
+        (protocol 1.0: range, instruction, checksum, or an angle-limit error on a goal)
+        or :class:`~armlab.hardware.wire.protocol2.ServoError` (2.0: any error number) when the
+        servo
+        refuses it. A protocol-2.0 hardware alert alone is not a refusal: the write was
+        carried out, and the alert stays in :attr:`errors`."""
+        status = self.transact(self._p.write(servo_id, address, data),
+                               reply=self._answers_writes(servo_id))
+        self._check_refused(servo_id, address, data, status)
+        return status
+
+    def _check_refused(self, servo_id: int, address: int, data: bytes,
+                       status: p1.StatusPacket | p2.StatusPacket | None) -> None:
+        """Raise the protocol's ServoError when ``status``, the answer to a write of
+        ``data`` at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
+        if isinstance(status, p2.StatusPacket):
+            if status.error.number:
+                raise p2.ServoError(servo_id, p2.StatusError(status.error.number))
+        elif status is not None:
+            refused = status.error & REFUSED
+            if address <= 31 and address + len(data) > 30:
+                refused |= status.error & p1.ErrorBits.ANGLE_LIMIT
+            if refused:
+                raise p1.ServoError(servo_id, refused)
+
+    def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
+        """SYNC_WRITE to several servos in one packet (no reply)."""
+        self.transact(self._p.sync_write(address, length, data), reply=False)
+
+    def sync_read(self, address: int, length: int, ids: list[int] | tuple[int, ...]
+                  ) -> dict[int, bytes]:
+        """SYNC_READ (protocol 2.0): ``length`` bytes at ``address`` from each of ``ids`` in
+        one request; each servo answers in turn, after the one before it.
+
+        Servos whose answer was lost are asked again (a SYNC_READ of those alone), up to
+        the bus's retries; :class:`NoReply` names the ones that never answered.
+
+        Returns:
+            servo ID -> its bytes, in the order of ``ids``.
+        """
+        ids = list(ids)
+        return self._read_many(p2.sync_read(address, length, ids), {i: length for i in ids},
+                               lambda missing: p2.sync_read(address, length, missing))
+
+    def bulk_read(self, requests: list[tuple[int, int, int]]) -> dict[int, bytes]:
+        """BULK_READ (protocol 2.0): ``(servo ID, address, length)`` for each servo, each its
+        own item, in one request; retries and errors as :meth:`sync_read`."""
+        by_id = {servo_id: (address, length) for servo_id, address, length in requests}
+        return self._read_many(p2.bulk_read(requests), {i: n for i, (_, n) in by_id.items()},
+                               lambda missing: p2.bulk_read([(i, *by_id[i]) for i in missing]))
+
+    def _read_many(self, packet: bytes, want: dict[int, int], again) -> dict[int, bytes]:
+        """Send a SYNC_READ or BULK_READ ``packet`` and gather its answers (``want``: ID ->
+        data bytes); ``again(missing IDs)`` is the packet that asks those once more."""
+        if self.protocol != 2:
+            raise ValueError("SYNC_READ and BULK_READ are protocol 2.0 instructions: open the "
+                             "bus with protocol=2")
+        got: dict[int, bytes] = {}
+        tries = self.retries + 1
+        with self._lock:
+            for attempt in range(tries):
+                missing = [i for i in want if i not in got]
+                if attempt:
+                    self.stats.retries += 1
+                    packet = again(missing)
+                backlog = self._send(packet)
+                # every servo waits for the answer before its own, then its return delay
+                replies = sum(self.status_length(want[i]) for i in missing)
+                delays = sum(self.return_delay.get(i, 254) for i in missing)
+                timeout = backlog + reply_timeout(len(packet), replies, self._baud, delays,
+                                                  self.timeout_margin)
+                answers = self._receive(packet, {i: want[i] for i in missing}, timeout=timeout)
+                got.update({i: st.params for i, st in answers.items()})
+                if len(got) == len(want):
+                    return {i: got[i] for i in want}
+            self.stats.failures += 1
+        raise self._no_reply([i for i in want if i not in got], tries, " to a group read")
+
+    def reboot(self, servo_id: int) -> None:
+        """REBOOT (protocol 2.0): the servo restarts, clearing a hardware error (its torque
+        is off afterwards)."""
+        if self.protocol != 2:
+            raise ValueError("REBOOT is a protocol 2.0 instruction: power-cycle a "
+                             "protocol 1.0 servo instead")
+        self.transact(p2.reboot(servo_id), reply=self._answers_writes(servo_id))
+
+    def factory_reset(self, servo_id: int, *, confirm: bool = False,
+                      level: p2.ResetLevel = p2.ResetLevel.ALL) -> None:
+        """FACTORY_RESET one servo: its ID becomes 1 and its baud the model's default
+        (protocol 2.0's ``level`` may keep the ID, or the ID and the baud).
+
+        Refused (ValueError, nothing sent) unless ``confirm=True``.
+        """
+        if self.protocol == 1:
+            packet = p1.factory_reset(servo_id, confirm=confirm)
+        else:
+            packet = p2.factory_reset(servo_id, level, confirm=confirm)
+        self.transact(packet, reply=self._answers_writes(servo_id))
+        self.status_return_level.pop(servo_id, None)
+        self.return_delay.pop(servo_id, None)
+        self.tables.pop(servo_id, None)
+
+    def reg_write(self, servo_id: int, name: str, value: int) -> None:
+        """REG_WRITE a raw value to an item: the servo checks it and holds it (Registered
+        Instruction 1) until an ACTION (:meth:`action`) applies it, so goals registered
+        on several servos start at one instant. Refused as :meth:`write` refuses: ValueError
+        (nothing sent) for a read-only item or a value out of range, the protocol's
+        ServoError when the servo refuses it."""
+        address, data = self.table_of(servo_id).encode(name, value)
+        status = self.transact(self._p.reg_write(servo_id, address, data),
+                               reply=self._answers_writes(servo_id))
+        self._check_refused(servo_id, address, data, status)
+
+    def action(self) -> None:
+        """Broadcast ACTION: apply every servo's registered REG_WRITE."""
+        self.transact(self._p.action(), reply=False)
+
+    # -- named access -------------------------------------------------------
+
+    def table_of(self, servo_id: int) -> ControlTable:
+        """The control table of an identified servo, else the bus's default table."""
+        return self.tables.get(servo_id, self.table)
+
+    def read(self, servo_id: int, name: str) -> int:
+        """Raw value of a control-table item, e.g. ``bus.read(1, "present_position")``."""
+        table = self.table_of(servo_id)
+        item = table.item(name)
+        return table.decode(name, self.read_bytes(servo_id, item.address, item.size))
+
+    def read_items(self, servo_id: int, names: Sequence[str]) -> dict[str, int]:
+        """Raw values of control-table items ``names`` (in address order) in one READ of the
+        span from the first to the last: a reply of the span's own length, which a late
+        answer to an earlier, shorter request cannot pass for (limits read one by one
+        could take another servo's word for a limit)."""
+        table = self.table_of(servo_id)
+        first, last = table.item(names[0]), table.item(names[-1])
+        raw = self.read_bytes(servo_id, first.address,
+                              last.address + last.size - first.address)
+        return {n: table.decode(n, raw[table.item(n).address - first.address:]) for n in names}
+
+    def read_si(self, servo_id: int, name: str) -> float:
+        """An item converted to SI (rad, rad/s, N·m, V, °C, s, bit/s)."""
+        return self.table_of(servo_id).to_si(name, self.read(servo_id, name))
+
+    def write(self, servo_id: int, name: str, value: int) -> None:
+        """Write a raw value to an item; ValueError (nothing sent) if read-only or out of range.
+
+        The status return level is written without waiting for a reply (whether
+        the servo answers that very write depends on the level it is changing).
+        """
+        table = self.table_of(servo_id)
+        address, data = table.encode(name, value)
+        if name == "status_return_level":
+            packet = self._p.write(servo_id, address, data)
+            self.transact(packet, reply=False)
+            time.sleep(reply_timeout(len(packet), self.status_length(), self._baud,
+                                     self.return_delay.get(servo_id, 254), 0.002))
+            with self._lock:
+                try:
+                    self._ser.reset_input_buffer()
+                except (serial.SerialException, OSError, termios.error) as exc:
+                    raise self._lost(exc) from None
+            self.status_return_level[servo_id] = int(value)
+            return
+        self.write_bytes(servo_id, address, data)
+        if name == "return_delay_time":
+            self.return_delay[servo_id] = int(value)
+
+    def write_si(self, servo_id: int, name: str, value: float) -> None:
+        """Write an SI value (converted by the servo's ServoSpec) to an item."""
+        self.write(servo_id, name, self.table_of(servo_id).from_si(name, value))
+
+    def identify(self, servo_id: int, *, expect: int | str | None = None) -> ControlTable:
+        """Read the model number of ``servo_id`` and remember its table.
+
+        Raises :class:`WrongModel` when ``expect`` (model number or name) differs.
+        """
+        model = self.read(servo_id, "model_number")  # same address on every model
+        known = TABLES if self.protocol == 1 else X_TABLES
+        if expect is not None:
+            want = table_for(expect) if self.protocol == 1 else x_table_for(expect)
+            if model != want.spec.model_number:
+                found = known[model].name if model in known else "unknown model"
+                raise WrongModel(
+                    f"servo {servo_id} is a {found} (model number {model}), expected a "
+                    f"{want.name} ({want.spec.model_number}): fix the joint map or --servo"
+                )
+        if model not in known:
+            names = " or ".join(f"{t.name} ({k})" for k, t in known.items())
+            raise WrongModel(
+                f"servo {servo_id} has model number {model}, not a protocol "
+                f"{self.protocol}.0 servo the lab knows: {names}"
+            )
+        table = known[model]
+        self.tables[servo_id] = table
+        return table
+
+
+def _broken(parser: p1.PacketParser | p2.PacketParser) -> int:
+    """Packets a parser dropped for a bad checksum (1.0) or CRC (2.0)."""
+    stats = parser.stats
+    return stats.bad_checksums if isinstance(stats, p1.ParserStats) else stats.bad_crcs
+
+
+def sync_data(values: dict[int, tuple[int, ...]], sizes: tuple[int, ...]) -> dict[int, bytes]:
+    """Pack raw item values per servo into SYNC_WRITE chunks (little-endian, given sizes)."""
+    out = {}
+    for servo_id, vals in values.items():
+        out[servo_id] = b"".join(struct.pack("<H" if s == 2 else "<B", v)
+                                 for v, s in zip(vals, sizes, strict=True))
+    return out
