@@ -36,15 +36,15 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
             from armlab.hardware.sim.quadruped import QuadrupedSimBackend
 
             return QuadrupedSimBackend(model, **kw)
+        from armlab.hardware.backends.joint_map import default_joint_map, default_servo
         from armlab.hardware.backends.sim import SimBackend
+        from armlab.hardware.families import family_of_model
 
-        spec = shipped_x_servo(model)
-        if spec is not None and "specs" not in kw:  # an arm that ships with X-series servos
-            from armlab.hardware.backends.joint_map import default_joint_map
-            from armlab.hardware.backends.xseries_sim import XSimBackend
-
-            kw.setdefault("gripper", default_joint_map(model).gripper)  # its own servo
-            return XSimBackend(model, spec=spec, **kw)  # type: ignore[arg-type]
+        fam = family_of_model(default_servo(model.name))  # the servos the arm ships with
+        if fam.sim_backend is not None and "specs" not in kw:  # their family's simulation
+            jmap = default_joint_map(model)
+            kw.setdefault("gripper", jmap.gripper)  # its own servo
+            return fam.load("sim_backend")(model, spec=jmap.spec, **kw)
         return SimBackend(model, **kw)
     if kind == "serial":
         if port is None:
@@ -61,10 +61,11 @@ def shipped_x_servo(model: SerialChain) -> Any:
     """The X-series servo (``armlab.hardware.servos.xseries.XSpec``) an arm ships with, which its
     simulation models (the OpenManipulator-X's XM430-W350), or None: the arm is
     simulated with RX-24F servos, as the thesis arm."""
-    from armlab.hardware.backends.joint_map import default_servo, servo_table
+    from armlab.hardware.backends.joint_map import default_servo
+    from armlab.hardware.families import XSERIES, family_of_model
 
-    spec = servo_table(default_servo(model.name)).spec
-    return spec if spec.protocol == 2 else None
+    servo = default_servo(model.name)
+    return XSERIES.table_for(servo).spec if family_of_model(servo) is XSERIES else None
 
 
 def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from armlab.kinematics import fk as _fk
 from armlab.kinematics.transforms import homogeneous, rpy_matrix
 
 ROBOTS_DIR = Path(__file__).with_name("robots")
@@ -127,21 +128,15 @@ class SerialChain:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """(4, 4) end-effector pose in the base frame at joint vector q (n,)."""
-        from armlab.kinematics.fk import fk
-
-        return fk(self, q)
+        return _fk.fk(self, q)
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) pose of every moving link frame in the base frame."""
-        from armlab.kinematics.fk import link_poses
-
-        return link_poses(self, q)
+        return _fk.link_poses(self, q)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(6, n) geometric Jacobian of the end effector, linear rows first, base frame."""
-        from armlab.kinematics.fk import jacobian
-
-        return jacobian(self, q)
+        return _fk.jacobian(self, q)
 
 
 @dataclass(frozen=True)
@@ -356,10 +351,6 @@ def _path_to(tree: _Tree, leaf: str) -> list[_UJoint]:
     return path
 
 
-def _drivable(j: _UJoint) -> bool:
-    return j.kind in _DRIVABLE and j.problem is None
-
-
 def _chain_to(tree: _Tree, leaf: str, name: str,
               package_paths: tuple[Path, ...] = ()) -> SerialChain:
     """Build the serial chain from the tree root to ``leaf``.
@@ -504,7 +495,11 @@ ROBOT_FILES = {
     "planar_servo_arm": "planar_servo_arm.urdf",
     "quadruped": "quadruped.urdf",
     "open_manipulator_x": "open_manipulator_x.urdf",
+    "so101": "so101.urdf",
 }
+#: The end-effector link of a shipped robot whose URDF has more than one leaf reached
+#: through revolute joints (the SO-101's gripper jaw is one; its tool frame the tip).
+ROBOT_TIPS = {"so101": "gripper_frame_link"}
 
 #: Thesis link-length presets (cm) for the receptionist arm -> URDF file.
 RECEPTIONIST_PRESETS = {
@@ -521,7 +516,7 @@ def load_robot(name_or_path: str | Path, *, preset: str | None = None,
 
     Args:
         name_or_path: "receptionist_arm", "redundant_planar", "planar_servo_arm",
-            "quadruped", "open_manipulator_x", or a path to a .urdf file.
+            "quadruped", "open_manipulator_x", "so101", or a path to a .urdf file.
         preset: for "receptionist_arm", a key of ``RECEPTIONIST_PRESETS``
             (link lengths in cm, "18.5/25" by default).
         tip_link: for a URDF path, the end-effector link: the chain runs from the
@@ -544,7 +539,7 @@ def load_robot(name_or_path: str | Path, *, preset: str | None = None,
         path = ROBOTS_DIR / fname
         if text == "quadruped":
             return quadruped_from_urdf(path)
-        return chain_from_urdf(path, tip_link=tip_link)
+        return chain_from_urdf(path, tip_link=tip_link or ROBOT_TIPS.get(text))
     if text.endswith(".urdf") or Path(text).exists():
         path = Path(text)
         if not path.exists():

@@ -97,7 +97,7 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
     map_path = tmp_path / "two.toml"
     with emulator("--robot", str(TWO), "--ids", "21,22") as emu:
         scan = subprocess.run(
-            [sys.executable, "-m", "app", "scan", "--port", emu.port, "--ids", "18-25",
+            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--ids", "18-25",
              "--baud", "1000000", "--write-map", str(map_path), "--robot", str(TWO)],
             cwd=ROOT, capture_output=True, text=True, timeout=120)
         assert scan.returncode == 0, scan.stderr
@@ -147,6 +147,33 @@ def test_dragging_the_hand_target_moves_open_manipulator_x_there():
         with client_of(lesson.server) as client:
             client.move_gizmo("/arm_target_base/target",
                               [tuple(start + f * (goal - start)) for f in (0.3, 0.6, 1.0)])
+            wait_for(lambda: np.linalg.norm(hand() - goal) < 0.003, 60.0,
+                     "the hand to reach the dragged target")
+        assert lesson.loop.status.fault is None
+
+
+def test_the_so101_opens_in_the_arm_lesson_and_follows_a_dragged_target():
+    """The shipped SO-101 (five STS3215 joints, simulated): the arm lesson takes it by name,
+    and the hand follows the IK target dragged 3 cm through the page."""
+    from armlab.app.lessons import LessonContext, works_with
+    from armlab.app.lessons import arm as arm_lesson
+    from tests._helpers import served_lesson
+
+    assert works_with(arm_lesson, "so101")
+    with served_lesson(arm_lesson.build, LessonContext(robot="so101")) as lesson:
+        model = lesson.model
+        assert model.n == 5
+
+        def hand() -> np.ndarray:
+            snap = lesson.loop.recorder.snapshot(0.1)
+            return model.fk(snap["q"][-1])[:3, 3] if len(snap["t"]) else np.full(3, np.nan)
+
+        wait_for(lambda: np.all(np.isfinite(hand())), 30.0, "the loop's first period")
+        start = hand()
+        goal = start + np.array([0.0, 0.02, -0.02])
+        with client_of(lesson.server) as client:
+            client.move_gizmo("/arm_target_base/target",
+                              [tuple(start + f * (goal - start)) for f in (0.5, 1.0)])
             wait_for(lambda: np.linalg.norm(hand() - goal) < 0.003, 60.0,
                      "the hand to reach the dragged target")
         assert lesson.loop.status.fault is None

@@ -35,10 +35,8 @@ from typing import TypeVar
 
 from armlab.app.commands.scan import _ids
 from armlab.hardware.backends.joint_map import default_joint_map
-from armlab.hardware.emulator.bus import Faults, PtyEmulator, emulated_network
-from armlab.hardware.emulator.xseries import emulated_x_network
-from armlab.hardware.servos.servo_spec import value_from_baud
-from armlab.hardware.servos.xseries import X_TABLES
+from armlab.hardware.emulator.bus import Faults, PtyEmulator
+from armlab.hardware.families import FAMILIES
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.wire.protocol2 import HardwareError
 from armlab.kinematics.model import SerialChain, load_robot
@@ -143,12 +141,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "(default 1,3,5 for receptionist_arm, 11..14 for open_manipulator_x, "
                         "else 1..n); open_manipulator_x's gripper servo takes the ID after "
                         "the highest (15 by default)")
-    parser.add_argument("--servo", choices=("RX-24F", "AX-12A",
-                                            *(t.name for t in X_TABLES.values())),
+    parser.add_argument("--servo", choices=tuple(t.name for f in FAMILIES if f.emulator
+                                                 for t in f.tables.values()),
                         help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
                         "open_manipulator_x, else AX-12A); X-series servos speak protocol 2.0")
     parser.add_argument("--pace", action="store_true",
                         help="hold replies for their wire time at the set baud")
+    parser.add_argument("--dt", type=_plant_step, default=1e-3, metavar="S",
+                        help="the plant's step, s (default 0.001; up to 0.005 where a slow "
+                        "machine cannot step many servos' physics on the wall clock: the "
+                        "quadruped's 12 servos at 0.004)")
     parser.add_argument("--drop", type=_fraction, default=0.0, metavar="F",
                         help="fraction of replies never sent")
     parser.add_argument("--corrupt", type=_fraction, default=0.0, metavar="F",
@@ -206,21 +208,23 @@ def remove_link(link: str, target: str) -> None:
         pass
 
 
+def _plant_step(text: str) -> float:
+    """``--dt``: a plant step of 0.1 to 5 ms (coarser steps misstate a servo's own loop)."""
+    value = float(text)
+    if not 1e-4 <= value <= 5e-3:
+        raise argparse.ArgumentTypeError(f"must be 0.0001..0.005 s, got {text}")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
     if not -20 <= args.nice <= 19:
         raise ValueError(f"--nice must be in -20..19, got {args.nice}")
     model = load_robot(args.robot, preset=args.preset)
     jmap = default_joint_map(model, servo=args.servo,
                              ids=tuple(args.ids) if args.ids is not None else None)
-    if jmap.protocol == 2:
-        if not isinstance(model, SerialChain):
-            raise ValueError(f"--servo {jmap.servo}: X-series servos drive a serial arm here, "
-                             f"not the {model.name}")
-        network = emulated_x_network(model, jmap.ids, servo=jmap.servo, baud=args.baud,
-                                     gripper=jmap.gripper)
-    else:
-        value_from_baud(args.baud)  # ValueError for a rate no servo can take
-        network = emulated_network(model, ids=args.ids, servo=args.servo, baud=args.baud)
+    # the servo family's own emulator (armlab.hardware.families); ValueError for a baud
+    # its servos cannot take
+    network = jmap.family.load("emulator")(model, jmap, baud=args.baud, dt=args.dt)
     disturbances = []
     if args.disturb:
         if not isinstance(model, SerialChain):
@@ -255,7 +259,7 @@ def run(args: argparse.Namespace) -> int:
         gripper = f" and the gripper's {jmap.gripper.servo_id}" if jmap.gripper else ""
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
               f"{', '.join(str(i) for i in jmap.ids)}{gripper}, protocol "
-              f"{network.protocol}.0) of {model.name} at {args.baud:.0f} bps"
+              f"{jmap.family.label}) of {model.name} at {args.baud:.0f} bps"
               f"{', paced' if args.pace else ''}"
               + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
                         for j, nm, t0 in disturbances)

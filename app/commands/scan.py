@@ -1,4 +1,4 @@
-"""``armlab scan --port P``: list the Dynamixel servos on a serial port."""
+"""``armlab scan --port P``: list the servos (Dynamixel, Feetech STS) on a serial port."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import sys
 import time
 from dataclasses import asdict
 
+from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.wire.bus import BusError
 from armlab.hardware.wire.scan import (
     ALL_IDS,
@@ -19,8 +20,8 @@ from armlab.hardware.wire.scan import (
 )
 
 NAME = "scan"
-HELP = ("ping servo IDs 0..253 at each baud (protocol 1.0 and 2.0) and list ID, model, "
-        "protocol, firmware, baud, angle limits")
+HELP = ("ping servo IDs 0..253 at each baud (Dynamixel protocol 1.0 and 2.0, Feetech STS) "
+        "and list ID, model, protocol, firmware, baud, angle limits")
 
 
 def _ids(text: str) -> list[int]:
@@ -59,10 +60,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --write-map: the arm's URDF (robot name or file); the map "
                         "takes its joint names and must match its joint count")
     parser.add_argument("--tip-link", metavar="LINK", help="with --robot: the end-effector link")
+    parser.add_argument("--calibration", metavar="FILE.json",
+                        help="with --write-map and --robot: LeRobot's calibration file of the "
+                        "arm (per motor id, drive_mode, homing_offset, range_min, range_max): "
+                        "the map takes its directions, zeros and ranges")
 
 
 def run(args: argparse.Namespace) -> int:
     model = None
+    if args.calibration is not None and (args.robot is None or args.write_map is None):
+        raise ValueError("--calibration needs --robot and --write-map (it becomes the map)")
     if args.robot is not None:
         if args.write_map is None:
             raise ValueError("--robot is for --write-map (it names the map's joints)")
@@ -105,7 +112,10 @@ def run(args: argparse.Namespace) -> int:
     if args.write_map is not None:
         from armlab.hardware.backends.joint_map import draft_joint_map
 
-        text = draft_joint_map(found, model)  # ValueError names the joint and the servo
+        if args.calibration is not None:
+            text = _calibrated_map(args.calibration, model, found)
+        else:
+            text = draft_joint_map(found, model)  # ValueError names the joint and the servo
         with open(args.write_map, "w") as out:
             out.write(text)
         print(f"wrote {args.write_map}: {len(found)} servo(s); check signs and offsets "
@@ -116,14 +126,36 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not found:
         print(f"no servo answered on {args.port}: check power, cabling and the baud "
-              "(try --all-bauds); the lab speaks Dynamixel protocol 1.0 and 2.0")
+              "(try --all-bauds); the lab speaks "
+              + ", ".join(f.title for f in FAMILIES))
         return 1
-    print(f"{'ID':>3}  {'model':10} {'protocol':>8} {'fw':>3} {'baud':>9}  "
+    print(f"{'ID':>3}  {'model':10} {'protocol':>11} {'fw':>3} {'baud':>9}  "
           f"{'angle limits (deg from centre)':>30}")
     for f in found:
         limits = ("wheel mode" if f.cw_limit == f.ccw_limit == 0 else
                   f"{f.cw_limit_deg:+7.1f} .. {f.ccw_limit_deg:+7.1f} "
                   f"({f.cw_limit}..{f.ccw_limit})")
-        print(f"{f.servo_id:3d}  {f.model:10} {f.protocol:>6}.0 {f.firmware:3d} {f.baud:9.0f}  "
+        label = family(f.protocol).label
+        print(f"{f.servo_id:3d}  {f.model:10} {label:>11} {f.firmware:3d} {f.baud:9.0f}  "
               f"{limits:>30}")
     return 0
+
+
+def _calibrated_map(path: str, model: object, found: list) -> str:
+    """TOML of the joint map LeRobot's calibration file gives, once every servo it names
+    answered the scan as that model; ValueError naming the servo that did not."""
+    from armlab.hardware.backends.lerobot_calibration import (
+        joint_map_from_lerobot,
+        joint_map_toml,
+    )
+
+    jmap = joint_map_from_lerobot(path, model)  # type: ignore[arg-type]
+    by_id = {f.servo_id: f for f in found}
+    for j in jmap.joints:
+        f = by_id.get(j.servo_id)
+        if f is None or f.model != jmap.servo:
+            what = "did not answer" if f is None else f"answered as a {f.model}"
+            raise ValueError(f"joint {j.name!r}: servo ID {j.servo_id} of {path} {what}; "
+                             f"expected a {jmap.servo}")
+    return joint_map_toml(jmap, baud=min(by_id[j.servo_id].baud for j in jmap.joints),
+                          source=path)

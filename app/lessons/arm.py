@@ -48,9 +48,12 @@ from armlab.app.lessons._loop_state import (
 from armlab.app.lessons._servo_arm import open_arm, shut_arm
 from armlab.app.lessons.arm_controls import ArmControls
 from armlab.app.lessons.arm_gripper import GripperControls
+from armlab.app.lessons.compliance_controls import GainControls
 from armlab.app.lessons.compliance_servos import LinkMonitor
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
+from armlab.app.page.inputs import inward_range
+from armlab.app.page.surface import Surface
 from armlab.control.commands import EStop, RunTrajectory, SetTarget
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold
@@ -58,25 +61,28 @@ from armlab.kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
 from armlab.kinematics.smallarrays import all_finite
 
 NAME = "arm"
-TITLE = "Your arm: joints and hand target (any URDF)"
+TITLE = "Your URDF arm"
 HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the loop follows it "
         "by resolved-motion rate control) and the compliance controller holding the pose, "
         "with its gains, a push at the hand and live charts; spare joints (more than 3) "
         "can aim away from the limits. Limits come from the file; the Teach tab lists them.")
 #: The first action, shown under the status line.
-TRY = ("Move a joint slider a few degrees, then drag the orange target: the hand follows it.")
-ROBOTS = ("open_manipulator_x", ANY_URDF)
+TRY = ("Move a slider on the **Joints** tab a few degrees, then drag the orange target: the "
+       "hand follows it.")
+ROBOTS = ("open_manipulator_x", "so101", ANY_URDF)
 ORDER = 50
 #: a student's page can hold a private copy of this lesson (``ctx.arms``)
 PRIVATE = True
 MAX_JOINTS = 7
 #: s a slider's goal is held after the smooth approach (the loop then keeps it).
 SLIDER_HOLD_S = 0.2
+#: °: a joint slider's step; its ends are the joint's limits rounded inwards to it
+SLIDER_STEP_DEG = 0.5
 #: s of signals the loop's recorder keeps (the hand pose and the status read the newest).
 HISTORY_S = 20.0
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> ArmLesson:
+def build(server: Surface, ctx: LessonContext) -> ArmLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return ArmLesson(server, ctx)
 
@@ -127,7 +133,7 @@ class ArmLesson(LessonBase):
         sliders: one slider per joint, degrees.
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+    def __init__(self, server: Surface, ctx: LessonContext, *,
                  pose_hz: float = 30.0) -> None:
         super().__init__(server, ctx)
         self._link = LinkMonitor()
@@ -194,9 +200,12 @@ class ArmLesson(LessonBase):
             self.sliders = []
             for i, j in enumerate(self.model.joints):
                 lo, hi = math.degrees(lower[i]), math.degrees(upper[i])
-                start = float(np.clip(round(held[i] * 2.0) / 2.0, lo, hi))  # the 0.5° step
-                slider = gui.add_slider(f"{j.name} °", min=lo, max=hi, step=0.5,
-                                        initial_value=start,
+                # ends on the 0.5° step, inside the limits: round numbers at its ends
+                ends = inward_range(lo, hi, step=SLIDER_STEP_DEG)
+                start = float(np.clip(round(held[i] / SLIDER_STEP_DEG) * SLIDER_STEP_DEG,
+                                      *ends))
+                slider = gui.add_slider(f"{j.name} °", min=ends[0], max=ends[1],
+                                        step=SLIDER_STEP_DEG, initial_value=start,
                                         hint=f"Joint {j.name}: {lo:+.1f}° .. {hi:+.1f}°")
                 slider.on_update(self._on_slider)
                 self.sliders.append(slider)
@@ -266,7 +275,8 @@ class ArmLesson(LessonBase):
             detail = st.message or where
         set_content(self.status, status_html(state + self.controls.status_note(), color,
                                              esc(detail),
-                                             extra=link_note(self._link, self.backend)))
+                                             extra=link_note(self._link, self.backend)
+                                             + self.controls.law_note()))
         self.controls.plot_frame(force)
         self.gripper.status_frame()
 
@@ -281,6 +291,10 @@ class ArmLesson(LessonBase):
                 self.backend.estop()
             except Exception:  # an E-STOP must never raise
                 pass
+
+    def gain_controls(self) -> GainControls:
+        """The Gains tab: the gains the arm runs, set as a person sets them."""
+        return self.controls.gains
 
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove GUI and

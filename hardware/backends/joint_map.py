@@ -45,45 +45,46 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from armlab.hardware.backends.gripper import GripperServo, open_manipulator_gripper
-from armlab.hardware.servos.control_table import TABLES, ControlTable, table_for
+from armlab.hardware.families import FAMILIES, ServoFamily, family, family_of_model
+from armlab.hardware.families import servo_table as _family_table
+from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import ServoSpec
-from armlab.hardware.servos.xseries import X_TABLES, OperatingMode, XSpec, x_table_for
+from armlab.hardware.servos.sts import StsSpec
+from armlab.hardware.servos.xseries import OperatingMode, XSpec
 from armlab.kinematics.model import Joint, Quadruped, SerialChain, URDFError, joint_limits
 
 if TYPE_CHECKING:
     from armlab.hardware.wire.scan import Found
 
-#: Dynamixel protocol versions a joint map may name that this lab drives.
-PROTOCOLS = (1.0, 2.0)
+#: Protocol tags a joint map may name (one per servo family the lab drives: 1.0, 2.0,
+#: "sts").
+PROTOCOLS = tuple(float(f.protocol) if isinstance(f.protocol, int) else f.protocol
+                  for f in FAMILIES)
 
 THESIS_LEFT_ARM_IDS = (1, 3, 5)
 THESIS_RIGHT_ARM_IDS = (2, 4, 6)
 #: Robot -> (servo model, IDs in joint order) of the arms that ship with their servos: the
-#: thesis arm (RX-24F, IDs 1, 3, 5) and ROBOTIS's OpenManipulator-X (XM430-W350, IDs
-#: 11..14 from its public specification; its gripper's servo is in :data:`ROBOT_GRIPPERS`).
+#: thesis arm (RX-24F, IDs 1, 3, 5), ROBOTIS's OpenManipulator-X (XM430-W350, IDs
+#: 11..14 from its public specification; its gripper's servo is in :data:`ROBOT_GRIPPERS`)
+#: and the SO-101 (STS3215, IDs 1..5 in LeRobot's ``so_follower.py`` order).
 ROBOT_SERVOS = {"receptionist_arm": ("RX-24F", THESIS_LEFT_ARM_IDS),
-                "open_manipulator_x": ("XM430-W350", (11, 12, 13, 14))}
+                "open_manipulator_x": ("XM430-W350", (11, 12, 13, 14)),
+                # LeRobot's SO-101 follower: shoulder_pan 1 .. wrist_roll 5 (its gripper,
+                # ID 6, is not driven by the lab yet)
+                "so101": ("STS3215", (1, 2, 3, 4, 5))}
+#: Robot -> the supply its servos run from, V, where it is not their datasheet's: the
+#: SO-101's 7.4 V STS3215s on the kit's 5 V supply (TheRobotStudio SO-ARM100 README).
+ROBOT_SUPPLY = {"so101": 5.0}
 #: Robot -> its gripper's servo (ID, finger joint and horn angles; the range comes from
 #: the URDF): the OpenManipulator-X's ID 15 (:mod:`armlab.hardware.backends.gripper`).
 ROBOT_GRIPPERS = {"open_manipulator_x": open_manipulator_gripper}
 
 
 def servo_table(model: str | int) -> ControlTable:
-    """The control table of a protocol-1.0 (AX-12A, RX-24F) or X-series (XL430-W250,
-    XM430-W350, XL330-M288) model; ValueError listing every known model otherwise."""
-    try:
-        return table_for(model)
-    except ValueError:
-        pass
-    try:
-        return x_table_for(model)
-    except ValueError:
-        tables = (*TABLES.values(), *X_TABLES.values())
-        if isinstance(model, str):
-            raise ValueError(f"unknown servo model {model!r}; known: "
-                             f"{', '.join(t.name for t in tables)}") from None
-        raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
-            f"{t.spec.model_number} ({t.name})" for t in tables)) from None
+    """The control table of any model of any servo family the lab drives (protocol 1.0:
+    AX-12A, RX-24F; X-series: XL430-W250, XM430-W350, XL330-M288; Feetech: STS3215);
+    ValueError listing every known model otherwise."""
+    return _family_table(model)
 
 
 @dataclass(frozen=True)
@@ -152,13 +153,18 @@ class JointMap:
         return tuple(j.servo_id for j in self.joints)
 
     @property
-    def spec(self) -> ServoSpec | XSpec:
+    def spec(self) -> ServoSpec | XSpec | StsSpec:
         return servo_table(self.servo).spec
 
     @property
-    def protocol(self) -> int:
-        """The protocol the servos speak (1 or 2)."""
-        return self.spec.protocol
+    def family(self) -> ServoFamily:
+        """The servo family of :attr:`servo` (:mod:`armlab.hardware.families`)."""
+        return family_of_model(self.servo)
+
+    @property
+    def protocol(self) -> int | str:
+        """The protocol the servos speak (1, 2 or "sts")."""
+        return self.family.protocol
 
     @property
     def signs(self) -> np.ndarray:
@@ -263,9 +269,9 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
         base = default_joint_map(model, servo=data.get("servo"))
     except ValueError as exc:
         raise ValueError(f"joint map {path}: {exc}") from None
-    if "protocol" in data and float(protocol) != base.protocol:
+    if "protocol" in data and family(protocol) is not base.family:
         raise ValueError(f"joint map {path}: protocol {protocol} but the {base.servo} speaks "
-                         f"protocol {base.protocol}.0")
+                         f"protocol {base.family.label}")
     half = base.spec.position_range / 2
     by_name = {j.name: j for j in base.joints}
     entries = data.get("joints")
@@ -386,7 +392,7 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                 f"{len(names)} joints ({', '.join(names)}) but {len(servos)} servos answered")
     bauds = {f.baud for f in servos}
     lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe.",
-             f'servo = "{servos[0].model}"', f"protocol = {servos[0].protocol}.0",
+             f'servo = "{servos[0].model}"', f"protocol = {_toml_protocol(servos[0].protocol)}",
              f"baud = {int(min(bauds))}", ""]
     for i, (name, f) in enumerate(zip(names, servos, strict=True)):
         wheel = f.cw_limit == f.ccw_limit == 0
@@ -412,3 +418,8 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                   f"closed_deg = {math.degrees(gripper.closed_angle):.4f}",
                   f"open_deg = {math.degrees(gripper.open_angle):.4f}", ""]
     return "\n".join(lines)
+
+
+def _toml_protocol(protocol: int | str) -> str:
+    """A family's protocol tag as a joint map writes it: 1.0, 2.0 or "sts"."""
+    return f"{protocol}.0" if isinstance(protocol, int) else f'"{protocol}"'

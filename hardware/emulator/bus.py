@@ -31,7 +31,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Protocol, Self, TextIO
 
-from armlab.hardware.backends.joint_map import default_joint_map
+from armlab.hardware.backends.joint_map import JointMap, default_joint_map
+from armlab.hardware.families import family
 from armlab.hardware.servos.control_table import (
     LOCKED_WRITABLE,
     RX24F_TABLE,
@@ -387,8 +388,10 @@ class EmulatorStats:
 
 @dataclass
 class PtyEmulator:
-    """Serves a :class:`ServoNetwork` (protocol 1.0) or an
-    :class:`~armlab.hardware.emulator.xseries.XServoNetwork` (2.0) on a new pseudo-terminal.
+    """Serves the emulated network of any servo family (:class:`ServoNetwork`, protocol
+    1.0; :class:`~armlab.hardware.emulator.xseries.XServoNetwork`, 2.0; the family's
+    ``emulator`` in :mod:`armlab.hardware.families`) on a new pseudo-terminal; the
+    network's ``protocol`` tag picks the packet codec.
 
     Args:
         network: the servos.
@@ -412,8 +415,10 @@ class PtyEmulator:
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self._rng = random.Random(self.faults.seed)
-        self._p = p1 if self.network.protocol == 1 else p2
-        self._parser = p1.PacketParser(collect_bad=True) if self._p is p1 else p2.PacketParser()
+        self._p = family(self.network.protocol).codec
+        # a frame with a checksum (1.0, STS) keeps broken packets: a servo answers those
+        self._parser = (self._p.PacketParser(collect_bad=True) if self._p is not p2
+                        else p2.PacketParser())
         self._queue: list[tuple[float, bytes]] = []  # (due time, bytes), sorted
         self._wire_free = 0.0
         self._last_byte = 0.0
@@ -472,7 +477,7 @@ class PtyEmulator:
                 continue
             try:
                 packet = self._p.decode_instruction(raw)
-            except (p1.ProtocolError, p2.ProtocolError):  # a status packet: not for servos
+            except (self._p.ProtocolError, p1.ProtocolError):  # a status packet: not ours
                 continue
             self._tick(now)
             replies = self.network.handle(packet, baud=baud)  # type: ignore[arg-type]
@@ -638,3 +643,12 @@ def emulated_network(model: SerialChain | Quadruped, *, ids: Sequence[int] | Non
         physics.apply(s)
         physics.report(s)
     return ServoNetwork(servos, physics)
+
+
+def network_for_map(model: SerialChain | Quadruped, jmap: JointMap, *, baud: float = 1_000_000,
+                    dt: float = 1e-3) -> ServoNetwork:
+    """The protocol-1.0 family's emulator (:mod:`armlab.hardware.families`): the servos of
+    ``jmap`` on ``model``, as :func:`emulated_network`; ValueError for a baud no servo
+    of the family can take."""
+    value_from_baud(baud)
+    return emulated_network(model, ids=jmap.ids, servo=jmap.servo, baud=baud, dt=dt)

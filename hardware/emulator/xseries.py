@@ -26,6 +26,7 @@ from dataclasses import dataclass, fields
 from typing import ClassVar
 
 from armlab.hardware.backends.gripper import GripperServo, gripper_plant
+from armlab.hardware.backends.joint_map import JointMap
 from armlab.hardware.emulator.bus import ServoBus, TableImage
 from armlab.hardware.servos.xseries import TABLE_SIZE, OperatingMode, x_table_for
 from armlab.hardware.sim.plant import Plant
@@ -33,7 +34,7 @@ from armlab.hardware.sim.xseries_servo import XRegisters, XServoModel
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.protocol2 import ErrorNumber as E
 from armlab.hardware.wire.protocol2 import Instruction as I
-from armlab.kinematics.model import SerialChain
+from armlab.kinematics.model import Quadruped, SerialChain
 
 #: The firmware version the emulated servos report (address 6).
 EMULATED_FIRMWARE = 46
@@ -357,3 +358,14 @@ def emulated_x_network(model: SerialChain, ids: Sequence[int], *, servo: str = "
         physics.apply(s)
         physics.report(s)
     return XServoNetwork(servos, physics)
+
+
+def x_network_for_map(model: SerialChain | Quadruped, jmap: JointMap, *,
+                      baud: float = 1_000_000, dt: float = 1e-3) -> XServoNetwork:
+    """The X-series family's emulator (:mod:`armlab.hardware.families`): the servos of
+    ``jmap`` (and its gripper's) on ``model``, as :func:`emulated_x_network`."""
+    if not isinstance(model, SerialChain):
+        raise ValueError(f"--servo {jmap.servo}: X-series servos drive a serial arm here, "
+                         f"not the {model.name}")
+    return emulated_x_network(model, jmap.ids, servo=jmap.servo, baud=baud, dt=dt,
+                              gripper=jmap.gripper)

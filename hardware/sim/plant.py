@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from armlab.hardware.families import FAMILIES, family_of_spec
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.servos.xseries import XSpec
 from armlab.hardware.sim.dynamixel_servo import ServoModel, ServoParams, ServoRegisters, ServoReport
@@ -165,11 +166,14 @@ class Plant:
         if self.dt > 0.01:
             raise ValueError(f"dt must be <= 0.01 s for a stable servo loop, got {dt}")
         self._dyn = dynamics_model(model)
-        spec_list = [specs] * n if isinstance(specs, (ServoSpec, XSpec)) else list(specs)
+        one = isinstance(specs, tuple(f.spec_type for f in FAMILIES))
+        spec_list = [specs] * n if one else list(specs)  # type: ignore[list-item]
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
-        if params is None:  # an X-series servo reports its own rated supply (5 V: XL330)
-            param_list = [ServoParams(voltage=s.voltage) if isinstance(s, XSpec)
+        # each servo's firmware model is its family's (:mod:`armlab.hardware.families`)
+        firmware = [family_of_spec(s).load("servo_model") for s in spec_list]
+        if params is None:  # a servo with a rated supply reports it (5 V: XL330)
+            param_list = [ServoParams(voltage=s.voltage) if hasattr(s, "voltage")
                           else ServoParams() for s in spec_list]
         elif isinstance(params, ServoParams):
             param_list = [params] * n
@@ -191,7 +195,7 @@ class Plant:
         if registers is not None and len(registers) != n:
             raise ValueError(f"registers must have {n} entries, got {len(registers)}")
         self.servos: tuple[ServoModel | XServoModel, ...] = tuple(
-            (XServoModel if isinstance(spec_list[i], XSpec) else ServoModel)(
+            firmware[i](
                 spec_list[i], None if registers is None else registers[i],  # type: ignore[arg-type]
                 params=param_list[i], angle=dirs[i] * self._q[i]) for i in range(n))
         self._armature = [p.rotor_inertia for p in param_list]

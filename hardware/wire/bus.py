@@ -1,5 +1,5 @@
-"""A Dynamixel servo bus over pyserial (protocol 1.0 or 2.0): one transaction at a time,
-bounded retries.
+"""A servo bus over pyserial (Dynamixel protocol 1.0 or 2.0, Feetech STS): one transaction
+at a time, bounded retries.
 
 Thesis §3.5: the controller sends an instruction packet, then waits for the
 status packet before the next one (half duplex). :class:`Bus` does that for
@@ -14,11 +14,11 @@ Every failure a person can cause ends in one :class:`BusError` line that says
 what to do: port missing, permission denied (dialout group), port busy, no
 reply (power, baud, ID, protocol), wrong model, link lost.
 
-One bus speaks one protocol (``Bus(port, protocol=2)`` for X-series servos): the
-packets differ (:mod:`armlab.hardware.wire.protocol1`, :mod:`armlab.hardware.wire.protocol2`), the
-timing and
-the named access through the servo's control table do not. Protocol 2.0 adds reads of
-many servos in one request (:meth:`Bus.sync_read`, :meth:`Bus.bulk_read`) and REBOOT.
+One bus speaks one servo family's protocol (``Bus(port, protocol=2)`` for X-series
+servos, ``protocol="sts"`` for Feetech's; :mod:`armlab.hardware.families` says what each
+family's packets and tables are): the packets differ, the timing and the named access
+through the servo's control table do not. Protocol 2.0 and STS add reads of many servos
+in one request (:meth:`Bus.sync_read`); protocol 2.0 BULK_READ and REBOOT.
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ from types import ModuleType
 
 import serial
 
-from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
+from armlab.hardware.families import FAMILIES, ServoFamily, family
+from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
-from armlab.hardware.servos.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
+from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.protocol1 import wire_time
@@ -49,8 +50,8 @@ from armlab.hardware.wire.protocol1 import wire_time
 log = logging.getLogger("armlab.bus")
 
 TIOCGRS485 = 0x542E
-#: The protocols a bus speaks (one at a time).
-PROTOCOLS = (1, 2)
+#: The protocols a bus speaks (one at a time): one per servo family.
+PROTOCOLS = tuple(f.protocol for f in FAMILIES)
 #: Error bits that mean "this write was refused" (the others describe the servo's state).
 REFUSED = p1.ErrorBits.RANGE | p1.ErrorBits.INSTRUCTION | p1.ErrorBits.CHECKSUM
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
@@ -192,16 +193,19 @@ class Bus:
         echo: the adapter echoes what it sends (half-duplex TTL with TX and RX tied).
         rs485: switch a native UART into kernel RS-485 mode (not applicable on a
             USB adapter or a pty; noted in :attr:`notes`, not an error).
-        table: control table assumed for servos not yet identified (None: the RX-24F's
-            on protocol 1.0, the XM430-W350's on 2.0).
+        table: control table assumed for servos not yet identified (None: the family's
+            default, the RX-24F's on protocol 1.0, the XM430-W350's on 2.0, the
+            STS3215's on STS).
         exclusive: lock the port against other programs.
-        protocol: 1 (AX, RX, MX servos) or 2 (X-series).
+        protocol: 1 (AX, RX, MX servos), 2 (X-series) or "sts" (Feetech STS), or a
+            :class:`~armlab.hardware.families.ServoFamily`.
 
     Attributes:
         stats: :class:`BusStats` counters.
         notes: one-line remarks from opening (latency timer, RS-485 not applicable).
-        errors: last error reported by each servo ID (protocol 1.0: its error bits;
-            2.0: its :class:`~armlab.hardware.wire.protocol2.StatusError`).
+        errors: last error reported by each servo ID (protocol 1.0 and STS: its error
+            bits; 2.0: its :class:`~armlab.hardware.wire.protocol2.StatusError`).
+        family: the :class:`~armlab.hardware.families.ServoFamily` it speaks.
         late_ids: IDs whose status packet came while the bus waited for another servo's
             (a late reply: the scan pings them again).
         tables: control table of each identified servo ID.
@@ -211,9 +215,13 @@ class Bus:
 
     def __init__(self, port: str, baud: float = 1_000_000, *, retries: int | None = None,
                  timeout_margin: float | None = None, echo: bool = False, rs485: bool = False,
-                 table: ControlTable | None = None, exclusive: bool = True, protocol: int = 1):
-        if protocol not in PROTOCOLS:
-            raise ValueError(f"protocol: 1 (AX, RX, MX servos) or 2 (X-series), got {protocol!r}")
+                 table: ControlTable | None = None, exclusive: bool = True,
+                 protocol: int | str | ServoFamily = 1):
+        try:
+            fam = family(protocol)
+        except ValueError:
+            raise ValueError("protocol: 1 (AX, RX, MX servos), 2 (X-series) or \"sts\" "
+                             f"(Feetech STS), got {protocol!r}") from None
         if retries is None:
             retries = PTY_RETRIES if is_pty(port) else WIRE_RETRIES
         if retries < 0:
@@ -223,17 +231,18 @@ class Bus:
         if not timeout_margin > 0:
             raise ValueError(f"timeout_margin must be > 0 s, got {timeout_margin}")
         self.port = port
-        self.protocol = protocol
-        self._p = p1 if protocol == 1 else p2
+        self.family = fam
+        self.protocol = fam.protocol
+        self._p = fam.codec
         if table is None:
-            table = RX24F_TABLE if protocol == 1 else XM430_W350_TABLE
+            table = fam.default_table
         self.retries = int(retries)
         self.timeout_margin = float(timeout_margin)
         self.echo = bool(echo)
         self.table = table
         self.stats = BusStats()
         self.notes: list[str] = []
-        self.errors: dict[int, p1.ErrorBits | p2.StatusError] = {}
+        self.errors: dict[int, p1.ErrorBits | p2.StatusError | ft.ErrorBits] = {}
         self.late_ids: set[int] = set()
         self.tables: dict[int, ControlTable] = {}
         self.status_return_level: dict[int, int] = {}
@@ -302,18 +311,16 @@ class Bus:
     def status_length(self, data_bytes: int = 0) -> int:
         """Bytes of a status packet carrying ``data_bytes`` of data, in this bus's protocol
         (before protocol 2.0's byte stuffing)."""
-        if self.protocol == 1:
-            return p1.OVERHEAD + data_bytes
-        return p2.status_length(data_bytes)
+        return self.family.status_length(data_bytes)
 
     @property
     def broadcast_id(self) -> int:
-        """The ID every servo listens to (0xFE in both protocols; no servo answers it)."""
+        """The ID every servo listens to (0xFE in every family; no servo answers it)."""
         return self._p.BROADCAST_ID
 
     def _id_of(self, packet: bytes) -> int:
         """The ID an encoded packet is sent to (or comes from)."""
-        return packet[2] if self.protocol == 1 else packet[4]
+        return self.family.id_of(packet)
 
     def transact(self, packet: bytes, *, reply: bool, reply_length: int | None = None,
                  tries: int | None = None, margin: float | None = None
@@ -355,7 +362,7 @@ class Bus:
             f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
             f"after {tries} tries: check the servos' power (a U2D2 supplies none), "
             f"the baud (armlab scan --port {self.port}), the ID, and that they speak "
-            f"protocol {self.protocol}.0"
+            f"protocol {self.family.label}"
         )
 
     def _send(self, packet: bytes) -> float:
@@ -393,10 +400,9 @@ class Bus:
         with) that arrive within ``timeout`` s; all of them, or those that came when the
         wait ended (a timeout, or a broken reply after which nothing more is pending).
 
-        ``protocol``: the packet module (:mod:`~armlab.hardware.wire.protocol1` or
-        :mod:`~armlab.hardware.wire.protocol2`) to parse with, when not the bus's own (a probe of
-        the
-        other protocol: its answers are not kept in :attr:`errors`)."""
+        ``protocol``: the packet module (a family's codec) to parse with, when not the
+        bus's own (a probe of another protocol: its answers are not kept in
+        :attr:`errors`)."""
         own = protocol is None or protocol is self._p
         p = self._p if protocol is None else protocol
         parser = p.PacketParser()
@@ -421,7 +427,7 @@ class Bus:
                     continue
                 try:
                     status = p.decode_status(raw, checked=True)
-                except (p1.ProtocolError, p2.ProtocolError):  # an instruction: not ours
+                except (p.ProtocolError, p1.ProtocolError):  # an instruction: not ours
                     self.stats.corrupt += 1
                     continue
                 if want.get(status.servo_id) != len(status.params) or status.servo_id in got:
@@ -490,7 +496,7 @@ class Bus:
         """PING one servo (answers at every status return level; on protocol 2.0 with its
         model number and firmware version as data)."""
         status = self.transact(self._p.ping(servo_id), reply=True, tries=tries, margin=margin,
-                               reply_length=self.status_length(0 if self.protocol == 1 else 3))
+                               reply_length=self.status_length(self.family.ping_data))
         assert status is not None
         return status
 
@@ -500,9 +506,10 @@ class Bus:
 
         Waits as long as answers from all of ``ids`` (default every ID, 0..252) would
         take, plus ``margin`` (default the bus's); returns the ones that came, by ID."""
-        if self.protocol != 2:
-            raise ValueError("a broadcast PING is answered on protocol 2.0 only (on 1.0 "
-                             "every servo would answer at once): ping each ID")
+        if not self.family.broadcast_ping:
+            raise ValueError(f"a broadcast PING is answered on protocol 2.0 only (on "
+                             f"{self.family.label} every servo would answer at once): "
+                             "ping each ID")
         ids = list(range(p2.MAX_ID + 1) if ids is None else ids)
         packet = p2.ping(p2.BROADCAST_ID)
         each = wire_time(self.status_length(3), self._baud) + RETURN_DELAY_UNIT * 254
@@ -527,6 +534,8 @@ class Bus:
             (the other protocol, 1 or 2; the IDs that answered in it, sorted; empty when
             none did).
         """
+        if self.protocol not in (1, 2):
+            return self.protocol, []  # the Dynamixel pair only: STS shares 1.0's PING
         other, p = (2, p2) if self.protocol == 1 else (1, p1)
         tries = 2 if is_pty(self.port) else 1
         if other == 2:
@@ -570,7 +579,8 @@ class Bus:
         or :class:`~armlab.hardware.wire.protocol2.ServoError` (2.0: any error number) when the
         servo
         refuses it. A protocol-2.0 hardware alert alone is not a refusal: the write was
-        carried out, and the alert stays in :attr:`errors`."""
+        carried out, and the alert stays in :attr:`errors`. An STS servo's status bits
+        describe its state, never a refusal (they stay in :attr:`errors`)."""
         status = self.transact(self._p.write(servo_id, address, data),
                                reply=self._answers_writes(servo_id))
         self._check_refused(servo_id, address, data, status)
@@ -580,10 +590,12 @@ class Bus:
                        status: p1.StatusPacket | p2.StatusPacket | None) -> None:
         """Raise the protocol's ServoError when ``status``, the answer to a write of
         ``data`` at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
+        if status is None or isinstance(status, ft.StatusPacket):
+            return
         if isinstance(status, p2.StatusPacket):
             if status.error.number:
                 raise p2.ServoError(servo_id, p2.StatusError(status.error.number))
-        elif status is not None:
+        else:
             refused = status.error & REFUSED
             if address <= 31 and address + len(data) > 30:
                 refused |= status.error & p1.ErrorBits.ANGLE_LIMIT
@@ -596,8 +608,8 @@ class Bus:
 
     def sync_read(self, address: int, length: int, ids: list[int] | tuple[int, ...]
                   ) -> dict[int, bytes]:
-        """SYNC_READ (protocol 2.0): ``length`` bytes at ``address`` from each of ``ids`` in
-        one request; each servo answers in turn, after the one before it.
+        """SYNC_READ (protocol 2.0, STS): ``length`` bytes at ``address`` from each of
+        ``ids`` in one request; each servo answers in turn, after the one before it.
 
         Servos whose answer was lost are asked again (a SYNC_READ of those alone), up to
         the bus's retries; :class:`NoReply` names the ones that never answered.
@@ -606,12 +618,19 @@ class Bus:
             servo ID -> its bytes, in the order of ``ids``.
         """
         ids = list(ids)
-        return self._read_many(p2.sync_read(address, length, ids), {i: length for i in ids},
-                               lambda missing: p2.sync_read(address, length, missing))
+        if not self.family.group_read:
+            raise ValueError(f"SYNC_READ is a protocol 2.0 and STS instruction, not "
+                             f"{self.family.title}'s: read each servo")
+        codec = self._p
+        return self._read_many(codec.sync_read(address, length, ids), {i: length for i in ids},
+                               lambda missing: codec.sync_read(address, length, missing))
 
     def bulk_read(self, requests: list[tuple[int, int, int]]) -> dict[int, bytes]:
         """BULK_READ (protocol 2.0): ``(servo ID, address, length)`` for each servo, each its
         own item, in one request; retries and errors as :meth:`sync_read`."""
+        if self.protocol != 2:
+            raise ValueError("BULK_READ is a protocol 2.0 instruction: open the bus with "
+                             "protocol=2")
         by_id = {servo_id: (address, length) for servo_id, address, length in requests}
         return self._read_many(p2.bulk_read(requests), {i: n for i, (_, n) in by_id.items()},
                                lambda missing: p2.bulk_read([(i, *by_id[i]) for i in missing]))
@@ -619,9 +638,6 @@ class Bus:
     def _read_many(self, packet: bytes, want: dict[int, int], again) -> dict[int, bytes]:
         """Send a SYNC_READ or BULK_READ ``packet`` and gather its answers (``want``: ID ->
         data bytes); ``again(missing IDs)`` is the packet that asks those once more."""
-        if self.protocol != 2:
-            raise ValueError("SYNC_READ and BULK_READ are protocol 2.0 instructions: open the "
-                             "bus with protocol=2")
         got: dict[int, bytes] = {}
         tries = self.retries + 1
         with self._lock:
@@ -660,6 +676,8 @@ class Bus:
         """
         if self.protocol == 1:
             packet = p1.factory_reset(servo_id, confirm=confirm)
+        elif self.protocol == "sts":
+            packet = ft.reset(servo_id, confirm=confirm)
         else:
             packet = p2.factory_reset(servo_id, level, confirm=confirm)
         self.transact(packet, reply=self._answers_writes(servo_id))
@@ -742,10 +760,10 @@ class Bus:
 
         Raises :class:`WrongModel` when ``expect`` (model number or name) differs.
         """
-        model = self.read(servo_id, "model_number")  # same address on every model
-        known = TABLES if self.protocol == 1 else X_TABLES
+        model = self.read(servo_id, "model_number")  # same address across a family
+        known = self.family.tables
         if expect is not None:
-            want = table_for(expect) if self.protocol == 1 else x_table_for(expect)
+            want = self.family.table_for(expect)
             if model != want.spec.model_number:
                 found = known[model].name if model in known else "unknown model"
                 raise WrongModel(
@@ -755,8 +773,8 @@ class Bus:
         if model not in known:
             names = " or ".join(f"{t.name} ({k})" for k, t in known.items())
             raise WrongModel(
-                f"servo {servo_id} has model number {model}, not a protocol "
-                f"{self.protocol}.0 servo the lab knows: {names}"
+                f"servo {servo_id} has model number {model}, not a "
+                f"{self.family.title} servo the lab knows: {names}"
             )
         table = known[model]
         self.tables[servo_id] = table

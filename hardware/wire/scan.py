@@ -1,5 +1,7 @@
-"""Find the servos on a port: at each baud, PING every ID 0..253 in protocol 1.0 and send
-one broadcast PING in protocol 2.0, then read what answered.
+"""Find the servos on a port: at each baud, PING every ID 0..253 in protocol 1.0's frame
+(which Feetech STS servos answer too) and send one broadcast PING in protocol 2.0, then
+read what answered; each servo's model number says its family
+(:mod:`armlab.hardware.families`).
 
 Time is bounded: an absent ID costs one ping timeout (wire time + margin), so a
 scan takes at most about ``len(bauds) · 254 · timeout`` (see :func:`scan_time_bound`);
@@ -13,18 +15,20 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
-from armlab.hardware.servos.control_table import TABLES, ControlTable
+from armlab.hardware.families import FAMILIES, ServoFamily, family
+from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
-from armlab.hardware.servos.xseries import X_TABLES
 from armlab.hardware.wire import protocol1 as p1
-from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.bus import Bus, BusError, NoReply, is_pty, reply_timeout
 from armlab.hardware.wire.protocol1 import wire_time
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
 COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)
 DEFAULT_BAUDS = (1_000_000, 57_600)
+#: Every family's protocol tag: what a scan tries by default.
+DEFAULT_PROTOCOLS = tuple(f.protocol for f in FAMILIES)
 ALL_IDS = range(0, p1.MAX_ID + 1)
 #: s beyond wire time a ping waits on a serial adapter (a servo answers within its
 #: return delay, 0.5 ms at the thesis's setting).
@@ -49,7 +53,7 @@ class Found:
             protocol 2.0 Min and Max Position Limit, addresses 52 and 48).
         cw_limit_deg, ccw_limit_deg: the same as horn angles from the centre, degrees.
         error: the error byte of its reply.
-        protocol: 1 or 2, the protocol it answered in.
+        protocol: 1, 2 or "sts": the protocol tag of its family.
     """
 
     servo_id: int
@@ -63,7 +67,7 @@ class Found:
     cw_limit_deg: float
     ccw_limit_deg: float
     error: int
-    protocol: int = 1
+    protocol: int | str = 1
 
 
 def ping_policy(port: str, margin: float | None = None) -> tuple[float, int]:
@@ -83,29 +87,38 @@ def broadcast_time(baud: float, n_ids: int, margin: float) -> float:
 
 
 def scan_time_bound(bauds: Sequence[float], ids: Iterable[int], margin: float,
-                    tries: int = 1, protocols: Sequence[int] = (1, 2)) -> float:
-    """Upper bound of a scan's time in s, if no servo answers (a PING is 6 + 6 bytes)."""
+                    tries: int = 1, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS
+                    ) -> float:
+    """Upper bound of a scan's time in s, if no servo answers (a PING is 6 + 6 bytes; one
+    PING per ID serves every family pinged that way)."""
     n = len(list(ids))
+    fams = [family(p) for p in protocols]
     t = 0.0
-    if 1 in protocols:
+    if any(not f.broadcast_ping for f in fams):
         t += sum(n * tries * reply_timeout(6, 6, b, 254, margin) for b in bauds)
-    if 2 in protocols:
+    for _ in (f for f in fams if f.broadcast_ping):
         t += sum(tries * broadcast_time(b, n, margin) for b in bauds)
     return t
 
 
 def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] = ALL_IDS,
-         margin: float = 0.010, protocols: Sequence[int] = (1, 2),
+         margin: float = 0.010, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS,
          progress: Callable[[float, int, int], None] | None = None) -> list[Found]:
     """PING ``ids`` at each baud on ``port`` in each protocol; describe every servo that
-    answers (protocol 1.0 servos first, then 2.0, each by baud and ID).
+    answers (servos found by a PING per ID first, then by a broadcast PING, each by baud
+    and ID).
+
+    Dynamixel protocol 1.0 and Feetech STS share one PING (the same frame), so one PING
+    per ID finds both; the model number each answers with (read where each family keeps
+    it, :mod:`armlab.hardware.families`) says which family it is.
 
     Args:
         port: serial device.
         bauds: bit/s to try, in order.
         ids: IDs to ping (default 0..253).
         margin: s of timeout beyond wire time for each ping (None: :func:`ping_policy`'s).
-        protocols: which protocols to try (1: a PING per ID; 2: one broadcast PING).
+        protocols: which families to try, by protocol tag (1 and "sts": a PING per ID;
+            2: one broadcast PING).
         progress: called as ``progress(baud, servo_id, n_found)`` before each ping.
 
     Raises:
@@ -115,50 +128,44 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     found: list[Found] = []
     if not bauds:
         raise ValueError("bauds: give at least one baud rate")
-    if not protocols or set(protocols) - {1, 2}:
-        raise ValueError(f"protocols: 1 and/or 2, got {list(protocols)}")
+    try:
+        fams = [family(p) for p in protocols]
+    except ValueError:
+        fams = []
+    if not fams:
+        raise ValueError(f"protocols: some of {', '.join(map(repr, DEFAULT_PROTOCOLS))}, "
+                         f"got {list(protocols)}")
     margin, tries = ping_policy(port, margin)
-    if 1 in protocols:
-        found += _scan_protocol1(port, bauds, ids, margin, tries, progress)
-    if 2 in protocols:
-        found += _scan_protocol2(port, bauds, ids, margin, tries, progress, len(found))
+    each_id = [f for f in fams if not f.broadcast_ping]
+    if each_id:
+        found += _scan_each_id(port, bauds, ids, margin, tries, progress, each_id)
+    for fam in fams:
+        if fam.broadcast_ping:
+            found += _scan_broadcast(port, bauds, ids, margin, tries, progress, len(found), fam)
     return found
 
 
-def _scan_protocol2(port: str, bauds: Sequence[float], ids: list[int], margin: float,
+def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], margin: float,
                     tries: int, progress: Callable[[float, int, int], None] | None,
-                    n_before: int) -> list[Found]:
+                    n_before: int, fam: ServoFamily) -> list[Found]:
+    """The servos of a family whose servos all answer one broadcast PING (protocol 2.0)."""
     found: list[Found] = []
-    wanted = [i for i in ids if i <= p2.MAX_ID]
+    wanted = [i for i in ids if i <= fam.codec.MAX_ID]
     if not wanted:
         return found
-    with Bus(port, bauds[0], retries=2, timeout_margin=margin, protocol=2) as bus:
+    with Bus(port, bauds[0], retries=2, timeout_margin=margin, protocol=fam) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             if progress is not None:
-                progress(baud, p2.BROADCAST_ID, n_before + len(found))
-            answers: dict[int, p2.StatusPacket] = {}
+                progress(baud, fam.codec.BROADCAST_ID, n_before + len(found))
+            answers: dict[int, Any] = {}
             for _ in range(tries):  # a pty: a second broadcast for answers held back
                 answers.update(bus.broadcast_ping(wanted))
-            found += [_describe2(bus, i, baud, answers[i]) for i in sorted(answers)]
+            found += [_describe(bus, fam, i, baud, answers[i].error,
+                                model=int.from_bytes(answers[i].params[:2], "little"),
+                                firmware=answers[i].params[2])
+                      for i in sorted(answers)]
     return found
-
-
-def _describe2(bus: Bus, servo_id: int, baud: float, status: p2.StatusPacket) -> Found:
-    model_number = int.from_bytes(status.params[:2], "little")
-    table = X_TABLES.get(model_number)
-    try:  # Baud Rate (8); Max and Min Position Limit (48, 52)
-        baud_value = bus.read_bytes(servo_id, 8, 1)[0]
-        limits = bus.read_bytes(servo_id, 48, 8)
-        ccw, cw = (int.from_bytes(limits[k:k + 4], "little") for k in (0, 4))
-    except BusError:  # answers PING but not READ (status return level 0)
-        baud_value, cw, ccw = 0, 0, 0
-    return Found(
-        servo_id=servo_id, model_number=model_number,
-        model=table.name if table is not None else "unknown", firmware=status.params[2],
-        baud=float(baud), baud_value=baud_value, cw_limit=cw, ccw_limit=ccw,
-        cw_limit_deg=_degrees(table, cw), ccw_limit_deg=_degrees(table, ccw),
-        error=status.error.byte, protocol=2)
 
 
 def _degrees(table: ControlTable | None, raw: int) -> float:
@@ -167,11 +174,14 @@ def _degrees(table: ControlTable | None, raw: int) -> float:
     return float("nan") if table is None else math.degrees(table.spec.raw_to_position(raw))
 
 
-def _scan_protocol1(port: str, bauds: Sequence[float], ids: list[int], margin: float,
-                    tries: int, progress: Callable[[float, int, int], None] | None
-                    ) -> list[Found]:
+def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: float,
+                  tries: int, progress: Callable[[float, int, int], None] | None,
+                  fams: list[ServoFamily]) -> list[Found]:
+    """The servos of families that are pinged one ID at a time (they share one frame:
+    Dynamixel 1.0 and Feetech STS), each told apart by its model number."""
     found: list[Found] = []
-    with Bus(port, bauds[0], retries=2, timeout_margin=margin) as bus:
+    ids = [i for i in ids if i <= fams[0].codec.MAX_ID]  # STS: 0..252
+    with Bus(port, bauds[0], retries=2, timeout_margin=margin, protocol=fams[0]) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             bus.late_ids.clear()
@@ -185,7 +195,7 @@ def _scan_protocol1(port: str, bauds: Sequence[float], ids: list[int], margin: f
                 except NoReply:
                     missed.append(servo_id)
                     continue
-                here.append(_describe(bus, servo_id, baud, status))
+                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))
             # a servo whose answer came late (the machine held the reply back) answered
             # all the same: ask it again, with the bus's own retries
             if missed:
@@ -195,24 +205,65 @@ def _scan_protocol1(port: str, bauds: Sequence[float], ids: list[int], margin: f
                     status = bus.ping(servo_id)
                 except NoReply:
                     continue
-                here.append(_describe(bus, servo_id, baud, status))
+                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))
             found += sorted(here, key=lambda f: f.servo_id)
     return found
 
 
-def _describe(bus: Bus, servo_id: int, baud: float, status: p1.StatusPacket) -> Found:
+def _head_span(fam: ServoFamily) -> int:
+    """Bytes from address 0 that hold a family's model number, firmware, baud and limits."""
+    table = fam.default_table
+    items = [table.item(n) for n in ("model_number", fam.firmware_item, "baud_rate",
+                                     *fam.limit_items)]
+    return max(i.address + i.size for i in items)
+
+
+def _identify(bus: Bus, fams: list[ServoFamily], servo_id: int, baud: float,
+              error: int) -> Found:
+    """Which of ``fams`` a servo that answered a PING is (the first whose model number,
+    read where that family keeps it, is one of its models), described; the first family's
+    "unknown" when none knows it."""
+    span = max(_head_span(f) for f in fams)
     try:
-        head = bus.read_bytes(servo_id, 0, 10)
+        head = bus.read_bytes(servo_id, 0, span)
     except BusError:
-        head = bytes(10)  # answers PING but not READ (status return level 0 still reads)
-    model_number = int.from_bytes(head[0:2], "little")
-    table = TABLES.get(model_number)
-    cw = int.from_bytes(head[6:8], "little")
-    ccw = int.from_bytes(head[8:10], "little")
+        head = bytes(span)  # answers PING but not READ (status return level 0 still reads)
+    for fam in fams:
+        at = fam.model_address
+        if int.from_bytes(head[at:at + 2], "little") in fam.tables:
+            return _describe(bus, fam, servo_id, baud, error, head=head)
+    return _describe(bus, fams[0], servo_id, baud, error, head=head)
+
+
+def _describe(bus: Bus, fam: ServoFamily, servo_id: int, baud: float, error: Any, *,
+              head: bytes | None = None, model: int | None = None,
+              firmware: int | None = None) -> Found:
+    """A servo of family ``fam`` as a :class:`Found`, from ``head`` (its table from address
+    0) or read now (READs that fail leave the baud value and limits 0); ``model`` and
+    ``firmware`` when its PING answered them (protocol 2.0)."""
+    layout = fam.default_table
+    at = fam.model_address
+    if head is None:
+        try:
+            head = bus.read_bytes(servo_id, 0, _head_span(fam))
+        except BusError:  # answers PING but not READ (status return level 0)
+            head = None
+    number = model if model is not None else \
+        (int.from_bytes(head[at:at + 2], "little") if head is not None else 0)
+    table = fam.tables.get(number)
+
+    def raw(name: str) -> int:
+        if head is None:
+            return 0
+        item = layout.item(name)
+        return layout.decode(name, head[item.address:item.address + item.size])
+
+    if firmware is None:
+        firmware = raw(fam.firmware_item)
+    cw, ccw = raw(fam.limit_items[0]), raw(fam.limit_items[1])
     return Found(
-        servo_id=servo_id, model_number=model_number,
-        model=table.name if table is not None else "unknown",
-        firmware=head[2], baud=float(baud),
-        baud_value=head[4], cw_limit=cw, ccw_limit=ccw, cw_limit_deg=_degrees(table, cw),
-        ccw_limit_deg=_degrees(table, ccw), error=int(status.error),
-    )
+        servo_id=servo_id, model_number=number,
+        model=table.name if table is not None else "unknown", firmware=firmware,
+        baud=float(baud), baud_value=raw("baud_rate"), cw_limit=cw, ccw_limit=ccw,
+        cw_limit_deg=_degrees(table, cw), ccw_limit_deg=_degrees(table, ccw),
+        error=error.byte if hasattr(error, "byte") else int(error), protocol=fam.protocol)

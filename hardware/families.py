@@ -1,0 +1,200 @@
+"""Servo families: everything the lab knows about one kind of servo, in one entry.
+
+A family is a packet codec (the module that builds and parses its packets), its control
+tables by model number, its firmware model for the simulation, its backends (real and
+simulated) and its emulator. The bus, the scan, the joint map, the plant, the backend
+factories and the emulator ask :func:`family` (by protocol, name or model) instead of
+testing a protocol number, so adding a family is its own modules plus one entry in
+:data:`FAMILIES`.
+
+The heavy parts (backends, emulator, firmware models) are imported when first asked
+for: this module sits below them (``armlab.hardware.wire`` imports it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import Any
+
+from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
+from armlab.hardware.servos.sts import STS3215_TABLE, STS_TABLES, sts_table_for
+from armlab.hardware.servos.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
+from armlab.hardware.wire import feetech as ft
+from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.wire import protocol2 as p2
+
+
+def _load(path: str) -> Any:
+    """``"package.module:attribute"`` -> the attribute (imported on first use)."""
+    module, _, name = path.partition(":")
+    return getattr(__import__(module, fromlist=[name]), name)
+
+
+@dataclass(frozen=True)
+class ServoFamily:
+    """One servo family.
+
+    Attributes:
+        key: short name ("dynamixel1", "xseries", "sts").
+        title: what a person calls it ("Dynamixel protocol 1.0").
+        protocol: the protocol tag a joint map, a scan and a bus use (1, 2, "sts").
+        codec: the packet module (``ping``, ``read``, ``write``, ``reg_write``,
+            ``action``, ``sync_write``, ``status``, ``decode_status``,
+            ``decode_instruction``, ``PacketParser``, ``ProtocolError``,
+            ``BROADCAST_ID``, ``MAX_ID``).
+        tables: control tables by model number.
+        default_table: the table a bus assumes for a servo not yet identified.
+        table_for: model number or name -> its table (ValueError naming the known ones).
+        model_address: where the model number lives (2 bytes).
+        ping_data: bytes of data in the status packet answering a PING.
+        status_overhead: bytes of a status packet around its data.
+        id_offset: index of the ID byte in a packet.
+        group_read: SYNC_READ reads many servos in one request.
+        broadcast_ping: every servo answers a broadcast PING, one after the other.
+        spec_type: the datasheet class of its models.
+        firmware_item: the item holding the firmware version (a scan reports it).
+        limit_items: the items holding the position limits, (low, high).
+        servo_model, real_backend, sim_backend, emulator: ``module:attribute`` of the
+            firmware model the plant runs, the backend on a serial port, the simulated
+            backend (None: the plain ``SimBackend``), and the emulated network factory
+            ``(model, joint_map, *, baud, dt) -> network``; None where the family has
+            none yet (asking for it is a ValueError naming the family).
+    """
+
+    key: str
+    title: str
+    protocol: int | str
+    codec: ModuleType
+    tables: Mapping[int, ControlTable] = field(repr=False)
+    default_table: ControlTable = field(repr=False)
+    table_for: Callable[[int | str], ControlTable]
+    model_address: int
+    ping_data: int
+    status_overhead: int
+    id_offset: int
+    group_read: bool
+    broadcast_ping: bool
+    spec_type: type
+    firmware_item: str
+    limit_items: tuple[str, str]
+    servo_model: str | None
+    real_backend: str | None
+    sim_backend: str | None
+    emulator: str | None
+    aliases: tuple[str, ...] = field(default=())
+
+    @property
+    def label(self) -> str:
+        """The protocol as a person reads it ("1.0", "2.0", "Feetech STS")."""
+        return f"{self.protocol}.0" if isinstance(self.protocol, int) else self.title
+
+    def status_length(self, data_bytes: int = 0) -> int:
+        """Bytes of a status packet carrying ``data_bytes`` of data (before any stuffing)."""
+        return self.status_overhead + data_bytes
+
+    def id_of(self, packet: bytes) -> int:
+        """The ID an encoded packet is sent to (or comes from)."""
+        return packet[self.id_offset]
+
+    def load(self, part: str) -> Any:
+        """One of the lazily imported parts: "servo_model", "real_backend",
+        "sim_backend" or "emulator"."""
+        path = getattr(self, part)
+        if path is None:
+            raise ValueError(f"the {self.title} family has no {part.replace('_', ' ')}")
+        return _load(path)
+
+    def knows(self, model: int | str) -> bool:
+        """Whether ``model`` (number or name) is one of this family's."""
+        try:
+            self.table_for(model)
+        except ValueError:
+            return False
+        return True
+
+
+def _spec_type(table: ControlTable) -> type:
+    return type(table.spec)
+
+
+DYNAMIXEL1 = ServoFamily(
+    key="dynamixel1", title="Dynamixel protocol 1.0", protocol=1, codec=p1, tables=TABLES,
+    default_table=RX24F_TABLE, table_for=table_for, model_address=0, ping_data=0,
+    status_overhead=p1.OVERHEAD, id_offset=2, group_read=False, broadcast_ping=False,
+    spec_type=_spec_type(RX24F_TABLE), firmware_item="firmware_version",
+    limit_items=("cw_angle_limit", "ccw_angle_limit"),
+    servo_model="armlab.hardware.sim.dynamixel_servo:ServoModel",
+    real_backend="armlab.hardware.backends.dynamixel:DynamixelBackend",
+    sim_backend=None,
+    emulator="armlab.hardware.emulator.bus:network_for_map",
+    aliases=("1", "1.0", "protocol1"),
+)
+XSERIES = ServoFamily(
+    key="xseries", title="Dynamixel X-series (protocol 2.0)", protocol=2, codec=p2,
+    tables=X_TABLES, default_table=XM430_W350_TABLE, table_for=x_table_for, model_address=0,
+    ping_data=3, status_overhead=p2.status_length(0), id_offset=4, group_read=True,
+    broadcast_ping=True, spec_type=_spec_type(XM430_W350_TABLE),
+    firmware_item="firmware_version", limit_items=("min_position_limit", "max_position_limit"),
+    servo_model="armlab.hardware.sim.xseries_servo:XServoModel",
+    real_backend="armlab.hardware.backends.xseries:XSeriesBackend",
+    sim_backend="armlab.hardware.backends.xseries_sim:XSimBackend",
+    emulator="armlab.hardware.emulator.xseries:x_network_for_map",
+    aliases=("2", "2.0", "protocol2", "dynamixel2"),
+)
+STS = ServoFamily(
+    key="sts", title="Feetech STS", protocol="sts", codec=ft, tables=STS_TABLES,
+    default_table=STS3215_TABLE, table_for=sts_table_for, model_address=3, ping_data=0,
+    status_overhead=ft.OVERHEAD, id_offset=2, group_read=True, broadcast_ping=False,
+    spec_type=_spec_type(STS3215_TABLE), firmware_item="firmware_major",
+    limit_items=("min_position_limit", "max_position_limit"),
+    servo_model="armlab.hardware.sim.sts_servo:StsServoModel",
+    real_backend=None,
+    sim_backend=None,
+    emulator="armlab.hardware.emulator.sts:sts_network_for_map",
+    aliases=("feetech", "scs", "sms_sts"),
+)
+#: Every family the lab drives, in the order a scan tries them.
+FAMILIES: tuple[ServoFamily, ...] = (DYNAMIXEL1, XSERIES, STS)
+
+
+def family(which: int | float | str | ServoFamily) -> ServoFamily:
+    """The family named by a protocol tag (1, 2.0, "sts"), a key or alias, or a family
+    itself; ValueError listing the known ones otherwise."""
+    if isinstance(which, ServoFamily):
+        return which
+    if isinstance(which, float) and which.is_integer():
+        which = int(which)
+    for f in FAMILIES:
+        if which == f.protocol or (isinstance(which, str) and
+                                   which.lower() in (f.key, str(f.protocol), *f.aliases)):
+            return f
+    raise ValueError(f"unknown servo family or protocol {which!r}; known: "
+                     + ", ".join(f"{f.protocol!r} ({f.title})" for f in FAMILIES))
+
+
+def family_of_model(model: int | str) -> ServoFamily:
+    """The family one model (number or name) belongs to; ValueError listing every model."""
+    for f in FAMILIES:
+        if f.knows(model):
+            return f
+    tables = [t for f in FAMILIES for t in f.tables.values()]
+    if isinstance(model, str):
+        raise ValueError(f"unknown servo model {model!r}; known: "
+                         f"{', '.join(t.name for t in tables)}")
+    raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
+        f"{t.spec.model_number} ({t.name})" for t in tables))
+
+
+def family_of_spec(spec: object) -> ServoFamily:
+    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``)."""
+    for f in FAMILIES:
+        if isinstance(spec, f.spec_type):
+            return f
+    raise ValueError(f"{spec!r} is no servo datasheet the lab knows")
+
+
+def servo_table(model: int | str) -> ControlTable:
+    """The control table of any model the lab knows (number or name)."""
+    return family_of_model(model).table_for(model)
