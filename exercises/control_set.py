@@ -1,0 +1,378 @@
+"""The controller exercises: the PD reference model (2.20), the environment impedance (2.7),
+the compliance law (2.6) and the disturbance observer (2.36).
+
+Besides single calls, each is run in closed loop: the student's function takes the place
+of the lab's own in the same run the lab does (the thesis's chapter-4 line on the
+simulated arm, through :class:`~armlab.control.compliance.Laws`; the observer's
+torque-driven joint through :func:`~armlab.control.observers.simulate_observers`), and the
+run is compared with the lab's own, so a law right at one sample only still fails.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from armlab.control.compliance import (
+    Laws,
+    compliance_accel,
+    environment_step,
+    pd_reference_accel,
+)
+from armlab.control.experiments.thesis import LineRun, max_angle_error, run_line
+from armlab.control.observers import (
+    ObserverState,
+    TorqueJoint,
+    disturbance_observer,
+    lpf_gain,
+    simulate_observers,
+)
+from armlab.control.params import DEFAULT, PRESETS, Params
+from armlab.exercises.core import Exercise, Mistake, RunCase, ValueCase
+from armlab.exercises.student import CheckedLaw
+from armlab.kinematics import SerialChain, load_robot
+from armlab.kinematics.hand import GRIPPER_KT
+
+#: Closed-loop runs: the student's joint angles may differ from the lab's by this much, rad
+#: (a tenth of a degree: the servos' goal is whole position units of 0.29°, so a goal a
+#: hair different may land one unit off for a sample).
+RUN_ANGLE_TOL = math.radians(0.1)
+#: The thesis's own gains (ch. 4) and its Table 4.1 / conclusion environment.
+THESIS = PRESETS["thesis Table 4.1"]
+CONCLUSION = PRESETS["thesis conclusion"]
+#: The push of the closed-loop compliance runs, N (the lab's chapter-4 default).
+PUSH_N = 3.0
+
+
+@lru_cache(maxsize=1)
+def _arm() -> SerialChain:
+    arm = load_robot("receptionist_arm")
+    assert isinstance(arm, SerialChain)
+    return arm
+
+
+def _sim(model: SerialChain, **kw: Any) -> Any:
+    from armlab.hardware.backends.sim import SimBackend
+
+    return SimBackend(model, **kw)
+
+
+def _line(params: Params, controller: str, push_n: float, laws: Laws | None) -> LineRun:
+    return run_line(_arm(), _sim, params, controller=controller, push_n=push_n, laws=laws)
+
+
+@lru_cache(maxsize=8)
+def _reference_line(params: Params, controller: str, push_n: float) -> LineRun:
+    return _line(params, controller, push_n, None)
+
+
+def _compare_lines(law: CheckedLaw, laws: Laws, params: Params, controller: str,
+                   push_n: float) -> str:
+    """Run the chapter-4 line with ``laws`` and compare with the lab's own run."""
+    ref = _reference_line(params, controller, push_n)
+    ref_err = np.degrees(max_angle_error(ref)).round(2).tolist()
+    try:
+        run = _line(params, controller, push_n, laws)
+    except Exception as exc:  # the loop stopped: the student's error, or a fault it saw
+        law.raise_error()
+        if not isinstance(exc, ValueError):
+            raise
+        return (f"{exc} (the lab's own law ran the same line with max angle error "
+                f"{ref_err}°)")
+    law.raise_error()
+    m = min(len(run.snapshot["t"]), len(ref.snapshot["t"]))
+    gap = np.nanmax(np.abs(run.snapshot["q"][:m] - ref.snapshot["q"][:m]))
+    err = np.degrees(max_angle_error(run)).round(2).tolist()
+    if not math.isfinite(gap) or gap > RUN_ANGLE_TOL:
+        k = int(np.nanargmax(np.max(np.abs(run.snapshot["q"][:m] - ref.snapshot["q"][:m]),
+                                    axis=1)))
+        return (f"the arm's angles left the lab's own run by {math.degrees(gap):.3g}° at "
+                f"t = {ref.snapshot['t'][k]:.3f} s (tolerance {math.degrees(RUN_ANGLE_TOL):g}°);"
+                f" max angle error {err}° where the lab's law gives {ref_err}°")
+    return ""
+
+
+def _line_case(name: str, params: Params, controller: str, push_n: float, law_name: str,
+               field: str, shape: Callable[[tuple[Any, ...]], tuple[int, ...]]) -> RunCase:
+    def run(fn: Callable[..., Any]) -> str:
+        law = CheckedLaw(fn, law_name, shape)
+        p = replace(params, law="2.6")
+        return _compare_lines(law, Laws(**{field: law}), p, controller, push_n)
+    return RunCase(name, run)
+
+
+def _joints(args: tuple[Any, ...]) -> tuple[int, ...]:
+    return np.shape(args[2])
+
+
+# ---------------------------------------------------------------------------
+# PD reference model, eq. 2.20
+
+
+def _pd_cases() -> list[ValueCase | RunCase]:
+    rng = np.random.default_rng(220)
+    q_cmd, qd_cmd = np.array([0.8, 0.0, 2.5]), np.array([0.1, 0.0, -0.3])
+    q, qd = np.array([0.75, 0.01, 2.6]), np.array([0.05, -0.02, 0.0])
+    cases: list[ValueCase | RunCase] = [
+        ValueCase("thesis ch. 4 gains Kp = 3.8, Kv = 0.2", (3.8, 0.2, q_cmd, qd_cmd, q, qd)),
+        ValueCase("the thesis's conclusion Kv = 0.02", (3.8, 0.02, q_cmd, qd_cmd, q, qd)),
+        ValueCase("zero gains: no acceleration", (0.0, 0.0, q_cmd, qd_cmd, q, qd)),
+        ValueCase("on the command: no acceleration", (10.0, 2.0, q_cmd, qd_cmd, q_cmd, qd_cmd)),
+        ValueCase("one joint, plain floats", (20.0, 5.0, 0.3, 0.0, 0.1, 0.2)),
+    ]
+    for k in range(1, 4):
+        cases.append(ValueCase(f"random state {k}", (
+            rng.uniform(0, 50), rng.uniform(0, 10), *rng.normal(0, 1, (4, 3)))))
+    cases.append(_line_case("closed loop: the thesis's 20 cm line, PD, on the simulated arm",
+                            DEFAULT, "pd", 0.0, "pd_reference_accel", "pd", _joints))
+    return cases
+
+
+PD = Exercise(
+    name="pd_reference",
+    title="the PD reference model's acceleration (thesis 000, eq. 2.20)",
+    function="pd_reference_accel",
+    reference=pd_reference_accel,
+    mistakes=(
+        Mistake("swapped gains", "Kp multiplies the position error, Kv the speed error",
+                lambda kp, kv, *a: pd_reference_accel(kv, kp, *a)),
+        Mistake("a sign", "the error is command minus measured: θ_cmd − θ",
+                lambda kp, kv, *a: -pd_reference_accel(kp, kv, *a)),
+        Mistake("a missing term", "the speed term Kv (θ̇_cmd − θ̇) is missing",
+                lambda kp, kv, *a: pd_reference_accel(kp, 0.0, *a)),
+        Mistake("degrees for radians", "the angles are in radians: do not convert the "
+                "errors to degrees", lambda *a: np.degrees(pd_reference_accel(*a))),
+    ),
+    cases=_pd_cases,
+    teaches="The reference model a PD position loop makes of the servo (eq. 2.3), and how "
+            "Kp and Kv set its natural frequency and damping (eq. 2.11–2.12).",
+    lesson="compliance (controller PD, Step test; `armlab experiment step`, `armlab "
+           "experiment thesis-line --controller pd`)",
+)
+
+
+# ---------------------------------------------------------------------------
+# Environment impedance, eq. 2.7
+
+
+def _env_explicit(m, d, k, kf, tau, q, qd, dt):  # type: ignore[no-untyped-def]
+    qdd = (kf * tau - d * qd - k * q) / m
+    return q + dt * qd, qd + dt * qdd, qdd
+
+
+def _env_cases() -> list[ValueCase | RunCase]:
+    rng = np.random.default_rng(27)
+    tau = np.array([-0.2, 0.05, 0.4])
+    q, qd = np.array([0.01, -0.02, 0.0]), np.array([0.1, 0.0, -0.05])
+    t41 = (THESIS.m_env, THESIS.d_env, THESIS.k_env, THESIS.k_f)
+    end = (CONCLUSION.m_env, CONCLUSION.d_env, CONCLUSION.k_env, CONCLUSION.k_f)
+    steady = THESIS.k_f * tau / THESIS.k_env
+    cases: list[ValueCase | RunCase] = [
+        ValueCase("thesis Table 4.1 (M 1, D 5, K 12, K_f 0.3), 16 ms", (*t41, tau, q, qd, 0.016)),
+        ValueCase("thesis conclusion (M 9, D 5, K 9, K_f 0.2), 16 ms", (*end, tau, q, qd, 0.016)),
+        ValueCase("at rest, no torque: stays at rest",
+                  (*t41, np.zeros(3), np.zeros(3), np.zeros(3), 0.016)),
+        ValueCase("at the static offset K_f τ / K_env: stays there",
+                  (*t41, tau, steady, np.zeros(3), 0.016)),
+        ValueCase("zero stiffness K_env = 0", (1.0, 5.0, 0.0, 0.3, tau, q, qd, 0.016)),
+        ValueCase("one joint, plain floats", (2.0, 3.0, 10.0, 0.5, 0.3, 0.01, -0.2, 0.001)),
+    ]
+    for k in range(1, 3):
+        cases.append(ValueCase(f"random state {k}", (
+            rng.uniform(0.5, 5), rng.uniform(0, 10), rng.uniform(0, 20), rng.uniform(0, 2),
+            *rng.normal(0, 0.3, (3, 3)), 0.016)))
+    cases.append(_line_case(
+        "closed loop: the 20 cm line with a 3 N push, compliance (law 2.6), simulated arm",
+        DEFAULT, "compliance", PUSH_N, "environment_step", "environment",
+        lambda a: (3, *np.shape(a[4]))))
+    return cases
+
+
+ENVIRONMENT = Exercise(
+    name="environment_impedance",
+    title="one step of the virtual environment impedance (thesis 000, eq. 2.7)",
+    function="environment_step",
+    reference=environment_step,
+    mistakes=(
+        Mistake("order of the updates", "semi-implicit Euler: first θ̇ += dt θ̈, then θ += "
+                "dt θ̇ with the *new* θ̇", _env_explicit),
+        Mistake("a sign", "the torque drives the offset: M θ̈ + D θ̇ + K θ = +K_f τ_ext",
+                lambda m, d, k, kf, *a: environment_step(m, d, k, -kf, *a)),
+        Mistake("swapped gains", "D_env multiplies θ̇_env and K_env multiplies θ_env",
+                lambda m, d, k, *a: environment_step(m, k, d, *a)),
+        Mistake("a missing term", "divide by M_env: θ̈ = (K_f τ − D θ̇ − K θ) / M",
+                lambda m, *a: environment_step(1.0, *a)),
+    ),
+    cases=_env_cases,
+    teaches="A virtual mass-spring-damper turns a measured torque into a position offset; "
+            "its static gain K_f/K_env is the arm's compliance.",
+    lesson="compliance (Push the hand: τ_ext and θ_env in the charts)",
+)
+
+
+# ---------------------------------------------------------------------------
+# Compliance law, eq. 2.6
+
+
+def _compliance_cases() -> list[ValueCase | RunCase]:
+    rng = np.random.default_rng(26)
+    q_cmd, qd_cmd = np.array([0.8, 0.0, 2.5]), np.array([0.1, 0.0, -0.3])
+    q, qd = np.array([0.75, 0.01, 2.6]), np.array([0.05, -0.02, 0.0])
+    env = (np.array([0.02, 0.0, -0.05]), np.array([0.1, 0.0, -0.2]),
+           np.array([-0.5, 0.0, 1.0]))
+    cases: list[ValueCase | RunCase] = [
+        ValueCase("thesis gains, the hand pushed", (3.8, 0.2, q_cmd, qd_cmd, q, qd, *env)),
+        ValueCase("no environment offset: eq. 2.20",
+                  (3.8, 0.2, q_cmd, qd_cmd, q, qd, *np.zeros((3, 3)))),
+        ValueCase("zero gains: only −θ̈_env", (0.0, 0.0, q_cmd, qd_cmd, q, qd, *env)),
+        ValueCase("one joint, plain floats", (20.0, 5.0, 0.3, 0.0, 0.1, 0.2, 0.05, 0.1, -0.4)),
+    ]
+    for k in range(1, 4):
+        cases.append(ValueCase(f"random state {k}", (
+            rng.uniform(0, 50), rng.uniform(0, 10), *rng.normal(0, 1, (7, 3)))))
+    cases.append(_line_case(
+        "closed loop: the 20 cm line with a 3 N push, compliance, simulated arm",
+        DEFAULT, "compliance", PUSH_N, "compliance_accel", "compliance", _joints))
+    return cases
+
+
+COMPLIANCE = Exercise(
+    name="compliance_law",
+    title="the compliance controller's acceleration (thesis 000, eq. 2.6)",
+    function="compliance_accel",
+    reference=compliance_accel,
+    mistakes=(
+        Mistake("a sign", "the offset is subtracted: θ_cmd − θ − θ_env (the arm yields "
+                "with the push)", lambda kp, kv, qc, qdc, q, qd, e, ed, edd: compliance_accel(
+                    kp, kv, qc, qdc, q, qd, -e, -ed, edd)),
+        Mistake("a missing term", "the last term −θ̈_env is missing",
+                lambda *a: compliance_accel(*a[:8], 0.0 * np.asarray(a[8]))),
+        Mistake("swapped gains", "Kp multiplies the position error, Kv the speed error",
+                lambda kp, kv, *a: compliance_accel(kv, kp, *a)),
+        Mistake("a missing term", "the speed error is θ̇_cmd − θ̇ − θ̇_env: θ̇_env is missing",
+                lambda kp, kv, qc, qdc, q, qd, e, ed, edd: compliance_accel(
+                    kp, kv, qc, qdc, q, qd, e, 0.0 * np.asarray(ed), edd)),
+    ),
+    cases=_compliance_cases,
+    teaches="Compliance as a moved reference: the PD loop follows θ_cmd − θ_env, so the arm "
+            "gives way to a push as the virtual environment says.",
+    lesson="compliance (push with compliance on and off, law 2.6 vs 2.26; `armlab "
+           "experiment thesis-line --controller compliance`)",
+)
+
+
+# ---------------------------------------------------------------------------
+# Disturbance observer, eq. 2.36
+
+
+def observer_step(z: float, current: float, qd: float, j_n: float, kt_n: float,
+                  g_dis: float, dt: float) -> tuple[float, float]:
+    """Reference: one sample of the lab's disturbance observer (thesis eq. 2.36 with the
+    LPF of fig. 2.7–2.8), its filter state passed in and out."""
+    state = ObserverState(z)
+    tau = disturbance_observer(state, current, qd, j_n=j_n, kt_n=kt_n, g_dis=g_dis, dt=dt)
+    return state.z, tau
+
+
+def _obs_euler_gain(z, current, qd, j_n, kt_n, g, dt):  # type: ignore[no-untyped-def]
+    u = kt_n * current + g * j_n * qd
+    z = z + g * dt * (u - z)
+    return z, z - g * j_n * qd
+
+
+def _obs_sign(z, current, qd, j_n, kt_n, g, dt):  # type: ignore[no-untyped-def]
+    u = kt_n * current - g * j_n * qd
+    z = z + lpf_gain(g, dt) * (u - z)
+    return z, z + g * j_n * qd
+
+
+@lru_cache(maxsize=1)
+def _reference_observer_run() -> Any:
+    return _observer_run(None)
+
+
+def _observer_run(observer: Callable[..., float] | None) -> Any:
+    return simulate_observers(TorqueJoint(), lambda t: 0.003 if t >= 0.05 else 0.0,
+                              duration=0.25, compensate=True, observer=observer)
+
+
+def _observer_closed_loop(fn: Callable[..., Any]) -> str:
+    law = CheckedLaw(fn, "observer_step", (2,))
+
+    def observer(state: ObserverState, current: float, qd: float, *, j_n: float, kt_n: float,
+                 g_dis: float, dt: float) -> float:
+        state.z, tau = law(state.z, current, qd, j_n, kt_n, g_dis, dt)
+        return float(tau)
+
+    ref = _reference_observer_run()
+    try:
+        run = _observer_run(observer)
+    except (ArithmeticError, ValueError) as exc:  # the joint's simulation blew up
+        law.raise_error()
+        return (f"with your observer feeding the disturbance back, the joint's simulation "
+                f"diverged ({exc}); with the lab's it ends {0.5 - ref.q[-1]:.3g} rad from "
+                "its command")
+    law.raise_error()
+    gap_q = float(np.max(np.abs(run.q - ref.q)))
+    gap_tau = float(np.max(np.abs(run.tau_dis_hat - ref.tau_dis_hat)))
+    if gap_q > 1e-7 or gap_tau > 1e-7 or not math.isfinite(gap_q + gap_tau):
+        return (f"with your observer feeding the disturbance back, the joint's angle left the "
+                f"lab's run by {gap_q:.3g} rad and the estimate by {gap_tau:.3g} N·m "
+                f"(tolerance 1e-07); the final angle error is {0.5 - run.q[-1]:.3g} rad, "
+                f"the lab's {0.5 - ref.q[-1]:.3g} rad")
+    return ""
+
+
+def _observer_cases() -> list[ValueCase | RunCase]:
+    rng = np.random.default_rng(236)
+    j = TorqueJoint()
+    nominal = dict(j_n=j.inertia, kt_n=GRIPPER_KT)
+    cases: list[ValueCase | RunCase] = [
+        ValueCase("gripper motor, g = 200 rad/s, 0.1 ms, from rest",
+                  (0.0, 0.2, 0.0, *nominal.values(), 200.0, 1e-4), rtol=1e-7, atol=1e-12),
+        ValueCase("gripper motor, moving", (1e-3, 0.5, 3.0, *nominal.values(), 200.0, 1e-4),
+                  rtol=1e-7, atol=1e-12),
+        ValueCase("cut-off g = 0: the estimate stays put",
+                  (2e-3, 0.5, 3.0, *nominal.values(), 0.0, 1e-4), rtol=1e-7, atol=1e-12),
+        ValueCase("a long sample, g dt = 5", (1e-3, 0.5, 3.0, *nominal.values(), 500.0, 0.01),
+                  rtol=1e-7, atol=1e-12),
+    ]
+    for k in range(1, 4):
+        cases.append(ValueCase(f"random state {k}", (
+            rng.normal(0, 0.01), rng.normal(0, 1), rng.normal(0, 5), rng.uniform(1e-5, 1e-4),
+            rng.uniform(5e-3, 2e-2), rng.uniform(50, 500), rng.uniform(1e-4, 1e-3)),
+            rtol=1e-7, atol=1e-12))
+    cases.append(RunCase("closed loop: the observer's estimate fed back on the torque-driven "
+                         "joint, a 3 mN·m load step", _observer_closed_loop))
+    return cases
+
+
+OBSERVER = Exercise(
+    name="disturbance_observer",
+    title="one sample of the disturbance observer (thesis 000, eq. 2.36, fig. 2.7–2.8)",
+    function="observer_step",
+    reference=observer_step,
+    mistakes=(
+        Mistake("a missing term", "the estimate is the filter's output minus g J_n θ̇",
+                lambda *a: (observer_step(*a)[0],) * 2),
+        Mistake("a sign", "the filter's input is K_tn I + g J_n θ̇, and g J_n θ̇ is then "
+                "subtracted", _obs_sign),
+        Mistake("the filter's gain", "the sampled LPF g/(s + g) has the gain "
+                "a = 1 − exp(−g dt), not g dt", _obs_euler_gain),
+        Mistake("a missing term", "the motor's torque is K_tn I: multiply the current by K_tn",
+                lambda z, i, qd, j_n, kt_n, g, dt: observer_step(z, i / kt_n, qd, j_n, kt_n,
+                                                                 g, dt)),
+    ),
+    cases=_observer_cases,
+    teaches="Estimating every unmodelled torque from the current and the speed alone, "
+            "through a low-pass filter instead of differentiating θ̇.",
+    lesson="`armlab experiment observers` (a simulation lesson: the RX-24F takes no "
+           "current command); hand (current-driven fingers)",
+)
+
+EXERCISES = (PD, ENVIRONMENT, COMPLIANCE, OBSERVER)
