@@ -22,12 +22,17 @@ $(DEVSTAMP): pyproject.toml | $(BIN)/python
 run: $(STAMP)
 	$(BIN)/armlab serve
 
+# one process by default: beside a second worker, the real-time tests of a 2-core machine
+# lose their margin. `make test PARALLEL="-n 2 --dist loadfile --no-loadscope-reorder"`
+# runs two pytest-xdist workers, each module whole on one of them, the slowest first.
+PARALLEL ?=
+
 test: $(DEVSTAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PARALLEL)
 
 # the edit-test loop: no browser, nothing on the wall clock (make test runs everything)
 test-fast: $(DEVSTAMP)
-	$(BIN)/python -m pytest -q -m "not browser and not realtime"
+	$(BIN)/python -m pytest -q $(PARALLEL) -m "not browser and not realtime"
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .

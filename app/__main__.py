@@ -1,4 +1,4 @@
-"""``python -m app`` = the ``armlab`` command."""
+"""``python -m armlab.app`` = the ``armlab`` command."""
 
 import sys
 

@@ -17,11 +17,9 @@ viser sees it, answering HTTP 403 (no state is ever sent) unless
   scheme and the ``Host`` the request was made to.
 
 Static files (the page's JavaScript, fonts) stay public; they hold nothing of the
-robot. The hook: viser builds its ``websockets`` server inside ``ViserServer``'s
-start-up with its own ``process_request`` (the static files); :func:`gated` wraps that
-function, for the one server created inside it, through a stand-in for the
-``websockets`` name in ``viser.infra._infra`` (nothing else in the process changes).
-Check it again when viser's version moves: tests/test_gate.py does.
+robot. Where the gate sits in viser (the one private hook it needs) is
+:mod:`armlab.app.viser_ext.websocket`; it fails closed: a lab whose gate cannot be put in
+place does not start (tests/test_gate.py, tests/test_viser_hooks.py).
 """
 
 from __future__ import annotations
@@ -33,17 +31,15 @@ import secrets
 import sys
 import threading
 import time
-import types
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 from urllib.parse import parse_qs, parse_qsl, urlencode, urlsplit
 
-import websockets.asyncio.server
-import websockets.datastructures
-import websockets.exceptions
 from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
+
+from armlab.app.viser_ext.websocket import Front, front
 
 COOKIE = "armlab_token"
 #: the cookie a presenter link (``?presenter=PASSCODE``) leaves in the browser, named
@@ -190,19 +186,6 @@ def _to_index_html(request: Request) -> Response:
                     Headers({"Location": location, "Content-Length": "0"}), b"")
 
 
-_install_lock = threading.Lock()
-_next_gate: Gate | None = None
-
-
-def _gated_serve(handler: Any, *args: Any, process_request: Any = None, **kwargs: Any) -> Any:
-    """``websockets.asyncio.server.serve`` with the pending gate in front (if any)."""
-    gate = _next_gate
-    if gate is not None:
-        process_request = gate.wrap(process_request)
-    return websockets.asyncio.server.serve(handler, *args, process_request=process_request,
-                                           **kwargs)
-
-
 class MessageDrops:
     """Client messages dropped before viser's handlers because they could not be read
     (an unknown type, a missing or malformed field, a text frame): counted, one log line
@@ -235,8 +218,8 @@ class MessageDrops:
 DROPS = MessageDrops()
 
 
-async def _screened_consumer(websocket: Any, handle_message: Callable[[Any], None],
-                             message_class: Any) -> None:
+async def screened_consumer(websocket: Any, handle_message: Callable[[Any], None],
+                            message_class: Any) -> None:
     """viser's per-connection receive loop, with a message it cannot read dropped and
     counted (:data:`DROPS`) instead of ending the connection with a traceback."""
     while True:
@@ -251,32 +234,16 @@ async def _screened_consumer(websocket: Any, handle_message: Callable[[Any], Non
         handle_message(message)
 
 
-def _install() -> None:
-    """Give ``viser.infra._infra`` a ``websockets`` whose ``serve`` is :func:`_gated_serve`
-    and a receive loop that screens what it cannot read (once; every other name is the
-    real module's)."""
-    from viser.infra import _infra
-
-    if getattr(_infra.websockets, "armlab_gate", False):
-        return
-    _infra._message_consumer = _screened_consumer  # type: ignore[attr-defined]
-    server = types.SimpleNamespace(**vars(websockets.asyncio.server))
-    server.serve = _gated_serve
-    _infra.websockets = types.SimpleNamespace(  # type: ignore[attr-defined]
-        asyncio=types.SimpleNamespace(server=server),
-        datastructures=websockets.datastructures, exceptions=websockets.exceptions,
-        armlab_gate=True)
-
-
 @contextmanager
-def gated(gate: Gate) -> Iterator[None]:
+def gated(gate: Gate) -> Iterator[Front]:
     """Put ``gate`` in front of the ``viser.ViserServer`` constructed inside this block
-    (the constructor starts its websockets server before it returns)."""
-    global _next_gate
-    with _install_lock:
-        _install()
-        _next_gate = gate
-        try:
-            yield
-        finally:
-            _next_gate = None
+    (the constructor starts its websockets server before it returns), and
+    :func:`screened_consumer` behind it. After the block, call the result's ``confirm()``
+    (raises :class:`HookNotPlaced` if the server did not go through the gate: stop it).
+
+    Raises:
+        HookNotPlaced: the gate's hook cannot be put in place in the installed viser
+            (:func:`armlab.app.viser_ext.websocket.missing`); nothing was started.
+    """
+    with front(gate.wrap, consumer=screened_consumer) as placed:
+        yield placed

@@ -68,7 +68,7 @@ def setup_armlab() -> dict[str, Any]:
     token = check_token(os.environ.get(TOKEN_ENV) or new_token())
     return {
         # jupyter-server-proxy picks a free port and puts it in for {port}
-        "command": [sys.executable, "-m", "app", "serve", "--http-port", "{port}"],
+        "command": [sys.executable, "-m", "armlab.app", "serve", "--http-port", "{port}"],
         "environment": {TOKEN_ENV: token},
         "timeout": START_TIMEOUT,
         "absolute_url": False,  # the lab sees "/...", the prefix cut off

@@ -25,6 +25,7 @@ import urllib.error
 import urllib.request
 from dataclasses import dataclass, replace
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import viser
 
@@ -47,7 +48,11 @@ from armlab.app.page.look import Looks
 from armlab.app.page.panels import install as install_panels
 from armlab.app.page.stop_first import install as install_stop_first
 from armlab.app.page.theme import PageStyle
+from armlab.app.viser_ext import require_hooks
 from armlab.app.viser_ext.fixes import install as install_viser_fixes
+
+if TYPE_CHECKING:
+    from armlab.app.student_law import StudentLaw
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -112,6 +117,10 @@ class ServeOptions:
             :class:`armlab.app.lessons.LessonContext`).
         plain_on_software: a page whose browser draws WebGL on the CPU gets the plain
             look (:mod:`armlab.app.page.look`); False keeps the full look on every page.
+        exercise: a student's law file (``--exercise``): the servo-arm lessons run it in
+            place of the lab's own (:mod:`armlab.app.student_law`); never in a classroom.
+        next_to_robot: the person is next to the real arm (``--i-am-next-to-the-robot``):
+            what a student's law on real servos needs.
     """
 
     robot: str = "receptionist_arm"
@@ -129,6 +138,8 @@ class ServeOptions:
     package_paths: tuple[str, ...] = ()
     joint_map: str | None = None
     plain_on_software: bool = True
+    exercise: str | None = None
+    next_to_robot: bool = False
 
     def __post_init__(self) -> None:
         if self.token is not None:
@@ -139,6 +150,13 @@ class ServeOptions:
             raise ValueError("port: the serial backend needs --port DEV (e.g. /dev/ttyUSB0)")
         if not 0 <= self.http_port <= 65535:
             raise ValueError(f"http_port: expected 0..65535, got {self.http_port}")
+        if self.exercise is not None and self.classroom:
+            raise ValueError("--exercise runs a student's own code: only in their own lab, "
+                             "never with --classroom")
+        if self.exercise is not None and self.backend == "serial" and not self.next_to_robot:
+            raise ValueError("--exercise with --backend serial drives the real arm with your "
+                             "own law: add --i-am-next-to-the-robot (stay within reach of "
+                             "the E-STOP and the servo power)")
 
 
 #: host names that mean "every interface": the printed URL then names this machine's
@@ -187,6 +205,8 @@ class Lab:
     """
 
     def __init__(self, options: ServeOptions, *, verbose: bool = False) -> None:
+        # every hook into viser checked first: without the gate's, nothing is started
+        require_hooks()  # raises HooksMissing (armlab.app.viser_ext)
         install_viser_fixes()  # before the server: GUI calls from callback threads
         self.options = options
         lessons = all_lessons()
@@ -194,6 +214,16 @@ class Lab:
         if name not in lessons:
             raise ValueError(f"lesson: unknown {name!r}; known: {', '.join(sorted(lessons))}")
         self._lessons = lessons
+        #: the student's own law (``--exercise``), watched for saves; None: the lab's own
+        self.law: StudentLaw | None = None
+        if options.exercise is not None:
+            from armlab.app.student_law import LIVE_LESSONS, StudentLaw
+
+            if name not in LIVE_LESSONS:
+                raise ValueError(f"--exercise: lesson {name} runs no law of yours; the "
+                                 f"lessons {' and '.join(LIVE_LESSONS)} do")
+            self.law = StudentLaw(options.exercise, servos=options.backend == "serial")
+            self.law.start()
         if options.classroom and options.backend == "sim":  # the lab owns the process
             sys.setswitchinterval(CLASSROOM_SIM_SWITCH_INTERVAL)
         else:
@@ -204,10 +234,11 @@ class Lab:
         self.token = options.token or new_token()
         self.gate = Gate(self.token)
         # viser prints a banner on construction; the CLI prints its own url line.
-        with contextlib.redirect_stdout(io.StringIO()), gated(self.gate):
+        with contextlib.redirect_stdout(io.StringIO()), gated(self.gate) as placed:
             self.server = LabServer(host=options.host, port=options.http_port,
                                     label=PANEL_LABEL, verbose=verbose)
         try:
+            placed.confirm()  # the server went through the gate, or it is stopped below
             self.screen = UpdateScreen(self.server)  # every client value checked first
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
@@ -226,7 +257,8 @@ class Lab:
             self.base_url = f"http://{_url_host(shown)}:{port}"
             self.url = f"{self.base_url}/?token={self.token}"
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
-            self.room: Room | None = Room(self) if options.classroom else None
+            self.room: Room | None = (Room(self, realtime=options.realtime)
+                                      if options.classroom else None)
             #: the shared arm's own process in a simulated classroom: its loop's periods
             #: wait for no page (armlab.app.classroom.worker_process)
             self.arm_process: ArmProcess | None = (
@@ -239,6 +271,8 @@ class Lab:
             self.lesson: LessonHandle | None = None
             self._open(name)
         except BaseException:
+            if self.law is not None:
+                self.law.close()
             if getattr(self, "room", None) is not None:
                 self.room.close()
             if getattr(self, "arm_process", None) is not None:
@@ -292,7 +326,7 @@ class Lab:
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
                              realtime=o.realtime, tip_link=o.tip_link,
                              package_paths=tuple(o.package_paths), joint_map=o.joint_map,
-                             arm_process=self.arm_process)
+                             arm_process=self.arm_process, law=self.law)
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]
@@ -332,9 +366,8 @@ class Lab:
         """Torque off now through the open lesson; never raises. In a classroom the
         presenters are told which page (``by``) pressed it."""
         lesson = self.lesson
-        stop = getattr(lesson, "estop", None)
-        if stop is not None:
-            stop()
+        if lesson is not None:
+            lesson.estop()
         if self.room is not None and by is not None:
             private = self.room.private_lesson(by.client_id)
             if private is not None:
@@ -380,6 +413,8 @@ class Lab:
             if lesson is not None:
                 lesson.close()
         finally:
+            if self.law is not None:
+                self.law.close()
             if self.arm_process is not None:
                 self.arm_process.close()
             with contextlib.redirect_stdout(io.StringIO()):

@@ -17,16 +17,15 @@ forward with the hand (eq. 2.4: x_real = x_virtual − x_env).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 
 from armlab.control.backend import JointState
+from armlab.control.params import Params
 from armlab.kinematics.smallarrays import clamp
-
-if TYPE_CHECKING:  # annotations only: .params imports .metrics, which imports us
-    from armlab.control.params import Params
 
 Mode = Literal["none", "pd", "compliance"]
 MODES: tuple[str, ...] = ("none", "pd", "compliance")
@@ -126,6 +125,19 @@ def external_torque(tau_dist_filtered: Array, tau_dyn: Array) -> Array:
     return tau_dist_filtered - tau_dyn
 
 
+@dataclass(frozen=True)
+class Laws:
+    """The equations :meth:`ComplianceController.step` calls: the lab's own by default.
+
+    Coursework (:mod:`armlab.exercises`) puts a student's function in place of one, to run
+    it on the arm; each takes the arguments and returns what the lab's own function does.
+    """
+
+    pd: Callable[..., Array] = pd_reference_accel  #: eq. 2.20
+    compliance: Callable[..., Array] = compliance_accel  #: eq. 2.6
+    environment: Callable[..., tuple[Array, Array, Array]] = environment_step  #: eq. 2.7
+
+
 @dataclass
 class ControllerState:
     """What the controller remembers between periods (all (n,) arrays).
@@ -163,12 +175,13 @@ class ComplianceController:
             inside them (no wind-up against a limit).
         max_speed: (n,) or scalar, rad/s; |θ̇_ref| is kept below it.
         mode: "none" (send θ_cmd itself), "pd" (eq. 2.20) or "compliance".
+        laws: the equations to run (default: the lab's own, :class:`Laws`).
 
     ``Params.feedforward`` adds θ̈_cmd to θ̈_ref (not in the thesis; off keeps eq. 2.3).
     """
 
     def __init__(self, lower: np.ndarray, upper: np.ndarray, max_speed: np.ndarray | float,
-                 *, mode: Mode = "compliance") -> None:
+                 *, mode: Mode = "compliance", laws: Laws | None = None) -> None:
         if mode not in MODES:
             raise ValueError(f"controller must be one of {', '.join(MODES)}, got {mode!r}")
         self.lower = np.asarray(lower, dtype=float)
@@ -176,6 +189,7 @@ class ComplianceController:
         self.max_speed = np.broadcast_to(np.asarray(max_speed, dtype=float),
                                          self.lower.shape).copy()
         self.mode: Mode = mode
+        self.laws = Laws() if laws is None else laws
 
     def effective_mode(self, params: Params) -> Mode:
         """The mode actually run: "compliance" with ``params.compliance`` off is "pd"."""
@@ -209,16 +223,16 @@ class ComplianceController:
         q, qd = measured.position, measured.velocity
         if mode == "pd":
             state.q_env[:] = state.qd_env[:] = state.qdd_env[:] = 0.0
-            qdd = pd_reference_accel(p.kp, p.kv, q_cmd, qd_cmd, q, qd)
+            qdd = self.laws.pd(p.kp, p.kv, q_cmd, qd_cmd, q, qd)
         else:
-            state.q_env, state.qd_env, state.qdd_env = environment_step(
+            state.q_env, state.qd_env, state.qdd_env = self.laws.environment(
                 p.m_env, p.d_env, p.k_env, p.k_f, state.tau_ext, state.q_env, state.qd_env, T)
             if p.law == "2.26":
                 qdd = compliance_accel_literal(p.kp, p.kv, p.m_env, p.d_env, p.k_env, q_cmd,
                                                qd_cmd, q, qd, state.q_env, state.qd_env,
                                                state.qdd_env)
             else:
-                qdd = compliance_accel(p.kp, p.kv, q_cmd, qd_cmd, q, qd, state.q_env,
+                qdd = self.laws.compliance(p.kp, p.kv, q_cmd, qd_cmd, q, qd, state.q_env,
                                        state.qd_env, state.qdd_env)
         if p.feedforward:
             qdd = qdd + qdd_cmd

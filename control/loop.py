@@ -10,7 +10,8 @@ the loop's own clock k·T, so a simulated arm gives the same numbers paced or no
 One writer per piece of state: only the loop touches the backend and the
 controller. Other threads
 
-* replace the parameters (``set_params``; swapped at the next period boundary),
+* replace the parameters (``set_params``, which applies the lab's one rule on gains,
+  :func:`~armlab.control.params.check_gains`; swapped at the next period boundary),
 * post commands (``post``; applied at the next period, in order),
 * read ``status`` (a frozen snapshot) and ``recorder.snapshot()``.
 
@@ -62,8 +63,8 @@ from armlab.control.commands import (
     Stop,
     UseSpareJoints,
 )
-from armlab.control.compliance import MODES, ComplianceController, ControllerState, Mode
-from armlab.control.params import DEFAULT, Params, loop_stability, stability_warning
+from armlab.control.compliance import MODES, ComplianceController, ControllerState, Laws, Mode
+from armlab.control.params import DEFAULT, GainCheck, Params, check_gains
 from armlab.control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
 from armlab.control.recorder import Recorder
 from armlab.control.trajectory import JointTrajectory, approach_duration, minimum_jerk
@@ -109,7 +110,6 @@ class LoopStatus:
             servos may still hold torque (retried once a second until it goes out).
         link_down: the backend's link failed and is not back (retried once a second on a
             backend that can reconnect); Reset and Run do nothing until it is.
-        warning: :func:`armlab.control.params.stability_warning` of the current parameters.
     """
 
     running: bool
@@ -129,7 +129,6 @@ class LoopStatus:
     jitter_p99_ms: float | None
     jitter_max_ms: float | None
     overruns: int
-    warning: str | None
     skipped: int = 0
     skipped_recent: int = 0
     torque_off_unsent: bool = False
@@ -146,7 +145,8 @@ class ControlLoop:
     Args:
         model: the arm (joint order = backend order).
         backend: the servos (simulated or real).
-        params: controller parameters (default: the well-damped preset).
+        params: controller parameters (default: the well-damped preset), held to
+            :func:`~armlab.control.params.check_gains` as :meth:`set_params` holds a change.
         controller: "none", "pd" or "compliance".
         realtime: ``start()`` paces periods by the wall clock; False runs them back to back.
         history_s: seconds of signals the recorder keeps.
@@ -158,23 +158,25 @@ class ControlLoop:
             it steps) instead of a thread of the loop's own; ``start``/``shutdown`` attach
             and detach the loop. The backend's ``sync`` then finds its world already at
             the loop's time (e.g. ``armlab.hardware.backends.batched.BatchedArmBackend``).
+        laws: the controller's equations (default: the lab's own; coursework runs a
+            student's in their place, :class:`~armlab.control.compliance.Laws`).
     """
 
     def __init__(self, model: SerialChain, backend: Backend, params: Params | None = None, *,
                  controller: Mode = "compliance", realtime: bool = True,
                  history_s: float = 20.0, max_accel: float = 500.0, max_lag: float = 0.5,
                  lag_time: float = 0.5, target_speed: float = TARGET_SPEED,
-                 clock: SharedClock | None = None) -> None:
+                 clock: SharedClock | None = None, laws: Laws | None = None) -> None:
         if not isinstance(backend, Backend):
             raise ValueError(f"backend must implement armlab.control.backend.Backend, got "
                              f"{type(backend).__name__}")
         if backend.n != model.n:
             raise ValueError(f"backend has {backend.n} joints but the model {model.name!r} "
                              f"has {model.n}")
-        params = DEFAULT if params is None else params
-        if not isinstance(params, Params):
-            raise ValueError(f"params must be a armlab.control.params.Params, got "
-                             f"{type(params).__name__}")
+        #: real (or emulated) servos: nothing but a simulated arm can be pushed by the lab
+        self.servos = not isinstance(backend, Pushable)
+        gains = check_gains(DEFAULT if params is None else params, servos=self.servos)
+        params = gains.params
         if controller not in MODES:
             raise ValueError(f"controller must be one of {', '.join(MODES)}, got {controller!r}")
         scalar("history_s", history_s, positive=True)
@@ -193,11 +195,12 @@ class ControlLoop:
         self.max_speed = np.where(np.isfinite(vel) & (vel > 0), vel, DEFAULT_MAX_SPEED)
         self._fast_speed = self.max_speed * (1.0 - 1e-9)  # a reference this fast: a fault
         self.controller = ComplianceController(self.lower, self.upper, self.max_speed,
-                                               mode=controller)
+                                               mode=controller, laws=laws)
         self._rnea = dynamics_model(model).rnea
         self._gravity = np.asarray(model.gravity, dtype=float).tolist()
         self._params = params
-        self._pending: Params | None = None
+        self._gains = gains
+        self._pending: GainCheck | None = None
         self._commands: queue.SimpleQueue[Command] = queue.SimpleQueue()
         self._lock = threading.Lock()
         self.recorder = Recorder(model.n, self._capacity(params.period),
@@ -228,37 +231,37 @@ class ControlLoop:
                   spin_s=SPIN_S)  # a period's start within microseconds
             if clock is None else
             clock.pacer(self._tick, period=params.period, name="armlab-control"))
-        self._warning = stability_warning(params)
 
     # ------------------------------------------------------------------ public API
 
     @property
     def params(self) -> Params:
         """The parameters in force (a pending swap shows after the next period)."""
+        return self.gains.params
+
+    @property
+    def gains(self) -> GainCheck:
+        """What :func:`~armlab.control.params.check_gains` said of the parameters in force
+        (a pending swap included): their poles and the warning for a person."""
         with self._lock:
-            return self._pending or self._params
+            return self._pending or self._gains
 
-    def set_params(self, params: Params, *, force: bool = False) -> str | None:
-        """Use ``params`` from the next period boundary on.
-
-        Gains whose sampled loop diverges even on an ideal servo are refused unless
-        ``force`` (to demonstrate instability; the run-time checks still stop the arm).
+    def set_params(self, params: Params) -> GainCheck:
+        """Use ``params`` from the next period boundary on, if the lab's one rule on gains
+        (:func:`~armlab.control.params.check_gains`) takes them on this arm: unstable
+        gains are refused on real servos and taken on a simulated arm (where the run-time
+        checks stop it).
 
         Returns:
-            :func:`stability_warning` for the new parameters (None when all is well).
+            The rule's verdict (its ``warning`` for a person, None when all is well).
 
         Raises:
-            ValueError: not a Params, or unstable gains without ``force``.
+            ValueError: not a Params, or refused (nothing changes then).
         """
-        if not isinstance(params, Params):
-            raise ValueError(f"params must be a armlab.control.params.Params, got "
-                             f"{type(params).__name__}")
-        warning = stability_warning(params)
-        if loop_stability(params).unstable and not force:
-            raise ValueError(f"gains refused: {warning}")
+        gains = check_gains(params, servos=self.servos)
         with self._lock:
-            self._pending = params
-        return warning
+            self._pending = gains
+        return gains
 
     @property
     def spare_joints(self) -> UseSpareJoints:
@@ -298,7 +301,7 @@ class ControlLoop:
                 period_mean_ms=pace.interval_mean_ms, jitter_p50_ms=pace.late_p50_ms,
                 jitter_p99_ms=pace.late_p99_ms, jitter_max_ms=pace.late_max_ms,
                 overruns=pace.overruns, skipped=pace.skipped,
-                skipped_recent=pace.skipped_recent, warning=self._warning,
+                skipped_recent=pace.skipped_recent,
                 torque_off_unsent=self._torque_unsent, link_down=not self._backend_ok,
             )
 
@@ -474,14 +477,12 @@ class ControlLoop:
     def _swap_params(self) -> None:
         with self._lock:
             new, self._pending = self._pending, None
-        if new is None:
-            return
-        warning = stability_warning(new)
-        with self._lock:
-            old, self._params, self._warning = self._params, new, warning
-        if new.period != old.period:
-            self.recorder.resize(self._capacity(new.period))
-            self._pacer.period = new.period
+            if new is None:
+                return
+            old, self._params, self._gains = self._params, new.params, new
+        if self._params.period != old.period:
+            self.recorder.resize(self._capacity(self._params.period))
+            self._pacer.period = self._params.period
 
     def _capacity(self, period: float) -> int:
         return max(2, int(math.ceil(self.history_s / period)) + 1)

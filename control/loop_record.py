@@ -3,8 +3,7 @@
 The hand's :class:`armlab.control.grip_loop.GripLoop` and the quadruped's
 :class:`armlab.control.gait_loop.GaitLoop`, and the server's proxies of such loops running in a
 worker process (``armlab.app.classroom.remote_hand``, ``armlab.app.classroom.remote_gait``), share
-this surface; their
-records are :class:`armlab.control.periodic.RingBuffer` rows.
+this surface; their records are :class:`armlab.control.periodic.RingBuffer` rows.
 """
 
 from __future__ import annotations

@@ -21,8 +21,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from armlab.control.compliance import integrate_reference, pd_reference_accel
-
 if TYPE_CHECKING:  # scipy.signal is imported where it is used: it costs every start 0.3 s
     from scipy import signal
 
@@ -181,51 +179,3 @@ def step_duration(kp: float, kv: float) -> float:
     ts = settling_time(wn, z)
     guess = 3.0 * ts if math.isfinite(ts) else 600.0
     return float(min(600.0, max(5.0, guess, 10.0 * 2.0 * math.pi / wn)))
-
-
-def simulate_ideal_joint_step(kp: float, kv: float, *, period: float = 1e-3,
-                              duration: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Step response of the sampled PD loop (eq. 2.20 integrated twice) on an ideal joint.
-
-    The ideal acceleration-controlled joint follows its reference exactly, so the
-    measured position is θ_ref itself. θ_cmd steps 0 -> 1 at t = 0 with θ̇_cmd = 0:
-    the result is the pure second-order part Kp/(s² + Kv s + Kp), sampled.
-
-    Returns:
-        (t, θ) arrays of the same length, t from 0.
-    """
-    if duration is None:
-        duration = step_duration(kp, kv)
-    n = int(round(duration / period)) + 1
-    y = np.empty(n)
-    q = qd = 0.0
-    for k in range(n):
-        y[k] = q
-        qdd = pd_reference_accel(kp, kv, 1.0, 0.0, q, qd)
-        q, qd = integrate_reference(q, qd, qdd, period)
-    return np.arange(n) * period, y
-
-
-def step_report(kp: float, kv: float, *, period: float = 1e-3) -> dict[str, object]:
-    """Formula (2.11–2.19) vs measured metrics of the ideal joint and of eq. 2.3.
-
-    Returns:
-        {"kp", "kv", "omega_n", "zeta", "formula", "measured", "measured_eq_2_3"}, the
-        last three each {overshoot_pct, peak_time_s, rise_time_s, settling_time_s}.
-    """
-    if not (math.isfinite(kp) and kp > 0):
-        raise ValueError(f"kp must be > 0, got {kp}")
-    if not (math.isfinite(kv) and kv > 0):
-        raise ValueError(f"kv must be > 0 (Kv = 0 never settles), got {kv}")
-    wn, z = pd_natural_frequency(kp), pd_damping(kp, kv)
-    duration = step_duration(kp, kv)
-    t, y = simulate_ideal_joint_step(kp, kv, period=period, duration=duration)
-    from scipy import signal
-
-    t2, y2 = signal.step(pd_reference_model(kp, kv), T=np.arange(0.0, duration, period / 2))
-    return {
-        "kp": kp, "kv": kv, "omega_n": wn, "zeta": z,
-        "formula": formula_metrics(wn, z).as_dict(),
-        "measured": measure_step(t, y).as_dict(),
-        "measured_eq_2_3": measure_step(t2, y2).as_dict(),
-    }

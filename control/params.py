@@ -21,7 +21,6 @@ Kp 3.8 the PD loop alone already gives way 10.0° (docs/compliance.md).
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, fields
 from typing import Literal
@@ -169,7 +168,7 @@ def preset(name: str) -> Params:
 #: (≈7.7 N·m/rad) moving the stretched-out receptionist arm (≈0.024 kg·m² with the
 #: rotor), its slowest case; back-EMF damping 2.6 N·m / 13.2 rad/s gives ζs ≈ 0.25.
 #: (On the chapter-4 line a small goal step peaks after 0.07–0.12 s: ωs ≈ 25–45.)
-#: Used only to warn, never to refuse.
+#: Used only to warn, never to refuse (see :func:`check_gains`).
 SERVO_OMEGA = 18.0  #: rad/s
 SERVO_ZETA = 0.25
 
@@ -223,7 +222,6 @@ def _dominant(A: np.ndarray, period: float) -> tuple[float, float, float]:
     return radius, float(zeta), float(omega)
 
 
-@functools.lru_cache(maxsize=64)  # Params is frozen: each change is analysed once
 def loop_stability(params: Params) -> LoopStability:
     """Poles of the integrated PD loop and of the environment filter at ``params.period``.
 
@@ -262,14 +260,12 @@ def servo_loop_pole(kp: float, kv: float, period: float, *, omega_s: float = SER
     return float(zetas[i]), float(abs(roots[i]))
 
 
-@functools.lru_cache(maxsize=64)
-def stability_warning(params: Params) -> str | None:
+def _warning(params: Params, st: LoopStability) -> str | None:
     """A sentence for the student when the gains are unstable, badly damped or too fast.
 
-    Checks the discrete-time integrated PD loop (and, with compliance on, the
-    environment filter) at the sample period; None when all is well.
+    Reads the poles ``st`` of the discrete-time integrated PD loop (and, with
+    compliance on, of the environment filter) at the sample period; None when all is well.
     """
-    st = loop_stability(params)
     T = params.period
     msgs: list[str] = []
     if st.radius >= 1.0 - 1e-12:
@@ -305,3 +301,52 @@ def stability_warning(params: Params) -> str | None:
                 msgs.append(f"environment too fast for the period: ωf·T = "
                             f"{st.env_omega * T:.2f}; raise M_env")
     return "; ".join(msgs) if msgs else None
+
+
+#: The start of the message a person sees when :func:`check_gains` refuses gains.
+REFUSED_ON_SERVOS = "unstable gains are refused on real servos"
+
+
+@dataclass(frozen=True)
+class GainCheck:
+    """What :func:`check_gains` found in parameters it let through.
+
+    Attributes:
+        params: the parameters checked.
+        stability: the poles of their loops at their period (what the verdict rests on).
+        warning: a sentence for the student when the gains are unstable, badly damped or
+            too fast for the period or the servos; None when all is well.
+    """
+
+    params: Params
+    stability: LoopStability
+    warning: str | None
+
+    @property
+    def unstable(self) -> bool:
+        """The sampled loop diverges even on an ideal servo (taken on a simulated arm only)."""
+        return self.stability.unstable
+
+
+def check_gains(params: Params, *, servos: bool) -> GainCheck:
+    """The lab's one rule on gains: whether ``params`` may drive the arm, and what to say.
+
+    The poles of the integrated PD loop and of the environment filter at the period
+    (:func:`loop_stability`) are computed once; a radius >= 1 (the sampled loop
+    diverges even on an ideal servo) is refused on real (or emulated) ``servos``
+    and taken on a simulated arm, to be seen failing (the control loop's run-time
+    checks then stop it). Badly damped, too fast, or likely unstable through the
+    servos' own lag: taken, with a warning.
+
+    Raises:
+        ValueError: not a :class:`Params`; or unstable gains on ``servos``, the one
+            message a person sees: "unstable gains are refused on real servos: <why>".
+    """
+    if not isinstance(params, Params):
+        raise ValueError(f"params must be a armlab.control.params.Params, got "
+                         f"{type(params).__name__}")
+    st = loop_stability(params)
+    warning = _warning(params, st)
+    if servos and st.unstable:
+        raise ValueError(f"{REFUSED_ON_SERVOS}: {warning}")
+    return GainCheck(params, st, warning)

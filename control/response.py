@@ -1,15 +1,18 @@
-"""Step and push responses on a recording: what the student ran, measured (thesis eq. 2.11–2.19).
+"""Step and push responses: what the student ran, measured, and the ideal joint's (eq. 2.11–2.19).
 
-Pure functions over a recorder snapshot (:meth:`armlab.control.recorder.Recorder.snapshot`:
-``"t"`` (N,) and (N, n) signals ``"q"``, ``"q_cmd"``, ``"q_env"``, ``"tau_ext"``,
-``"error"``), so they run in a test or a script without a server:
+Pure functions, most over a recorder snapshot
+(:meth:`armlab.control.recorder.Recorder.snapshot`: ``"t"`` (N,) and (N, n) signals ``"q"``,
+``"q_cmd"``, ``"q_env"``, ``"tau_ext"``, ``"error"``), so they run in a test or a script
+without a server:
 
 - :func:`plan_step`: the step of one joint's command a PD-loop test posts, and how long
   to wait before measuring it;
 - :func:`measure_step`: the PD loop's response to that step (θ against θ_cmd);
 - :func:`measure_push`: the environment's response to a push (θ_env against τ_ext);
 - :func:`hand_excursion`: how far a push moved the hand, and how near it came back;
-- :func:`line_errors`: the largest |θ_cmd − θ| of a run.
+- :func:`line_errors`: the largest |θ_cmd − θ| of a run;
+- :func:`simulate_ideal_joint_step`: the sampled PD loop's step on an ideal joint, and
+  :func:`step_report`: formulas 2.11–2.19 against it (no recording needed).
 
 The figures are :func:`armlab.control.metrics.measure_step`'s, with ωn and ζ read back from
 the measured overshoot and peak time (the inverses of eq. 2.16–2.17).
@@ -24,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from armlab.control import metrics
+from armlab.control.compliance import integrate_reference, pd_reference_accel
 from armlab.control.params import Params
 from armlab.control.trajectory import JointTrajectory
 from armlab.kinematics.model import SerialChain
@@ -195,3 +199,52 @@ def line_errors(snap: dict[str, np.ndarray], *, t0: float) -> np.ndarray:
     """(n,) largest |θ_cmd − θ| per joint since loop time ``t0``, rad (NaN rows skipped)."""
     keep = snap["t"] >= t0
     return np.nanmax(np.abs(snap["error"][keep]), axis=0)
+
+
+def simulate_ideal_joint_step(kp: float, kv: float, *, period: float = 1e-3,
+                              duration: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Step response of the sampled PD loop (eq. 2.20 integrated twice) on an ideal joint.
+
+    The ideal acceleration-controlled joint follows its reference exactly, so the
+    measured position is θ_ref itself. θ_cmd steps 0 -> 1 at t = 0 with θ̇_cmd = 0:
+    the result is the pure second-order part Kp/(s² + Kv s + Kp), sampled.
+
+    Returns:
+        (t, θ) arrays of the same length, t from 0.
+    """
+    if duration is None:
+        duration = metrics.step_duration(kp, kv)
+    n = int(round(duration / period)) + 1
+    y = np.empty(n)
+    q = qd = 0.0
+    for k in range(n):
+        y[k] = q
+        qdd = pd_reference_accel(kp, kv, 1.0, 0.0, q, qd)
+        q, qd = integrate_reference(q, qd, qdd, period)
+    return np.arange(n) * period, y
+
+
+def step_report(kp: float, kv: float, *, period: float = 1e-3) -> dict[str, object]:
+    """Formula (2.11–2.19) vs measured metrics of the ideal joint and of eq. 2.3.
+
+    Returns:
+        {"kp", "kv", "omega_n", "zeta", "formula", "measured", "measured_eq_2_3"}, the
+        last three each {overshoot_pct, peak_time_s, rise_time_s, settling_time_s}.
+    """
+    if not (math.isfinite(kp) and kp > 0):
+        raise ValueError(f"kp must be > 0, got {kp}")
+    if not (math.isfinite(kv) and kv > 0):
+        raise ValueError(f"kv must be > 0 (Kv = 0 never settles), got {kv}")
+    wn, z = metrics.pd_natural_frequency(kp), metrics.pd_damping(kp, kv)
+    duration = metrics.step_duration(kp, kv)
+    t, y = simulate_ideal_joint_step(kp, kv, period=period, duration=duration)
+    from scipy import signal
+
+    t2, y2 = signal.step(metrics.pd_reference_model(kp, kv),
+                         T=np.arange(0.0, duration, period / 2))
+    return {
+        "kp": kp, "kv": kv, "omega_n": wn, "zeta": z,
+        "formula": metrics.formula_metrics(wn, z).as_dict(),
+        "measured": metrics.measure_step(t, y).as_dict(),
+        "measured_eq_2_3": metrics.measure_step(t2, y2).as_dict(),
+    }

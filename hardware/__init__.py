@@ -1,1 +1,2 @@
-"""Servos: protocol 1.0, the serial bus, the simulated servo and plant, the emulator, backends."""
+"""Servos: the wire and its protocols, the servos' tables, the simulation, the backends the
+controller drives, and the emulator."""

@@ -20,10 +20,12 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from armlab.kinematics.model import SerialChain
+if TYPE_CHECKING:  # annotations only: the model's fk() runs this module's code
+    from armlab.kinematics.model import SerialChain
 
 Sym = float | str | tuple[float, str]  # generated-code scalar: constant, name, or k * name
 Vec = list[Sym]
@@ -459,7 +461,7 @@ def dynamics_model(model: SerialChain) -> DynamicsModel:
     """The compiled :class:`DynamicsModel` of ``model``, built on first use and memoised."""
     cached = model.__dict__.get(_CACHE_KEY)
     if cached is None:
-        if not isinstance(model, SerialChain):
+        if not isinstance(getattr(model, "joints", None), tuple):  # e.g. a whole quadruped
             raise ValueError(f"model must be a SerialChain, got {type(model).__name__}")
         cached = _build(model)
         model.__dict__[_CACHE_KEY] = cached  # the fields of the frozen model stay untouched

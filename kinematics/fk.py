@@ -6,12 +6,16 @@ Product of homogeneous transforms, one per joint: T = Π origin_i · motion_i(q_
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from armlab.kinematics._rnea_codegen import dynamics_model
-from armlab.kinematics.model import SerialChain
 from armlab.kinematics.transforms import rot_axis
 from armlab.kinematics.validate import vector
+
+if TYPE_CHECKING:  # annotations only: the model's fk(), jacobian() are these functions
+    from armlab.kinematics.model import SerialChain
 
 
 def _motion(joint, qi: float) -> np.ndarray:

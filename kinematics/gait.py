@@ -115,8 +115,6 @@ class GaitCycle:
         omega_deg: (T,) phase of each sample, degrees, in [0, 360).
         feet: (T, 4, 3) foot positions in each leg's seed frame, legs in :data:`LEGS` order.
         stance: (T, 4) True where the foot bears weight.
-        body_plan: (T, 2) planned body position on the floor (crawl), or None (trot: the
-            body follows from the feet, see :func:`walk`).
     """
 
     name: str
@@ -124,7 +122,6 @@ class GaitCycle:
     omega_deg: np.ndarray
     feet: np.ndarray
     stance: np.ndarray
-    body_plan: np.ndarray | None = None
 
 
 def _phases(samples: int) -> np.ndarray:
@@ -223,7 +220,6 @@ def crawl(p: SineParams = SineParams(), geom: QuadrupedGeometry = DEFAULT_GEOMET
     omega = _phases(samples)
     feet_out = np.empty((samples, 4, 3))
     stance = np.ones((samples, 4), dtype=bool)
-    plan = np.empty((samples, 2))
     for j, w in enumerate(omega):
         k = min(int(w // 90.0), 3)
         u = (w - 90.0 * k) / 90.0
@@ -238,11 +234,10 @@ def crawl(p: SineParams = SineParams(), geom: QuadrupedGeometry = DEFAULT_GEOMET
             world[leg][:2] += p.A * d * 0.5 * (1.0 - math.cos(math.pi * tau))
             world[leg][2] = p.C * math.sin(math.pi * tau)
             stance[j, LEGS.index(leg)] = False
-        plan[j] = body
         for i, leg in enumerate(LEGS):
             in_body = world[leg] - np.array([body[0], body[1], p.D])
             feet_out[j, i] = body_to_leg(in_body, leg, geom)
-    return GaitCycle("crawl", p, omega, feet_out, stance, plan)
+    return GaitCycle("crawl", p, omega, feet_out, stance)
 
 
 @dataclass(frozen=True)

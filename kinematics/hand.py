@@ -122,14 +122,6 @@ def contact_lever(g: FingerGeometry, phi: float | np.ndarray) -> np.ndarray:
     return g.length * np.cos(phi)
 
 
-def penetration(g: FingerGeometry, phi: float | np.ndarray, size: float) -> np.ndarray:
-    """How far the fingertip is inside a cylinder of diameter ``size`` m: size/2 − tip_radius.
-
-    Positive means contact. ``phi`` scalar or (n,) rad.
-    """
-    return 0.5 * size - tip_radius(g, phi)
-
-
 def spring_torque(g: FingerGeometry, phi: float | np.ndarray) -> np.ndarray:
     """Return-spring torque opening the finger, N·m: preload + rate·(phi − open_angle)."""
     return g.spring_preload + g.spring_rate * (np.asarray(phi) - g.open_angle)

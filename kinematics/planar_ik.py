@@ -191,7 +191,7 @@ def solve(X: float, Y: float, *, arm: PlanarArm = PlanarArm(), elbow: str = "dow
     if elbow not in ELBOWS:
         raise ValueError(f"elbow must be one of {', '.join(ELBOWS)}, got {elbow!r}")
     if theta0 is None:
-        theta0 = math.atan2(Y, X)
+        theta0 = orientation(X, Y)
     elif not math.isfinite(theta0):
         raise ValueError(f"theta0 must be finite, got {theta0}")
     l1, l2 = arm.l1, arm.l2

@@ -26,6 +26,7 @@ the same motion) is derived in docs/redundancy.md and shown by ``tests/test_seed
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -337,6 +338,9 @@ def circle_target(t: float) -> tuple[np.ndarray, np.ndarray]:
             np.array([0.25 * np.pi * s, 0.25 * np.pi * c]))
 
 
+#: Eq. 4 as a function: (J (m, n), ẋ (m,), ∇w (n,), k_a) -> θ̇ (n,).
+Projection = Callable[[np.ndarray, np.ndarray, np.ndarray, float], np.ndarray]
+
 #: The paper's four simulations and the guaranteed method, by name.
 MODES = {
     "1": "no redundancy use, no joint limits: θ̇ = J⁺ẋ",
@@ -348,11 +352,13 @@ MODES = {
 
 
 def joint_rate(mode: str, model: SerialChain, q: np.ndarray, xdot: np.ndarray, *,
-               dt: float, k_a: float) -> np.ndarray:
+               dt: float, k_a: float, projection: Projection | None = None) -> np.ndarray:
     """Joint velocity of one of the seed 002 simulations (a key of :data:`MODES`).
 
     Args:
         q: (n,) joint angles. xdot: (m,) commanded end-effector velocity.
+        projection: eq. 4 of modes 3 and "bounded" (default :func:`gradient_projection`;
+            coursework runs a student's in its place), called as it is.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -360,7 +366,8 @@ def joint_rate(mode: str, model: SerialChain, q: np.ndarray, xdot: np.ndarray, *
     if mode == "1":
         return np.linalg.pinv(J) @ xdot
     if mode in ("3", "bounded"):
-        qdot = gradient_projection(J, xdot, manipulability_gradient(model, q), k_a)  # eq. 4
+        project = gradient_projection if projection is None else projection
+        qdot = project(J, xdot, manipulability_gradient(model, q), k_a)  # eq. 4
         if mode == "3":
             return qdot
         lo, hi = velocity_bounds(q, model.lower, model.upper, dt)
@@ -388,12 +395,12 @@ class CircleRun:
         return np.linalg.norm(self.x_d - self.x, axis=1)
 
 
-def simulate_circle(model: SerialChain, mode: str, task: CircleTask | None = None
-                    ) -> CircleRun:
+def simulate_circle(model: SerialChain, mode: str, task: CircleTask | None = None, *,
+                    projection: Projection | None = None) -> CircleRun:
     """Run one of the paper's simulations (seed 002 §5) with Euler steps of Δt.
 
-    Closed loop in task space: ẋ = ẋ_d + K (x_d − x); θ̇ from :func:`joint_rate`;
-    θ ← θ + Δt θ̇.
+    Closed loop in task space: ẋ = ẋ_d + K (x_d − x); θ̇ from :func:`joint_rate`
+    (``projection`` as there); θ ← θ + Δt θ̇.
     """
     task = task or CircleTask()
     if mode not in MODES:
@@ -420,7 +427,8 @@ def simulate_circle(model: SerialChain, mode: str, task: CircleTask | None = Non
         if k == steps:
             break
         xdot = xd_d + task.gain * (x_d - x)
-        q = q + task.dt * joint_rate(mode, model, q, xdot, dt=task.dt, k_a=task.k_a)
+        q = q + task.dt * joint_rate(mode, model, q, xdot, dt=task.dt, k_a=task.k_a,
+                                     projection=projection)
     return CircleRun(mode, np.array(ts), np.array(qs), np.array(xs), np.array(xds),
                      np.array(ws))
 

@@ -39,23 +39,3 @@ def homogeneous(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
     T[:3, :3] = rotation
     T[:3, 3] = translation
     return T
-
-
-def rot_x(a: float) -> np.ndarray:
-    """(4, 4) rotation about x by ``a`` rad."""
-    return homogeneous(rot_axis(np.array([1.0, 0.0, 0.0]), a), np.zeros(3))
-
-
-def rot_y(a: float) -> np.ndarray:
-    """(4, 4) rotation about y by ``a`` rad."""
-    return homogeneous(rot_axis(np.array([0.0, 1.0, 0.0]), a), np.zeros(3))
-
-
-def rot_z(a: float) -> np.ndarray:
-    """(4, 4) rotation about z by ``a`` rad."""
-    return homogeneous(rot_axis(np.array([0.0, 0.0, 1.0]), a), np.zeros(3))
-
-
-def trans(x: float, y: float, z: float) -> np.ndarray:
-    """(4, 4) translation."""
-    return homogeneous(np.eye(3), np.array([x, y, z], dtype=float))

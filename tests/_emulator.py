@@ -63,11 +63,11 @@ class EmulatorProcess:
 
 @contextlib.contextmanager
 def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProcess]:
-    """Start ``python -m app emulate ARGS``, yield once it printed its port, always kill it.
+    """Start ``python -m armlab.app emulate ARGS``, yield once it printed its port, always kill it.
 
     An emulator that died on its own (not killed by the test) fails the test with its stderr.
     """
-    cmd = [sys.executable, "-m", "app", "emulate", *args]
+    cmd = [sys.executable, "-m", "armlab.app", "emulate", *args]
     tmp = Path(tempfile.mkdtemp(prefix="armlab-emu-"))
     log = None
     if log_dir is not None:

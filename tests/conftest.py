@@ -5,6 +5,8 @@ Imports happen inside the fixtures, so tests that use none of them start fast.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from hypothesis import settings
 
@@ -16,13 +18,55 @@ settings.register_profile("ci", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile("ci")
 
+#: Modules that take longest on one core (``--durations``), slowest first. `make test` runs
+#: on two pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``: each module
+#: whole on one worker, so that its module fixtures, a lab or a class, start once), in
+#: the order of the run: a slow module handed out last would keep one worker busy alone
+#: at the end. A module not named here runs after these, the browser ones first, then
+#: those on the wall clock, then the rest. (Not xdist_group marks and ``--dist
+#: loadgroup``: pytest-xdist 3.8 names a group in ``item._nodeid``, which pytest 9 no
+#: longer reads, so the groups are lost.)
+SLOWEST_MODULES = (  # a browser module, then one that computes, so that the two workers'
+    # software-drawn pages and simulations mostly run beside each other, not two pages
+    "test_browser_lessons", "test_control_experiments", "test_browser_classroom",
+    "test_lesson_quadruped", "test_browser_lab", "test_classroom", "test_browser_panels",
+    "test_seed003_body", "test_screenshots", "test_ui_compliance", "test_browser_projector",
+    "test_classroom_room", "test_browser_framing", "test_fuzz_inputs", "test_lesson_redundancy",
+    "test_observers_servos", "test_batched_hand", "test_shared_clock", "test_batched_quadruped",
+    "test_bench_classroom", "test_seed003_gait", "test_control_compliance",
+    "test_seed002_redundancy",
+)
+
+
+def _module_rank(items: list[pytest.Item]) -> tuple[int, int]:
+    """Where a module's tests go in the run: :data:`SLOWEST_MODULES` in order, then the
+    modules with a browser test, then those with a real-time one, then the others."""
+    name = items[0].path.stem
+    if name in SLOWEST_MODULES:
+        return 0, SLOWEST_MODULES.index(name)
+    if any(item.get_closest_marker("browser") for item in items):
+        return 1, 0
+    if any(item.get_closest_marker("realtime") for item in items):
+        return 2, 0
+    return 3, 0
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Order the modules by :func:`_module_rank`; a stable sort, so the tests of a module
+    keep their order and stay together."""
+    by_module: dict[Path, list[pytest.Item]] = {}
+    for item in items:
+        by_module.setdefault(item.path, []).append(item)
+    rank = {path: _module_rank(group) for path, group in by_module.items()}
+    items.sort(key=lambda item: rank[item.path])
+
 
 @pytest.fixture(scope="module", autouse=True)
 def _switch_interval():
     """Each module starts with the interpreter's thread switch interval as the run began:
-    a lab and a real-time loop lower it for their process (armlab.app.server, armlab.control.loop),
-    and
-    a module's timing must not depend on which modules ran before it."""
+    a lab and a real-time loop lower it for their process (armlab.app.server,
+    armlab.control.loop), and a module's timing must not depend on which modules ran
+    before it."""
     import sys
 
     interval = sys.getswitchinterval()
@@ -39,10 +83,11 @@ def lab():
         yield running
 
 
-@pytest.fixture(scope="module")
-def browser():
-    """A headless Chromium (Playwright driving ``$ARMLAB_CHROMIUM``, default Debian's
-    /usr/bin/chromium); the test is skipped, with a message, where it is not installed."""
+@pytest.fixture(scope="session")
+def _chromium():
+    """The headless Chromium of the run (of each xdist worker): Playwright driving
+    ``$ARMLAB_CHROMIUM``, default Debian's /usr/bin/chromium; the test is skipped, with a
+    message, where it is not installed."""
     from _helpers import CHROMIUM, CHROMIUM_ARGS
 
     if not CHROMIUM.exists():
@@ -53,9 +98,20 @@ def browser():
         chromium = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
                                       args=CHROMIUM_ARGS)
         try:
-            yield PatientBrowser(chromium)
+            yield chromium
         finally:
             chromium.close()
+
+
+@pytest.fixture(scope="module")
+def browser(_chromium):
+    """A headless Chromium for the module's tests (see :func:`_chromium`, started once):
+    each test opens its own pages in contexts of their own (``new_page``,
+    ``new_context``), which share no cookies or storage; whatever a module left open is
+    closed when it ends."""
+    yield PatientBrowser(_chromium)
+    for context in list(_chromium.contexts):
+        context.close()
 
 
 #: ms a page waits for an element to be actionable (visible, enabled and standing still

@@ -65,14 +65,15 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         loop = arm.loop
         with pytest.raises(ValueError, match="not a loop command"):
             loop.post("run")  # type: ignore[arg-type]
-        unstable = Params(kp=200.0, kv=0.0)
-        with pytest.raises(ValueError, match="gains refused"):
-            loop.set_params(unstable)
+        with pytest.raises(ValueError, match="params must be"):
+            loop.set_params({"kp": 200.0})  # type: ignore[arg-type]
         assert loop.params == DEFAULT
         with pytest.raises(ValueError, match="cannot be sent"):
             loop.post(lambda: None)  # type: ignore[arg-type]
-        assert loop.set_params(unstable, force=True) is not None  # the warning comes back
-        assert loop.params == unstable
+        unstable = Params(kp=200.0, kv=0.0)  # a simulated arm takes them, with the warning
+        gains = loop.set_params(unstable)
+        assert gains.unstable and gains.warning.startswith("unstable")
+        assert loop.params == unstable and loop.gains == gains
         assert loop.status.fault is None
     finally:
         proc.close()

@@ -44,8 +44,7 @@ def _framed_as_drawn(client, pg, what: str, *, since=None, wider_than: float = 0
                      ) -> camera.Framing:
     """Wait until the page shows a framing (newer than ``since``; for a view wider than
     ``wider_than`` by more than armlab.app.page.camera.RESHAPE) made for its 3D view as the page
-    draws
-    it now (the canvas's box, not a shape the page had while its panels were still
+    draws it now (the canvas's box, not a shape the page had while its panels were still
     docking); return it."""
     def framed() -> bool:
         f = camera.shown(client, since)

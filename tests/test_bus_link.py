@@ -6,6 +6,8 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 import pytest
 import serial
@@ -82,7 +84,7 @@ def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model(
 def test_scan_command_finds_servos_only_at_their_baud_and_silence_is_explained():
     with emulator("--baud", "57600") as emu:
         out = subprocess.run(
-            [sys.executable, "-m", "app", "scan", "--port", emu.port, "--baud", "1000000",
+            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--baud", "1000000",
              "--baud", "57600", "--json"], cwd=ROOT, capture_output=True, text=True, timeout=90)
         with Bus(emu.port, 1_000_000, retries=1) as bus:
             with pytest.raises(NoReply) as e:
@@ -142,8 +144,44 @@ def test_a_busy_port_is_named(emu):
         Bus(emu.port)
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores file permissions")
+def _port_error_as_nobody(port: str) -> str:
+    """The PortError that opening ``port`` raises in a forked child that gave up root for
+    the unprivileged user 65534 (root ignores file permissions); "" when none."""
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: no pytest from here on, only os._exit
+        said = b""
+        try:
+            os.setgroups([])
+            os.setgid(65534)
+            os.setuid(65534)
+            Bus(port)
+        except PortError as exc:
+            said = str(exc).encode()
+        except BaseException as exc:  # noqa: BLE001  (told to the parent, never raised here)
+            said = f"not a PortError: {exc!r}".encode()
+        finally:
+            os.write(write_end, said)
+            os._exit(0)
+    os.close(write_end)
+    with os.fdopen(read_end, "rb") as said:
+        message = said.read().decode()
+    os.waitpid(pid, 0)
+    return message
+
+
 def test_permission_denied_names_the_dialout_group(tmp_path):
+    """A port the user may not open: the one line names the dialout group. Run as root
+    (a container's tests), the open is tried by an unprivileged child."""
+    if os.geteuid() == 0:  # pytest's folders are root's alone: one the child can pass
+        with tempfile.TemporaryDirectory() as home:
+            os.chmod(home, 0o711)
+            dev = Path(home) / "ttyFAKE"
+            dev.write_text("")
+            dev.chmod(0)
+            said = _port_error_as_nobody(str(dev))
+        assert "dialout" in said, said
+        return
     dev = tmp_path / "ttyFAKE"
     dev.write_text("")
     dev.chmod(0)
@@ -281,7 +319,7 @@ def test_emulator_keeps_its_name_across_a_restart_through_link(tmp_path):
         assert os.readlink(stale) == emu.port
     plain = tmp_path / "a-file"
     plain.write_text("keep me")
-    out = subprocess.run([sys.executable, "-m", "app", "emulate", "--link", str(plain)],
+    out = subprocess.run([sys.executable, "-m", "armlab.app", "emulate", "--link", str(plain)],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and plain.read_text() == "keep me"
     assert "exists and is not a symlink" in out.stderr and len(out.stderr.splitlines()) == 1

@@ -27,9 +27,9 @@ from armlab.app.page.plots import (
     fit_range,
     nice_step,
 )
-from armlab.hardware.servos.servo_spec import SPECS
+from armlab.hardware.servos.servo_spec import RX24F
 
-RX24F_STEP_DEG = math.degrees(SPECS[24].position_unit)  # 0.29°
+RX24F_STEP_DEG = math.degrees(RX24F.position_unit)  # 0.29°
 
 
 @given(st.floats(-1e4, 1e4), st.floats(0.0, 1e3), st.floats(1e-3, 1e3))

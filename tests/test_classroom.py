@@ -550,3 +550,40 @@ def test_a_private_open_manipulator_x_has_its_x_series_servos():
     finally:
         boxes.close()
     assert boxes.n_arms == 0
+
+
+def test_a_private_lesson_without_an_arm_hides_the_shared_panel_and_takes_an_estop():
+    """The IK lesson has no arm, gains or figures, and its handle says so (the lesson
+    contract, armlab.app.lessons.LessonHandle): shown as "My arm", the shared lesson's
+    panel is hidden on that page, the overview lists the student, and the student's
+    E-STOP there reaches the presenter."""
+    from armlab.app.lessons import RunFigures
+    from armlab.app.viser_ext.handles import uuid_of
+
+    def joined(lab: Lab) -> HeadlessClient:
+        page = HeadlessClient(lab.local_url.replace("http://", "ws://")).connect()
+        page.wait_for(lambda: _has(page, "Passcode") and _has(page, "View"), 60.0,
+                      "the Passcode field and the View switch")
+        return page
+
+    with Lab(ServeOptions(http_port=0, classroom=True, robot="planar_servo_arm",
+                          lesson="ik_accuracy")) as lab, joined(lab) as teacher:
+        teacher.set_value("Passcode", lab.roles.passcode)
+        teacher.wait_notification("You present")
+        before = set(lab.server.get_clients())
+        with joined(lab) as student:
+            student.wait_for(lambda: bool(set(lab.server.get_clients()) - before), 30.0,
+                             "the student's client")
+            (cid,) = set(lab.server.get_clients()) - before
+            student.set_value("View", "My arm")
+            wait_for(lambda: lab.room.private_lesson(cid) is not None, 60, "the own lesson")
+            assert lab.lesson is not None
+            shared = [uuid_of(h) for h in lab.lesson.gui_handles()]
+            assert shared
+            student.wait_for(lambda: all(u in student.gui and student.gui[u].props.get(
+                "visible") is False for u in shared), 30.0, "the shared panel hidden")
+            (row,) = lab.room.rows()
+            assert row.client_id == cid and row.view == "My arm"
+            assert row.figures == RunFigures()
+            student.click("E-STOP")
+            teacher.wait_notification("E-STOP")

@@ -9,7 +9,7 @@ import pytest
 from armlab.control.backend import BackendError, JointState
 from armlab.control.commands import EStop, Push, Reset, RunTrajectory, SetTarget, Stop
 from armlab.control.loop import ControlLoop
-from armlab.control.params import Params
+from armlab.control.params import DEFAULT, REFUSED_ON_SERVOS, Params, check_gains
 from armlab.control.trajectory import minimum_jerk, thesis_line
 from armlab.hardware.backends.sim import SimBackend
 from armlab.kinematics import load_robot
@@ -82,18 +82,52 @@ def test_nan_from_the_servos_stops_the_loop_torque_off_and_no_nan_written():
 
 
 def test_unstable_gains_are_refused_or_caught_at_run_time():
-    be = Faulty()
+    be = Faulty()  # not Pushable: servos, to the rule on gains
     loop = ControlLoop(ARM, be, realtime=False)
     with pytest.raises(ValueError, match="unstable"):
         loop.set_params(Params(kp=10.0, kv=50.0, period=0.05))  # diverges on any joint
     # stable on paper, but too fast for the servos' own loop: the arm starts to shake
-    warning = loop.set_params(Params(kp=100.0, kv=20.0), force=True)
+    warning = loop.set_params(Params(kp=100.0, kv=20.0)).warning
     assert warning is not None and "servos" in warning
     loop.post(RunTrajectory(minimum_jerk(POSE, POSE + [0.3, 0.2, -0.3], 1.0)))
     status = loop.run_for(10.0)
     assert status.fault is not None and "unstable" in status.fault
     assert be.torque_enabled() == [0, 0, 0]
     assert status.t < 9.0 and all_finite(be.writes)
+
+
+def test_every_way_in_holds_gains_to_the_rule_once_and_none_goes_around_it(monkeypatch):
+    """The constructor and set_params apply the lab's one rule on gains exactly once per
+    change; the period swap uses that verdict; no argument skips the rule; servos refuse
+    unstable gains, a simulated arm takes them (to be seen failing)."""
+    import armlab.control.loop as loop_module
+
+    checked: list[tuple[Params, bool]] = []
+
+    def rule(params, *, servos):  # noqa: ANN001, ANN202
+        checked.append((params, servos))
+        return check_gains(params, servos=servos)
+
+    monkeypatch.setattr(loop_module, "check_gains", rule)
+    unstable = Params(kp=10.0, kv=50.0, period=0.05)
+    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: unstable"):
+        ControlLoop(ARM, Faulty(), unstable, realtime=False)
+    assert checked == [(unstable, True)]
+    loop = ControlLoop(ARM, Faulty(), realtime=False)
+    checked.clear()
+    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: unstable"):
+        loop.set_params(unstable)
+    with pytest.raises(TypeError):
+        loop.set_params(unstable, force=True)  # type: ignore[call-arg]  # no way around
+    assert checked == [(unstable, True)] and loop.params == DEFAULT
+    slow = Params(period=0.02)
+    gains = loop.set_params(slow)
+    loop.run_for(0.1)  # swapped in at a period boundary
+    assert checked == [(unstable, True), (slow, True)]
+    assert loop.gains is gains and loop.params is slow and loop.status.period_ms == 20.0
+    sim = ControlLoop(ARM, SimBackend(ARM, q0=POSE), realtime=False)
+    taken = sim.set_params(unstable)
+    assert checked[-1] == (unstable, False) and taken.unstable and sim.params is unstable
 
 
 def test_non_finite_or_bad_parameters_never_reach_the_loop():
@@ -112,7 +146,7 @@ def test_backend_error_in_the_thread_gives_one_message_and_no_traceback():
     try:
         loop = ControlLoop(ARM, be, Params(period=0.005), realtime=True)
         loop.start()
-        deadline = time.monotonic() + 5.0
+        deadline = time.monotonic() + 60.0  # a generous poll: a busy machine
         while loop.status.fault is None and time.monotonic() < deadline:
             time.sleep(0.01)
         time.sleep(0.05)

@@ -7,6 +7,7 @@ import pytest
 from scipy import signal
 
 from armlab.control import metrics
+from armlab.control.response import simulate_ideal_joint_step, step_report
 
 
 def test_formulas_with_the_thesis_gains():
@@ -26,7 +27,7 @@ def test_formulas_with_the_thesis_gains():
 
 @pytest.mark.parametrize("kp,kv", [(3.8, 0.2), (25.0, 5.0), (36.0, 3.0)])
 def test_ideal_joint_step_matches_2_16_and_2_17_within_2_percent(kp, kv):
-    t, y = metrics.simulate_ideal_joint_step(kp, kv, period=1e-3, duration=20.0)
+    t, y = simulate_ideal_joint_step(kp, kv, period=1e-3, duration=20.0)
     m = metrics.measure_step(t, y)
     f = metrics.formula_metrics(metrics.pd_natural_frequency(kp), metrics.pd_damping(kp, kv))
     assert m.peak_time_s == pytest.approx(f.peak_time_s, rel=0.02)
@@ -34,7 +35,7 @@ def test_ideal_joint_step_matches_2_16_and_2_17_within_2_percent(kp, kv):
 
 
 def test_the_zero_of_eq_2_3_adds_overshoot_and_peaks_earlier():
-    rep = metrics.step_report(25.0, 5.0)
+    rep = step_report(25.0, 5.0)
     assert rep["measured_eq_2_3"]["overshoot_pct"] > rep["measured"]["overshoot_pct"] + 5
     assert rep["measured_eq_2_3"]["peak_time_s"] < rep["measured"]["peak_time_s"]
 
@@ -49,11 +50,11 @@ def test_measure_step_on_a_known_response():
 
 
 def test_measured_second_order_matches_scipy_step():
-    t, y = metrics.simulate_ideal_joint_step(25.0, 5.0, period=1e-3, duration=4.0)
+    t, y = simulate_ideal_joint_step(25.0, 5.0, period=1e-3, duration=4.0)
     _, ys = signal.step(metrics.pure_second_order(25.0, 5.0), T=t)
     assert np.max(np.abs(y - ys)) < 0.01
 
 
 def test_step_report_refuses_kv_zero():
     with pytest.raises(ValueError, match="kv"):
-        metrics.step_report(3.8, 0.0)
+        step_report(3.8, 0.0)

@@ -9,10 +9,15 @@ from armlab.control.params import (
     PARAM_SPECS,
     PRESETS,
     Params,
+    check_gains,
     loop_stability,
     preset,
-    stability_warning,
 )
+
+
+def warning_of(p: Params) -> str | None:
+    """What the rule on gains says of ``p`` on a simulated arm (which takes any gains)."""
+    return check_gains(p, servos=False).warning
 
 
 def test_thesis_presets_carry_the_thesis_numbers():
@@ -31,8 +36,8 @@ def test_every_preset_fits_the_slider_ranges_and_is_stable():
 
 
 def test_default_is_well_damped_and_thesis_table_is_not():
-    assert stability_warning(preset("well-damped default")) is None
-    warn = stability_warning(preset("thesis Table 4.1"))
+    assert warning_of(preset("well-damped default")) is None
+    warn = warning_of(preset("thesis Table 4.1"))
     assert warn is not None and "badly damped" in warn and "0.05" in warn  # ζp = 0.2/(2√3.8)
 
 
@@ -63,14 +68,28 @@ def test_gains_that_diverge_at_the_period_are_reported_unstable():
     # Kv·T > 2 makes the sampled loop diverge (semi-implicit Euler): 50 · 0.05 = 2.5
     p = Params(kp=10.0, kv=50.0, period=0.05)
     assert loop_stability(p).unstable
-    assert "unstable" in stability_warning(p)
+    assert "unstable" in warning_of(p)
     # the same gains at 16 ms converge
     assert not loop_stability(Params(kp=10.0, kv=50.0, period=0.016)).unstable
 
 
+def test_the_rule_refuses_unstable_gains_on_servos_only_and_says_why():
+    p = Params(kp=10.0, kv=50.0, period=0.05)  # Kv·T = 2.5: diverges
+    with pytest.raises(ValueError, match=r"^unstable gains are refused on real servos: "
+                                         r"unstable: the PD loop diverges at T = 50 ms"):
+        check_gains(p, servos=True)
+    taken = check_gains(p, servos=False)  # a simulated arm takes them, to be seen failing
+    assert taken.unstable and taken.params is p and taken.warning.startswith("unstable")
+    # badly damped but convergent gains are taken on servos too, with their warning
+    t41 = check_gains(preset("thesis Table 4.1"), servos=True)
+    assert not t41.unstable and "badly damped" in t41.warning
+    with pytest.raises(ValueError, match="params must be a armlab.control.params.Params"):
+        check_gains({"kp": 1.0}, servos=False)  # type: ignore[arg-type]
+
+
 def test_too_fast_for_the_period_is_flagged():
     p = Params(kp=200.0, kv=20.0, period=0.05)
-    warn = stability_warning(p)
+    warn = warning_of(p)
     # the sampled loop converges (pole radius 0.5) but gets under 10 samples per period
     assert not loop_stability(p).unstable
     assert warn is not None and warn.startswith("too fast for the period: ωp·T = 0.69")

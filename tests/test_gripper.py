@@ -45,11 +45,21 @@ REALTIME = pytest.mark.realtime
 
 
 def test_the_finger_and_the_horn_follow_robotis_s_numbers():
-    """The URDF's finger limits are the range; ROBOTIS's horn angles its ends."""
+    """The URDF's finger limits are the range; ROBOTIS's horn angles its ends, and a
+    finger travel between them a horn angle on the line through them (as ROBOTIS's
+    driver converts: ROBOTIS-GIT/open_manipulator, open_manipulator_x_description/
+    ros2_control/open_manipulator_x_system.ros2_control.xacro, "dxl5" (ID 15):
+    revolute_min 0.92 rad at prismatic_min -0.01 m, revolute_max -1.52 rad at
+    prismatic_max 0.019 m)."""
+    closed_rad, open_rad, closed_m, open_m = 0.92, -1.52, -0.01, 0.019  # ROBOTIS's
     assert (GRIPPER.servo_id, GRIPPER.joint) == (15, "gripper_left_joint")
-    assert (GRIPPER.lower, GRIPPER.upper) == (-0.010, 0.019)
-    assert GRIPPER.to_servo(GRIPPER.lower) == pytest.approx(OMX_CLOSED_ANGLE)
-    assert GRIPPER.to_servo(GRIPPER.upper) == pytest.approx(OMX_OPEN_ANGLE)
+    assert (GRIPPER.lower, GRIPPER.upper) == (closed_m, open_m)
+    assert (OMX_CLOSED_ANGLE, OMX_OPEN_ANGLE) == (closed_rad, open_rad)
+    assert GRIPPER.to_servo(GRIPPER.lower) == pytest.approx(closed_rad)
+    assert GRIPPER.to_servo(GRIPPER.upper) == pytest.approx(open_rad)
+    for x in (-0.005, 0.0045, 0.012):
+        horn = closed_rad + (x - closed_m) * (open_rad - closed_rad) / (open_m - closed_m)
+        assert GRIPPER.to_servo(x) == pytest.approx(horn, abs=1e-12)
     for x in (-0.01, 0.0, 0.005, 0.019):
         assert GRIPPER.to_finger(GRIPPER.to_servo(x)) == pytest.approx(x, abs=1e-12)
     assert GRIPPER.clamp(0.05) == 0.019 and GRIPPER.clamp(-1.0) == -0.010

@@ -103,7 +103,7 @@ def page_text(client: HeadlessClient) -> str:
 
 
 def labs_running(jupyter_pid: int) -> list[int]:
-    """Pids of the ``app serve`` children of the Jupyter server (from /proc)."""
+    """Pids of the ``armlab.app serve`` children of the Jupyter server (from /proc)."""
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -114,7 +114,7 @@ def labs_running(jupyter_pid: int) -> list[int]:
         except OSError:
             continue
         ppid = int(stat.rsplit(")", 1)[1].split()[1])
-        if ppid == jupyter_pid and b"serve" in cmd and b"app" in cmd:
+        if ppid == jupyter_pid and b"serve" in cmd and b"armlab.app" in cmd:
             found.append(int(entry.name))
     return found
 
@@ -167,7 +167,7 @@ def test_the_entry_point_names_the_command_the_tile_and_keeps_the_token_off_the_
     a, b = setup_armlab(), setup_armlab()
     token = a["environment"][TOKEN_ENV]
     assert token != b["environment"][TOKEN_ENV]  # new at each start of the Jupyter server
-    assert a["command"][1:] == ["-m", "app", "serve", "--http-port", "{port}"]
+    assert a["command"][1:] == ["-m", "armlab.app", "serve", "--http-port", "{port}"]
     assert not any(token in part for part in a["command"])  # `ps` shows the command line
     entry = a["launcher_entry"]
     assert entry["path_info"] == f"armlab/index.html?armlab_token={token}"

@@ -120,9 +120,14 @@ def test_stiffest_servo_setting_stays_bounded(arm):
 
 def test_joint_stop_catches_a_falling_arm(arm):
     plant = Plant(arm, RX24F, q0=[0.0, -1.5, 0.0], qd0=[0.0, -3.0, 0.0])
-    plant.advance_to(0.3)
-    assert plant.q[1] > arm.lower[1] - 0.15
-    assert plant.truth().stop_torque[1] >= 0.0
+    lowest, pushed = plant.q[1], 0.0
+    for k in range(1, 301):  # 0.3 s, looked at every ms
+        plant.advance_to(k * 1e-3)
+        lowest = min(lowest, plant.q[1])
+        pushed = max(pushed, plant.truth().stop_torque[1])
+    assert arm.lower[1] - 0.15 < lowest < arm.lower[1]  # it reached the stop, not far past
+    assert pushed > 0.1  # N·m: the stop pushed back
+    assert plant.q[1] > lowest + 0.5  # and sent it back up
 
 
 def test_directions_mirror_the_servo(arm):

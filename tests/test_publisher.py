@@ -1,6 +1,5 @@
 """Publishers making their frames on one shared thread (armlab.app.page.publisher.FrameThread):
-every
-page gets its frames, a failing frame or a closed publisher leaves the others going, and
+every page gets its frames, a failing frame or a closed publisher leaves the others going, and
 the turns are fair when the thread cannot keep up. Real viser server, headless pages."""
 
 from __future__ import annotations
@@ -100,24 +99,33 @@ def test_a_failing_frame_or_a_closed_publisher_leaves_the_others_going(frames: F
 
 def test_close_waits_for_the_frame_being_made(frames: FrameThread) -> None:
     with pages(1) as one:
-        inside, release = threading.Event(), threading.Event()
+        inside, release, made = threading.Event(), threading.Event(), threading.Event()
         counter = Counter(one[0])
+        order: list[str] = []
 
         def slow_pose() -> None:
             inside.set()
             release.wait(30.0)
+            order.append("frame made")
+            made.set()
+
+        def close() -> None:
+            publisher.close(settle_s=0.0)
+            order.append("close returned")
 
         publisher = Publisher(one[0], pose=slow_pose, plots=counter.plot,  # type: ignore[arg-type]
                               frames=frames)
         publisher.start()
         assert inside.wait(30.0)
-        closer = threading.Thread(target=publisher.close, kwargs={"settle_s": 0.0})
+        closer = threading.Thread(target=close)
         closer.start()
-        closer.join(0.3)
-        assert closer.is_alive()  # still in the frame
+        wait_for(lambda: publisher._stop.is_set(), 30.0, "close to begin")
+        closer.join(1.0)  # a close that did not wait would return now, the frame unmade
+        assert order == [] and closer.is_alive()
         release.set()
         closer.join(30.0)
-        assert not closer.is_alive()
+        assert not closer.is_alive() and made.is_set()
+        assert order == ["frame made", "close returned"]  # close returned after the frame
 
 
 def test_turns_are_fair_when_the_thread_cannot_keep_up(frames: FrameThread) -> None:

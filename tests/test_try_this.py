@@ -29,5 +29,9 @@ def test_every_lesson_shows_a_try_this_line_naming_a_real_control(name):
         assert len(text) > len("**Try this:**") + 20
         settled(lab.server, page)  # the lesson's controls may follow its line
         labels = {str(el.label) for el in list(page.gui.values()) if el.label}
-        for bold in re.findall(r"\*\*(.+?)\*\*", text)[1:]:  # each control it names exists
+        labels |= {str(tab) for el in list(page.gui.values())  # a tab group's tabs
+                   for tab in el.props.get("_tab_labels") or ()}
+        named = re.findall(r"\*\*(.+?)\*\*", text)[1:]
+        assert named, f"{name}: the line names no control in bold: {text!r}"
+        for bold in named:  # each control it names exists
             assert bold in labels, (bold, sorted(labels))

@@ -16,10 +16,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from _emulator import emulator
 from _helpers import settled, wait_for
 
+import armlab.control.loop as loop_module
 from armlab.app.testing.wsclient import HeadlessClient
-from armlab.control.params import DEFAULT, PRESETS, loop_stability
+from armlab.control.params import DEFAULT, PRESETS, REFUSED_ON_SERVOS, check_gains
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 
@@ -342,7 +344,9 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
     # Kp 20, Kv 5: the formulas say Tr = 1.8/√20 = 0.40 s and Tp = 0.85 s; the servo's
     # own lag changes the figures but not their size.
     assert 0.2 < m.rise_time_s < 0.8
-    assert m.peak_time_s is None or 0.4 < m.peak_time_s < 1.6
+    # ζ = 0.56 < 1 must overshoot (12 % by the formula; about 4 % through the servos' lag)
+    assert m.peak_time_s is not None and 0.4 < m.peak_time_s < 1.6
+    assert m.overshoot_pct is not None and 1.0 < m.overshoot_pct < 24.0, m
     client.wait_for(lambda: any(
         "PD measured on: step of θ2" in str(e.props.get("_markdown", e.props.get("content", "")))
         for e in client.gui.values()), 60.0, "the measured column on the page")
@@ -368,30 +372,86 @@ def test_link_length_preset_rebuilds_the_arm(lab, client):
     wait_for(lambda: lesson.rig.loop.status.active, 60.0, "the loop to hold")
 
 
-def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client):
-    """The poles of a new Params are computed once (lesson warning, loop check and
-    swap share it), and the preset picker set by a slider applies nothing again."""
+def counted_rule(monkeypatch: pytest.MonkeyPatch) -> list[object]:
+    """The Params the control loop holds to the rule on gains from now on, one entry per
+    time the rule is applied (the real :func:`check_gains` still decides)."""
+    checked: list[object] = []
+
+    def rule(params, *, servos):  # noqa: ANN001, ANN202
+        checked.append(params)
+        return check_gains(params, servos=servos)
+
+    monkeypatch.setattr(loop_module, "check_gains", rule)
+    return checked
+
+
+def test_a_gain_change_is_analysed_once_and_a_preset_applied_once(lab, client, monkeypatch):
+    """A slider's new Params meets the rule on gains exactly once on its way to the servos
+    (the lesson's warning shows the verdict the loop got, the swap reuses it), and the
+    preset picker set by a slider applies nothing again."""
     loop = loop_of(lab)
     lesson = lab.lesson
     applied: list[object] = []
     apply = lesson.gains._apply
     lesson.gains._apply = lambda p: (applied.append(p), apply(p))
+    checked = counted_rule(monkeypatch)
     try:
-        loop_stability.cache_clear()
-        client.set_value("Kv (1/s)", 4.5)
-        wait_for(lambda: loop.params.kv == 4.5, 30.0, "Kv 4.5 in the loop")
+        client.set_value("Kv (1/s)", 0.05)  # Kp 20: badly damped, so a warning shows
+        wait_for(lambda: loop.params.kv == 0.05, 30.0, "Kv 0.05 in the loop")
         steps = loop.status.steps
         wait_for(lambda: loop.status.steps > steps + 3, 30.0, "the swap")
-        assert loop_stability.cache_info().misses == 1
-        assert len(applied) == 1
+        assert checked == [loop.params] and len(applied) == 1
+        assert loop.gains.params is loop.params  # what reached the loop is what was checked
+        assert lesson.warning.visible and "badly damped" in lesson.warning.content
+        assert loop.gains.warning.split(";")[0] in lesson.warning.content
+        client.set_value("Kv (1/s)", 4.5)
+        wait_for(lambda: loop.params.kv == 4.5, 30.0, "Kv 4.5 in the loop")
+        assert len(checked) == 2 and len(applied) == 2
+        wait_for(lambda: not lesson.warning.visible, 30.0, "the warning gone")
+        checked.clear()
+        applied.clear()
         # Back to the default by the slider: the picker shows the preset, nothing re-applies.
         client.set_value("Kv (1/s)", DEFAULT.kv)
         wait_for(lambda: loop.params == DEFAULT, 30.0, "the default again")
         client.wait_for(lambda: client.find("Preset").value == "well-damped default",
                         what="the picker to show the preset")
-        assert len(applied) == 2
+        assert len(applied) == 1 and checked == [DEFAULT]
+        client.set_value("Preset", "thesis Table 4.1")  # every field at once: one change
+        wait_for(lambda: loop.params == PRESETS["thesis Table 4.1"], 30.0, "Table 4.1")
+        assert len(applied) == 2 and checked == [DEFAULT, PRESETS["thesis Table 4.1"]]
     finally:
         lesson.gains._apply = apply
+
+
+def test_unstable_gains_on_servos_are_refused_with_one_message_and_the_slider_back(
+        tmp_path, monkeypatch):
+    """On (emulated) servos a change to gains whose sampled loop diverges is refused by
+    the loop's rule, applied once: one notification says why, the slider goes back, the
+    loop keeps its gains. (A simulated arm takes them: the lab's other tests.)"""
+    from armlab.app.server import Lab, ServeOptions
+
+    with emulator(log_dir=tmp_path) as emu, \
+            Lab(ServeOptions(backend="serial", port=emu.port, http_port=0)) as lab, \
+            HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
+        loop = loop_of(lab)
+        page.wait_for(lambda: page.shows("Kv (1/s)") and loop.status.active, 60.0,
+                      "the Gains tab and the arm holding")
+        checked = counted_rule(monkeypatch)
+        page.set_value("period (ms)", 50.0)  # Kv 5: T·Kv = 0.25, converges
+        wait_for(lambda: loop.params.period == 0.05, 30.0, "a 50 ms period in the loop")
+        assert checked == [loop.params]
+        seen = len(page.notifications)
+        page.set_value("Kv (1/s)", 50.0)  # T·Kv = 2.5: diverges even on an ideal servo
+        page.wait_for(lambda: len(page.notifications) > seen, 30.0, "the refusal")
+        page.wait_for(lambda: page.find("Kv (1/s)").value == pytest.approx(DEFAULT.kv), 30.0,
+                      "the Kv slider put back")
+        assert len(checked) == 2 and checked[1].kv == 50.0  # the rule, once, said no
+        (title, body), = page.notifications[seen:]
+        assert title == "Value refused"
+        assert body.startswith(f"{REFUSED_ON_SERVOS}: unstable: the PD loop diverges at "
+                               "T = 50 ms"), body
+        assert body.endswith(f"; kept {DEFAULT.kv:g}.")
+        assert loop.params.kv == DEFAULT.kv and lab.lesson.gains.params == loop.params
 
 
 def test_push_from_the_run_tab_shows_its_figures_beside_the_button(lab, client):

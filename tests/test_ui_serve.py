@@ -28,7 +28,7 @@ START_TIMEOUT = 60.0  # s: a loaded 2-core machine
 
 
 def start_serve(*args: str) -> tuple[subprocess.Popen, str]:
-    proc = subprocess.Popen([sys.executable, "-m", "app", "serve", *args], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "armlab.app", "serve", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     deadline = time.monotonic() + START_TIMEOUT
@@ -76,7 +76,7 @@ def test_serve_prints_a_loopback_url_on_a_free_port_and_stops_on_ctrl_c():
 
 
 def test_serve_refuses_serial_without_a_port():
-    res = subprocess.run([sys.executable, "-m", "app", "serve", "--backend", "serial"],
+    res = subprocess.run([sys.executable, "-m", "armlab.app", "serve", "--backend", "serial"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "armlab serve: port:" in res.stderr and "--port" in res.stderr

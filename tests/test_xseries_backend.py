@@ -114,7 +114,7 @@ def test_the_lab_on_open_manipulator_x_scan_map_serve_slider_reaches_the_servos(
     map_path = tmp_path / "omx.toml"
     with emulator("--robot", "open_manipulator_x") as emu:
         scan = subprocess.run(
-            [sys.executable, "-m", "app", "scan", "--port", emu.port, "--ids", "10-15",
+            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--ids", "10-15",
              "--baud", "1000000", "--write-map", str(map_path), "--robot",
              "open_manipulator_x"], cwd=ROOT, capture_output=True, text=True, timeout=120)
         assert scan.returncode == 0, scan.stderr

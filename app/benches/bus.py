@@ -47,7 +47,7 @@ OMX_IDS = tuple(range(11, 11 + OMX_SERVOS))
 @contextlib.contextmanager
 def paced_emulator(*args: str, timeout: float = 60.0) -> Iterator[str]:
     """``armlab emulate --pace ARGS`` in a subprocess; yields its port, always stops it."""
-    proc = subprocess.Popen([sys.executable, "-m", "app", "emulate", "--pace", *args],
+    proc = subprocess.Popen([sys.executable, "-m", "armlab.app", "emulate", "--pace", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         ready, _, _ = select.select([proc.stdout], [], [], timeout)

@@ -6,6 +6,9 @@ Figures:
   while the other page sends in-range "Push force" updates as fast as it can.
 - ``flood_loop_realtime_ratio``: loop time / wall time over the flood (1.0: real time).
 - ``flood_stderr_bytes``: bytes the server wrote to stderr during the flood.
+- ``calm_watcher_pose_hz``, ``calm_loop_realtime_ratio``: the same two with nobody
+  sending, in blocks taking turns with the flood's (the reference its figures are judged
+  against).
 """
 
 from __future__ import annotations
@@ -43,16 +46,30 @@ def run(quick: bool) -> dict[str, float]:
                 flooder.wait_for(lambda: any(e.label == SLIDER for e in flooder.gui.values()),
                                  timeout=30, what="the slider")
                 uuid = flooder.find(SLIDER).uuid
-                os.dup2(err.fileno(), 2)
-                watching.set()
-                t_loop0, t0 = lab.lesson.rig.loop.status.t, time.monotonic()
+                loop = lab.lesson.rig.loop
+                # calm and flooded blocks in turn, so a busy machine's load falls on both
+                rounds = 3 if quick else 5
+                wall = {"calm": 0.0, "flood": 0.0}
+                advanced = dict(wall)
+                count = dict(wall)
                 k = 0
-                while time.monotonic() - t0 < seconds:
-                    flooder.send({"type": "GuiUpdateMessage", "uuid": uuid,
-                                  "updates": {"value": 1.0 + (k % 50) * 0.1}})
-                    k += 1
-                wall = time.monotonic() - t0
-                t_loop = lab.lesson.rig.loop.status.t - t_loop0
+                watching.set()
+                for _ in range(rounds):
+                    for part in ("calm", "flood"):
+                        if part == "flood":
+                            os.dup2(err.fileno(), 2)
+                        n0, t_loop0, t0 = len(poses), loop.status.t, time.monotonic()
+                        while time.monotonic() - t0 < seconds / rounds:
+                            if part == "calm":
+                                time.sleep(0.05)
+                                continue
+                            flooder.send({"type": "GuiUpdateMessage", "uuid": uuid,
+                                          "updates": {"value": 1.0 + (k % 50) * 0.1}})
+                            k += 1
+                        wall[part] += time.monotonic() - t0
+                        advanced[part] += loop.status.t - t_loop0
+                        count[part] += len(poses) - n0
+                        os.dup2(saved, 2)
                 watching.clear()
                 os.dup2(saved, 2)
         finally:
@@ -62,7 +79,9 @@ def run(quick: bool) -> dict[str, float]:
         err.seek(0, os.SEEK_END)
         stderr_bytes = err.tell()
     return {
-        "flood_watcher_pose_hz": len(poses) / wall,
-        "flood_loop_realtime_ratio": t_loop / wall,
+        "flood_watcher_pose_hz": count["flood"] / wall["flood"],
+        "flood_loop_realtime_ratio": advanced["flood"] / wall["flood"],
         "flood_stderr_bytes": float(stderr_bytes),
+        "calm_watcher_pose_hz": count["calm"] / wall["calm"],
+        "calm_loop_realtime_ratio": advanced["calm"] / wall["calm"],
     }

@@ -11,12 +11,10 @@ one arm of the plant behind the ``Backend`` protocol. So a private arm is the sh
 lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
 with X-series servos (the OpenManipulator-X) is simulated with their firmware model as
 its shared arm is (:class:`armlab.hardware.backends.xseries_sim.XSimBackend`, a plant of its own
-that
-its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
+that its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a
-process
-of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
+process of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
 :mod:`armlab.app.classroom.worker` hosts a
 ``ClassArms``) and the X-series ones in a ``ClassArms`` of its own.
 """

@@ -11,9 +11,8 @@ stepped by one :class:`armlab.control.periodic.SharedClock` thread, and each stu
 commands, record and eq. 4.1 figures, not a lookalike.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` keeps each robot with its student's seat; the
-robots run
-in the class's worker process (:mod:`armlab.app.classroom.worker`), mirrored into the server by
-:class:`armlab.app.classroom.remote_gait.RemoteGait`.
+robots run in the class's worker process (:mod:`armlab.app.classroom.worker`), mirrored into the
+server by :class:`armlab.app.classroom.remote_gait.RemoteGait`.
 """
 
 from __future__ import annotations

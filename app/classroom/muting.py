@@ -2,8 +2,7 @@
 
 viser broadcasts every change of a server-level element to every page. A student's
 page showing "My arm" hides the shared lesson (``armlab.app.classroom.room``) yet would still
-receive
-its frames: the shared arm's pose 30 times a second and its charts, each serialised
+receive its frames: the shared arm's pose 30 times a second and its charts, each serialised
 once per page by the server. :class:`SharedStream` stops the *updates* of server-level
 elements (GUI property updates, scene node poses and properties) from reaching such a
 page; elements added or removed still reach it, so the page's copy of the shared scene
@@ -12,8 +11,9 @@ it missed is sent to it first (the server keeps the newest update of each proper
 pages that join later: :meth:`catch_up` sends those), so it shows the shared lesson as
 it is now.
 
-This wraps viser's broadcast buffer (``window_generator``, internal to viser); with a
-viser that has none, nothing is held back.
+The stream is filtered through :func:`armlab.app.viser_ext.clients.filter_broadcast`
+(viser's broadcast buffer is internal to viser); with a viser that has none, nothing
+is held back.
 """
 
 from __future__ import annotations
@@ -22,7 +22,9 @@ from collections.abc import AsyncGenerator, Sequence
 from typing import Any
 
 import viser
-from viser._messages import (
+
+from armlab.app.viser_ext.clients import filter_broadcast, latest_broadcast, queue
+from armlab.app.viser_ext.messages import (
     GuiUpdateMessage,
     SceneNodeUpdateMessage,
     SetOrientationMessage,
@@ -38,21 +40,18 @@ class SharedStream:
     """Holds the server's broadcast updates back from the pages it is told to.
 
     Args:
-        server: the lab's server (its broadcast buffer is wrapped once, here).
+        server: the lab's server (its broadcast stream is filtered once, here).
 
     Attributes:
-        installed: False when this viser's broadcast buffer could not be wrapped.
+        installed: False when this viser's broadcast stream could not be filtered.
         held: updates not sent, counted over all pages.
     """
 
     def __init__(self, server: viser.ViserServer) -> None:
         self._held_from: set[int] = set()
         self.held = 0
-        self._buffer = _broadcast_buffer(server)
-        self.installed = self._buffer is not None and hasattr(self._buffer, "window_generator")
-        if self.installed:
-            inner = self._buffer.window_generator
-            self._buffer.window_generator = self._wrap(inner)
+        self._server = server
+        self.installed = filter_broadcast(server, self._filtered)
 
     def hold(self, client_id: int) -> None:
         """Send page ``client_id`` no more updates of server-level elements."""
@@ -76,45 +75,26 @@ class SharedStream:
     def catch_up(self, client: viser.ClientHandle) -> None:
         """Queue to ``client`` the newest update of each property the server keeps, oldest
         first (what a page that joins now would be sent of them)."""
-        buffer = self._buffer
-        if buffer is None:
-            return
-        with buffer.buffer_lock:
-            latest = [m for _, m in sorted(buffer.message_from_id.items())
-                      if isinstance(m, HELD)]
-        connection = client._websock_connection  # type: ignore[attr-defined]
+        latest = latest_broadcast(self._server, HELD)
         with client.atomic():
             for message in latest:
-                connection.queue_message(message)
+                queue(client, message)
 
-    def _wrap(self, inner: Any) -> Any:
+    def _filtered(self, client_id: int, windows: Any) -> AsyncGenerator[Sequence[Any], None]:
+        """Page ``client_id``'s shared stream, less the held updates while it is held."""
         held_from = self._held_from
 
-        def window_generator(client_id: int, backlog_done_message: Any = None,
-                             ) -> AsyncGenerator[Sequence[Any], None]:
-            windows = inner(client_id, backlog_done_message=backlog_done_message)
+        async def filtered() -> AsyncGenerator[Sequence[Any], None]:
+            try:
+                async for window in windows:
+                    if client_id in held_from:
+                        kept = [m for m in window if not isinstance(m, HELD)]
+                        self.held += len(window) - len(kept)
+                        if not kept:
+                            continue
+                        window = kept
+                    yield window
+            finally:
+                await windows.aclose()
 
-            async def filtered() -> AsyncGenerator[Sequence[Any], None]:
-                try:
-                    async for window in windows:
-                        if client_id in held_from:
-                            kept = [m for m in window if not isinstance(m, HELD)]
-                            self.held += len(window) - len(kept)
-                            if not kept:
-                                continue
-                            window = kept
-                        yield window
-                finally:
-                    await windows.aclose()
-
-            return filtered()
-
-        return window_generator
-
-
-def _broadcast_buffer(server: viser.ViserServer) -> Any:
-    """viser's broadcast message buffer, or None."""
-    try:
-        return server._websock_server.get_message_buffer()  # type: ignore[attr-defined]
-    except AttributeError:
-        return None
+        return filtered()

@@ -12,9 +12,9 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
 import viser
 
+from armlab.app.lessons import RunFigures
 from armlab.app.lessons._common import esc
 from armlab.control.params import Params
 
@@ -33,40 +33,19 @@ class StudentRow:
         client_id: their page. name: what they typed, or automatic.
         view: "Follow the teacher" or "My arm".
         params: the gains of their arm (None: no arm yet).
-        max_error_deg: max |θ_cmd − θ| of their last free thesis-line run, ° (any joint).
-        overshoot_pct, settling_s: of their last step test.
-        yield_deg: how far their last pushed line run moved from the free one, °.
+        figures: of their own lesson's last runs (its ``run_figures()``).
     """
 
     client_id: int
     name: str
     view: str
     params: Params | None = None
-    max_error_deg: float | None = None
-    overshoot_pct: float | None = None
-    settling_s: float | None = None
-    yield_deg: float | None = None
+    figures: RunFigures = RunFigures()
 
     @property
     def label(self) -> str:
         """How the picker names them."""
         return f"{self.name} (#{self.client_id})"
-
-
-def _max(x: np.ndarray | None) -> float | None:
-    if x is None or not np.any(np.isfinite(x)):
-        return None
-    return float(np.nanmax(np.abs(x)))
-
-
-def row_figures(lesson: object) -> dict[str, float | None]:
-    """The last-run figures of a student's private compliance lesson (None: not run)."""
-    ch4 = getattr(lesson, "chapter4", None)
-    step = getattr(lesson, "measured_pd", None)
-    return {"max_error_deg": _max(getattr(ch4, "free", None)),
-            "yield_deg": _max(getattr(ch4, "yield_deg", None)),
-            "overshoot_pct": getattr(step, "overshoot_pct", None),
-            "settling_s": getattr(step, "settling_time_s", None)}
 
 
 def _fmt(x: float | None, spec: str) -> str:
@@ -81,13 +60,14 @@ def overview_html(rows: list[StudentRow]) -> str:
             "<th>%OS</th><th>Ts s</th><th>yield °</th></tr>")
     body = []
     for r in rows:
+        f = r.figures
         kp = None if r.params is None else r.params.kp
         kv = None if r.params is None else r.params.kv
         body.append(
             f"<tr><td>{esc(r.label)}</td><td>{'own arm' if r.view == 'My arm' else 'follows'}"
             f"</td><td>{_fmt(kp, '.3g')}</td><td>{_fmt(kv, '.3g')}</td>"
-            f"<td>{_fmt(r.max_error_deg, '.2f')}</td><td>{_fmt(r.overshoot_pct, '.1f')}</td>"
-            f"<td>{_fmt(r.settling_s, '.2f')}</td><td>{_fmt(r.yield_deg, '.2f')}</td></tr>")
+            f"<td>{_fmt(f.max_error_deg, '.2f')}</td><td>{_fmt(f.overshoot_pct, '.1f')}</td>"
+            f"<td>{_fmt(f.settling_s, '.2f')}</td><td>{_fmt(f.yield_deg, '.2f')}</td></tr>")
     return ("<table style='font-size:0.8em;border-collapse:collapse;width:100%'>"
             f"{head}{''.join(body)}</table>")
 

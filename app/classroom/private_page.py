@@ -16,6 +16,8 @@ from contextlib import AbstractContextManager
 
 import viser
 
+from armlab.app.viser_ext.clients import behind, server_of
+
 # A page may leave while its own lesson is sending a frame; viser then warns once per
 # code line that the message "will never be delivered". Nothing is wrong: the lesson is
 # closed right after (armlab.app.classroom.room), so the warning only fills the log.
@@ -24,7 +26,8 @@ warnings.filterwarnings("ignore", message=r"Queued a \w+ on a closed connection"
 
 
 class Page:
-    """A lesson's "server" that is one page (:class:`viser.ClientHandle`).
+    """A lesson's "server" that is one page (:class:`viser.ClientHandle`): an
+    :class:`armlab.app.page.surface.Surface`, as the lab's server is.
 
     Attributes:
         client: the page.
@@ -48,15 +51,10 @@ class Page:
         """Whether messages of an earlier frame still wait to be sent to the page (the page
         or the server cannot keep up): a publisher then skips a frame instead of making one
         that viser would only fold into the waiting one."""
-        try:
-            buffer = self.client._websock_connection.get_message_buffer()  # type: ignore[attr-defined]
-            sent = buffer.generator_cursors.get(self.client.client_id)
-            return sent is not None and buffer.message_counter - 1 > sent
-        except AttributeError:  # another viser: never skip
-            return False
+        return behind(self.client)
 
     def get_clients(self) -> dict[int, viser.ClientHandle]:
         """The one page, or nothing once it has left."""
-        connected = self.client._viser_server.get_clients()  # type: ignore[attr-defined]
+        connected = server_of(self.client).get_clients()
         cid = self.client.client_id
         return {cid: self.client} if cid in connected else {}

@@ -2,15 +2,12 @@
 drives it.
 
 The class's quadrupeds (:class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`: batched leg
-plants
-and every robot's ``GaitLoop`` on one clock) run in the class's worker
+plants and every robot's ``GaitLoop`` on one clock) run in the class's worker
 (:class:`armlab.app.classroom.worker_process.ArmProcess`), off the server's interpreter. The server
-keeps,
-per robot, a :class:`RemoteGait`: the ``GaitLoop`` surface a lesson uses. ``status``,
+keeps, per robot, a :class:`RemoteGait`: the ``GaitLoop`` surface a lesson uses. ``status``,
 ``state`` (what the scene draws), the walked gait's spec and the record (``snapshot``,
 ``angle_error``) are mirrored every :data:`armlab.app.classroom.worker_process.MIRROR_S` s;
-commands go to
-the worker's loop and wait for its answer. Its messages are the hand's
+commands go to the worker's loop and wait for its answer. Its messages are the hand's
 (:mod:`armlab.app.classroom.remote_hand`) with ``quad`` for ``hand``; a mirror item is
 ``(robot_id, status, rows, state, spec or None)``.
 """
@@ -33,8 +30,7 @@ FREED = "this quadruped was freed (a reload of the page makes a new one)"
 
 class RemoteGait(RemoteMember, GaitRecord):
     """A robot of the worker's :class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`
-    (module
-    docstring).
+    (module docstring).
 
     Attributes:
         member_id: its id in the worker.

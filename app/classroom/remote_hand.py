@@ -1,16 +1,13 @@
 """A student's hand running in the class's worker process, as the hand lesson drives it.
 
 The class's hands (:class:`armlab.app.classroom.class_hands.ClassHands`: one batched plant and
-controller,
-1 kHz) cost about half a core whatever their number, too much for the server's
+controller, 1 kHz) cost about half a core whatever their number, too much for the server's
 interpreter, whose pages would wait behind it. So they run in the class's worker
 (:class:`armlab.app.classroom.worker_process.ArmProcess`, next to the private arms), and the server
-keeps,
-per hand, a :class:`RemoteHand`: the ``GripLoop`` surface a lesson uses. ``status``,
+keeps, per hand, a :class:`RemoteHand`: the ``GripLoop`` surface a lesson uses. ``status``,
 ``params``, ``obj`` and the record (``snapshot``, ``last_grasp``) are mirrored: the worker
 sends every hand's new rows and state every :data:`armlab.app.classroom.worker_process.MIRROR_S` s.
-``post``
-goes to the worker's hand and waits for its answer, so a refused command raises here.
+``post`` goes to the worker's hand and waits for its answer, so a refused command raises here.
 
 Messages (besides the arms', :mod:`armlab.app.classroom.worker_process`)::
 

@@ -33,10 +33,13 @@ from collections.abc import Callable
 from typing import Any
 
 import viser
-from viser._messages import GuiUpdateMessage
 
 from armlab.app.gate import cookie_values
 from armlab.app.page.inputs import notify
+from armlab.app.viser_ext.clients import connection_of
+from armlab.app.viser_ext.dispatch import screen_server_messages
+from armlab.app.viser_ext.handles import gui_inputs, scene_scope_of, uuid_of
+from armlab.app.viser_ext.messages import is_gui_update
 from armlab.app.viser_ext.page_js import set_props
 
 #: letters and digits that cannot be mistaken for one another on a projector
@@ -46,6 +49,8 @@ PASSCODE_LENGTH = 8
 #: message types anyone may send to the server's handlers (they change nothing shared)
 OPEN_MESSAGES = frozenset({"ViewerCameraMessage", "ShareUrlRequest", "ShareUrlDisconnect",
                            "GuiFormDirtyMessage"})
+#: viser's inputs that are pressed, not set
+BUTTONS = (viser.GuiButtonHandle, viser.GuiButtonGroupHandle, viser.GuiUploadButtonHandle)
 #: s between two "only the presenter" notifications to one page
 REFUSAL_INTERVAL = 2.0
 #: a page's longest name, characters
@@ -132,16 +137,14 @@ class Roles:
         self._open: set[str] = set()
         self._last_told: dict[int, float] = {}
         self._lock = threading.Lock()
-        iface = server._websock_server  # type: ignore[attr-defined]
-        self._dispatch = iface._handle_incoming_message
-        iface._handle_incoming_message = self._screen
+        self._dispatch = screen_server_messages(server, self._screen)
 
     # -- who is who -------------------------------------------------------------
 
     def open(self, *handles: Any) -> None:
         """Let anyone use these shared controls (E-STOP: pressing it only makes things safe)."""
         with self._lock:
-            self._open.update(h._impl.uuid for h in handles)
+            self._open.update(uuid_of(h) for h in handles)
 
     def is_presenter(self, client_id: int) -> bool:
         """Whether page ``client_id`` presents (changes the shared arm)."""
@@ -209,14 +212,13 @@ class Roles:
         kind = type(message).__name__
         if kind in OPEN_MESSAGES:
             return True
-        if isinstance(message, GuiUpdateMessage):
-            gui = self._server.gui._gui_input_handle_from_uuid  # type: ignore[attr-defined]
-            if message.uuid not in gui:
+        if is_gui_update(message):
+            if message.uuid not in gui_inputs(self._server.gui):
                 return True  # not a shared control: the server's handler ignores it
             with self._lock:
                 return message.uuid in self._open
         owner = getattr(message, "owner", None)
-        if owner is not None and owner != self._server.scene._owner_id:  # type: ignore
+        if owner is not None and owner != scene_scope_of(self._server.scene):
             return True  # a page's own scene node, not the shared scene
         return False
 
@@ -233,7 +235,7 @@ class Roles:
         client = self._server.get_clients().get(client_id)
         if client is None:
             return
-        if isinstance(message, GuiUpdateMessage):
+        if is_gui_update(message):
             self._put_back(client, message.uuid)
         if due:
             notify(client, "Only the presenter changes the shared arm",
@@ -241,15 +243,10 @@ class Roles:
 
     def _put_back(self, client: viser.ClientHandle, uuid: str) -> None:
         """Show the refused control at the server's value again on that page only."""
-        handle = self._server.gui._gui_input_handle_from_uuid.get(uuid)  # type: ignore
-        if handle is None or getattr(handle._impl, "is_button", False):
-            return
-        set_props(client, handle, value=handle._impl.value)
-
-
-def _connection(server: viser.ViserServer, client_id: int) -> Any:
-    """The websocket connection of page ``client_id`` (viser keeps it privately), or None."""
-    return server._websock_server._live_connections.get(client_id)  # type: ignore
+        handle = gui_inputs(self._server.gui).get(uuid)
+        if handle is None or isinstance(handle, BUTTONS):
+            return  # a press has no value to put back
+        set_props(client, handle, value=handle.value)
 
 
 def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
@@ -257,7 +254,8 @@ def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
     """The passcode a presenter link left in page ``client_id``'s browser (the cookie
     ``cookie``, :attr:`armlab.app.gate.Gate.presenter_cookie`, its websocket upgrade carried),
     or None."""
-    headers = getattr(getattr(_connection(server, client_id), "request", None), "headers", None)
+    headers = getattr(getattr(connection_of(server, client_id), "request", None), "headers",
+                      None)
     values = [] if headers is None else cookie_values(headers, cookie)
     return values[-1] if values else None
 
@@ -265,7 +263,7 @@ def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
 def address_of(server: viser.ViserServer, client_id: int) -> str | int:
     """The network address page ``client_id`` connects from (its client id if unknown)."""
     try:
-        return str(_connection(server, client_id).remote_address[0])
+        return str(connection_of(server, client_id).remote_address[0])
     except (AttributeError, IndexError, TypeError):
         return client_id
 

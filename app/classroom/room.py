@@ -1,7 +1,8 @@
 """The classroom's pages (``armlab serve --classroom``): roles, "My arm", the join QR code.
 
 Every page that joins gets, of its own (``client.gui``, seen by that page only): a
-role line, a "Passcode" field, a "Your name" field and a "View" switch between
+role line, a "Passcode" field (masked as a password field), a "Your name" field and a
+"View" switch between
 "Follow the teacher" (the shared arm, read-only: :class:`armlab.app.classroom.roles.Roles`
 refuses a follower's changes) and "My arm" (a private copy of the open lesson on the
 page, driving the student's own simulated arm: :mod:`armlab.app.classroom.sandboxes`). While a page
@@ -18,10 +19,10 @@ import secrets
 import sys
 import threading
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from types import ModuleType
+from typing import Any, Protocol
 
 import viser
-from viser._messages import GuiUpdateMessage
 
 from armlab.app import collector
 from armlab.app.classroom.muting import SharedStream
@@ -30,19 +31,20 @@ from armlab.app.classroom.overview import (
     GHOST_RGBA,
     ClassOverview,
     StudentRow,
-    row_figures,
 )
 from armlab.app.classroom.private_page import Page
 from armlab.app.classroom.roles import Roles, address_of, new_passcode, presenter_link_code, qr_svg
 from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
+from armlab.app.gate import Gate
+from armlab.app.lessons import LessonContext, LessonHandle, RunFigures, is_private
 from armlab.app.lessons._common import remove_quietly
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.inputs import UpdateScreen, notify
 from armlab.app.page.publisher import FrameThread
-from armlab.app.viser_ext.page_js import ask_item
-
-if TYPE_CHECKING:
-    from armlab.app.server import Lab
+from armlab.app.viser_ext.clients import queue
+from armlab.app.viser_ext.handles import uuid_of
+from armlab.app.viser_ext.messages import GuiUpdateMessage
+from armlab.app.viser_ext.page_js import ask_item, mask_text_input
 
 #: the role line of a page that follows the teacher
 FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
@@ -72,16 +74,51 @@ class _PageState:
     view: viser.GuiDropdownHandle
     screen: UpdateScreen
     seat: str | None = None
-    private: Any = None  #: the page's own lesson, while it shows "My arm"
-    figures: dict[str, float | None] | None = None  #: of its own lesson when it closed
+    private: LessonHandle | None = None  #: the page's own lesson, while it shows "My arm"
+    figures: RunFigures | None = None  #: of its own lesson when it closed
     overview: ClassOverview | None = None  #: a presenter's class overview
+
+
+class ClassLab(Protocol):
+    """What a room uses of the lab it is part of (:class:`armlab.app.server.Lab`)."""
+
+    @property
+    def server(self) -> viser.ViserServer:
+        """The lab's server (every page)."""
+        ...
+
+    @property
+    def gate(self) -> Gate:
+        """The lab's gate (its presenter cookie)."""
+        ...
+
+    @property
+    def url(self) -> str:
+        """The page's url with its token (what students scan)."""
+        ...
+
+    @property
+    def lesson(self) -> LessonHandle | None:
+        """The shared lesson (None while switching)."""
+        ...
+
+    @property
+    def lesson_module(self) -> ModuleType:
+        """The shared lesson's module (a private copy is built from it)."""
+        ...
+
+    @property
+    def lesson_ctx(self) -> LessonContext:
+        """What the shared lesson was built for."""
+        ...
 
 
 class Room:
     """The classroom side of a :class:`armlab.app.server.Lab` (see the module docstring).
 
     Args:
-        lab: the lab (its server, lessons, E-STOP and url).
+        lab: the lab (its server, shared lesson and url).
+        realtime: the private arms run against the wall clock (False: as fast as possible).
         sandboxes: the private arms (default: a new :class:`Sandboxes`, started now: its
             worker process is ready by the first "My arm").
 
@@ -89,11 +126,11 @@ class Room:
         roles: presenters and followers.
     """
 
-    def __init__(self, lab: Lab, *, sandboxes: Sandboxes | None = None) -> None:
+    def __init__(self, lab: ClassLab, *, realtime: bool = True,
+                 sandboxes: Sandboxes | None = None) -> None:
         self.lab = lab
         self.roles = Roles(lab.server, new_passcode())
-        self._sandboxes = Sandboxes(realtime=lab.options.realtime) if sandboxes is None \
-            else sandboxes
+        self._sandboxes = Sandboxes(realtime=realtime) if sandboxes is None else sandboxes
         self._pages: dict[int, _PageState] = {}
         self._lock = threading.RLock()
         self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
@@ -113,7 +150,7 @@ class Room:
         """The class's private arms."""
         return self._sandboxes
 
-    def private_lessons(self) -> dict[int, Any]:
+    def private_lessons(self) -> dict[int, LessonHandle]:
         """Client id -> the lesson that page shows as "My arm" (pages showing one only)."""
         with self._lock:
             return {cid: s.private for cid, s in self._pages.items() if s.private is not None}
@@ -126,7 +163,7 @@ class Room:
                          f"{', seat' if s.seat else ''}{', own lesson' if s.private else ''}"
                     for cid, s in self._pages.items()}
 
-    def private_lesson(self, client_id: int) -> Any:
+    def private_lesson(self, client_id: int) -> LessonHandle | None:
         """The lesson page ``client_id`` shows as "My arm", or None."""
         with self._lock:
             state = self._pages.get(client_id)
@@ -154,6 +191,7 @@ class Room:
             name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
             code.on_update(lambda _e: self._on_passcode(state))
             view.on_update(lambda _e: self._on_view(state))
+            mask_text_input(client, code)  # typed as a password: dots on the projector
         self._presenter_link(state)
         threading.Thread(target=self._find_seat, args=(state,), daemon=True,
                          name="armlab-seat").start()
@@ -255,7 +293,7 @@ class Room:
                 return
             lab = self.lab
             module = lab.lesson_module
-            if not getattr(module, "PRIVATE", False):
+            if not is_private(module):
                 notify(state.client, "No private arm here",
                        f"The lesson {module.TITLE!r} has no private arm yet; you follow "
                        "the teacher.")
@@ -288,7 +326,7 @@ class Room:
             lesson, state.private = state.private, None
         if lesson is None:
             return
-        state.figures = row_figures(lesson)
+        state.figures = lesson.run_figures()
         lesson.close()
         collector.closed()
         if not gone:
@@ -309,11 +347,10 @@ class Room:
     def show_shared(self, client: viser.ClientHandle, *, shown: bool) -> None:
         """Show or hide the shared lesson's panel on ``client``'s page only."""
         lesson = self.lab.lesson
-        handles = lesson.gui_handles() if hasattr(lesson, "gui_handles") else ()
+        handles = () if lesson is None else lesson.gui_handles()
         for handle in handles:
-            visible = bool(handle.visible) and shown
-            client._websock_connection.queue_message(  # type: ignore[attr-defined]
-                GuiUpdateMessage(handle._impl.uuid, {"visible": visible}))
+            queue(client, GuiUpdateMessage(uuid_of(handle),
+                                           {"visible": bool(handle.visible) and shown}))
 
     # -- the class overview ------------------------------------------------------------
 
@@ -326,14 +363,15 @@ class Room:
         for s in states:
             cid = s.client.client_id
             lesson = s.private
+            gains = None if lesson is None else lesson.gain_controls()
             params = None
-            if lesson is not None and getattr(lesson, "rig", None) is not None:
-                params = lesson.rig.loop.params
+            if gains is not None:
+                params = gains.params
             elif s.seat is not None:
                 params = self._sandboxes.kept_params(s.seat)
-            figures = row_figures(lesson) if lesson is not None else (s.figures or {})
+            figures = lesson.run_figures() if lesson is not None else (s.figures or RunFigures())
             rows.append(StudentRow(cid, self.roles.name(cid), str(s.view.value), params,
-                                   **figures))
+                                   figures))
         return sorted(rows, key=lambda r: r.client_id)
 
     def _loop_of(self, client_id: int) -> Any:
@@ -364,7 +402,8 @@ class Room:
     def use_gains(self, client_id: int) -> str:
         """Copy student ``client_id``'s gains to the shared arm; what happened, for a person."""
         loop = self._loop_of(client_id)
-        gains = getattr(self.lab.lesson, "gains", None)
+        lesson = self.lab.lesson
+        gains = None if lesson is None else lesson.gain_controls()
         if loop is None:
             return "That student has no arm of their own yet: no gains to copy."
         if gains is None:

@@ -28,7 +28,7 @@ from armlab.control.gait_loop import Command as GaitCommand
 from armlab.control.grip import GripParams
 from armlab.control.grip_loop import Command as GripCommand
 from armlab.control.loop import LoopStatus
-from armlab.control.params import Params
+from armlab.control.params import GainCheck, Params
 from armlab.control.walking import GaitSpec
 from armlab.hardware.sim.dynamixel_servo import ServoReport
 from armlab.hardware.sim.hand import GraspObject
@@ -211,12 +211,13 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         return found[0]
 
     def add(arm_id: int, model: SerialChain, params: Params, preset: str, q0: np.ndarray,
-            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus,
+            history_s: float) -> tuple[np.ndarray, np.ndarray, int, LoopStatus, GainCheck,
                                        tuple[ServoReport, ...] | None]:
         arm = fresh[arm_id] = arms.add(model, params, preset=preset, q0=q0,
                                        history_s=history_s)
         loop = arm.loop
-        return loop.lower, loop.upper, loop.recorder.capacity, loop.status, reports_of(arm)
+        return (loop.lower, loop.upper, loop.recorder.capacity, loop.status, loop.gains,
+                reports_of(arm))
 
     def member_of(name: str, member_id: int) -> object:
         with held_lock:
@@ -255,7 +256,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         "add": add,
         "free": free,
         "post": lambda i, cmd: arm_of(i).loop.post(cmd),
-        "set_params": lambda i, p, force: arm_of(i).loop.set_params(p, force=force),
+        "set_params": lambda i, p: arm_of(i).loop.set_params(p),
         "estop": lambda i: arm_of(i).backend.estop(),
         "read": lambda i: arm_of(i).backend.read(),
         "push": lambda i, f, link, point, d: arm_of(i).backend.push(

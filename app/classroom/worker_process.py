@@ -1,8 +1,7 @@
 """Simulated arms in a process of their own, mirrored into the server.
 
 A class of 30 private arms stepped at 1 kHz (:class:`armlab.app.classroom.class_arms.ClassArms`)
-costs
-about a third of one interpreter's time, and a paced control loop (the classroom's shared
+costs about a third of one interpreter's time, and a paced control loop (the classroom's shared
 arm) waits for the GIL behind every thread of the server: the pages' publishers, the
 web server's event loop. So in a classroom these run in worker processes (a fresh
 interpreter, ``python -m armlab.app.classroom.worker``, talking over a socket pair as a
@@ -75,7 +74,7 @@ from armlab.control.backend import BackendError, GripperState, JointState
 from armlab.control.commands import Command, EStop, UseSpareJoints
 from armlab.control.grip import GripParams
 from armlab.control.loop import LoopStatus
-from armlab.control.params import Params
+from armlab.control.params import GainCheck, Params
 from armlab.control.recorder import Recorder
 from armlab.control.walking import GaitSpec
 from armlab.hardware.sim.dynamixel_servo import ServoReport
@@ -108,7 +107,7 @@ class RemoteLoop:
         recorder: the mirror of the loop's recorder (``snapshot``, ``to_csv``).
     """
 
-    def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain, params: Params,
+    def __init__(self, owner: ArmProcess, arm_id: int, model: SerialChain, gains: GainCheck,
                  *, lower: np.ndarray, upper: np.ndarray, capacity: int,
                  status: LoopStatus, reports: tuple[ServoReport, ...] | None) -> None:
         self._owner = owner
@@ -117,7 +116,7 @@ class RemoteLoop:
         self.lower = lower
         self.upper = upper
         self.recorder = Recorder(model.n, capacity, joint_names=model.joint_names)
-        self._params = params
+        self._gains = gains
         self._status = status
         self._spare = UseSpareJoints("off")
         self._gripper: GripperState | None = None
@@ -126,13 +125,17 @@ class RemoteLoop:
     @property
     def params(self) -> Params:
         """The parameters in force (as set through this proxy)."""
-        return self._params
+        return self._gains.params
 
-    def set_params(self, params: Params, *, force: bool = False) -> str | None:
+    @property
+    def gains(self) -> GainCheck:
+        """What the worker's loop said of the parameters in force (:meth:`ControlLoop.gains`)."""
+        return self._gains
+
+    def set_params(self, params: Params) -> GainCheck:
         """:meth:`ControlLoop.set_params` in the worker (refused gains raise ValueError)."""
-        warning = self._owner.call("set_params", self.arm_id, params, force)
-        self._params = params
-        return warning
+        self._gains = self._owner.call("set_params", self.arm_id, params)
+        return self._gains
 
     def post(self, command: Command) -> None:
         """:meth:`ControlLoop.post` in the worker (not a command: ValueError). An E-STOP
@@ -318,9 +321,9 @@ class ArmProcess:
         running; its ``backend`` and ``loop`` are the server's proxies."""
         self._wait_ready()
         arm_id = next(self._ids)
-        lower, upper, capacity, status, reports = self.call(
+        lower, upper, capacity, status, gains, reports = self.call(
             "add", arm_id, model, params, preset, np.asarray(q0, dtype=float), history_s)
-        loop = RemoteLoop(self, arm_id, model, params, lower=lower, upper=upper,
+        loop = RemoteLoop(self, arm_id, model, gains, lower=lower, upper=upper,
                           capacity=capacity, status=status, reports=reports)
         with self._lock:
             self._loops[arm_id] = loop

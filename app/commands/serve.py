@@ -43,6 +43,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--classroom", action="store_true",
                         help="roles for a class: only a page that types the passcode printed "
                         "after the url changes the shared arm; every page may press E-STOP")
+    parser.add_argument("--exercise", metavar="FILE",
+                        help="run your own law (an `armlab exercise start` file: pd_reference, "
+                        "environment_impedance or compliance_law) in place of the lab's, in "
+                        "the compliance and arm lessons, the lab's own as a ghost beside it; "
+                        "saving the file reloads it (not with --classroom)")
+    parser.add_argument("--i-am-next-to-the-robot", dest="next_to_robot", action="store_true",
+                        help="with --exercise and --backend serial: your law drives the real "
+                        "arm (every goal still within the lab's limits; an error in your law "
+                        "turns the torque off)")
     parser.add_argument("--projector", action="store_true",
                         help="large text on every browser that has not chosen (each page has its "
                              "own Projector switch)")
@@ -50,13 +59,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from armlab.app.server import Lab, ServeOptions
+    from armlab.app.viser_ext import HooksMissing
 
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,
                            baud=args.baud, host=args.host, http_port=args.http_port,
                            lesson=args.lesson, token=args.token,
                            projector=args.projector, classroom=args.classroom,
                            tip_link=args.tip_link,
-                           package_paths=tuple(args.package_path), joint_map=args.joint_map)
+                           package_paths=tuple(args.package_path), joint_map=args.joint_map,
+                           exercise=args.exercise, next_to_robot=args.next_to_robot)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -64,7 +75,11 @@ def run(args: argparse.Namespace) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        lab = Lab(options)
+        try:
+            lab = Lab(options)
+        except HooksMissing as exc:  # the gate fails closed: one clear line
+            print(f"armlab serve: {exc}", file=sys.stderr, flush=True)
+            return 3
         try:
             lab.wait_until_loadable()
             if options.host not in ("127.0.0.1", "localhost", "::1") and lab.roles is None:

@@ -3,7 +3,8 @@
 A lesson is a module in this package, named in :data:`LESSONS`, that defines:
 
 - ``NAME``: short id (``"compliance"``), used by ``armlab serve --lesson``;
-- ``TITLE``: what the lesson switcher shows;
+- ``TITLE``: what the lesson switcher shows, a word or two (at most about 14
+  characters: the switcher shows it whole on a projector page; ``HELP`` says the rest);
 - ``HELP``: one paragraph for the page and ``--help``;
 - ``TRY``: the first action, one sentence with the control's label in bold, shown
   under the status line ("Press **Run thesis line** ...");
@@ -11,19 +12,24 @@ A lesson is a module in this package, named in :data:`LESSONS`, that defines:
   ``ANY_URDF`` in it means any ``.urdf`` file given as the robot;
 - ``ORDER`` (optional, default 100): place in the switcher; for a robot the
   lesson with the smallest ``ORDER`` listing it opens first;
-- ``build(server: viser.ViserServer, ctx: LessonContext) -> LessonHandle``:
-  adds the lesson's GUI and scene to ``server`` and starts whatever runs
-  behind it (a control loop), returning a handle;
+- ``build(server: Surface, ctx: LessonContext) -> LessonHandle``: adds the lesson's GUI
+  and scene to ``server`` (:class:`armlab.app.page.surface.Surface`: the lab's server, for
+  every page, or one student's page) and starts whatever runs behind it (a control
+  loop), returning a handle;
 - ``PRIVATE`` (optional, default False): the lesson can be built on one page
-  (:class:`armlab.app.classroom.private_page.Page`) with ``ctx.arms``, a student's private arm,
-  hand or quadruped
-  ("My arm").
+  (:class:`armlab.app.classroom.private_page.Page`) with ``ctx.arms``, a student's private
+  arm, hand or quadruped ("My arm").
 
-The handle's ``close()`` stops what runs (loop shut down, hardware torque
-off) and removes everything the lesson added, so another lesson can be
-opened in the same page. A handle may also define ``estop()``, which the
-lab's always-visible E-STOP button calls (it must switch torque off now and
-never raise).
+The handle (:class:`LessonHandle`) is all the lab and the classroom use of a built
+lesson: ``close()`` stops what runs (loop shut down, hardware torque off) and removes
+everything the lesson added, so another lesson can be opened in the same page;
+``estop()`` is what the lab's always-visible E-STOP button calls; ``gui_handles()``,
+``gain_controls()`` and ``run_figures()`` are what a classroom hides, copies and shows.
+A lesson without one of these parts answers so (no gains: None), as
+:class:`armlab.app.lessons._common.LessonBase` does by default.
+
+Making a lesson private takes its own module only: ``PRIVATE = True``, and its build
+drives ``ctx.arms`` (when given) instead of opening a backend of its own.
 
 The other modules (``_common``, ``compliance_plots``, ...) are the lessons' helpers.
 """
@@ -33,16 +39,17 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 from types import ModuleType
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
-import viser
 
 if TYPE_CHECKING:
     from armlab.app.classroom.remote_gait import RemoteGait
     from armlab.app.classroom.remote_hand import RemoteHand
     from armlab.app.classroom.worker_process import ArmProcess
     from armlab.app.page.publisher import FrameThread
+    from armlab.app.page.surface import Surface
+    from armlab.app.student_law import StudentLaw
     from armlab.control.backend import Backend
     from armlab.control.grip import GripParams
     from armlab.control.loop import ControlLoop
@@ -72,10 +79,11 @@ class LessonContext:
             of opening a backend and a loop of its own (None: the shared arm).
         arm_process: where the shared simulated arm runs in a classroom (a worker
             process of its own, :class:`armlab.app.classroom.worker_process.ArmProcess`; None: in
-            the
-            server, as outside a classroom and on real servos).
+            the server, as outside a classroom and on real servos).
         frames: the thread that makes the lesson's frames, shared with other lessons (a
             classroom's private pages share one; None: a thread of the lesson's own).
+        law: a student's own law (``armlab serve --exercise``): a servo-arm lesson's loop
+            runs it in place of the lab's, beside a reference arm (None: the lab's own).
     """
 
     robot: str = "receptionist_arm"
@@ -89,6 +97,7 @@ class LessonContext:
     arms: ArmSource | None = None
     arm_process: ArmProcess | None = None
     frames: FrameThread | None = None
+    law: StudentLaw | None = None
 
 
 class ArmSource(Protocol):
@@ -125,12 +134,59 @@ def works_with(module: ModuleType, robot: str) -> bool:
     return robot in robots or (ANY_URDF in robots and robot.lower().endswith(".urdf"))
 
 
+@dataclass(frozen=True)
+class RunFigures:
+    """The figures of a lesson's last runs, as a class overview shows them (None: not
+    run, or not a figure of this lesson).
+
+    Attributes:
+        max_error_deg: max |θ_cmd − θ| of the last free thesis-line run, ° (any joint).
+        yield_deg: how far the last pushed line run moved from the free one, °.
+        overshoot_pct, settling_s: of the last step test (%, s).
+    """
+
+    max_error_deg: float | None = None
+    yield_deg: float | None = None
+    overshoot_pct: float | None = None
+    settling_s: float | None = None
+
+
+class Gains(Protocol):
+    """A lesson's gain controls: the gains its arm runs, and setting them as a person does."""
+
+    @property
+    def params(self) -> Params:
+        """The gains in force."""
+        ...
+
+    def set_params(self, params: Params) -> None:
+        """Put ``params`` in force and on the controls (raises ValueError to refuse them,
+        the message saying why)."""
+        ...
+
+
 @runtime_checkable
 class LessonHandle(Protocol):
-    """What ``build`` returns."""
+    """What ``build`` returns: a built lesson, as the lab and the classroom use it."""
 
     def close(self) -> None:
         """Stop the lesson and remove its GUI and scene nodes."""
+        ...
+
+    def estop(self) -> None:
+        """Torque off now (the lab's E-STOP button); never raises. Nothing to stop: nothing."""
+        ...
+
+    def gui_handles(self) -> tuple[Any, ...]:
+        """The lesson's top-level GUI elements (hiding them hides the whole lesson panel)."""
+        ...
+
+    def gain_controls(self) -> Gains | None:
+        """The gains of the lesson's arm, to read and set (None: the lesson has none)."""
+        ...
+
+    def run_figures(self) -> RunFigures:
+        """The figures of the last runs (all None: the lesson measures none)."""
         ...
 
 
@@ -143,7 +199,12 @@ class LessonModule(Protocol):
     TRY: str
     ROBOTS: tuple[str, ...]
 
-    def build(self, server: viser.ViserServer, ctx: LessonContext) -> LessonHandle: ...
+    def build(self, server: Surface, ctx: LessonContext) -> LessonHandle: ...
+
+
+def is_private(module: ModuleType) -> bool:
+    """Whether lesson ``module`` can be built on one student's page (its ``PRIVATE``)."""
+    return bool(getattr(module, "PRIVATE", False))
 
 
 def all_lessons() -> dict[str, ModuleType]:

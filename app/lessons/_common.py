@@ -3,7 +3,7 @@
 The fields, opening and closing every lesson handle shares (:class:`LessonBase`),
 keeping a lesson's GUI elements and removing them when it closes, docking its
 charts panel, turning a refused action into a notification, sending a file,
-and the HTML of the status and warning lines.
+what a joint is called on the page, and the HTML of the status and warning lines.
 """
 
 from __future__ import annotations
@@ -18,11 +18,13 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import viser
 
+from armlab.app.lessons import RunFigures
 from armlab.app.page.inputs import notify
 from armlab.app.page.publisher import Publisher
 
 if TYPE_CHECKING:
-    from armlab.app.lessons import LessonContext
+    from armlab.app.lessons import Gains, LessonContext
+    from armlab.app.page.surface import Surface
 
 H = TypeVar("H")
 
@@ -91,20 +93,22 @@ class LessonGui:
 
 
 class LessonBase:
-    """What every lesson handle shares: the server, the context, a lock, its GUI, closing once.
+    """What every lesson handle shares: the page, the context, a lock, its GUI, closing once,
+    and the answers of a lesson without an arm to stop, gains or figures
+    (:class:`armlab.app.lessons.LessonHandle`; a lesson that has them overrides these).
 
     A lesson's ``__init__`` calls ``super().__init__(server, ctx)``, adds its scene and
     GUI inside ``with self.opening(...)``, then starts its frames with :meth:`publish`;
     its ``close`` does its teardown only when :meth:`mark_closed` says it is the first.
 
     Args:
-        server: the viser server the lesson is on.
+        server: what the lesson is on: the lab's server (every page) or one page.
         ctx: what it is built for.
     """
 
     publisher: Publisher
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext) -> None:
+    def __init__(self, server: Surface, ctx: LessonContext) -> None:
         self.server = server
         self.ctx = ctx
         self._lock = threading.RLock()
@@ -132,6 +136,17 @@ class LessonBase:
     def gui_handles(self) -> tuple[Any, ...]:
         """The lesson's top-level GUI elements (hiding them hides the whole lesson panel)."""
         return self._gui.handles
+
+    def estop(self) -> None:
+        """The lab's E-STOP: nothing runs here to switch off."""
+
+    def gain_controls(self) -> Gains | None:
+        """None: no gains to read or set."""
+        return None
+
+    def run_figures(self) -> RunFigures:
+        """No figures (all None)."""
+        return RunFigures()
 
     def mark_closed(self) -> bool:
         """Mark the lesson closed; True the first time (the caller tears it down), then False."""
@@ -171,6 +186,12 @@ def send_download(event: viser.GuiEvent, make: Callable[[], tuple[str, bytes]]) 
         notify(event.client, "Nothing to download", str(exc))
         return
     event.client.send_file_download(name, data, save_immediately=True)
+
+
+def joint_label(name: str) -> str:
+    """What the page calls the model's joint ``name``: "theta2" -> "θ2" (other names
+    unchanged)."""
+    return name.replace("theta", "θ")
 
 
 def esc(text: str) -> str:

@@ -8,6 +8,8 @@ Three places, by the lesson's context:
   (:mod:`armlab.app.classroom.worker_process`), unless its X-series servos and gripper keep it in
   the server;
 - otherwise the lab's backend (``--backend``) opened here, its loop not started yet.
+  With ``ctx.law`` (``armlab serve --exercise``) its loop runs the student's law, beside a
+  simulated reference arm run by the lab's own (:class:`armlab.app.student_law.LawLoop`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 
 from armlab.app.backends import loop_over, make_backend, shipped_x_servo
 from armlab.app.lessons import LessonContext
+from armlab.app.student_law import law_loop
 from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
@@ -37,6 +40,9 @@ def open_arm(ctx: LessonContext, model: SerialChain, params: Params, *, preset: 
         return arm.backend, arm.loop
     backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,
                            **(backend_kw or {}))
+    if ctx.law is not None:  # the student's law, the lab's own on a reference arm beside it
+        return backend, law_loop(ctx.law, backend, model, params, q0=q0,
+                                 realtime=ctx.realtime, history_s=history_s)
     return backend, loop_over(backend, model, params, realtime=ctx.realtime,
                               history_s=history_s)
 

@@ -29,13 +29,14 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import viser
 
 from armlab.app.lessons._common import LessonGui, esc, guarded, set_content
 from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
-from armlab.app.lessons.compliance_plots import JointPlots, joint_label
+from armlab.app.lessons.compliance_plots import JointPlots
 from armlab.app.lessons.compliance_push import PushControls
 from armlab.app.lessons.compliance_scene import ForceArrows, estimated_hand_force
 from armlab.app.lessons.compliance_teach import (
@@ -44,7 +45,9 @@ from armlab.app.lessons.compliance_teach import (
     latest_values,
     measured_line,
 )
+from armlab.app.lessons.law_view import LawView, law_loop_of, reference_angle
 from armlab.app.page.inputs import guarded_slider
+from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, Pushable
 from armlab.control.commands import MAX_NULL_SPACE_GAIN, Push, UseSpareJoints
 from armlab.control.loop import ControlLoop
@@ -132,7 +135,7 @@ class ArmControls:
             spare joints on makes the hand's place its target (to move the target there).
     """
 
-    def __init__(self, server: viser.ViserServer, lesson_gui: LessonGui,
+    def __init__(self, server: Surface, lesson_gui: LessonGui,
                  tabs: viser.GuiTabGroupHandle, *, model: SerialChain, backend: Backend,
                  loop: ControlLoop, base_node: str,
                  place_target: Callable[[np.ndarray], None]) -> None:
@@ -147,9 +150,13 @@ class ArmControls:
         self._last_teach = 0.0
         self.warning = lesson_gui.add(gui.add_html("", order=-79.0, visible=False))
         with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
+            #: the student's own law (``armlab serve --exercise``): its note, error, ghost
+            law = law_loop_of(loop)
+            self.law_view = None if law is None else LawView(server, gui, law.law,
+                                                             root="/arm_reference")
             self.gains = GainControls(gui, loop.params, apply=lambda p: apply_gains(
-                self.loop, p, servos=self.servos, warning=self.warning))
-        show_gain_warning(self.warning, loop.params)
+                self.loop, p, warning=self.warning))
+        show_gain_warning(self.warning, loop.gains)
         with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
             gui.add_markdown(
                 "Push the **real arm by hand**: the purple arrow and the τ_ext chart show "
@@ -162,7 +169,8 @@ class ArmControls:
             self._build_spare(gui)
         with lesson_gui.chart_panel("Live charts") as charts:
             self.plots = JointPlots(gui, charts, model.joint_names,
-                                    default_joint=min(1, model.n - 1))
+                                    default_joint=min(1, model.n - 1),
+                                    reference=self.law_view is not None)
         self.arrows = ForceArrows(server.scene, base_node)
 
     # ================================================================== GUI
@@ -252,6 +260,13 @@ class ArmControls:
         applied = push.force if push is not None and push.t0 <= snap["t"][-1] <= push.t1 \
             else None
         self.arrows.set(T[:3, 3], applied, estimated_hand_force(J, snap["tau_ext"][-1]))
+        law = law_loop_of(self.loop)
+        if law is not None and self.law_view is not None:
+            self.law_view.draw(law, self.model)
+
+    def law_note(self) -> str:
+        """The student's law's error line for the status ("" without one)."""
+        return "" if self.law_view is None else self.law_view.status_extra()
 
     def status_note(self) -> str:
         """" · pushing 2 N (1.2 s left)" while a push acts, else ""."""
@@ -265,7 +280,9 @@ class ArmControls:
         last push's figures once it is over."""
         loop = self.loop
         snap = loop.recorder.snapshot(self.plots.window_s + 0.5)
-        self.plots.update(snap, force=force)
+        law = law_loop_of(loop)
+        self.plots.update(snap, force=force, reference=None if law is None
+                          else partial(reference_angle, law))
         if not len(snap["t"]):
             return
         q = snap["q"][-1]
@@ -280,7 +297,7 @@ class ArmControls:
     def _update_teach(self, snap: dict[str, np.ndarray]) -> None:
         j = self.plots.joint
         params = self.loop.params
-        live = latest_values(snap, j, joint_label(self.plots.labels[j]))
+        live = latest_values(snap, j, self.plots.labels[j])
         set_content(self.equations, equations_markdown(params, live, torque_unit=self.plots.unit,
                                                        mode=self.loop.status.controller))
         set_content(self.design, design_table(params, None, self.measured_env))
@@ -309,5 +326,8 @@ class ArmControls:
         set_content(self.pushes.result, text)
 
     def remove(self) -> None:
-        """Remove the force arrows (the GUI goes with the lesson's tabs and panels)."""
+        """Remove the force arrows and the reference ghost (the GUI goes with the lesson's
+        tabs and panels)."""
         self.arrows.remove()
+        if self.law_view is not None:
+            self.law_view.remove()

@@ -22,12 +22,13 @@ from functools import partial
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext
+from armlab.app.lessons import LessonContext, RunFigures
 from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
     esc,
     guarded,
+    joint_label,
     send_download,
     set_content,
     status_html,
@@ -41,7 +42,7 @@ from armlab.app.lessons._loop_state import (
 )
 from armlab.app.lessons._servo_arm import open_arm, shut_arm
 from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
-from armlab.app.lessons.compliance_plots import JointPlots, joint_label
+from armlab.app.lessons.compliance_plots import JointPlots
 from armlab.app.lessons.compliance_push import PushControls
 from armlab.app.lessons.compliance_scene import ComplianceScene, estimated_hand_force
 from armlab.app.lessons.compliance_servos import LinkMonitor, safe_health_html
@@ -54,7 +55,9 @@ from armlab.app.lessons.compliance_teach import (
     measured_line,
     thesis_preset_note,
 )
+from armlab.app.lessons.law_view import LawView, law_loop_of, reference_angle
 from armlab.app.page.inputs import guarded_slider
+from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, Pushable
 from armlab.control.commands import (
     EStop,
@@ -79,7 +82,7 @@ from armlab.kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robo
 from armlab.kinematics.smallarrays import all_finite
 
 NAME = "compliance"
-TITLE = "Compliance control (thesis ch. 2–4)"
+TITLE = "Compliance"
 HELP = ("The receptionist robot's arm under the thesis's PD loop and compliance controller: "
         "tune Kp, Kv and the virtual environment (M_env, D_env, K_env, K_f), run the 20 cm "
         "line, push or drag the hand and watch the arm yield.")
@@ -90,6 +93,10 @@ ROBOTS = ("receptionist_arm",)
 ORDER = 0
 
 DEG = 180.0 / math.pi
+#: The joint the charts show and the step test steps first: θ2, the elbow, the thesis's
+#: servo 3 (chapter 4's metric).
+SERVO_3 = 2
+
 #: Push directions offered, in the shoulder (thesis) frame: x = gravity, y = along the line.
 PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "against the line (−y)": (0.0, -1.0, 0.0),
@@ -106,7 +113,7 @@ HISTORY_S = 30.0  #: seconds the recorder keeps (the CSV of a run comes from it)
 PRIVATE = True
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> ComplianceLesson:
+def build(server: Surface, ctx: LessonContext) -> ComplianceLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return ComplianceLesson(server, ctx)
 
@@ -157,7 +164,7 @@ class ComplianceLesson(LessonBase):
         pose_hz, plot_hz: scene and chart update rates.
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+    def __init__(self, server: Surface, ctx: LessonContext, *,
                  link_preset: str = "18.5/25", pose_hz: float = 30.0,
                  plot_hz: float = 11.0) -> None:
         super().__init__(server, ctx)
@@ -182,17 +189,23 @@ class ComplianceLesson(LessonBase):
         if kept is not None and kept[0] in RECEPTIONIST_PRESETS:
             link_preset, params = kept  # a reload: the student's arm as they left it
         with self.opening():
-            self._build_gui(params, link_preset)
-            self.rig = self._make_rig(link_preset, params)
+            model = self._load_model(link_preset)
+            self._build_gui(params, link_preset, model.joint_names)
+            self.rig = self._make_rig(model, link_preset, params)
+            show_gain_warning(self.warning, self.rig.loop.gains)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
                      plot_hz=plot_hz)
 
     # ================================================================== rig
 
-    def _make_rig(self, preset: str, params: Params) -> Rig:
+    def _load_model(self, preset: str) -> SerialChain:
+        """The lesson's arm with the link lengths of ``preset``."""
         model = load_robot(self.ctx.robot, preset=preset)
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {self.ctx.robot} is not a serial arm")
+        return model
+
+    def _make_rig(self, model: SerialChain, preset: str, params: Params) -> Rig:
         line = thesis_line(model)
         start = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # on the line
         backend, loop = open_arm(self.ctx, model, params, preset=preset, q0=line.q[0],
@@ -232,21 +245,25 @@ class ComplianceLesson(LessonBase):
                 return
             self.rig = None
             self._close_rig(old)
-            self.rig = self._make_rig(preset, self.gains.params)
+            self.rig = self._make_rig(self._load_model(preset), preset, self.gains.params)
             self.experiment = None
             self.run_start = None
             self.chapter4, self._free_q = Chapter4(), None
 
     # ================================================================== GUI
 
-    def _build_gui(self, params: Params, link_preset: str) -> None:
+    def _build_gui(self, params: Params, link_preset: str,
+                   joint_names: tuple[str, ...]) -> None:
         gui = self.server.gui
         self.status = self._gui.add_status(try_this=TRY)
         self.warning = self._gui.add(gui.add_html("", order=-79.0, visible=False))
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         with tabs.add_tab("Run", viser.Icon.PLAYER_PLAY):
-            self._build_run_tab(gui, link_preset)
+            self._build_run_tab(gui, link_preset, joint_names)
         with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
+            #: the student's own law (``armlab serve --exercise``): its note, error, ghost
+            self.law_view = (None if self.ctx.law is None else LawView(
+                self.server, gui, self.ctx.law, root="/compliance_reference"))
             self.gains = GainControls(gui, params, apply=self._apply_params)
         with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
             self._build_push_tab(gui)
@@ -257,11 +274,11 @@ class ComplianceLesson(LessonBase):
         with tabs.add_tab("Servos", viser.Icon.CPU):
             self.servo_html = gui.add_html("reading the servos…")
         with self._gui.chart_panel("Live charts") as charts:
-            self.plots = JointPlots(gui, charts, ("theta1", "theta0", "theta2"),
-                                    default_joint=2)
-        show_gain_warning(self.warning, params)
+            self.plots = JointPlots(gui, charts, joint_names, default_joint=SERVO_3,
+                                    reference=self.ctx.law is not None)
 
-    def _build_run_tab(self, gui: viser.GuiApi, link_preset: str) -> None:
+    def _build_run_tab(self, gui: viser.GuiApi, link_preset: str,
+                       joint_names: tuple[str, ...]) -> None:
         run = gui.add_button("Run thesis line", color="green", icon=viser.Icon.PLAYER_PLAY,
                              hint="The hand moves 20 cm along y in 1.28 s (thesis ch. 4), "
                                   "after a smooth approach to the start")
@@ -277,14 +294,18 @@ class ComplianceLesson(LessonBase):
         stop.on_click(lambda e: guarded(e, self.stop))
         reset.on_click(lambda e: guarded(e, self.reset))
         self.reconnect_button.on_click(lambda e: guarded(e, self.reconnect))
-        with gui.add_folder("Step test (measures Tp, %OS, Ts, Tr)", expand_by_default=True):
-            self.step_joint = gui.add_dropdown("Joint", ("θ1", "θ0", "θ2"), initial_value="θ2")
+        # a short title: it stays on one line at projector sizes (what it measures: the hint)
+        with gui.add_folder("Step test", expand_by_default=True):
+            self.joint_labels = tuple(joint_label(n) for n in joint_names)
+            self.step_joint = gui.add_dropdown("Joint", self.joint_labels,
+                                               initial_value=self.joint_labels[SERVO_3])
             self._step_size = guarded_slider(
                 gui, "Step (°)", name="step", lo=-30.0, hi=30.0, step=1.0, initial=-20.0,
                 apply=lambda v: None, hint="Size and sign of the step; it goes the other way "
                 "when a joint limit is too near")
             step = gui.add_button("Step", icon=viser.Icon.STAIRS_UP,
-                                  hint="Step one joint's command; the Teach tab compares the "
+                                  hint="Step one joint's command and measure Tp, %OS, Ts "
+                                       "and Tr; the Teach tab compares the "
                                        "response with eq. 2.16–2.19")
             step.on_click(lambda e: guarded(e, self.run_step))
             self.step_result = gui.add_markdown("")  # the figures of the last step, here
@@ -334,7 +355,7 @@ class ComplianceLesson(LessonBase):
 
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
-        apply_gains(self._loop(), params, servos=self.hardware, warning=self.warning)
+        apply_gains(self._loop(), params, warning=self.warning)
 
     def _now(self) -> float:
         return self._loop().status.t
@@ -359,7 +380,7 @@ class ComplianceLesson(LessonBase):
         check_running(rig.loop.status)
         loop = rig.loop
         label = str(self.step_joint.value)
-        plan = plan_step(loop.recorder.snapshot(0.2), joint=("θ1", "θ0", "θ2").index(label),
+        plan = plan_step(loop.recorder.snapshot(0.2), joint=self.joint_labels.index(label),
                          step=math.radians(self._step_size.value), lower=loop.lower,
                          upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
@@ -416,6 +437,17 @@ class ComplianceLesson(LessonBase):
                 rig.backend.estop()
         except (ValueError, RuntimeError, OSError):
             rig.backend.estop()
+
+    def gain_controls(self) -> GainControls:
+        """The gain sliders: the gains the arm runs, set as a person sets them."""
+        return self.gains
+
+    def run_figures(self) -> RunFigures:
+        """Chapter 4's figures of the last line runs, and the last step test's."""
+        ch4, step = self.chapter4, self.measured_pd
+        return RunFigures(max_error_deg=_largest(ch4.free), yield_deg=_largest(ch4.yield_deg),
+                          overshoot_pct=None if step is None else step.overshoot_pct,
+                          settling_s=None if step is None else step.settling_time_s)
 
     def _on_target(self, xyz: np.ndarray) -> None:
         rig = self.rig
@@ -478,6 +510,9 @@ class ComplianceLesson(LessonBase):
         ghost = self.show_ghost.value and all_finite(q_cmd)
         rig.scene.ghost.root.visible = bool(ghost)
         rig.scene.set_pose(q, q_cmd if ghost else q)
+        law_loop = law_loop_of(rig.loop)
+        if law_loop is not None and self.law_view is not None:
+            self.law_view.draw(law_loop, rig.model)
         T, J = fk_and_jacobian(rig.model, q)  # one pass for the hand and the force estimate
         hand = self._hand = T[:3, 3]
         if self.show_trail.value:
@@ -502,7 +537,9 @@ class ComplianceLesson(LessonBase):
         loop = rig.loop
         status = loop.status
         snap = loop.recorder.snapshot(self.plots.angle.window_s + 0.5)
-        self.plots.update(snap, force=force)
+        law_loop = law_loop_of(loop)
+        self.plots.update(snap, force=force, reference=None if law_loop is None
+                          else partial(reference_angle, law_loop))
         self._update_status(status, snap, rig)
         now = time.monotonic()
         if force or now - self._last_teach > 0.5:
@@ -540,6 +577,8 @@ class ComplianceLesson(LessonBase):
         if st.message and not st.fault and st.message != state:
             msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
         msg += link_note(self._link, rig.backend)  # retries hold the arm; many are told
+        if self.law_view is not None:  # the student's law: its error, file and line
+            msg += self.law_view.status_extra()
         if st.skipped_recent:  # the machine could not keep up: say so, do not hide it
             msg += (f"<div style='color:#a15c00;font-size:0.85em'>late: {st.skipped_recent} "
                     "periods skipped in the last 10 s</div>")
@@ -549,7 +588,7 @@ class ComplianceLesson(LessonBase):
 
     def _update_teach(self, st: LoopStatus, snap: dict[str, np.ndarray], params: Params) -> None:
         j = self.plots.joint
-        live = latest_values(snap, j, joint_label(self.plots.labels[j]))
+        live = latest_values(snap, j, self.plots.labels[j])
         eq = equations_markdown(params, live, torque_unit=self.plots.unit,
                                 mode=st.controller)
         note = thesis_preset_note(params)
@@ -583,7 +622,7 @@ class ComplianceLesson(LessonBase):
                 self._free_q = q
                 self.chapter4 = Chapter4(err, ch4.pushed, None)
             self.last_run_text = chapter4_markdown(
-                self.chapter4, [joint_label(n) for n in rig.model.joint_names])
+                self.chapter4, self.joint_labels)
             return
         if st.t < exp.ready_at:
             return
@@ -597,7 +636,7 @@ class ComplianceLesson(LessonBase):
             elif exp.kind == "push":
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
-                    joint_labels=[joint_label(n) for n in rig.model.joint_names])
+                    joint_labels=self.joint_labels)
                 for beside in (self.pushes.result, self.push_result_run):  # both buttons
                     set_content(beside, measured_line(self.measured_env))
         except ValueError as exc:
@@ -610,9 +649,18 @@ class ComplianceLesson(LessonBase):
         if not self.mark_closed():
             return
         self.publisher.close()
+        if self.law_view is not None:
+            self.law_view.remove()
         rig, self.rig = self.rig, None
         close_in_turn(partial(self._close_rig, rig) if rig is not None else None,
                       self._gui.remove_all)
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+
+
+def _largest(x: np.ndarray | None) -> float | None:
+    """The largest |x| over its finite entries, ° (None: no run, or none finite)."""
+    if x is None or not np.any(np.isfinite(x)):
+        return None
+    return float(np.nanmax(np.abs(x)))

@@ -12,8 +12,9 @@ shown) and does nothing when they agree, so showing the parameters on the
 inputs never applies anything again and needs no re-entry flag.
 
 :func:`apply_gains` is the ``apply`` every arm lesson gives it: the parameters go to
-the control loop (unstable gains refused on real servos) and the warning line under
-the status says what :func:`armlab.control.params.stability_warning` finds.
+the control loop, which holds them to the lab's one rule on gains
+(:func:`armlab.control.params.check_gains`: unstable gains refused on real servos), and
+the warning line under the status shows what that rule found.
 """
 
 from __future__ import annotations
@@ -27,14 +28,7 @@ import viser
 from armlab.app.lessons._common import warning_html
 from armlab.app.page.inputs import GuardedNumber, notify
 from armlab.control.loop import ControlLoop
-from armlab.control.params import (
-    LAWS,
-    PARAM_SPECS,
-    PRESETS,
-    Params,
-    loop_stability,
-    stability_warning,
-)
+from armlab.control.params import LAWS, PARAM_SPECS, PRESETS, GainCheck, Params
 
 #: Slider value shown = SI value × scale (the period is shown in ms).
 DISPLAY_SCALE = {"period": 1000.0}
@@ -170,38 +164,25 @@ class GainControls:
         self.preset.value = _preset_of(params)
 
 
-def apply_gains(loop: ControlLoop, params: Params, *, servos: bool,
-                warning: viser.GuiHtmlHandle) -> None:
-    """Swap ``params`` into ``loop`` (at its next period) and show their warning.
-
-    Unstable gains (the sampled loop diverges even on an ideal servo) are taken on the
-    simulated arm, to be seen failing, and refused on real ``servos``.
+def apply_gains(loop: ControlLoop, params: Params, *, warning: viser.GuiHtmlHandle) -> None:
+    """Swap ``params`` into ``loop`` (at its next period) and show what the loop's rule on
+    gains found in ``warning``.
 
     Raises:
-        ValueError: refused (nothing changes then).
+        ValueError: refused by the rule (unstable gains on real servos; nothing changes then).
     """
-    unstable = loop_stability(params).unstable
-    if servos and unstable:
-        raise ValueError(f"unstable gains are refused on real servos: "
-                         f"{stability_warning(params)}")
-    loop.set_params(params, force=True)
-    show_gain_warning(warning, params, unstable=unstable)
+    show_gain_warning(warning, loop.set_params(params))
 
 
-def show_gain_warning(warning: viser.GuiHtmlHandle, params: Params, *,
-                      unstable: bool | None = None) -> None:
-    """Show what :func:`stability_warning` says of ``params`` in ``warning`` (hidden when
-    nothing): red for unstable gains, amber for a caution (``unstable``: the caller's
-    :func:`loop_stability` verdict, None: found here)."""
-    w = stability_warning(params)
-    if w is None:
+def show_gain_warning(warning: viser.GuiHtmlHandle, gains: GainCheck) -> None:
+    """Show the rule's warning on ``gains`` in ``warning`` (hidden when there is none): red
+    for unstable gains, amber for a caution."""
+    if gains.warning is None:
         warning.visible = False
         return
-    if unstable is None:
-        unstable = loop_stability(params).unstable
-    color = "#b00020" if unstable else "#a15c00"
-    head = "Unstable gains" if unstable else "Check the gains"
-    warning.content = warning_html(head, w, color=color)
+    color = "#b00020" if gains.unstable else "#a15c00"
+    head = "Unstable gains" if gains.unstable else "Check the gains"
+    warning.content = warning_html(head, gains.warning, color=color)
     warning.visible = True
 
 

@@ -16,11 +16,13 @@ torque unit replaces the four charts (see :class:`armlab.app.page.plots.LivePlot
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import viser
 
+from armlab.app.lessons._common import joint_label
 from armlab.app.page.plots import (
     ANGLE_SPAN_DEG,
     COLORS,
@@ -42,11 +44,6 @@ ERROR_SPAN_DEG = 2.0  #: smallest span of the angle error chart, °
 BUTTONS_MAX_CHARS = 24
 
 
-def joint_label(name: str) -> str:
-    """"theta2" -> "θ2" (other names unchanged)."""
-    return name.replace("theta", "θ")
-
-
 class JointPlots:
     """The charts and their joint/unit pickers, added to ``gui`` inside ``container``.
 
@@ -56,11 +53,15 @@ class JointPlots:
         joint_names: model joint names (chart order).
         default_joint: index shown first.
         window_s, points: chart window (s) and decimation bins.
+        reference: the angle chart has a fourth line, dashed: the reference arm's angle
+            (``armlab serve --exercise``: the lab's own law beside the student's).
     """
 
     def __init__(self, gui: viser.GuiApi, container: Any, joint_names: tuple[str, ...], *,
-                 default_joint: int = 0, window_s: float = 10.0, points: int = 100) -> None:
+                 default_joint: int = 0, window_s: float = 10.0, points: int = 100,
+                 reference: bool = False) -> None:
         self.gui = gui
+        self.reference = reference
         self.container = container
         self.window_s = window_s
         self.points = points
@@ -107,7 +108,9 @@ class JointPlots:
                                   order=CHART_ORDER[0], series=(
                                       SeriesSpec("command θ_cmd", COLORS[0], (6, 4)),
                                       SeriesSpec("reference θ_ref", COLORS[1], (2, 3)),
-                                      SeriesSpec("actual θ", COLORS[2])),
+                                      SeriesSpec("actual θ", COLORS[2]),
+                                      *((SeriesSpec("lab's law θ (ghost)", COLORS[4],
+                                                    (4, 4)),) if self.reference else ())),
                                   y_span=ANGLE_SPAN_DEG, **kw)
             self.error = LivePlot(self.gui, title=f"Angle error θ_cmd − θ, {j}",
                                   y_label="error (°)", order=CHART_ORDER[2], height=130,
@@ -140,8 +143,12 @@ class JointPlots:
     def plots(self) -> tuple[LivePlot, ...]:
         return (self.angle, self.error, self.torque, self.external)
 
-    def update(self, snap: dict[str, np.ndarray], *, force: bool = False) -> int:
-        """Draw the newest window of ``snap`` (a recorder snapshot); returns charts sent."""
+    def update(self, snap: dict[str, np.ndarray], *, force: bool = False,
+               reference: Callable[[np.ndarray, int], np.ndarray] | None = None) -> int:
+        """Draw the newest window of ``snap`` (a recorder snapshot); returns charts sent.
+
+        ``reference(t, joint)``: the reference arm's angle of ``joint`` at the times ``t``,
+        rad (charts made with ``reference=True``; NaN without it)."""
         with self._lock:
             if self._stale:
                 self._stale = False
@@ -159,8 +166,12 @@ class JointPlots:
             index = decimation(np.asarray(t, dtype=float), window_s=self.window_s,
                                points=self.points)
             sent = 0
-            sent += self.angle.update(t, (col["q_cmd"] * DEG, col["q_ref"] * DEG,
-                                          col["q"] * DEG), force=force, index=index)
+            angles = (col["q_cmd"] * DEG, col["q_ref"] * DEG, col["q"] * DEG)
+            if self.reference:
+                ref = (np.full(len(t), np.nan) if reference is None
+                       else reference(np.asarray(t, dtype=float), j))
+                angles = (*angles, ref * DEG)
+            sent += self.angle.update(t, angles, force=force, index=index)
             sent += self.error.update(t, (col["error"] * DEG,), force=force, index=index)
             sent += self.torque.update(t, (col["tau_load"] * k, col["tau_dyn"] * k),
                                        force=force, index=index)

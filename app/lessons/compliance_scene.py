@@ -18,6 +18,7 @@ import viser.transforms as vtf
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
+from armlab.app.page.surface import Surface
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
 
@@ -52,12 +53,11 @@ class ComplianceScene:
             is dragged ("start"/"update" give the anchor, "end" gives None).
     """
 
-    def __init__(self, server: viser.ViserServer, model: SerialChain, *, path: np.ndarray,
+    def __init__(self, server: Surface, model: SerialChain, *, path: np.ndarray,
                  root: str, on_target: Callable[[np.ndarray], None],
                  on_drag_hand: Callable[[str, np.ndarray | None], None]) -> None:
         self.server = server
         self.model = model
-        self.root_name = root
         scene = server.scene
         self.root = scene.add_frame(root, show_axes=False)
         self.arm = ArmView(server, model, root=f"{root}/arm")
@@ -66,7 +66,6 @@ class ComplianceScene:
         self.arm.see_through("torso")
         self.ghost.see_through("torso", opacity=0.0)  # the ghost is the commanded arm only
         base = np.asarray(model.base_pose, dtype=float)
-        self._base = base
         self._base_inv = np.linalg.inv(base)
         self.shoulder = scene.add_frame(
             f"{root}/shoulder", show_axes=True, axes_length=0.08, axes_radius=0.003,

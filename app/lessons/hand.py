@@ -34,6 +34,7 @@ from armlab.app.lessons._common import (
 from armlab.app.lessons.hand_scene import HandScene
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec, dash
+from armlab.app.page.surface import Surface
 from armlab.control.grip import GripController, GripModel, GripParams
 from armlab.control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
 from armlab.hardware.sim.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
@@ -42,7 +43,7 @@ if TYPE_CHECKING:
     from armlab.app.classroom.remote_hand import RemoteHand
 
 NAME = "hand"
-TITLE = "The hand: compliant grasp (thesis §2.4)"
+TITLE = "Hand grasp"
 HELP = ("The receptionist robot's three-finger hand: each finger is pulled by a 6 V DC "
         "gearmotor whose current gives its torque (τ = K_t·I, eq. 2.29). Close it on an "
         "object of chosen size and stiffness: it stops closing when the current says each "
@@ -83,7 +84,7 @@ object. Try a hard object and a fast approach: the first touch is an impact.
 """
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> HandLesson:
+def build(server: Surface, ctx: LessonContext) -> HandLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return HandLesson(server, ctx)
 
@@ -102,7 +103,7 @@ class HandLesson(LessonBase):
             (:class:`armlab.app.classroom.remote_hand.RemoteHand`, with ``ctx.arms``).
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+    def __init__(self, server: Surface, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)

@@ -16,6 +16,7 @@ import viser.transforms as vtf
 
 from armlab.app.page import theme
 from armlab.app.page.camera import View, show
+from armlab.app.page.surface import Surface
 from armlab.kinematics.hand import FingerGeometry, tip_positions
 
 OBJECT_HEIGHT = 0.09  #: m, height of the drawn cylinder
@@ -52,7 +53,7 @@ class HandScene:
         root: scene node holding everything (removed by :meth:`remove`).
     """
 
-    def __init__(self, server: viser.ViserServer, finger: FingerGeometry, *, root: str) -> None:
+    def __init__(self, server: Surface, finger: FingerGeometry, *, root: str) -> None:
         self.g = finger
         scene = server.scene
         self.root = scene.add_frame(root, show_axes=False)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import threading
 from typing import Any
 
 import numpy as np
@@ -26,12 +25,13 @@ import viser
 import viser.uplot
 
 from armlab.app.lessons import LessonContext
-from armlab.app.lessons._common import LessonGui, esc, guarded, remove_quietly, send_download
+from armlab.app.lessons._common import LessonBase, esc, guarded, remove_quietly, send_download
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
 from armlab.app.page.inputs import check_number, notify
-from armlab.app.page.plots import COLORS, SeriesSpec, dash, fixed_x, uplot_series
+from armlab.app.page.plots import COLORS, SeriesSpec, add_chart, dash, fixed_x, uplot_series
+from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from armlab.control.experiments.seed004 import table
 from armlab.control.experiments.seed004_data import TABLE1
@@ -39,7 +39,7 @@ from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.planar_ik import PlanarArm, PlanarIKResult, in_range_alternative, solve
 
 NAME = "ik_accuracy"
-TITLE = "IK accuracy: planar servo arm (seed 004)"
+TITLE = "IK accuracy"
 HELP = ("The paper's planar arm with three 0–180° hobby servos: drag the target in its plane "
         "and see the closed-form IK, the elbow branch, the servo ranges on the joints (red when "
         "a solution leaves them) and the error that whole-degree servo commands make. Run the "
@@ -65,7 +65,7 @@ ARM_RGBA = (0.25, 0.35, 0.65, 1.0)  #: dark blue: contrast on the white graph pa
 TABLE_COLUMNS = ("paper R", "paper |X1Y1 − target|", "lab |X1Y1 − target|")
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> IKAccuracyLesson:
+def build(server: Surface, ctx: LessonContext) -> IKAccuracyLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return IKAccuracyLesson(server, ctx)
 
@@ -114,7 +114,7 @@ def workspace_message(X: float, Y: float, r: PlanarIKResult, arm: PlanarArm) -> 
             f"The arm stretches towards it.")
 
 
-class IKAccuracyLesson:
+class IKAccuracyLesson(LessonBase):
     """The IK-accuracy lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
     Attributes:
@@ -124,17 +124,13 @@ class IKAccuracyLesson:
         message: "" or the workspace message of the current target.
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext) -> None:
-        self.server = server
-        self.ctx = ctx
+    def __init__(self, server: Surface, ctx: LessonContext) -> None:
+        super().__init__(server, ctx)
         self.arm = PlanarArm()
         model = load_robot("planar_servo_arm")
         if not isinstance(model, SerialChain):
             raise ValueError("robot: planar_servo_arm is not a serial arm")
         self.model = model
-        self._lock = threading.RLock()
-        self._closed = False
-        self._gui = LessonGui(server.gui)
         self.rounding = "truncate"
         self.elbow = "down"
         self.target = (0.02, 0.21)
@@ -160,7 +156,7 @@ class IKAccuracyLesson:
         self.ghost = ArmView(self.server, self.model, root="/ik/ghost", color=GHOST_RGBA)
         self.ghost.root.visible = False
         for view in (self.view, self.ghost):  # the board is drawn once, as graph paper
-            for mesh in view._urdf._meshes:
+            for mesh in view.meshes():
                 if mesh.name.endswith("/board/geometry_0"):
                     mesh.visible = False
         scene.add_grid("/ik/paper", width=PAPER_M, height=PAPER_M, plane="xy", cell_size=0.01,
@@ -273,13 +269,13 @@ class IKAccuracyLesson:
                                            disabled=True)
             self.download.on_click(lambda e: send_download(e, self.csv_bytes))
             self.summary = gui.add_markdown("")
-            self.error_plot = gui.add_uplot(
-                data=(np.arange(1.0, 25.0), *(np.zeros(24) for _ in TABLE_COLUMNS)),
+            self.error_plot = add_chart(
+                gui, data=(np.arange(1.0, 25.0), *(np.zeros(24) for _ in TABLE_COLUMNS)),
                 series=({"label": "row"},
                         *(uplot_series(SeriesSpec(f"{label} (mm)", COLORS[i], dash(i)))
                           for i, label in enumerate(TABLE_COLUMNS))),
                 scales={"x": fixed_x(1.0, 24.0), "y": {"auto": True}},
-                axes=({"label": "row"}, {"label": "mm"}), title="Error per row",
+                x_label="row", y_label="mm", title="Error per row",
                 height=180, visible=False)
             self.table_md = gui.add_markdown("")
             self.out_of_range_md = gui.add_markdown("")
@@ -469,10 +465,7 @@ class IKAccuracyLesson:
 
     def close(self) -> None:
         """Remove the lesson's scene and GUI."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
+        if self.mark_closed():
             self._remove()
 
 

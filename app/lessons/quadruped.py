@@ -54,6 +54,7 @@ from armlab.app.page.plots import (
     decimation,
     rebuild_plots,
 )
+from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, BackendError
 from armlab.control.gait_loop import GaitLoop, GaitStatus
 from armlab.control.walking import (
@@ -76,7 +77,7 @@ if TYPE_CHECKING:
     from armlab.app.classroom.remote_gait import RemoteGait
 
 NAME = "quadruped"
-TITLE = "Quadruped gait: trot, crawl and stability (seed 003)"
+TITLE = "Quadruped gait"
 HELP = ("The seed 003 quadruped walks by the sine pattern (A step length, B foot offset, "
         "C step height, D body height, α heading) and its leg IK, driving 12 AX-12A servos. "
         "The trot is not statically stable: while two legs swing it stands on two diagonal "
@@ -112,7 +113,13 @@ COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
                   "right": "Turn right"}
 #: s between two workings-out of the Servos tab's table (10 s of record each)
 TABLE_S = 1.0
-SERVO_NAMES = ("servo 1 (hip yaw θ1)", "servo 2 (hip pitch θ2)", "servo 3 (knee θ3)")
+
+
+def leg_joint_labels(model: Quadruped, leg: str) -> tuple[str, ...]:
+    """What ``leg``'s joints are called on the page, from the model's joint names:
+    "RF_hip_yaw" -> "hip yaw"."""
+    return tuple(name.removeprefix(f"{leg}_").replace("_", " ")
+                 for name in model.legs[leg].joint_names)
 
 
 @functools.cache
@@ -122,7 +129,7 @@ def _robot(name: str) -> SerialChain | Quadruped:
     return load_robot(name)
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> QuadrupedLesson:
+def build(server: Surface, ctx: LessonContext) -> QuadrupedLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return QuadrupedLesson(server, ctx)
 
@@ -140,8 +147,9 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
         # the reply timeout is the bus's own (armlab.hardware.wire.bus: a wire's or an emulator's)
         backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)  # type: ignore[arg-type]
     except (BackendError, ValueError, OSError) as exc:
-        return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs RF, LF, RH, LH, "
-                      f"each hip yaw, hip pitch, knee) on {ctx.port}: {exc}. Connect them (or "
+        return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs "
+                      f"{', '.join(LEGS)}, each {', '.join(leg_joint_labels(model, LEGS[0]))})"
+                      f" on {ctx.port}: {exc}. Connect them (or "
                       "run `armlab emulate --robot quadruped`) and reopen the lesson; the gait "
                       "is shown without servos.")
     if backend.n != 12:
@@ -159,7 +167,7 @@ class QuadrupedLesson(LessonBase):
         pose_hz, plot_hz: scene and chart update rates.
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+    def __init__(self, server: Surface, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._table = Every(TABLE_S)  #: when the Servos tab is worked out again
@@ -301,10 +309,11 @@ class QuadrupedLesson(LessonBase):
         """The three joint charts of the chosen leg (rebuilt, not retitled, on a change:
         see ``armlab.app.page.plots.LivePlot``)."""
         gui = self.server.gui
+        names = leg_joint_labels(self.model, self._leg)  # θ1..θ3: the seed's eq. 3.1–3.9
         with self.charts:
             self.joint_plots = [
-                LivePlot(gui, title=f"Leg {self._leg}: {SERVO_NAMES[j]}", y_label="angle (°)",
-                         order=10.0 + j, height=130, window_s=CHART_WINDOW_S,
+                LivePlot(gui, title=f"Leg {self._leg}: servo {j + 1} ({names[j]} θ{j + 1})",
+                         y_label="angle (°)", order=10.0 + j, height=130, window_s=CHART_WINDOW_S,
                          points=CHART_POINTS, series=(
                              SeriesSpec("commanded", COLORS[0], (6, 4)),
                              SeriesSpec("servo", COLORS[2])), y_span=ANGLE_SPAN_DEG)

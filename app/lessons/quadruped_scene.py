@@ -23,6 +23,7 @@ import viser
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, carry, show
+from armlab.app.page.surface import Surface
 from armlab.control.walking import GaitPlan, WalkState
 from armlab.kinematics.model import Quadruped
 from armlab.kinematics.quadruped import LEGS
@@ -122,7 +123,7 @@ class QuadrupedScene:
         root: scene node holding everything (removed by :meth:`remove`).
     """
 
-    def __init__(self, server: viser.ViserServer, model: Quadruped, *, root: str) -> None:
+    def __init__(self, server: Surface, model: Quadruped, *, root: str) -> None:
         self.server = server
         self.model = model
         scene = server.scene

@@ -34,6 +34,7 @@ from armlab.app.lessons._common import (
     close_in_turn,
     esc,
     guarded,
+    joint_label,
     set_content,
     status_html,
 )
@@ -45,6 +46,7 @@ from armlab.app.lessons.redundancy_scene import (
     arm_points,
 )
 from armlab.app.page.inputs import guarded_slider, notify
+from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed002 import SETTLE_S, summarise
 from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.redundancy import (
@@ -56,7 +58,7 @@ from armlab.kinematics.redundancy import (
 from armlab.kinematics.units import deg
 
 NAME = "redundancy"
-TITLE = "Redundancy and joint limits (seed 002)"
+TITLE = "Redundancy"
 HELP = ("A redundant planar 3R arm draws the paper's circle five ways side by side: the four "
         "simulations of seed 002 (J⁺ only; joint limits by the decomposition method; the "
         "manipulability gradient k_a ∇w; both) and a bounded method that guarantees the "
@@ -77,7 +79,7 @@ GAIN_RANGE = (10.0, 480.0)
 SPEED_RANGE = (0.05, 1.0)
 
 
-def build(server: viser.ViserServer, ctx: LessonContext) -> RedundancyLesson:
+def build(server: Surface, ctx: LessonContext) -> RedundancyLesson:
     """Open the lesson on ``server`` (see :mod:`armlab.app.lessons`)."""
     return RedundancyLesson(server, ctx)
 
@@ -180,7 +182,7 @@ class RedundancyLesson(LessonBase):
         pose_hz, plot_hz: scene and chart update rates.
     """
 
-    def __init__(self, server: viser.ViserServer, ctx: LessonContext, *,
+    def __init__(self, server: Surface, ctx: LessonContext, *,
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         model = load_robot(ctx.robot)
@@ -422,7 +424,7 @@ class RedundancyLesson(LessonBase):
 def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
     """One line under a panel: which joints are outside their limits now, and w."""
     q = run.q[k]
-    out = [f"θ{i + 1}" for i in range(model.n)
+    out = [joint_label(model.joint_names[i]) for i in range(model.n)
            if q[i] < model.lower[i] - 1e-9 or q[i] > model.upper[i] + 1e-9]
     w = run.w[k]  # manipulability(task_jacobian(model, q)), stored by simulate_circle
     err = run.error()[k] * 1000.0 if run.t[k] >= SETTLE_S else float("nan")

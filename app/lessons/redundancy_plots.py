@@ -20,8 +20,9 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
+from armlab.app.lessons._common import joint_label
 from armlab.app.lessons.redundancy_scene import MODE_COLORS
-from armlab.app.page.plots import SeriesSpec, fixed_x, uplot_series
+from armlab.app.page.plots import SeriesSpec, add_chart, fixed_x, uplot_series
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.redundancy import CircleRun
 from armlab.kinematics.units import deg
@@ -56,11 +57,11 @@ class RunPlot:
         self.duration = float(duration)
         self.points = points
         self.n_series = len(series)
-        self.handle = gui.add_uplot(
-            data=(np.array([0.0, self.duration]), *(np.zeros(2) for _ in series)),
+        self.handle = add_chart(
+            gui, data=(np.array([0.0, self.duration]), *(np.zeros(2) for _ in series)),
             series=({"label": "t (s)"}, *(uplot_series(s) for s in series)),
             scales={"x": fixed_x(0.0, self.duration), "y": {"auto": True}},
-            axes=({"label": "t (s)", "size": 34}, {"label": y_label, "scale": "y", "size": 52}),
+            x_label="t (s)", y_label=y_label,
             bands=bands or None, title=title, height=height, legend={"live": False},
             cursor={"show": False})
         self.updates = 0  #: how many times data was sent
@@ -104,9 +105,9 @@ class RedundancyPlots:
         n = len(modes)
         # Shade the allowed band: between the upper (n + 2) and lower (n + 1) series.
         band = ({"series": (n + 2, n + 1), "fill": BAND_FILL},)
-        self.joints = [RunPlot(gui, title=f"Joint {i + 1} angle θ{i + 1} and its limits",
+        self.joints = [RunPlot(gui, title=f"Joint {i + 1} angle {joint_label(name)} and its limits",
                                y_label="angle (°)", series=lines + limits, duration=duration,
-                               bands=band) for i in range(model.n)]
+                               bands=band) for i, name in enumerate(model.joint_names)]
         self.w = RunPlot(gui, title="Manipulability w = √det(J Jᵀ)", y_label="w (m²)",
                          series=lines, duration=duration)
         self.error = RunPlot(gui, title="Position error |x_d − x|", y_label="error (mm)",

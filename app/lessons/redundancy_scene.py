@@ -27,6 +27,7 @@ from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
 from armlab.app.page.plots import COLORS
+from armlab.app.page.surface import Surface
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.redundancy import circle_target, task_jacobian
 
@@ -130,7 +131,7 @@ class RedundancyScene:
         root: scene node holding everything (removed by :meth:`remove`).
     """
 
-    def __init__(self, server: viser.ViserServer, model: SerialChain, *,
+    def __init__(self, server: Surface, model: SerialChain, *,
                  modes: tuple[str, ...], root: str) -> None:
         self.server = server
         self.model = model

@@ -23,6 +23,9 @@ import viser.transforms as vtf
 import yourdfpy
 from viser.extras import ViserUrdf
 
+from armlab.app.page.surface import Surface
+from armlab.app.viser_ext.urdf import joint_frames as urdf_joint_frames
+from armlab.app.viser_ext.urdf import meshes as urdf_meshes
 from armlab.kinematics.model import Quadruped, SerialChain
 from armlab.kinematics.urdf import resolve_resource, warn_missing_once
 
@@ -49,7 +52,7 @@ class ArmView:
     """The robot's URDF meshes in the scene, posed by joint vector.
 
     Args:
-        server: viser server (or client handle).
+        server: where to draw: the lab's server (every page) or one page.
         model: the chain (joint order of ``q``); its ``urdf_path`` is drawn. A
             :class:`~armlab.kinematics.model.Quadruped` is posed by its 12 leg joints in leg
             order (RF, LF, RH, LH), each leg's joints base to foot.
@@ -65,7 +68,7 @@ class ArmView:
             missing mesh is warned about once (``armlab.kinematics.urdf.MissingMeshWarning``).
     """
 
-    def __init__(self, server: viser.ViserServer, model: SerialChain | Quadruped, *, root: str,
+    def __init__(self, server: Surface, model: SerialChain | Quadruped, *, root: str,
                  color: tuple[float, float, float, float] | None = None) -> None:
         if model.urdf_path is None:
             raise ValueError("model: has no urdf_path to draw")
@@ -85,12 +88,13 @@ class ArmView:
 
         with _quiet_yourdfpy():  # its own "can't find" lines would repeat ours
             parsed = yourdfpy.URDF.load(urdf_path, filename_handler=find)
+        self._parsed = parsed
         self._urdf = ViserUrdf(server, parsed, root_node_name=root, mesh_color_override=color)
         # Places the fixed joints once (moving ones are set by set_q below).
-        self._urdf.update_cfg(np.zeros(len(self._urdf._urdf.actuated_joint_names)))
+        self._urdf.update_cfg(np.zeros(len(parsed.actuated_joint_names)))
         # ViserUrdf keeps one frame per URDF joint, named after the joint's child link.
-        joints = self._urdf._urdf.joint_map
-        frames = self._urdf._joint_frames
+        joints = parsed.joint_map
+        frames = urdf_joint_frames(self._urdf)
         by_child = {}
         for frame in frames:
             by_child[frame.name.rsplit("/", 1)[-1]] = frame
@@ -143,7 +147,7 @@ class ArmView:
         """(frame, origin, origin quaternion, unit axis, type, multiplier, offset) of the
         URDF joint ``name`` (1, 0) and of every joint that mimics it."""
         out = []
-        for j in self._urdf._urdf.joint_map.values():
+        for j in self._parsed.joint_map.values():
             mimic = j.mimic
             if j.name == name:
                 multiplier, offset = 1.0, 0.0
@@ -162,7 +166,7 @@ class ArmView:
         ``opacity`` (0: not drawn at all). False if the robot has no such link or nothing
         of it to draw."""
         frame = self.link_frames.get(link)
-        robot = self._urdf._urdf.robot
+        robot = self._parsed.robot
         visuals = next((lk.visuals for lk in robot.links if lk.name == link), [])
         if frame is None or not visuals:
             return False
@@ -172,7 +176,7 @@ class ArmView:
                   if (m := _shape(v.geometry, v.origin, urdf_path, package_paths)) is not None]
         if not shapes:
             return False
-        for mesh in self._urdf._meshes:
+        for mesh in self.meshes():
             if mesh.name.rsplit("/", 1)[0] == frame.name:
                 mesh.visible = False
         if opacity <= 0.0:
@@ -183,15 +187,19 @@ class ArmView:
             opacity=opacity, side="double")
         return True
 
+    def meshes(self) -> list[viser.SceneNodeHandle]:
+        """The robot's mesh nodes (one per visual of each link, named under its frame)."""
+        return urdf_meshes(self._urdf)
+
     def remove(self) -> None:
         self.root.remove()
 
-    def _draw_fallbacks(self, server: viser.ViserServer, root: str, urdf_path: Path,
+    def _draw_fallbacks(self, server: Surface, root: str, urdf_path: Path,
                         package_paths: tuple[Path, ...], missing: set[str],
                         color: tuple[float, float, float, float] | None) -> dict[str, str]:
         """Draw every link whose visual mesh is missing from its collision shapes, else
         as a capsule from its frame to each child joint; never leave it invisible."""
-        robot = self._urdf._urdf.robot
+        robot = self._parsed.robot
         rgb = FALLBACK_RGB if color is None else tuple(int(255 * c) for c in color[:3])
         opacity = None if color is None or len(color) < 4 else color[3]
         drawn: dict[str, str] = {}

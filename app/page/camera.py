@@ -2,9 +2,10 @@
 
 A lesson names what it shows (:class:`View`: its scene roots and a viewing direction)
 with :func:`show`; the camera then stands just far enough back along that direction for
-the visible nodes under those roots to fill the 3D view (:func:`frame_points`), on new
-pages, on the pages already open (each for its own field of view and aspect), and again
-on a page's "Frame" button or when its 3D view changes shape (:func:`reframe`).
+the visible nodes under those roots, shapes and all (:func:`framed_points`), to fill the
+3D view (:func:`frame_points`), on new pages, on the pages already open (each for its own
+field of view and aspect), and again on a page's "Frame" button or when its 3D view
+changes shape (:func:`reframe`).
 
 ``server.initial_camera`` only sets where a *new* page starts (and where "Reset
 View" returns); a page already open keeps its camera until it is moved.
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -23,16 +23,11 @@ from typing import Any
 import numpy as np
 import viser
 import viser.transforms as vtf
-from viser._messages import SetCameraLookAtMessage, SetCameraPositionMessage
 
-
-def connected(client: viser.ClientHandle) -> bool:
-    """False once the page has gone (its message buffer closed): writing to its camera
-    then only makes viser warn. (viser has no public flag for it.)"""
-    conn = getattr(client, "_websock_connection", None)
-    get = getattr(conn, "get_message_buffer", None)
-    return get is None or not getattr(get(), "done", False)
-
+from armlab.app.page.surface import Surface
+from armlab.app.viser_ext.camera import send_view, shift_view
+from armlab.app.viser_ext.clients import connected, server_of
+from armlab.app.viser_ext.handles import scene_nodes
 
 # -- framing: the camera that makes a lesson's robot the picture ------------------------
 
@@ -98,7 +93,27 @@ def node_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
     (``scene``: a server's or a page's ``viser`` scene; a node hidden, or under a hidden
     one, is left out, and so is one at a non-finite pose and what hangs under it: a
     lesson's marker with nothing to show yet is no place to aim a camera)."""
-    handles: dict[str, Any] = scene._handle_from_node_name  # viser keeps no public index
+    out = [pose[:3, 3] for _, pose in _visible_poses(scene, roots)]
+    return np.array(out, dtype=float).reshape(-1, 3)
+
+
+def framed_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
+    """(k, 3) world points a lesson's view frames: :func:`node_points` and the corners of
+    the boxes round the shapes of those nodes (meshes, spheres, boxes, cylinders), so that
+    a link's mesh reaching beyond its frame's origin (the top of an arm) is framed too."""
+    points = [np.zeros((0, 3))]
+    for handle, pose in _visible_poses(scene, roots):
+        points.append(pose[None, :3, 3])
+        box = _local_box(handle)
+        if box is not None:
+            points.append(box @ pose[:3, :3].T + pose[:3, 3])
+    return np.concatenate(points)
+
+
+def _visible_poses(scene: Any, roots: Sequence[str]) -> list[tuple[Any, np.ndarray]]:
+    """(handle, world pose (4, 4)) of the visible nodes under ``roots`` at finite poses
+    (see :func:`node_points`)."""
+    handles: dict[str, Any] = scene_nodes(scene)
     poses: dict[str, np.ndarray | None] = {"": np.eye(4)}
 
     def pose(name: str) -> np.ndarray | None:
@@ -120,8 +135,61 @@ def node_points(scene: Any, roots: Sequence[str]) -> np.ndarray:
         return poses[name]
 
     names = [n for n in list(handles) if any(n == r or n.startswith(r + "/") for r in roots)]
-    out = [p[:3, 3] for p in map(pose, names) if p is not None]
-    return np.array(out, dtype=float).reshape(-1, 3)
+    return [(handles[n], p) for n, p in zip(names, map(pose, names), strict=True)
+            if p is not None]
+
+
+#: GLB data -> its box's corners (8, 3), node frame: a URDF's meshes are parsed once
+_glb_boxes: dict[bytes, np.ndarray | None] = {}
+#: models whose boxes are kept (a few robots' links)
+GLB_BOXES_KEPT = 256
+
+
+def _corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners (8, 3) of the box [lo, hi] (3,)."""
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                     for z in (lo[2], hi[2])], dtype=float)
+
+
+def _local_box(handle: Any) -> np.ndarray | None:
+    """Corners (8, 3) of a box round a scene node's shape in its own frame (its scale
+    applied), or None for a node without a shape (a frame, a label, a gizmo)."""
+    if isinstance(handle, (viser.MeshHandle, viser.MeshSkinnedHandle)):
+        v = np.asarray(handle.vertices, dtype=float).reshape(-1, 3)
+        box = _corners(v.min(axis=0), v.max(axis=0)) if len(v) else None
+    elif isinstance(handle, viser.GlbHandle):
+        box = _glb_box(handle.glb_data)
+    elif isinstance(handle, viser.IcosphereHandle):
+        r = float(handle.radius)
+        box = _corners(np.full(3, -r), np.full(3, r))
+    elif isinstance(handle, viser.BoxHandle):
+        half = 0.5 * np.asarray(handle.dimensions, dtype=float)
+        box = _corners(-half, half)
+    elif isinstance(handle, viser.CylinderHandle):  # a cube round it, whichever its axis
+        r = max(float(handle.radius), 0.5 * float(handle.height))
+        box = _corners(np.full(3, -r), np.full(3, r))
+    else:
+        return None
+    if box is None or not np.all(np.isfinite(box)):
+        return None
+    return box * np.asarray(getattr(handle, "scale", 1.0), dtype=float)
+
+
+def _glb_box(data: bytes) -> np.ndarray | None:
+    """Corners (8, 3) of the box round a GLB's meshes (None if it holds none)."""
+    if data not in _glb_boxes:
+        import io
+
+        import trimesh
+
+        try:
+            bounds = trimesh.load(io.BytesIO(data), file_type="glb", force="scene").bounds
+        except Exception:  # noqa: BLE001 - an unreadable model is framed by its origin
+            bounds = None
+        if len(_glb_boxes) >= GLB_BOXES_KEPT:
+            _glb_boxes.clear()
+        _glb_boxes[data] = None if bounds is None else _corners(*np.asarray(bounds, float))
+    return _glb_boxes[data]
 
 
 @dataclass(frozen=True)
@@ -155,13 +223,12 @@ def _camera_of(client: viser.ClientHandle) -> tuple[float, float]:
     return fov, aspect
 
 
-def show(server: Any, view: View) -> None:
-    """Frame ``view`` on ``server`` (a :class:`viser.ViserServer`, or an
-    :class:`armlab.app.classroom.private_page.Page` for one page): new pages start there (at the
-    default aspect),
-    open pages move there (each at its own), and :func:`reframe` returns to it."""
+def show(server: Surface, view: View) -> None:
+    """Frame ``view`` on ``server`` (the lab's :class:`viser.ViserServer`, or one page: an
+    :class:`armlab.app.classroom.private_page.Page`): new pages start there (at the default
+    aspect), open pages move there (each at its own), and :func:`reframe` returns to it."""
     _views[server.scene] = view
-    points = node_points(server.scene, view.roots)
+    points = framed_points(server.scene, view.roots)
     if len(points) == 0:
         return
     position, look_at = frame_points(points, direction=view.direction, up=view.up)
@@ -182,7 +249,7 @@ def reframe(client: viser.ClientHandle) -> bool:
     view and aspect (the "Frame" button; a page whose 3D view changed shape). The page's
     own lesson (a private arm), while it is open, wins over the server's. False if there
     is nothing to frame or the page has gone."""
-    shared = client._viser_server.scene  # type: ignore[attr-defined]
+    shared = server_of(client).scene
     # the page's own lesson first; once it has closed its nodes are gone: the shared view
     framed = _framed_scene(client.scene) or _framed_scene(shared)
     return framed is not None and _aim(client, *framed)
@@ -194,7 +261,7 @@ def _framed_scene(scene: Any) -> tuple[View, np.ndarray] | None:
     view = _views.get(scene)
     if view is None:
         return None
-    points = node_points(scene, view.roots)
+    points = framed_points(scene, view.roots)
     return (view, points) if len(points) else None
 
 
@@ -216,18 +283,9 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
     # before that report may still be on its way (the page reshaped before it took it),
     # and would then land last: so the framing is always sent (the newer of two waiting
     # camera messages replaces the older)
-    _send_view(client, position, look_at)
+    send_view(client, position, look_at)
     last_framing[client] = Framing(points, position, look_at, fov, aspect)
     return True
-
-
-def _send_view(client: viser.ClientHandle, position: Sequence[float],
-               look_at: Sequence[float]) -> None:
-    """Queue the page's camera position and look-at point (3,) m, whatever viser last
-    heard of them."""
-    send = client._websock_connection.queue_message  # type: ignore[attr-defined]
-    send(SetCameraPositionMessage(tuple(float(v) for v in position)))  # type: ignore[arg-type]
-    send(SetCameraLookAtMessage(tuple(float(v) for v in look_at)))  # type: ignore[arg-type]
 
 
 def carry(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
@@ -239,18 +297,7 @@ def carry(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
     translation keeps the orientation, so this moves the page's two points in viser's
     record of its camera and sends them. False if the page has gone or has not reported
     its camera yet."""
-    state = client.camera._state  # type: ignore[attr-defined]
-    if not connected(client) or state.update_timestamp == 0.0:
-        return False
-    dx, dy, dz = (float(v) for v in offset)
-    position = state.position + (dx, dy, dz)
-    look_at = state.look_at + (dx, dy, dz)
-    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(look_at))):
-        return False
-    state.position, state.look_at = position, look_at
-    state.update_timestamp = time.time()
-    _send_view(client, position.tolist(), look_at.tolist())
-    return True
+    return shift_view(client, offset)
 
 
 #: A page's view is framed again when its width/height changes by more than this

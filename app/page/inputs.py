@@ -18,7 +18,9 @@ from collections.abc import Callable
 from typing import Any
 
 import viser
-from viser._messages import GuiUpdateMessage
+
+from armlab.app.viser_ext.dispatch import screen_gui_updates
+from armlab.app.viser_ext.handles import gui_inputs
 
 
 def check_number(value: Any, *, name: str, lo: float, hi: float) -> float:
@@ -102,6 +104,18 @@ class GuardedNumber:
     def set(self, value: float) -> None:
         """Set from Python (a preset): shown on every page and applied."""
         self.handle.value = float(value)
+
+
+def inward_range(lo: float, hi: float, *, step: float) -> tuple[float, float]:
+    """[lo, hi] with its ends rounded inwards to multiples of ``step`` (> 0): a slider's
+    ends print as round numbers ("179.5", not "179.912109") and every value it offers
+    stays inside [lo, hi]. A range holding no multiple of ``step`` is returned as it is."""
+    places = max(0, -math.floor(math.log10(step))) + 1  # digits the multiples need
+    a = round(math.ceil(lo / step) * step, places)
+    b = round(math.floor(hi / step) * step, places)
+    a = a if a >= lo else a + step  # (rounding to places never crosses an end: kept in)
+    b = b if b <= hi else b - step
+    return (a, b) if a <= b else (lo, hi)
 
 
 def guarded_slider(gui: viser.GuiApi, label: str, *, name: str, lo: float, hi: float,
@@ -220,10 +234,7 @@ class UpdateScreen:
         self.coalesced = 0  #: values replaced by a later one before they were applied
         self._applied_at: dict[str, float] = {}
         self._pending: dict[str, tuple[Any, Any]] = {}
-        iface = self._gui._websock_interface
-        self._inner = self._gui._handle_gui_updates
-        iface.unregister_handler(GuiUpdateMessage, self._inner)
-        iface.register_handler(GuiUpdateMessage, self._screen)
+        self._inner = screen_gui_updates(self._gui, self._screen)
 
     def _due(self, key: tuple[Any, str]) -> bool:
         now = self._clock()
@@ -244,7 +255,7 @@ class UpdateScreen:
 
     async def _screen_one(self, client_id: Any, message: Any) -> None:
         uuid = message.uuid if isinstance(message.uuid, str) else repr(message.uuid)[:40]
-        handle = self._gui._gui_input_handle_from_uuid.get(uuid)
+        handle = gui_inputs(self._gui).get(uuid)
         updates = message.updates
         if handle is None and (self._own_only or self._page_owns(client_id, uuid)):
             return  # the other screen (the server's, or the page's own) deals with it
@@ -270,7 +281,7 @@ class UpdateScreen:
         """Whether ``uuid`` is a control of the sending page's own GUI (``client.gui``)."""
         client = self._server.get_clients().get(client_id)
         gui = getattr(client, "gui", None)
-        return gui is not None and uuid in gui._gui_input_handle_from_uuid
+        return gui is not None and uuid in gui_inputs(gui)
 
     async def _coalesce(self, uuid: str, client_id: Any, message: Any) -> None:
         """Apply now, or (within :data:`COALESCE_INTERVAL` of the last) keep only the latest."""

@@ -22,12 +22,14 @@ import math
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import viser
 import viser.uplot
 
 from armlab.app.page import theme
+from armlab.app.viser_ext.handles import set_prop_uncast
 
 #: Colours of command / reference / actual / extra series: the Okabe-Ito palette (Okabe &
 #: Ito 2008, "Color Universal Design"), told apart with every common colour-vision
@@ -127,12 +129,8 @@ def set_chart_data(handle: viser.GuiUplotHandle, arrays: Sequence[np.ndarray]) -
     ``handle.data = ...`` casts every array to float64 (viser's prop hint), so this sets
     the prop and queues its update itself: the same ``GuiUpdateMessage`` viser sends, at
     4 bytes a value. RuntimeError on a removed chart, as viser's own assignment."""
-    impl = handle._impl
-    if impl.removed:
-        raise RuntimeError(f"Cannot assign to 'data' on a removed {type(handle).__name__}.")
     data = tuple(np.array(a, dtype=np.float32) for a in arrays)  # copies: never aliased
-    impl.props.data = data
-    handle._queue_update("data", data)
+    set_prop_uncast(handle, "data", data)
 
 
 def fixed_x(lo: float, hi: float) -> dict:
@@ -209,19 +207,55 @@ def fit_range(lo: float, hi: float, *, min_span: float,
     return lo - room, hi + room
 
 
-def chart_axes(s: theme.TextSizes, *, y_label: str, y2_label: str | None = None
-               ) -> tuple[dict, ...]:
-    """uPlot axes of a live chart in text sizes ``s``: time on x, ``y_label`` on the left
-    and, if given, ``y2_label`` on the right (scale "y2", no grid of its own)."""
+def chart_axes(s: theme.TextSizes, *, y_label: str, y2_label: str | None = None,
+               x_label: str = "t − now (s)") -> tuple[dict, ...]:
+    """uPlot axes of a chart in text sizes ``s``: ``x_label`` (time) on x, ``y_label`` on
+    the left and, if given, ``y2_label`` on the right (scale "y2", no grid of its own)."""
     font, label_font = theme.chart_font(s), theme.chart_font(s, bold=True)
-    axes: list[dict] = [{"label": "t − now (s)", "size": s.x_axis, "font": font,
-                         "labelFont": label_font},
-                        {"label": y_label, "scale": "y", "size": s.y_axis, "font": font,
-                         "labelFont": label_font}]
+    room = {"labelSize": LABEL_ROOM, "font": font, "labelFont": label_font}
+    axes: list[dict] = [{"label": x_label, "size": s.x_axis, **room},
+                        {"label": y_label, "scale": "y", "size": s.y_axis, **room}]
     if y2_label is not None:
         axes.append({"label": y2_label, "scale": "y2", "side": 1, "size": s.y_axis,
-                     "font": font, "labelFont": label_font, "grid": {"show": False}})
+                     "grid": {"show": False}, **room})
     return tuple(axes)
+
+
+#: px a chart keeps beside (y) or below (x) an axis's ticks for the axis's label (uPlot's
+#: ``labelSize``; it was cut at the top when this room plus the ticks' left too little)
+LABEL_ROOM = 30
+#: em: a bold label's widest average character width (system-ui measured 0.57-0.61 em on
+#: the lab's labels), so the height a label needs is judged without a browser
+LABEL_CHAR_EM = 0.64
+#: px between a y label's ends and the chart's top and bottom edges
+LABEL_MARGIN = 6
+
+
+def chart_height(s: theme.TextSizes, *, height: int, y_labels: Iterable[str | None]) -> int:
+    """The height (px) of a chart asked for as ``height`` px in normal sizes, in sizes
+    ``s``: its plot as tall as in normal sizes (the x axis's room grows with its digits),
+    and at least tall enough that each y label, drawn rotated along the plot's height
+    (centred on it), is whole between the chart's edges."""
+    scaled = height + s.x_axis - theme.NORMAL.x_axis
+    longest = max((len(label) for label in y_labels if label), default=0)
+    label = math.ceil(LABEL_CHAR_EM * s.ticks * longest) + 2 * LABEL_MARGIN
+    return max(scaled, s.x_axis + LABEL_ROOM + label)
+
+
+def add_chart(gui: viser.GuiApi, *, title: str, series: Sequence[dict], scales: dict,
+              y_label: str, y2_label: str | None = None, x_label: str = "t − now (s)",
+              height: int, **kwargs: Any) -> viser.GuiUplotHandle:
+    """``gui.add_uplot`` with the lab's axes and height in normal sizes; a page in
+    projector mode gets the projector ones (:func:`armlab.app.page.theme.sized`), so every
+    axis label and tick fits its chart in both. ``kwargs`` go to ``add_uplot``."""
+    look = {mode: {"axes": chart_axes(theme.sizes(mode), y_label=y_label, y2_label=y2_label,
+                                      x_label=x_label),
+                   "height": chart_height(theme.sizes(mode), height=height,
+                                          y_labels=(y_label, y2_label))}
+            for mode in (False, True)}
+    handle = gui.add_uplot(series=tuple(series), scales=scales, title=title,
+                           **look[False], **kwargs)  # type: ignore[arg-type]
+    return theme.sized(handle, normal=look[False], projector=look[True])
 
 
 @dataclass(frozen=True)
@@ -303,24 +337,20 @@ class LivePlot:
         self.ranges: dict[str, tuple[float, float]] = {
             key: (-0.5 * span, 0.5 * span) for key, (span, _) in self._spans.items()}
         scales: dict = {"x": fixed_x(-window_s, 0.0), "y": {"auto": True}}
-        axes = {mode: chart_axes(theme.sizes(mode), y_label=y_label, y2_label=y2_label)
-                for mode in (False, True)}
         if y2_label is not None:
             scales["y2"] = {"auto": True}
         scales.update({key: {"auto": False, "range": r} for key, r in self.ranges.items()})
         self._scales = scales
         # Start with the window's x extent and flat zero lines.
         empty = (np.array([-window_s, 0.0]), *(np.zeros(2) for _ in range(self.n_series)))
-        self.handle = gui.add_uplot(
-            data=empty,
+        self.handle = add_chart(
+            gui, data=empty, title=title, height=height,
             series=({"label": "t − now (s)"}, *(uplot_series(s) for s in series)),
-            scales=scales, axes=axes[False], title=title, height=height,
+            scales=scales, y_label=y_label, y2_label=y2_label,
             legend={"live": False},
             cursor={"show": False},
             order=order,
         )
-        # a page in projector mode gets the projector axes (armlab.app.page.theme)
-        theme.sized(self.handle, normal={"axes": axes[False]}, projector={"axes": axes[True]})
         self._last_t: float | None = None
         self._last_sent = 0.0
         self._last_values: np.ndarray | None = None

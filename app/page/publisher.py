@@ -32,7 +32,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import viser
+from armlab.app.page.surface import Surface
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +61,7 @@ class Publisher:
     """Calls ``pose()`` at ``pose_hz`` and ``plots()`` at ``plot_hz`` inside ``server.atomic()``.
 
     Args:
-        server: the viser server.
+        server: where the lesson is: the lab's server (every page) or one page.
         pose: updates the 3D scene (cheap; called every tick).
         plots: updates charts and numbers; receives ``force=True`` on the first
             frame after a browser connects.
@@ -71,7 +71,7 @@ class Publisher:
             thread of this publisher's own).
     """
 
-    def __init__(self, server: viser.ViserServer, *, pose: Callable[[], None],
+    def __init__(self, server: Surface, *, pose: Callable[[], None],
                  plots: Callable[[bool], None], pose_hz: float = 30.0,
                  plot_hz: float = 11.0, frames: FrameThread | None = None) -> None:
         if not (0 < pose_hz <= 240 and 0 < plot_hz <= 240):

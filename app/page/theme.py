@@ -9,8 +9,7 @@ page. An element whose size depends on the mode is registered with :func:`sized`
 (labels through :func:`add_label`, charts in :mod:`armlab.app.page.plots`); a page whose
 "Projector" switch is on is sent the projector values of those elements, to it alone
 (:func:`armlab.app.viser_ext.page_js.set_props`). So the projected page can have large text while
-the
-students' phones keep theirs, and nothing is rebuilt: the arm goes on as it was.
+the students' phones keep theirs, and nothing is rebuilt: the arm goes on as it was.
 
 Each browser keeps its choice in its localStorage (:data:`PROJECTOR_KEY`), so a reload
 keeps it; ``armlab serve --projector`` is the choice of a browser that has made none.
@@ -27,7 +26,11 @@ from typing import Any
 
 import viser
 
-from armlab.app.viser_ext.page_js import ask_item, held, owner_of, set_props
+from armlab.app.viser_ext.clients import server_of
+from armlab.app.viser_ext.handles import is_removed, owner_of
+from armlab.app.viser_ext.page_js import ask_item, held, set_props
+from armlab.app.viser_ext.page_scripts import text_size_sheet
+from armlab.app.viser_ext.visual_fixes import panel_style
 
 
 @dataclass(frozen=True)
@@ -73,18 +76,11 @@ def style_sheet(s: TextSizes) -> str:
 
     Every element inside viser's control panel gets ``s.controls`` px (Mantine sets
     sizes of 9-13 px on labels, inputs, slider marks and tabs); uPlot's title and
-    legend get ``s.chart_title`` px.
+    legend get ``s.chart_title`` px. Folder titles keep clear of what is above them at
+    these sizes (:func:`armlab.app.viser_ext.visual_fixes.panel_style`).
     """
-    c, t = s.controls, s.chart_title
-    return (
-        "<style>"
-        f".mantine-Paper-root *:not(svg):not(path):not(canvas) {{font-size:{c}px !important;"
-        "line-height:1.3 !important}}"
-        f".u-title, .u-legend, .u-legend * {{font-size:{t}px !important;"
-        "line-height:1.3 !important}}"
-        f".mantine-Notification-root * {{font-size:{c}px !important}}"
-        "</style>"
-    )
+    return (text_size_sheet(controls_px=s.controls, chart_title_px=s.chart_title)
+            + panel_style())
 
 
 # -- elements whose size depends on the page's mode -------------------------------------
@@ -112,7 +108,7 @@ def sized(handle: Any, *, normal: dict[str, Any], projector: dict[str, Any]) -> 
     already in projector mode get them now. Returns ``handle``."""
     entry = _Sized(weakref.ref(handle), dict(normal), dict(projector))
     owner = owner_of(handle)
-    server = owner if isinstance(owner, viser.ViserServer) else owner._viser_server  # type: ignore
+    server = owner if isinstance(owner, viser.ViserServer) else server_of(owner)
     with _lock:
         _sized[:] = [e for e in _sized if _alive(e)]
         _sized.append(entry)
@@ -126,7 +122,7 @@ def sized(handle: Any, *, normal: dict[str, Any], projector: dict[str, Any]) -> 
 
 def _alive(entry: _Sized) -> bool:
     handle = entry.handle()
-    return handle is not None and not handle._impl.removed
+    return handle is not None and not is_removed(handle)
 
 
 def _sized_for(client: viser.ClientHandle) -> list[tuple[Any, _Sized]]:
@@ -137,7 +133,7 @@ def _sized_for(client: viser.ClientHandle) -> list[tuple[Any, _Sized]]:
     for e in entries:
         handle = e.handle()
         owner = owner_of(handle) if handle is not None else None
-        if owner is client or owner is client._viser_server:  # type: ignore[attr-defined]
+        if owner is client or owner is server_of(client):
             out.append((handle, e))
     return out
 

@@ -37,6 +37,8 @@ import websockets
 import websockets.asyncio.client
 import zstandard
 
+from armlab.app.viser_ext.handles import uuid_of
+
 
 def decode_frame(raw: bytes, zstd: zstandard.ZstdDecompressor | None = None
                  ) -> tuple[list[dict[str, Any]], float]:
@@ -327,7 +329,7 @@ class HeadlessClient:
         """The uuid of a GUI element given by its label or by the server's handle of it."""
         if isinstance(target, str):
             return self.find(target, kind).uuid
-        return target._impl.uuid  # a viser GUI handle (a test holding the server side)
+        return uuid_of(target)  # a viser GUI handle (a test holding the server side)
 
     def set_value(self, target: str | Any, value: Any) -> None:
         """Type ``value`` into the input labelled ``target`` (or whose server handle it is),

@@ -20,6 +20,11 @@ cost: the pose comparison in plain floats (``|a − b| ≤ 1e-8 + 1e-5·|b|``; a
 close only to itself, a NaN to nothing), the cast by looking the hint up in a table made
 once. What reaches the page is unchanged (``tests/test_viser_fixes.py`` compares the
 messages).
+
+relies on: ``viser.infra._async_message_buffer.AsyncMessageBuffer.push`` (its
+``event_loop``, ``message_event``), ``viser._scene_handles._set_pose_vector``,
+``viser._assignable_props_api.AssignablePropsBase._cast_value_recursive`` and
+``colors_to_uint8``, ``viser._scene_api.cast_vector``; seen in viser 1.1.1
 """
 
 from __future__ import annotations
@@ -50,6 +55,17 @@ except (ImportError, AttributeError):  # pragma: no cover - not this viser
 
 #: The words of the race's error (CPython's asyncio.Event.set over a changing deque).
 RACE = "mutated during iteration"
+
+
+def missing() -> list[str]:
+    """What of the above this viser lacks (that fix is then not made)."""
+    out = []
+    if AsyncMessageBuffer is None or not hasattr(AsyncMessageBuffer, "push"):
+        out.append("viser.infra._async_message_buffer.AsyncMessageBuffer.push")
+    if VISER_SET_POSE_VECTOR is None:
+        out.append("viser._scene_handles._set_pose_vector, "
+                   "AssignablePropsBase._cast_value_recursive")
+    return out
 
 
 def install() -> None:

@@ -1,6 +1,11 @@
 """One page alone: a small script run in it, a question to its localStorage, and
 properties of shared elements set on it only.
 
+relies on: viser._messages' ``RunJavascriptMessage``, ``GuiUpdateMessage``,
+``SceneNodeUpdateMessage``; a page's own queue and the broadcast buffer's cursors
+(:mod:`armlab.app.viser_ext.clients`); viser's localStorage prefix ``viser-user:``; seen
+in viser 1.1.1
+
 A script goes through the message viser itself uses to load Plotly
 (``RunJavascriptMessage``): viser has no public API for it, and its page runs the
 source with ``new Function(source)()`` in its message loop, with nothing around it.
@@ -18,16 +23,25 @@ from collections.abc import Callable
 from typing import Any
 
 import viser
-from viser._messages import GuiUpdateMessage, SceneNodeUpdateMessage
 
-try:  # viser's own message (viser._messages is private: another release may move it)
-    from viser._messages import RunJavascriptMessage
-except ImportError:  # pragma: no cover - not this viser
-    RunJavascriptMessage = None  # type: ignore[assignment,misc]
+from armlab.app.viser_ext.clients import broadcast_buffer, queue, server_of
+from armlab.app.viser_ext.handles import is_gui, is_removed, owner_of, scene_scope, uuid_of
+from armlab.app.viser_ext.messages import (
+    GuiUpdateMessage,
+    RunJavascriptMessage,
+    SceneNodeUpdateMessage,
+)
+from armlab.app.viser_ext.page_scripts import password_script
 
 #: viser's page keeps ``client.local_storage`` keys under this prefix (its
 #: MessageHandler.tsx), so a script writes ``PREFIX + key`` for the server to read ``key``.
 LOCAL_STORAGE_PREFIX = "viser-user:"
+
+
+def missing() -> list[str]:
+    """What page scripts need of this viser and do not find (the page's DOM itself is
+    only checked in a browser: tests/test_browser_*.py)."""
+    return [] if RunJavascriptMessage is not None else ["viser._messages.RunJavascriptMessage"]
 
 
 def guarded(source: str, *, name: str) -> str:
@@ -42,9 +56,18 @@ def run_javascript(client: viser.ClientHandle, source: str, *, name: str) -> boo
     Returns False, doing nothing, on a viser without the message."""
     if RunJavascriptMessage is None:
         return False
-    client._websock_connection.queue_message(  # type: ignore[attr-defined]
-        RunJavascriptMessage(source=guarded(source, name=name)))
+    queue(client, RunJavascriptMessage(source=guarded(source, name=name)))
     return True
+
+
+def mask_text_input(client: viser.ClientHandle, handle: viser.GuiTextHandle) -> bool:
+    """Make text input ``handle`` a password field on ``client``'s page: what is typed
+    shows as dots (``type=password``, kept when viser draws the input again); its value
+    reaches the server as before. viser 1.1.1's ``add_text`` has no such option, so this
+    is a page script (:data:`armlab.app.viser_ext.page_scripts.PASSWORD_SCRIPT`).
+
+    Returns False, doing nothing, on a viser without the message."""
+    return run_javascript(client, password_script(uuid_of(handle)), name="password")
 
 
 def ask_item(client: viser.ClientHandle, key: str, *, every: float, within: float) -> str | None:
@@ -65,14 +88,6 @@ def ask_item(client: viser.ClientHandle, key: str, *, every: float, within: floa
                 raise
 
 
-def owner_of(handle: Any) -> viser.ViserServer | viser.ClientHandle:
-    """The server (an element every page shows) or the page (one page's own) that a GUI
-    element or scene node belongs to."""
-    impl = handle._impl
-    api = impl.gui_api if hasattr(impl, "gui_api") else impl.api
-    return api._owner
-
-
 def set_props(client: viser.ClientHandle, handle: Any, **props: Any) -> None:
     """Set properties of a GUI element or scene node on ``client``'s page only, through
     the update message viser sends when a handle's property is assigned (the server's
@@ -83,21 +98,18 @@ def set_props(client: viser.ClientHandle, handle: Any, **props: Any) -> None:
     queues, so an update for an element every page shows is held until the page has been
     sent everything shared that came before (:func:`after_shared`): an element created a
     moment ago exists on the page before its update arrives."""
-    impl = handle._impl
-    if impl.removed:
+    if is_removed(handle):
         return
-    if hasattr(impl, "gui_api"):
-        message: Any = GuiUpdateMessage(impl.uuid, props)
-        api = impl.gui_api
+    if is_gui(handle):
+        message: Any = GuiUpdateMessage(uuid_of(handle), props)
     else:  # a scene node, addressed by name and the scope (server or page) it belongs to
-        message = SceneNodeUpdateMessage(impl.name, props, owner=impl.api._owner_id)
-        api = impl.api
+        message = SceneNodeUpdateMessage(handle.name, props, owner=scene_scope(handle))
 
     def send() -> None:
-        if not impl.removed:
-            client._websock_connection.queue_message(message)  # type: ignore[attr-defined]
+        if not is_removed(handle):
+            queue(client, message)
 
-    if api._owner is client:
+    if owner_of(handle) is client:
         send()  # the page's own element: created through the same queue
     else:
         after_shared(client, send)
@@ -115,8 +127,7 @@ _held: dict[Any, list[tuple[int, float, Callable[[], None]]]] = {}
 
 def _broadcast(client: viser.ClientHandle) -> Any:
     """viser's buffer of the messages for every page (None: a viser without one)."""
-    server = getattr(client, "_viser_server", None)
-    return getattr(getattr(server, "_websock_server", None), "_broadcast_buffer", None)
+    return broadcast_buffer(server_of(client))
 
 
 def after_shared(client: viser.ClientHandle, send: Callable[[], None]) -> None:
@@ -151,7 +162,7 @@ def held(client: viser.ClientHandle) -> int:
 
 def _release(key: Any, cursors: dict, client: viser.ClientHandle) -> None:
     """Send a page's held messages as it is sent the shared ones before them."""
-    server = client._viser_server  # type: ignore[attr-defined]
+    server = server_of(client)
     while True:
         with _held_lock:
             waiting = _held[key]

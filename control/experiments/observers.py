@@ -487,6 +487,5 @@ EXPERIMENTS = (
                "joint (thesis eq. 2.36, 2.37); both on current-sensing servos with "
                "--backend serial, where rtob_before_nm (the RTOB with nothing applied) is "
                "the arm model's error: ~0 on the emulator (same model), an offset on a "
-               "real arm",
-               ObserverOptions, _run, _rows, needs=("backend_factory",)),
+               "real arm", ObserverOptions, _run, _rows, needs=("backend_factory",)),
 )

@@ -26,11 +26,11 @@ import numpy as np
 
 from armlab.control.backend import Backend, Pushable
 from armlab.control.commands import Push, RunTrajectory
-from armlab.control.compliance import Mode
+from armlab.control.compliance import Laws, Mode
 from armlab.control.experiments import BackendOptions, Experiment, option
 from armlab.control.loop import APPROACH_MIN, ControlLoop
-from armlab.control.metrics import step_report
 from armlab.control.params import PRESETS, Law, Params, preset
+from armlab.control.response import step_report
 from armlab.control.trajectory import (
     THESIS_PERIOD,
     JointTrajectory,
@@ -83,8 +83,10 @@ def _advance(loop: ControlLoop, until: float) -> None:
 
 def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
              controller: str, push_n: float = 0.0, realtime: bool = False,
-             line_period: float = THESIS_PERIOD) -> LineRun:
+             line_period: float = THESIS_PERIOD, laws: Laws | None = None) -> LineRun:
     """Run the plan; push the hand along −y (base frame) when ``push_n`` > 0.
+
+    ``laws``: the controller's equations (default: the lab's own).
 
     A simulated arm starts on the line's first point and runs headless (``realtime``
     False); real servos run paced by the clock, and are first moved to the line's
@@ -101,7 +103,7 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
             raise ValueError("this backend cannot be pushed; use --push 0 and push the "
                              "real arm by hand")
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]
-                           realtime=realtime, history_s=plan.duration + 15.0)
+                           realtime=realtime, history_s=plan.duration + 15.0, laws=laws)
         if realtime:
             loop.start()
         _advance(loop, 0.1)
@@ -229,7 +231,7 @@ def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 @dataclass(frozen=True)
 class StepOptions:
-    """Options of ``step`` (see :func:`armlab.control.metrics.step_report`)."""
+    """Options of ``step`` (see :func:`armlab.control.response.step_report`)."""
 
     kp: float = option(3.8, "Kp, 1/s² (default: thesis 3.8)")
     kv: float = option(0.2, "Kv, 1/s (default: thesis 0.2)")

@@ -142,8 +142,7 @@ def reflected_inertia(gripper: GripperServo, *, mass: float = FINGERS_MASS) -> f
 
 def gripper_chain(gripper: GripperServo) -> SerialChain:
     """The gripper's load as a one-joint chain a :class:`~armlab.hardware.sim.plant.Plant` moves:
-    the
-    horn's revolute joint (about the vertical, so gravity does no work) carrying
+    the horn's revolute joint (about the vertical, so gravity does no work) carrying
     :func:`reflected_inertia`, its limits the horn angles at the fingers' ends."""
     lo, hi = gripper.angle_range
     inertia = np.diag([0.0, 0.0, reflected_inertia(gripper)])

@@ -1,9 +1,10 @@
 """``XSeriesBackend``: the controller's servos are X-series Dynamixels (protocol 2.0).
 
-The same ``armlab.control.backend.Backend`` as
-:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend`
-(finding the servos, the joint map, limits, E-STOP, reconnect), with what protocol 2.0 and
-the X-series do differently:
+The same ``armlab.control.backend.Backend`` as the protocol-1.0
+:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend`, on the same base
+(:class:`~armlab.hardware.backends.servo_bus.ServoBusBackend`: finding the servos, the
+joint map, limits, E-STOP, reconnect), with what protocol 2.0 and the X-series do
+their own way:
 
 - :meth:`XSeriesBackend.configure`: torque off (EEPROM is written only then), return
   delay 0, operating mode (current-based position control where the servo measures its
@@ -39,13 +40,14 @@ from typing import Any
 import numpy as np
 
 from armlab.control.backend import BackendError, GripperState, JointState
-from armlab.hardware.backends.dynamixel import SAFE_SPEED, DynamixelBackend
+from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.backends.gripper import (
     GRIPPER_PROFILE_VELOCITY,
     decode_gripper,
     gripper_settings,
 )
 from armlab.hardware.backends.joint_map import JointMap, default_joint_map, load_joint_map
+from armlab.hardware.backends.servo_bus import SAFE_SPEED, ServoBusBackend
 from armlab.hardware.servos.xseries import (
     VELOCITY_UNIT,
     OperatingMode,
@@ -69,10 +71,10 @@ LIMIT_ITEMS = ("velocity_limit", "max_position_limit", "min_position_limit")
 REBOOT_WAIT = 0.5
 
 
-class XSeriesBackend(DynamixelBackend):
+class XSeriesBackend(ServoBusBackend):
     """A :class:`~armlab.control.backend.Backend` on X-series servos (protocol 2.0).
 
-    Args: as :class:`~armlab.hardware.backends.dynamixel.DynamixelBackend` (``torque_limit``:
+    Args: as :class:`~armlab.hardware.backends.servo_bus.ServoBusBackend` (``torque_limit``:
     the fraction of Current Limit, or of PWM Limit on a servo without current sensing,
     the servos may use).
     """
@@ -275,7 +277,7 @@ class XSeriesBackend(DynamixelBackend):
             lines.append(f"{who}: {text}")
 
     def _find_servos(self) -> None:
-        """The joints' servos (:meth:`DynamixelBackend._find_servos`), then the gripper's:
+        """The joints' servos (:meth:`ServoBusBackend._find_servos`), then the gripper's:
         one that does not answer, or is of another model, is named."""
         super()._find_servos()
         g = self.gripper
@@ -313,15 +315,20 @@ def _goal_data(values: dict[int, tuple[int, int]]) -> dict[int, bytes]:
 
 def open_servo_backend(model: SerialChain | Quadruped, port: str, *,
                        joint_map: JointMap | str | Path | None = None,
-                       **kw: Any) -> DynamixelBackend:
-    """The backend for ``model``'s servos on ``port``: :class:`XSeriesBackend` when the
-    joint map names X-series servos (protocol 2.0), else :class:`DynamixelBackend`."""
+                       **kw: Any) -> ServoBusBackend:
+    """The backend for ``model``'s servos on ``port``: the real backend of the servo family
+    the joint map names (:mod:`armlab.hardware.families`: :class:`DynamixelBackend` on
+    protocol 1.0, :class:`XSeriesBackend` on the X-series)."""
     if isinstance(joint_map, str | Path):
         joint_map = load_joint_map(joint_map, model)
     jmap = joint_map or default_joint_map(model)
-    if jmap.protocol == 2:
-        if isinstance(model, Quadruped):
-            raise BackendError("the X-series backend drives a serial arm, not the quadruped")
-        return XSeriesBackend(model, port, joint_map=jmap, **kw)
-    return DynamixelBackend(model, port, joint_map=jmap, **kw)
+    try:
+        backend = jmap.family.load("real_backend")
+    except ValueError as exc:
+        raise BackendError(f"the {jmap.servo} cannot be driven on a serial port yet: {exc}"
+                           ) from None
+    if isinstance(model, Quadruped) and backend is not DynamixelBackend:
+        raise BackendError(f"the {jmap.family.title} backend drives a serial arm, not the "
+                           "quadruped")
+    return backend(model, port, joint_map=jmap, **kw)
 

@@ -3,8 +3,7 @@
 The simulated counterpart of :class:`armlab.hardware.backends.xseries.XSeriesBackend`, as
 :class:`armlab.hardware.backends.sim.SimBackend` is of the protocol-1.0 backend: the servos are
 :class:`armlab.hardware.sim.xseries_servo.XServoModel` firmware in the plant, configured as the
-X-series
-backend configures real ones (current-based position control where the servo senses its
+X-series backend configures real ones (current-based position control where the servo senses its
 current, with Goal Current as the torque bound and a Position D Gain, else Goal PWM; no
 profile limits, Min/Max Position Limit at the joint limits); goals go in as Goal
 Position and Profile Velocity counts, readings come back as the servos report them (4096
@@ -12,8 +11,7 @@ counts a turn, 0.229 rpm, the current's or the load's unit) and are decoded with
 same conversions. An arm whose gripper has its own servo (``gripper``, the
 OpenManipulator-X's) gets it too: its firmware moving the fingers' load
 (:func:`armlab.hardware.backends.gripper.gripper_plant`), configured as the X-series backend
-configures
-the real one.
+configures the real one.
 """
 
 from __future__ import annotations

@@ -109,10 +109,6 @@ class ServoSpec:
         """Present Speed word -> signed rad/s (CCW positive)."""
         return word_to_signed(raw) * self.speed_unit
 
-    def load_to_raw(self, torque: float) -> int:
-        """Signed output torque N·m -> Present Load word (0.1 % of stall per unit, bit 10 = CW)."""
-        return signed_word(torque / self.stall_torque * 1023.0)
-
     def raw_to_load(self, raw: int) -> float:
         """Present Load word -> signed N·m (CCW positive)."""
         return load_fraction(raw) * self.stall_torque
@@ -139,7 +135,6 @@ AX12A = ServoSpec(
     name="AX-12A", model_number=12, stall_torque=1.5, no_load_speed=59 * RPM,
     gear_ratio=254.0, default_baud_value=1, temperature_limit=70, max_voltage=14.0,
 )
-SPECS = {spec.model_number: spec for spec in (RX24F, AX12A)}
 
 
 def baud_from_value(value: int) -> float:

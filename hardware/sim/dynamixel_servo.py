@@ -305,11 +305,6 @@ class ServoModel(GearedMotor):
         """PWM duty of this tick, −1..1 (CCW positive)."""
         return self._duty
 
-    @property
-    def setpoint(self) -> float:
-        """The firmware's internal position set-point, counts (float)."""
-        return self._setpoint
-
     def present_position(self) -> int:
         """Present Position 0..1023 (10-bit potentiometer reading at the last tick)."""
         return self._present

@@ -234,13 +234,6 @@ def decode_instruction(packet: bytes) -> InstructionPacket:
     return InstructionPacket(servo_id, code, params)
 
 
-def expected_status_length(instruction: int, params: bytes = b"") -> int:
-    """Bytes of the status packet a servo sends back for an instruction (READ: 6 + length)."""
-    if instruction == Instruction.READ:
-        return OVERHEAD + params[1]
-    return OVERHEAD
-
-
 def wire_time(n_bytes: int, baud: float) -> float:
     """Seconds ``n_bytes`` take on an 8N1 line (10 bits a byte): 10 µs a byte at 1 Mbps."""
     return n_bytes * 10.0 / baud

@@ -1,0 +1,202 @@
+"""Scripts and styles aimed at the structure of viser's page (its DOM: Mantine's class
+names, viser's layout, its labels), each run in one page through
+:func:`armlab.app.viser_ext.page_js.run_javascript`. viser's client is not changed; a
+script that finds nothing does nothing (and logs to the console).
+
+relies on: viser 1.1.1's page: a button's text is its label; the 3D view's
+``canvas[data-engine]`` inside a ``flex-grow`` div; the phone layout's sheet fixed
+(inline style) at ``bottom: 0px`` holding a ``width: 20em`` div; the docked panels'
+``data-dock-region``, ``data-dock-rail-root`` and ``data-dock-region-collapse``
+attributes; an input's label ``<label for=UUID>`` in the same Mantine ``Flex`` row as
+its ``<input>``; Mantine's ``.mantine-Paper-root`` (the control panel),
+``.mantine-Notification-root``; uPlot's ``.u-title``, ``.u-legend``; seen in viser 1.1.1
+"""
+
+from __future__ import annotations
+
+import json
+
+#: The style sheet of E-STOP first (selectors are the script's ``data-armlab`` marks).
+STOP_CSS = """
+[data-armlab="estop"] {{ min-height: {min_height_px}px !important; height: auto !important;
+  font-weight: 700 !important; }}
+@media (max-width: {phone_max_width_px}px) {{
+  [data-armlab="sheet"] {{ left: 0 !important; right: 0 !important; width: 100% !important;
+    height: {sheet_vh}vh !important; max-height: {sheet_vh}vh !important; }}
+  [data-armlab="sheet"] div[style*="width: 20em"] {{ width: 100% !important; }}
+  [data-armlab="estop-row"] {{ position: fixed !important; left: 0; right: 0;
+    bottom: {sheet_vh}vh; z-index: 30; margin: 0 !important; padding: 6px 8px !important;
+    background: var(--mantine-color-body); box-shadow: 0 -2px 6px rgba(0,0,0,0.15); }}
+  [data-armlab="view"] {{ align-self: flex-start !important;
+    height: calc({sheet_rest}vh - {estop_room}px) !important; }}
+}}
+"""
+
+#: What a page runs for E-STOP first (:mod:`armlab.app.page.stop_first` says what it does).
+STOP_SCRIPT = """
+(() => {
+  if (window.armlabStopFirst) return;
+  window.armlabStopFirst = true;
+  const LABEL = %(label)s;
+  const style = document.createElement('style');
+  style.id = 'armlab-stop-first';
+  style.textContent = %(css)s;
+  document.head.appendChild(style);
+  const estop = () => [...document.querySelectorAll('button')]
+    .find(b => b.textContent.trim() === LABEL);
+  const mark = (el, name) => { if (el && el.dataset.armlab !== name) el.dataset.armlab = name; };
+  // (runs after DOM changes, at most once a frame: cheap while the marks are in place)
+  const seen = { estop: null, view: null };
+  const markAll = () => {
+    if (!(seen.estop && seen.estop.isConnected)) {
+      const b = estop();
+      if (b) {
+        seen.estop = b;
+        mark(b, 'estop');
+        if (!b.parentElement) return;
+        mark(b.parentElement, 'estop-row');
+        // viser's phone sheet: the ancestor fixed (inline) at the bottom of the screen
+        let el = b.parentElement.parentElement;
+        while (el && el !== document.body && el.style.position !== 'fixed') el = el.parentElement;
+        if (el && el !== document.body && el.style.bottom === '0px') mark(el, 'sheet');
+      }
+    }
+    if (!(seen.view && seen.view.isConnected)) {
+      const canvas = document.querySelector('canvas[data-engine]');
+      const view = canvas && canvas.closest('div[style*="flex-grow"]');
+      if (view) { seen.view = view; mark(view, 'view'); }
+    }
+  };
+  let queued = false;
+  new MutationObserver(() => {
+    if (queued) return;
+    queued = true;
+    requestAnimationFrame(() => { queued = false; markAll(); });
+  }).observe(document.body, { childList: true, subtree: true });
+  markAll();
+  document.addEventListener('keydown', (e) => {
+    const b = estop();
+    if (!b) return;
+    const active = document.activeElement;
+    if (e.key === 'Tab' && !e.shiftKey && (!active || active === document.body)) {
+      e.preventDefault();
+      b.focus();
+    } else if (e.key === 'Escape' && !(active && active.getAttribute('aria-expanded') === 'true')) {
+      b.click();
+    }
+  }, true);
+})();
+"""
+
+
+def stop_first_script(*, label: str, min_height_px: int, phone_max_width_px: int,
+                      sheet_vh: int) -> str:
+    """The E-STOP-first script (:data:`STOP_SCRIPT`) for the button called ``label``: the
+    first Tab focuses it, Esc presses it; its style makes it at least ``min_height_px``
+    tall and, in a viewport at most ``phone_max_width_px`` wide, pins it above the
+    controls, which take the lower ``sheet_vh`` % of the screen."""
+    css = STOP_CSS.format(min_height_px=min_height_px, phone_max_width_px=phone_max_width_px,
+                          sheet_vh=sheet_vh, sheet_rest=100 - sheet_vh,
+                          estop_room=min_height_px + 12)
+    return STOP_SCRIPT % {"label": json.dumps(label), "css": json.dumps(css)}
+
+
+#: What a page runs to keep its collapsed side panels (:mod:`armlab.app.page.panels`).
+#: While restoring, each remembered side is collapsed as it appears (clicked again every
+#: 2 s until it shows collapsed, then left to the person); once every remembered side is
+#: done (or after ``restore_ms``), the page's collapsed sides are written down whenever
+#: they change.
+PANELS_SCRIPT = """
+(() => {
+  const KEY = %(key)s;
+  const EDGES = ['left', 'right'];
+  const railed = (edge) =>
+    !!document.querySelector(`[data-dock-region="${edge}"] [data-dock-rail-root]`);
+  const collapse = (edge) => document.querySelector(`[data-dock-region-collapse="${edge}"]`);
+  let pending = [];
+  try { pending = JSON.parse(localStorage.getItem(KEY) || '[]').filter(e => EDGES.includes(e)); }
+  catch (e) { pending = []; }
+  const started = Date.now();
+  const clicked = {};  // edge -> ms of the last click (a click during a re-layout may not take)
+  let written = localStorage.getItem(KEY);
+  setInterval(() => {
+    const now = Date.now();
+    if (pending.length && now - started < %(restore_ms)d) {
+      pending = pending.filter((edge) => {
+        if (railed(edge)) return false;  // done: from now on it is the person's
+        const button = collapse(edge);
+        if (button && now - (clicked[edge] || 0) > 2000) { button.click(); clicked[edge] = now; }
+        return true;
+      });
+      return;
+    }
+    pending = [];
+    const shown = JSON.stringify(EDGES.filter(railed));
+    if (shown !== written) { localStorage.setItem(KEY, shown); written = shown; }
+  }, 500);
+})();
+"""
+
+
+def panels_script(*, key: str, restore_ms: int) -> str:
+    """The collapsed-panels script (:data:`PANELS_SCRIPT`) keeping its list in the
+    localStorage item ``key`` (the full key, viser's prefix included)."""
+    return PANELS_SCRIPT % {"key": json.dumps(key), "restore_ms": restore_ms}
+
+
+#: What a page runs to make text inputs password fields: the input in the row of each
+#: label for one of ``window.armlabPasswords``' ids gets ``type=password`` (the browser
+#: shows dots; what is typed still reaches the server as before), now and whenever
+#: viser draws it again. React (viser 1.1.1's page) removes an input's ``type`` at every
+#: value it renders (each key typed), so a change of ``type`` is undone at once: the
+#: observer's callback runs before the page is painted, and no typed character shows.
+PASSWORD_SCRIPT = """
+(() => {
+  const ids = window.armlabPasswords || (window.armlabPasswords = new Set());
+  ids.add(%(uuid)s);
+  const mask = () => {
+    for (const id of ids) {
+      const label = document.querySelector(`label[for="${CSS.escape(id)}"]`);
+      const row = label && label.closest('.mantine-Flex-root');
+      const input = row && row.querySelector('input');
+      if (input && input.type !== 'password') {
+        input.type = 'password';
+        input.autocomplete = 'off';
+      }
+    }
+  };
+  mask();
+  if (window.armlabPasswordObserver) return;
+  let queued = false;
+  window.armlabPasswordObserver = new MutationObserver((records) => {
+    if (records.some((r) => r.type === 'attributes')) { mask(); return; }
+    if (queued) return;
+    queued = true;
+    requestAnimationFrame(() => { queued = false; mask(); });
+  });
+  window.armlabPasswordObserver.observe(document.body, {
+    childList: true, subtree: true, attributes: true, attributeFilter: ['type'] });
+})();
+"""
+
+
+def password_script(uuid: str) -> str:
+    """The script (:data:`PASSWORD_SCRIPT`) making the text input ``uuid`` a password
+    field."""
+    return PASSWORD_SCRIPT % {"uuid": json.dumps(uuid)}
+
+
+def text_size_sheet(*, controls_px: int, chart_title_px: int) -> str:
+    """A ``<style>`` element setting every text of viser's control panel and its
+    notifications to ``controls_px`` px (Mantine sets sizes of 9-13 px on labels, inputs,
+    slider marks and tabs), and uPlot's chart titles and legends to ``chart_title_px``."""
+    c, t = controls_px, chart_title_px
+    return (
+        "<style>"
+        f".mantine-Paper-root *:not(svg):not(path):not(canvas) {{font-size:{c}px !important;"
+        "line-height:1.3 !important}"
+        f".u-title, .u-legend, .u-legend * {{font-size:{t}px !important;"
+        "line-height:1.3 !important}"
+        f".mantine-Notification-root * {{font-size:{c}px !important}}"
+        "</style>"
+    )
