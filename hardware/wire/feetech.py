@@ -40,14 +40,17 @@ from dataclasses import dataclass
 from armlab.hardware.wire import protocol1 as _frame
 from armlab.hardware.wire.protocol1 import (  # the frame is protocol 1.0's
     OVERHEAD,
+    InstructionPacket,  # an instruction packet is the same frame and fields
     PacketParser,
     ParserStats,
     ProtocolError,
     checksum,
+    decode_instruction,
     encode_packet,
 )
 
-__all__ = ["OVERHEAD", "PacketParser", "ParserStats", "ProtocolError", "checksum"]
+__all__ = ["OVERHEAD", "InstructionPacket", "PacketParser", "ParserStats", "ProtocolError",
+           "checksum", "decode_instruction"]
 
 BROADCAST_ID = 0xFE
 MAX_ID = 0xFC  #: 252, the highest ID (FTServo SDK, ``scservo_def.py``)
@@ -104,18 +107,6 @@ class ServoError(RuntimeError):
         self.servo_id = int(servo_id)
         self.error = ErrorBits(int(error) & 0x7F)
         super().__init__(f"servo {self.servo_id} reports {describe_errors(self.error)}")
-
-
-@dataclass(frozen=True)
-class InstructionPacket:
-    """A decoded instruction packet (what the emulator receives)."""
-
-    servo_id: int
-    instruction: int
-    params: bytes
-
-    def encode(self) -> bytes:
-        return encode_packet(self.servo_id, self.instruction, self.params)
 
 
 @dataclass(frozen=True)
@@ -224,12 +215,6 @@ def decode_status(packet: bytes, *, checked: bool = False) -> StatusPacket:
     """Parse one status packet; :class:`ProtocolError` when it is malformed."""
     raw = _frame.decode_status(packet, checked=checked)
     return StatusPacket(raw.servo_id, ErrorBits(int(raw.error) & 0x7F), raw.params)
-
-
-def decode_instruction(packet: bytes) -> InstructionPacket:
-    """Parse one instruction packet; :class:`ProtocolError` when it is malformed."""
-    raw = _frame.decode_instruction(packet)
-    return InstructionPacket(raw.servo_id, raw.instruction, raw.params)
 
 
 def encode_sign_magnitude(value: int, sign_bit: int) -> int:
