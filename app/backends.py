@@ -57,15 +57,15 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
     raise ValueError(f"unknown backend {kind!r}; choose one of {', '.join(KINDS)}")
 
 
-def shipped_x_servo(model: SerialChain) -> Any:
-    """The X-series servo (``armlab.hardware.servos.xseries.XSpec``) an arm ships with, which its
-    simulation models (the OpenManipulator-X's XM430-W350), or None: the arm is
-    simulated with RX-24F servos, as the thesis arm."""
+def has_firmware_sim(model: SerialChain) -> bool:
+    """Whether the servos an arm ships with have their family's own firmware simulation
+    (the OpenManipulator-X's XM430-W350, the SO-101's Feetech STS3215), which
+    ``make_backend("sim", model)`` runs, one plant per arm; False: the arm is simulated with
+    protocol-1.0 RX-24F servos, as the thesis arm (what a classroom's batched plant models)."""
     from armlab.hardware.backends.joint_map import default_servo
-    from armlab.hardware.families import XSERIES, family_of_model
+    from armlab.hardware.families import family_of_model
 
-    servo = default_servo(model.name)
-    return XSERIES.table_for(servo).spec if family_of_model(servo) is XSERIES else None
+    return family_of_model(default_servo(model.name)).sim_backend is not None
 
 
 def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any

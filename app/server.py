@@ -43,6 +43,7 @@ from armlab.app.lessons import (
     works_with,
 )
 from armlab.app.page.camera import reframe, reframe_on_reshape
+from armlab.app.page.challenge_panel import ChallengeDesk
 from armlab.app.page.inputs import UpdateScreen
 from armlab.app.page.look import Looks
 from armlab.app.page.panels import install as install_panels
@@ -270,6 +271,10 @@ class Lab:
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
             self._open(name)
+            #: the challenge every page shows (armlab.app.page.challenge_panel)
+            self.challenges = ChallengeDesk(self, shared=self.room is not None)
+            if self.room is not None:
+                self.room.use_challenges(self.challenges)
         except BaseException:
             if self.law is not None:
                 self.law.close()
@@ -342,6 +347,9 @@ class Lab:
         self.lesson_ctx = ctx
         if self.room is not None:
             self.room.lesson_changed()
+            # Save run, Export page, a CSV: any page may keep the run (the file goes to the
+            # page that pressed; Open run stays the presenter's)
+            self.room.roles.open(*self.lesson.page_only_buttons())
 
     def switch(self, name: str) -> None:
         """Close the open lesson and open lesson ``name``."""
@@ -408,6 +416,7 @@ class Lab:
             self._closed = True
             lesson, self.lesson = self.lesson, None
         try:
+            self.challenges.close()
             if self.room is not None:
                 self.room.close()
             if lesson is not None:

@@ -177,11 +177,23 @@ class Gripping(Protocol):
 
     @property
     def gripper_range(self) -> tuple[float, float] | None:
-        """(closed, open) m of the finger joint, or None when the arm has no gripper."""
+        """(closed, open) of the finger joint in its URDF units (m for a finger that
+        slides, rad for a jaw that turns), or None when the arm has no gripper."""
+        ...
+
+    @property
+    def gripper_revolute(self) -> bool:
+        """Whether the finger joint turns (a jaw, rad) rather than slides (m)."""
+        ...
+
+    @property
+    def gripper_note(self) -> str:
+        """How the gripper's servo holds the finger and bounds its grip, in a person's
+        words ("" without a gripper)."""
         ...
 
     def set_gripper(self, position: float) -> float:
-        """Hold the finger at ``position`` m, clamped into :attr:`gripper_range`, from the
+        """Hold the finger at ``position`` (m or rad), clamped into :attr:`gripper_range`, from the
         next ``write`` on; returns the clamped goal.
 
         Raises:

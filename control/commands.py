@@ -143,13 +143,14 @@ class SetController:
 
 @dataclass(frozen=True)
 class SetGripper:
-    """Move the gripper's finger to ``position`` m (the URDF's finger joint); the backend
-    clamps it into the gripper's range."""
+    """Move the gripper's finger to ``position`` in the URDF finger joint's units (m for a
+    finger that slides, rad for a jaw that turns); the backend clamps it into the
+    gripper's range."""
 
     position: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", scalar("gripper position (m)", self.position))
+        object.__setattr__(self, "position", scalar("gripper position (m or rad)", self.position))
 
 
 Command = (RunTrajectory | Stop | Push | Spring | EStop | Reset | Reconnect | SetTarget

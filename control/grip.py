@@ -443,6 +443,7 @@ class GraspTrace:
         current: (k, 3) A measured.
         force: (k, 3) N, true fingertip forces.
         estimate: (k, 3) N, the controller's force estimate from the current.
+        angle: (k, 3) rad, the true finger angles (None where not recorded).
     """
 
     t: np.ndarray
@@ -450,6 +451,7 @@ class GraspTrace:
     current: np.ndarray
     force: np.ndarray
     estimate: np.ndarray
+    angle: np.ndarray | None = None
 
 
 def simulate_grasp(
@@ -467,7 +469,7 @@ def simulate_grasp(
     dt = controller.dt
     n = max(1, math.ceil(duration / dt - 1e-9))
     t = np.empty(n)
-    volt, cur, force, est = (np.empty((n, N_FINGERS)) for _ in range(4))
+    volt, cur, force, est, angle = (np.empty((n, N_FINGERS)) for _ in range(5))
     current = plant.step(np.zeros(N_FINGERS), dt)  # a first sensor reading, motors off
     t0 = plant.t
     controller.close()
@@ -478,8 +480,8 @@ def simulate_grasp(
         current = plant.step(v, dt)
         t[k] = plant.t - t0
         volt[k], cur[k], force[k] = v, current, plant.contact_force
-        est[k] = controller.estimated_force()
-    return GraspTrace(t, volt, cur, force, est)
+        est[k], angle[k] = controller.estimated_force(), plant.finger_angle
+    return GraspTrace(t, volt, cur, force, est, angle)
 
 
 def grasp_figures(

@@ -81,6 +81,11 @@ SWITCH_INTERVAL = 0.001  #: s, the interpreter's thread switch interval while pa
 APPROACH_MIN = 0.01  #: rad; a trajectory starting farther than this from the command is approached
 #: rad/s, the fastest joint of the spare joints' self-motion (``UseSpareJoints``)
 SPARE_MAX_SPEED = 0.5
+#: rad/s, the fastest joint while the hand follows a target: near a singularity or a joint
+#: limit one RMRC step of 2.5 mm may ask for 10 rad/s (the SO-101 resting folded on its
+#: shoulder's limit, as a serial arm is caught), which the reference-acceleration check
+#: takes for unstable gains and switches the torque off
+TARGET_MAX_JOINT_SPEED = 1.5
 
 
 @dataclass(frozen=True)
@@ -613,7 +618,8 @@ class ControlLoop:
                    "follows its target")
 
     def _grip(self, position: float) -> None:
-        """Hand a gripper goal (m) to the backend, which sends it with the next goals."""
+        """Hand a gripper goal (the finger joint's units: m, or rad for a jaw) to the
+        backend, which sends it with the next goals."""
         if not (isinstance(self.backend, Gripping) and self.backend.gripper_range):
             self._note("this arm has no gripper servo")
         elif not self._active:
@@ -621,7 +627,9 @@ class ControlLoop:
         else:
             x = self.backend.set_gripper(position)
             clamped = " (clamped into its range)" if abs(x - position) > 1e-9 else ""
-            self._note(f"gripper: finger to {x * 1e3:+.1f} mm{clamped}")
+            where = (f"jaw to {math.degrees(x):+.1f}°" if self.backend.gripper_revolute
+                     else f"finger to {x * 1e3:+.1f} mm")
+            self._note(f"gripper: {where}{clamped}")
 
     def _current_cmd(self) -> np.ndarray:
         if self._traj is not None:
@@ -647,7 +655,9 @@ class ControlLoop:
 
     def _follow_target(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One RMRC sample towards the target: dX limited to ``target_speed``·T (thesis §3.3),
-        then the spare joints' self-motion, if asked (:meth:`_spare_step`)."""
+        the joints' step scaled down so none turns faster than
+        :data:`TARGET_MAX_JOINT_SPEED` (the direction is kept: the hand goes on towards the
+        target, slower), then the spare joints' self-motion, if asked (:meth:`_spare_step`)."""
         assert self._hold is not None and self._target is not None
         q0 = self._hold
         x = self.model.fk(q0)[:3, 3]
@@ -663,6 +673,9 @@ class ControlLoop:
             q1 = np.clip(res.q, self.lower, self.upper)
             if not res.reached:
                 self._note(f"target out of reach: {res.message}")
+            fastest = float(np.max(np.abs(q1 - q0))) / period
+            if fastest > TARGET_MAX_JOINT_SPEED:
+                q1 = q0 + (q1 - q0) * (TARGET_MAX_JOINT_SPEED / fastest)
         q1 = self._spare_step(q1, period)
         qd = (q1 - q0) / period
         qdd = (qd - self._qd_cmd_prev) / period

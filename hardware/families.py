@@ -56,6 +56,9 @@ class ServoFamily:
         spec_type: the datasheet class of its models.
         firmware_item: the item holding the firmware version (a scan reports it).
         limit_items: the items holding the position limits, (low, high).
+        replies_all_level: the status return level at which a servo answers every
+            instruction (Dynamixel 2; Feetech's Response Status Level 1), below which it
+            answers PING and READ only.
         servo_model, real_backend, sim_backend, emulator: ``module:attribute`` of the
             firmware model the plant runs, the backend on a serial port, the simulated
             backend (None: the plain ``SimBackend``), and the emulated network factory
@@ -83,6 +86,7 @@ class ServoFamily:
     real_backend: str | None
     sim_backend: str | None
     emulator: str | None
+    replies_all_level: int = 2
     aliases: tuple[str, ...] = field(default=())
 
     @property
@@ -150,9 +154,10 @@ STS = ServoFamily(
     spec_type=_spec_type(STS3215_TABLE), firmware_item="firmware_major",
     limit_items=("min_position_limit", "max_position_limit"),
     servo_model="armlab.hardware.sim.sts_servo:StsServoModel",
-    real_backend=None,
-    sim_backend=None,
+    real_backend="armlab.hardware.backends.sts:StsBackend",
+    sim_backend="armlab.hardware.backends.sts_sim:StsSimBackend",
     emulator="armlab.hardware.emulator.sts:sts_network_for_map",
+    replies_all_level=1,
     aliases=("feetech", "scs", "sms_sts"),
 )
 #: Every family the lab drives, in the order a scan tries them.

@@ -32,6 +32,7 @@ import numpy as np
 
 from armlab.kinematics.batched_dynamics import batched_dynamics
 from armlab.kinematics.model import Quadruped
+from armlab.kinematics.smallarrays import cross3
 
 #: A foot within this distance of the rest plane touches the floor, m.
 CONTACT_TOL = 1e-3
@@ -39,7 +40,7 @@ CONTACT_TOL = 1e-3
 
 def _plane(p: np.ndarray) -> tuple[np.ndarray, float] | None:
     """Unit normal n (n_z > 0) and offset d of the plane n·x = d through three points."""
-    n = np.cross(p[1] - p[0], p[2] - p[0])
+    n = np.array(cross3((p[1] - p[0]).tolist(), (p[2] - p[0]).tolist()))
     norm = float(np.linalg.norm(n))
     if norm < 1e-12 or abs(n[2]) < 0.5 * norm:  # degenerate, or steeper than 60°
         return None
@@ -49,7 +50,8 @@ def _plane(p: np.ndarray) -> tuple[np.ndarray, float] | None:
 
 def _in_triangle(c: np.ndarray, tri: np.ndarray, n: np.ndarray) -> bool:
     """Whether ``c`` projected along ``n`` falls inside the triangle ``tri`` (3, 3)."""
-    s = [float(n @ np.cross(tri[(k + 1) % 3] - tri[k], c - tri[k])) for k in range(3)]
+    s = [float(n @ np.array(cross3((tri[(k + 1) % 3] - tri[k]).tolist(),
+                                   (c - tri[k]).tolist()))) for k in range(3)]
     return min(s) >= -1e-12 or max(s) <= 1e-12
 
 
@@ -114,9 +116,9 @@ def contact_forces(feet: np.ndarray, com: np.ndarray, weight: float, n: np.ndarr
     if k == 1:
         return np.array([float(weight)])
     # coordinates in the floor plane
-    e1 = np.cross(n, [0.0, 1.0, 0.0])
+    e1 = np.array(cross3(np.asarray(n, dtype=float).tolist(), (0.0, 1.0, 0.0)))
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
+    e2 = np.array(cross3(np.asarray(n, dtype=float).tolist(), e1.tolist()))
     uv = np.stack([(feet - com) @ e1, (feet - com) @ e2])  # (2, k)
     if k == 2:
         a, b = uv[:, 0], uv[:, 1]

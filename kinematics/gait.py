@@ -65,6 +65,12 @@ class SineParams:
         scalar("D (body height)", self.D, positive=True)
         scalar("alpha_deg", self.alpha_deg)
 
+    def named(self) -> dict[str, float]:
+        """The inputs under names that carry their units: ``A_m`` … ``D_m``, ``alpha_deg``
+        (a run file's parameters, an experiment's table)."""
+        return {"A_m": self.A, "B_m": self.B, "C_m": self.C, "D_m": self.D,
+                "alpha_deg": self.alpha_deg}
+
 
 def in_swing(omega_deg: float, phase: int) -> bool:
     """True while a leg of this phase index swings (seed 003 Table 1.1, z column).

@@ -449,6 +449,17 @@ def chain_from_urdf(path: str | Path, *, tip_link: str | None = None,
     return _chain_to(tree, tip_link, name, tuple(Path(p) for p in package_paths))
 
 
+def _named_joint(path: str | Path, joint: str) -> _UJoint:
+    """The URDF joint named ``joint``, wherever it is in the tree; URDFError naming the
+    file, the joint and the joints it has otherwise."""
+    tree = _read_tree(Path(path))
+    found = next((j for j in tree.joints.values() if j.name == joint), None)
+    if found is None:
+        names = ", ".join(j.name for j in tree.joints.values())
+        raise URDFError(f"{path}: no joint named {joint!r}; joints: {names}")
+    return found
+
+
 def joint_limits(path: str | Path, joint: str) -> tuple[float, float]:
     """(lower, upper) of the URDF joint named ``joint``, wherever it is in the tree (rad,
     or m for a prismatic joint: a gripper's finger, off the arm's chain).
@@ -457,15 +468,21 @@ def joint_limits(path: str | Path, joint: str) -> tuple[float, float]:
         URDFError: naming the file and the joint when it has no such joint, or a joint
             without limits.
     """
-    tree = _read_tree(Path(path))
-    found = next((j for j in tree.joints.values() if j.name == joint), None)
-    if found is None:
-        names = ", ".join(j.name for j in tree.joints.values())
-        raise URDFError(f"{path}: no joint named {joint!r}; joints: {names}")
+    found = _named_joint(path, joint)
     if found.kind not in _DRIVABLE or found.lower >= found.upper:
         raise URDFError(f"{path}: joint {joint!r} ({found.kind}) has no limits to drive "
                         "between")
     return found.lower, found.upper
+
+
+def joint_kind(path: str | Path, joint: str) -> str:
+    """The type of the URDF joint named ``joint`` ("revolute", "prismatic", ...), wherever
+    it is in the tree: whether a gripper's finger turns (rad) or slides (m).
+
+    Raises:
+        URDFError: naming the file and the joint when it has no such joint.
+    """
+    return _named_joint(path, joint).kind
 
 
 LEG_NAMES = ("RF", "LF", "RH", "LH")

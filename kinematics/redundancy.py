@@ -33,6 +33,7 @@ import numpy as np
 
 from armlab.kinematics.fk import fk_and_jacobian
 from armlab.kinematics.model import SerialChain
+from armlab.kinematics.smallarrays import cross3
 from armlab.kinematics.validate import matrix, scalar, vector
 
 #: Task rows of the 6 x n geometric Jacobian used for a planar arm: base-frame x and y.
@@ -76,12 +77,13 @@ def jacobian_derivatives(model: SerialChain, q: np.ndarray,
     n = model.n
     z = np.array([poses[i][:3, :3] @ model.joints[i].axis for i in range(n)])
     p = poses[:, :3, 3]
-    cols = np.cross(z, p_e - p)  # (n, 3) linear Jacobian columns
+    zs, arms = z.tolist(), (p_e - p).tolist()  # the crosses on floats (cross3)
+    cols = [cross3(zs[i], arms[i]) for i in range(n)]  # the linear Jacobian's columns
     dJ = np.zeros((n, 3, n))
     for k in range(n):
-        dpe = np.cross(z[k], p_e - p[k])
+        dpe = cross3(zs[k], arms[k])
         for i in range(n):
-            dJ[k, :, i] = np.cross(z[i], dpe) if k >= i else np.cross(z[k], cols[i])
+            dJ[k, :, i] = cross3(zs[i], dpe) if k >= i else cross3(zs[k], cols[i])
     return dJ[:, list(rows), :]
 
 

@@ -105,3 +105,20 @@ def joint_index(value: object, names: Sequence[str]) -> int:
         return k
     raise ValueError(f"joint must be an index 0..{len(names) - 1} or one of "
                      f"{', '.join(names)}; got {value!r}")
+
+
+def check_number(value: object, *, name: str, lo: float, hi: float) -> float:
+    """``value`` as a float in [lo, hi] (what a person typed, a file held).
+
+    Raises:
+        ValueError: naming ``name`` when ``value`` is not a finite number in range.
+    """
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: {value!r} is not a finite number")
+    if not lo <= v <= hi:
+        raise ValueError(f"{name}: {v:g} is outside [{lo:g}, {hi:g}]")
+    return v

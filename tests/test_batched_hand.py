@@ -40,6 +40,8 @@ def test_batched_hands_and_controllers_equal_single_ones_through_whole_grasps(lp
     cur_b = batch.step(np.zeros((n, 3)), 1e-3)
     cur_s = np.array([s.step(np.zeros(3), 1e-3) for s in singles])
     seen: set[str] = set()
+    batched_side: list[tuple] = []
+    single_side: list[tuple] = []
 
     def both(batched, single, k):  # noqa: ANN001, ANN202 - one command to both sides
         batched(k)
@@ -64,15 +66,16 @@ def test_batched_hands_and_controllers_equal_single_ones_through_whole_grasps(lp
         v_s = np.array([c.update(x) for c, x in zip(ctls, cur_s, strict=True)])
         cur_b = batch.step(v_b, 1e-3)
         cur_s = np.array([s.step(v, 1e-3) for s, v in zip(singles, v_s, strict=True)])
-        np.testing.assert_allclose(v_b, v_s, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(cur_b, cur_s, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(batch.contact_force,
-                                   [s.contact_force for s in singles], rtol=0, atol=1e-9)
-        np.testing.assert_allclose(grip.estimated_force(),
-                                   [c.estimated_force() for c in ctls], rtol=0, atol=1e-9)
+        batched_side.append((v_b, cur_b, batch.contact_force, grip.estimated_force()))
+        single_side.append((v_s, cur_s, [s.contact_force for s in singles],
+                            [c.estimated_force() for c in ctls]))
         for j, ctl in enumerate(ctls):
             assert grip.modes(j) == ctl.modes, (k, j)
             seen.update(ctl.modes)
+    # every period's voltages, currents, forces and estimates, compared in one call
+    # (axes: period, quantity, hand, finger)
+    np.testing.assert_allclose(np.array(batched_side), np.array(single_side), rtol=0,
+                               atol=1e-9)
     assert seen == {"idle", "opening", "closing", "squeezing", "holding", "empty"}
     assert batch.t == pytest.approx(singles[0].t)
 

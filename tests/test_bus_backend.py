@@ -255,3 +255,22 @@ def test_estop_reports_whether_the_packet_went_out():
             assert b.estop() is False
         finally:
             b.close()
+
+
+def test_servos_left_at_status_return_level_1_are_opened_again_without_waiting():
+    """A backend configures the servos to answer PING and READ only (the thesis's status
+    return level 1, kept in EEPROM); opened again on the same servos (a restart of the
+    lab), it reads that level first and waits for no reply to a write that none will
+    answer: it configures them with no timeout and no retry."""
+    with emulator() as emu:
+        first = DynamixelBackend(ARM, emu.port, timeout_margin=MARGIN)
+        first.close()
+        again = DynamixelBackend(ARM, emu.port, timeout_margin=MARGIN, retries=1)
+        try:
+            assert again.bus.status_return_level == {1: 1, 3: 1, 5: 1}
+            assert "servo 1 (theta1): status return level 1 (already set)" in again.configuration
+            assert (again.stats.timeouts, again.stats.retries) == (0, 0)
+            again.set_torque(True)
+            assert all(again.read().torque_on)
+        finally:
+            again.close()

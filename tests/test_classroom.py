@@ -22,6 +22,7 @@ from armlab.app.classroom.roles import (
 from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.params import DEFAULT
+from armlab.control.runs import read_run
 
 
 class FakeClock:
@@ -587,3 +588,81 @@ def test_a_private_lesson_without_an_arm_hides_the_shared_panel_and_takes_an_est
             assert row.figures == RunFigures()
             student.click("E-STOP")
             teacher.wait_notification("E-STOP")
+
+
+def _joined(lab: Lab) -> tuple[HeadlessClient, int]:
+    """A page that connected (its Passcode and Kp shown) and its client id."""
+    before = set(lab.server.get_clients())
+    page = _page(lab)
+    page.wait_for(lambda: bool(set(lab.server.get_clients()) - before), 30.0, "the client")
+    (cid,) = set(lab.server.get_clients()) - before
+    return page, cid
+
+
+def test_a_page_that_only_connects_is_refused_nothing_and_told_nothing(classroom):
+    """On connect the server asks every page for its localStorage (projector, renderer,
+    seat); the page's answers are not its person's doing and are not refused."""
+    import threading
+
+    lab = classroom
+    refused = lab.roles.refused
+    answered = threading.Event()  # the page sent its answer to a question of the server's
+
+    def seen(message: dict, _t: float) -> None:
+        if message.get("type") == "LocalStorageGetItemRequestMessage":
+            answered.set()  # on_message runs after the page's answers went out
+
+    before = set(lab.server.get_clients())
+    page = HeadlessClient(lab.local_url.replace("http://", "ws://"), on_message=seen)
+    with page.connect():
+        page.wait_for(answered.is_set, 60.0, "a localStorage question answered")
+        page.wait_for(lambda: bool(set(lab.server.get_clients()) - before) and
+                      _has(page, "Your name"), 60.0, "the client and its name field")
+        (cid,) = set(lab.server.get_clients()) - before
+        # a round trip after the answers: the server has screened them by now
+        page.set_value("Your name", "Quiet")
+        wait_for(lambda: lab.roles.name(cid) == "Quiet", 30, "the page's name")
+        assert lab.roles.refused == refused
+        assert not [t for t, _ in page.notifications if "presenter" in t.lower()]
+
+
+def test_a_follower_saves_and_exports_the_shared_run_to_its_page_alone(classroom):
+    """Save run and Export page (the Files tab) change nothing shared: a follower's press
+    sends the teacher's run to that page only; Open run on the shared lesson stays the
+    presenter's."""
+    lab = classroom
+    lesson = lab.lesson
+    loop = lesson.rig.loop
+    (teacher, _), (follower, fid), (other, _) = _joined(lab), _joined(lab), _joined(lab)
+    with teacher, follower, other:
+        teacher.set_value("Passcode", lab.roles.passcode)
+        teacher.wait_notification("You present")
+        teacher.click("Run thesis line")  # the teacher's demo run
+        wait_for(lambda: loop.status.trajectory is not None, 30, "the demo running")
+        params, refused = loop.params.as_dict(), lab.roles.refused
+        assert not lab.roles.is_presenter(fid)
+
+        follower.click(lesson.runs.save)
+        follower.wait_for(lambda: any(n.endswith(".armlab-run.zip") for n in follower.downloads),
+                          60.0, "the follower's run file")
+        name = next(n for n in follower.downloads if n.endswith(".armlab-run.zip"))
+        run = read_run(follower.downloads[name], robot=lab.lesson_ctx.robot)
+        assert "RunTrajectory" in [c["kind"] for c in run.commands]  # the teacher's run
+        follower.click(lesson.runs.export)
+        follower.wait_for(lambda: any(n.endswith(".html") for n in follower.downloads),
+                          60.0, "the follower's exported page")
+        # the other page got nothing: a round trip of its own (Frame) came back first
+        sets = other.camera_sets
+        other.click("Frame")
+        other.wait_for(lambda: other.camera_sets > sets, 30.0, "the other page reframed")
+        assert other.downloads == {} and teacher.downloads == {}
+        assert lab.roles.refused == refused
+        assert not [t for t, _ in follower.notifications if "presenter" in t.lower()]
+
+        # Open run on the shared lesson: refused from the follower, nothing replayed
+        follower.upload(lesson.runs.open, name, follower.downloads[name])
+        wait_for(lambda: lab.roles.refused > refused, 30, "the follower's upload refused")
+        assert lesson.runs.replay.run is None
+        assert loop.params.as_dict() == params and lab.lesson is lesson
+        teacher.click("Stop")
+        wait_for(lambda: loop.status.trajectory is None, 30, "the demo stopped")

@@ -301,3 +301,31 @@ def test_a_servo_stalled_against_a_wall_stops_the_loop_and_reset_recovers():
     status = loop.run_for(1.0)
     assert status.fault is None and status.active
     assert [s.regs.torque_enable for s in be.plant.servos] == [1, 1, 1]
+
+
+def test_a_target_dragged_near_a_joint_limit_moves_the_hand_without_a_fault():
+    """The SO-101 folded on its shoulder_lift limit (where a serial arm rests and is
+    caught): a target 2 cm aside and 2 cm down asks one RMRC step for some 10 rad/s of
+    wrist_flex, which the loop took for unstable gains (torque off). The step is held to
+    TARGET_MAX_JOINT_SPEED: no fault, the hand goes towards the target."""
+    from armlab.app.backends import loop_over, make_backend
+    from armlab.control.loop import TARGET_MAX_JOINT_SPEED
+
+    model = load_robot("so101")
+    folded = np.radians([-0.09, 100.0, -24.43, 4.75, 0.0])
+    backend = make_backend("sim", model, q0=folded)
+    loop = loop_over(backend, model, DEFAULT, realtime=False, history_s=30.0)
+    try:
+        loop.run_for(1.0)
+        start = model.fk(loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+        goal = start + np.array([0.0, 0.02, -0.02])  # partly beyond the folded arm's reach
+        loop.post(SetTarget(goal))
+        loop.run_for(5.0)
+        assert loop.status.fault is None, loop.status.fault
+        snap = loop.recorder.snapshot(6.0)
+        steps = np.abs(np.diff(snap["q_cmd"], axis=0)) / DEFAULT.period
+        assert np.nanmax(steps) <= TARGET_MAX_JOINT_SPEED + 1e-9
+        here = model.fk(snap["q"][-1])[:3, 3]
+        assert np.linalg.norm(here - goal) < np.linalg.norm(start - goal) - 0.01
+    finally:
+        backend.close()

@@ -115,12 +115,16 @@ def test_a_bus_speaks_sts_through_a_real_pty():
         os.close(slave)
 
 
-def test_a_family_without_a_serial_backend_says_so_before_opening_anything():
-    from armlab.control.backend import BackendError
-    from armlab.hardware.backends.xseries import open_servo_backend
+def test_every_family_names_its_serial_and_simulated_backends():
+    from armlab.hardware.backends.servo_bus import ServoBusBackend
+    from armlab.hardware.backends.sim import SimBackend
+    from armlab.hardware.families import FAMILIES
 
-    with pytest.raises(BackendError, match="STS3215 cannot be driven on a serial port yet"):
-        open_servo_backend(load_robot("so101"), "/dev/nonexistent-port")
+    for f in FAMILIES:
+        assert issubclass(f.load("real_backend"), ServoBusBackend)
+        assert f.load("real_backend").PROTOCOL == f.protocol
+        if f.sim_backend is not None:
+            assert issubclass(f.load("sim_backend"), SimBackend)
 
 
 def test_one_ping_per_id_serves_both_families_that_share_the_frame():

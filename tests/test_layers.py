@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -89,19 +90,27 @@ def sources() -> dict[str, Path]:
     return {module_name(p): p for p in files}
 
 
+@cache
+def all_imports() -> dict[str, tuple[Path, list[Import]]]:
+    """Module name -> (file, its imports), every module of the four packages read once
+    for the whole module of tests (the tree does not change while they run)."""
+    mods = sources()
+    known = set(mods)
+    return {name: (path, imports_of(path, known)) for name, path in mods.items()}
+
+
 def import_graph() -> dict[str, set[str]]:
     """Module -> the modules of the four packages it imports when it runs (at its top or
     inside a function; a name from a module counts as that module)."""
-    mods = sources()
-    known = set(mods)
+    found = all_imports()
     graph: dict[str, set[str]] = {}
-    for name, path in mods.items():
+    for name, (_, imps) in found.items():
         edges = set()
-        for imp in imports_of(path, known):
+        for imp in imps:
             if imp.typing_only:
                 continue
             target = imp.target
-            while target and target not in known:
+            while target and target not in found:
                 target = target.rpartition(".")[0]
             if target and target != name:
                 edges.add(target)
@@ -151,12 +160,10 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 def upward_imports() -> list[str]:
     """Every import (type-only ones too) that points to a layer above its own, or to
     viser outside app: ``file:line imports target``."""
-    mods = sources()
-    known = set(mods)
     bad = []
-    for name, path in mods.items():
+    for name, (path, imps) in all_imports().items():
         layer = name.split(".")[1]
-        for imp in imports_of(path, known):
+        for imp in imps:
             if any(imp.target == f or imp.target.startswith(f + ".")
                    for f in FORBIDDEN[layer]):
                 bad.append(f"{path.relative_to(ROOT)}:{imp.line} imports {imp.target}")

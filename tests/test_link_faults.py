@@ -1,7 +1,8 @@
 """Faults told as they are: actions on a lab whose serial link died or drops, corrupts
-or delays replies (real pty to the emulator), for the thesis arm's protocol-1.0 servos
-and the OpenManipulator-X's X-series ones (protocol 2.0, the any-arm lesson). The unsent
-torque-off itself: tests/test_bus_backend.py."""
+or delays replies (real pty to the emulator), for the thesis arm's protocol-1.0 servos,
+the OpenManipulator-X's X-series ones (protocol 2.0, the any-arm lesson) and the SO-101's
+Feetech STS3215s (the any-arm lesson; its lost link, silent servo and status bits:
+tests/test_so101_serial.py). The unsent torque-off itself: tests/test_bus_backend.py."""
 
 from __future__ import annotations
 
@@ -141,14 +142,16 @@ def test_emulator_restarted_under_its_link_the_lab_reconnects_and_waits_for_rese
 HOLD_S = 3.0
 
 
-def _outcome(kind: str, rate: float, *, robot: str = "receptionist_arm") -> tuple[str, str]:
-    """Serve the lab for ``robot`` on an emulator whose replies are ``kind`` at ``rate``;
-    returns ("refused" | "stopped" | "hold" | "hold, told", the message or status line)."""
+def _outcome(kind: str, rate: float, *, robot: str = "receptionist_arm",
+             emulate: tuple[str, ...] = ()) -> tuple[str, str]:
+    """Serve the lab for ``robot`` on an emulator (``emulate``: more of its options) whose
+    replies are ``kind`` at ``rate``; returns ("refused" | "stopped" | "hold" | "hold,
+    told", the message or status line)."""
     from armlab.app.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
     from armlab.control.backend import BackendError
 
-    args = ["--robot", robot, f"--{kind}", str(rate), "--seed", "7"]
+    args = ["--robot", robot, f"--{kind}", str(rate), "--seed", "7", *emulate]
     if kind == "delay":
         args += ["--delay-time", "0.2"]  # later than the reply timeout: a lost reply
     with emulator(*args) as emu:
@@ -208,3 +211,12 @@ def test_x_series_fault_matrix_holds_or_stops_with_a_message_never_a_traceback(
     refused to start naming no servo: the limits are now one READ whose length no other
     reply has."""
     _judge(*_outcome(kind, rate, robot="open_manipulator_x"), rate, capfd)
+
+
+@pytest.mark.parametrize("kind", ["drop", "corrupt", "delay"])
+@pytest.mark.parametrize("rate", [0.02, 0.5])
+def test_sts_fault_matrix_holds_or_stops_with_a_message_never_a_traceback(kind, rate, capfd):
+    """The same matrix on the SO-101's six STS3215s (Feetech's protocol, one SYNC_READ of
+    every servo and the jaw's a period, the any-arm lesson), at its two ends; the emulator
+    steps its plant at 2 ms (tests/test_so101_serial.py says why)."""
+    _judge(*_outcome(kind, rate, robot="so101", emulate=("--dt", "0.002")), rate, capfd)

@@ -155,3 +155,32 @@ def test_bad_arguments_are_refused_with_their_name(arm):
         Plant(arm, RX24F, dt=0.0)
     with pytest.raises(ValueError, match="specs"):
         Plant(arm, [RX24F, RX24F])
+
+
+def _readable(plant: Plant) -> None:
+    """One step of ``plant`` through its readable RK4 (Plant._readable_step), as
+    Plant.step takes it when no stop, spring or wall acts."""
+    if plant._pushes:
+        plant._update_pushes(plant._q)
+    plant._readable_step(plant._q, plant._qd, plant._held_torques(), stops=False)
+    plant._k += 1
+
+
+@pytest.mark.parametrize("params", [None, IDEAL], ids=["friction", "ideal"])
+def test_the_straight_line_step_equals_the_readable_one_bit_for_bit(arm, params):
+    """Plant.step's generated step (armlab.hardware.sim.plant_step) and the readable RK4
+    give the same state to the last bit, step after step: servos moving to a goal, a push
+    that ends, applied joint torques that start and add up."""
+    q0 = [0.3, 0.6, -0.4]
+    fast, readable = holding(arm, q0, params=params), holding(arm, q0, params=params)
+    for plant in (fast, readable):
+        for servo, goal in zip(plant.servos, (700, 400, 600), strict=True):
+            servo.regs.goal_position = goal
+        plant.push([2.0, -1.0, 0.5], link=2, point=[0.1, 0.0, 0.0], duration=0.2)
+        plant.apply_joint_torque(1, 0.3, start=0.1)
+        plant.apply_joint_torque(1, -0.1, start=0.3)
+    for _ in range(500):
+        fast.step()
+        _readable(readable)
+        assert fast._q == readable._q and fast._qd == readable._qd
+    assert fast.t == readable.t and abs(fast.q - np.array(q0)).max() > 0.1  # it moved

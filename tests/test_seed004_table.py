@@ -157,6 +157,27 @@ def test_cli_prints_the_table_as_json():
             assert all(0 <= s <= 180 for s in r["alternative"]["servo_deg"])
 
 
+def test_save_run_holds_each_rows_pose_and_the_table(tmp_path):
+    """The table has no time series: its run file holds row k's angles at t = k s, the
+    exact ones as q_cmd and the whole-degree commands as q, and the rows themselves."""
+    from armlab.control.runs import read_run
+
+    path = tmp_path / "table.armlab-run.zip"
+    out = io.StringIO()
+    with redirect_stdout(out):
+        assert main(["experiment", "seed004-table", "--json", "--save-run", str(path)]) == 0
+    rows = json.loads(out.getvalue())["rows"]
+    run = read_run(path, robot="planar_servo_arm")
+    assert run.t.tolist() == list(range(len(TABLE1)))
+    for k, r in enumerate(rows):
+        assert np.degrees(run.signals["q_cmd"][k]) == pytest.approx(r["angles_deg"], abs=1e-12)
+        assert np.degrees(run.signals["q"][k]) == pytest.approx(r["commanded_deg"], abs=1e-12)
+        assert run.commands[k]["target_cm"] == r["target_cm"]
+    assert run.extra["result"]["rows"] == rows
+    assert run.figures["paper_mean_r_cm"] == pytest.approx(
+        sum(r["paper_r_cm"] for r in rows) / len(rows))
+
+
 @pytest.mark.parametrize("no", OUT_OF_RANGE_ROWS)
 def test_papers_recalculated_rows_fit_whole_degree_poses_with_the_elbow_just_inside(no):
     # The paper does not say how rows 6-19 were "recalculated". Each printed (X1, Y1)

@@ -36,7 +36,7 @@ def test_scan_finds_the_so101_s_sts3215s_and_their_protocol():
         found = scan(emu.port, (1_000_000,), ids=range(0, 8), margin=MARGIN)
         assert "Feetech STS" in emu.stderr()
     assert [(f.servo_id, f.model, f.model_number, f.protocol) for f in found] == \
-        [(i, "STS3215", 777, "sts") for i in ARM_IDS]
+        [(i, "STS3215", 777, "sts") for i in [*ARM_IDS, 6]]  # and the jaw's servo
     assert all(f.baud_value == 0 and f.cw_limit == 0 and f.ccw_limit == 4095 for f in found)
 
 
@@ -98,6 +98,13 @@ def test_a_lerobot_calibration_gives_the_expected_map(tmp_path):
     assert (pan.lower, pan.upper) == (pytest.approx(-500 * unit), pytest.approx(500 * unit))
     # the middle of the range is the joint's zero, whichever way the servo turns
     assert jmap.to_joint([100 * unit] * 5) == pytest.approx([0.0] * 5)
+    # the gripper's motor: its range laid onto the URDF's jaw, range_min closed
+    g = jmap.gripper
+    assert (g.servo_id, g.joint) == (6, "gripper")
+    assert (g.closed_angle, g.open_angle) == (pytest.approx(-400 * unit),
+                                              pytest.approx(600 * unit))
+    assert (g.lower, g.upper) == (pytest.approx(math.radians(-10)),
+                                  pytest.approx(math.radians(100)))
 
 
 def test_a_range_past_the_urdf_s_limits_is_refused_naming_the_joint(tmp_path):
@@ -126,3 +133,7 @@ def test_scan_writes_the_map_from_the_calibration_and_the_servos_that_answer(tmp
     for got, exp in zip(jmap.joints, want.joints, strict=True):  # degrees to 4 decimals
         assert (got.offset, got.lower, got.upper) == \
             pytest.approx((exp.offset, exp.lower, exp.upper), abs=1e-5)
+    g, exp = jmap.gripper, want.gripper
+    assert (g.servo_id, g.joint) == (exp.servo_id, exp.joint)
+    assert (g.closed_angle, g.open_angle) == pytest.approx((exp.closed_angle, exp.open_angle),
+                                                           abs=1e-5)

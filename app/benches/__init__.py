@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 #: The bench modules ``armlab bench`` runs (adding one: add its name here).
 BENCHES: tuple[str, ...] = ("bus", "classroom", "control", "dynamics", "flood", "hand",
-                            "kinematics", "seeds", "ui")
+                            "kinematics", "runs", "seeds", "ui")
 
 
 def median_us(fn: Callable[[], object], *, repeat: int = 2000, warmup: int = 50) -> float:

@@ -9,6 +9,13 @@
   gripper's 15) through the X-series backend: one SYNC_READ of present current, velocity
   and position (19 bytes, then five 21-byte answers) + one SYNC_WRITE of profile
   velocity and goal (59 bytes) = 183 bytes = 1.83 ms (``bus2_wire_bound_ms``).
+- Feetech STS, the SO-101's six STS3215 (the arm's IDs 1..5 and the jaw's 6) through the
+  STS backend: one SYNC_READ of Present Position .. Present Current (14 bytes, then six
+  21-byte answers) + one SYNC_WRITE of goal position, time and speed (50 bytes) = 190
+  bytes = 1.90 ms (``bus_sts_wire_bound_ms``; the cycle: ``bus_sts_cycle_median_ms``,
+  ``_p99_ms``). Its emulator steps the plant at 2 ms (``--dt 0.002``): five joints and
+  the jaw at 1 ms cost most of a core, and the plant is integrated up to each request
+  before the servos answer it, which a shared machine would add to every cycle.
 """
 
 from __future__ import annotations
@@ -23,7 +30,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from armlab.hardware.backends import sts
 from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.backends.xseries import (
     GOAL_AT,
     GOAL_LEN,
@@ -31,6 +40,7 @@ from armlab.hardware.backends.xseries import (
     PRESENT_LEN,
     XSeriesBackend,
 )
+from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.protocol1 import wire_time
 from armlab.kinematics.model import load_robot
@@ -42,6 +52,8 @@ CYCLE_BYTES = 3 * (8 + 12) + 23
 OMX_SERVOS = 5
 #: their IDs (the shipped map: joints 11..14, the gripper 15)
 OMX_IDS = tuple(range(11, 11 + OMX_SERVOS))
+#: the SO-101's servos on the bus: five joints and the jaw (IDs 1..6)
+SO101_SERVOS = 6
 
 
 @contextlib.contextmanager
@@ -64,7 +76,7 @@ def paced_emulator(*args: str, timeout: float = 60.0) -> Iterator[str]:
             proc.wait()
 
 
-def _cycles(backend: DynamixelBackend, goal: np.ndarray, n: int) -> list[float]:
+def _cycles(backend: ServoBusBackend, goal: np.ndarray, n: int) -> list[float]:
     """s of ``n`` cycles (read every servo, write every goal), after a warm-up."""
     speed = np.full(backend.n, 2.0)
     samples = []
@@ -97,6 +109,14 @@ def protocol2_cycle_bytes(n_servos: int) -> int:
             + len(p2.sync_write(GOAL_AT, GOAL_LEN, {i: bytes(GOAL_LEN) for i in ids})))
 
 
+def sts_cycle_bytes(n_servos: int) -> int:
+    """Bytes on the wire in one STS backend cycle of ``n_servos`` (IDs 1..n)."""
+    ids = list(range(1, 1 + n_servos))
+    return (len(ft.sync_read(sts.PRESENT_AT, sts.PRESENT_LEN, ids))
+            + n_servos * (ft.OVERHEAD + sts.PRESENT_LEN)
+            + len(ft.sync_write(sts.GOAL_AT, sts.GOAL_LEN, {i: bytes(sts.GOAL_LEN) for i in ids})))
+
+
 def run(quick: bool) -> dict[str, float]:
     n = 300 if quick else 3000
     # generous timeouts: a stall of the shared machine must cost a sample, not the run
@@ -110,8 +130,15 @@ def run(quick: bool) -> dict[str, float]:
         if omx.gripper is None:  # the gripper's servo is read and written with the arm's
             raise RuntimeError("the OpenManipulator-X's map names no gripper servo")
         two = _cycles(omx, np.array([0.2, 0.3, -0.2, 0.1]), n)
+    with paced_emulator("--robot", "so101", "--baud", str(BAUD), "--dt", "0.002") as port:
+        so101 = sts.StsBackend(load_robot("so101"), port, baud=BAUD, timeout_margin=0.1,
+                               retries=5)
+        if so101.gripper is None:  # the jaw's servo is read and written with the arm's
+            raise RuntimeError("the SO-101's map names no jaw servo")
+        six = _cycles(so101, np.radians([0.0, -30.0, 60.0, 20.0, 0.0]), n)
     median, p99 = _median_p99_ms(one)
     median2, p99_2 = _median_p99_ms(two)
+    median_sts, p99_sts = _median_p99_ms(six)
     return {
         "bus_cycle_median_ms": median,
         "bus_cycle_p99_ms": p99,
@@ -119,4 +146,7 @@ def run(quick: bool) -> dict[str, float]:
         "bus2_cycle_median_ms": median2,
         "bus2_cycle_p99_ms": p99_2,
         "bus2_wire_bound_ms": wire_time(protocol2_cycle_bytes(OMX_SERVOS), BAUD) * 1e3,
+        "bus_sts_cycle_median_ms": median_sts,
+        "bus_sts_cycle_p99_ms": p99_sts,
+        "bus_sts_wire_bound_ms": wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD) * 1e3,
     }

@@ -9,14 +9,16 @@ pushes, drags, recording, faults) over a
 :class:`armlab.hardware.backends.batched.BatchedArmBackend`:
 one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
 lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
-with X-series servos (the OpenManipulator-X) is simulated with their firmware model as
-its shared arm is (:class:`armlab.hardware.backends.xseries_sim.XSimBackend`, a plant of its own
-that its loop steps, on the same clock): the batched plant models protocol-1.0 servos only.
+with servos of a family with its own firmware model (X-series: the OpenManipulator-X,
+:class:`armlab.hardware.backends.xseries_sim.XSimBackend`; Feetech STS: the SO-101,
+:class:`armlab.hardware.backends.sts_sim.StsSimBackend`) is simulated with it as its shared
+arm is (``make_backend("sim", ...)``, without the gripper: a plant of its own that its loop
+steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a
 process of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
 :mod:`armlab.app.classroom.worker` hosts a
-``ClassArms``) and the X-series ones in a ``ClassArms`` of its own.
+``ClassArms``) and the X-series and STS ones in a ``ClassArms`` of its own.
 """
 
 from __future__ import annotations
@@ -25,13 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from armlab.app.backends import loop_over, make_backend, shipped_x_servo
+from armlab.app.backends import has_firmware_sim, loop_over, make_backend
 from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.periodic import SharedClock
 from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
-from armlab.hardware.backends.xseries_sim import XSimBackend
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.sim.batched_plant import BatchedPlant
 from armlab.kinematics.model import SerialChain
@@ -83,10 +84,9 @@ class ClassArms:
         """A new arm of ``model`` (link lengths ``preset``) at ``q0`` (n,) rad with gains
         ``params``, its compliance loop (``history_s`` s recorded) started on the clock."""
         with self.lock:
-            x_spec = shipped_x_servo(model)
             plant: BatchedPlant | None = None
-            if x_spec is not None:  # X-series servos: their firmware model, one plant per arm
-                backend: Backend = XSimBackend(model, spec=x_spec, dt=DT, q0=q0)
+            if has_firmware_sim(model):  # X-series, STS: their firmware model, own plant
+                backend = make_backend("sim", model, dt=DT, q0=q0, gripper=None)
                 row = None
             else:
                 plant = self._plants.get(preset)

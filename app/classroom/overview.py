@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import viser
 
 from armlab.app.lessons import RunFigures
-from armlab.app.lessons._common import esc
+from armlab.app.lessons._common import esc, send_download
+from armlab.control.challenges import Challenge, LoggedRun, Verdict
 from armlab.control.params import Params
 
 #: what the picker shows when nobody is picked
@@ -34,6 +35,7 @@ class StudentRow:
         view: "Follow the teacher" or "My arm".
         params: the gains of their arm (None: no arm yet).
         figures: of their own lesson's last runs (its ``run_figures()``).
+        best: their best run against the challenge, judged (None: no challenge or no run).
     """
 
     client_id: int
@@ -41,6 +43,7 @@ class StudentRow:
     view: str
     params: Params | None = None
     figures: RunFigures = RunFigures()
+    best: tuple[LoggedRun, Verdict] | None = None
 
     @property
     def label(self) -> str:
@@ -52,22 +55,38 @@ def _fmt(x: float | None, spec: str) -> str:
     return "—" if x is None or not math.isfinite(x) else format(x, spec)
 
 
-def overview_html(rows: list[StudentRow]) -> str:
-    """The overview table (HTML), one row per student."""
+def best_html(best: tuple[LoggedRun, Verdict] | None) -> str:
+    """A student's best run against the challenge, one table cell's HTML: ✓/✗, the judged
+    figures, the time (UTC) the server saw it."""
+    if best is None:
+        return "—"
+    run, verdict = best
+    figs = ", ".join(f"{c.threshold.label} {_fmt(c.figure, '.3g')}" for c in verdict.checks)
+    mark = ("<b style='color:#2e7d32'>✓</b>" if verdict.passed
+            else "<b style='color:#b00020'>✗</b>")
+    return f"{mark} {esc(figs)} <span style='color:#555'>{esc(run.when[11:19])}</span>"
+
+
+def overview_html(rows: list[StudentRow], *, challenge: Challenge | None = None) -> str:
+    """The overview table (HTML), one row per student; with a ``challenge``, a column of
+    each student's best run against it."""
     if not rows:
         return "<i>No students yet: they join by the url or the QR code.</i>"
+    best_head = "" if challenge is None else f"<th>best: {esc(challenge.title)}</th>"
     head = ("<tr><th>student</th><th>view</th><th>Kp</th><th>Kv</th><th>max err °</th>"
-            "<th>%OS</th><th>Ts s</th><th>yield °</th></tr>")
+            f"<th>%OS</th><th>Ts s</th><th>yield °</th>{best_head}</tr>")
     body = []
     for r in rows:
         f = r.figures
         kp = None if r.params is None else r.params.kp
         kv = None if r.params is None else r.params.kv
+        best = "" if challenge is None else f"<td>{best_html(r.best)}</td>"
         body.append(
             f"<tr><td>{esc(r.label)}</td><td>{'own arm' if r.view == 'My arm' else 'follows'}"
             f"</td><td>{_fmt(kp, '.3g')}</td><td>{_fmt(kv, '.3g')}</td>"
             f"<td>{_fmt(f.max_error_deg, '.2f')}</td><td>{_fmt(f.overshoot_pct, '.1f')}</td>"
-            f"<td>{_fmt(f.settling_s, '.2f')}</td><td>{_fmt(f.yield_deg, '.2f')}</td></tr>")
+            f"<td>{_fmt(f.settling_s, '.2f')}</td><td>{_fmt(f.yield_deg, '.2f')}</td>"
+            f"{best}</tr>")
     return ("<table style='font-size:0.8em;border-collapse:collapse;width:100%'>"
             f"{head}{''.join(body)}</table>")
 
@@ -79,10 +98,13 @@ class ClassOverview:
         client: the presenter's page.
         on_show: called with the picked student's client id (None: hide the ghost).
         on_use: called with the picked student's client id; returns the message to show.
+        on_gradebook: makes the gradebook, (file name, CSV bytes); a ValueError's message
+            is shown (no challenge yet).
     """
 
     def __init__(self, client: viser.ClientHandle, *, on_show: Callable[[int | None], None],
-                 on_use: Callable[[int], str]) -> None:
+                 on_use: Callable[[int], str],
+                 on_gradebook: Callable[[], tuple[str, bytes]] | None = None) -> None:
         self.client = client
         self._ids: dict[str, int] = {}
         gui = client.gui
@@ -95,6 +117,12 @@ class ClassOverview:
             self.use = gui.add_button("Use these gains", icon=viser.Icon.COPY,
                                       hint="Copy this student's gains to the shared arm "
                                            "(checked as any gain change)")
+            self.gradebook = gui.add_button(
+                "Gradebook CSV", icon=viser.Icon.DOWNLOAD, visible=on_gradebook is not None,
+                hint="Download one row per student: name, challenge, thresholds, best "
+                     "figures, passed, time (UTC)")
+        if on_gradebook is not None:
+            self.gradebook.on_click(lambda e: send_download(e, on_gradebook))
         self.show.on_click(lambda _e: on_show(self.picked()))
         self.use.on_click(lambda _e: self._use(on_use))
 
@@ -110,9 +138,9 @@ class ClassOverview:
             return
         self.client.add_notification("Gains", on_use(cid), auto_close_seconds=8.0)
 
-    def refresh(self, rows: list[StudentRow]) -> None:
+    def refresh(self, rows: list[StudentRow], *, challenge: Challenge | None = None) -> None:
         """Show ``rows`` (sent to the page only when something changed)."""
-        html = overview_html(rows)
+        html = overview_html(rows, challenge=challenge)
         if self.table.content != html:
             self.table.content = html
         ids = {r.label: r.client_id for r in rows}

@@ -16,7 +16,9 @@ handlers (the shared GUI and scene). A message for an element a page owns by its
 not the shared arm's business. Refused: a change of a shared control (the page's
 widget is put back to the server's value), a click or drag in the shared scene, an
 upload, a command. Admitted from anyone: the controls :meth:`Roles.open` lists
-(E-STOP), the camera, the share request (which the lab refuses anyway).
+(E-STOP, Frame, a lesson's Save run and Export page), the camera, the share request
+(which the lab refuses anyway), and the page's answers to the server's questions (its
+localStorage, a render), which its person did not send.
 
 Passcodes are compared in constant time (``hmac.compare_digest``), and guesses from
 one network address are slowed down (:class:`Guesses`).
@@ -46,9 +48,13 @@ from armlab.app.viser_ext.page_js import set_props
 PASSCODE_ALPHABET = "ABCDEFGHJKMNPQRSTUVWXYZ23456789"
 #: characters of a passcode (31^8 ≈ 8.5e11 codes)
 PASSCODE_LENGTH = 8
-#: message types anyone may send to the server's handlers (they change nothing shared)
+#: message types anyone may send to the server's handlers (they change nothing shared);
+#: the last two are a page's answers to the server's own questions (its localStorage, a
+#: render), which the page sends by itself (three on every connect): only the asking
+#: page's own handlers take them
 OPEN_MESSAGES = frozenset({"ViewerCameraMessage", "ShareUrlRequest", "ShareUrlDisconnect",
-                           "GuiFormDirtyMessage"})
+                           "GuiFormDirtyMessage", "LocalStorageGetItemResponseMessage",
+                           "GetRenderResponseMessage"})
 #: viser's inputs that are pressed, not set
 BUTTONS = (viser.GuiButtonHandle, viser.GuiButtonGroupHandle, viser.GuiUploadButtonHandle)
 #: s between two "only the presenter" notifications to one page
@@ -220,6 +226,9 @@ class Roles:
         owner = getattr(message, "owner", None)
         if owner is not None and owner != scene_scope_of(self._server.scene):
             return True  # a page's own scene node, not the shared scene
+        source = getattr(message, "source_component_uuid", None)
+        if isinstance(source, str) and source not in gui_inputs(self._server.gui):
+            return True  # an upload to a page's own button: the server's handler ignores it
         return False
 
     async def _screen(self, client_id: Any, message: Any) -> None:

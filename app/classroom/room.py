@@ -15,6 +15,7 @@ does not serialise a stream the page does not show).
 
 from __future__ import annotations
 
+import dataclasses
 import secrets
 import sys
 import threading
@@ -39,12 +40,19 @@ from armlab.app.gate import Gate
 from armlab.app.lessons import LessonContext, LessonHandle, RunFigures, is_private
 from armlab.app.lessons._common import remove_quietly
 from armlab.app.page.arm_view import ArmView
+from armlab.app.page.challenge_panel import (
+    ChallengeDesk,
+    MyChallenge,
+    figures_of,
+    start_run,
+)
 from armlab.app.page.inputs import UpdateScreen, notify
 from armlab.app.page.publisher import FrameThread
 from armlab.app.viser_ext.clients import queue
 from armlab.app.viser_ext.handles import uuid_of
 from armlab.app.viser_ext.messages import GuiUpdateMessage
 from armlab.app.viser_ext.page_js import ask_item, mask_text_input
+from armlab.control.challenges import RunLog, gradebook_csv, utc_now
 
 #: the role line of a page that follows the teacher
 FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
@@ -77,6 +85,7 @@ class _PageState:
     private: LessonHandle | None = None  #: the page's own lesson, while it shows "My arm"
     figures: RunFigures | None = None  #: of its own lesson when it closed
     overview: ClassOverview | None = None  #: a presenter's class overview
+    mine: MyChallenge | None = None  #: a student's own challenge panel
 
 
 class ClassLab(Protocol):
@@ -134,6 +143,11 @@ class Room:
         self._pages: dict[int, _PageState] = {}
         self._lock = threading.RLock()
         self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
+        #: the lab's challenge (set by :meth:`use_challenges`), each seat's runs, and the
+        #: name each seat last had (the gradebook keeps a student who has left)
+        self.desk: ChallengeDesk | None = None
+        self._runs: dict[str, RunLog] = {}
+        self._seat_names: dict[str, str] = {}
         self._stop = threading.Event()
         #: makes the private pages' frames, one after another (armlab.app.page.publisher)
         self._frames = FrameThread(name="armlab-private-frames")
@@ -186,6 +200,7 @@ class Room:
             name = gui.add_text("Your name", "", order=-95.0,
                                 hint="Shown to the teacher (e.g. when you press E-STOP)")
             state = _PageState(client, role, code, view, screen)
+            state.mine = MyChallenge(client, on_run=lambda: self._run_mine(state))
             with self._lock:
                 self._pages[client.client_id] = state
             name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
@@ -244,6 +259,11 @@ class Room:
             state.view.value = FOLLOW  # a presenter drives the shared arm
         state.code.remove()
         state.view.remove()
+        if state.mine is not None:  # a presenter runs the challenge on the shared arm
+            state.mine.remove()
+        state.mine = MyChallenge(state.client, on_run=self._run_shared,
+                                 whose="The shared arm's",
+                                 button="Run the challenge on the shared arm")
         state.role.content = PRESENTER_TEXT
         gui = state.client.gui
         with gui.add_folder("Students join", order=-94.0, expand_by_default=False):
@@ -251,7 +271,7 @@ class Room:
                          f"<div style='font-size:0.85em;word-break:break-all'>"
                          f"{self.lab.url}</div></div>")
         state.overview = ClassOverview(state.client, on_show=self.show_ghost,
-                                       on_use=self.use_gains)
+                                       on_use=self.use_gains, on_gradebook=self.gradebook)
         state.client.add_notification("You present", "You now change the shared arm.",
                                       color="green", auto_close_seconds=5.0)
 
@@ -371,7 +391,7 @@ class Room:
                 params = self._sandboxes.kept_params(s.seat)
             figures = lesson.run_figures() if lesson is not None else (s.figures or RunFigures())
             rows.append(StudentRow(cid, self.roles.name(cid), str(s.view.value), params,
-                                   figures))
+                                   figures, best=self.best_of(cid)))
         return sorted(rows, key=lambda r: r.client_id)
 
     def _loop_of(self, client_id: int) -> Any:
@@ -429,7 +449,84 @@ class Room:
                 print(f"armlab: class overview: {type(exc).__name__}: {exc}"[:200],
                       file=sys.stderr, flush=True)
 
+    # -- challenges --------------------------------------------------------------------
+
+    def use_challenges(self, desk: ChallengeDesk) -> None:
+        """Judge every student's runs against ``desk``'s challenge (the lab's)."""
+        self.desk = desk
+
+    def _run_shared(self) -> str:
+        """Start the challenge's run on the shared arm (a presenter's page asked)."""
+        if self.desk is None:
+            raise ValueError("the teacher has set no challenge")
+        return self.desk.run()
+
+    def _run_mine(self, state: _PageState) -> str:
+        """Start the challenge's run on the student's own arm (their page asked); what was
+        started. ValueError (shown to them) when there is nothing to run it on."""
+        desk = self.desk
+        challenge = None if desk is None else desk.challenge
+        if challenge is None:
+            raise ValueError("the teacher has set no challenge")
+        lesson = state.private
+        if lesson is None:
+            raise ValueError("choose My arm in View first: the challenge runs on your own arm")
+        return start_run(lesson, self.lab.lesson_name, challenge)
+
+    def _observe(self) -> None:
+        """Read each student's figures (measured here, from their own arm) into their
+        seat's runs, and show each page where its runs stand (a presenter's page: the
+        shared arm's)."""
+        with self._lock:
+            states = list(self._pages.values())
+        desk = self.desk
+        challenge = None if desk is None else desk.challenge
+        for s in states:
+            if self.roles.is_presenter(s.client.client_id):
+                if s.mine is not None and desk is not None:
+                    s.mine.show(challenge, desk.runs())  # the shared arm's runs
+                continue
+            log = None
+            if s.seat is not None:
+                figures = figures_of(s.private) if s.private is not None else (
+                    _plain(dataclasses.asdict(s.figures)) if s.figures is not None else {})
+                with self._lock:
+                    log = self._runs.setdefault(s.seat, RunLog())
+                    self._seat_names[s.seat] = self.roles.name(s.client.client_id)
+                    if figures:
+                        log.observe(figures)
+            if s.mine is not None:
+                with self._lock:  # (the gradebook may observe from another thread)
+                    s.mine.show(challenge, log)
+
+    def gradebook(self) -> tuple[str, bytes]:
+        """(file name, CSV) of the gradebook: one row per student (every seat, and every
+        student page without one), their best run against the challenge."""
+        challenge = None if self.desk is None else self.desk.challenge
+        if challenge is None:
+            raise ValueError("pick a challenge first (the Challenge folder)")
+        self._observe()
+        with self._lock:
+            rows = [(self._seat_names.get(seat, "?"), log.best(challenge))
+                    for seat, log in self._runs.items()]
+            rows += [(self.roles.name(s.client.client_id), None) for s in self._pages.values()
+                     if s.seat is None and not self.roles.is_presenter(s.client.client_id)]
+        stamp = utc_now().replace(":", "").replace("-", "")
+        name = f"armlab-gradebook-{challenge.key}-{stamp}.csv"
+        return name, gradebook_csv(challenge, rows).encode()
+
+    def best_of(self, client_id: int) -> Any:
+        """The best run of page ``client_id``'s seat against the challenge, judged, or
+        None."""
+        challenge = None if self.desk is None else self.desk.challenge
+        with self._lock:
+            state = self._pages.get(client_id)
+            log = None if state is None or state.seat is None else self._runs.get(state.seat)
+            return None if challenge is None or log is None else log.best(challenge)
+
     def _tick(self, *, tables: bool) -> None:
+        if tables:
+            self._observe()
         with self._lock:
             ghost = self._ghost
             overviews = [s.overview for s in self._pages.values() if s.overview is not None]
@@ -443,8 +540,9 @@ class Room:
                     ghost[1].set_q(snap["q"][-1])
         if tables and overviews:
             rows = self.rows()
+            challenge = None if self.desk is None else self.desk.challenge
             for overview in overviews:
-                overview.refresh(rows)
+                overview.refresh(rows, challenge=challenge)
 
     def close(self) -> None:
         """Close every private lesson and the class's arms."""
@@ -459,3 +557,8 @@ class Room:
             self._close_private(state)
         self._frames.close()
         self._sandboxes.close()
+
+
+def _plain(figures: dict[str, Any]) -> dict[str, float | None]:
+    """Figures as plain floats (None kept)."""
+    return {k: None if v is None else float(v) for k, v in figures.items()}

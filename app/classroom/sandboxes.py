@@ -5,9 +5,9 @@ loop (:mod:`armlab.app.classroom.class_arms`: batched plants, one clock, a Contr
 thesis arm's RX-24F arms run in a process of their own
 (:class:`armlab.app.classroom.worker_process.ArmProcess`),
 off the server's interpreter, so a room of pages and the shared arm's loop do not wait
-for the class's 1 kHz steps; an arm with X-series servos (the OpenManipulator-X) runs in
-the server, on a :class:`armlab.app.classroom.class_arms.ClassArms` made when the first is asked
-for.
+for the class's 1 kHz steps; an arm whose servos have their own firmware simulation
+(X-series: the OpenManipulator-X; Feetech STS: the SO-101) runs in the server, on a
+:class:`armlab.app.classroom.class_arms.ClassArms` made when the first is asked for.
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from armlab.app.backends import shipped_x_servo
+from armlab.app.backends import has_firmware_sim
 from armlab.app.classroom.class_arms import Arm, ClassArms
 from armlab.app.classroom.remote_gait import RemoteGait
 from armlab.app.classroom.remote_hand import RemoteHand
@@ -150,7 +150,7 @@ class Sandboxes:
         self._seats: dict[str, Seat] = {}
         self._lock = threading.RLock()
         self.process = ArmProcess(realtime=realtime)  # starts now: ready by the first arm
-        self._local: ClassArms | None = None  # X-series arms, made at the first
+        self._local: ClassArms | None = None  # X-series and STS arms, made at the first
         self._own: dict[str, ArmProcess] = {}  # kind -> its worker (OWN_PROCESS), at the first
         self._stop = threading.Event()
         self._sweeper = threading.Thread(target=self._sweep_often, name="armlab-seats",
@@ -234,7 +234,7 @@ class Sandboxes:
                 return arm.arm.backend, arm.loop  # type: ignore[return-value]
             self._free_arm(seat)
             host: ArmProcess | ClassArms
-            if shipped_x_servo(model) is not None:  # X-series: in the server (see above)
+            if has_firmware_sim(model):  # X-series, STS: in the server (see above)
                 if self._local is None:
                     self._local = ClassArms(realtime=self._realtime)
                 host = self._local

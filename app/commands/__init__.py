@@ -1,5 +1,5 @@
 """Subcommands of ``armlab``; one module each (see ``armlab.app.cli``)."""
 
 #: The subcommand modules of this package, in ``--help`` order (adding one: add its name).
-COMMANDS: tuple[str, ...] = ("bench", "check", "emulate", "exercise", "experiment", "scan",
-                             "serve")
+COMMANDS: tuple[str, ...] = ("bench", "check", "emulate", "exercise", "experiment", "export",
+                             "scan", "serve")

@@ -4,7 +4,9 @@ The first line printed is ``port: /dev/pts/N`` (flushed): point ``armlab scan``,
 ``armlab serve --backend serial`` or any Dynamixel client at it. The servos speak
 protocol 1.0 (RX-24F, AX-12A) or, for X-series servos (``--servo XM430-W350``, and by
 default for ``open_manipulator_x``: XM430-W350, IDs 11..14 and its gripper's servo 15,
-moving the fingers), protocol 2.0. Serves until SIGINT or SIGTERM, then exits cleanly.
+moving the fingers), protocol 2.0; for ``so101`` Feetech STS (STS3215, IDs 1..5 and the
+jaw's servo 6, at the arm's 5 V supply). Serves until SIGINT or SIGTERM, then exits
+cleanly.
 
 ``--disturb JOINT:NM@S`` applies a known torque to a joint of the simulated arm (a
 weight hung at the joint) from S s of the emulator's plant clock on: what
@@ -16,7 +18,16 @@ Status flag (``input_voltage``, ``overheating``, ``motor_encoder``, ``electrical
 ``overload``) once its torque has been on for S s: its replies carry the alert bit, and
 a flag in its Shutdown register (the XM430's factory value: overheating, electrical
 shock, overload) switches its torque off until a REBOOT, as the servo's firmware does.
+On Feetech STS servos (``--robot so101``) the flag is a status error bit (``voltage``,
+``angle``, ``overheat``, ``overcurrent``, ``overload``) carried by every reply until the
+torque is switched off and on (an overload also holds the output back, as the
+firmware's own), or ``silent``: the servo stops answering for good (a cut cable).
 Repeatable.
+
+``--control FIFO`` makes FIFO a named pipe the emulator reads lines from, as a person's
+hand on an arm whose torque is off: ``hold JOINT DEG`` holds a joint (name or index, or
+``gripper`` for the gripper's servo) at DEG degrees of the joint until ``release JOINT``
+lets it go. The guided calibration (``armlab scan --calibrate``) is tested this way.
 
 ``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
 earlier emulator left), so the emulator keeps its name across restarts, as a
@@ -26,9 +37,11 @@ earlier emulator left), so the emulator keeps its name across restarts, as a
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import signal
+import stat
 import sys
 from collections.abc import Callable, Sequence
 from typing import TypeVar
@@ -38,6 +51,8 @@ from armlab.hardware.backends.joint_map import default_joint_map
 from armlab.hardware.emulator.bus import Faults, PtyEmulator
 from armlab.hardware.families import FAMILIES
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.sts_servo import SILENT
+from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire.protocol2 import HardwareError
 from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.validate import joint_index
@@ -73,25 +88,37 @@ def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, floa
                         lambda middle: _number(middle, "the torque"), "the start")
 
 
-#: the flags ``--fault`` takes: Hardware Error Status bits by name
-FAULT_FLAGS = {flag.name.lower(): flag for flag in HardwareError}
-FAULT_FORMAT = (f"JOINT:FLAG@S (joint index or name; FLAG one of {', '.join(FAULT_FLAGS)}; "
-                "S seconds of torque on before it), e.g. joint2:overload@3")
+#: the flags ``--fault`` takes by name, per protocol of the servos: the X-series's
+#: Hardware Error Status bits, the Feetech STS's status error bits
+FAULT_FLAGS: dict[int | str, dict[str, int]] = {
+    2: {flag.name.lower(): flag for flag in HardwareError},  # type: ignore[union-attr]
+    "sts": {**{flag.name.lower(): flag for flag in ft.ErrorBits},  # type: ignore[union-attr]
+            "silent": SILENT},  # not a status bit: the servo stops answering
+}
 
 
-def parse_fault(text: str, names: Sequence[str]) -> tuple[int, HardwareError, float]:
-    """``--fault JOINT:FLAG@S`` -> (joint index, Hardware Error Status flag, s of torque on).
+def fault_format(protocol: int | str = 2) -> str:
+    """What ``--fault`` takes for servos of ``protocol``."""
+    return (f"JOINT:FLAG@S (joint index or name; FLAG one of "
+            f"{', '.join(FAULT_FLAGS[protocol])}; S seconds of torque on before it), "
+            "e.g. 1:overload@3")
+
+
+def parse_fault(text: str, names: Sequence[str], *, protocol: int | str = 2
+                ) -> tuple[int, int, float]:
+    """``--fault JOINT:FLAG@S`` -> (joint index, the flag: a Hardware Error Status bit on
+    the X-series, a status error bit on an STS, s of torque on).
 
     Raises:
         ValueError: one line naming the option, the value, what is wrong and the format.
     """
-    def flag(middle: str) -> HardwareError:
-        found = FAULT_FLAGS.get(middle.strip().lower())
+    def flag(middle: str) -> int:
+        found = FAULT_FLAGS[protocol].get(middle.strip().lower())
         if found is None:
             raise ValueError(f"no flag {middle.strip()!r}")
         return found
 
-    return _joint_event("--fault", text, names, FAULT_FORMAT, flag, "the time")
+    return _joint_event("--fault", text, names, fault_format(protocol), flag, "the time")
 
 
 def _joint_event(option: str, text: str, names: Sequence[str], fmt: str,
@@ -139,12 +166,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the servos' baud, bit/s (default 1000000)")
     parser.add_argument("--ids", type=_ids, help="servo IDs in joint order "
                         "(default 1,3,5 for receptionist_arm, 11..14 for open_manipulator_x, "
-                        "else 1..n); open_manipulator_x's gripper servo takes the ID after "
+                        "1..5 for so101, else 1..n); the gripper's servo (open_manipulator_x, "
+                        "so101) takes the ID after "
                         "the highest (15 by default)")
     parser.add_argument("--servo", choices=tuple(t.name for f in FAMILIES if f.emulator
                                                  for t in f.tables.values()),
                         help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
-                        "open_manipulator_x, else AX-12A); X-series servos speak protocol 2.0")
+                        "open_manipulator_x, STS3215 for so101, else AX-12A); X-series servos "
+                        "speak protocol 2.0, STS Feetech's")
     parser.add_argument("--pace", action="store_true",
                         help="hold replies for their wire time at the set baud")
     parser.add_argument("--dt", type=_plant_step, default=1e-3, metavar="S",
@@ -172,16 +201,66 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         + DISTURB_FORMAT.replace("%", "%%") + " (repeatable)")
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:FLAG@S",
                         help="X-series servos: the joint's servo raises a Hardware Error "
-                        "Status flag after S s of torque on: " + FAULT_FORMAT + " (repeatable)")
+                        "Status flag after S s of torque on: " + fault_format(2) + "; "
+                        "Feetech STS: a status error bit ("
+                        + ", ".join(f for f in FAULT_FLAGS["sts"] if f != "silent")
+                        + ") or silent (it stops answering) (repeatable)")
+    parser.add_argument("--control", metavar="FIFO",
+                        help="a serial arm: read 'hold JOINT DEG' and 'release JOINT' lines "
+                        "from this named pipe (made if missing), a hand moving the arm")
     parser.add_argument("--link", metavar="PATH",
                         help="also make PATH a symlink to the pseudo-terminal (replaced on "
                              "restart, like a /dev/serial/by-id name)")
 
 
 def _arm_plant(network: object) -> Plant:
-    """The plant of a serial arm's emulated servos (protocol 2.0 or 1.0), for ``--disturb``."""
+    """The plant of a serial arm's emulated servos (any family's), for ``--disturb`` and
+    ``--fault``."""
     physics = network.physics  # type: ignore[attr-defined]
     return physics.plant if hasattr(physics, "plant") else physics.plants[0]
+
+
+def open_control(path: str) -> int:
+    """The named pipe ``--control`` reads (made when missing), open for reading without
+    blocking; also open for writing, so the emulator never sees it end between writers.
+
+    Raises:
+        ValueError: ``path`` exists and is not a named pipe.
+    """
+    if not os.path.exists(path):
+        os.mkfifo(path)
+    elif not stat.S_ISFIFO(os.stat(path).st_mode):
+        raise ValueError(f"--control {path}: exists and is not a named pipe")
+    return os.open(path, os.O_RDWR | os.O_NONBLOCK)
+
+
+def control_handler(network: object, model: SerialChain, gripper: object | None
+                    ) -> Callable[[str], None]:
+    """What ``--control`` does with a line: ``hold JOINT DEG`` / ``release JOINT`` on the
+    network's physics (the gripper's horn follows its jaw or finger, ``gripper.to_servo``);
+    a line it cannot take is said on stderr, in one line, and changes nothing."""
+    physics = network.physics  # type: ignore[attr-defined]
+
+    def handle(line: str) -> None:
+        words = line.split()
+        try:
+            if len(words) not in (2, 3) or words[0] not in ("hold", "release") or \
+                    (words[0] == "hold") != (len(words) == 3):
+                raise ValueError("expected 'hold JOINT DEG' or 'release JOINT'")
+            if words[1] == "gripper":
+                if gripper is None:
+                    raise ValueError("this arm has no gripper servo")
+                joint = model.n
+                angle = None if len(words) == 2 else \
+                    gripper.to_servo(math.radians(_number(words[2], "DEG")))  # type: ignore[attr-defined]
+            else:
+                joint = joint_index(words[1], model.joint_names)
+                angle = None if len(words) == 2 else math.radians(_number(words[2], "DEG"))
+            physics.hold(joint, angle)
+        except ValueError as exc:
+            print(f"armlab emulate --control: {line!r}: {exc}", file=sys.stderr, flush=True)
+
+    return handle
 
 
 def make_link(link: str, target: str) -> None:
@@ -233,12 +312,15 @@ def run(args: argparse.Namespace) -> int:
         plant = _arm_plant(network)
         for joint, torque, start in disturbances:
             plant.apply_joint_torque(joint, torque, start=start)
-    if args.fault and jmap.protocol != 2:
-        raise ValueError(f"--fault: Hardware Error Status is an X-series (protocol 2.0) "
-                         f"register; the {jmap.servo} has none (emulate --servo XM430-W350)")
-    alerts = [parse_fault(f, model.joint_names) for f in args.fault]
+    if args.fault and jmap.protocol not in FAULT_FLAGS:
+        raise ValueError(f"--fault: the flags are an X-series servo's Hardware Error Status "
+                         f"or a Feetech STS's status error bits; the {jmap.servo} has none "
+                         "(emulate --servo XM430-W350)")
+    alerts = [parse_fault(f, model.joint_names, protocol=jmap.protocol) for f in args.fault]
     for joint, flag, after in alerts:
-        _arm_plant(network).servos[joint].inject_hardware_error(flag, after=after)
+        servo = _arm_plant(network).servos[joint]
+        inject = servo.inject_error if jmap.protocol == "sts" else servo.inject_hardware_error
+        inject(flag, after=after)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)
@@ -249,13 +331,21 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    control = None
+    if args.control:
+        if not hasattr(network.physics, "hold") or not isinstance(model, SerialChain):
+            raise ValueError(f"--control: a serial arm's servos (X-series or Feetech STS), "
+                             f"not the {jmap.servo} of {model.name}")
+        control = (open_control(args.control), control_handler(network, model, jmap.gripper))
     log = open(args.log, "w") if args.log else None
-    emu = PtyEmulator(network, pace=args.pace, faults=faults, echo=args.echo, log=log)
+    emu = PtyEmulator(network, pace=args.pace, faults=faults, echo=args.echo, log=log,
+                      control=control)
     try:
         if args.link:
             make_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
+        names = {v: k for k, v in FAULT_FLAGS.get(jmap.protocol, {}).items()}
         gripper = f" and the gripper's {jmap.gripper.servo_id}" if jmap.gripper else ""
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
               f"{', '.join(str(i) for i in jmap.ids)}{gripper}, protocol "
@@ -263,7 +353,7 @@ def run(args: argparse.Namespace) -> int:
               f"{', paced' if args.pace else ''}"
               + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
                         for j, nm, t0 in disturbances)
-              + "".join(f"; {flag.name.lower()} on {model.joint_names[j]} after {t:g} s "
+              + "".join(f"; {names[flag]} on {model.joint_names[j]} after {t:g} s "
                         "of torque on" for j, flag, t in alerts)
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
@@ -277,6 +367,8 @@ def run(args: argparse.Namespace) -> int:
         emu.close()
         if log is not None:
             log.close()
+        if control is not None:
+            os.close(control[0])
     st = emu.stats
     print(f"emulator stopped: {st.packets} packets, {st.replies} replies "
           f"({st.dropped} dropped, {st.corrupted} corrupted, {st.delayed} delayed); "

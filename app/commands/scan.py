@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.wire.bus import BusError
@@ -64,12 +64,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --write-map and --robot: LeRobot's calibration file of the "
                         "arm (per motor id, drive_mode, homing_offset, range_min, range_max): "
                         "the map takes its directions, zeros and ranges")
+    parser.add_argument("--calibrate", action="store_true",
+                        help="with --write-map and --robot, without a LeRobot file: switch "
+                        "the servos' torque off and guide each joint by hand to the middle "
+                        "of its range and its two ends (press Enter at each), the gripper "
+                        "closed and open; the map takes the zeros and ranges read")
 
 
 def run(args: argparse.Namespace) -> int:
     model = None
     if args.calibration is not None and (args.robot is None or args.write_map is None):
         raise ValueError("--calibration needs --robot and --write-map (it becomes the map)")
+    if args.calibrate and (args.robot is None or args.write_map is None):
+        raise ValueError("--calibrate needs --robot and --write-map (it becomes the map)")
+    if args.calibrate and args.calibration is not None:
+        raise ValueError("--calibrate or --calibration: the lab's own calibration, or "
+                         "LeRobot's file, not both")
     if args.robot is not None:
         if args.write_map is None:
             raise ValueError("--robot is for --write-map (it names the map's joints)")
@@ -114,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
 
         if args.calibration is not None:
             text = _calibrated_map(args.calibration, model, found)
+        elif args.calibrate:
+            text = _guided_map(args.port, model, found)
         else:
             text = draft_joint_map(found, model)  # ValueError names the joint and the servo
         with open(args.write_map, "w") as out:
@@ -151,11 +163,48 @@ def _calibrated_map(path: str, model: object, found: list) -> str:
 
     jmap = joint_map_from_lerobot(path, model)  # type: ignore[arg-type]
     by_id = {f.servo_id: f for f in found}
-    for j in jmap.joints:
-        f = by_id.get(j.servo_id)
+    named = [(j.name, j.servo_id) for j in jmap.joints]
+    if jmap.gripper is not None:
+        named.append((jmap.gripper.joint, jmap.gripper.servo_id))
+    for name, servo_id in named:
+        f = by_id.get(servo_id)
         if f is None or f.model != jmap.servo:
             what = "did not answer" if f is None else f"answered as a {f.model}"
-            raise ValueError(f"joint {j.name!r}: servo ID {j.servo_id} of {path} {what}; "
+            raise ValueError(f"joint {name!r}: servo ID {servo_id} of {path} {what}; "
                              f"expected a {jmap.servo}")
     return joint_map_toml(jmap, baud=min(by_id[j.servo_id].baud for j in jmap.joints),
                           source=path)
+
+
+def _guided_map(port: str, model: object, found: list) -> str:
+    """TOML of the joint map the guided calibration reads from the servos that answered
+    (:mod:`armlab.hardware.backends.guided_calibration`): each instruction on stdout, the
+    person's Enter on stdin; ValueError when stdin ends first, or as the calibration
+    refuses a range (naming the joint)."""
+    from armlab.hardware.backends.guided_calibration import calibrate
+    from armlab.hardware.backends.joint_map import default_joint_map, draft_joint_map
+    from armlab.hardware.backends.lerobot_calibration import joint_map_toml
+    from armlab.hardware.wire.bus import Bus
+
+    draft_joint_map(found, model)  # type: ignore[arg-type]  # ValueError: a joint without a servo
+    servos = sorted(found, key=lambda f: f.servo_id)
+    n = model.n  # type: ignore[attr-defined]
+    jmap = default_joint_map(model, servo=servos[0].model,  # type: ignore[arg-type]
+                             ids=tuple(f.servo_id for f in servos[:n]))
+    # the gripper's servo is the one past the joints' (the draft's rule), or none answered
+    grip = None if jmap.gripper is None or len(servos) == n else \
+        replace(jmap.gripper, servo_id=servos[n].servo_id)
+    jmap = replace(jmap, gripper=grip)
+    baud = min(f.baud for f in servos)
+
+    def ask(text: str) -> None:
+        print(text, flush=True)
+        if not sys.stdin.readline():
+            raise ValueError("calibration stopped: stdin ended before the arm was placed")
+
+    def say(text: str) -> None:
+        print(f"  {text}", file=sys.stderr, flush=True)
+
+    with Bus(port, baud, protocol=jmap.family) as bus:
+        calibrated = calibrate(bus, model, ask=ask, say=say, jmap=jmap)  # type: ignore[arg-type]
+    return joint_map_toml(calibrated, baud=baud, source="armlab scan --calibrate")

@@ -143,12 +143,30 @@ class RunFigures:
         max_error_deg: max |θ_cmd − θ| of the last free thesis-line run, ° (any joint).
         yield_deg: how far the last pushed line run moved from the free one, °.
         overshoot_pct, settling_s: of the last step test (%, s).
+        step_joint: the joint (index in the model's order) the last step test stepped.
+        pushed_error_deg: max |θ_cmd − θ| of the last thesis-line run with a push, °.
+        line_push_n: the largest push (N) during that pushed line run (a drag alone: None,
+            its force is the person's).
+        push_n, stiffness_nm_per_rad: the force (N) of the last push test and the
+            stiffness 1/C_f it measured (Δτ_ext/Δθ_env, N·m/rad).
+        grasp_force_n, grasp_peak_n: the last grasp's steady and peak fingertip force, N.
+        grasp_held: 1.0 when every finger of the last grasp held at 90 % of its limit, else 0.
+        eq41_error_pct: seed 003's eq. 4.1 error over the last walk, % (servo feedback).
     """
 
     max_error_deg: float | None = None
     yield_deg: float | None = None
     overshoot_pct: float | None = None
     settling_s: float | None = None
+    step_joint: float | None = None
+    pushed_error_deg: float | None = None
+    line_push_n: float | None = None
+    push_n: float | None = None
+    stiffness_nm_per_rad: float | None = None
+    grasp_force_n: float | None = None
+    grasp_peak_n: float | None = None
+    grasp_held: float | None = None
+    eq41_error_pct: float | None = None
 
 
 class Gains(Protocol):
@@ -187,6 +205,11 @@ class LessonHandle(Protocol):
 
     def run_figures(self) -> RunFigures:
         """The figures of the last runs (all None: the lesson measures none)."""
+        ...
+
+    def page_only_buttons(self) -> tuple[Any, ...]:
+        """Buttons that change nothing shared and answer only the page that pressed them
+        (Save run, Export page, a CSV download): in a classroom any page may press them."""
         ...
 
 

@@ -148,6 +148,10 @@ class LessonBase:
         """No figures (all None)."""
         return RunFigures()
 
+    def page_only_buttons(self) -> tuple[Any, ...]:
+        """None: every control of the lesson is the presenter's in a classroom."""
+        return ()
+
     def mark_closed(self) -> bool:
         """Mark the lesson closed; True the first time (the caller tears it down), then False."""
         with self._lock:

@@ -5,8 +5,8 @@ Three places, by the lesson's context:
 
 - ``ctx.arms``: a student's own arm, run by the class and kept by their seat;
 - ``ctx.arm_process`` (a simulated classroom): the shared arm in its worker process
-  (:mod:`armlab.app.classroom.worker_process`), unless its X-series servos and gripper keep it in
-  the server;
+  (:mod:`armlab.app.classroom.worker_process`, RX-24F servos), unless servos with a firmware
+  simulation of their own (X-series, Feetech STS) and a gripper keep it in the server;
 - otherwise the lab's backend (``--backend``) opened here, its loop not started yet.
   With ``ctx.law`` (``armlab serve --exercise``) its loop runs the student's law, beside a
   simulated reference arm run by the lab's own (:class:`armlab.app.student_law.LawLoop`).
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.app.backends import loop_over, make_backend, shipped_x_servo
+from armlab.app.backends import has_firmware_sim, loop_over, make_backend
 from armlab.app.lessons import LessonContext
 from armlab.app.student_law import law_loop
 from armlab.control.backend import Backend
@@ -35,7 +35,7 @@ def open_arm(ctx: LessonContext, model: SerialChain, params: Params, *, preset: 
     opened by ``make_backend(ctx.backend, model, port, baud, **backend_kw)``."""
     if ctx.arms is not None:
         return ctx.arms.arm_for(model, params, preset=preset, q0=q0, history_s=history_s)
-    if ctx.arm_process is not None and shipped_x_servo(model) is None:
+    if ctx.arm_process is not None and not has_firmware_sim(model):
         arm = ctx.arm_process.add(model, params, preset=preset, q0=q0, history_s=history_s)
         return arm.backend, arm.loop
     backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,

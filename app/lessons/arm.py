@@ -15,9 +15,10 @@ The compliance lesson's controls run on it too (:mod:`armlab.app.lessons.arm_con
 gains and the virtual environment with presets, a push at the hand, live charts of any
 joint; and an arm of more than 3 joints may use its spare joints (seed 002's gradient
 projection) to stay away from its limits or gain manipulability while the hand follows
-the target. An arm whose gripper has its own servo (the OpenManipulator-X's ID 15,
-simulated or on the bus) gets Open / Close buttons and a finger slider in mm, and the
-3D view's fingers follow the servo (:mod:`armlab.app.lessons.arm_gripper`).
+the target. An arm whose gripper has its own servo (the OpenManipulator-X's ID 15, the
+SO-101's ID 6, simulated or on the bus) gets Open / Close buttons and a slider (a sliding
+finger's travel in mm, a turning jaw's angle in degrees), and the 3D view's fingers follow
+the servo (:mod:`armlab.app.lessons.arm_gripper`).
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from armlab.app.lessons.arm_controls import ArmControls
 from armlab.app.lessons.arm_gripper import GripperControls
 from armlab.app.lessons.compliance_controls import GainControls
 from armlab.app.lessons.compliance_servos import LinkMonitor
+from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
 from armlab.app.page.inputs import inward_range
@@ -226,6 +228,14 @@ class ArmLesson(LessonBase):
             self.limits = gui.add_markdown(limits_markdown(self.model, lower, upper))
             self.controls.add_teach(gui)
             self.gripper.add_teach(gui)
+        with tabs.add_tab("Files", viser.Icon.FILE):  # Save run, Open run (replay), Export page
+            self.runs = RunControls(self.server, gui, lesson=NAME,
+                                    arm=lambda: (self.model, self.loop),
+                                    figures=lambda: self.run_figures(),
+                                    extra=lambda: {"backend": self.ctx.backend,
+                                                   "tip_link": self.ctx.tip_link},
+                                    ghost_root="/arm_replay")
+        self.controls.on_post = self.runs.note  # its pushes go into the run file too
 
     def _tip_name(self) -> str:
         return self.ctx.tip_link or "the file's default tip"
@@ -245,11 +255,11 @@ class ArmLesson(LessonBase):
         """
         check_running(self.loop.status)
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
-        self.loop.post(RunTrajectory(hold(q, SLIDER_HOLD_S), approach=True))
+        self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S), approach=True))
 
     def set_target(self, xyz: np.ndarray) -> None:
         """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
-        self.loop.post(SetTarget(xyz))
+        self.runs.post(self.loop, SetTarget(xyz))
 
     def _place_target(self, xyz: np.ndarray) -> None:
         """Show the hand target at ``xyz`` (3,) m, base frame (viser reports only a page's
@@ -296,6 +306,10 @@ class ArmLesson(LessonBase):
         """The Gains tab: the gains the arm runs, set as a person sets them."""
         return self.controls.gains
 
+    def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
+        """Save run and Export page: each answers the pressing page."""
+        return self.runs.page_only_buttons()
+
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove GUI and
         scene. A student's arm (``ctx.arms``) keeps running, holding its pose, for a reload."""
@@ -303,7 +317,8 @@ class ArmLesson(LessonBase):
             own = self.ctx.arms is None
             close_in_turn(self.publisher.close,
                           (lambda: self.loop.shutdown(torque_off=True)) if own else None,
-                          self.backend.close if own else None, self.view.remove,
+                          self.backend.close if own else None, self.runs.remove,
+                          self.view.remove,
                           self.controls.remove, self.base.remove, self._gui.remove_all)
 
 

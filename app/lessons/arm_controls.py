@@ -146,6 +146,8 @@ class ArmControls:
         self._aim = loop.spare_joints  # the spare joints' aim last posted
         self._push: PushRun | None = None
         self._measured: PushRun | None = None  # the push last measured
+        #: told of each command posted here, with its loop time (the lesson's run file)
+        self.on_post: Callable[..., None] | None = None
         self.measured_env: Measured | None = None
         self._last_teach = 0.0
         self.warning = lesson_gui.add(gui.add_html("", order=-79.0, visible=False))
@@ -243,8 +245,11 @@ class ArmControls:
         hand = self.model.fk(snap["q"][-1])[:3, 3]
         force = pushes.force * push_direction(pushes.direction, hand, self.model.gravity)
         t0 = self.loop.status.t
-        self.loop.post(Push(force, link=self.model.n - 1, point=self.model.tip[:3, 3],
-                            duration=pushes.duration))
+        push = Push(force, link=self.model.n - 1, point=self.model.tip[:3, 3],
+                    duration=pushes.duration)
+        self.loop.post(push)
+        if self.on_post is not None:  # (the lesson's run file)
+            self.on_post(push, t=t0)
         self._push = PushRun(force, t0, t0 + pushes.duration,
                              f"push of {pushes.force:g} N {pushes.direction} for "
                              f"{pushes.duration:g} s")

@@ -1,7 +1,10 @@
-"""The arm lesson's gripper: Open / Close buttons, a slider of the finger's travel (mm) and
-a readout, for an arm whose backend drives a gripper's own servo (the OpenManipulator-X's
-ID 15, simulated or on the bus: :class:`armlab.control.backend.Gripping`); the 3D view's fingers
-(the URDF's finger joint and the one that mimics it) follow what the servo reports.
+"""The arm lesson's gripper: Open / Close buttons, a slider of the finger's position and a
+readout, for an arm whose backend drives a gripper's own servo (the OpenManipulator-X's
+ID 15, the SO-101's ID 6, simulated or on the bus: :class:`armlab.control.backend.Gripping`);
+the 3D view's fingers (the URDF's finger joint and any that mimic it) follow what the servo
+reports. The page speaks the finger joint's kind: mm of travel for a finger that slides
+(the OpenManipulator-X's prismatic joint), degrees for a jaw that turns (the SO-101's
+revolute ``gripper``); the Teach tab says how the servo's family bounds the grip.
 """
 
 from __future__ import annotations
@@ -19,12 +22,15 @@ from armlab.control.loop import ControlLoop
 from armlab.hardware.backends.joint_map import ROBOT_GRIPPERS
 from armlab.kinematics.model import SerialChain
 
-#: The Teach tab's words on the gripper (an arm that drives one).
-TEACH = ("**Gripper**: its own servo, in current-based position control (operating mode "
-         "5): Goal Current bounds the horn's torque, so fingers closing on an object press "
-         "with a bounded force (shown under the buttons) and never crush it; closing on "
-         "nothing they reach their limit. The slider is the travel of one finger (the "
-         "URDF's finger joint); the other mirrors it.")
+
+def teach_note(*, revolute: bool, grip: str) -> str:
+    """The Teach tab's words on the gripper: how its servo bounds the grip (``grip``, the
+    backend's :attr:`~armlab.control.backend.Gripping.gripper_note`) and what the slider
+    moves (a jaw's angle, or one sliding finger's travel)."""
+    slider = ("The slider is the jaw's angle, in degrees (the URDF's revolute jaw joint)."
+              if revolute else "The slider is the travel of one finger, in mm (the URDF's "
+              "prismatic finger joint); the other mirrors it.")
+    return f"**Gripper**: {grip} {slider}"
 
 
 class GripperControls:
@@ -39,41 +45,51 @@ class GripperControls:
         view: the 3D arm whose fingers follow the servo.
 
     Attributes:
-        range: (closed, open) m of the finger, or None without a gripper.
+        range: (closed, open) of the finger in its URDF units (m, or rad for a jaw), or
+            None without a gripper.
+        revolute: whether the finger is a jaw that turns (shown in degrees) rather than a
+            finger that slides (shown in mm).
+        unit: what the page shows the finger in, "°" or "mm".
     """
 
     def __init__(self, gui: viser.GuiApi, *, model: SerialChain, backend: Backend,
                  loop: ControlLoop, view: ArmView) -> None:
         self.model, self.loop, self.view = model, loop, view
         self.range = backend.gripper_range if isinstance(backend, Gripping) else None
-        self._shown = math.nan  # finger position the 3D view shows, m
+        self._shown = math.nan  # finger position the 3D view shows, URDF units
         if self.range is None:
             return
-        lo, hi = (round(x * 1e3, 1) for x in self.range)
+        assert isinstance(backend, Gripping)
+        self.revolute = backend.gripper_revolute
+        self._note = backend.gripper_note
+        self.unit = "°" if self.revolute else "mm"
+        self._scale = 180.0 / math.pi if self.revolute else 1e3  # URDF units -> the page's
+        lo, hi = (round(x * self._scale, 1) for x in self.range)
         self._setting = False  # the slider is being placed, not moved by a person
         self._placed = False  # the slider shows the fingers once they are read
+        what = "Jaw angle" if self.revolute else "Finger travel"
         self.slider = gui.add_slider(
-            "gripper mm", min=lo, max=hi, step=0.5, initial_value=lo,
-            hint=f"Finger travel: {lo:+.1f} mm closed .. {hi:+.1f} mm open")
+            f"gripper {self.unit}", min=lo, max=hi, step=0.5, initial_value=lo,
+            hint=f"{what}: {lo:+.1f} {self.unit} closed .. {hi:+.1f} {self.unit} open")
         self.slider.on_update(lambda e: None if self._setting else guarded(
-            e, lambda: self.grip(float(self.slider.value) * 1e-3)))
-        for label, mm in (("Open gripper", hi), ("Close gripper", lo)):
+            e, lambda: self.grip(float(self.slider.value) / self._scale)))
+        for label, end in (("Open gripper", self.range[1]), ("Close gripper", self.range[0])):
             button = gui.add_button(label, icon=viser.Icon.HAND_GRAB)
-            button.on_click(lambda e, mm=mm: guarded(e, lambda: self.grip(mm * 1e-3)))
+            button.on_click(lambda e, end=end: guarded(e, lambda: self.grip(end)))
         self.text = gui.add_markdown("Gripper: not read yet")
 
     def add_teach(self, gui: viser.GuiApi) -> None:
-        """The Teach tab's note: what the gripper's servo does, or that a private copy of
-        an arm with a gripper has none."""
+        """The Teach tab's note: how the gripper's servo bounds the grip and what the
+        slider moves, or that a private copy of an arm with a gripper has none."""
         if self.range is not None:
-            gui.add_markdown(TEACH)
+            gui.add_markdown(teach_note(revolute=self.revolute, grip=self._note))
         elif self.model.name in ROBOT_GRIPPERS:
             gui.add_markdown("**Gripper**: driven on the teacher's arm (simulated or "
                              "servos); a private arm has none.")
 
     def grip(self, position: float) -> None:
-        """Move the finger to ``position`` m (the backend clamps it into the gripper's
-        range); the slider shows the goal.
+        """Move the finger to ``position`` in its URDF units (m, or rad for a jaw; the
+        backend clamps it into the gripper's range); the slider shows the goal.
 
         Raises:
             ValueError: the loop is stopped (a lost link, a fault, E-STOP): saying why.
@@ -83,12 +99,14 @@ class GripperControls:
         self._place(position)
 
     def _place(self, position: float) -> None:
-        """Put the slider at ``position`` m (clamped, its 0.5 mm step), sending nothing."""
+        """Put the slider at ``position`` (URDF units; clamped, its 0.5 step of the page's
+        unit), sending nothing."""
         assert self.range is not None
         self._placed = self._setting = True
         try:
-            lo, hi = (x * 1e3 for x in self.range)
-            self.slider.value = round(min(max(position * 1e3, lo), hi) * 2.0) / 2.0
+            lo, hi = (x * self._scale for x in self.range)
+            shown = min(max(position * self._scale, lo), hi)
+            self.slider.value = round(shown * 2.0) / 2.0
         finally:
             self._setting = False
 
@@ -100,14 +118,17 @@ class GripperControls:
             self.view.set_joint(grip.joint, grip.position)
 
     def status_frame(self) -> None:
-        """The readout: the finger's position, the force of each finger, torque and alarm."""
+        """The readout: the finger's position (a jaw's angle, or a finger's travel), the
+        force it presses with, the horn's torque, torque off and alarm."""
         grip = self.loop.gripper
         if grip is None or self.range is None:
             return
         if not self._placed:  # the fingers hold where they were found
             self._place(grip.position)
+        where = (f"jaw {grip.position * self._scale:+.1f}°, pressing {abs(grip.force):.0f} N"
+                 if self.revolute else f"finger {grip.position * self._scale:+.1f} mm, "
+                 f"pressing {abs(grip.force):.0f} N a finger")
         set_content(self.text, (
-            f"Gripper: finger {grip.position * 1e3:+.1f} mm, pressing "
-            f"{abs(grip.force):.0f} N a finger ({grip.effort:+.2f} N·m at the horn)"
+            f"Gripper: {where} ({grip.effort:+.2f} N·m at the horn)"
             + ("" if grip.torque_on else ", torque off")
             + (f", **{esc(grip.alarm)}**" if grip.alarm else "")))

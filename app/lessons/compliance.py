@@ -56,6 +56,7 @@ from armlab.app.lessons.compliance_teach import (
     thesis_preset_note,
 )
 from armlab.app.lessons.law_view import LawView, law_loop_of, reference_angle
+from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, Pushable
@@ -140,6 +141,7 @@ class Experiment:
     label: str = ""
     done: bool = False
     pushed: bool = False  #: line only: a push or drag happened while it ran
+    push_n: float | None = None  #: the largest push during it, N (a drag alone: None)
 
 
 @dataclass
@@ -179,6 +181,11 @@ class ComplianceLesson(LessonBase):
         self.measured_env: Measured | None = None
         self.last_run_text = ""
         self.chapter4 = Chapter4()
+        #: what the challenges judge besides chapter 4's figures (run_figures): the last
+        #: step's joint, the last pushed line's push, the last push test's force (N)
+        self._step_joint: int | None = None
+        self._line_push_n: float | None = None
+        self._push_n: float | None = None
         self._free_q: np.ndarray | None = None  #: θ of the last free line run, from its start
         self._drag_anchor: np.ndarray | None = None
         self._hand: np.ndarray | None = None  #: hand position of the last pose frame, m
@@ -249,6 +256,7 @@ class ComplianceLesson(LessonBase):
             self.experiment = None
             self.run_start = None
             self.chapter4, self._free_q = Chapter4(), None
+            self._step_joint = self._line_push_n = self._push_n = None
 
     # ================================================================== GUI
 
@@ -273,6 +281,10 @@ class ComplianceLesson(LessonBase):
             self.last_run_md = gui.add_markdown("")
         with tabs.add_tab("Servos", viser.Icon.CPU):
             self.servo_html = gui.add_html("reading the servos…")
+        with tabs.add_tab("Files", viser.Icon.FILE):  # Save run, Open run (replay), Export page
+            self.runs = RunControls(self.server, gui, lesson=NAME, arm=self._arm_now,
+                                    figures=self.run_figures, start=lambda: self.run_start,
+                                    extra=self._run_extra, ghost_root="/compliance_replay")
         with self._gui.chart_panel("Live charts") as charts:
             self.plots = JointPlots(gui, charts, joint_names, default_joint=SERVO_3,
                                     reference=self.ctx.law is not None)
@@ -353,6 +365,19 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         return rig.loop
 
+    def _arm_now(self) -> tuple[SerialChain, ControlLoop]:
+        """The model and loop of the arm now (a run file's robot and record)."""
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        return rig.model, rig.loop
+
+    def _run_extra(self) -> dict[str, object]:
+        """What a run file keeps besides the contract's fields: link lengths, backend, run."""
+        rig = self.rig
+        return {"link_lengths_cm": None if rig is None else rig.preset,
+                "backend": self.ctx.backend, "run": self.run_label}
+
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
         apply_gains(self._loop(), params, warning=self.warning)
@@ -367,51 +392,59 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
         t0 = self._now()
-        rig.loop.post(RunTrajectory(rig.line))
+        self.runs.post(rig.loop, RunTrajectory(rig.line))
         self.run_start, self.run_label = t0, "thesis line"
         self.experiment = Experiment("line", t0, ready_at=math.inf, label="thesis line")
         rig.scene.set_target(THESIS_LINE_END)
 
-    def run_step(self) -> None:
-        """Step one joint's command by the chosen angle (measures the PD loop)."""
+    def run_step(self, *, joint: int | None = None, step_deg: float | None = None) -> None:
+        """Step one joint's command by the chosen angle (measures the PD loop); ``joint``
+        (index) and ``step_deg`` in place of the controls' (a challenge's run)."""
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
         loop = rig.loop
-        label = str(self.step_joint.value)
+        if joint is not None and not 0 <= joint < len(self.joint_labels):
+            raise ValueError(f"step: no joint {joint} (the arm has {len(self.joint_labels)})")
+        label = str(self.step_joint.value) if joint is None else self.joint_labels[joint]
+        size = self._step_size.value if step_deg is None else step_deg
         plan = plan_step(loop.recorder.snapshot(0.2), joint=self.joint_labels.index(label),
-                         step=math.radians(self._step_size.value), lower=loop.lower,
+                         step=math.radians(size), lower=loop.lower,
                          upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
-        loop.post(RunTrajectory(plan.trajectory, approach=False))
+        self.runs.post(loop, RunTrajectory(plan.trajectory, approach=False))
         self.run_start, self.run_label = t0, f"step {label}"
         self.experiment = Experiment(
             "step", t0, ready_at=t0 + plan.wait_s, joint=plan.joint, q0=plan.q0, q1=plan.q1,
             label=f"step of {label} by {math.degrees(plan.q1 - plan.q0):+.0f}°")
 
-    def push(self) -> None:
-        """Push the hand with the chosen force, direction and duration (simulated arm)."""
+    def push(self, *, force_n: float | None = None, duration: float | None = None) -> None:
+        """Push the hand with the chosen force, direction and duration (simulated arm);
+        ``force_n`` and ``duration`` (s) in place of the controls' (a challenge's run)."""
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         if not isinstance(rig.backend, Pushable):
             raise ValueError("real servos: push the arm by hand")
         pushes = self.pushes
-        force = pushes.force * np.array(PUSH_DIRECTIONS[pushes.direction])
-        duration = pushes.duration
+        size = pushes.force if force_n is None else force_n
+        if not (math.isfinite(size) and size > 0):
+            raise ValueError(f"push: {size!r} N is not a force")
+        force = size * np.array(PUSH_DIRECTIONS[pushes.direction])
+        duration = pushes.duration if duration is None else duration
         t0 = self._now()
-        rig.loop.post(Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
-                           duration=duration))
+        self.runs.post(rig.loop, Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
+                                      duration=duration))
         self._push = (force, t0 + duration)
-        if self._mark_line_pushed():
+        if self._mark_line_pushed(push_n=size):
             return
         self.run_start, self.run_label = t0, "push"
-        self.experiment = Experiment("push", t0, ready_at=t0 + duration, label=(
-            f"push of {pushes.force:g} N {pushes.direction} for {duration:g} s"))
+        self.experiment = Experiment("push", t0, ready_at=t0 + duration, push_n=size, label=(
+            f"push of {size:g} N {pushes.direction} for {duration:g} s"))
 
     def stop(self) -> None:
-        self._loop().post(Stop())
+        self.runs.post(self._loop(), Stop())
 
     def reset(self) -> None:
         """Clear a fault or E-STOP: torque on, hold. ValueError (shown to the person) while
@@ -442,17 +475,28 @@ class ComplianceLesson(LessonBase):
         """The gain sliders: the gains the arm runs, set as a person sets them."""
         return self.gains
 
+    def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
+        """Save run, Export page and the CSV download: each answers the pressing page."""
+        return (*self.runs.page_only_buttons(), self.download)
+
     def run_figures(self) -> RunFigures:
         """Chapter 4's figures of the last line runs, and the last step test's."""
-        ch4, step = self.chapter4, self.measured_pd
+        ch4, step, env = self.chapter4, self.measured_pd, self.measured_env
+        gain = None if env is None else env.static_gain
         return RunFigures(max_error_deg=_largest(ch4.free), yield_deg=_largest(ch4.yield_deg),
                           overshoot_pct=None if step is None else step.overshoot_pct,
-                          settling_s=None if step is None else step.settling_time_s)
+                          settling_s=None if step is None else step.settling_time_s,
+                          step_joint=None if step is None else _index(self._step_joint),
+                          pushed_error_deg=_largest(ch4.pushed),
+                          line_push_n=None if ch4.pushed is None else self._line_push_n,
+                          push_n=None if env is None else self._push_n,
+                          stiffness_nm_per_rad=(None if gain is None or not gain > 0
+                                                else 1.0 / gain))
 
     def _on_target(self, xyz: np.ndarray) -> None:
         rig = self.rig
         if rig is not None and np.all(np.isfinite(xyz)):  # a page cannot send NaN on
-            rig.loop.post(SetTarget(xyz))
+            self.runs.post(rig.loop, SetTarget(xyz))
 
     def _on_drag(self, phase: str, anchor: np.ndarray | None) -> None:
         rig = self.rig
@@ -462,17 +506,20 @@ class ComplianceLesson(LessonBase):
             return  # a malformed drag event: ignore it
         k = self._spring_k.value
         self._drag_anchor = anchor
-        rig.loop.post(Spring(anchor, stiffness=k, link=rig.model.n - 1,
-                             point=rig.model.tip[:3, 3]))
+        self.runs.post(rig.loop, Spring(anchor, stiffness=k, link=rig.model.n - 1,
+                                        point=rig.model.tip[:3, 3]))
         if phase == "start" and not self._mark_line_pushed():
             self.run_start, self.run_label = self._now(), "hand drag"
 
-    def _mark_line_pushed(self) -> bool:
-        """A push or drag during a line run makes it a pushed run (chapter 4); True if so."""
+    def _mark_line_pushed(self, *, push_n: float | None = None) -> bool:
+        """A push (of ``push_n`` N) or drag during a line run makes it a pushed run
+        (chapter 4); True if so."""
         exp = self.experiment
         if exp is None or exp.kind != "line" or exp.done:
             return False
         exp.pushed = True
+        if push_n is not None:
+            exp.push_n = max(push_n, exp.push_n or 0.0)
         return True
 
     def csv_bytes(self) -> tuple[str, bytes]:
@@ -618,6 +665,7 @@ class ComplianceLesson(LessonBase):
                     m = min(len(q), len(free_q))
                     yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
                 self.chapter4 = Chapter4(ch4.free, err, yld)
+                self._line_push_n = exp.push_n
             else:
                 self._free_q = q
                 self.chapter4 = Chapter4(err, ch4.pushed, None)
@@ -632,11 +680,13 @@ class ComplianceLesson(LessonBase):
             if exp.kind == "step":
                 self.measured_pd = measure_step(snap, t0=exp.t0, joint=exp.joint, q0=exp.q0,
                                                 q1=exp.q1, what=exp.label)
+                self._step_joint = exp.joint
                 set_content(self.step_result, measured_line(self.measured_pd))
             elif exp.kind == "push":
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
                     joint_labels=self.joint_labels)
+                self._push_n = exp.push_n
                 for beside in (self.pushes.result, self.push_result_run):  # both buttons
                     set_content(beside, measured_line(self.measured_env))
         except ValueError as exc:
@@ -651,12 +701,18 @@ class ComplianceLesson(LessonBase):
         self.publisher.close()
         if self.law_view is not None:
             self.law_view.remove()
+        self.runs.remove()
         rig, self.rig = self.rig, None
         close_in_turn(partial(self._close_rig, rig) if rig is not None else None,
                       self._gui.remove_all)
 
 
 __all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+
+
+def _index(j: int | None) -> float | None:
+    """A joint index as a figure (None: none)."""
+    return None if j is None else float(j)
 
 
 def _largest(x: np.ndarray | None) -> float | None:

@@ -64,12 +64,14 @@ def read_health(backend: Backend, joint_names: tuple[str, ...]) -> tuple[list[Se
         BackendError: when the serial link fails while reading.
     """
     plant = getattr(backend, "plant", None)
-    if plant is not None:  # the simulated servos
+    if plant is not None:  # the simulated servos, named by the model they simulate
         reports = plant.reports()
+        # (a classroom worker's arm names none: it simulates RX-24F servos only)
+        models = sorted({s.name for s in getattr(backend, "specs", ())}) or ["RX-24F"]
         return ([ServoHealth(None, name, r.voltage / 10.0, float(r.temperature), int(r.error),
                              bool(r.torque_enable))
                  for name, r in zip(joint_names, reports, strict=True)],
-                "simulated servos (RX-24F model)")
+                f"simulated servos ({', '.join(models)} model)")
     bus = getattr(backend, "bus", None)
     joint_map = getattr(backend, "map", None)
     if bus is None or joint_map is None:

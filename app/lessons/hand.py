@@ -10,11 +10,15 @@ Data flow (one writer per piece of state): a :class:`armlab.control.grip_loop.Gr
 thread steps the simulated hand (:mod:`armlab.hardware.sim.hand`) and the controller
 (:mod:`armlab.control.grip`) every millisecond; buttons and sliders post commands the
 loop runs at its next period; a :class:`armlab.app.page.publisher.Publisher` reads the
-loop's record and updates the scene (30 Hz) and charts (10 Hz).
+loop's record and updates the scene (30 Hz) and charts (10 Hz). The Files folder
+(:mod:`armlab.app.lessons.run_files`) saves the grasp as a run file (finger angles, and
+the voltages, currents and forces as the hand's own signals), replays one on an orange
+hand beside the live one, and exports the HTML page.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -22,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext
+from armlab.app.lessons import LessonContext, RunFigures
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -32,11 +36,22 @@ from armlab.app.lessons._common import (
     status_html,
 )
 from armlab.app.lessons.hand_scene import HandScene
+from armlab.app.lessons.replay_view import HAND_ROBOT, hand_joint_names
+from armlab.app.lessons.run_files import Recording, RunControls
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec, dash
 from armlab.app.page.surface import Surface
 from armlab.control.grip import GripController, GripModel, GripParams
-from armlab.control.grip_loop import GripLoop, MotorsOff, SetGripParams, SetObject
+from armlab.control.grip_loop import (
+    COLUMNS,
+    CloseHand,
+    GripLoop,
+    GripStatus,
+    MotorsOff,
+    OpenHand,
+    SetGripParams,
+    SetObject,
+)
 from armlab.hardware.sim.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
 
 if TYPE_CHECKING:
@@ -68,6 +83,10 @@ WINDOW_S = 6.0  #: seconds shown on the charts
 FINGER_COLORS = (COLORS[0], COLORS[1], COLORS[4])
 ZERO_RGB = "#bbbbbb"
 FIGURES_S = 0.5  #: s between two workings-out of the last grasp's figures
+#: The record's columns a run file keeps as the hand's own signals (name -> unit): the
+#: finger angle ("angle") is the run's "q"
+RUN_SIGNALS = {name: unit for name, unit in COLUMNS.items() if name != "angle"}
+SETTLED_S = 0.5  #: s a grasp holds past its time to grasp before its figures are final
 
 EXPLAIN = """\
 **How the hand knows its grip.** No force sensor: the current *I* of each motor
@@ -107,6 +126,9 @@ class HandLesson(LessonBase):
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._grasp: tuple[float | None, dict] | None = None  #: (closed_at, figures)
+        #: the last grasp once it settled (every finger holding or closed on nothing):
+        #: (closed_at, its figures, held); what run_figures reports
+        self._settled: tuple[float | None, dict, bool] | None = None
         #: the grasp's figures read the whole record since the close: not every chart frame
         self._figures = Every(FIGURES_S)
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
@@ -178,6 +200,11 @@ class HandLesson(LessonBase):
                                                expand_by_default=False))
         with explain:
             gui.add_markdown(EXPLAIN)
+        files = self._gui.add(gui.add_folder("Files", order=-30.0, expand_by_default=False))
+        with files:  # Save run, Open run (a ghost hand replays it), Export page
+            self.runs = RunControls(self.server, gui, lesson=NAME, record=self.recording,
+                                    model=lambda: self.model.finger,
+                                    figures=self.run_figures, ghost_root="/hand_replay")
         with self._gui.chart_panel("Current and force") as tab, tab:
             kw = {"window_s": WINDOW_S, "points": 200}
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
@@ -200,28 +227,29 @@ class HandLesson(LessonBase):
 
     def close_hand(self) -> None:
         """Grasp: close with the force limit."""
-        self.loop.close_hand()
+        self.runs.post(self.loop, CloseHand())
 
     def open_hand(self) -> None:
         """Release the object."""
-        self.loop.open_hand()
+        self.runs.post(self.loop, OpenHand())
 
     def estop(self) -> None:
         """Motors off (the springs open the hand); never raises."""
         self.loop.post(MotorsOff())
+        self.runs.note(MotorsOff(), t=self.loop.status.t)
 
     def set_force_limit(self, force: float) -> None:
         """New grip-force limit F, N (applied at the loop's next period). ValueError to refuse."""
         replace(self.loop.params, force_limit=force)  # validates
         if force > self.model.max_force():
             raise ValueError(f"force limit must be <= {self.model.max_force():.2f} N")
-        self.loop.post(SetGripParams(force_limit=force))
+        self.runs.post(self.loop, SetGripParams(force_limit=force))
 
     def set_approach_speed(self, cm_per_s: float) -> None:
         """Fingertip approach speed, cm/s."""
         v = cm_per_s / 100.0
         replace(self.loop.params, approach_speed=v)  # validates
-        self.loop.post(SetGripParams(approach_speed=v))
+        self.runs.post(self.loop, SetGripParams(approach_speed=v))
 
     def set_object(self, *, size_cm: float | None = None,
                    stiffness: float | None = None) -> None:
@@ -237,7 +265,7 @@ class HandLesson(LessonBase):
             if size != self.obj.size and any(m != "idle" for m in self.loop.status.modes):
                 raise ValueError("open the hand before changing the object's size")
             self.obj = obj
-            self.loop.post(SetObject(obj))
+            self.runs.post(self.loop, SetObject(obj))
             self.scene.set_object(obj.size, obj.stiffness)
 
     # ================================================================== publishing
@@ -284,6 +312,7 @@ class HandLesson(LessonBase):
             self._grasp = (st.closed_at, fig)
         elif self._grasp is not None and self._grasp[0] == st.closed_at:
             fig = self._grasp[1]  # the close has left the record: keep its figures
+        self._settle(st, fig)
         text = ""
         if fig is not None:
             grasped = fig["time_to_grasp_s"]
@@ -293,13 +322,57 @@ class HandLesson(LessonBase):
                     + f" · current {fig['final_current_A']:.3f} A")
         set_content(self.figures, text)
 
+    def _settle(self, st: GripStatus, fig: dict | None) -> None:
+        """Keep the grasp's figures once it has settled: every finger holding for
+        :data:`SETTLED_S` past the time to grasp, or none closing any more (some closed
+        on nothing: not held)."""
+        if fig is None or st.closed_at is None:
+            return
+        if self._settled is not None and self._settled[0] == st.closed_at:
+            return  # this grasp's figures are kept already
+        modes = set(st.modes)
+        held = modes == {"holding"}
+        grasped = fig["time_to_grasp_s"]
+        if held and grasped is not None and st.t - st.closed_at >= grasped + SETTLED_S:
+            self._settled = (st.closed_at, fig, True)
+        elif not held and modes <= {"holding", "empty"}:
+            self._settled = (st.closed_at, fig, False)
+
+    def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
+        """Save run and Export page: each answers the pressing page."""
+        return self.runs.page_only_buttons()
+
+    def run_figures(self) -> RunFigures:
+        """The last settled grasp's steady and peak force, and whether it held."""
+        settled = self._settled
+        if settled is None:
+            return RunFigures()
+        _, fig, held = settled
+        return RunFigures(grasp_force_n=fig["steady_force_N"], grasp_peak_n=fig["peak_force_N"],
+                          grasp_held=1.0 if held else 0.0)
+
+    def recording(self) -> Recording:
+        """The hand's record for a run file: the finger angles as "q", the motor voltages,
+        currents, true and estimated fingertip forces and the force cap as the hand's own
+        signals (:data:`RUN_SIGNALS`); the grasp's settings and the object as parameters."""
+        snap = self.loop.snapshot()
+        obj = self.obj
+        params = {**dataclasses.asdict(self.loop.params), "object_size_m": obj.size,
+                  "object_stiffness_n_per_m": obj.stiffness, "period": self.loop.dt}
+        params = {k: v for k, v in params.items()  # (no object: its size is not kept)
+                  if isinstance(v, str) or (isinstance(v, int | float) and math.isfinite(v))}
+        return Recording(model=self.model.finger, robot=HAND_ROBOT,
+                         joint_names=hand_joint_names(self.model.finger),
+                         snapshot={**snap, "q": snap["angle"]}, params=params,
+                         lesson_signals=RUN_SIGNALS)
+
     # ================================================================== lifetime
 
     def close(self) -> None:
         """Stop the publisher and the loop, remove scene and GUI."""
         if self.mark_closed():
-            close_in_turn(self.publisher.close, self.loop.shutdown, self.scene.remove,
-                          self._gui.remove_all)
+            close_in_turn(self.publisher.close, self.loop.shutdown, self.runs.remove,
+                          self.scene.remove, self._gui.remove_all)
 
 
 __all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]

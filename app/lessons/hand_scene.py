@@ -24,6 +24,7 @@ ARROW_M_PER_N = 0.03  #: arrow length per newton of fingertip force
 PAD_RADIUS = 0.007
 IDLE_RGB = (150, 150, 150)
 LIMIT_RGB = (220, 30, 30)
+FINGER_RGB = (40, 70, 160)
 
 
 def stiffness_rgb(stiffness: float) -> tuple[int, int, int]:
@@ -51,9 +52,13 @@ class HandScene:
         server: viser server.
         finger: the hand's geometry.
         root: scene node holding everything (removed by :meth:`remove`).
+        finger_rgb: the fingers' colour (a replay's ghost hand: orange).
+        frame_view: frame the page's camera on the hand (False: leave the view as it is).
     """
 
-    def __init__(self, server: Surface, finger: FingerGeometry, *, root: str) -> None:
+    def __init__(self, server: Surface, finger: FingerGeometry, *, root: str,
+                 finger_rgb: tuple[int, int, int] = FINGER_RGB,
+                 frame_view: bool = True) -> None:
         self.g = finger
         scene = server.scene
         self.root = scene.add_frame(root, show_axes=False)
@@ -73,7 +78,7 @@ class HandScene:
                           position=(0.6 * hinge[0], 0.6 * hinge[1], -0.018))
             frame = scene.add_frame(f"{root}/finger{i}", show_axes=False, position=hinge,
                                     wxyz=self._finger_wxyz(az, g.open_angle))
-            scene.add_box(f"{root}/finger{i}/link", color=(40, 70, 160),
+            scene.add_box(f"{root}/finger{i}/link", color=finger_rgb,
                           dimensions=(0.010, 0.016, g.length), position=(0.0, 0.0, g.length / 2))
             pad = scene.add_icosphere(f"{root}/finger{i}/pad", radius=PAD_RADIUS,
                                       color=IDLE_RGB, position=(-0.004, 0.0, g.length))
@@ -86,8 +91,8 @@ class HandScene:
                                        colors=LIMIT_RGB, shaft_radius=0.0015, head_radius=0.004,
                                        head_length=0.008, visible=False)
         self.label = theme.add_label(scene, f"{root}/label", "", position=(0.0, 0.0, 0.12))
-        # from the front right, above the palm
-        show(server, View(roots=(root,), direction=(-0.14, 0.185, -0.125)))
+        if frame_view:  # from the front right, above the palm
+            show(server, View(roots=(root,), direction=(-0.14, 0.185, -0.125)))
 
     @staticmethod
     def _finger_wxyz(azimuth: float, phi: float) -> np.ndarray:

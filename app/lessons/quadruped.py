@@ -17,7 +17,9 @@ the commanded-vs-servo angle error in percent, from the servos' own feedback.
 
 Data flow as in the compliance lesson: UI callbacks validate input, plan the gait
 (``armlab.control.walking.plan_gait``) and post it to the loop; a :class:`Publisher` draws
-the loop's latest state at 30 Hz and the charts at 10 Hz.
+the loop's latest state at 30 Hz and the charts at 10 Hz. The Files tab
+(:mod:`armlab.app.lessons.run_files`) saves a walk as a run file (the goals sent and the
+angles the servos read), replays one on a see-through quadruped and exports the HTML page.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import numpy as np
 import viser
 
 from armlab.app.backends import make_backend
-from armlab.app.lessons import LessonContext
+from armlab.app.lessons import LessonContext, RunFigures
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -44,6 +46,7 @@ from armlab.app.lessons._common import (
     warning_html,
 )
 from armlab.app.lessons.quadruped_scene import QuadrupedScene
+from armlab.app.lessons.run_files import Recording, RunControls
 from armlab.app.page.inputs import GuardedNumber, guarded_slider
 from armlab.app.page.plots import (
     ANGLE_SPAN_DEG,
@@ -56,7 +59,9 @@ from armlab.app.page.plots import (
 )
 from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, BackendError
-from armlab.control.gait_loop import GaitLoop, GaitStatus
+from armlab.control.commands import Reset
+from armlab.control.experiments.seed003 import joint_names as gait_joint_names
+from armlab.control.gait_loop import GaitLoop, GaitStatus, SetInPlace, SetSpeed, StopWalking
 from armlab.control.walking import (
     COMMANDS,
     GAITS,
@@ -171,6 +176,8 @@ class QuadrupedLesson(LessonBase):
                  pose_hz: float = 30.0, plot_hz: float = 10.0) -> None:
         super().__init__(server, ctx)
         self._table = Every(TABLE_S)  #: when the Servos tab is worked out again
+        self._walk_from: float | None = None  #: loop time the present walk began
+        self._walk_error: float | None = None  #: eq. 4.1 of the last walk, % (run_figures)
         model = _robot(ctx.robot)
         if not isinstance(model, Quadruped):
             raise ValueError(f"robot: {ctx.robot} is not a quadruped")
@@ -225,6 +232,10 @@ class QuadrupedLesson(LessonBase):
             self.servo_table = gui.add_markdown("")
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             gui.add_markdown(TEACH)
+        with tabs.add_tab("Files", viser.Icon.FILE):  # Save run, Open run (replay), Export page
+            self.runs = RunControls(self.server, gui, lesson=NAME, record=self.recording,
+                                    model=lambda: self.model, figures=self.run_figures,
+                                    ghost_root="/quadruped_replay")
         with self._gui.chart_panel("Charts") as tab:
             self._build_plots(gui, tab)
 
@@ -262,7 +273,7 @@ class QuadrupedLesson(LessonBase):
         self.speed = guarded_slider(gui, "Gait speed (cycles/s)", name="gait speed",
                                     lo=SPEED_RANGE[0], hi=SPEED_RANGE[1], step=0.05,
                                     initial=self.loop.status.speed,
-                                    apply=self.loop.set_speed,
+                                    apply=self.set_speed,
                                     hint="Gait cycles per second")
 
     def _build_gait_tab(self, gui: viser.GuiApi) -> None:
@@ -338,13 +349,24 @@ class QuadrupedLesson(LessonBase):
         """
         plan = self._replan(replace(self.spec, command=command))
         self.loop.go(plan)
+        self._note_plan("Walk")
 
     def stop(self) -> None:
-        self.loop.stop()
+        self.runs.post(self.loop, StopWalking())
 
     def reset(self) -> None:
-        self.loop.reset()
+        self.runs.post(self.loop, Reset())
         self.scene.clear_trails()
+
+    def set_speed(self, speed: float) -> None:
+        """Gait speed, cycles/s (ValueError outside 0.05..3)."""
+        self.runs.post(self.loop, SetSpeed(speed))
+
+    def _note_plan(self, kind: str) -> None:
+        """Keep a walk or a new plan for the run file: its direction, gait and sine inputs
+        (the plan itself is worked out from them)."""
+        self.runs.note({"kind": kind, "command": self.spec.command, "gait": self.spec.gait,
+                        **self.spec.params.named()}, t=self.loop.status.t)
 
     def set_gait(self, gait: str) -> None:
         """Trot or crawl (a turn becomes "forward" for the crawl, which walks straight)."""
@@ -353,15 +375,17 @@ class QuadrupedLesson(LessonBase):
             command = "forward"
         plan = self._replan(replace(self.spec, gait=gait, command=command))
         self.loop.set_plan(plan)
+        self._note_plan("SetPlan")
 
     def set_params(self, **changes: float) -> None:
         """New sine-pattern inputs (SI); raises ValueError (refused) when unwalkable."""
         params = replace(self.spec.params, **changes)
         plan = self._replan(replace(self.spec, params=params))
         self.loop.set_plan(plan)
+        self._note_plan("SetPlan")
 
     def set_in_place(self, in_place: bool) -> None:
-        self.loop.set_in_place(in_place)
+        self.runs.post(self.loop, SetInPlace(bool(in_place)))
         self.scene.clear_trails()
 
     def estop(self) -> None:
@@ -421,7 +445,53 @@ class QuadrupedLesson(LessonBase):
             out[ok] = np.abs(angle_error_pct(c, a)).reshape(-1, 4, 3).mean(axis=1)
         return [out[:, j] for j in range(3)]
 
+    def recording(self) -> Recording:
+        """The robot's record for a run file: the goals sent as "q_cmd", the angles the
+        servos read one period later as "q" (gait order, legs RF, LF, RH, LH); the gait,
+        its sine inputs (m, °) and speed as parameters. After a servo fault the run is the
+        last stretch the servos were read. Without servos nothing was read: "q" is then the
+        goals (``extra["q_is"]`` says so)."""
+        snap = self.loop.snapshot()
+        extra: dict[str, object] = {}
+        read = np.isfinite(snap["q"]).all(axis=1)
+        if read.any():
+            last = int(np.flatnonzero(read)[-1])
+            unread = np.flatnonzero(~read[:last])
+            first = int(unread[-1]) + 1 if len(unread) else 0
+            snap = {k: v[first:last + 1] for k, v in snap.items()}
+        else:
+            snap = {**snap, "q": snap["q_cmd"]}
+            extra["q_is"] = "the goals sent (no servos: no angle was read)"
+        st = self.loop.status
+        params = {"gait": self.spec.gait, "command": self.spec.command,
+                  **self.spec.params.named(), "speed": st.speed,
+                  "walk_in_place": not bool(self.across.value)}
+        return Recording(model=self.model, robot=self.model.name,
+                         joint_names=gait_joint_names(self.model), snapshot=snap,
+                         params=params, extra=extra)
+
+    def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
+        """Save run and Export page: each answers the pressing page."""
+        return self.runs.page_only_buttons()
+
+    def run_figures(self) -> RunFigures:
+        """Eq. 4.1 of the last walk (once it stopped), from the servos' feedback."""
+        return RunFigures(eq41_error_pct=self._walk_error)
+
+    def _watch_walk(self, st: GaitStatus) -> None:
+        """When a walk ends, work out its eq. 4.1 error (its last ``history_s`` at most)."""
+        if st.walking:
+            if self._walk_from is None:
+                self._walk_from = st.t
+            return
+        if self._walk_from is None:
+            return
+        began, self._walk_from = self._walk_from, None
+        err = self.loop.angle_error(st.t - began + 0.5)
+        self._walk_error = None if err is None else float(err["mean_pct"])
+
     def _update_status(self, st: GaitStatus) -> None:
+        self._watch_walk(st)
         state = self.loop.state
         if st.fault:
             head, color = f"servos stopped: {st.fault} (press Reset)", "#b00020"
@@ -469,7 +539,7 @@ class QuadrupedLesson(LessonBase):
         if self.mark_closed():
             free = None if self._worker is None else partial(self._worker.free_member, self.loop)
             close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
-                          free,
+                          free, self.runs.remove,
                           self.backend.close if self.backend is not None else None,
                           self.scene.remove, self._gui.remove_all)
 

@@ -21,23 +21,7 @@ import viser
 
 from armlab.app.viser_ext.dispatch import screen_gui_updates
 from armlab.app.viser_ext.handles import gui_inputs
-
-
-def check_number(value: Any, *, name: str, lo: float, hi: float) -> float:
-    """``value`` as a float in [lo, hi].
-
-    Raises:
-        ValueError: naming ``name`` when ``value`` is not a finite number in range.
-    """
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: {value!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: {value!r} is not a finite number")
-    if not lo <= v <= hi:
-        raise ValueError(f"{name}: {v:g} is outside [{lo:g}, {hi:g}]")
-    return v
+from armlab.kinematics.validate import check_number
 
 
 def notify(client: viser.ClientHandle | None, title: str, body: str, *,

@@ -29,6 +29,7 @@ from collections import Counter, defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
+from uuid import uuid4
 
 import msgspec.msgpack
 import numpy as np
@@ -341,6 +342,22 @@ class HeadlessClient:
         """Click the button labelled ``target`` (or whose server handle it is)."""
         self.send({"type": "GuiUpdateMessage", "uuid": self._uuid(target, "GuiButtonMessage"),
                    "updates": {"value": True}})
+
+    def upload(self, target: str | Any, name: str, content: bytes, *,
+               part_bytes: int = 512 * 1024, declared: int | None = None) -> None:
+        """Upload ``content`` as file ``name`` through the upload button labelled ``target``
+        (or whose server handle it is), in parts of ``part_bytes`` as the page sends them;
+        ``declared`` claims another size than the content's (a hostile page)."""
+        uuid = self._uuid(target, "GuiUploadButtonMessage")
+        transfer = uuid4().hex
+        parts = [content[i:i + part_bytes] for i in range(0, len(content), part_bytes)]
+        self.send({"type": "FileTransferStartUpload", "source_component_uuid": uuid,
+                   "transfer_uuid": transfer, "filename": name,
+                   "mime_type": "application/zip", "part_count": len(parts),
+                   "size_bytes": len(content) if declared is None else declared})
+        for i, part in enumerate(parts):
+            self.send({"type": "FileTransferPart", "source_component_uuid": uuid,
+                       "transfer_uuid": transfer, "part_index": i, "content": part})
 
     def drag(self, name: str, phase: str, *, start: tuple[float, float, float],
              end: tuple[float, float, float]) -> None:

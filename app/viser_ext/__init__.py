@@ -57,6 +57,7 @@ HOOKS = (
     Hook("a page's camera record", "camera", security=False),
     Hook("the robot's scene nodes (ViserUrdf)", "urdf", security=False),
     Hook("work-arounds (message buffer race, cheap pose writes)", "fixes", security=False),
+    Hook("a size limit on uploaded files (Open run)", "uploads", security=False),
 )
 
 

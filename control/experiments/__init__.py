@@ -4,8 +4,13 @@ Each module named in :data:`MODULES` defines ``EXPERIMENTS``: a tuple of
 :class:`Experiment`. An experiment's options are a frozen dataclass (one field
 per option, declared with :func:`option`); the command line
 (``app/commands/experiment.py``) turns its fields into command-line options and
-calls ``run(options, **needs)``. No argparse here: the experiments are plain
+calls ``run(options, keep=..., **needs)``. No argparse here: the experiments are plain
 functions of typed options, callable from a test or a script.
+
+Every experiment hands each run it records to ``keep`` (a
+:class:`armlab.control.runs.Run`: its time series at the rate it was sampled), and
+``armlab experiment NAME --save-run PATH`` saves the last one with the experiment's
+figures (docs/runs.md says which series each experiment keeps).
 """
 
 from __future__ import annotations
@@ -14,6 +19,12 @@ import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
+
+from armlab.control.runs import Run
+
+#: What an experiment's ``run`` is given as ``keep``: it calls it with every run it records
+#: (None: nobody keeps them).
+Keep = Callable[[Run], None]
 
 #: The modules of this package that define experiments (adding one: add its name here).
 MODULES: tuple[str, ...] = ("hand", "observers", "seed002", "seed003", "seed004", "thesis",
@@ -54,8 +65,9 @@ class Experiment:
         name: the CLI name, e.g. "seed004-table".
         help: one line for ``--help``.
         options: the frozen dataclass of its options (fields made with :func:`option`).
-        run: ``run(options, **needs)`` runs it; returns a JSON-serialisable dict
-            (what ``--json`` prints).
+        run: ``run(options, *, keep=None, **needs)`` runs it, handing each run it
+            records to ``keep`` (:data:`Keep`); returns a JSON-serialisable dict (what
+            ``--json`` prints).
         rows: turns that dict into flat table rows for ``--csv`` and the
             human-readable table (None: print the dict's top-level items).
         needs: names of factories the caller passes to ``run`` as keyword arguments

@@ -17,8 +17,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from armlab.control.experiments import Experiment, option
-from armlab.control.grip import GripController, GripModel, GripParams, grasp_figures, simulate_grasp
+import numpy as np
+
+from armlab.control.experiments import Experiment, Keep, option
+from armlab.control.grip import (
+    N_FINGERS,
+    GripController,
+    GripModel,
+    GripParams,
+    grasp_figures,
+    simulate_grasp,
+)
+from armlab.control.grip_loop import COLUMNS
+from armlab.control.runs import Run, lab_version, utc_now
 from armlab.kinematics.validate import scalar
 
 CONTROL_PERIOD = 1.0e-3  #: s, the controller's period (the plant steps at 0.1 ms inside)
@@ -39,9 +50,15 @@ class GripOptions:
                              metavar="T")
 
 
-def run_grip(options: GripOptions, *, hand_plant: Callable[..., Any]) -> dict[str, Any]:
+def run_grip(options: GripOptions, *, hand_plant: Callable[..., Any],
+             keep: Keep | None = None) -> dict[str, Any]:
     """Close the simulated hand (``hand_plant(size=, stiffness=, damping=, current_lpf_hz=)``)
     on the object; return the grasp's figures (SI, size in cm).
+
+    ``keep`` is handed the grasp at every control period: the finger angles as "q"; the
+    voltages (V), currents (A), true and estimated fingertip forces (N) of each finger
+    as the hand's own signals "voltage", "current", "force", "estimate" (the hand
+    lesson's names, :data:`armlab.control.grip_loop.COLUMNS`).
 
     Raises:
         ValueError: naming the option that is out of range.
@@ -64,6 +81,20 @@ def run_grip(options: GripOptions, *, hand_plant: Callable[..., Any]) -> dict[st
     controller = GripController(model, GripParams(force_limit=force), dt=CONTROL_PERIOD)
     trace = simulate_grasp(plant, controller, duration=duration)
     figures = grasp_figures(trace, force)
+    if keep is not None:
+        keep(Run(robot="hand", joint_names=tuple(f"finger{i + 1}" for i in range(N_FINGERS)),
+                 source="experiment:hand-grip", lab_version=lab_version(), created=utc_now(),
+                 params={"force_limit_N": force, "stiffness_N_per_m": stiffness,
+                         "size_cm": size_cm, "damping_N_s_per_m": damping,
+                         "current_lpf_hz": "none" if lpf is None else lpf,
+                         "period": CONTROL_PERIOD},
+                 commands=({"t": 0.0, "kind": "Close", "force_limit_N": force},),
+                 figures={}, t=trace.t,
+                 signals={"q": np.asarray(trace.angle), "voltage": trace.voltage,
+                          "current": trace.current, "force": trace.force,
+                          "estimate": trace.estimate},
+                 lesson_signals={k: COLUMNS[k] for k in ("voltage", "current", "force",
+                                                         "estimate")}))
     return {
         "force_limit_N": force,
         "stiffness_N_per_m": stiffness,

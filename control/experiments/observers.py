@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from armlab.control.backend import Backend, CurrentSensing
-from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.observers import (
     ObserverRun,
     ObserverState,
@@ -42,6 +42,7 @@ from armlab.control.observers import (
     disturbance_observer,
     simulate_observers,
 )
+from armlab.control.runs import Run, lab_version, utc_now
 from armlab.kinematics.dynamics import bias_torques, mass_matrix
 from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.validate import index, joint_index, scalar, vector
@@ -323,7 +324,7 @@ def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, join
                     duration: float = SERVO_DURATION, g_dis: float = SERVO_G,
                     g_reac: float = SERVO_G, applied: float | None = None,
                     at: float | None = None, pose: np.ndarray | None = None,
-                    period: float = SERVO_PERIOD) -> dict[str, Any]:
+                    period: float = SERVO_PERIOD, keep: Keep | None = None) -> dict[str, Any]:
     """The disturbance and reaction-torque observers on servos that measure their current:
     hold, read, estimate.
 
@@ -341,6 +342,8 @@ def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, join
         at: s after the first reading the torque came; None: found in the estimate.
         pose: (n,) rad to go to and hold first (an arm hanging on its stops, whose
             torque the stops would share); None: hold where it stands.
+        keep: handed the readings: the whole arm's angles as "q" at every reading (the
+            observed joint's current and estimates are in the returned "series").
 
     Returns:
         {"joint", "j_n", "g_dis", "g_reac", "period_s", "samples", "step_at_s",
@@ -383,6 +386,13 @@ def servo_observers(model: SerialChain, backend_factory: BackendFactory, *, join
         figures["relative_error"] = abs(figures["estimated_nm"] - applied) / abs(applied)
         figures["rtob_error_pct"] = 100.0 * abs(figures["rtob_after_nm"] - applied) / abs(applied)
     sl = slice(None, None, SERVO_DECIMATE)
+    if keep is not None:
+        keep(Run(robot=model.name, joint_names=model.joint_names,
+                 source="experiment:observers", lab_version=lab_version(), created=utc_now(),
+                 params={"g_dis": g_dis, "g_reac": g_reac, "period": period,
+                         "joint": model.joint_names[joint]},
+                 commands=({"t": 0.0, "kind": "Hold", "pose_rad": q[0].tolist()},),
+                 figures={}, t=t, signals={"q": q}))
     figures["series"] = {"t": t[sl].tolist(), "q": q[sl, joint].tolist(),
                          "qd": qd[sl, joint].tolist(), "tau_m": tau[sl].tolist(),
                          "tau_dis_hat": est[sl].tolist(), "tau_known": known[sl].tolist(),
@@ -424,14 +434,14 @@ _SIM_ONLY = ("step", "model_error")
 _SERVO_ONLY = ("robot", "joint", "applied", "pose")
 
 
-def _run(options: ObserverOptions, *, backend_factory: BackendFactory | None = None
-         ) -> dict[str, Any]:
+def _run(options: ObserverOptions, *, backend_factory: BackendFactory | None = None,
+         keep: Keep | None = None) -> dict[str, Any]:
     o = options
     if o.backend == "sim":
         given = [n for n in _SERVO_ONLY + ("port", "baud") if getattr(o, n) is not None]
         if given:
             raise ValueError(f"{_names(given)} for the servos (--backend serial)")
-        return _sim_run(o)
+        return _sim_run(o, keep=keep)
     given = [n for n in _SIM_ONLY if getattr(o, n) is not None]
     if given:
         raise ValueError(f"{_names(given)} for the simulation (--backend sim); on servos "
@@ -455,7 +465,7 @@ def _run(options: ObserverOptions, *, backend_factory: BackendFactory | None = N
                            duration=SERVO_DURATION if o.duration is None else o.duration,
                            g_dis=SERVO_G if o.g_dis is None else o.g_dis,
                            g_reac=SERVO_G if o.g_reac is None else o.g_reac,
-                           applied=o.applied, at=o.at, pose=pose)
+                           applied=o.applied, at=o.at, pose=pose, keep=keep)
 
 
 def _names(fields: list[str]) -> str:
@@ -464,7 +474,7 @@ def _names(fields: list[str]) -> str:
     return f"{opts} {'is' if len(fields) == 1 else 'are'}"
 
 
-def _sim_run(o: ObserverOptions) -> dict[str, Any]:
+def _sim_run(o: ObserverOptions, *, keep: Keep | None = None) -> dict[str, Any]:
     figures, run = observers(step=SIM_STEP if o.step is None else o.step,
                              at=SIM_AT if o.at is None else o.at,
                              duration=SIM_DURATION if o.duration is None else o.duration,
@@ -474,6 +484,15 @@ def _sim_run(o: ObserverOptions) -> dict[str, Any]:
     sl = slice(None, None, DECIMATE)
     figures["series"] = {k: getattr(run, k)[sl].tolist()
                          for k in ("t", "tau_dis", "tau_dis_hat", "tau_ext", "tau_ext_hat")}
+    if keep is not None:
+        # the same rows as "series": θ, and the RTOB's estimate as the run's τ_ext
+        keep(Run(robot="torque_joint", joint_names=("joint",), source="experiment:observers",
+                 lab_version=lab_version(), created=utc_now(),
+                 params={k: figures[k] for k in ("step_nm", "g_dis", "g_reac", "model_error")},
+                 commands=({"t": SIM_AT if o.at is None else o.at, "kind": "TorqueStep",
+                            "torque_nm": figures["step_nm"]},),
+                 figures={}, t=run.t[sl],
+                 signals={"q": run.q[sl, None], "tau_ext": run.tau_ext_hat[sl, None]}))
     return figures
 
 

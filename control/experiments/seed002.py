@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.experiments import Experiment, option
+from armlab.control.experiments import Experiment, Keep, option
+from armlab.control.runs import Run, lab_version, utc_now
 from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.redundancy import (
     MODES,
@@ -29,10 +30,29 @@ from armlab.kinematics.redundancy import (
 SETTLE_S = 0.2
 
 
-def circle(mode: str, *, gain: float = 400.0, k_a: float = 200.0) -> dict[str, Any]:
-    """Run one seed 002 simulation and summarise it (see the module docstring)."""
+def circle(mode: str, *, gain: float = 400.0, k_a: float = 200.0,
+           keep: Keep | None = None) -> dict[str, Any]:
+    """Run one seed 002 simulation and summarise it (see the module docstring); ``keep`` is
+    handed the run (:func:`circle_record`)."""
     model = load_robot("redundant_planar")
-    return summarise(model, simulate_circle(model, mode, CircleTask(gain=gain, k_a=k_a)))
+    task = CircleTask(gain=gain, k_a=k_a)
+    run = simulate_circle(model, mode, task)
+    if keep is not None:
+        keep(circle_record(model, run, task))
+    return summarise(model, run)
+
+
+def circle_record(model: SerialChain, run: CircleRun, task: CircleTask) -> Run:
+    """The simulation as a run file's :class:`Run`: θ at every Δt as "q"; the hand's
+    position x, the circle x_d (m) and the manipulability w in ``extra["series"]``."""
+    return Run(robot=model.name, joint_names=model.joint_names, source="experiment:seed002",
+               lab_version=lab_version(), created=utc_now(),
+               params={"mode": run.mode, "gain": task.gain, "k_a": task.k_a, "dt": task.dt},
+               commands=({"t": float(run.t[0]), "kind": "Circle", "mode": run.mode,
+                          "duration_s": task.duration},),
+               figures={}, t=run.t, signals={"q": run.q},
+               extra={"series": {"x_m": run.x.tolist(), "x_d_m": run.x_d.tolist(),
+                                 "w": run.w.tolist()}})
 
 
 def summarise(model: SerialChain, run: CircleRun) -> dict[str, Any]:
@@ -61,8 +81,8 @@ class CircleOptions:
     k_a: float = option(200.0, "manipulability gradient gain k_a (paper: 200)")
 
 
-def _run(options: CircleOptions) -> dict[str, Any]:
-    return circle(options.mode, gain=options.gain, k_a=options.k_a)
+def _run(options: CircleOptions, *, keep: Keep | None = None) -> dict[str, Any]:
+    return circle(options.mode, gain=options.gain, k_a=options.k_a, keep=keep)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:

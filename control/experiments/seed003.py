@@ -21,22 +21,31 @@ from typing import Any, Literal
 
 import numpy as np
 
-from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.gait_loop import STAND_UP_S, GaitLoop
+from armlab.control.runs import Run, lab_version, run_from_snapshot, utc_now
 from armlab.control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
 from armlab.kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
 from armlab.kinematics.model import Quadruped, load_robot
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 
 SIM_DT = 2e-3  #: plant step of the simulated legs, s (armlab.hardware.sim.quadruped.SIM_DT)
+SPEED = 0.5  #: gait cycles per second on the servos (and in the planned cycle's run file)
+
+
+def joint_names(model: Quadruped) -> tuple[str, ...]:
+    """The 12 joints in the gait's order: each leg of :data:`LEGS`, hip yaw to knee."""
+    return tuple(name for leg in LEGS for name in model.legs[leg].joint_names)
 
 
 def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples: int = 36,
-               right_direction: int = 0) -> dict[str, Any]:
+               right_direction: int = 0, keep: Keep | None = None) -> dict[str, Any]:
     """One cycle of ``gait`` ("trot" or "crawl"); lengths in m, angles in degrees.
 
     ``rows`` holds one entry per sample: phase, body pose, stance flags, feet (leg frames
-    and world), joint angles and static stability margin.
+    and world), joint angles and static stability margin. ``keep`` is handed the planned
+    cycle: its 12 joint angles (IK) as "q_cmd" and "q", one sample per row, timed at
+    :data:`SPEED` cycles/s (phase / 360° / SPEED s); nothing is measured in it.
     """
     params = params or SineParams()
     geom = QuadrupedGeometry()
@@ -66,10 +75,22 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
             "margin_m": float(margins[j]) if math.isfinite(margins[j]) else None,
         })
     n = len(cycle.omega_deg)
+    if keep is not None:
+        q = np.asarray(angles, dtype=float).reshape(n, 12)
+        keep(Run(robot="quadruped", joint_names=joint_names(load_robot_quadruped()),
+                 source="experiment:seed003-gait", lab_version=lab_version(),
+                 created=utc_now(), params={"gait": gait, **params.named()},
+                 commands=({"t": 0.0, "kind": "Gait", "gait": gait,
+                            "speed_cycles_s": SPEED},),
+                 figures={}, t=np.asarray(cycle.omega_deg, dtype=float) / 360.0 / SPEED,
+                 signals={"q_cmd": q, "q": q.copy()},
+                 extra={"planned": True, "series": {
+                     "body": moved.body[:n].tolist(),
+                     "margin_m": [float(m) if math.isfinite(m) else None
+                                  for m in margins[:n]]}}))
     return {
         "gait": gait,
-        "params": {"A_m": params.A, "B_m": params.B, "C_m": params.C, "D_m": params.D,
-                   "alpha_deg": params.alpha_deg},
+        "params": params.named(),
         "leg_m": {"femur": geom.leg.femur, "tibia": geom.leg.tibia},
         "reachable": reachable,
         "min_margin_m": float(np.min(margins)),
@@ -82,9 +103,10 @@ def gait_cycle(gait: str = "trot", params: SineParams | None = None, *, samples:
 
 
 def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams | None = None,
-                   *, cycles: float = 2.0, speed: float = 0.5, period: float = 0.02,
-                   realtime: bool = False) -> dict[str, Any]:
-    """Walk ``cycles`` gait cycles on the 12 servos ``backend_factory(model, q0=...)`` opens.
+                   *, cycles: float = 2.0, speed: float = SPEED, period: float = 0.02,
+                   realtime: bool = False, keep: Keep | None = None) -> dict[str, Any]:
+    """Walk ``cycles`` gait cycles on the 12 servos ``backend_factory(model, q0=...)`` opens;
+    ``keep`` is handed the loop's record (goals sent "q_cmd", angles read "q", per period).
 
     Returns:
         {"eq41_error_pct": {"servo1", "servo2", "servo3", "overall"}, "body_tilt_deg" (max),
@@ -94,9 +116,7 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
     Raises:
         ValueError: the servos faulted or gave no walking samples.
     """
-    model = load_robot("quadruped")
-    if not isinstance(model, Quadruped):
-        raise ValueError("robot: the quadruped's URDF did not load as a quadruped")
+    model = load_robot_quadruped()
     plan = plan_gait(GaitSpec(gait=gait, params=params or SineParams()))
     walker = Walker(plan)
     kw = {"q0": walker.state().q, "dt": SIM_DT} if not realtime else {}
@@ -122,7 +142,16 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
         err = loop.angle_error(None)
         if err is None:
             raise ValueError("no walking samples were read from the servos")
-        tilt = walking_tilts_deg(model, loop.snapshot())
+        snap = loop.snapshot()
+        tilt = walking_tilts_deg(model, snap)
+        if keep is not None:
+            keep(run_from_snapshot(
+                snap, robot="quadruped", joint_names=joint_names(model),
+                source="experiment:seed003-gait",
+                params={"gait": gait, **(params or SineParams()).named(), "speed": speed,
+                        "period": period},
+                commands=({"t": 0.0, "kind": "Gait", "gait": gait, "speed_cycles_s": speed,
+                           "cycles": cycles},)))
     finally:
         if loop.status.running:
             loop.shutdown(torque_off=True)
@@ -136,6 +165,14 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
         "body_tilt_mean_deg": round(float(tilt.mean()), 3),
         "eq41_samples": int(err["samples"]),
     }
+
+
+def load_robot_quadruped() -> Quadruped:
+    """The quadruped's model (ValueError if its URDF does not load as one)."""
+    model = load_robot("quadruped")
+    if not isinstance(model, Quadruped):
+        raise ValueError("robot: the quadruped's URDF did not load as a quadruped")
+    return model
 
 
 _D = SineParams()
@@ -158,15 +195,17 @@ class GaitOptions(BackendOptions):
                            "tilt (0: the planned cycle only)")
 
 
-def _run(options: GaitOptions, *, backend_factory: Any) -> dict[str, Any]:
+def _run(options: GaitOptions, *, backend_factory: Any, keep: Keep | None = None
+         ) -> dict[str, Any]:
     o = options
     params = SineParams(A=o.A / 100, B=o.B / 100, C=o.C / 100, D=o.D / 100, alpha_deg=o.alpha)
     if not (math.isfinite(o.cycles) and 0.0 <= o.cycles <= 20.0):
         raise ValueError(f"--cycles must be in [0, 20], got {o.cycles}")
-    out = gait_cycle(o.gait, params, samples=o.samples, right_direction=o.right_direction)
+    out = gait_cycle(o.gait, params, samples=o.samples, right_direction=o.right_direction,
+                     keep=keep)
     if o.cycles > 0:
         out.update(walk_on_servos(backend_factory, o.gait, params, cycles=o.cycles,
-                                  realtime=o.backend != "sim"))
+                                  realtime=o.backend != "sim", keep=keep))
     return out
 
 

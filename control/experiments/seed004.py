@@ -13,9 +13,16 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from armlab.control.experiments import Experiment, option
+import numpy as np
+
+from armlab.control.experiments import Experiment, Keep, option
 from armlab.control.experiments.seed004_data import TABLE1
+from armlab.control.runs import Run, lab_version, utc_now
 from armlab.kinematics.planar_ik import ELBOWS, ROUNDINGS, PlanarArm, in_range_alternative, solve
+
+#: The robot model of the seed 004 arm (6.5, 10.5, 6.5 cm links), for its run file.
+ROBOT = "planar_servo_arm"
+JOINTS = ("theta1", "theta2", "theta3")
 
 
 def _deg(angles: tuple[float, ...]) -> list[float]:
@@ -26,13 +33,22 @@ def _cm(xy: tuple[float, float]) -> list[float]:
     return [xy[0] * 100.0, xy[1] * 100.0]
 
 
-def table(*, rounding: str = "truncate", elbow: str = "down") -> dict[str, Any]:
-    """Recompute seed 004 Table 1 (see the module docstring); lengths in cm, angles in deg."""
+def table(*, rounding: str = "truncate", elbow: str = "down",
+          keep: Keep | None = None) -> dict[str, Any]:
+    """Recompute seed 004 Table 1 (see the module docstring); lengths in cm, angles in deg.
+
+    The table has no time series: ``keep`` is handed the 24 poses one per second, t = 0,
+    1, ... s (row k at k s): "q_cmd" the exact closed-form angles, "q" the whole-degree
+    commanded angles the servos are sent (no angle was measured; the paper measured
+    positions, which are in the rows)."""
     arm = PlanarArm()
     rows = []
+    exact, sent = [], []
     for no, X, Y, X1, Y1, X2, Y2, _dx, _dy, R in TABLE1:
         r = solve(X / 100.0, Y / 100.0, arm=arm, elbow=elbow, rounding=rounding)
         computed = _cm(r.position)
+        exact.append(r.angles)
+        sent.append(r.commanded)
         row: dict[str, Any] = {
             "no": int(no),
             "target_cm": [X, Y],
@@ -64,6 +80,16 @@ def table(*, rounding: str = "truncate", elbow: str = "down") -> dict[str, Any]:
                     "error_cm": alt.error * 100.0,
                 }
         rows.append(row)
+    if keep is not None:
+        keep(Run(robot=ROBOT, joint_names=JOINTS, source="experiment:seed004-table",
+                 lab_version=lab_version(), created=utc_now(),
+                 params={"rounding": rounding, "elbow": elbow},
+                 commands=tuple({"t": float(k), "kind": "Target", "no": row["no"],
+                                 "target_cm": row["target_cm"]} for k, row in enumerate(rows)),
+                 figures={}, t=np.arange(len(rows), dtype=float),
+                 signals={"q_cmd": np.array(exact), "q": np.array(sent)},
+                 extra={"t_is": "the row's index in Table 1 (not a time: the table has no "
+                                "time series)"}))
     return {
         "rounding": rounding,
         "elbow": elbow,
@@ -82,8 +108,8 @@ class TableOptions:
     elbow: str = option("down", "branch of the two-link solution (paper: down)", choices=ELBOWS)
 
 
-def _run(options: TableOptions) -> dict[str, Any]:
-    return table(rounding=options.rounding, elbow=options.elbow)
+def _run(options: TableOptions, *, keep: Keep | None = None) -> dict[str, Any]:
+    return table(rounding=options.rounding, elbow=options.elbow, keep=keep)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:

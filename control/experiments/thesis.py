@@ -27,10 +27,11 @@ import numpy as np
 from armlab.control.backend import Backend, Pushable
 from armlab.control.commands import Push, RunTrajectory
 from armlab.control.compliance import Laws, Mode
-from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.loop import APPROACH_MIN, ControlLoop
 from armlab.control.params import PRESETS, Law, Params, preset
-from armlab.control.response import step_report
+from armlab.control.response import simulate_ideal_joint_step, step_report
+from armlab.control.runs import Run, lab_version, run_from_snapshot, utc_now
 from armlab.control.trajectory import (
     THESIS_PERIOD,
     JointTrajectory,
@@ -52,12 +53,14 @@ DEFAULT_PUSH_N = 3.0
 
 @dataclass(frozen=True)
 class LineRun:
-    """One run of the line: the plan and the loop's recording."""
+    """One run of the line: the plan, the loop's recording and what was commanded when
+    ({"t": loop time s, "kind": the command's class, ...} in order)."""
 
     plan: JointTrajectory
     line_start: float
     line_end: float
     snapshot: dict[str, np.ndarray]
+    commands: tuple[dict[str, Any], ...] = ()
 
 
 def line_plan(model: SerialChain, *, line_period: float = THESIS_PERIOD
@@ -114,16 +117,22 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
             full, lead = approach.then(plan, name=plan.name), approach.duration
         start = loop.status.t  # a command posted now applies at the period starting now
         loop.post(RunTrajectory(full, approach=False))
+        commands = [{"t": start, "kind": "RunTrajectory", "name": full.name,
+                     "duration_s": full.duration, "line_start_s": start + lead + settle,
+                     "line_end_s": start + lead + line_end}]
         t0, t1 = start + lead + settle, start + lead + line_end
         if push_n > 0:
             _advance(loop, t0 + PUSH_DELAY_S)
-            loop.post(Push(np.array([0.0, -push_n, 0.0]), model.n - 1, model.tip[:3, 3],
-                           PUSH_S))
+            force = np.array([0.0, -push_n, 0.0])
+            loop.post(Push(force, model.n - 1, model.tip[:3, 3], PUSH_S))
+            commands.append({"t": loop.status.t, "kind": "Push", "force_n": force.tolist(),
+                             "link": model.n - 1, "point_m": model.tip[:3, 3].tolist(),
+                             "duration_s": PUSH_S})
         _advance(loop, start + full.duration + 0.05)
         status = loop.status
         if status.fault:
             raise ValueError(f"the loop stopped: {status.fault}")
-        return LineRun(full, t0, t1, loop.recorder.snapshot())
+        return LineRun(full, t0, t1, loop.recorder.snapshot(), tuple(commands))
     finally:
         if loop is not None:
             loop.shutdown()
@@ -142,9 +151,21 @@ def max_angle_error(run: LineRun, until: float | None = None) -> np.ndarray:
     return np.nanmax(np.abs(s["error"][on]), axis=0)
 
 
+def line_record(model: SerialChain, params: Params, run: LineRun, *, controller: str) -> Run:
+    """One run of the line as a run file's :class:`Run`: the loop's recorded signals at its
+    period, the gains, the trajectory and the push as commanded."""
+    return run_from_snapshot(run.snapshot, robot=model.name, joint_names=model.joint_names,
+                             source="experiment:thesis-line",
+                             params={**params.as_dict(), "controller": controller},
+                             commands=run.commands,
+                             extra={"line_start_s": run.line_start, "line_end_s": run.line_end,
+                                    "pushed": any(c["kind"] == "Push" for c in run.commands)})
+
+
 def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
                         controller: str, push_n: float, realtime: bool = False,
-                        line_period: float = THESIS_PERIOD) -> dict[str, Any]:
+                        line_period: float = THESIS_PERIOD,
+                        keep: Keep | None = None) -> dict[str, Any]:
     """The chapter-4 figures for one controller (JSON keys of issue 3's public surface).
 
     Chapter 4 judges every run by command minus actual angle per servo; that is
@@ -153,6 +174,8 @@ def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, par
     "over 15° on servo 3" is this figure). How far the push moved each joint compared
     with the free run (``max_yield_deg``) is a different quantity, reported apart.
 
+    ``keep`` is handed the free run, then the pushed one (:func:`line_record`).
+
     Returns:
         {"controller", "max_angle_error_deg" [n], "max_angle_error_pushed_deg" [n],
         "torque_error_max_nm" [n], "max_yield_deg" [n]}; the pushed figures are zeros
@@ -160,6 +183,8 @@ def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, par
     """
     free = run_line(model, backend_factory, params, controller=controller, realtime=realtime,
                     line_period=line_period)
+    if keep is not None:
+        keep(line_record(model, params, free, controller=controller))
     s = free.snapshot
     on_line = (s["t"] >= free.line_start) & (s["t"] <= free.line_end)
     err = np.degrees(max_angle_error(free))
@@ -167,6 +192,8 @@ def thesis_line_figures(model: SerialChain, backend_factory: BackendFactory, par
     if push_n > 0:
         pushed = run_line(model, backend_factory, params, controller=controller, push_n=push_n,
                           realtime=realtime, line_period=line_period)
+        if keep is not None:
+            keep(line_record(model, params, pushed, controller=controller))
         p = pushed.snapshot
         m = min(len(p["t"]), len(s["t"]))
         yield_deg = np.degrees(np.nanmax(np.abs(p["q"][:m] - s["q"][:m]), axis=0))
@@ -203,7 +230,8 @@ class LineOptions(BackendOptions):
     robot: str = option("receptionist_arm", "robot model", hidden=True)
 
 
-def _line_run(options: LineOptions, *, backend_factory: BackendFactory) -> dict[str, Any]:
+def _line_run(options: LineOptions, *, backend_factory: BackendFactory,
+              keep: Keep | None = None) -> dict[str, Any]:
     o = options
     push = o.push
     if push is None:
@@ -217,7 +245,7 @@ def _line_run(options: LineOptions, *, backend_factory: BackendFactory) -> dict[
         params = replace(params, feedforward=o.feedforward == "on")
     model = load_robot(o.robot)
     return thesis_line_figures(model, backend_factory, params, controller=o.controller,
-                               push_n=push, realtime=o.backend != "sim")
+                               push_n=push, realtime=o.backend != "sim", keep=keep)
 
 
 def _line_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -238,10 +266,21 @@ class StepOptions:
     period: float = option(1e-3, "integration period of the simulated loop, s (default 0.001)")
 
 
-def _step_run(options: StepOptions) -> dict[str, Any]:
-    if not (np.isfinite(options.period) and 0 < options.period <= 0.05):
-        raise ValueError(f"--period must be in (0, 0.05] s, got {options.period}")
-    return step_report(options.kp, options.kv, period=options.period)
+def _step_run(options: StepOptions, *, keep: Keep | None = None) -> dict[str, Any]:
+    o = options
+    if not (np.isfinite(o.period) and 0 < o.period <= 0.05):
+        raise ValueError(f"--period must be in (0, 0.05] s, got {o.period}")
+    report = step_report(o.kp, o.kv, period=o.period)
+    if keep is not None:
+        # the ideal joint's step step_report measured (the same call, deterministic)
+        t, y = simulate_ideal_joint_step(o.kp, o.kv, period=o.period)
+        keep(Run(robot="ideal_joint", joint_names=("joint",), source="experiment:step",
+                 lab_version=lab_version(), created=utc_now(),
+                 params={"kp": o.kp, "kv": o.kv, "period": o.period},
+                 commands=({"t": 0.0, "kind": "Step", "q_cmd_rad": 1.0},), figures={},
+                 t=t, signals={"q_cmd": np.ones((len(t), 1)), "q": y[:, None],
+                               "error": (1.0 - y)[:, None]}))
+    return report
 
 
 def _step_rows(result: dict[str, Any]) -> list[dict[str, Any]]:

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.experiments import BackendOptions, Experiment, option
+from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.experiments.thesis import BackendFactory, thesis_line_figures
 from armlab.control.params import PRESETS, Params, integrated_pd_matrix, servo_loop_pole
 from armlab.control.trajectory import THESIS_PERIOD
@@ -115,8 +115,9 @@ def judge(none: list[float], pd: list[float] | None,
 
 
 def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
-          only: str | None = None) -> dict[str, Any]:
-    """Run every reading (or the one named ``only``) on the simulated line.
+          only: str | None = None, keep: Keep | None = None) -> dict[str, Any]:
+    """Run every reading (or the one named ``only``) on the simulated line; ``keep`` is
+    handed every line run, in the order they ran.
 
     Returns:
         {"thesis_figures": what each "reproduces" key checks, "readings": [{"name", "kp",
@@ -145,7 +146,7 @@ def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
         if r.line_period not in none_cache:  # no controller: the gains play no part
             none_cache[r.line_period] = thesis_line_figures(
                 model, backend_factory, base, controller="none", push_n=0.0,
-                line_period=r.line_period)["max_angle_error_deg"]
+                line_period=r.line_period, keep=keep)["max_angle_error_deg"]
         row["none"] = none_cache[r.line_period]
         if radius >= 1.0:
             row["refused"] = f"the reference loop diverges (pole radius {radius:.3f})"
@@ -162,10 +163,11 @@ def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
                 try:
                     row["pd"] = thesis_line_figures(
                         model, backend_factory, params, controller="pd", push_n=0.0,
-                        line_period=r.line_period)["max_angle_error_deg"]
+                        line_period=r.line_period, keep=keep)["max_angle_error_deg"]
                     row["compliance_pushed"] = thesis_line_figures(
                         model, backend_factory, params, controller="compliance",
-                        push_n=PUSH_N, line_period=r.line_period)["max_angle_error_pushed_deg"]
+                        push_n=PUSH_N, line_period=r.line_period,
+                        keep=keep)["max_angle_error_pushed_deg"]
                 except ValueError as exc:  # the loop stopped on a fault
                     row["refused"] = str(exc)
         row["reproduces"] = judge(row["none"], row["pd"], row["compliance_pushed"])
@@ -183,8 +185,9 @@ class ReadingOptions(BackendOptions):
     robot: str = option("receptionist_arm", "robot model", hidden=True)
 
 
-def _run(options: ReadingOptions, *, backend_factory: BackendFactory) -> dict[str, Any]:
-    return study(backend_factory, robot=options.robot, only=options.reading)
+def _run(options: ReadingOptions, *, backend_factory: BackendFactory,
+         keep: Keep | None = None) -> dict[str, Any]:
+    return study(backend_factory, robot=options.robot, only=options.reading, keep=keep)
 
 
 def _rows(result: dict[str, Any]) -> list[dict[str, Any]]:

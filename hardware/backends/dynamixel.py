@@ -20,12 +20,11 @@ finding the servos, limits, E-STOP, reconnect), with protocol 1.0's own:
 from __future__ import annotations
 
 import logging
-import time
 
 import numpy as np
 
 from armlab.control.backend import BackendError, JointState
-from armlab.hardware.backends.servo_bus import SAFE_SPEED, ServoBusBackend
+from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.servos.control_table import (
     THESIS_COMPLIANCE_MARGIN,
     THESIS_COMPLIANCE_SLOPE,
@@ -63,8 +62,9 @@ class DynamixelBackend(ServoBusBackend):
         self._present = [slice(i.address - self._present_at, i.address - self._present_at + i.size)
                          for i in present]
         self._torque_limit = item("torque_limit")
-        self._goal = item("goal_position")  # followed by moving_speed: one 4-byte write
-        self._goal_size = self._goal.size + item("moving_speed").size
+        # goal_position followed by moving_speed: one 4-byte write
+        self._goal_at = item("goal_position").address
+        self._goal_len = item("goal_position").size + item("moving_speed").size
         self._torque_limit_raw = self.spec.torque_limit_to_raw(
             self.torque_limit * self.spec.stall_torque)
 
@@ -91,56 +91,26 @@ class DynamixelBackend(ServoBusBackend):
                 self._shutdown[k] = True
                 log.warning("joint %s (servo %d): %s; its torque is off", j.name, j.servo_id,
                             p1.describe_errors(err))
-        signs = self.map.signs
-        return JointState(
-            t=time.monotonic() - self._t0,
-            position=self.map.to_joint(pos),
-            velocity=signs * vel,
-            load=signs * load,
-            errors=tuple(errors),
-            torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
-            alarms=tuple(p1.error_names(e) for e in errors),
-        )
+        return self._joint_state(
+            pos, vel, load, errors, [p1.error_names(e) for e in errors],
+            torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown))
 
-    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
-        """Clamp goals into the limits and send them with the speeds in one SYNC_WRITE."""
-        q, v = self.checked_goal(position, speed)
-        raw_goal, raw_speed = self.goal_words(q, v)
-        data = sync_data({j.servo_id: (g, sp) for j, g, sp in
-                          zip(self.map.joints, raw_goal, raw_speed, strict=True)}, (2, 2))
-        self._guard(self.bus.sync_write, self._goal.address, self._goal_size, data)
+    def _goal_bytes(self, goal: int, speed: int) -> bytes:
+        """Goal Position and Moving Speed as the SYNC_WRITE's 2 + 2 bytes."""
+        return sync_data({0: (goal, speed)}, (2, 2))[0]
 
     def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
         """Raw goal positions and moving speeds for joint goals: clamped into
         [lower, upper], then into each servo's CW..CCW limits (never outside)."""
-        q = np.clip(position, self._lower, self._upper)
-        a = self.map.to_servo(q)
-        goals = [min(max(self.spec.position_to_raw(x), lo), hi)
-                 for x, lo, hi in zip(a, self._cw, self._ccw, strict=True)]
-        speeds = [self.spec.speed_to_raw(abs(x)) for x in speed]
-        return goals, speeds
+        goals = self._goal_positions(position)
+        return goals, [self.spec.speed_to_raw(abs(x)) for x in speed]
 
-    def set_torque(self, on: bool) -> None:
-        """Torque on or off. A servo whose torque was off first gets its present position
-        (clamped into the limits) as goal at ``SAFE_SPEED``, so nothing jumps; the torque
-        limit is written again (the recovery from an overload shutdown)."""
-        ids = self.map.ids
-        if on:
-            # an overload shutdown zeroed the torque limit: restoring it is the recovery
-            limit = p1.word(self._torque_limit_raw)
-            self._guard(self.bus.sync_write, self._torque_limit.address, self._torque_limit.size,
-                        {i: limit for i in ids})
-            off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
-            if off:  # only servos without torque get a new goal (holding ones keep theirs)
-                here = self.read().position
-                goals, speeds = self.goal_words(here, np.full(self.n, SAFE_SPEED))
-                self._guard(self.bus.sync_write, self._goal.address, self._goal_size, sync_data(
-                    {ids[k]: (goals[k], speeds[k]) for k in off}, (2, 2)))
-            self._sync_torque(ids, 1)
-            self._shutdown[:] = False
-        else:
-            self._sync_torque(ids, 0)
-        self._torque = bool(on)
+    def _before_torque_on(self) -> None:
+        """The torque limit written again: an overload shutdown zeroed it, and restoring it
+        is the recovery."""
+        limit = p1.word(self._torque_limit_raw)
+        self._guard(self.bus.sync_write, self._torque_limit.address, self._torque_limit.size,
+                    {i: limit for i in self.map.ids})
 
     # -- set-up -------------------------------------------------------------
 
@@ -166,12 +136,7 @@ class DynamixelBackend(ServoBusBackend):
         for j in self.map.joints:
             i = j.servo_id
             for name, value, text in steps:
-                item = self.table.item(name)
-                if item.area == "EEPROM" and self._guard(self.bus.read, i, name) == value:
-                    line = f"servo {i} ({j.name}): {text} (already set)"
-                else:
-                    self._write_setting(i, name, value)
-                    line = f"servo {i} ({j.name}): {text}"
+                line = self._setting(i, j.name, name, value, text)
                 log.info(line)
                 lines.append(line)
         self._switch_baud(from_baud, lines)

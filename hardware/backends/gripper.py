@@ -26,6 +26,16 @@ gripper in open_manipulator_libs, 2 × 32.2 g, taken as the moving fingers), on 
 the servo's own rotor; the fingers stop at the ends of their travel (a finger closing
 on nothing reaches its limit). Their weight along the travel is neglected (0.6 N of
 fingers, 7 mN·m at the horn, well under the gear friction).
+
+**The SO-101's jaw** (:func:`so101_gripper`): its STS3215 (ID 6) turns the moving jaw
+directly, the URDF's revolute ``gripper`` joint (rad, -10°..100°), so the "finger" is that
+joint's angle and the horn turns with it (closed at the joint's lower limit, open at its
+upper, the horn's centre at the joint's zero). The servo has no current mode: the grip is
+bounded by its Torque Limit (:data:`SO101_GRIPPER_TORQUE_LIMIT`, half of the maximum,
+LeRobot's ``Max_Torque_Limit`` 500 for the SO-101's gripper, ``so_follower.py``), and the
+force is the horn's torque over the jaw's lever (:data:`SO101_JAW_LEVER`, an *estimate*
+from the URDF: the jaw's tip some 7 cm from its axis). The jaw's load on the servo is
+its inertia about the axis, :data:`SO101_JAW_INERTIA` (an *estimate*: 30 g at 5 cm).
 """
 
 from __future__ import annotations
@@ -37,16 +47,19 @@ from pathlib import Path
 import numpy as np
 
 from armlab.control.backend import GripperState
+from armlab.hardware.servos.sts import StsSpec
 from armlab.hardware.servos.xseries import (
     CURRENT_POSITION_D_GAIN,
     VELOCITY_UNIT,
     XSpec,
     x_table_for,
 )
+from armlab.hardware.sim.dynamixel_servo import ServoParams
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.sts_servo import StsRegisters
 from armlab.hardware.sim.xseries_servo import XRegisters
 from armlab.hardware.wire import protocol2 as p2
-from armlab.kinematics.model import Joint, Link, SerialChain, joint_limits
+from armlab.kinematics.model import Joint, Link, SerialChain, joint_kind, joint_limits
 
 #: The OpenManipulator-X's finger joint in its URDF.
 OMX_FINGER_JOINT = "gripper_left_joint"
@@ -60,6 +73,14 @@ GRIPPER_CURRENT = 100 * 2.69e-3
 #: Velocity counts (0.229 rpm) its goals are sent with.
 GRIPPER_SPEED = 2.5
 GRIPPER_PROFILE_VELOCITY = round(GRIPPER_SPEED / VELOCITY_UNIT)
+#: The SO-101's jaw joint in its URDF (revolute, rad).
+SO101_JAW_JOINT = "gripper"
+#: m from the jaw's axis to where it presses (estimate, see above).
+SO101_JAW_LEVER = 0.07
+#: kg·m², the jaw about its axis (estimate: 30 g at 5 cm).
+SO101_JAW_INERTIA = 0.030 * 0.05 ** 2
+#: fraction of the maximum torque the SO-101's gripper servo may use (LeRobot's 500 of 1000).
+SO101_GRIPPER_TORQUE_LIMIT = 0.5
 
 
 @dataclass(frozen=True)
@@ -71,6 +92,12 @@ class GripperServo:
         joint: the URDF's finger joint it drives (prismatic, m).
         lower, upper: m, the finger's range (closed, open): the URDF's limits.
         closed_angle, open_angle: rad from the horn's centre at ``lower`` and ``upper``.
+        lever: m from a revolute jaw's axis to where it presses (the SO-101's), or None
+            for fingers that slide (the OpenManipulator-X's, two of them).
+        inertia: kg·m² of the load at the horn (None: :func:`reflected_inertia` of the
+            OpenManipulator-X's fingers).
+        revolute: whether the URDF's finger joint turns (a jaw: rad, the SO-101's) rather
+            than slides (m, the OpenManipulator-X's); ``lower``/``upper`` are in its units.
     """
 
     servo_id: int
@@ -79,6 +106,9 @@ class GripperServo:
     upper: float
     closed_angle: float
     open_angle: float
+    lever: float | None = None
+    inertia: float | None = None
+    revolute: bool = False
 
     def __post_init__(self) -> None:
         who = f"gripper servo ID {self.servo_id} ({self.joint})"
@@ -118,8 +148,11 @@ class GripperServo:
         return tuple(sorted((self.closed_angle, self.open_angle)))  # type: ignore[return-value]
 
     def finger_force(self, torque: float) -> float:
-        """Horn torque (N·m) -> the force each of the two fingers presses with (N), by
-        virtual work: tau · da = 2 F · dx, so F = tau / (2 |dx/da|)."""
+        """Horn torque (N·m) -> the force a finger presses with (N): a revolute jaw's
+        torque over its lever (the jaw turns with the horn, :attr:`ratio` 1); sliding
+        fingers by virtual work, tau · da = 2 F · dx, so F = tau / (2 |dx/da|)."""
+        if self.lever is not None:
+            return float(torque) / abs(self.ratio) / self.lever
         return float(torque) / (2.0 * abs(self.ratio))
 
 
@@ -131,12 +164,85 @@ def open_manipulator_gripper(urdf_path: str | Path, *, servo_id: int = 15) -> Gr
     """
     lower, upper = joint_limits(urdf_path, OMX_FINGER_JOINT)
     return GripperServo(servo_id, OMX_FINGER_JOINT, lower, upper, OMX_CLOSED_ANGLE,
-                        OMX_OPEN_ANGLE)
+                        OMX_OPEN_ANGLE, revolute=is_revolute(urdf_path, OMX_FINGER_JOINT))
+
+
+def so101_gripper(urdf_path: str | Path, *, servo_id: int = 6) -> GripperServo:
+    """The SO-101's jaw servo (ID 6 in LeRobot's order), its range the URDF's ``gripper``
+    joint, the horn turning with the jaw (see the module's docstring).
+
+    Raises:
+        armlab.kinematics.model.URDFError: the file has no ``gripper`` joint with limits.
+    """
+    lower, upper = joint_limits(urdf_path, SO101_JAW_JOINT)
+    return GripperServo(servo_id, SO101_JAW_JOINT, lower, upper, lower, upper,
+                        lever=SO101_JAW_LEVER, inertia=SO101_JAW_INERTIA,
+                        revolute=is_revolute(urdf_path, SO101_JAW_JOINT))
+
+
+def is_revolute(urdf_path: str | Path, joint: str) -> bool:
+    """Whether the URDF's finger ``joint`` turns (revolute or continuous, rad) rather than
+    slides (prismatic, m)."""
+    return joint_kind(urdf_path, joint) != "prismatic"
+
+
+def grip_note(spec: XSpec | StsSpec) -> str:
+    """How a gripper's servo of datasheet ``spec`` holds the finger and bounds its grip, in
+    a person's words (the lesson's Teach tab): an X-series servo in current-based position
+    control with a Goal Current; a Feetech STS (no current mode) in position control held
+    to a Torque Limit."""
+    if isinstance(spec, StsSpec):
+        return (f"its own servo (a Feetech {spec.name}), in position control held to a "
+                f"Torque Limit ({SO101_GRIPPER_TORQUE_LIMIT:.0%} of its maximum, as LeRobot "
+                "sets the SO-101's gripper): the STS has no current mode, so the Torque "
+                "Limit bounds the horn's torque whatever the position error, and a jaw "
+                "closing on an object presses with a bounded force (shown under the "
+                "buttons, an estimate from the jaw's lever) and never crushes it; closing "
+                "on nothing it reaches its limit.")
+    return (f"its own servo (a {spec.name}), in current-based position control (operating "
+            "mode 5): Goal Current bounds the horn's torque, so fingers closing on an "
+            "object press with a bounded force (shown under the buttons) and never crush "
+            "it; closing on nothing they reach their limit.")
+
+
+class GripperHolder:
+    """What a backend with an arm's gripper servo (:attr:`gripper`, None without one) says
+    of it (``armlab.control.backend.Gripping``), whether the servos are on a bus or
+    simulated; the backend holds its servos' datasheet as ``spec``."""
+
+    gripper: GripperServo | None
+    spec: object
+
+    @property
+    def gripper_range(self) -> tuple[float, float] | None:
+        """(closed, open) of the gripper's finger (the URDF joint's units: m, or rad for a
+        revolute jaw), or None without a gripper servo."""
+        return None if self.gripper is None else (self.gripper.lower, self.gripper.upper)
+
+    @property
+    def gripper_revolute(self) -> bool:
+        """Whether the gripper's finger joint turns (a jaw, rad) rather than slides (m)."""
+        return self.gripper is not None and self.gripper.revolute
+
+    @property
+    def gripper_note(self) -> str:
+        """How the gripper's servo holds the finger and bounds its grip ("" without one)."""
+        return "" if self.gripper is None else grip_note(self.spec)  # type: ignore[arg-type]
+
+    def _gripper_goal_raw(self, position: float) -> tuple[float, int]:
+        """The finger's goal ``position`` clamped into its range (ValueError for a
+        non-finite one) and its servo's raw Goal Position for it."""
+        assert self.gripper is not None
+        x = self.gripper.clamp(position)
+        return x, self.spec.position_to_raw(self.gripper.to_servo(x))  # type: ignore[attr-defined]
 
 
 def reflected_inertia(gripper: GripperServo, *, mass: float = FINGERS_MASS) -> float:
     """kg·m² the fingers add at the horn: their kinetic energy ½ m ẋ² with ẋ = (dx/da) ȧ
-    is that of an inertia m (dx/da)² turning at ȧ."""
+    is that of an inertia m (dx/da)² turning at ȧ; a gripper's own :attr:`~GripperServo.
+    inertia` where it states one."""
+    if gripper.inertia is not None:
+        return gripper.inertia
     return mass * gripper.ratio ** 2
 
 
@@ -152,12 +258,14 @@ def gripper_chain(gripper: GripperServo) -> SerialChain:
                        base_pose=np.eye(4), tip=np.eye(4), gravity=np.array([0.0, 0.0, -9.81]))
 
 
-def gripper_plant(gripper: GripperServo, spec: XSpec, *, dt: float = 1e-3,
-                  registers: XRegisters | None = None) -> Plant:
-    """The gripper's servo firmware moving its load (:func:`gripper_chain`), horn at its
-    centre, the fingers' ends as the plant's joint stops. ``registers``: the servo's
-    (default: its power-on values, as an emulated servo starts)."""
-    return Plant(gripper_chain(gripper), spec, dt=dt,
+def gripper_plant(gripper: GripperServo, spec: XSpec | StsSpec, *, dt: float = 1e-3,
+                  registers: XRegisters | StsRegisters | None = None,
+                  params: ServoParams | None = None) -> Plant:
+    """The gripper's servo firmware (its family's) moving its load (:func:`gripper_chain`),
+    horn at its centre, the fingers' ends as the plant's joint stops. ``registers``: the
+    servo's (default: its power-on values, as an emulated servo starts); ``params``: its
+    physical constants and supply."""
+    return Plant(gripper_chain(gripper), spec, dt=dt, params=params,
                  registers=None if registers is None else [registers])
 
 
@@ -176,11 +284,18 @@ def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:
 
 def decode_gripper(gripper: GripperServo, spec: XSpec, *, position: int, velocity: int,
                    current: int, torque_on: bool, alarm: str = "") -> GripperState:
-    """The gripper servo's raw Present Position, Velocity and Current as the finger's
-    position m, speed m/s, the horn's torque N·m and the force of each finger N."""
-    effort = spec.raw_to_torque(current)
-    return GripperState(joint=gripper.joint,
-                        position=gripper.to_finger(spec.raw_to_position(position)),
-                        velocity=gripper.ratio * spec.raw_to_velocity(velocity),
-                        effort=effort, force=gripper.finger_force(effort),
-                        torque_on=torque_on, alarm=alarm)
+    """An X-series gripper servo's raw Present Position, Velocity and Current as the
+    finger's state (:func:`gripper_state`)."""
+    return gripper_state(gripper, angle=spec.raw_to_position(position),
+                         speed=spec.raw_to_velocity(velocity),
+                         torque=spec.raw_to_torque(current), torque_on=torque_on, alarm=alarm)
+
+
+def gripper_state(gripper: GripperServo, *, angle: float, speed: float, torque: float,
+                  torque_on: bool, alarm: str = "") -> GripperState:
+    """The horn's angle rad, speed rad/s and torque N·m as the finger's position and speed
+    (the URDF joint's units: m on the OpenManipulator-X, rad on the SO-101), the horn's
+    torque and the force a finger presses with, N."""
+    return GripperState(joint=gripper.joint, position=gripper.to_finger(angle),
+                        velocity=gripper.ratio * speed, effort=torque,
+                        force=gripper.finger_force(torque), torque_on=torque_on, alarm=alarm)

@@ -21,8 +21,8 @@ that answer; ``protocol`` and ``baud`` record what they answered with)::
     lower_deg = -150
     upper_deg = 150
 
-An arm whose gripper has its own X-series servo (the OpenManipulator-X's ID 15) names
-it in a ``[gripper]`` table: its ``id``, the URDF's finger ``joint`` (its limits are the
+An arm whose gripper has its own servo (the OpenManipulator-X's ID 15, the SO-101's ID
+6) names it in a ``[gripper]`` table: its ``id``, the URDF's finger ``joint`` (its limits are the
 gripper's range) and the horn angles at the finger's closed and open ends
 (``closed_deg``, ``open_deg``; the OpenManipulator-X's are known, see
 :mod:`armlab.hardware.backends.gripper`)::
@@ -44,7 +44,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from armlab.hardware.backends.gripper import GripperServo, open_manipulator_gripper
+from armlab.hardware.backends.gripper import (
+    GripperServo,
+    is_revolute,
+    open_manipulator_gripper,
+    so101_gripper,
+)
 from armlab.hardware.families import FAMILIES, ServoFamily, family, family_of_model
 from armlab.hardware.families import servo_table as _family_table
 from armlab.hardware.servos.control_table import ControlTable
@@ -69,15 +74,24 @@ THESIS_RIGHT_ARM_IDS = (2, 4, 6)
 #: and the SO-101 (STS3215, IDs 1..5 in LeRobot's ``so_follower.py`` order).
 ROBOT_SERVOS = {"receptionist_arm": ("RX-24F", THESIS_LEFT_ARM_IDS),
                 "open_manipulator_x": ("XM430-W350", (11, 12, 13, 14)),
-                # LeRobot's SO-101 follower: shoulder_pan 1 .. wrist_roll 5 (its gripper,
-                # ID 6, is not driven by the lab yet)
+                # LeRobot's SO-101 follower: shoulder_pan 1 .. wrist_roll 5 (its gripper's
+                # servo, ID 6, is in ROBOT_GRIPPERS)
                 "so101": ("STS3215", (1, 2, 3, 4, 5))}
 #: Robot -> the supply its servos run from, V, where it is not their datasheet's: the
 #: SO-101's 7.4 V STS3215s on the kit's 5 V supply (TheRobotStudio SO-ARM100 README).
 ROBOT_SUPPLY = {"so101": 5.0}
 #: Robot -> its gripper's servo (ID, finger joint and horn angles; the range comes from
-#: the URDF): the OpenManipulator-X's ID 15 (:mod:`armlab.hardware.backends.gripper`).
-ROBOT_GRIPPERS = {"open_manipulator_x": open_manipulator_gripper}
+#: the URDF): the OpenManipulator-X's ID 15, the SO-101's ID 6
+#: (:mod:`armlab.hardware.backends.gripper`).
+ROBOT_GRIPPERS = {"open_manipulator_x": open_manipulator_gripper, "so101": so101_gripper}
+
+
+def drives_gripper(spec: object) -> bool:
+    """Whether the lab can drive a gripper with a servo of datasheet ``spec``: an X-series
+    servo in current-based position control (Goal Current bounds the grip), or a Feetech
+    STS held to a Torque Limit (it has no current mode)."""
+    return (OperatingMode.CURRENT_BASED_POSITION in getattr(spec, "modes", ())
+            or isinstance(spec, StsSpec))
 
 
 def servo_table(model: str | int) -> ControlTable:
@@ -115,8 +129,8 @@ class JointMap:
         servo: model name every servo must be ("RX-24F", "AX-12A", or an X-series model:
             their protocol is :attr:`protocol`).
         joints: one :class:`JointServo` per joint.
-        gripper: the gripper's servo, or None (the same model; X-series with current-based
-            position control only).
+        gripper: the gripper's servo, or None (the same model, one that
+            :func:`drives_gripper`).
     """
 
     servo: str
@@ -128,10 +142,11 @@ class JointMap:
         ids = [j.servo_id for j in self.joints]
         if self.gripper is not None:
             ids.append(self.gripper.servo_id)
-            if OperatingMode.CURRENT_BASED_POSITION not in getattr(spec, "modes", ()):
+            if not drives_gripper(spec):
                 raise ValueError(
                     f"joint map: the gripper's servo (ID {self.gripper.servo_id}) needs "
-                    f"current-based position control, which the {self.servo} lacks")
+                    "current-based position control (X-series) or a torque limit the lab "
+                    f"holds it to (Feetech STS), which the {self.servo} lacks")
         if len(set(ids)) != len(ids):
             raise ValueError(f"joint map: duplicate servo IDs in {ids}")
         for j in self.joints:
@@ -228,7 +243,7 @@ def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = Non
     half = spec.position_range / 2
     gripper = None
     if (model.name in ROBOT_GRIPPERS and model.urdf_path is not None
-            and OperatingMode.CURRENT_BASED_POSITION in getattr(spec, "modes", ())):
+            and drives_gripper(spec)):
         gripper = ROBOT_GRIPPERS[model.name](model.urdf_path)
         if given:
             after = max(ids) + 1
@@ -340,7 +355,12 @@ def _gripper_entry(entry: object, model: SerialChain | Quadruped,
         else:
             raise ValueError(f"[gripper] needs '{key}', the horn angle at the finger's "
                              f"{key.split('_')[0]} end")
-    return GripperServo(int(entry["id"]), str(joint), lower, upper, **angles)
+    # the robot's own gripper keeps its jaw's lever and load (the SO-101's)
+    same = shipped is not None and shipped.joint == joint
+    return GripperServo(int(entry["id"]), str(joint), lower, upper, **angles,
+                        lever=shipped.lever if same else None,  # type: ignore[union-attr]
+                        inertia=shipped.inertia if same else None,  # type: ignore[union-attr]
+                        revolute=is_revolute(model.urdf_path, str(joint)))
 
 
 def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) -> str:
@@ -392,7 +412,7 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                 f"{len(names)} joints ({', '.join(names)}) but {len(servos)} servos answered")
     bauds = {f.baud for f in servos}
     lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe.",
-             f'servo = "{servos[0].model}"', f"protocol = {_toml_protocol(servos[0].protocol)}",
+             f'servo = "{servos[0].model}"', f"protocol = {toml_protocol(servos[0].protocol)}",
              f"baud = {int(min(bauds))}", ""]
     for i, (name, f) in enumerate(zip(names, servos, strict=True)):
         wheel = f.cw_limit == f.ccw_limit == 0
@@ -413,13 +433,18 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
             lines += [f"lower_deg = {lo:.3f}", f"upper_deg = {hi:.3f}"]
         lines.append("")
     if gripper is not None:
-        lines += [f"# the gripper's servo: its range is the URDF's {gripper.joint} limits",
-                  "[gripper]", f"id = {gripper.servo_id}", f'joint = "{gripper.joint}"',
-                  f"closed_deg = {math.degrees(gripper.closed_angle):.4f}",
-                  f"open_deg = {math.degrees(gripper.open_angle):.4f}", ""]
+        lines += gripper_toml(gripper)
     return "\n".join(lines)
 
 
-def _toml_protocol(protocol: int | str) -> str:
+def gripper_toml(gripper: GripperServo) -> list[str]:
+    """The lines of a map's ``[gripper]`` table for ``gripper`` (angles in degrees)."""
+    return [f"# the gripper's servo: its range is the URDF's {gripper.joint} limits",
+            "[gripper]", f"id = {gripper.servo_id}", f'joint = "{gripper.joint}"',
+            f"closed_deg = {math.degrees(gripper.closed_angle):.4f}",
+            f"open_deg = {math.degrees(gripper.open_angle):.4f}", ""]
+
+
+def toml_protocol(protocol: int | str) -> str:
     """A family's protocol tag as a joint map writes it: 1.0, 2.0 or "sts"."""
     return f"{protocol}.0" if isinstance(protocol, int) else f'"{protocol}"'

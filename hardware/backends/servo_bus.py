@@ -5,10 +5,14 @@ depend on the servos' protocol or control table: opening the bus and finding eve
 servo (PING, model; the other protocol named when nothing answers), the joint map, the
 joint limits narrowed to the servos' own, the wall-clock ``sync``, E-STOP (broadcast
 torque off, also tried whenever the link fails), reconnecting after a lost link and
-switching the servos' baud. Each protocol's backend adds how it reads, writes,
-switches torque and configures the servos:
-:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend` (protocol 1.0) and
-:class:`~armlab.hardware.backends.xseries.XSeriesBackend` (X-series, protocol 2.0).
+switching the servos' baud, an arm's gripper servo (found with the joints', its goal
+clamped into the gripper's range), goals clamped into the servos' own limits and sent in
+one SYNC_WRITE, and torque on without a jump (each servo without torque first gets its
+present position as goal). Each family's backend adds how it reads, lays out its goals,
+brings its servos back at torque on and configures them:
+:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend` (protocol 1.0),
+:class:`~armlab.hardware.backends.xseries.XSeriesBackend` (X-series, protocol 2.0) and
+:class:`~armlab.hardware.backends.sts.StsBackend` (Feetech STS, the SO-101's).
 """
 
 from __future__ import annotations
@@ -17,12 +21,14 @@ import contextlib
 import logging
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from armlab.control.backend import BackendError, GoalLimits, JointState
+from armlab.control.backend import BackendError, GoalLimits, GripperState, JointState
+from armlab.hardware.backends.gripper import GripperHolder
 from armlab.hardware.backends.joint_map import (
     JointMap,
     default_joint_map,
@@ -41,8 +47,8 @@ THESIS_STATUS_RETURN_LEVEL = 1
 SAFE_SPEED = 1.0
 
 
-class ServoBusBackend(GoalLimits, ABC):
-    """A :class:`~armlab.control.backend.Backend` on Dynamixel servos of one protocol.
+class ServoBusBackend(GoalLimits, GripperHolder, ABC):
+    """A :class:`~armlab.control.backend.Backend` on servos of one family.
 
     Args:
         model: the robot model (joint order, joint limits).
@@ -62,8 +68,8 @@ class ServoBusBackend(GoalLimits, ABC):
             (the bus's :class:`~armlab.hardware.wire.bus.BusError` translated, kept as its cause).
     """
 
-    #: the protocol of the servos this backend drives
-    PROTOCOL: ClassVar[int]
+    #: the protocol of the servos this backend drives (its family's tag)
+    PROTOCOL: ClassVar[int | str]
     _cw: list[int]  #: each servo's raw lower position limit (from :meth:`_limits`)
     _ccw: list[int]  #: each servo's raw upper position limit
 
@@ -84,13 +90,18 @@ class ServoBusBackend(GoalLimits, ABC):
         self.map = joint_map or default_joint_map(model)
         if self.map.protocol != self.PROTOCOL:
             raise ValueError(
-                f"the {self.map.servo} speaks protocol {self.map.protocol}.0: open it with "
+                f"the {self.map.servo} speaks protocol {self.map.family.label}: open it with "
                 "armlab.hardware.backends.xseries.open_servo_backend(), which picks the backend")
         self.table: ControlTable = servo_table(self.map.servo)
         self.spec = self.table.spec
         self._baud_value(baud)  # ValueError for a rate the servos cannot take
         self.baud = float(baud)
         self.torque_limit = float(torque_limit)
+        self.gripper = self.map.gripper
+        #: every servo on the bus: the joints', then the gripper's
+        self._ids = self.map.ids + ((self.gripper.servo_id,) if self.gripper else ())
+        self._gripper_goal: int | None = None  #: raw goal position, sent with every write
+        self._gripper_alarm = ""  #: the gripper servo's alarm ("" = healthy)
         self._layout()
         self.status_return_level_setting = int(status_return_level)
         self.configuration: list[str] = []
@@ -187,8 +198,52 @@ class ServoBusBackend(GoalLimits, ABC):
     def senses_current(self) -> bool:
         """Whether the servos measure their motor current
         (``armlab.control.backend.CurrentSensing``):
-        X-series with a current sensor; protocol-1.0 servos report a load estimate."""
+        X-series with a current sensor and Feetech STS; protocol-1.0 servos report a load
+        estimate."""
         return bool(getattr(self.spec, "has_current", False))
+
+    def set_gripper(self, position: float) -> float:
+        """Hold the gripper's finger at ``position``, clamped into its range (a goal
+        beyond it is never sent), from the next :meth:`write` on; returns the clamped goal.
+
+        Raises:
+            ValueError: a non-finite position, or no gripper servo in the map.
+        """
+        if self.gripper is None:
+            raise ValueError("this arm's joint map names no gripper servo")
+        x, self._gripper_goal = self._gripper_goal_raw(position)
+        return x
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Clamp goals into the limits; send them with their speeds in one SYNC_WRITE (the
+        gripper's goal with them, :meth:`_send_goals`)."""
+        q, v = self.checked_goal(position, speed)
+        goals, speeds = self.goal_words(q, v)
+        self._send_goals({j.servo_id: (g, sp)
+                          for j, g, sp in zip(self.map.joints, goals, speeds, strict=True)})
+
+    def set_torque(self, on: bool) -> None:
+        """Torque on or off, the gripper's with the joints'. On: first what the family does
+        to bring its servos back (:meth:`_before_torque_on`); then a servo whose torque was
+        off gets its present position (clamped) as goal at ``SAFE_SPEED``, so nothing
+        jumps (the gripper's finger stays where it is)."""
+        if on:
+            self._before_torque_on()
+            off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
+            grip = self.gripper is not None and (not self._torque or bool(self._gripper_alarm))
+            if off or grip:
+                state = self.read()
+                goals, speeds = self.goal_words(state.position, np.full(self.n, SAFE_SPEED))
+                if grip and state.gripper is not None:  # the finger stays where it is
+                    self.set_gripper(state.gripper.position)
+                ids = self.map.ids
+                self._send_goals({ids[k]: (goals[k], speeds[k]) for k in off})
+            self._sync_torque(self._ids, 1)
+            self._shutdown[:] = False
+            self._gripper_alarm = ""
+        else:
+            self._sync_torque(self._ids, 0)
+        self._torque = bool(on)
 
     def close(self) -> None:
         if not self._closed:
@@ -211,7 +266,7 @@ class ServoBusBackend(GoalLimits, ABC):
             self.bus.close()
         self._open(port, self.baud, configure=True)
         try:
-            self._sync_torque(self.map.ids, 0)
+            self._sync_torque(self._ids, 0)
         except BackendError:
             self.bus.close()
             raise
@@ -241,14 +296,28 @@ class ServoBusBackend(GoalLimits, ABC):
             log.info(lines[-1])
 
     def _named_servos(self) -> list[tuple[int, str]]:
-        """(ID, name for the log) of every servo on the bus: one per joint."""
-        return [(j.servo_id, j.name) for j in self.map.joints]
+        """(ID, name for the log) of every servo on the bus: the joints', the gripper's."""
+        grip = self.gripper
+        return [(j.servo_id, j.name) for j in self.map.joints] + (
+            [(grip.servo_id, f"gripper {grip.joint}")] if grip is not None else [])
 
     def _write_setting(self, servo_id: int, name: str, value: int) -> None:
         self._guard(self.bus.write, servo_id, name, value)
 
+    def _setting(self, servo_id: int, who: str, name: str, value: int, text: str) -> str:
+        """Write item ``name`` of servo ``servo_id`` (``who``: its name for the log) unless
+        it is an EEPROM item that already holds ``value`` (EEPROM wears); the line for the
+        log, ``text`` said of the servo."""
+        if (self.table.item(name).area == "EEPROM"
+                and self._guard(self.bus.read, servo_id, name) == value):
+            return f"servo {servo_id} ({who}): {text} (already set)"
+        self._write_setting(servo_id, name, value)
+        return f"servo {servo_id} ({who}): {text}"
+
     def _find_servos(self) -> None:
-        """PING every mapped servo and check its model; read its return delay.
+        """PING every mapped servo (the joints', then the gripper's: one that does not
+        answer, or is of another model, is named) and check its model; read how it answers
+        (:meth:`_read_replies`).
 
         When the first servo does not answer, the servos may speak the other protocol (a
         joint map naming the wrong servo family): :meth:`_wrong_protocol` asks, and names
@@ -261,7 +330,28 @@ class ServoBusBackend(GoalLimits, ABC):
                 wrong = self._wrong_protocol() if k == 0 and isinstance(exc, NoReply) else None
                 raise BackendError(wrong or f"joint {j.name}: {exc}") from exc
             self.bus.identify(j.servo_id, expect=self.map.servo)
-            self.bus.return_delay[j.servo_id] = self.bus.read(j.servo_id, "return_delay_time")
+            self._read_replies(j.servo_id)
+        g = self.gripper
+        if g is None:
+            return
+        try:
+            self.bus.ping(g.servo_id)
+            self.bus.identify(g.servo_id, expect=self.map.servo)
+        except BusError as exc:
+            raise BackendError(
+                f"the gripper's servo (ID {g.servo_id}, {g.joint}) on {self.bus.port}: {exc}; "
+                f"check its cable and ID (armlab scan --port {self.bus.port} lists what "
+                "answers), or remove [gripper] from the joint map") from exc
+        self._read_replies(g.servo_id)
+
+    def _read_replies(self, servo_id: int) -> None:
+        """Read how servo ``servo_id`` answers, for the bus: its return delay (how long to
+        wait) and its status return level (an earlier session may have left it answering
+        PING and READ only, so the bus must not wait for its answer to a write: the
+        level is kept in EEPROM on protocol 1.0 and STS servos, in RAM until power-off on
+        X-series)."""
+        self.bus.return_delay[servo_id] = self.bus.read(servo_id, "return_delay_time")
+        self.bus.status_return_level[servo_id] = self.bus.read(servo_id, "status_return_level")
 
     def _wrong_protocol(self) -> str | None:
         """The message for servos that answer the other protocol at this baud (None when
@@ -292,6 +382,41 @@ class ServoBusBackend(GoalLimits, ABC):
                                "servos' angle limits do not overlap")
         return lower, upper
 
+    def _goal_positions(self, position: np.ndarray) -> list[int]:
+        """Raw goal positions for joint goals: clamped into [lower, upper], then into each
+        servo's own position limits (never outside)."""
+        q = np.clip(position, self._lower, self._upper)
+        a = self.map.to_servo(q)
+        return [min(max(self.spec.position_to_raw(x), lo), hi)
+                for x, lo, hi in zip(a, self._cw, self._ccw, strict=True)]
+
+    def _send_goals(self, words: dict[int, tuple[int, int]]) -> None:
+        """One SYNC_WRITE of raw (goal position, speed) per servo ID, each as the family's
+        bytes (:meth:`_goal_bytes`), the gripper's goal after them once one was set
+        (:meth:`_gripper_words`)."""
+        if self.gripper is not None and self._gripper_goal is not None:
+            words = words | {self.gripper.servo_id: self._gripper_words(self._gripper_goal)}
+        self._guard(self.bus.sync_write, self._goal_at, self._goal_len,
+                    {i: self._goal_bytes(g, sp) for i, (g, sp) in words.items()})
+
+    def _joint_state(self, pos: Sequence[float], vel: Sequence[float],
+                     load: Sequence[float], errors: Sequence[int], alarms: Sequence[str], *,
+                     torque_on: tuple[bool, ...],
+                     gripper: GripperState | None = None) -> JointState:
+        """The servos' decoded readings (servo side, one per joint) as the joints' state,
+        timed from the backend's opening."""
+        signs = self.map.signs
+        return JointState(
+            t=time.monotonic() - self._t0,
+            position=self.map.to_joint(np.array(pos)),
+            velocity=signs * np.array(vel),
+            load=signs * np.array(load),
+            errors=tuple(errors),
+            torque_on=torque_on,
+            alarms=tuple(alarms),
+            gripper=gripper,
+        )
+
     def _guard(self, fn, *args, **kwargs):
         """Run a bus call; on a link failure try torque off, then raise one BackendError
         (the control layer's error; the bus's :class:`~armlab.hardware.wire.bus.BusError` is its
@@ -300,29 +425,39 @@ class ServoBusBackend(GoalLimits, ABC):
             return fn(*args, **kwargs)
         except BusError as exc:
             self.estop()
-            raise BackendError(str(exc)) from exc
+            raise BackendError(self._joints_of(exc) + str(exc)) from exc
         except OSError as exc:
             self.estop()
             raise BackendError(f"serial link on {self.bus.port} failed: {exc}") from None
 
+    def _joints_of(self, exc: BusError) -> str:
+        """"joint NAME: " (or "joint A, joint B: ", "the gripper JOINT: ") for the servos
+        a :class:`~armlab.hardware.wire.bus.NoReply` names, so the message says which joint
+        stopped answering; "" for any other error."""
+        ids = exc.ids if isinstance(exc, NoReply) else ()
+        names = [f"joint {j.name}" for j in self.map.joints if j.servo_id in ids]
+        if self.gripper is not None and self.gripper.servo_id in ids:
+            names.append(f"the gripper {self.gripper.joint}")
+        return f"{', '.join(names)}: " if names else ""
+
     # -- what each protocol does its own way ---------------------------------
 
-    @abstractmethod
+    #: where the goals sit: one SYNC_WRITE of ``_goal_len`` bytes at ``_goal_at`` a servo
+    _goal_at: int
+    _goal_len: int
+
     def _baud_value(self, baud: float) -> int:
         """The servos' Baud Rate value for ``baud``; ValueError for a rate they cannot take."""
+        return self.table.from_si("baud_rate", baud)
 
     @abstractmethod
     def _layout(self) -> None:
-        """Where the present values and goals sit in the control table (called by
-        ``__init__`` before the port opens)."""
+        """Where the present values and goals sit in the control table (``_goal_at``,
+        ``_goal_len`` among them; called by ``__init__`` before the port opens)."""
 
     @abstractmethod
     def read(self) -> JointState:
         """The joints' state, read from every servo."""
-
-    @abstractmethod
-    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
-        """Clamp goals into the limits and send them with their speeds."""
 
     @abstractmethod
     def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
@@ -330,9 +465,17 @@ class ServoBusBackend(GoalLimits, ABC):
         each servo's own position limits (never outside)."""
 
     @abstractmethod
-    def set_torque(self, on: bool) -> None:
-        """Torque on (nothing jumps: a servo without torque first gets its present
-        position as goal) or off."""
+    def _goal_bytes(self, goal: int, speed: int) -> bytes:
+        """A servo's raw goal position and speed as its part of the goals' SYNC_WRITE."""
+
+    def _gripper_words(self, goal: int) -> tuple[int, int]:
+        """The gripper's raw (goal position, speed) for raw goal ``goal``."""
+        raise NotImplementedError(f"the {self.map.servo} drives no gripper")
+
+    @abstractmethod
+    def _before_torque_on(self) -> None:
+        """What torque on does first to bring the servos back (the family's recovery from
+        a shut-down or overload)."""
 
     @abstractmethod
     def configure(self, *, from_baud: float | None = None) -> list[str]:

@@ -10,13 +10,16 @@ The plant's ground truth stays available as ``.plant`` for tests and plots.
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import BackendError, GoalLimits, JointState
+from armlab.control.backend import BackendError, GoalLimits, GripperState, JointState
+from armlab.hardware.backends.gripper import GripperHolder, GripperServo
 from armlab.hardware.servos.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
-from armlab.hardware.servos.servo_spec import RX24F, ServoSpec
+from armlab.hardware.servos.servo_spec import COUNTS, RX24F, ServoSpec, TurnEncoder
 from armlab.hardware.sim.dynamixel_servo import ServoParams, ServoRegisters, ServoReport
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.wire import protocol1 as p1
@@ -53,19 +56,42 @@ def servo_limits(model: SerialChain, specs: Sequence[ServoSpec], directions: Seq
     return lo, hi
 
 
+def turn_limits(model: SerialChain, spec: TurnEncoder, directions: Sequence[float]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) (n,) rad: the model's joint limits inside the servos' one turn of
+    position control (0..4095 of a 12-bit encoder, the X-series' and Feetech STS's, seen
+    through each direction)."""
+    lo_s, hi_s = spec.raw_to_position(0), spec.raw_to_position(COUNTS - 1)
+    lower = [max(float(model.lower[i]), lo_s if d > 0 else -hi_s)
+             for i, d in enumerate(directions)]
+    upper = [min(float(model.upper[i]), hi_s if d > 0 else -lo_s)
+             for i, d in enumerate(directions)]
+    return np.array(lower), np.array(upper)
+
+
+def start_words(specs: Sequence[ServoSpec | TurnEncoder], directions: Sequence[float],
+                lower: np.ndarray, upper: np.ndarray, q0: np.ndarray,
+                ) -> list[tuple[int, int, int]]:
+    """Per joint its servo's raw (goal, low limit, high limit) as a simulated arm starts:
+    the position limits at ``lower``/``upper`` (n,) rad and the goal at ``q0`` (n,) rad
+    clamped into them, through each direction."""
+    words = []
+    for i, (spec, d) in enumerate(zip(specs, directions, strict=True)):
+        ends = sorted(spec.position_to_raw(d * x) for x in (lower[i], upper[i]))
+        goal = spec.position_to_raw(d * float(np.clip(q0[i], lower[i], upper[i])))
+        words.append((goal, ends[0], ends[1]))
+    return words
+
+
 def sim_registers(specs: Sequence[ServoSpec], directions: Sequence[float], lower: np.ndarray,
                   upper: np.ndarray, q0: np.ndarray, *, torque_on: bool = True,
                   ) -> list[ServoRegisters]:
     """Per joint the registers a simulated arm starts with: :func:`thesis_registers` with the
     CW/CCW Angle Limits at ``lower``/``upper`` (n,) rad and the goal at ``q0`` (n,) rad
-    clamped into them."""
-    regs = []
-    for i, (spec, d) in enumerate(zip(specs, directions, strict=True)):
-        ends = sorted(spec.position_to_raw(d * x) for x in (lower[i], upper[i]))
-        goal = spec.position_to_raw(d * float(np.clip(q0[i], lower[i], upper[i])))
-        regs.append(thesis_registers(spec, goal=goal, cw_limit=ends[0], ccw_limit=ends[1],
-                                     torque_on=torque_on))
-    return regs
+    clamped into them (:func:`start_words`)."""
+    return [thesis_registers(spec, goal=goal, cw_limit=lo, ccw_limit=hi, torque_on=torque_on)
+            for spec, (goal, lo, hi) in zip(specs, start_words(specs, directions, lower, upper,
+                                                                 q0), strict=True)]
 
 
 def decode_reports(reports: Sequence[ServoReport], specs: Sequence[ServoSpec],
@@ -83,15 +109,25 @@ def decode_reports(reports: Sequence[ServoReport], specs: Sequence[ServoSpec],
                       alarms=tuple(p1.error_names(r.error) for r in reports))
 
 
+def goal_positions(specs: Sequence[ServoSpec | TurnEncoder], directions: Sequence[float],
+                   position: np.ndarray) -> list[int]:
+    """Checked goals (n,) rad as Goal Position words, through each direction."""
+    return [spec.position_to_raw(d * x) for spec, d, x in
+            zip(specs, directions, np.asarray(position, dtype=float).tolist(), strict=True)]
+
+
+def moving_speeds(specs: Sequence[ServoSpec], speed: np.ndarray) -> list[int]:
+    """Speeds (n,) rad/s as Moving Speed words (magnitudes, 1..1023 units: never 0, "no
+    limit")."""
+    return [spec.speed_to_raw(abs(x))
+            for spec, x in zip(specs, np.asarray(speed, dtype=float).tolist(), strict=True)]
+
+
 def raw_goals(specs: Sequence[ServoSpec], directions: Sequence[float], position: np.ndarray,
               speed: np.ndarray) -> tuple[list[int], list[int]]:
     """Checked goals (n,) rad and speeds (n,) rad/s as Goal Position and Moving Speed words
     (speeds as magnitudes, 1..1023 units: never 0, "no limit")."""
-    goals = [spec.position_to_raw(d * x) for spec, d, x in
-             zip(specs, directions, np.asarray(position, dtype=float).tolist(), strict=True)]
-    speeds = [spec.speed_to_raw(abs(x))
-              for spec, x in zip(specs, np.asarray(speed, dtype=float).tolist(), strict=True)]
-    return goals, speeds
+    return goal_positions(specs, directions, position), moving_speeds(specs, speed)
 
 
 class SimBackend(GoalLimits):
@@ -173,13 +209,25 @@ class SimBackend(GoalLimits):
 
     def write_checked(self, position: np.ndarray, speed: np.ndarray) -> None:
         """:meth:`write` of goals already checked and clamped (``checked_goal``), e.g. a
-        slice of a bigger backend's goals."""
-        goals, speeds = raw_goals(self.specs, self.directions, position, speed)
+        slice of a bigger backend's goals: Goal Position and the family's speed word
+        (:meth:`_speed_words`, :meth:`_set_speed`) on every servo."""
+        goals = goal_positions(self.specs, self.directions, position)
+        speeds = self._speed_words(speed)
         with self._lock:
             self._check_open()
             for servo, g, v in zip(self.plant.servos, goals, speeds, strict=True):
                 servo.regs.goal_position = g
-                servo.regs.moving_speed = v
+                self._set_speed(servo.regs, v)
+
+    def _speed_words(self, speed: np.ndarray) -> list[int]:
+        """Checked speeds (n,) rad/s as the servos' speed words: Moving Speed
+        (:func:`moving_speeds`)."""
+        return moving_speeds(self.specs, speed)
+
+    @staticmethod
+    def _set_speed(regs: Any, word: int) -> None:
+        """Write a servo's speed word ``word`` into its registers ``regs``: Moving Speed."""
+        regs.moving_speed = word
 
     def set_torque(self, on: bool) -> None:
         """Torque Enable on every servo. Switching on also restores a Torque Limit that an
@@ -227,3 +275,106 @@ class SimBackend(GoalLimits):
     def _check_open(self) -> None:
         if self._closed:
             raise BackendError("the simulated arm is closed; open a new backend")
+
+
+class GrippedSimBackend(SimBackend, GripperHolder):
+    """A simulated arm of servos of one model with a 12-bit encoder, whose gripper may have
+    its own servo moving the gripper's load (:func:`armlab.hardware.backends.gripper.
+    gripper_plant`) beside the arm: what the X-series and Feetech STS simulations share.
+    A subclass opens the arm with :meth:`_open_arm`, sets :attr:`gripper` and
+    :attr:`gripper_plant` (None without a gripper) and decodes the reports
+    (:meth:`_decode`, :meth:`_decode_gripper`).
+    """
+
+    gripper: GripperServo | None = None
+    gripper_plant: Plant | None = None
+
+    def _open_arm(self, model: SerialChain, spec: TurnEncoder, *,
+                  registers: Callable[..., Any], dt: float, q0: np.ndarray | None,
+                  directions: Sequence[float] | None,
+                  params: ServoParams | Sequence[ServoParams] | None, torque_on: bool) -> None:
+        """The arm's plant: joint limits the model's inside the servos' one turn
+        (:func:`turn_limits`), each servo's registers ``registers(spec, goal=,
+        min_limit=, max_limit=, torque_on=)`` as the family's backend configures it, its
+        Min/Max Position Limit at the joint's limits and its goal at ``q0`` (default
+        neutral) clamped into them (:func:`start_words`)."""
+        n = model.n
+        dirs = [1.0] * n if directions is None else [float(d) for d in directions]
+        self._lower, self._upper = turn_limits(model, spec, dirs)
+        q_start = model.neutral() if q0 is None else vector("q0", q0, n)
+        regs = [registers(spec, goal=goal, min_limit=lo, max_limit=hi, torque_on=torque_on)
+                for goal, lo, hi in start_words([spec] * n, dirs, self._lower, self._upper,
+                                                q_start)]
+        self._init_plant(Plant(model, spec, dt=dt, q0=q0, directions=dirs, params=params,
+                               registers=regs), [spec] * n, dirs)
+
+    @property
+    def spec(self) -> Any:
+        """The servos' datasheet (every joint's and the gripper's)."""
+        return self.specs[0]
+
+    def sync(self, t: float) -> None:
+        """Integrate the arm (and the gripper) up to ``t`` s."""
+        super().sync(t)
+        if self.gripper_plant is not None:
+            with self._lock:
+                self.gripper_plant.advance_to(self.plant.t)
+
+    def read(self) -> JointState:
+        """Every joint as its servo reports it (decoded raw values, quantised), the
+        gripper's too."""
+        with self._lock:
+            self._check_open()
+            reports = self.plant.reports()
+            t = self.plant.t
+            grip = None if self.gripper_plant is None else self.gripper_plant.reports()[0]
+        state = self._decode(reports, t)
+        return state if grip is None else replace(state, gripper=self._decode_gripper(grip))
+
+    def _decode(self, reports: Sequence[Any], t: float) -> JointState:
+        """The joints' servos' raw reports at time ``t`` as the controller sees them."""
+        raise NotImplementedError
+
+    def _decode_gripper(self, report: Any) -> GripperState:
+        """The gripper servo's raw report as the finger's state."""
+        raise NotImplementedError
+
+    def set_gripper(self, position: float) -> float:
+        """Goal Position of the gripper's servo for the finger at ``position``, clamped
+        into its range; returns the clamped goal (ValueError without a gripper)."""
+        if self.gripper is None or self.gripper_plant is None:
+            raise ValueError("this simulated arm has no gripper servo")
+        x, raw = self._gripper_goal_raw(position)
+        with self._lock:
+            self._check_open()
+            self.gripper_plant.servos[0].regs.goal_position = raw
+        return x
+
+    def _servos(self) -> tuple:
+        """The arm's servo models, then the gripper's."""
+        extra = () if self.gripper_plant is None else self.gripper_plant.servos
+        return (*self.plant.servos, *extra)
+
+    def set_torque(self, on: bool) -> None:
+        """Torque Enable on every servo, the gripper's too (whose finger then holds where it
+        is); switching on first does what the family's servo needs to come back
+        (:meth:`_before_torque_on`)."""
+        with self._lock:
+            self._check_open()
+            finger = None if self.gripper_plant is None else self.gripper_plant.servos[0]
+            if on and finger is not None and not finger.regs.torque_enable:
+                finger.regs.goal_position = finger.report().position  # it stays put
+            for servo in self._servos():
+                if on:
+                    self._before_torque_on(servo)
+                servo.regs.torque_enable = int(bool(on))
+
+    def _before_torque_on(self, servo: Any) -> None:
+        """What switching ``servo``'s torque on does first (nothing by default)."""
+
+    def estop(self) -> bool:
+        """Torque off on every servo, the gripper's too; never raises."""
+        with self._lock:
+            for servo in self._servos():
+                servo.regs.torque_enable = 0
+        return True

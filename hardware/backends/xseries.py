@@ -47,7 +47,7 @@ from armlab.hardware.backends.gripper import (
     gripper_settings,
 )
 from armlab.hardware.backends.joint_map import JointMap, default_joint_map, load_joint_map
-from armlab.hardware.backends.servo_bus import SAFE_SPEED, ServoBusBackend
+from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.servos.xseries import (
     VELOCITY_UNIT,
     OperatingMode,
@@ -56,7 +56,6 @@ from armlab.hardware.servos.xseries import (
     lab_settings,
 )
 from armlab.hardware.wire import protocol2 as p2
-from armlab.hardware.wire.bus import BusError
 from armlab.kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.xseries")
@@ -80,20 +79,13 @@ class XSeriesBackend(ServoBusBackend):
     """
 
     PROTOCOL = 2
-
-    def _baud_value(self, baud: float) -> int:
-        return self.table.from_si("baud_rate", baud)
+    _goal_at, _goal_len = GOAL_AT, GOAL_LEN
 
     def _layout(self) -> None:
         spec = self.spec
         self._alarms = [""] * self.map.n  #: the hardware error each servo reported
         self.mode = lab_mode(spec)
         self.table.check_operating_mode(self.mode)
-        self.gripper = self.map.gripper
-        #: every servo on the bus: the joints', then the gripper's
-        self._ids = self.map.ids + ((self.gripper.servo_id,) if self.gripper else ())
-        self._gripper_goal: int | None = None  #: raw goal position, sent with every write
-        self._gripper_alarm = ""  #: the gripper servo's hardware error ("" = healthy)
 
     # -- Backend protocol ---------------------------------------------------
 
@@ -116,17 +108,10 @@ class XSeriesBackend(ServoBusBackend):
                 self._shutdown[k] = True
                 log.warning("joint %s: %s", j.name, self._alarms[k])
             alarms.append(self._alarms[k] if err.alert else "")
-        signs = self.map.signs
-        return JointState(
-            t=time.monotonic() - self._t0,
-            position=self.map.to_joint(np.array(pos)),
-            velocity=signs * np.array(vel),
-            load=signs * np.array(load),
-            errors=tuple(errors),
+        return self._joint_state(
+            pos, vel, load, errors, alarms,
             torque_on=tuple(bool(self._torque and not sd) for sd in self._shutdown),
-            alarms=tuple(alarms),
-            gripper=self._read_gripper(data[self.gripper.servo_id]) if self.gripper else None,
-        )
+            gripper=self._read_gripper(data[self.gripper.servo_id]) if self.gripper else None)
 
     def _read_gripper(self, raw: bytes) -> GripperState:
         """The gripper servo's part of the SYNC_READ (current, velocity, position) as the
@@ -144,82 +129,37 @@ class XSeriesBackend(ServoBusBackend):
             current=int.from_bytes(raw[0:2], "little", signed=True),
             torque_on=self._torque and not self._gripper_alarm, alarm=self._gripper_alarm)
 
-    @property
-    def gripper_range(self) -> tuple[float, float] | None:
-        """(closed, open) m of the gripper's finger, or None without a gripper servo."""
-        return None if self.gripper is None else (self.gripper.lower, self.gripper.upper)
+    def _goal_bytes(self, goal: int, speed: int) -> bytes:
+        """Profile Velocity and Goal Position as the SYNC_WRITE's 4 + 4 bytes."""
+        return speed.to_bytes(4, "little") + goal.to_bytes(4, "little")
 
-    def set_gripper(self, position: float) -> float:
-        """Hold the gripper's finger at ``position`` m, clamped into its range (a goal
-        beyond it is never sent), from the next :meth:`write` on; returns the clamped goal.
-
-        Raises:
-            ValueError: a non-finite position, or no gripper servo in the map.
-        """
-        if self.gripper is None:
-            raise ValueError("this arm's joint map names no gripper servo")
-        x = self.gripper.clamp(position)
-        self._gripper_goal = self.spec.position_to_raw(self.gripper.to_servo(x))
-        return x
-
-    def _gripper_chunk(self) -> dict[int, tuple[int, int]]:
-        """The gripper's (profile velocity, goal position) for a SYNC_WRITE, or nothing."""
-        if self.gripper is None or self._gripper_goal is None:
-            return {}
-        return {self.gripper.servo_id: (GRIPPER_PROFILE_VELOCITY, self._gripper_goal)}
-
-    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
-        """Clamp goals into the limits; send them with their profile velocities in one
-        SYNC_WRITE."""
-        q, v = self.checked_goal(position, speed)
-        goals, speeds = self.goal_words(q, v)
-        self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
-            {j.servo_id: (sp, g) for j, g, sp in zip(self.map.joints, goals, speeds,
-                                                     strict=True)} | self._gripper_chunk()))
+    def _gripper_words(self, goal: int) -> tuple[int, int]:
+        """The gripper's goal at its profile velocity."""
+        return goal, GRIPPER_PROFILE_VELOCITY
 
     def goal_words(self, position: np.ndarray, speed: np.ndarray) -> tuple[list[int], list[int]]:
         """Raw goal positions and profile velocities for joint goals: clamped into
         [lower, upper], then into each servo's Min..Max Position Limit (never outside).
         A speed of 0 is Profile Velocity 0: no limit, as Moving Speed 0 on protocol 1.0."""
-        q = np.clip(position, self._lower, self._upper)
-        a = self.map.to_servo(q)
-        goals = [min(max(self.spec.position_to_raw(x), lo), hi)
-                 for x, lo, hi in zip(a, self._cw, self._ccw, strict=True)]
+        goals = self._goal_positions(position)
         speeds = [0 if x == 0 else min(max(round(abs(x) / VELOCITY_UNIT), 1), vmax)
                   for x, vmax in zip(speed, self._vmax, strict=True)]
         return goals, speeds
 
-    def set_torque(self, on: bool) -> None:
-        """Torque on or off. A servo that shut down on a hardware error is REBOOTed first
-        (its RAM settings are written again); a servo whose torque was off gets its present
-        position (clamped) as goal at ``SAFE_SPEED``, so nothing jumps."""
+    def _before_torque_on(self) -> None:
+        """A servo that shut down on a hardware error (the gripper's too) is REBOOTed (the
+        only way back, e-manual "Shutdown") and its RAM settings written again."""
         ids = self.map.ids
-        if on:
-            down = [ids[k] for k in range(self.n) if self._shutdown[k]]
-            if self._gripper_alarm:
-                down.append(self.gripper.servo_id)  # type: ignore[union-attr]
+        down = [ids[k] for k in range(self.n) if self._shutdown[k]]
+        if self._gripper_alarm:
+            down.append(self.gripper.servo_id)  # type: ignore[union-attr]
+        for i in down:
+            self._guard(self.bus.reboot, i)
+        if down:
+            time.sleep(REBOOT_WAIT)
             for i in down:
-                self._guard(self.bus.reboot, i)
-            if down:
-                time.sleep(REBOOT_WAIT)
-                for i in down:
-                    self._guard(self.bus.ping, i)
-                    self._ram_settings(i, [])
-            off = [k for k in range(self.n) if not self._torque or self._shutdown[k]]
-            grip = self.gripper is not None and (not self._torque or bool(self._gripper_alarm))
-            if off or grip:
-                state = self.read()
-                goals, speeds = self.goal_words(state.position, np.full(self.n, SAFE_SPEED))
-                if grip and state.gripper is not None:  # the fingers stay where they are
-                    self.set_gripper(state.gripper.position)
-                self._guard(self.bus.sync_write, GOAL_AT, GOAL_LEN, _goal_data(
-                    {ids[k]: (speeds[k], goals[k]) for k in off} | self._gripper_chunk()))
-            self._sync_torque(self._ids, 1)
-            self._shutdown[:] = False
-            self._gripper_alarm = ""
-        else:
-            self._sync_torque(self._ids, 0)
-        self._torque = bool(on)
+                self._guard(self.bus.ping, i)
+                self._ram_settings(i, [])
 
     # -- set-up -------------------------------------------------------------
 
@@ -235,11 +175,7 @@ class XSeriesBackend(ServoBusBackend):
                       ("operating_mode", mode, f"operating mode {mode} ({mode_text})")]
             lines.append(f"servo {i} ({who}): torque off (EEPROM is written only then)")
             for name, value, text in eeprom:
-                if self._guard(self.bus.read, i, name) == value:
-                    lines.append(f"servo {i} ({who}): {text} (already set)")
-                else:
-                    self._write_setting(i, name, value)
-                    lines.append(f"servo {i} ({who}): {text}")
+                lines.append(self._setting(i, who, name, value, text))
             self._ram_settings(i, lines, name=who)
         for line in lines:
             log.info(line)
@@ -276,23 +212,6 @@ class XSeriesBackend(ServoBusBackend):
             self._write_setting(servo_id, item, value)
             lines.append(f"{who}: {text}")
 
-    def _find_servos(self) -> None:
-        """The joints' servos (:meth:`ServoBusBackend._find_servos`), then the gripper's:
-        one that does not answer, or is of another model, is named."""
-        super()._find_servos()
-        g = self.gripper
-        if g is None:
-            return
-        try:
-            self.bus.ping(g.servo_id)
-            self.bus.identify(g.servo_id, expect=self.map.servo)
-        except BusError as exc:
-            raise BackendError(
-                f"the gripper's servo (ID {g.servo_id}, {g.joint}) on {self.bus.port}: {exc}; "
-                f"check its cable and ID (armlab scan --port {self.bus.port} lists what "
-                "answers), or remove [gripper] from the joint map") from exc
-        self.bus.return_delay[g.servo_id] = self.bus.read(g.servo_id, "return_delay_time")
-
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits: the map's, narrowed to each servo's Min..Max Position Limit.
 
@@ -307,18 +226,13 @@ class XSeriesBackend(ServoBusBackend):
         return self._narrowed(self._cw, self._ccw)
 
 
-def _goal_data(values: dict[int, tuple[int, int]]) -> dict[int, bytes]:
-    """(profile velocity, goal position) per servo -> SYNC_WRITE chunks (4 + 4 bytes)."""
-    return {i: v.to_bytes(4, "little") + g.to_bytes(4, "little")
-            for i, (v, g) in values.items()}
-
-
 def open_servo_backend(model: SerialChain | Quadruped, port: str, *,
                        joint_map: JointMap | str | Path | None = None,
                        **kw: Any) -> ServoBusBackend:
     """The backend for ``model``'s servos on ``port``: the real backend of the servo family
     the joint map names (:mod:`armlab.hardware.families`: :class:`DynamixelBackend` on
-    protocol 1.0, :class:`XSeriesBackend` on the X-series)."""
+    protocol 1.0, :class:`XSeriesBackend` on the X-series,
+    :class:`~armlab.hardware.backends.sts.StsBackend` on Feetech STS)."""
     if isinstance(joint_map, str | Path):
         joint_map = load_joint_map(joint_map, model)
     jmap = joint_map or default_joint_map(model)

@@ -21,6 +21,7 @@ shutdown come from the simulated firmware (``armlab.hardware.sim.dynamixel_servo
 from __future__ import annotations
 
 import fcntl
+import math
 import os
 import random
 import select
@@ -128,6 +129,14 @@ class TableImage:
         """Whether bytes at ``baud`` reach this servo's UART intact (None: unknown, yes)."""
         return baud is None or abs(baud - self.baud) <= BAUD_TOLERANCE * self.baud
 
+    def factory_reset(self) -> None:
+        """FACTORY_RESET (protocol 1.0; Feetech's RESET): everything back to the factory's
+        (ID 1, the model's default baud), the horn where it is."""
+        present = self.get("present_position")
+        self.memory[:] = self.table.defaults(firmware=self.FIRMWARE, servo_id=1,
+                                             present_position=present)
+        self.pending = None
+
 
 @dataclass
 class VirtualServo(TableImage):
@@ -204,12 +213,6 @@ class VirtualServo(TableImage):
                 return p1.ErrorBits.RANGE
         return p1.ErrorBits(0)
 
-    def factory_reset(self) -> None:
-        """FACTORY_RESET: everything back to the factory (ID 1, the model's default baud)."""
-        present = self.get("present_position")
-        self.memory[:] = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=1,
-                                             present_position=present)
-        self.pending = None
 
 
 class Physics(Protocol):
@@ -253,6 +256,20 @@ class ServoBus:
         self.physics.advance_to(t)
         for s in self.servos:
             self.physics.report(s)
+
+    def _write_each(self, listeners: Sequence[TableImage], address: int, length: int,
+                    body: bytes) -> None:
+        """A SYNC_WRITE's body, (ID, ``length`` bytes) per servo: each listening servo
+        named writes its bytes at ``address`` (as its WRITE would, refused or not) and its
+        simulated firmware gets them; a body of another length is ignored whole."""
+        if length == 0 or len(body) % (length + 1):
+            return
+        by_id = {s.servo_id: s for s in listeners}
+        for k in range(0, len(body), length + 1):
+            s = by_id.get(body[k])
+            if s is not None:
+                s.write(address, bytes(body[k + 1 : k + 1 + length]))  # type: ignore[attr-defined]
+                self.physics.apply(s)
 
 
 @dataclass
@@ -331,18 +348,8 @@ class ServoNetwork(ServoBus):
         return s.state_errors() | p1.ErrorBits.INSTRUCTION, b""
 
     def _sync_write(self, listeners: list[VirtualServo], params: bytes) -> None:
-        if len(params) < 2:
-            return
-        address, length = params[0], params[1]
-        body = params[2:]
-        if length == 0 or len(body) % (length + 1):
-            return
-        by_id = {s.servo_id: s for s in listeners}
-        for k in range(0, len(body), length + 1):
-            s = by_id.get(body[k])
-            if s is not None:
-                s.write(address, body[k + 1 : k + 1 + length])
-                self.physics.apply(s)
+        if len(params) >= 2:  # address, length, then the body
+            self._write_each(listeners, params[0], params[1], params[2:])
 
 
 @dataclass(frozen=True)
@@ -400,6 +407,8 @@ class PtyEmulator:
         faults: fault injection on replies.
         echo: echo every received byte back first (a half-duplex TTL adapter).
         log: text stream for one line per received (``rx``) and sent (``tx``) packet.
+        control: (a readable file descriptor, a handler): each line read from it is
+            handed to the handler between packets (``armlab emulate --control``).
     """
 
     network: ServoBus
@@ -407,6 +416,7 @@ class PtyEmulator:
     faults: Faults = field(default_factory=Faults)
     echo: bool = False
     log: TextIO | None = None
+    control: tuple[int, Callable[[str], None]] | None = None
     stats: EmulatorStats = field(default_factory=EmulatorStats)
 
     def __post_init__(self) -> None:
@@ -424,6 +434,7 @@ class PtyEmulator:
         self._last_byte = 0.0
         self._t0 = time.monotonic()  # wall time of plant time 0 (moves when the plant slips)
         self._log_t0 = self._t0
+        self._control_buf = b""
 
     def close(self) -> None:
         for fd in (self._master, self._slave):
@@ -439,9 +450,12 @@ class PtyEmulator:
             wait = 0.005
             if self._queue:
                 wait = min(wait, max(0.0, self._queue[0][0] - now - 2e-4))
-            ready, _, _ = select.select([self._master], [], [], wait)
+            fds = [self._master] + ([self.control[0]] if self.control else [])
+            ready, _, _ = select.select(fds, [], [], wait)
             now = time.monotonic()
-            if ready:
+            if self.control is not None and self.control[0] in ready:
+                self._read_control()
+            if self._master in ready:
                 try:
                     data = os.read(self._master, 4096)
                 except BlockingIOError:
@@ -450,6 +464,20 @@ class PtyEmulator:
                     self._receive(data, now)
             self._tick(now)
             self._flush_due()
+
+    def _read_control(self) -> None:
+        """Hand each whole line waiting on the control descriptor to its handler (before
+        the packets that came with it: a person's hand moved the arm first)."""
+        assert self.control is not None
+        fd, handler = self.control
+        try:
+            self._control_buf += os.read(fd, 4096)
+        except BlockingIOError:
+            return
+        *lines, self._control_buf = self._control_buf.split(b"\n")
+        for line in lines:
+            if line.strip():
+                handler(line.decode(errors="replace").strip())
 
     def _tick(self, now: float) -> None:
         """Advance the plant to ``now``, at most MAX_CATCH_UP at a time (the rest slips)."""
@@ -547,6 +575,59 @@ class PtyEmulator:
         if self.log is not None:
             self.log.write(f"{now - self._log_t0:.6f} {tag} {raw.hex(' ')}\n")
             self.log.flush()
+
+
+class ArmPhysics:
+    """A serial arm's emulated servos moved by its simulated plant, and an arm's gripper
+    servo by the gripper's plant (:func:`armlab.hardware.backends.gripper.gripper_plant`):
+    the servo whose ``joint`` is one past the arm's last. A family's physics
+    (:class:`armlab.hardware.emulator.xseries.XPlantPhysics`,
+    :class:`armlab.hardware.emulator.sts.StsPlantPhysics`) adds how its registers go in
+    and its report comes back."""
+
+    def __init__(self, plant: Plant, *, gripper: Plant | None = None) -> None:
+        self.plant = plant
+        self.gripper = gripper
+        self._held: dict[int, float] = {}  # joint -> angle a hand holds it at, rad
+
+    def advance_to(self, t: float) -> None:
+        self.plant.advance_to(t)
+        if self.gripper is not None:
+            self.gripper.advance_to(t)
+        for joint, angle in self._held.items():
+            plant, j = self._plant_of(joint)
+            q, qd = plant.q, plant.qd
+            q[j], qd[j] = angle, 0.0
+            plant.set_state(q, qd)
+            # one firmware tick at the held angle: the servo senses where the hand put it
+            # (its report is what it sensed at its last tick)
+            plant.servos[j].update(plant.dt, plant.directions[j] * angle, 0.0)
+
+    def hold(self, joint: int, angle: float | None) -> None:
+        """Hold ``joint`` (the gripper's horn: one past the arm's last) at ``angle`` rad
+        of the plant, as a person's hand moving the arm with its torque off would
+        (``armlab emulate --control``); None lets go. ValueError for no such joint or a
+        non-finite angle."""
+        self._plant_of(joint)
+        if angle is None:
+            self._held.pop(joint, None)
+        elif not math.isfinite(angle):
+            raise ValueError(f"angle must be finite, got {angle}")
+        else:
+            self._held[joint] = float(angle)
+
+    def _plant_of(self, joint: int) -> tuple[Plant, int]:
+        if 0 <= joint < self.plant.n:
+            return self.plant, joint
+        if joint == self.plant.n and self.gripper is not None:
+            return self.gripper, 0
+        raise ValueError(f"no joint {joint} on this arm")
+
+    def _model(self, s: TableImage) -> Any:
+        """The simulated servo behind ``s``: an arm joint's, or the gripper's."""
+        if s.joint == self.plant.n and self.gripper is not None:
+            return self.gripper.servos[0]
+        return self.plant.servos[s.joint]
 
 
 def make_servos(tables: Sequence[ControlTable], ids: Sequence[int], *, baud_value: int,

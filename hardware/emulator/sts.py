@@ -9,7 +9,7 @@ SYNC_READ (each named servo answers in turn) and RESET; Response Status Level (a
 servos move because :class:`StsPlantPhysics` hands their registers to the simulated STS
 firmware (:class:`armlab.hardware.sim.sts_servo.StsServoModel`) of the same plant the
 simulator uses; its report comes back into the table, its error bits into every status
-packet.
+packet. The SO-101's gripper servo (ID 6) moves the jaw's load.
 
 *Interpretations* (Feetech's documents are silent, and an STS status packet has no bit
 for a refused write): a write to a read-only item or to a reserved byte is ignored; a
@@ -25,8 +25,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
+from armlab.hardware.backends.gripper import GripperServo, gripper_plant
 from armlab.hardware.backends.joint_map import ROBOT_SUPPLY, JointMap
-from armlab.hardware.emulator.bus import ServoBus, TableImage
+from armlab.hardware.emulator.bus import ArmPhysics, ServoBus, TableImage
 from armlab.hardware.servos.sts import TABLE_SIZE, StsControlTable, sts_table_for
 from armlab.hardware.sim.dynamixel_servo import ServoParams
 from armlab.hardware.sim.plant import Plant
@@ -50,10 +51,17 @@ class StsVirtualServo(TableImage):
 
     Attributes:
         model_error: the status error bits the simulated firmware reports.
+        silent: the servo answers nothing (``armlab emulate --fault JOINT:silent@S``).
     """
 
     model_error: int = 0
+    silent: bool = False
     FIRMWARE: ClassVar[int] = EMULATED_FIRMWARE
+
+    def hears(self, baud: float | None) -> bool:
+        """Whether the servo hears bytes at ``baud``: never once it went silent (an
+        injected fault: a cut cable)."""
+        return not self.silent and super().hears(baud)
 
     @property
     def sts(self) -> StsControlTable:
@@ -92,26 +100,15 @@ class StsVirtualServo(TableImage):
                 self.memory[item.address : item.address + item.size] = \
                     image[item.address : item.address + item.size]
 
-    def reset(self) -> None:
-        """RESET: the factory table (ID 1, the factory baud), torque off."""
-        present = self.get("present_position")
-        self.memory[:] = self.table.defaults(firmware=EMULATED_FIRMWARE, servo_id=1,
-                                             present_position=present)
-        self.pending = None
 
 
-class StsPlantPhysics:
-    """Emulated STS servos moved by the simulated plant: each servo's registers go into its
+class StsPlantPhysics(ArmPhysics):
+    """Emulated STS servos moved by the simulated plant (:class:`~armlab.hardware.emulator.
+    bus.ArmPhysics`: the arm's, the gripper's): each servo's registers go into its
     :class:`~armlab.hardware.sim.sts_servo.StsServoModel`, its report comes back."""
 
-    def __init__(self, plant: Plant) -> None:
-        self.plant = plant
-
-    def advance_to(self, t: float) -> None:
-        self.plant.advance_to(t)
-
-    def _model(self, s: StsVirtualServo) -> StsServoModel:
-        return self.plant.servos[s.joint]  # type: ignore[return-value]
+    def _model(self, s: StsVirtualServo) -> StsServoModel:  # type: ignore[override]
+        return super()._model(s)
 
     def apply(self, s: StsVirtualServo) -> None:
         regs = self._model(s).regs
@@ -129,6 +126,7 @@ class StsPlantPhysics:
         s.put("moving", r.moving)
         s.put("torque_enable", r.torque_enable)
         s.model_error = r.error
+        s.silent = self._model(s).silent
 
 
 @dataclass
@@ -182,8 +180,8 @@ class StsServoNetwork(ServoBus):
                 s.pending = None
                 self.physics.apply(s)
             return b""
-        if inst == I.RESET:
-            s.reset()
+        if inst == I.RESET:  # the factory table (ID 1, the factory baud), torque off
+            s.factory_reset()
             self.physics.apply(s)
             self.physics.report(s)
             return b""
@@ -200,18 +198,8 @@ class StsServoNetwork(ServoBus):
                 for i in params[2:] if i in by_id]
 
     def _sync_write(self, listeners: list[StsVirtualServo], params: bytes) -> None:
-        if len(params) < 2:
-            return
-        address, length = params[0], params[1]
-        body = params[2:]
-        if length == 0 or len(body) % (length + 1):
-            return
-        by_id = {s.servo_id: s for s in listeners}
-        for k in range(0, len(body), length + 1):
-            s = by_id.get(body[k])
-            if s is not None:
-                s.write(address, bytes(body[k + 1 : k + 1 + length]))
-                self.physics.apply(s)
+        if len(params) >= 2:  # address, length, then the body
+            self._write_each(listeners, params[0], params[1], params[2:])
 
     def checksum_error(self, raw: bytes, *, baud: float | None = None
                        ) -> list[tuple[StsVirtualServo, bytes]]:
@@ -221,9 +209,11 @@ class StsServoNetwork(ServoBus):
 
 def emulated_sts_network(model: SerialChain, ids: Sequence[int], *, servo: str = "STS3215",
                          baud: float = 1_000_000, dt: float = 1e-3,
-                         params: ServoParams | None = None) -> StsServoNetwork:
+                         params: ServoParams | None = None,
+                         gripper: GripperServo | None = None) -> StsServoNetwork:
     """The STS servos of ``model`` on one bus (``ids`` in joint order), moved by a plant of
-    the same chain, as the simulator's.
+    the same chain, as the simulator's; with ``gripper``, its servo too, moving the jaw
+    (:func:`armlab.hardware.backends.gripper.gripper_plant`).
 
     Args:
         model: a serial chain.
@@ -232,19 +222,24 @@ def emulated_sts_network(model: SerialChain, ids: Sequence[int], *, servo: str =
         baud: bit/s in every servo's EEPROM (an STS rate).
         dt: plant step, s.
         params: the servos' physical constants and supply (default: the datasheet's).
+        gripper: the gripper's servo (the SO-101's ID 6), or None.
     """
     ids = [int(i) for i in ids]
     if len(ids) != model.n:
         raise ValueError(f"ids: {len(ids)} given for the {model.n} joints of {model.name}")
-    if len(set(ids)) != len(ids) or not all(0 <= i <= ft.MAX_ID for i in ids):
-        raise ValueError(f"ids: distinct IDs in 0..{ft.MAX_ID}, got {ids}")
+    every = ids + ([gripper.servo_id] if gripper is not None else [])
+    if len(set(every)) != len(every) or not all(0 <= i <= ft.MAX_ID for i in every):
+        raise ValueError(f"ids: distinct IDs in 0..{ft.MAX_ID}, got {every}")
     table = sts_table_for(servo)
     baud_value = table.from_si("baud_rate", baud)
     plant = Plant(model, table.spec, dt=dt, params=params)
-    physics = StsPlantPhysics(plant)
+    jaw = None if gripper is None else gripper_plant(gripper, table.spec, dt=dt,
+                                                     params=params)
+    physics = StsPlantPhysics(plant, gripper=jaw)
+    models = [*plant.servos, *(jaw.servos if jaw is not None else ())]
     servos = [StsVirtualServo.new(table, i, j, baud_value=baud_value,
                                   present_position=m.present_position())
-              for j, (i, m) in enumerate(zip(ids, plant.servos, strict=True))]
+              for j, (i, m) in enumerate(zip(every, models, strict=True))]
     for s in servos:
         physics.apply(s)
         physics.report(s)
@@ -254,12 +249,12 @@ def emulated_sts_network(model: SerialChain, ids: Sequence[int], *, servo: str =
 def sts_network_for_map(model: SerialChain | Quadruped, jmap: JointMap, *,
                         baud: float = 1_000_000, dt: float = 1e-3) -> StsServoNetwork:
     """The STS family's emulator (:mod:`armlab.hardware.families`): the servos of ``jmap``
-    on ``model``, at the robot's supply (:data:`~armlab.hardware.backends.joint_map.
-    ROBOT_SUPPLY`; else the datasheet's)."""
+    (and its gripper's) on ``model``, at the robot's supply (:data:`~armlab.hardware.
+    backends.joint_map.ROBOT_SUPPLY`; else the datasheet's)."""
     if not isinstance(model, SerialChain):
         raise ValueError(f"--servo {jmap.servo}: STS servos drive a serial arm here, "
                          f"not the {model.name}")
     supply = ROBOT_SUPPLY.get(model.name)
     return emulated_sts_network(
         model, jmap.ids, servo=jmap.servo, baud=baud, dt=dt,
-        params=None if supply is None else ServoParams(voltage=supply))
+        params=None if supply is None else ServoParams(voltage=supply), gripper=jmap.gripper)

@@ -27,10 +27,10 @@ from typing import ClassVar
 
 from armlab.hardware.backends.gripper import GripperServo, gripper_plant
 from armlab.hardware.backends.joint_map import JointMap
-from armlab.hardware.emulator.bus import ServoBus, TableImage
+from armlab.hardware.emulator.bus import ArmPhysics, ServoBus, TableImage
 from armlab.hardware.servos.xseries import TABLE_SIZE, OperatingMode, x_table_for
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.xseries_servo import XRegisters, XServoModel
+from armlab.hardware.sim.xseries_servo import XRegisters
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.protocol2 import ErrorNumber as E
 from armlab.hardware.wire.protocol2 import Instruction as I
@@ -144,34 +144,22 @@ class XVirtualServo(TableImage):
         self.pending = None
 
 
-class XPlantPhysics:
-    """Emulated X-series servos moved by the simulated plant: each servo's RAM goes into
-    its :class:`~armlab.hardware.sim.xseries_servo.XServoModel`'s registers, its report comes back.
+class XPlantPhysics(ArmPhysics):
+    """Emulated X-series servos moved by the simulated plant (:class:`~armlab.hardware.
+    emulator.bus.ArmPhysics`: the arm's, the gripper's): each servo's RAM goes into its
+    :class:`~armlab.hardware.sim.xseries_servo.XServoModel`'s registers, its report comes
+    back.
 
     Args:
         plant: one plant of X-series servos (one servo per joint).
-        gripper: the gripper's plant (:func:`armlab.hardware.backends.gripper.gripper_plant`): the
-        servo
-            whose ``joint`` is one past the arm's last.
+        gripper: the gripper's plant, or None.
     """
 
     def __init__(self, plant: Plant, *, gripper: Plant | None = None) -> None:
-        self.plant = plant
-        self.gripper = gripper
+        super().__init__(plant, gripper=gripper)
         #: the registers the firmware acts on that the control table holds
         self._names = [f.name for f in fields(XRegisters)
                        if plant.servos and _has(plant.servos[0].spec.name, f.name)]
-
-    def advance_to(self, t: float) -> None:
-        self.plant.advance_to(t)
-        if self.gripper is not None:
-            self.gripper.advance_to(t)
-
-    def _model(self, s: XVirtualServo) -> XServoModel:
-        """The simulated servo behind ``s``: an arm joint's, or the gripper's."""
-        if s.joint == self.plant.n and self.gripper is not None:
-            return self.gripper.servos[0]
-        return self.plant.servos[s.joint]
 
     def apply(self, s: XVirtualServo) -> None:
         regs = self._model(s).regs
@@ -295,18 +283,8 @@ class XServoNetwork(ServoBus):
         return replies
 
     def _sync_write(self, listeners: list[XVirtualServo], params: bytes) -> None:
-        if len(params) < 4:
-            return
-        address, length = _u16(params, 0), _u16(params, 2)
-        body = params[4:]
-        if length == 0 or len(body) % (length + 1):
-            return
-        by_id = {s.servo_id: s for s in listeners}
-        for k in range(0, len(body), length + 1):
-            s = by_id.get(body[k])
-            if s is not None:
-                s.write(address, bytes(body[k + 1 : k + 1 + length]))
-                self.physics.apply(s)
+        if len(params) >= 4:  # address and length, two bytes each, then the body
+            self._write_each(listeners, _u16(params, 0), _u16(params, 2), params[4:])
 
     def checksum_error(self, raw: bytes, *, baud: float | None = None
                        ) -> list[tuple[XVirtualServo, bytes]]:

@@ -20,6 +20,30 @@ DIRECTION_BIT = 1 << 10  #: bit 10 of Present Speed / Present Load: 1 = clockwis
 RETURN_DELAY_UNIT = 2e-6  #: s per Return Delay Time unit (address 5, thesis §2.3)
 
 
+#: A 12-bit magnetic encoder (the X-series', Feetech STS's): position counts per turn,
+#: the horn's centre, rad per count (0.088°).
+COUNTS = 4096
+CENTRE = 2048
+POSITION_UNIT = 2.0 * math.pi / COUNTS
+
+
+class TurnEncoder:
+    """The position conversions of a servo whose 12-bit magnetic encoder counts 4096 a
+    turn, 2048 at the horn's centre (the X-series, Feetech's STS): one home for both
+    families' datasheet classes."""
+
+    position_unit = POSITION_UNIT
+    position_range = 2.0 * math.pi  #: rad covered by 0..4095 (one turn)
+
+    def position_to_raw(self, angle: float) -> int:
+        """Horn angle from the centre, rad -> position count (not clamped)."""
+        return int(round(CENTRE + angle / POSITION_UNIT))
+
+    def raw_to_position(self, raw: int) -> float:
+        """Position count (signed) -> horn angle from the centre, rad."""
+        return (int(raw) - CENTRE) * POSITION_UNIT
+
+
 def signed_word(units: float) -> int:
     """Signed magnitude in register units -> Present Speed/Load word (0..1023, bit 10 = CW)."""
     a = abs(units)

@@ -34,12 +34,21 @@ import math
 from dataclasses import dataclass
 
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
-from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, RPM
-from armlab.hardware.wire.feetech import decode_sign_magnitude, encode_sign_magnitude
+from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
+    CENTRE,
+    COUNTS,
+    POSITION_UNIT,
+    RETURN_DELAY_UNIT,
+    RPM,
+    TurnEncoder,
+)
+from armlab.hardware.wire.feetech import (
+    ErrorBits,
+    decode_sign_magnitude,
+    describe_errors,
+    encode_sign_magnitude,
+)
 
-COUNTS = 4096  #: position counts per turn
-CENTRE = 2048  #: raw position of the horn's centre
-POSITION_UNIT = 2.0 * math.pi / COUNTS  #: rad per count (0.088°)
 SPEED_UNIT = POSITION_UNIT  #: rad/s per Goal/Present Speed count (counts per second)
 LOAD_UNIT = 0.001  #: fraction of the maximum torque per load/torque-limit count
 CURRENT_UNIT = 6.5e-3  #: A per Present Current count
@@ -62,7 +71,7 @@ class OperatingMode:
 
 
 @dataclass(frozen=True)
-class StsSpec:
+class StsSpec(TurnEncoder):
     """Datasheet of one STS model.
 
     Attributes:
@@ -84,8 +93,6 @@ class StsSpec:
     gear_ratio: float
 
     protocol = "sts"
-    position_unit = POSITION_UNIT
-    position_range = 2.0 * math.pi  #: rad covered by 0..4095 (one turn)
     current_unit = CURRENT_UNIT
     has_current = True
 
@@ -93,14 +100,6 @@ class StsSpec:
     def torque_constant(self) -> float:
         """N·m per A at the horn (stall torque / stall current)."""
         return self.stall_torque / self.stall_current
-
-    def position_to_raw(self, angle: float) -> int:
-        """Horn angle from the centre, rad -> position count (not clamped)."""
-        return int(round(CENTRE + angle / POSITION_UNIT))
-
-    def raw_to_position(self, raw: int) -> float:
-        """Position count (signed) -> horn angle from the centre, rad."""
-        return (int(raw) - CENTRE) * POSITION_UNIT
 
     def speed_to_raw(self, speed: float) -> int:
         """rad/s -> speed count (signed; 0 = the servo's maximum as a goal)."""
@@ -117,6 +116,19 @@ class StsSpec:
     def raw_to_torque(self, raw: int) -> float:
         """Present Current count -> N·m at the horn through the torque constant."""
         return self.raw_to_current(raw) * self.torque_constant
+
+    def signed_torque(self, current: int, load: int) -> float:
+        """N·m at the horn from Present Current (a magnitude) signed as Present Load (the
+        PWM duty): the servo's torque reading (*interpretation*: Feetech documents no
+        sign for the current); 0 while the duty is 0."""
+        return math.copysign(self.raw_to_torque(current), load) if load else 0.0
+
+    def goal_speed_to_raw(self, speed: float) -> int:
+        """A goal's speed rad/s -> Goal Speed counts: its magnitude, at least 1 count, at
+        most the 15-bit field; 0 stays 0 (no limit, as on the Dynamixels)."""
+        if speed == 0:
+            return 0
+        return min(max(round(abs(speed) / SPEED_UNIT), 1), (1 << 15) - 1)
 
     def raw_to_load(self, raw: int) -> float:
         """Present Load / Torque Limit count (0.1 % of the maximum, signed) -> N·m."""
@@ -295,6 +307,52 @@ class StsControlTable(ControlTable):
             raise ValueError(f"{value:g} bit/s is not an STS baud rate "
                              f"({', '.join(map(str, BAUDS.values()))})")
         return int(round(value))
+
+
+#: The P coefficient the lab configures (LeRobot's for the SO-101, ``so_follower.py``
+#: ``configure``: 16, "to avoid shakiness"; the factory's 32), with the factory D and I 0.
+LAB_P_COEFFICIENT = 16
+LAB_D_COEFFICIENT = 32
+LAB_I_COEFFICIENT = 0
+def lab_settings(table: StsControlTable, *, torque_limit: float
+                 ) -> tuple[tuple[str, int, str], ...]:
+    """The items the lab sets on an STS servo of ``table``'s model, as (item, raw value, a
+    line for the log): position mode, the position loop's P, D, I coefficients, no
+    acceleration limit (every goal comes with its speed) and Torque Limit at
+    ``torque_limit`` (a fraction) of the maximum. The STS backend writes them to real
+    servos (the EEPROM ones only when they differ); the simulator sets them in its
+    firmware model's registers."""
+    raw = round(torque_limit * table.item("max_torque").default)
+    return (
+        ("operating_mode", OperatingMode.POSITION, "operating mode 0 (position)"),
+        ("p_coefficient", LAB_P_COEFFICIENT,
+         f"P coefficient {LAB_P_COEFFICIENT} (LeRobot's for the SO-101; factory 32)"),
+        ("d_coefficient", LAB_D_COEFFICIENT, f"D coefficient {LAB_D_COEFFICIENT}"),
+        ("i_coefficient", LAB_I_COEFFICIENT, f"I coefficient {LAB_I_COEFFICIENT}"),
+        ("acceleration", 0, "acceleration 0 (no limit: each goal has its speed)"),
+        ("torque_limit", raw, f"torque limit {torque_limit:.0%} ({raw} of 1000)"),
+    )
+
+
+#: What to do about each status error bit (an STS status byte flags the servo's state,
+#: never a refused write; the lab stops the arm on any of them).
+_WAY_BACK = {"overload": "switch its torque off and on (Reset) once the load is gone",
+             "overheat": "let it cool, then Reset",
+             "voltage": "check the supply (the SO-101's is 5 V), then Reset",
+             "angle": "its position sensor failed: power it off and check it",
+             "overcurrent": "check the load and the wiring, then Reset"}
+
+
+def sts_alarm(bits: int, *, servo_id: int | None = None) -> str:
+    """What a person is told about an STS servo's status error ``bits``: the servo, the
+    flags and what to do, e.g. "servo 2: overload (0x20): switch its torque off and on
+    (Reset) once the load is gone"; "" for no bits."""
+    if not bits:
+        return ""
+    who = "" if servo_id is None else f"servo {servo_id}: "
+    flags = ErrorBits(int(bits) & 0x7F)
+    ways = [way for name, way in _WAY_BACK.items() if ErrorBits[name.upper()] in flags]
+    return f"{who}{describe_errors(bits)}" + (f": {'; '.join(ways)}" if ways else "")
 
 
 STS3215_TABLE = StsControlTable(STS3215, _items())  # type: ignore[arg-type]

@@ -15,16 +15,18 @@ reports Present Load in 0.1 % of its maximum torque at that address.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
-from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, RPM
+from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
+    CENTRE,
+    COUNTS,
+    RETURN_DELAY_UNIT,
+    RPM,
+    TurnEncoder,
+)
 from armlab.hardware.wire.protocol2 import describe_hardware_error
 
-COUNTS = 4096  #: position counts per turn
-CENTRE = 2048  #: raw position of the horn's centre
-POSITION_UNIT = 2.0 * math.pi / COUNTS  #: rad per count (0.088°)
 VELOCITY_UNIT = 0.229 * RPM  #: rad/s per Goal/Present Velocity count
 LOAD_UNIT = 0.001  #: fraction of maximum torque per Present Load count (0.1 %)
 PWM_UNIT = 0.00113  #: fraction of the supply per Goal/Present PWM count (0.113 %)
@@ -45,7 +47,7 @@ class OperatingMode:
 
 
 @dataclass(frozen=True)
-class XSpec:
+class XSpec(TurnEncoder):
     """Datasheet of one X-series model.
 
     Attributes:
@@ -74,8 +76,6 @@ class XSpec:
     max_voltage_limit: int
 
     protocol = 2
-    position_unit = POSITION_UNIT
-    position_range = 2.0 * math.pi  #: rad covered by Position Control's 0..4095 (one turn)
 
     @property
     def has_current(self) -> bool:
@@ -87,14 +87,6 @@ class XSpec:
         """N·m per A at the horn, from the datasheet's stall point (stall torque / stall
         current): the slope the observers need, as ``armlab.kinematics.hand.GRIPPER_KT`` is."""
         return self.stall_torque / self.stall_current
-
-    def position_to_raw(self, angle: float) -> int:
-        """Horn angle from the centre, rad -> Goal Position count (not clamped)."""
-        return int(round(CENTRE + angle / POSITION_UNIT))
-
-    def raw_to_position(self, raw: int) -> float:
-        """Present/Goal Position count -> horn angle from the centre, rad."""
-        return (int(raw) - CENTRE) * POSITION_UNIT
 
     def velocity_to_raw(self, velocity: float) -> int:
         return int(round(velocity / VELOCITY_UNIT))

@@ -24,6 +24,7 @@ import numpy as np
 
 from armlab.control.batch_rows import BatchRows
 from armlab.hardware.sim.hand import N_FINGERS, GraspObject, HandParams, check_object, rc_alpha
+from armlab.kinematics.smallarrays import clamp
 from armlab.kinematics.validate import scalar
 
 #: m, the "radius" of no object: far inside any fingertip's reach, so never touched
@@ -186,7 +187,7 @@ class BatchedHand:
             phi = phi + h * phid
             phid = np.where(phi < lo, np.maximum(phid, 0.0),
                             np.where(phi > hi, np.minimum(phid, 0.0), phid))
-            phi = np.clip(phi, lo, hi)
+            phi = clamp(phi, lo, hi)
             i_ss = (v - m.ke * om) / m.resistance
             i = i_ss + (i - i_ss) * decay
             i_meas = i_meas + alpha * (i - i_meas)

@@ -354,24 +354,30 @@ class HandSim:
         decay = math.exp(-h * m.resistance / m.inductance)
         alpha = 1.0 if p.current_lpf_hz is None else rc_alpha(h, p.current_lpf_hz)
         inv_jm, inv_jf = 1.0 / m.inertia, 1.0 / p.finger_inertia
+        # the constants as locals: the loop reads each of them every step
+        length, hinge_radius, preload, rate = (g.length, g.hinge_radius, g.spring_preload,
+                                               g.spring_rate)
+        kt, friction, ke, resistance = m.kt, m.friction, m.ke, m.resistance
+        hinge_damping = p.hinge_damping
+        cos, sin = math.cos, math.sin
         tension = force = 0.0
         for _ in range(n):
             stretch = rp * th - rt * (phi - lo)
             tension = max(0.0, kt_ * stretch + ct * (rp * om - rt * phid)) if stretch > 0 else 0.0
-            lever = g.length * math.cos(phi)
-            depth = radius - (g.hinge_radius - g.length * math.sin(phi))
+            lever = length * cos(phi)
+            depth = radius - (hinge_radius - length * sin(phi))
             force = max(0.0, k_obj * depth + d_obj * lever * phid) if depth > 0 else 0.0
-            torque = m.kt * i  # thesis eq. 2.29
-            om += h * (torque - m.friction * om - rp * tension) * inv_jm
+            torque = kt * i  # thesis eq. 2.29
+            om += h * (torque - friction * om - rp * tension) * inv_jm
             th += h * om
-            spring = g.spring_preload + g.spring_rate * (phi - lo)
-            phid += h * (rt * tension - spring - p.hinge_damping * phid - force * lever) * inv_jf
+            spring = preload + rate * (phi - lo)
+            phid += h * (rt * tension - spring - hinge_damping * phid - force * lever) * inv_jf
             phi += h * phid
             if phi < lo:
                 phi, phid = lo, max(phid, 0.0)
             elif phi > hi:
                 phi, phid = hi, min(phid, 0.0)
-            i_ss = (v - m.ke * om) / m.resistance
+            i_ss = (v - ke * om) / resistance
             i = i_ss + (i - i_ss) * decay
             i_meas += alpha * (i - i_meas)
         return i, i_meas, th, om, phi, phid, tension, force

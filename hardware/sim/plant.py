@@ -32,9 +32,11 @@ from armlab.hardware.families import FAMILIES, family_of_spec
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.servos.xseries import XSpec
 from armlab.hardware.sim.dynamixel_servo import ServoModel, ServoParams, ServoRegisters, ServoReport
+from armlab.hardware.sim.plant_step import rk4_step
 from armlab.hardware.sim.xseries_servo import XRegisters, XReport, XServoModel
 from armlab.kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from armlab.kinematics.model import SerialChain
+from armlab.kinematics.smallarrays import finite
 from armlab.kinematics.validate import index, scalar, vector
 
 
@@ -202,6 +204,8 @@ class Plant:
         self._viscous = [p.viscous_friction for p in param_list]
         self._coulomb = [(i, (p.coulomb_friction, 1.0 / p.friction_speed))
                          for i, p in enumerate(param_list) if p.coulomb_friction]
+        self._coulomb_joints = tuple(i for i, _ in self._coulomb)
+        self._coulomb_pairs = tuple(pair for _, pair in self._coulomb)
         self._gravity = [float(x) for x in model.gravity]
         self._lower = [float(x) for x in model.lower]
         self._upper = [float(x) for x in model.upper]
@@ -317,17 +321,51 @@ class Plant:
     # -- stepping -----------------------------------------------------------------
 
     def step(self) -> None:
-        """Advance one ``dt``: servo firmware tick, then RK4 on the rigid body."""
-        dt = self.dt
+        """Advance one ``dt``: servo firmware tick, then RK4 on the rigid body.
+
+        A step where no stop, spring or wall acts runs as the straight-line code of
+        :mod:`armlab.hardware.sim.plant_step`, which does the same float operations as
+        :meth:`_readable_step`, in the same order."""
         q, qd = self._q, self._qd
+        if self._pushes:
+            self._update_pushes(q)
+        # Stops only when a joint is within reach of a limit this step (13 rad/s × dt << 0.05).
+        stops = self.stops is not None and any(
+            x < lo + 0.05 or x > hi - 0.05
+            for x, lo, hi in zip(q, self._lower, self._upper, strict=True))
+        held = self._held_torques()
+        if stops or self._spring is not None or self._wall is not None:
+            self._readable_step(q, qd, held, stops=stops)
+        else:
+            self._q, self._qd = rk4_step(self.n, self._coulomb_joints, len(held))(
+                q, qd, self.servos, self.directions, self._viscous, self._coulomb_pairs, held,
+                self._dyn.fd, self._gravity, self._armature, self.dt)
+        self._k += 1
+        if not finite(self._qd):
+            raise FloatingPointError(f"plant diverged at t = {self.t:.3f} s (q = {self._q})")
+
+    def _held_torques(self) -> tuple[list[float], ...]:
+        """The joint torques held over this step, in the order the derivative adds them:
+        the pushes' J^T F, then the applied joint torques (each only when present)."""
+        held = []
+        if self._pushes:
+            held.append(self._push_tau)
+        if self._joint_torques:
+            held.append([float(x) for x in self.joint_torques()])
+        return tuple(held)
+
+    def _readable_step(self, q: list[float], qd: list[float], held: tuple[list[float], ...],
+                       *, stops: bool) -> None:
+        """One step as the equations read: tick the servos, then classical RK4 with the
+        duties and ``held`` torques fixed and the stops (when ``stops``), spring and wall
+        re-evaluated at each stage."""
+        dt = self.dt
         dirs = self.directions
         servos = self.servos
         for i in range(self.n):
             d = dirs[i]
             servos[i].update(dt, d * q[i], d * qd[i])
-        if self._pushes:
-            self._update_pushes(q)
-        deriv = self._derivative()
+        deriv = self._derivative(held, stops=stops)
         k1 = deriv(q, qd)
         h = 0.5 * dt
         q2 = [a + h * b for a, b in zip(q, qd, strict=True)]
@@ -344,9 +382,6 @@ class Plant:
                    for a, b, c, d, e in zip(q, qd, v2, v3, v4, strict=True)]
         self._qd = [a + s * (b + 2.0 * (c + d) + e)
                     for a, b, c, d, e in zip(qd, k1, k2, k3, k4, strict=True)]
-        self._k += 1
-        if not all(map(math.isfinite, self._qd)):
-            raise FloatingPointError(f"plant diverged at t = {self.t:.3f} s (q = {self._q})")
 
     def advance_to(self, t: float) -> int:
         """Step until the plant time reaches ``t`` s (to within dt/2); returns the steps taken."""
@@ -357,17 +392,13 @@ class Plant:
             steps += 1
         return steps
 
-    def _derivative(self) -> Callable[[list[float], list[float]], tuple[float, ...]]:
-        """qdd(q, qd) for this step: servo duties and pushes held, the rest re-evaluated."""
+    def _derivative(self, held: tuple[list[float], ...], *, stops: bool
+                    ) -> Callable[[list[float], list[float]], tuple[float, ...]]:
+        """qdd(q, qd) for this step: servo duties and ``held`` torques fixed, the stops (when
+        ``stops``), spring and wall re-evaluated."""
         drive = [d * s.drive for d, s in zip(self.directions, self.servos, strict=True)]
         damp = [s.damping + b for s, b in zip(self.servos, self._viscous, strict=True)]
         coulomb = self._coulomb
-        push = self._push_tau if self._pushes else None
-        applied = [float(x) for x in self.joint_torques()] if self._joint_torques else None
-        # Stops only when a joint is within reach of a limit this step (13 rad/s × dt << 0.05).
-        stops = self.stops is not None and any(
-            q < lo + 0.05 or q > hi - 0.05
-            for q, lo, hi in zip(self._q, self._lower, self._upper, strict=True))
         fields = self._spring is not None or self._wall is not None
         fd, g, arm = self._dyn.fd, self._gravity, self._armature
         tanh = math.tanh
@@ -378,10 +409,8 @@ class Plant:
                 tau[i] -= c * tanh(qd[i] * rvs)
             if stops:
                 tau = [a + b for a, b in zip(tau, self._stop_torques(q, qd), strict=True)]
-            if push is not None:
-                tau = [a + b for a, b in zip(tau, push, strict=True)]
-            if applied is not None:
-                tau = [a + b for a, b in zip(tau, applied, strict=True)]
+            for extra in held:
+                tau = [a + b for a, b in zip(tau, extra, strict=True)]
             if fields:
                 tau = [a + b for a, b in zip(tau, self._field_torques(q, qd), strict=True)]
             return fd(q, qd, tau, g, arm)

@@ -21,7 +21,8 @@ What the model's firmware does each tick (the registers of
    moving for ``overload_time`` s, after which the output is held to Overload Torque
    (address 36, % of full) until the torque is switched off and on again (LeRobot's
    SO-101 sets it to 25 "% torque when overloaded"); overheating above the temperature
-   limit; voltage outside the voltage limits.
+   limit; voltage outside the voltage limits; and an injected fault
+   (:meth:`StsServoModel.inject_error`, ``armlab emulate --fault``) once due.
 
 Between ticks the horn torque follows the DC-motor line at the supply voltage ``V``
 (``ServoParams.voltage``): tau = stall(V) · (duty − omega / no_load(V)) minus gear
@@ -63,6 +64,10 @@ KI_UNIT = 1.0e-6  #: duty per count·tick of summed error per I unit (interpreta
 ACCELERATION_UNIT = 100.0  #: counts/s² per Acceleration unit
 MOVING_THRESHOLD = 20  #: counts/s under which the horn counts as still (interpretation)
 OVERLOAD = int(ErrorBits.OVERLOAD)
+ERROR_BITS = int(sum(ErrorBits))  #: every status error bit an STS reports
+#: Not a status bit: an injected fault after which the servo answers nothing (a cut
+#: cable, a dead servo; :attr:`StsServoModel.silent`).
+SILENT = 0x100
 
 
 @dataclass
@@ -161,6 +166,11 @@ class StsServoModel(GearedMotor):
         self._stall_time = 0.0
         self._overloaded = False
         self._moving = False
+        self._injected: tuple[int, float] | None = None  # (bits, s of torque on)
+        self._torque_time = 0.0  # s the torque has been on, in all
+        self._fault = 0  # injected bits raised (besides an overload)
+        #: the servo answers nothing any more (an injected :data:`SILENT`; for good)
+        self.silent = False
 
     # -- firmware tick ------------------------------------------------------
 
@@ -175,7 +185,16 @@ class StsServoModel(GearedMotor):
         if enabled and not self._enabled:  # torque on: start from where the horn is
             self._desired, self._desired_v, self._integral = float(present), 0.0, 0.0
             self._overloaded = False
+            self._fault = 0
         self._enabled = enabled
+        if enabled:
+            self._torque_time += dt
+            if self._injected is not None and self._torque_time >= self._injected[1]:
+                bits = self._injected[0]
+                self._injected = None
+                self._overloaded = self._overloaded or bool(bits & OVERLOAD)
+                self._fault |= bits & ERROR_BITS & ~OVERLOAD
+                self.silent = self.silent or bool(bits & SILENT)
         limit = max(0, regs.torque_limit) / 1000.0
         if self._overloaded:
             limit = min(limit, regs.overload_torque / 100.0)
@@ -231,6 +250,25 @@ class StsServoModel(GearedMotor):
             self._desired += move
             self._desired_v = want
 
+    def inject_error(self, bits: int, *, after: float = 0.0) -> None:
+        """Raise status error ``bits`` once the torque has been on for ``after`` s in all (a
+        test-and-teaching fault: what the firmware flags by itself on a hot motor, a bad
+        supply...). An overload acts as the firmware's own (the output held back to
+        Overload Torque); every bit clears when the torque is switched off and on again
+        (*interpretation* for the bits other than overload: the model has no temperature).
+        :data:`SILENT` makes the servo stop answering for good.
+
+        Raises:
+            ValueError: ``bits`` not status error bits, or ``after`` negative.
+        """
+        bits = int(bits)
+        if not bits or bits & ~(ERROR_BITS | SILENT):
+            raise ValueError(f"bits: STS status error bits ({ERROR_BITS:#04x}) or SILENT "
+                             f"({SILENT:#x}), got {bits:#04x}")
+        if not after >= 0.0:
+            raise ValueError(f"after: s of torque on, >= 0, got {after}")
+        self._injected = (bits, float(after))
+
     def _check_overload(self, dt: float, duty: float, limit: float, velocity: float) -> None:
         """Overload: the duty at its limit without moving for ``overload_time`` s."""
         p = self.params
@@ -260,7 +298,7 @@ class StsServoModel(GearedMotor):
     def error(self) -> int:
         """The status error bits: overload, overheating, input voltage."""
         regs, p = self.regs, self.params
-        bits = OVERLOAD if self._overloaded else 0
+        bits = (OVERLOAD if self._overloaded else 0) | self._fault
         if p.temperature > regs.temperature_limit:
             bits |= int(ErrorBits.OVERHEAT)
         if not regs.min_voltage_limit <= round(p.voltage * 10) <= regs.max_voltage_limit:

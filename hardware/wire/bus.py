@@ -71,7 +71,9 @@ class PortError(BusError):
 
 
 class NoReply(BusError):
-    """A servo did not answer after every retry."""
+    """A servo did not answer after every retry (``ids``: the ones that did not)."""
+
+    ids: tuple[int, ...] = ()
 
 
 class WrongModel(BusError):
@@ -209,7 +211,8 @@ class Bus:
         late_ids: IDs whose status packet came while the bus waited for another servo's
             (a late reply: the scan pings them again).
         tables: control table of each identified servo ID.
-        status_return_level: what each ID answers (2 = everything, 1 = READ only).
+        status_return_level: what each ID answers, as written to it (its family's
+            ``replies_all_level`` and above: everything; below: PING and READ only).
         return_delay: each ID's return delay setting (2 µs units).
     """
 
@@ -358,12 +361,14 @@ class Bus:
     def _no_reply(self, ids: list[int], tries: int, what: str = "") -> NoReply:
         who = f"servo {ids[0]}" if len(ids) == 1 else \
             f"servos {', '.join(str(i) for i in ids)}"
-        return NoReply(
+        error = NoReply(
             f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
             f"after {tries} tries: check the servos' power (a U2D2 supplies none), "
             f"the baud (armlab scan --port {self.port}), the ID, and that they speak "
             f"protocol {self.family.label}"
         )
+        error.ids = tuple(ids)
+        return error
 
     def _send(self, packet: bytes) -> float:
         """Write a packet; return the s of earlier packets still on the wire before it
@@ -570,7 +575,9 @@ class Bus:
         return status.params
 
     def _answers_writes(self, servo_id: int) -> bool:
-        return servo_id != self._p.BROADCAST_ID and self.status_return_level.get(servo_id, 2) >= 2
+        level = self.family.replies_all_level  # a servo not configured yet answers all
+        return (servo_id != self._p.BROADCAST_ID
+                and self.status_return_level.get(servo_id, level) >= level)
 
     def write_bytes(self, servo_id: int, address: int, data: bytes
                     ) -> p1.StatusPacket | p2.StatusPacket | None:

@@ -110,15 +110,11 @@ class ServoError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class StatusPacket:
-    """A decoded status packet (what a servo answers)."""
+class StatusPacket(_frame.StatusPacket):
+    """A decoded status packet (what a servo answers): protocol 1.0's frame and fields
+    (its ``encode``), the error byte Feetech's :class:`ErrorBits`."""
 
-    servo_id: int
-    error: ErrorBits
-    params: bytes
-
-    def encode(self) -> bytes:
-        return encode_packet(self.servo_id, int(self.error), self.params)
+    error: ErrorBits  # type: ignore[assignment]
 
     def check(self) -> StatusPacket:
         """Return self, or raise :class:`ServoError` when any error bit is set."""

@@ -1,0 +1,471 @@
+"""Challenges: a target a teacher sets ("%OS ≤ 10 % and Ts ≤ 2 s"), and runs judged against it.
+
+Pure (no server, no page): what the lab's Challenge panel and a classroom's gradebook use.
+
+- :class:`Threshold`: one figure of a run against one limit (``≤``, ``≥``, ``=``, or within
+  a tolerance of a target), with its unit;
+- :class:`Challenge`: what it measures, the lesson and robot it runs in, its thresholds
+  and how its run is started (:class:`RunSpec`); :data:`PRESETS` are the ones a teacher
+  picks from, with limits taken from the seeds' and the lab's own numbers (each says
+  where it comes from);
+- :func:`judge`: a run's figures against a challenge -> :class:`Verdict` (passed, and per
+  threshold the figure, the limit and whether it is met; a missing or non-finite figure
+  fails, saying why);
+- :class:`RunLog`: the distinct runs seen of one arm (figures and the UTC time they were
+  first seen), its last run and its best run against a challenge;
+- :func:`gradebook_csv`: one row per student (name, challenge, thresholds, best figures,
+  passed, time).
+
+The figures are the names of :class:`armlab.app.lessons.RunFigures`' fields (SI, or the unit
+in the name: ``overshoot_pct``, ``settling_s``, ``pushed_error_deg``, ``push_n``,
+``line_push_n``, ``stiffness_nm_per_rad``, ``grasp_force_n``, ``grasp_held``, ``eq41_error_pct``,
+``step_joint``). They are measured by the server on the arm that ran; nothing here takes
+a page's word for a figure.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+from typing import Literal
+
+from armlab.kinematics.validate import check_number
+
+#: how a figure is compared with its limit
+Kind = Literal["max", "min", "equal", "near"]
+#: what the challenge's run is (what the page's "Run the challenge" starts)
+RunKind = Literal["step", "line_push", "push", "grasp", "walk"]
+#: runs a :class:`RunLog` keeps (the oldest go first)
+MAX_RUNS = 500
+
+_SYMBOL = {"max": "≤", "min": "≥", "equal": "=", "near": "≈"}
+
+
+@dataclass(frozen=True)
+class Threshold:
+    """One figure of a run against one limit.
+
+    Attributes:
+        figure: the figure's name (a :class:`armlab.app.lessons.RunFigures` field).
+        label: what the page calls it ("%OS").
+        unit: its unit as shown ("%", "s", "°", "N", "N·m/rad"; "" for none).
+        kind: "max" (figure ≤ limit), "min" (figure ≥ limit), "equal" (figure == limit,
+            e.g. which joint was stepped) or "near" (|figure − limit| ≤ tolerance_pct % of
+            |limit|).
+        limit: the limit (the target for "near").
+        tolerance_pct: "near" only: the tolerance, % of the target.
+        lo, hi: the range a teacher may set the limit within.
+    """
+
+    figure: str
+    label: str
+    unit: str
+    kind: Kind
+    limit: float
+    tolerance_pct: float = 0.0
+    lo: float = 0.0
+    hi: float = math.inf
+
+    def __post_init__(self) -> None:
+        if self.kind not in _SYMBOL:
+            raise ValueError(f"{self.label}: kind must be one of {', '.join(_SYMBOL)}, "
+                             f"got {self.kind!r}")
+        check_number(self.limit, name=self.label, lo=self.lo, hi=self.hi)
+        if self.kind == "near":
+            check_number(self.tolerance_pct, name=f"{self.label} tolerance", lo=0.0,
+                         hi=100.0)
+            if self.limit == 0.0:
+                raise ValueError(f"{self.label}: a target of 0 has no relative tolerance")
+
+    def text(self) -> str:
+        """The threshold as a person reads it: "%OS ≤ 10 %", "K ≈ 8 N·m/rad ± 10 %"."""
+        unit = f" {self.unit}" if self.unit else ""
+        tol = f" ± {self.tolerance_pct:g} %" if self.kind == "near" else ""
+        return f"{self.label} {_SYMBOL[self.kind]} {self.limit:g}{unit}{tol}"
+
+    def met_by(self, x: float) -> bool:
+        """Whether the finite figure ``x`` meets this threshold."""
+        if self.kind == "max":
+            return x <= self.limit
+        if self.kind == "min":
+            return x >= self.limit
+        if self.kind == "equal":
+            return x == self.limit
+        return abs(x - self.limit) <= self.tolerance_pct / 100.0 * abs(self.limit)
+
+    def usage(self, x: float) -> float:
+        """How much of the allowance ``x`` uses: ≤ 1 meets it, smaller is better (the rank
+        of runs that all pass or all fail)."""
+        if self.kind == "equal":
+            return 0.0 if x == self.limit else math.inf
+        if self.kind == "near":
+            allowed = self.tolerance_pct / 100.0 * abs(self.limit)
+            miss = abs(x - self.limit)
+            return miss / allowed if allowed > 0 else (0.0 if miss == 0 else math.inf)
+        if self.kind == "max":
+            return x / self.limit if self.limit > 0 else (0.0 if x <= self.limit else math.inf)
+        return self.limit / x if x > 0 else (0.0 if x >= self.limit else math.inf)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """How the challenge's run is started on the student's arm (the server starts it; the
+    page only asks).
+
+    Attributes:
+        kind: "step" (one joint's command stepped, ``step_deg``, joint from the challenge's
+            ``step_joint`` threshold), "line_push" (the thesis line with a push of the
+            ``line_push_n`` threshold's force along −y for ``push_s``), "push" (a push of that
+            force for ``push_s`` with the arm holding), "grasp" (the hand closes with the
+            student's force limit), "walk" (the quadruped walks forward ``walk_s`` and
+            stops).
+    """
+
+    kind: RunKind
+    step_deg: float = -20.0
+    push_s: float = 2.0
+    walk_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class Challenge:
+    """A target a teacher sets.
+
+    Attributes:
+        key: short id ("step").
+        title: what the picker shows.
+        measures: what it measures, one sentence for the page.
+        lesson: the lesson it runs in (a lesson's ``NAME``); robot: that lesson's robot.
+        run: how its run is started.
+        thresholds: every one must be met.
+        source: where the preset's limits come from.
+    """
+
+    key: str
+    title: str
+    measures: str
+    lesson: str
+    robot: str
+    run: RunSpec
+    thresholds: tuple[Threshold, ...]
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.thresholds:
+            raise ValueError(f"challenge {self.key}: no thresholds")
+        names = [t.figure for t in self.thresholds]
+        if len(set(names)) != len(names):
+            raise ValueError(f"challenge {self.key}: a figure has two thresholds")
+
+    @property
+    def figures(self) -> tuple[str, ...]:
+        """The figures it judges, in its thresholds' order."""
+        return tuple(t.figure for t in self.thresholds)
+
+    def threshold(self, figure: str) -> Threshold | None:
+        """Its threshold on ``figure``, or None."""
+        return next((t for t in self.thresholds if t.figure == figure), None)
+
+    def setting(self, figure: str) -> float | None:
+        """The limit of its threshold on ``figure`` (what the run is started with: the
+        joint to step, the push's force), or None."""
+        t = self.threshold(figure)
+        return None if t is None else t.limit
+
+    def text(self) -> str:
+        """Its thresholds as one line: "step joint = 2; %OS ≤ 10 %; Ts ≤ 2 s"."""
+        return "; ".join(t.text() for t in self.thresholds)
+
+    def with_limit(self, figure: str, value: float) -> Challenge:
+        """A copy with the limit (the target, for "near") on ``figure`` set to ``value``.
+
+        Raises:
+            ValueError: no threshold on ``figure``, or ``value`` not finite or out of its
+                range (the message names the threshold).
+        """
+        return self._with(figure, limit=value)
+
+    def with_tolerance(self, figure: str, pct: float) -> Challenge:
+        """A copy with the tolerance of the "near" threshold on ``figure`` set to ``pct``."""
+        t = self.threshold(figure)
+        if t is None or t.kind != "near":
+            raise ValueError(f"challenge {self.key}: no target with a tolerance on {figure}")
+        return self._with(figure, tolerance_pct=pct)
+
+    def _with(self, figure: str, **change: float) -> Challenge:
+        t = self.threshold(figure)
+        if t is None:
+            raise ValueError(f"challenge {self.key}: no threshold on {figure!r}")
+        for name, value in change.items():
+            lo, hi = (0.0, 100.0) if name == "tolerance_pct" else (t.lo, t.hi)
+            change[name] = check_number(value, name=t.label, lo=lo, hi=hi)
+        if t.kind == "equal":
+            change = {k: float(round(v)) for k, v in change.items()}
+        new = replace(t, **change)
+        return replace(self, thresholds=tuple(new if x is t else x for x in self.thresholds))
+
+
+@dataclass(frozen=True)
+class Check:
+    """One threshold of a judged run.
+
+    Attributes:
+        threshold: what was asked. figure: what the run measured (None: nothing).
+        ok: met. reason: why not, for a person ("" when met).
+    """
+
+    threshold: Threshold
+    figure: float | None
+    ok: bool
+    reason: str = ""
+
+    @property
+    def usage(self) -> float:
+        """:meth:`Threshold.usage` of the figure (inf: no figure)."""
+        return math.inf if self.figure is None else self.threshold.usage(self.figure)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """A run judged against a challenge: passed when every threshold is met."""
+
+    challenge: str
+    passed: bool
+    checks: tuple[Check, ...]
+
+    @property
+    def measured(self) -> bool:
+        """Whether the run measured any of the challenge's figures."""
+        return any(c.figure is not None for c in self.checks)
+
+    def rank(self) -> tuple[bool, float]:
+        """Sort key, best first: passed runs, then the one furthest inside its limits."""
+        return (not self.passed, max((c.usage for c in self.checks), default=math.inf))
+
+    def figures(self) -> dict[str, float | None]:
+        """The judged figures by name."""
+        return {c.threshold.figure: c.figure for c in self.checks}
+
+
+def _figure(figures: Mapping[str, object], name: str) -> tuple[float | None, str]:
+    """(the finite figure ``name``, "") or (None, why there is none)."""
+    if name not in figures or figures[name] is None:
+        return None, "not measured yet: run the challenge"
+    value = figures[name]
+    if isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, int | float):
+        return None, f"{value!r} is not a number"
+    x = float(value)
+    if not math.isfinite(x):
+        return None, f"{x} is not a finite number"
+    return x, ""
+
+
+def judge(challenge: Challenge, figures: Mapping[str, object]) -> Verdict:
+    """``figures`` (name -> value, e.g. ``dataclasses.asdict(RunFigures)``) against
+    ``challenge``: every threshold checked; a missing, None or non-finite figure fails
+    with the reason."""
+    checks = []
+    for t in challenge.thresholds:
+        x, why = _figure(figures, t.figure)
+        if x is None:
+            checks.append(Check(t, None, False, why))
+        elif t.met_by(x):
+            checks.append(Check(t, x, True))
+        else:
+            checks.append(Check(t, x, False, f"{x:.3g} does not meet {t.text()}"))
+    return Verdict(challenge.key, all(c.ok for c in checks), tuple(checks))
+
+
+def utc_now() -> str:
+    """Now, UTC, ISO 8601 to the second ("2026-11-28T03:18:35Z")."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+@dataclass(frozen=True)
+class LoggedRun:
+    """A run as a :class:`RunLog` keeps it: its figures and when they were first seen."""
+
+    figures: Mapping[str, float | None]
+    when: str
+
+
+class RunLog:
+    """The distinct runs of one arm, as the server saw its lesson's figures change.
+
+    The lab reads a lesson's figures now and then (:meth:`observe`); a run is kept when
+    they differ from the last kept ones. Its last and best runs are worked out against
+    whichever challenge is set now, so a teacher's new limits apply to runs already made.
+    Not thread-safe: one owner calls it (the lab's ticker, under its lock).
+    """
+
+    def __init__(self, *, max_runs: int = MAX_RUNS) -> None:
+        self.runs: list[LoggedRun] = []
+        self._max = max_runs
+
+    def observe(self, figures: Mapping[str, float | None], *, when: str | None = None) -> bool:
+        """Keep ``figures`` as a new run if they differ from the last kept; True if kept."""
+        figures = dict(figures)
+        if self.runs and _same(self.runs[-1].figures, figures):
+            return False
+        self.runs.append(LoggedRun(figures, when or utc_now()))
+        del self.runs[:-self._max]
+        return True
+
+    def last(self, challenge: Challenge) -> tuple[LoggedRun, Verdict] | None:
+        """The newest run that measured any of ``challenge``'s figures, judged; or None."""
+        for run in reversed(self.runs):
+            verdict = judge(challenge, run.figures)
+            if verdict.measured:
+                return run, verdict
+        return None
+
+    def best(self, challenge: Challenge) -> tuple[LoggedRun, Verdict] | None:
+        """The best run against ``challenge`` (a pass first, then the one furthest inside
+        its limits; the earlier of equals), judged; None before any measured run."""
+        best: tuple[LoggedRun, Verdict] | None = None
+        for run in self.runs:
+            verdict = judge(challenge, run.figures)
+            if verdict.measured and (best is None or verdict.rank() < best[1].rank()):
+                best = (run, verdict)
+        return best
+
+
+def _same(a: Mapping[str, object], b: Mapping[str, object]) -> bool:
+    """Equal figure dicts, NaN equal to NaN."""
+    if a.keys() != b.keys():
+        return False
+    for k in a:
+        x, y = a[k], b[k]
+        if x != y and not (isinstance(x, float) and isinstance(y, float)
+                           and math.isnan(x) and math.isnan(y)):
+            return False
+    return True
+
+
+def _cell(text: str) -> str:
+    """A CSV cell a spreadsheet shows as text (a typed name starting with = + - @ would
+    otherwise be run as a formula)."""
+    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
+
+
+def gradebook_csv(challenge: Challenge,
+                  rows: Iterable[tuple[str, tuple[LoggedRun, Verdict] | None]]) -> str:
+    """The gradebook: one row per (student name, best run or None), in the given order.
+
+    Columns: name, challenge, thresholds, one per judged figure (the best run's, SI or
+    the unit in its name), passed ("yes", "no", or "no run"), time (UTC ISO 8601, when the
+    server first saw the best run).
+    """
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["name", "challenge", "thresholds", *challenge.figures, "passed", "time_utc"])
+    for name, best in rows:
+        if best is None:
+            figs: list[str] = [""] * len(challenge.figures)
+            passed, when = "no run", ""
+        else:
+            run, verdict = best
+            got = verdict.figures()
+            figs = ["" if got[f] is None else repr(got[f]) for f in challenge.figures]
+            passed, when = ("yes" if verdict.passed else "no"), run.when
+        w.writerow([_cell(name), challenge.key, challenge.text(), *figs, passed, when])
+    return out.getvalue()
+
+
+# ---------------------------------------------------------------------------- presets
+
+def _step() -> Challenge:
+    return Challenge(
+        key="step", title="Step: %OS and Ts",
+        measures="A −20° step of one joint's command: the PD loop's overshoot and settling "
+                 "time (eq. 2.16, 2.18), measured on the arm.",
+        lesson="compliance", robot="receptionist_arm", run=RunSpec("step", step_deg=-20.0),
+        thresholds=(
+            Threshold("step_joint", "joint stepped (index)", "", "equal", 2.0, lo=0.0, hi=5.0),
+            Threshold("overshoot_pct", "%OS", "%", "max", 2.0, lo=0.0, hi=100.0),
+            Threshold("settling_s", "Ts", "s", "max", 3.0, lo=0.05, hi=20.0),
+        ),
+        source="Measured on the simulated arm, three steps in a row: the lab's default (Kp "
+               "20, Kv 5; designed %OS 12 %, Ts 1.6 s, control/params.py) gives %OS 3.8–7.9 "
+               "% and fails; Kv 8 (ζp = Kv/(2√Kp) 0.89, eq. 2.12) gives 0–0.9 %, Ts 1.8–2.8 "
+               "s. Ts is within 2 % of a 20° step, 0.4°: about the servos' resolution, so it "
+               "varies from step to step; its limit is loose. Joint 2 is θ2, the thesis's "
+               "servo 3 (chapter 4's metric).")
+
+
+def _line_push() -> Challenge:
+    return Challenge(
+        key="line_push", title="Thesis line under a push",
+        measures="The thesis's 20 cm line with a push of the hand against the motion: the "
+                 "largest |θ_cmd − θ| of any joint over the run (chapter 4's metric).",
+        lesson="compliance", robot="receptionist_arm", run=RunSpec("line_push", push_s=2.0),
+        thresholds=(
+            Threshold("line_push_n", "push", "N", "min", 4.0, lo=0.5, hi=20.0),
+            Threshold("pushed_error_deg", "max angle error", "°", "max", 6.0, lo=0.1,
+                      hi=90.0),
+        ),
+        source="Thesis ch. 4: the free line stays under 6° with the PD loop, the pushed one "
+               "goes over 15° on servo 3 with compliance on (fig. 4.9/4.12); the lesson's "
+               "push is 4 N. Measured on the simulated arm: the default gains give 10.9°; a "
+               "stiffer environment (K_env 64, Kv 8) 5.4°.")
+
+
+def _stiffness() -> Challenge:
+    return Challenge(
+        key="stiffness", title="Reach a joint stiffness",
+        measures="A 4 N push on the holding arm: the environment's static stiffness "
+                 "Δτ_ext/Δθ_env = 1/C_f on the joint that felt the most torque (eq. 2.15), "
+                 "measured.",
+        lesson="compliance", robot="receptionist_arm", run=RunSpec("push", push_s=3.0),
+        thresholds=(
+            Threshold("push_n", "push", "N", "min", 4.0, lo=0.5, hi=20.0),
+            Threshold("stiffness_nm_per_rad", "stiffness", "N·m/rad", "near", 8.0,
+                      tolerance_pct=10.0, lo=0.1, hi=1000.0),
+        ),
+        source="The default K_env 16 N·m/rad, K_f 4 give 1/C_f = K_env/K_f = 4 N·m/rad "
+               "(control/params.py, eq. 2.15; measured 4.04); the target doubles it, within "
+               "10 % (K_env 32 measured 7.97).")
+
+
+def _grasp() -> Challenge:
+    return Challenge(
+        key="grasp", title="Hold a grasp",
+        measures="The hand closes on the object: it must hold (every finger at 90 % of F) "
+                 "with a steady fingertip force of at least E, and squeeze no harder than "
+                 "P at any time (the first touch).",
+        lesson="hand", robot="receptionist_arm", run=RunSpec("grasp"),
+        thresholds=(
+            Threshold("grasp_held", "held (1 = yes)", "", "equal", 1.0, lo=0.0, hi=1.0),
+            Threshold("grasp_force_n", "steady force", "N", "min", 1.0, lo=0.05, hi=5.0),
+            Threshold("grasp_peak_n", "peak force", "N", "max", 1.5, lo=0.05, hi=10.0),
+        ),
+        source="The lesson's default force limit is 0.8 N (app/lessons/hand.py; `armlab "
+               "experiment hand-grip`: steady 0.800 N, peak 0.801 N): the student raises F "
+               "to hold 1 N, and no higher than 1.5 N (the grasp should not crush). The "
+               "simulated hand does not slip: 'held' is every finger at 90 % of F.")
+
+
+def _walk() -> Challenge:
+    return Challenge(
+        key="walk", title="Walk: eq. 4.1 error",
+        measures="The quadruped walks forward 10 s: seed 003's eq. 4.1, the mean "
+                 "|servo − commanded| / commanded angle over every servo, %.",
+        lesson="quadruped", robot="quadruped", run=RunSpec("walk", walk_s=10.0),
+        thresholds=(
+            Threshold("eq41_error_pct", "eq. 4.1 error", "%", "max", 1.201, lo=0.01,
+                      hi=100.0),
+        ),
+        source="Seed 003 §4.1.2: the paper's robot measured 1.201 % "
+               "(app/lessons/quadruped.py, PAPER_ERROR_PCT). Measured on the simulated "
+               "robot: 1.38 % at the lesson's 0.5 cycles/s, 1.12 % at 0.25.")
+
+
+#: The challenges a teacher picks from, by key.
+PRESETS: dict[str, Challenge] = {c.key: c for c in (
+    _step(), _line_push(), _stiffness(), _grasp(), _walk())}
