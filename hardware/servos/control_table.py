@@ -164,10 +164,10 @@ class ControlTable:
         return int.from_bytes(bytes(data[: item.size]), "little", signed=item.signed)
 
     def value_at(self, memory: bytes | bytearray, name: str) -> int:
-        """Raw value of item ``name`` in a whole-table image ``memory`` (addresses 0..49)."""
+        """Raw value of item ``name`` in a whole-table image ``memory`` (:meth:`decode` of
+        its bytes: a family's own decoding holds here too)."""
         item = self.item(name)
-        return int.from_bytes(bytes(memory[item.address : item.address + item.size]), "little",
-                              signed=item.signed)
+        return self.decode(name, bytes(memory[item.address : item.address + item.size]))
 
     def defaults(self, *, firmware: int = 0, servo_id: int = 1, present_position: int = 512,
                  baud_value: int | None = None) -> bytearray:

@@ -235,11 +235,6 @@ class StsControlTable(ControlTable):
         sign = getattr(item, "sign_bit", None)
         return raw if sign is None else decode_sign_magnitude(raw, sign)
 
-    def value_at(self, memory: bytes | bytearray, name: str) -> int:
-        """Value of ``name`` in a whole-table image."""
-        item = self.item(name)
-        return self.decode(name, bytes(memory[item.address : item.address + item.size]))
-
     def put(self, memory: bytearray, name: str, value: int) -> None:
         """Store ``value`` of ``name`` into a table image (no access or range check)."""
         item = self.item(name)
