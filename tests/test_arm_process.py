@@ -56,6 +56,30 @@ def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_
     assert boxes.process.ended == "the arm's process was closed"
 
 
+def test_a_private_hand_and_quadruped_are_mirrored_from_their_first_period():
+    """The worker mirrors a new hand's or quadruped's loop from its first period on,
+    which may reach the server before the add's answer: those rows are kept too (a
+    command posted at once then lies inside the record, not before it)."""
+    from armlab.app.classroom.class_quadrupeds import PERIOD
+    from armlab.control.grip import GripParams
+    from armlab.control.walking import GaitSpec
+    from armlab.hardware.sim.hand import GraspObject
+
+    boxes = Sandboxes(realtime=True)
+    try:
+        seat = boxes.seat("s")
+        hand = seat.hand_for(GraspObject(size=0.06, stiffness=1000.0), GripParams(),
+                             history_s=30.0)
+        quad = seat.quadruped_for(GaitSpec(), speed=0.5, history_s=30.0)
+        for robot, period in ((hand, hand.dt), (quad, PERIOD)):
+            wait_for(lambda robot=robot: robot.status.t > 1.0, 60, "a second mirrored")
+            t = robot.snapshot()["t"]
+            np.testing.assert_allclose(np.diff(t), period, atol=1e-9)  # no row lost
+        assert quad.snapshot()["t"][0] == 0.0  # its loop's first period is there
+    finally:
+        boxes.close()
+
+
 def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
     """A refused command or gain raises in the server as it would in process; an
     argument that cannot be sent at all is refused before it goes."""

@@ -17,7 +17,7 @@ import pytest
 from _helpers import settled, wait_for
 
 from armlab.app.lessons.replay_view import chart_index, sample_at
-from armlab.app.lessons.run_files import REFUSED
+from armlab.app.lessons.run_files import REFUSED, commands_in_record
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.app.viser_ext.handles import uuid_of
 from armlab.control.runs import MAX_FILE_BYTES, RunFileError, read_run, run_bytes
@@ -224,6 +224,17 @@ def test_sample_at_picks_the_nearest_sample():
     t = np.array([0.0, 0.016, 0.032, 0.048])
     assert [sample_at(t, x) for x in (-1.0, 0.0, 0.007, 0.008, 0.009, 0.05, 9.0)] == \
         [0, 0, 0, 0, 1, 3, 3]
+
+
+def test_a_command_posted_the_period_before_the_records_first_sample_is_in_the_run():
+    """A command is stamped with the loop's last period and applied at the next: one
+    posted at once to a new hand (status at 0.001, first sample at 0.002) is the run's;
+    one whose period the record no longer holds is not."""
+    t = 0.001 * np.arange(2, 50)
+    posted = [{"t": 0.0, "kind": "old"}, {"t": 0.001, "kind": "CloseHand"},
+              {"t": 0.010, "kind": "OpenHand"}]
+    assert [c["kind"] for c in commands_in_record(posted, t)] == ["CloseHand", "OpenHand"]
+    assert [c["kind"] for c in commands_in_record(posted, t[:2])] == ["CloseHand", "OpenHand"]
 
 
 def test_a_students_private_arm_saves_and_replays_its_own_run():

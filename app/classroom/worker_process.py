@@ -50,6 +50,7 @@ Messages (tuples; the server's ``Connection`` end sends calls, the worker's answ
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import os
@@ -59,6 +60,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -284,6 +286,9 @@ class ArmProcess:
         self._calls: dict[int, _Call] = {}
         self._loops: dict[int, RemoteLoop] = {}
         self._members: dict[int, RemoteHand | RemoteGait] = {}  #: hands and quadrupeds
+        #: mirror items of arms and members being added (their rows from the first period
+        #: on, which may come before the add's answer), by id
+        self._early: dict[int, list[tuple]] = {}
         self._ids = itertools.count(1)
         self._ready = threading.Event()
         #: how the OS schedules the worker (:func:`armlab.app.classroom.worker.prioritise`), once it
@@ -321,12 +326,12 @@ class ArmProcess:
         running; its ``backend`` and ``loop`` are the server's proxies."""
         self._wait_ready()
         arm_id = next(self._ids)
-        lower, upper, capacity, status, gains, reports = self.call(
-            "add", arm_id, model, params, preset, np.asarray(q0, dtype=float), history_s)
-        loop = RemoteLoop(self, arm_id, model, gains, lower=lower, upper=upper,
-                          capacity=capacity, status=status, reports=reports)
-        with self._lock:
-            self._loops[arm_id] = loop
+        with self._adding(arm_id):
+            lower, upper, capacity, status, gains, reports = self.call(
+                "add", arm_id, model, params, preset, np.asarray(q0, dtype=float), history_s)
+            loop = RemoteLoop(self, arm_id, model, gains, lower=lower, upper=upper,
+                              capacity=capacity, status=status, reports=reports)
+            self._register(self._loops, arm_id, loop)
         return Arm(preset, None, RemoteBackend(self, loop), loop)  # type: ignore[arg-type]
 
     def _wait_ready(self) -> None:
@@ -364,10 +369,31 @@ class ArmProcess:
                     ) -> RemoteHand | RemoteGait:
         self._wait_ready()
         member_id = next(self._ids)
-        made = kind(self, member_id, **self.call(f"{kind.KIND}_add", member_id, *args))
-        with self._lock:
-            self._members[member_id] = made
+        with self._adding(member_id):
+            made = kind(self, member_id, **self.call(f"{kind.KIND}_add", member_id, *args))
+            self._register(self._members, member_id, made)
         return made
+
+    @contextlib.contextmanager
+    def _adding(self, new_id: int) -> Iterator[None]:
+        """While ``new_id`` is being added, keep the mirror items the worker sends for it
+        (its loop runs, and is mirrored, before the add's answer arrives here)."""
+        with self._lock:
+            self._early[new_id] = []
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._early.pop(new_id, None)
+
+    def _register(self, table: dict, new_id: int, proxy: RemoteLoop | RemoteHand | RemoteGait
+                  ) -> None:
+        """Put ``proxy`` in ``table`` after giving it the items mirrored while it was being
+        added (so its record holds every row from its loop's first period)."""
+        with self._lock:
+            for state in self._early.pop(new_id, ()):
+                proxy._mirror(*state)
+            table[new_id] = proxy
 
     def free_member(self, member: RemoteHand | RemoteGait) -> None:
         """Take a hand or a quadruped out of the worker's class (its loop stops, torque
@@ -454,6 +480,8 @@ class ArmProcess:
                         loop = loops.get(arm_id)
                         if loop is not None:
                             loop._mirror(*state)
+                        elif arm_id in self._early:
+                            self._early[arm_id].append(state)
             elif msg[0] in MEMBER_KINDS:
                 with self._lock:
                     members = self._members
@@ -461,6 +489,8 @@ class ArmProcess:
                         member = members.get(member_id)
                         if member is not None:
                             member._mirror(*state)
+                        elif member_id in self._early:
+                            self._early[member_id].append(state)
             elif msg[0] == "reply":
                 _, call_id, ok, value = msg
                 with self._lock:

@@ -148,6 +148,25 @@ def file_stamp() -> str:
     return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
 
 
+def commands_in_record(commands: list[dict[str, Any]], t: np.ndarray
+                       ) -> list[dict[str, Any]]:
+    """The ``commands`` whose effect the record holds.
+
+    A command's ``t`` is the loop time of the last period run when it was posted (a
+    lesson reads it from the loop's status), so the loop applies it one period later: a
+    command posted before the record's first sample, in the period just before it, is
+    still the run's (e.g. one posted at once to a new loop, whose first sample comes
+    one period after its status' time). Times are compared to half a period, as loop
+    times are sums of periods.
+
+    Args:
+        commands: as :meth:`RunControls.note` kept them, oldest first.
+        t: (m,) s, the record's sample times (m ≥ 1), oldest first.
+    """
+    period = float(t[1] - t[0]) if len(t) > 1 else 0.0
+    return [c for c in commands if c["t"] >= t[0] - 1.5 * period]
+
+
 class RunControls:
     """The Files tab (see the module docstring): added where the caller's GUI context is.
 
@@ -244,7 +263,7 @@ class RunControls:
         t = snap["t"]
         if len(t) == 0 or not np.isfinite(snap["q"]).all(axis=1).any():
             raise ValueError("nothing recorded yet")
-        commands = [c for c in self.commands if c["t"] >= t[0]]
+        commands = commands_in_record(self.commands, t)
         start = self._start()
         if start is None and commands:
             start = commands[0]["t"]
