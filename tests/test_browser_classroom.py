@@ -118,6 +118,7 @@ def test_a_class_teacher_and_student_pages(browser, classroom):
         teacher.get_by_role("button", name="Use these gains").click()
         wait_for(lambda: shared.params.kp == pytest.approx(kp_mine + 0.5), 60,
                  "the shared arm at the student's Kp")
+        teacher_ctx.close()  # done with: the reload need not share the CPU with its page
 
         # A reload of the student's page returns to the same arm, gains kept.
         # (The reloaded page is a new client: until the server has seen the old one go,

@@ -106,6 +106,7 @@ def test_the_switch_enlarges_one_page_only_and_a_reload_keeps_it(browser, lab):
         # the other browser's page is as it was
         assert _smallest(other)[0] < 20.0 and max(_tick_px(other)) < 18.0
         assert not other.get_by_role("checkbox", name="Projector").is_checked()
+        other.close()  # done with: the reload below need not share the CPU with its page
         # Ctrl + (browser zoom) still scales the text: px are CSS px, zoom multiplies them.
         pg.evaluate("() => { document.body.style.zoom = '1.25'; }")
         h = pg.get_by_role("button", name="E-STOP").bounding_box()["height"]

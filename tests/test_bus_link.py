@@ -84,8 +84,9 @@ def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model(
 def test_scan_command_finds_servos_only_at_their_baud_and_silence_is_explained():
     with emulator("--baud", "57600") as emu:
         out = subprocess.run(
-            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--baud", "1000000",
-             "--baud", "57600", "--json"], cwd=ROOT, capture_output=True, text=True, timeout=90)
+            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--ids", "0-9",
+             "--baud", "1000000", "--baud", "57600", "--json"],
+            cwd=ROOT, capture_output=True, text=True, timeout=90)
         with Bus(emu.port, 1_000_000, retries=1) as bus:
             with pytest.raises(NoReply) as e:
                 bus.ping(1)
