@@ -26,13 +26,17 @@ run: $(STAMP)
 # lose their margin. `make test PARALLEL="-n 2 --dist loadfile --no-loadscope-reorder"`
 # runs two pytest-xdist workers, each module whole on one of them, the slowest first.
 PARALLEL ?=
+# the tests keep compiled bytecode (and pytest its rewritten test modules) even where the
+# environment says not to write it: each of the suite's child processes (emulators, the
+# class's worker, the CLI) would otherwise compile armlab again, and collection take twice
+TESTENV := PYTHONDONTWRITEBYTECODE=
 
 test: $(DEVSTAMP)
-	$(BIN)/python -m pytest -q $(PARALLEL)
+	$(TESTENV) $(BIN)/python -m pytest -q $(PARALLEL)
 
 # the edit-test loop: no browser, nothing on the wall clock (make test runs everything)
 test-fast: $(DEVSTAMP)
-	$(BIN)/python -m pytest -q $(PARALLEL) -m "not browser and not realtime"
+	$(TESTENV) $(BIN)/python -m pytest -q $(PARALLEL) -m "not browser and not realtime"
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .
