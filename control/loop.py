@@ -467,8 +467,11 @@ class ControlLoop:
             with self._lock:
                 self._backend_ok, self._state, self._torque_on = True, None, False
                 self._await_reset = True
-                self._fault = self._message = ("link back: servos configured again, torque "
-                                               "off; press Reset to hold the arm")
+                back = "link back: servos configured again, torque off; press Reset to hold the arm"
+                lost = self._fault  # what failed (naming the servo), unless told already
+                if lost and not lost.startswith("link back"):
+                    back += f" (it was lost: {lost})"
+                self._fault = self._message = back
             return reset
         if reset:  # e.g. a simulator's error: start again from its state
             with self._lock:

@@ -129,6 +129,7 @@ def test_emulator_restarted_under_its_link_the_lab_reconnects_and_waits_for_rese
         st = loop.status
         assert not st.active and not st.torque_on  # torque off until the teacher says so
         assert st.fault is not None and st.fault.startswith("link back")
+        assert "(it was lost: backend error:" in st.fault  # and what failed is still said
         page.wait_for(lambda: not lesson.reconnect_button.visible, timeout=30,
                       what="the Reconnect button to go")
         page.wait_for(lambda: "link back" in str(lesson.status.content), timeout=30,
