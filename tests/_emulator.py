@@ -14,6 +14,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from armlab.hardware.wire import protocol2 as p2
 
@@ -113,3 +114,27 @@ def goal_positions(packets: list[bytes], servo_id: int) -> list[int]:
             if params[k] == servo_id:
                 out.append(int.from_bytes(params[k + 5 : k + 9], "little"))
     return out
+
+
+def page_shows(page: Any, text: str) -> int:
+    """How many times the page's HTML elements (the status line...) hold ``text``."""
+    return sum(str(e.props.get("content", "")).count(text) for e in page.gui.values()
+               if e.kind == "GuiHtmlMessage")
+
+
+def pull_the_cable(emu: EmulatorProcess, loop: Any, status: Any, page: Any) -> str:
+    """SIGKILL ``emu`` under ``loop`` (holding the arm) and wait for what the page must then
+    show: the link down, the torque-off unsent, the red banner once, and under it why
+    (never "torque off"); the status line's text."""
+    from armlab.app.lessons._loop_state import UNSENT_BANNER
+
+    emu.stop(signal.SIGKILL)  # the link dies mid-run
+    page.wait_for(lambda: loop.status.link_down, timeout=30, what="the loop to notice")
+    page.wait_for(lambda: loop.status.torque_off_unsent, timeout=30,
+                  what="the unsent torque-off")
+    page.wait_for(lambda: page_shows(page, UNSENT_BANNER) == 1, timeout=30,
+                  what="the red banner on the page")
+    content = str(status.content)
+    assert "torque off" not in content.replace(UNSENT_BANNER, ""), content
+    assert "lost the serial link" in content  # why, under the banner
+    return content

@@ -590,15 +590,6 @@ def test_a_private_lesson_without_an_arm_hides_the_shared_panel_and_takes_an_est
             teacher.wait_notification("E-STOP")
 
 
-def _joined(lab: Lab) -> tuple[HeadlessClient, int]:
-    """A page that connected (its Passcode and Kp shown) and its client id."""
-    before = set(lab.server.get_clients())
-    page = _page(lab)
-    page.wait_for(lambda: bool(set(lab.server.get_clients()) - before), 30.0, "the client")
-    (cid,) = set(lab.server.get_clients()) - before
-    return page, cid
-
-
 def test_a_page_that_only_connects_is_refused_nothing_and_told_nothing(classroom):
     """On connect the server asks every page for its localStorage (projector, renderer,
     seat); the page's answers are not its person's doing and are not refused."""

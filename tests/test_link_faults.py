@@ -12,7 +12,7 @@ import signal
 import time
 
 import pytest
-from _emulator import emulator
+from _emulator import emulator, page_shows, pull_the_cable
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 
@@ -44,12 +44,6 @@ def test_link_killed_mid_run_the_lab_says_so_and_run_says_why_nothing_happens(tm
                 assert sum("nothing happened" in b for _, b in page.notifications) == 1
 
 
-def _page_shows(page, text: str) -> int:
-    """How many times the page's HTML elements (the status line...) hold ``text``."""
-    return sum(str(e.props.get("content", "")).count(text) for e in page.gui.values()
-               if e.kind == "GuiHtmlMessage")
-
-
 def test_x_series_link_killed_mid_run_the_arm_lesson_says_so_and_why_goals_do_nothing(
         capfd):
     """The OpenManipulator-X on its emulated XM430s, served with the any-arm lesson: the
@@ -70,16 +64,7 @@ def test_x_series_link_killed_mid_run_the_arm_lesson_says_so_and_why_goals_do_no
             with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
                 page.wait_for(lambda: page.shows("joint2 °"), timeout=60, what="the sliders")
                 page.wait_for(lambda: loop.status.active, timeout=60, what="the loop holding")
-                emu.stop(signal.SIGKILL)  # the link dies mid-run
-                page.wait_for(lambda: loop.status.link_down, timeout=30,
-                              what="the loop to notice")
-                page.wait_for(lambda: loop.status.torque_off_unsent, timeout=30,
-                              what="the unsent torque-off")
-                page.wait_for(lambda: _page_shows(page, UNSENT_BANNER) == 1, timeout=30,
-                              what="the red banner on the page")
-                content = str(lesson.status.content)
-                assert "torque off" not in content.replace(UNSENT_BANNER, ""), content
-                assert "lost the serial link" in content  # why, under the banner
+                pull_the_cable(emu, loop, lesson.status, page)
                 page.set_value("joint2 °", 20.0)
                 page.wait_for(lambda: any("nothing happened: the link to the servos is down"
                                           in b for _, b in page.notifications),
@@ -91,7 +76,7 @@ def test_x_series_link_killed_mid_run_the_arm_lesson_says_so_and_why_goals_do_no
                 said = f"nothing happened: the link to the servos is down ({loop.status.fault})"
                 assert len(page.notifications) == 2  # one for each, both saying why
                 assert all(b.startswith(said) for _, b in page.notifications)
-                assert _page_shows(page, UNSENT_BANNER) == 1
+                assert page_shows(page, UNSENT_BANNER) == 1
     err = capfd.readouterr().err
     assert "Traceback" not in err, err[-2000:]
 

@@ -27,7 +27,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from _emulator import ROOT, emulator
+from _emulator import ROOT, emulator, pull_the_cable
 from _helpers import client_of, wait_for
 
 from armlab.app.backends import loop_over, make_backend
@@ -85,11 +85,6 @@ def _hand(lesson: ArmLesson) -> np.ndarray:
 def _q(lesson: ArmLesson) -> np.ndarray:
     snap = lesson.loop.recorder.snapshot(0.1)
     return snap["q"][-1] if len(snap["t"]) else np.full(lesson.model.n, np.nan)
-
-
-def _page_shows(page, text: str) -> int:
-    return sum(str(e.props.get("content", "")).count(text) for e in page.gui.values()
-               if e.kind == "GuiHtmlMessage")
 
 
 # -- scan, configuration, limits ---------------------------------------------------------
@@ -291,7 +286,6 @@ def test_the_step_and_the_push_give_the_simulated_so101_s_figures():
 
 
 def test_link_killed_mid_run_the_arm_lesson_says_torque_off_could_not_be_sent(capfd):
-    from armlab.app.lessons._loop_state import UNSENT_BANNER
     from armlab.app.testing.wsclient import HeadlessClient
 
     with emulator(*EMULATE) as emu:
@@ -301,16 +295,7 @@ def test_link_killed_mid_run_the_arm_lesson_says_torque_off_could_not_be_sent(ca
             loop = lesson.loop
             with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
                 page.wait_for(lambda: loop.status.active, timeout=60, what="the loop holding")
-                emu.stop(signal.SIGKILL)  # the link dies mid-run
-                page.wait_for(lambda: loop.status.link_down, timeout=30,
-                              what="the loop to notice")
-                page.wait_for(lambda: loop.status.torque_off_unsent, timeout=30,
-                              what="the unsent torque-off")
-                page.wait_for(lambda: _page_shows(page, UNSENT_BANNER) == 1, timeout=30,
-                              what="the red banner on the page")
-                content = str(lesson.status.content)
-                assert "torque off" not in content.replace(UNSENT_BANNER, ""), content
-                assert "lost the serial link" in content
+                pull_the_cable(emu, loop, lesson.status, page)
     err = capfd.readouterr().err
     assert "Traceback" not in err, err[-2000:]
 
