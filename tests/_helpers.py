@@ -167,3 +167,18 @@ def new_page_client(lab: Any, known: set[int]) -> Any:
     (client ids), or None while there is not exactly one."""
     new = [c for cid, c in lab.server.get_clients().items() if cid not in known]
     return new[0] if len(new) == 1 else None
+
+
+def my_arm_in(lab: Any, page: HeadlessClient, cid: int, lesson: str) -> Any:
+    """Switch ``lab``'s class to ``lesson``, wait for ``page`` (client ``cid``) to follow
+    it, put that page on "My arm" and return its own copy of the lesson (a new object of
+    the shared lesson's type)."""
+    lab.switch(lesson)
+    page.wait_for(lambda: page.find("View").value == "Follow the teacher", 60.0,
+                  "the page following the new lesson")
+    page.set_value("View", "My arm")
+    wait_for(lambda: lab.room.private_lesson(cid) is not None, 60.0,
+             f"the page's own {lesson} lesson")
+    mine = lab.room.private_lesson(cid)
+    assert mine is not lab.lesson and type(mine) is type(lab.lesson)
+    return mine

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _helpers import wait_for
+from _helpers import my_arm_in, wait_for
 
 from armlab.app.classroom.roles import (
     PASSCODE_ALPHABET,
@@ -318,30 +318,19 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         page, cid = _joined(lab)
         with page:
-            def mine_for(name: str):  # noqa: ANN202
-                lab.switch(name)
-                page.wait_for(lambda: page.find("View").value == "Follow the teacher", 30.0,
-                              "the page following the new lesson")
-                page.set_value("View", "My arm")
-                wait_for(lambda: lab.room.private_lesson(cid) is not None, 60,
-                         f"the page's own {name} lesson")
-                mine = lab.room.private_lesson(cid)
-                assert mine is not lab.lesson and type(mine) is type(lab.lesson)
-                return mine
-
-            mine = mine_for("ik_accuracy")
+            mine = my_arm_in(lab, page, cid, "ik_accuracy")
             page.set_value(mine.x_input, 5.0)
             wait_for(lambda: mine.target[0] == pytest.approx(0.05), 30, "the own target X")
             assert lab.lesson.target[0] == pytest.approx(0.02)
 
-            mine = mine_for("redundancy")
+            mine = my_arm_in(lab, page, cid, "redundancy")
             k_a = lab.lesson.k_a.handle.value
             page.set_value(mine.k_a.handle, k_a + 100.0)
             wait_for(lambda: mine.k_a.handle.value == pytest.approx(k_a + 100.0), 30,
                      "the own k_a")
             assert lab.lesson.k_a.handle.value == k_a
 
-            mine = mine_for("arm")
+            mine = my_arm_in(lab, page, cid, "arm")
             shared = lab.lesson.loop
             assert mine.loop is not shared and mine.loop is lab.room.sandboxes.loop_of(
                 lab.room._pages[cid].seat)
@@ -350,7 +339,7 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
                      "the own arm's first joint at 20°")
             assert abs(_q(shared)[0]) < np.radians(2.0)
 
-            mine = mine_for("hand")  # the class's hands, one loop for all
+            mine = my_arm_in(lab, page, cid, "hand")  # the class's hands, one loop for all
             shared = lab.lesson.loop
             page.set_value(mine.force.handle, 0.5)
             wait_for(lambda: mine.loop.params.force_limit == 0.5, 30, "the own force limit")
@@ -359,7 +348,8 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
             assert shared.params.force_limit == 0.8 and shared.status.closed_at is None
             assert mine.loop is not shared and lab.room.sandboxes.n_arms == 1
 
-            mine = mine_for("quadruped")  # the class's quadrupeds, one clock for all
+            # the class's quadrupeds, one clock for all
+            mine = my_arm_in(lab, page, cid, "quadruped")
             shared = lab.lesson.loop
             page.click(mine.direction_buttons["forward"])
             wait_for(lambda: mine.loop.status.walking, 60, "the own robot walking")

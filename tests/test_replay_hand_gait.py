@@ -20,7 +20,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from _helpers import wait_for
+from _helpers import my_arm_in, wait_for
 
 from armlab.app.lessons.hand import RUN_SIGNALS
 from armlab.app.testing.wsclient import HeadlessClient
@@ -241,19 +241,7 @@ def test_a_students_private_hand_and_quadruped_save_and_replay_their_own_runs():
             page.wait_for(lambda: bool(set(lab.server.get_clients()) - before), 60.0,
                           what="the client")
             (cid,) = set(lab.server.get_clients()) - before
-
-            def mine_for(name: str):  # noqa: ANN202
-                lab.switch(name)
-                page.wait_for(lambda: page.find("View").value == "Follow the teacher", 60.0,
-                              "the page following the new lesson")
-                page.set_value("View", "My arm")
-                wait_for(lambda: lab.room.private_lesson(cid) is not None, 60.0,
-                         f"the page's own {name} lesson")
-                mine = lab.room.private_lesson(cid)
-                assert mine is not lab.lesson and type(mine) is type(lab.lesson)
-                return mine
-
-            mine = mine_for("hand")
+            mine = my_arm_in(lab, page, cid, "hand")
             assert type(mine.loop).__name__ == "RemoteHand"
             _grasp(page, mine)
             name, data = _saved(page, mine.runs.save)
@@ -261,7 +249,7 @@ def test_a_students_private_hand_and_quadruped_save_and_replay_their_own_runs():
             _replays_the_recorded_poses(page, mine.runs, name, data)
             assert lab.lesson.runs.replay.run is None  # the shared lesson shows none
 
-            mine = mine_for("quadruped")
+            mine = my_arm_in(lab, page, cid, "quadruped")
             assert type(mine.loop).__name__ == "RemoteGait"
             _walk(page, mine)
             name, data = _saved(page, mine.runs.save)
