@@ -10,6 +10,7 @@ import io
 import math
 
 import pytest
+from _helpers import wait_for
 
 from armlab.app.page.challenge_panel import figures_of
 from armlab.app.server import Lab, ServeOptions
@@ -23,7 +24,6 @@ from armlab.control.challenges import (
     gradebook_csv,
     judge,
 )
-from tests._helpers import wait_for
 
 # ---------------------------------------------------------------------- planted figures
 
