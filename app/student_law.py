@@ -387,6 +387,14 @@ class LawLoop(ControlLoop):
             self.reference.set_params(gains.params)
             return gains
 
+    def records(self, window_s: float | None = None
+                ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """The student's arm's record and the reference's, both taken between the same two
+        periods (so they end at the same loop time): :meth:`Recorder.snapshot` of each
+        over the last ``window_s`` s."""
+        with self._twin:
+            return self.recorder.snapshot(window_s), self.reference.recorder.snapshot(window_s)
+
     def _tick(self) -> None:
         with self._twin:
             self.guard.period = self._params.period

@@ -119,7 +119,7 @@ def test_each_live_exercise_as_the_labs_own_runs_as_the_reference(tmp_path, name
         loop.step()
         loop.post(RunTrajectory(line))
         loop.run_for(3.0)
-        mine, ref = loop.recorder.snapshot(3.5), loop.reference.recorder.snapshot(3.5)
+        mine, ref = loop.records(3.5)
         assert law.error is None and loop.status.fault is None
         assert len(mine["t"]) > 150 and np.array_equal(mine["t"], ref["t"])
         assert np.max(np.abs(mine["q"] - ref["q"])) <= SAME_RUN_TOL
@@ -222,8 +222,7 @@ def test_served_correct_law_runs_the_thesis_line_as_the_labs_own(served):
     lesson.run_line()
     wait_for(lambda: lesson.experiment.done, 60.0, "the thesis line to end")
     t0 = lesson.experiment.t0
-    mine = loop.recorder.snapshot(loop.status.t - t0 + 0.2)
-    ref = loop.reference.recorder.snapshot(loop.reference.status.t - t0 + 0.2)
+    mine, ref = loop.records(loop.status.t - t0 + 0.2)  # the same periods of both arms
     m = min(len(mine["t"]), len(ref["t"]))
     assert m > 80  # the 1.28 s line after its approach, at 16 ms
     assert np.array_equal(mine["t"][-m:], ref["t"][-m:])  # the same loop times
