@@ -22,21 +22,32 @@ $(DEVSTAMP): pyproject.toml | $(BIN)/python
 run: $(STAMP)
 	$(BIN)/armlab serve
 
-# one process by default: beside a second worker, the real-time tests of a 2-core machine
-# lose their margin. `make test PARALLEL="-n 2 --dist loadfile --no-loadscope-reorder"`
-# runs two pytest-xdist workers, each module whole on one of them, the slowest first.
-PARALLEL ?=
 # the tests keep compiled bytecode (and pytest its rewritten test modules) even where the
 # environment says not to write it: each of the suite's child processes (emulators, the
 # class's worker, the CLI) would otherwise compile armlab again, and collection take twice
 TESTENV := PYTHONDONTWRITEBYTECODE=
+PYTEST := $(TESTENV) $(BIN)/python -m pytest -q
+# the tests off the wall clock and out of the browser run side by side, one pytest-xdist
+# worker per core (at most four), each module whole on one worker, so that its lab or
+# class starts once; FAST_PARALLEL= runs them in one process
+OFF_CLOCK := -m "not browser and not realtime"
+FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
+# the browser and real-time tests run in one process: beside a second worker, the
+# real-time tests of a 2-core machine lose their margin (PARALLEL="-n 2 --dist loadfile
+# --no-loadscope-reorder" runs them on two workers, each module whole on one)
+ON_CLOCK := -m "browser or realtime"
+PARALLEL ?=
 
+# everything: the tests off the clock side by side, then those on it alone; either
+# part failing fails the run (the second runs anyway, so one run reports every failure)
 test: $(DEVSTAMP)
-	$(TESTENV) $(BIN)/python -m pytest -q $(PARALLEL)
+	$(PYTEST) $(FAST_PARALLEL) $(OFF_CLOCK); off=$$?; \
+	$(PYTEST) $(PARALLEL) $(ON_CLOCK); on=$$?; \
+	test $$off -eq 0 && test $$on -eq 0
 
-# the edit-test loop: no browser, nothing on the wall clock (make test runs everything)
+# the edit-test loop: the tests off the clock only
 test-fast: $(DEVSTAMP)
-	$(TESTENV) $(BIN)/python -m pytest -q $(PARALLEL) -m "not browser and not realtime"
+	$(PYTEST) $(FAST_PARALLEL) $(OFF_CLOCK)
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .

@@ -18,14 +18,14 @@ settings.register_profile("ci", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile("ci")
 
-#: Modules that take longest on one core (``--durations``), slowest first. `make test` runs
-#: on two pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``: each module
-#: whole on one worker, so that its module fixtures, a lab or a class, start once), in
-#: the order of the run: a slow module handed out last would keep one worker busy alone
-#: at the end. A module not named here runs after these, the browser ones first, then
-#: those on the wall clock, then the rest. (Not xdist_group marks and ``--dist
-#: loadgroup``: pytest-xdist 3.8 names a group in ``item._nodeid``, which pytest 9 no
-#: longer reads, so the groups are lost.)
+#: Modules that take longest on one core (``--durations``), slowest first. `make test` and
+#: `make test-fast` run the tests off the wall clock on pytest-xdist workers (``--dist
+#: loadfile --no-loadscope-reorder``: each module whole on one worker, so that its module
+#: fixtures, a lab or a class, start once), in the order of the run: a slow module handed
+#: out last would keep one worker busy alone at the end. A module not named here runs
+#: after these, the browser ones first, then those on the wall clock, then the rest.
+#: (Not xdist_group marks and ``--dist loadgroup``: pytest-xdist 3.8 names a group in
+#: ``item._nodeid``, which pytest 9 no longer reads, so the groups are lost.)
 SLOWEST_MODULES = (  # a browser module, then one that computes, so that the two workers'
     # software-drawn pages and simulations mostly run beside each other, not two pages
     "test_browser_lessons", "test_control_experiments", "test_browser_classroom",
@@ -84,23 +84,41 @@ def lab():
 
 
 @pytest.fixture(scope="session")
-def _chromium():
-    """The headless Chromium of the run (of each xdist worker): Playwright driving
-    ``$ARMLAB_CHROMIUM``, default Debian's /usr/bin/chromium; the test is skipped, with a
-    message, where it is not installed."""
-    from _helpers import CHROMIUM, CHROMIUM_ARGS
+def _playwright():
+    """Playwright, once per run (of each xdist worker), for the Chromiums below; the test
+    is skipped, with a message, where ``$ARMLAB_CHROMIUM`` (default Debian's
+    /usr/bin/chromium) is not installed."""
+    from _helpers import CHROMIUM
 
     if not CHROMIUM.exists():
         pytest.skip(f"no Chromium at {CHROMIUM}: install it (apt-get install chromium) or set "
                     "ARMLAB_CHROMIUM to run the browser tests")
     sync_api = pytest.importorskip("playwright.sync_api")
     with sync_api.sync_playwright() as pw:
-        chromium = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True,
-                                      args=CHROMIUM_ARGS)
-        try:
-            yield chromium
-        finally:
-            chromium.close()
+        yield pw
+
+
+def _launch(pw):  # noqa: ANN001, ANN202
+    """A headless Chromium (``$ARMLAB_CHROMIUM``) driven by ``pw``."""
+    from _helpers import CHROMIUM, CHROMIUM_ARGS
+
+    return pw.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
+
+
+@pytest.fixture(scope="session")
+def _chromium(_playwright):
+    """The run's headless Chromium, started once."""
+    chromium = _launch(_playwright)
+    yield chromium
+    chromium.close()
+
+
+@pytest.fixture(scope="session")
+def _other_chromium(_playwright):
+    """A second headless Chromium, started when a test first asks for one."""
+    chromium = _launch(_playwright)
+    yield chromium
+    chromium.close()
 
 
 @pytest.fixture(scope="module")
@@ -111,6 +129,18 @@ def browser(_chromium):
     closed when it ends."""
     yield PatientBrowser(_chromium)
     for context in list(_chromium.contexts):
+        context.close()
+
+
+@pytest.fixture(scope="module")
+def other_browser(_other_chromium):
+    """Another browser, as on another machine, for a test's second page while its first
+    is open (a teacher's and a student's). Software WebGL draws all of a browser's pages
+    in its one GPU process: beside a page of a lesson whose arm moves, a second page in
+    the same browser took about 33 s to draw its first controls (6 s alone), in another
+    browser about 13 s (quiet 2-core machine)."""
+    yield PatientBrowser(_other_chromium)
+    for context in list(_other_chromium.contexts):
         context.close()
 
 

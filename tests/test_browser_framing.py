@@ -35,7 +35,7 @@ def test_every_lesson_frames_its_robot_and_frame_restores_it(browser, lab, size)
     pg = browser.new_page(viewport={"width": width, "height": height})
     try:
         pg.goto(lab.url)
-        pg.locator("canvas").first.wait_for(timeout=60_000)
+        pg.locator("canvas").first.wait_for()
         wait_for(lambda: _client(lab, known) is not None, 60, "the page to connect")
         client = _client(lab, known)
         framing = None

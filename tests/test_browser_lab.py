@@ -33,7 +33,7 @@ def page(browser, lab, tmp_path_factory):
     pg.on("console", lambda m: console.append((m.type, m.text)))
     pg.on("pageerror", lambda e: console.append(("pageerror", str(e))))
     pg.goto(lab.url)
-    pg.get_by_role("button", name="Run thesis line").wait_for(timeout=90_000)
+    pg.get_by_role("button", name="Run thesis line").wait_for()
     pg.console_log = console  # type: ignore[attr-defined]
     pg.shots = tmp_path_factory.mktemp("shots")  # type: ignore[attr-defined]
     yield pg
@@ -216,7 +216,7 @@ def test_a_step_from_the_run_tab_shows_tp_and_overshoot_beside_its_button(page, 
 
 
 def test_csv_download_arrives_with_the_recorded_rows(page, lab, tmp_path):
-    with page.expect_download(timeout=60_000) as info:
+    with page.expect_download() as info:
         page.get_by_role("button", name="Download the last run (CSV)").click()
     path = tmp_path / info.value.suggested_filename
     info.value.save_as(path)

@@ -86,9 +86,9 @@ def test_projector_text_is_at_least_20px(browser, projector_lab):
         pg.close()
 
 
-def test_the_switch_enlarges_one_page_only_and_a_reload_keeps_it(browser, lab):
+def test_the_switch_enlarges_one_page_only_and_a_reload_keeps_it(browser, other_browser, lab):
     pg = _open(browser, lab)
-    other = _open(browser, lab)  # another browser (its own context and localStorage)
+    other = _open(other_browser, lab)  # another browser (its own localStorage)
     try:
         smallest, where, n = _smallest(pg)
         assert n > 20

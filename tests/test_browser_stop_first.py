@@ -42,7 +42,7 @@ def _estop_then_reset(lab, pg, press) -> None:
     wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 60, "torque on")
     press()
     wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 60, "the e-stop")
-    pg.get_by_text("E-STOPPED").first.wait_for(timeout=60_000)
+    pg.get_by_text("E-STOPPED").first.wait_for()
     pg.get_by_role("button", name="Reset").click()
     wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 60, "torque back on")
 

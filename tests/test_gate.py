@@ -142,9 +142,9 @@ def test_in_chromium_the_lab_works_and_another_sites_page_gets_nothing(browser, 
     try:
         # the lab's own page, from the URL armlab serve prints, and again after a reload
         page.goto(lab.url)
-        page.get_by_role("button", name="E-STOP").wait_for(timeout=90_000)
+        page.get_by_role("button", name="E-STOP").wait_for()
         page.reload()
-        page.get_by_role("button", name="E-STOP").wait_for(timeout=90_000)
+        page.get_by_role("button", name="E-STOP").wait_for()
         # a page of another site, open in the same browser (the lab's cookie is set now),
         # opens a websocket to the lab and tries to move a gain
         ws = ws_base(lab)
