@@ -136,9 +136,9 @@ def browser(_chromium):
 def other_browser(_other_chromium):
     """Another browser, as on another machine, for a test's second page while its first
     is open (a teacher's and a student's). Software WebGL draws all of a browser's pages
-    in its one GPU process: beside a page of a lesson whose arm moves, a second page in
-    the same browser took about 33 s to draw its first controls (6 s alone), in another
-    browser about 13 s (quiet 2-core machine)."""
+    in its one GPU process, so in the same browser a second page waits behind the
+    frames of the first (a lesson whose arm moves draws all the time) and takes several
+    times as long to draw its first controls."""
     yield PatientBrowser(_other_chromium)
     for context in list(_other_chromium.contexts):
         context.close()
