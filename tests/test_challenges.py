@@ -167,7 +167,9 @@ def test_a_step_on_the_simulated_arm_is_judged_by_the_page_and_the_server_alike(
         page.wait_for(lambda: page.shows("Target"), 60, "the picker")
         page.set_value("Target", PRESETS["step"].title)
         wait_for(lambda: lab.challenges.challenge is not None, 30, "the challenge set")
-        page.wait_for(lambda: page.shows("%OS ≤ (%)"), 30, "the limits")
+        # (the server adds the limits' fields one by one: wait for both it types into)
+        page.wait_for(lambda: page.shows("%OS ≤ (%)") and page.shows("Ts ≤ (s)"), 30,
+                      "the limits")
         page.set_value("%OS ≤ (%)", 20.0)  # the limits on the page are the server's
         page.set_value("Ts ≤ (s)", 10.0)
         wait_for(lambda: lab.challenges.challenge.setting("overshoot_pct") == 20.0

@@ -106,6 +106,12 @@ class SharedLoop:
         self._thread.join(5.0)
 
 
+#: s an action on a control named by its label (:meth:`HeadlessClient.set_value`,
+#: :meth:`~HeadlessClient.click`, :meth:`~HeadlessClient.upload`) waits for it to arrive
+#: before it fails, as Playwright's actions wait: the server adds a panel's fields one
+#: message at a time, and on a busy machine the next may not have arrived yet
+ACTION_WAIT_S = 60.0
+
 #: The server's camera messages: type -> (field, key in :attr:`HeadlessClient.camera`).
 CAMERA_MESSAGES = {"SetCameraPositionMessage": ("position", "position"),
                    "SetCameraLookAtMessage": ("look_at", "look_at"),
@@ -327,8 +333,13 @@ class HeadlessClient:
         asyncio.run_coroutine_threadsafe(self._ws.send(data), self._loop).result(5.0)
 
     def _uuid(self, target: str | Any, kind: str | None = None) -> str:
-        """The uuid of a GUI element given by its label or by the server's handle of it."""
+        """The uuid of a GUI element given by its label (waited for up to
+        :data:`ACTION_WAIT_S`, as a person waits for a control to appear) or by the
+        server's handle of it."""
         if isinstance(target, str):
+            if not self.shows(target, kind):  # a panel's fields may arrive one by one
+                self.wait_for(lambda: self.shows(target, kind), ACTION_WAIT_S,
+                              f"a GUI element labelled {target!r}")
             return self.find(target, kind).uuid
         return uuid_of(target)  # a viser GUI handle (a test holding the server side)
 
