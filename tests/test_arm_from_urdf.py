@@ -93,6 +93,7 @@ def test_a_chain_the_lab_cannot_drive_names_the_joint():
     check_servo_arm(load_robot(mobile, tip_link="tcp_link"))  # 4 revolute joints: fine
 
 
+@pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
     map_path = tmp_path / "two.toml"
     with emulator("--robot", str(TWO), "--ids", "21,22") as emu:

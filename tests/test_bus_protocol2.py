@@ -23,6 +23,8 @@ from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.bus import Bus, NoReply
 from armlab.kinematics import load_robot
 
+pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
+
 IDS = (11, 12, 13, 14)
 OMX = ("--robot", "open_manipulator_x")
 
