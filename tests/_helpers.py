@@ -29,6 +29,10 @@ from armlab.app.testing.wsclient import HeadlessClient
 CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
 CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
+#: ms a page waits for an element to be actionable (visible, enabled and standing still
+#: for two animation frames) before a click fails. Playwright's 30 s ran out once on a
+#: loaded machine, where a software-rendered 3D page draws a frame in seconds.
+ACTION_TIMEOUT_MS = 120_000
 #: Console messages that are expected in headless software rendering, not faults.
 EXPECTED_CONSOLE = ("software webgl", "three.clock", "gpu stall",
                     "automatic fallback to software")

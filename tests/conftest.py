@@ -130,9 +130,7 @@ def browser(_chromium):
     each test opens its own pages in contexts of their own (``new_page``,
     ``new_context``), which share no cookies or storage; whatever a module left open is
     closed when it ends."""
-    yield PatientBrowser(_chromium)
-    for context in list(_chromium.contexts):
-        context.close()
+    yield from _patient(_chromium)
 
 
 @pytest.fixture(scope="module")
@@ -142,32 +140,35 @@ def other_browser(_other_chromium):
     in its one GPU process, so in the same browser a second page waits behind the
     frames of the first (a lesson whose arm moves draws all the time) and takes several
     times as long to draw its first controls."""
-    yield PatientBrowser(_other_chromium)
-    for context in list(_other_chromium.contexts):
+    yield from _patient(_other_chromium)
+
+
+def _patient(chromium):  # noqa: ANN001, ANN202
+    """A module's :class:`PatientBrowser` on ``chromium``; the contexts it left open are
+    closed when the module ends."""
+    yield PatientBrowser(chromium)
+    for context in list(chromium.contexts):
         context.close()
-
-
-#: ms a page waits for an element to be actionable (visible, enabled and standing still
-#: for two animation frames) before a click fails. Playwright's 30 s ran out once on a
-#: loaded machine, where a software-rendered 3D page draws a frame in seconds.
-ACTION_TIMEOUT_MS = 120_000
 
 
 class PatientBrowser:
     """The Chromium the tests drive, whose new pages and contexts wait
-    :data:`ACTION_TIMEOUT_MS` for an element before they give up."""
+    :data:`_helpers.ACTION_TIMEOUT_MS` for an element before they give up."""
 
     def __init__(self, chromium) -> None:
+        from _helpers import ACTION_TIMEOUT_MS
+
         self._chromium = chromium
+        self._timeout_ms = ACTION_TIMEOUT_MS
 
     def new_page(self, **kwargs):
         page = self._chromium.new_page(**kwargs)
-        page.set_default_timeout(ACTION_TIMEOUT_MS)
+        page.set_default_timeout(self._timeout_ms)
         return page
 
     def new_context(self, **kwargs):
         context = self._chromium.new_context(**kwargs)
-        context.set_default_timeout(ACTION_TIMEOUT_MS)
+        context.set_default_timeout(self._timeout_ms)
         return context
 
     def __getattr__(self, name: str):

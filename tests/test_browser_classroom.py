@@ -4,7 +4,7 @@ on two machines) on one lab served with roles (armlab/app/classroom)."""
 from __future__ import annotations
 
 import pytest
-from _helpers import wait_for
+from _helpers import ACTION_TIMEOUT_MS, wait_for
 
 from armlab.app.server import Lab, ServeOptions
 from armlab.control.params import DEFAULT
@@ -12,10 +12,9 @@ from armlab.control.params import DEFAULT
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 
 KP = "Kp (1/s²)"
-#: s to wait for what a page did to reach the server: as long as each page waits for an
-#: element (conftest.ACTION_TIMEOUT_MS): while one page is open, software WebGL on a
-#: loaded 2-core machine has taken over 60 s to draw a second page's first controls
-PAGE_S = 120
+#: s to wait for what a page did to reach the server: as long as a page waits for an
+#: element (software WebGL on a loaded 2-core machine draws a frame in seconds)
+PAGE_S = ACTION_TIMEOUT_MS / 1000
 
 
 @pytest.fixture(scope="module")
