@@ -45,9 +45,10 @@ test: $(DEVSTAMP)
 	$(PYTEST) $(PARALLEL) $(ON_CLOCK); on=$$?; \
 	test $$off -eq 0 && test $$on -eq 0
 
-# the edit-test loop: the tests off the clock only
+# the edit-test loop: the tests off the clock that take under a second each (`make test`
+# runs the slow ones: long simulations, a lab or a class served)
 test-fast: $(DEVSTAMP)
-	$(PYTEST) $(FAST_PARALLEL) $(OFF_CLOCK)
+	$(PYTEST) $(FAST_PARALLEL) -m "not browser and not realtime and not slow"
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .

@@ -129,6 +129,7 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
             lab.close()
 
 
+@pytest.mark.slow
 def test_dragging_the_hand_target_moves_open_manipulator_x_there():
     """The IK target drag on the shipped OpenManipulator-X, simulated, through the page."""
     from armlab.app.lessons import LessonContext
@@ -153,6 +154,7 @@ def test_dragging_the_hand_target_moves_open_manipulator_x_there():
         assert lesson.loop.status.fault is None
 
 
+@pytest.mark.slow
 def test_the_so101_opens_in_the_arm_lesson_and_follows_a_dragged_target():
     """The shipped SO-101 (five STS3215 joints, simulated): the arm lesson takes it by name,
     and the hand follows the IK target dragged 3 cm through the page."""

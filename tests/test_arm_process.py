@@ -27,6 +27,7 @@ def model():
     return load_robot("receptionist_arm", preset="18.5/25")
 
 
+@pytest.mark.slow
 def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_a_gap(model):
     """The arm's loop runs in another process; every period it records reaches the
     server's mirror once, in order, from its first (the loop times are 0, then one
@@ -56,6 +57,7 @@ def test_a_private_arm_runs_in_the_worker_and_its_recording_is_mirrored_without_
     assert boxes.process.ended == "the arm's process was closed"
 
 
+@pytest.mark.slow
 def test_a_private_hand_and_quadruped_are_mirrored_from_their_first_period():
     """The worker mirrors a new hand's or quadruped's loop from its first period on,
     which may reach the server before the add's answer: those rows are kept too (a
@@ -103,6 +105,7 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         proc.close()
 
 
+@pytest.mark.slow
 def test_the_servos_reports_are_mirrored_and_say_when_the_arm_is_gone(model):
     """The Servos panel's reports come with the mirror (a page's frame never waits for
     the worker): an E-STOP shows in them as torque off; a freed arm's, or an ended
@@ -128,6 +131,7 @@ def test_the_servos_reports_are_mirrored_and_say_when_the_arm_is_gone(model):
         proc.close()
 
 
+@pytest.mark.slow
 def test_a_worker_that_dies_is_told_and_the_next_arm_gets_a_new_one(model):
     """The worker killed: the arm's status says so as a fault, calls raise BackendError
     (E-STOP still answers: nothing holds torque), the server goes on, and the next arm
@@ -155,6 +159,7 @@ def test_a_worker_that_dies_is_told_and_the_next_arm_gets_a_new_one(model):
         boxes.close()
 
 
+@pytest.mark.slow
 def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
     """With --classroom on the simulated backend the shared arm's loop runs in a worker
     of its own (not the server, not the class's): E-STOP reaches it, the lesson's Reset
@@ -186,6 +191,7 @@ def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
         assert lab.arm_process is None and isinstance(lab.lesson.rig.loop, ControlLoop)
 
 
+@pytest.mark.slow
 def test_each_worker_is_scheduled_as_it_says():
     """The shared arm's real-time worker asks for SCHED_FIFO (taken where the OS allows
     it, said otherwise); the class's worker is niced below the server; a worker run as
@@ -213,6 +219,7 @@ def test_each_worker_is_scheduled_as_it_says():
             proc.close()
 
 
+@pytest.mark.slow
 def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints():
     """The any-arm lesson's shared arm (a five-joint URDF arm, protocol-1.0 servos) in a
     simulated classroom runs in the worker: a hand target and the spare joints' aim go
@@ -250,6 +257,7 @@ def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints(
         assert loop.status.fault is None
 
 
+@pytest.mark.slow
 def test_a_worker_that_stops_answering_is_told_and_its_estop_lands_when_it_resumes(model):
     """The worker frozen (SIGSTOP: a machine starved of CPU looks the same): the arm's
     status says it is not answering, an E-STOP gives up waiting and says it could not be

@@ -24,6 +24,7 @@ PARAMS = (GripParams(force_limit=0.8), GripParams(force_limit=1.0, approach_spee
 
 
 @pytest.mark.parametrize("lpf", [None, 200.0], ids=["unfiltered", "rc-filtered"])
+@pytest.mark.slow
 def test_batched_hands_and_controllers_equal_single_ones_through_whole_grasps(lpf):
     """Three simulated seconds: every hand closes, one object is taken away while held
     (the finger gives way and approaches again), limits go up and down, one hand opens
@@ -134,6 +135,7 @@ def wait_class(hands: ClassHands, seconds: float) -> None:
     assert not hands.fault, hands.fault
 
 
+@pytest.mark.slow
 def test_each_students_hand_grasps_with_its_own_force_and_matches_the_experiment():
     hands = ClassHands(realtime=False)
     try:

@@ -120,6 +120,7 @@ def test_two_threads_running_the_generated_dynamics_each_get_their_own_results()
 
 
 @pytest.mark.parametrize("float_arms", [FLOAT_ARMS, 0])  # the plant's path for a few arms; numpy's
+@pytest.mark.slow
 def test_batched_plant_equals_n_single_plants_over_one_second(float_arms: int,
                                                               monkeypatch) -> None:  # noqa: ANN001
     monkeypatch.setattr("armlab.kinematics.batched_dynamics.FLOAT_ARMS", float_arms)
@@ -210,6 +211,7 @@ PARAMS = [Params(), Params(kp=40.0, kv=9.0, k_env=8.0, feedforward=False),
           Params(kp=20.0, kv=6.0, alpha=0.2, m_env=0.5, d_env=3.0)]
 
 
+@pytest.mark.slow
 def test_overload_shutdown_wheel_mode_and_angle_limit_as_single_plants() -> None:
     """Firmware corners: an arm held in its stop at Torque Limit trips the overload alarm
     (Alarm Shutdown) and recovers when Torque Limit and Torque Enable are written again;
@@ -286,6 +288,7 @@ def test_directions_and_servo_params_per_joint_as_single_plants() -> None:
     assert np.max(np.abs(batch.qd - np.array([p.qd for p in singles]))) <= 1e-9
 
 
+@pytest.mark.slow
 def test_spring_and_wall_per_arm_as_single_plants() -> None:
     """Arm 0 dragged by a spring (damped), arm 1 pressing a wall, arm 3 both, the rest free;
     the spring moved, the wall removed and put back mid-run, as Plant.set_spring/set_wall."""

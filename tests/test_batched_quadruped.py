@@ -112,6 +112,7 @@ def test_fewer_than_three_contacts_share_as_contact_forces_does() -> None:
 
 # -- the batch against separate backends ---------------------------------------------------
 
+@pytest.mark.slow
 def test_the_batch_equals_separate_quadruped_backends_over_a_second_and_a_half() -> None:
     """Different goals per robot, the body load on, robot 1 torque off at 0.3 s (its body
     sits down), robot 2 pushed on its RH foot, robot 3 dragged by a spring; every period
@@ -159,6 +160,7 @@ def test_the_batch_equals_separate_quadruped_backends_over_a_second_and_a_half()
     assert np.all(moved.max(axis=1) > 0.05)
 
 
+@pytest.mark.slow
 def test_adding_and_removing_a_robot_leaves_the_others_unchanged() -> None:
     """The others as a batch that never had the robot; the one added mid-run (between two
     load renewals of the others) as a fresh QuadrupedSimBackend from the step it joined."""
@@ -197,6 +199,7 @@ def test_adding_and_removing_a_robot_leaves_the_others_unchanged() -> None:
         assert np.array_equal(a.present_position(), b.present_position())
 
 
+@pytest.mark.slow
 def test_bad_input_raises_and_changes_nothing() -> None:
     batch, backends = _batch(2)
     ref, ref_backends = _batch(2)
@@ -265,6 +268,7 @@ def test_without_drive_sync_waits_for_the_clock_and_never_steps() -> None:
     assert b.read().t == pytest.approx(0.23)
 
 
+@pytest.mark.slow
 def test_estop_torque_off_and_on_again_as_a_quadruped_backend() -> None:
     single = QuadrupedSimBackend(MODEL, q0=Q0, dt=DT)
     batch, (b,) = _batch(1)
@@ -368,6 +372,7 @@ def test_legs_with_other_servos_or_directions_get_plants_of_their_own() -> None:
 @pytest.mark.parametrize(("model", "groups"), [
     (MODEL, ((0, 2), (1, 3))), (HEAVY_RH, ((0,), (1, 3), (2,))), (ALIKE, ((0, 1, 2, 3),))],
     ids=["lab", "heavy-RH", "alike"])
+@pytest.mark.slow
 def test_robots_joining_and_leaving_mid_run_match_separate_backends(
         model: Quadruped, groups: tuple[tuple[int, ...], ...]) -> None:
     """However the legs are grouped, every robot equals a ``QuadrupedSimBackend`` of the
@@ -440,6 +445,7 @@ def test_a_diverged_robot_is_named_by_its_robot_id() -> None:
 
 # -- the gait loop ------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_gait_loop_walks_one_robot_of_a_batch_as_it_walks_a_quadruped_backend() -> None:
     plan = plan_gait(GaitSpec())
     alone = GaitLoop(Walker(plan), QuadrupedSimBackend(MODEL, q0=Q0, dt=DT), period=PERIOD,
@@ -466,6 +472,7 @@ def test_a_gait_loop_walks_one_robot_of_a_batch_as_it_walks_a_quadruped_backend(
     assert batch.forces[batch.row(robot)].sum() == pytest.approx(total_mass(MODEL) * G)
 
 
+@pytest.mark.slow
 def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> None:
     """The classroom's way (app/class_quadrupeds.py): the loop's periods run on the clock
     that steps the batch (``GaitLoop(clock=)``), the backend only checks the time. The
@@ -492,6 +499,7 @@ def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> Non
     assert loop.angle_error()["mean_pct"] == alone.angle_error()["mean_pct"]
 
 
+@pytest.mark.slow
 def test_the_class_walks_each_students_robot_on_its_own() -> None:
     """app/class_quadrupeds.py: robots on the class's clock (its step CLASS_DT); one walks,
     its neighbour stands; an E-STOP sits that one down alone; a freed robot is gone."""

@@ -19,6 +19,7 @@ def test_the_class_of_loops_runs_without_a_fault(batched: bool) -> None:
 
 
 @pytest.mark.parametrize("lesson", ("hand", "quadruped"))
+@pytest.mark.slow
 def test_a_room_of_pages_each_with_its_own_copy_gets_frames_of_it(lesson: str) -> None:
     """Three pages choose My arm in the hand or quadruped lesson; each draws its own robot
     (the clients wait for that) and receives frames of its own lesson while the students
@@ -31,6 +32,7 @@ def test_a_room_of_pages_each_with_its_own_copy_gets_frames_of_it(lesson: str) -
 
 
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_backends"))
+@pytest.mark.slow
 def test_the_class_of_quadrupeds_walks_without_a_fault(batched: bool) -> None:
     from armlab.app.benches.classroom import quadrupeds_cost
 

@@ -35,6 +35,7 @@ def test_an_unknown_bench_group_is_named(capsys):
     assert "no bench 'nope'" in err and "kinematics" in err
 
 
+@pytest.mark.slow
 def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
     pytest.importorskip("pinocchio")
     mujoco = pytest.importorskip("mujoco")
@@ -67,6 +68,7 @@ def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
     assert figures["peer_ik_solved"] == 1.0
 
 
+@pytest.mark.slow
 def test_the_bus2_cycles_alternate_on_one_paced_emulator_and_report_their_figures():
     """armlab's bus and the SDK take turns on one port; neither beats the paced wire."""
     pytest.importorskip("dynamixel_sdk")

@@ -163,6 +163,7 @@ FOV = 1.2  # rad, the page's vertical field of view
 
 
 @pytest.mark.parametrize("lesson", sorted(all_lessons()))
+@pytest.mark.slow
 def test_every_lesson_frames_its_robot_in_the_page_view(lesson):
     with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab, \
             client_of(lab.server, token=lab.token) as page:

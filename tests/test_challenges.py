@@ -158,6 +158,7 @@ def _markdown(page: HeadlessClient, text: str) -> str:
     return ""
 
 
+@pytest.mark.slow
 def test_a_step_on_the_simulated_arm_is_judged_by_the_page_and_the_server_alike():
     """Single user: pick the step challenge on the page, run it there (the lesson's step on
     the simulated arm), see ✓ with the measured figures; a stricter %OS typed into the
@@ -192,6 +193,7 @@ def test_a_step_on_the_simulated_arm_is_judged_by_the_page_and_the_server_alike(
         assert not judge(lab.challenges.challenge, figures).passed
 
 
+@pytest.mark.slow
 def test_a_grasp_is_judged_on_the_simulated_hand():
     """The hand lesson's grasp: at the default 0.8 N it fails the 1 N challenge, at 1 N it
     passes (measured by the server once the grasp settled)."""
@@ -215,6 +217,7 @@ def test_a_grasp_is_judged_on_the_simulated_hand():
         assert verdicts[1].figures()["grasp_held"] == 1.0
 
 
+@pytest.mark.slow
 def test_a_walk_is_judged_on_the_simulated_quadruped():
     """The quadruped's walk (shortened to 3 s): started from the page, stopped by the
     server, its eq. 4.1 error worked out once it stopped, and judged."""
@@ -259,6 +262,7 @@ def _student(lab: Lab, name: str) -> tuple[HeadlessClient, int]:
     return page, cid
 
 
+@pytest.mark.slow
 def test_in_a_class_forged_messages_pass_nothing_and_the_gradebook_has_each_students_best():
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         teacher = _present(lab)

@@ -50,6 +50,7 @@ def test_start_writes_the_starter_prints_its_path_and_keeps_existing_work(tmp_pa
     assert "known: thesis_fk" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_check_exit_codes_and_results_file_of_the_real_command(tmp_path):
     started = armlab("exercise", "start", "leg_ik", cwd=tmp_path)
     assert started.returncode == 0 and started.stdout.strip() == "leg_ik.py"

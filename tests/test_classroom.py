@@ -78,6 +78,7 @@ def _has(page: HeadlessClient, label: str) -> bool:
     return any(e.label == label for e in page.gui.values())
 
 
+@pytest.mark.slow
 def test_a_student_cannot_change_the_shared_arm_the_presenter_can(classroom):
     lab = classroom
     loop = lab.lesson.rig.loop
@@ -178,6 +179,7 @@ def test_the_presenter_link_presents_at_once_and_a_stale_one_is_refused(classroo
         assert not any(t == "Presenter link refused" for t, _ in page.notifications)
 
 
+@pytest.mark.slow
 def test_guesses_from_one_address_are_slowed_down():
     with Lab(ServeOptions(http_port=0, classroom=True, lesson="ik_accuracy")) as lab:
         # a wait no loaded machine outlasts
@@ -214,6 +216,7 @@ def _joined(lab: Lab) -> tuple[HeadlessClient, int]:
     return page, cid
 
 
+@pytest.mark.slow
 def test_my_arm_is_private(classroom):
     lab = classroom
     shared = lab.lesson.rig.loop
@@ -250,6 +253,7 @@ def test_my_arm_is_private(classroom):
     wait_for(lambda: not lab.room.private_lesson(b_id), 30, "B's page gone")
 
 
+@pytest.mark.slow
 def test_a_full_class_says_so():
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         lab.room.sandboxes.max_arms = 1
@@ -265,6 +269,7 @@ def test_a_full_class_says_so():
             assert lab.room.private_lesson(b_id) is None
 
 
+@pytest.mark.slow
 def test_a_disconnect_mid_drag_lets_go_of_the_students_arm(classroom):
     from armlab.kinematics.fk import fk
 
@@ -312,6 +317,7 @@ def test_bad_values_to_a_students_own_controls_change_nothing(classroom):
 
 
 @pytest.mark.timeout(900)  # five lessons and a third worker process
+@pytest.mark.slow
 def test_my_arm_in_the_other_arm_lessons_is_private_too():
     """The IK-accuracy, redundancy, any-arm, hand and quadruped lessons offer My arm as
     well: a student's control moves their own copy, never the shared one."""
@@ -358,6 +364,7 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
             assert not shared.status.walking and mine.loop is not shared
 
 
+@pytest.mark.slow
 def test_a_lesson_without_a_private_copy_keeps_the_page_following(monkeypatch):
     """A lesson module without ``PRIVATE`` (a lesson added later) says so and keeps the
     page following the teacher."""
@@ -383,6 +390,7 @@ def _q(loop) -> np.ndarray:  # noqa: ANN001
     return snap["q"][-1] if len(snap["t"]) else np.full(loop.model.n, np.nan)
 
 
+@pytest.mark.slow
 def test_a_page_with_its_own_arm_is_not_sent_the_shared_stream_and_catches_up(classroom):
     """While a page shows My arm the shared lesson's updates are held back from it (the
     server does not serialise them for it); following again, it is sent the latest."""
@@ -448,6 +456,7 @@ def test_closing_a_class_while_its_clock_steps_frees_every_arm():
     assert all(not arm.loop.status.running and not arm.loop.status.torque_on for arm in held)
 
 
+@pytest.mark.slow
 def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
     """A reload: the new page takes the seat before the old page's goodbye. The late
     goodbye must not start the idle timer under the new page (its arm would be freed
@@ -474,6 +483,7 @@ def test_a_seat_stays_open_while_any_page_shows_it_and_is_freed_when_idle():
         boxes.close()
 
 
+@pytest.mark.slow
 def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle():
     """The hand and quadruped lessons' private copies: a reload asks the seat again and
     gets the same hand and robot, as they were left; an idle seat frees them from the
@@ -512,6 +522,7 @@ def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle()
         boxes.close()
 
 
+@pytest.mark.slow
 def test_a_private_open_manipulator_x_has_its_x_series_servos():
     """A student's own OpenManipulator-X is simulated with its XM430-W350 firmware model,
     as the shared one is (armlab.app.backends.make_backend), not with the thesis arm's RX-24F:
@@ -543,6 +554,7 @@ def test_a_private_open_manipulator_x_has_its_x_series_servos():
     assert boxes.n_arms == 0
 
 
+@pytest.mark.slow
 def test_a_private_lesson_without_an_arm_hides_the_shared_panel_and_takes_an_estop():
     """The IK lesson has no arm, gains or figures, and its handle says so (the lesson
     contract, armlab.app.lessons.LessonHandle): shown as "My arm", the shared lesson's
@@ -607,6 +619,7 @@ def test_a_page_that_only_connects_is_refused_nothing_and_told_nothing(classroom
         assert not [t for t, _ in page.notifications if "presenter" in t.lower()]
 
 
+@pytest.mark.slow
 def test_a_follower_saves_and_exports_the_shared_run_to_its_page_alone(classroom):
     """Save run and Export page (the Files tab) change nothing shared: a follower's press
     sends the teacher's run to that page only; Open run on the shared lesson stays the

@@ -7,6 +7,7 @@ whose Servos panel names the model it simulates.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from _helpers import wait_for
 
 from armlab.app.lessons.compliance_servos import read_health
@@ -19,6 +20,7 @@ from armlab.kinematics import load_robot
 SO101 = load_robot("so101")
 
 
+@pytest.mark.slow
 def test_a_private_so101_has_its_sts3215_servos():
     """A student's own SO-101 is an STS3215 firmware model on the class's clock: its
     servos are :class:`StsServoModel`, it turns to a goal, the Servos panel says STS3215;
@@ -48,6 +50,7 @@ def test_a_private_so101_has_its_sts3215_servos():
     assert boxes.n_arms == 0
 
 
+@pytest.mark.slow
 def test_the_classroom_s_shared_so101_simulates_sts3215_servos():
     """``serve --classroom --robot so101``: the arm lesson's shared arm is an STS3215
     firmware model with its jaw's servo, in the server (the worker process simulates

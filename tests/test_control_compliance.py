@@ -70,6 +70,7 @@ def hold_and_push(params: Params):
     return pushed, tau, released
 
 
+@pytest.mark.slow
 def test_steady_offset_is_kf_tau_over_kenv_and_release_returns():
     p = Params()
     pushed, tau, released = hold_and_push(p)
@@ -83,6 +84,7 @@ def test_steady_offset_is_kf_tau_over_kenv_and_release_returns():
     assert np.degrees(np.abs(released["q"][-1] - released["q_cmd"][-1])).max() < 1.0
 
 
+@pytest.mark.slow
 def test_thesis_literal_law_moves_k_env_times_further():
     p = dataclasses.replace(Params(), law="2.26", k_f=0.25, k_env=16.0)
     pushed, tau, _ = hold_and_push(p)
@@ -90,6 +92,7 @@ def test_thesis_literal_law_moves_k_env_times_further():
     np.testing.assert_allclose(offset, p.k_f * tau, rtol=0.05)
 
 
+@pytest.mark.slow
 def test_without_compliance_the_arm_yields_many_times_less():
     comp, tau_c, _ = hold_and_push(Params())
     stiff, tau_s, _ = hold_and_push(Params(compliance=False))

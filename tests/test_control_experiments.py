@@ -36,6 +36,7 @@ def line_runs():
     return out
 
 
+@pytest.mark.slow
 def test_thesis_line_prints_the_public_keys(line_runs):
     r = line_runs["compliance"]
     assert list(r) == ["controller", "max_angle_error_deg", "max_angle_error_pushed_deg",
@@ -44,6 +45,7 @@ def test_thesis_line_prints_the_public_keys(line_runs):
     assert all(len(r[k]) == 3 for k in list(r)[1:])
 
 
+@pytest.mark.slow
 def test_pd_tracks_the_line_better_than_no_controller(line_runs):
     none, pd = line_runs["none"], line_runs["pd"]
     assert none["max_angle_error_deg"] == pytest.approx([4.59, 0.0, 1.64], abs=0.3)
@@ -63,6 +65,7 @@ def test_pd_without_feedforward_still_beats_no_controller_but_only_just(capsys):
     assert max(pd["max_angle_error_deg"]) < 4.59
 
 
+@pytest.mark.slow
 def test_compliance_yields_more_under_the_same_push(line_runs):
     pd, comp = line_runs["pd"], line_runs["compliance"]
     assert max(comp["max_yield_deg"]) > 1.5 * max(pd["max_yield_deg"])
@@ -70,6 +73,7 @@ def test_compliance_yields_more_under_the_same_push(line_runs):
         assert comp["max_yield_deg"][j] > pd["max_yield_deg"][j]
 
 
+@pytest.mark.slow
 def test_free_motion_torque_error_is_the_size_the_thesis_saw(line_runs):
     # thesis fig. 4.6: servo load after the LPF vs Newton–Euler, up to about 1.5 kgf·cm
     # (0.147 N·m); the simulated servos give 0.066 N·m on θ1 and 0.200 N·m on θ2
@@ -81,6 +85,7 @@ def test_free_motion_torque_error_is_the_size_the_thesis_saw(line_runs):
     assert err[2] == pytest.approx(0.200, abs=0.02)
 
 
+@pytest.mark.slow
 def test_the_thesis_metric_free_and_pushed_and_the_yield_apart(line_runs):
     """Command minus actual (the thesis's metric) for free and pushed runs, yield apart.
 
@@ -100,6 +105,7 @@ def test_the_thesis_metric_free_and_pushed_and_the_yield_apart(line_runs):
                                                                    abs=0.5)
 
 
+@pytest.mark.slow
 def test_step_formula_and_measured_side_by_side(capsys):
     r = run_json(capsys, "step", "--kp", "3.8", "--kv", "0.2")
     for part in ("formula", "measured", "measured_eq_2_3"):
@@ -147,6 +153,7 @@ def test_each_experiments_typed_options_are_its_command_line(name):
             parser.parse_args(["experiment", name, "--controller", "fast"])
 
 
+@pytest.mark.slow
 def test_no_reading_of_table_4_1_reproduces_all_three_figures(capsys):
     """``thesis-readings``: every reading of the thesis's gains and units on the line.
 

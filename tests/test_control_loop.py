@@ -287,6 +287,7 @@ def test_real_time_thread_paces_and_a_reader_can_snapshot_meanwhile():
     assert status.jitter_p99_ms is not None and status.period_mean_ms is not None
 
 
+@pytest.mark.slow
 def test_a_servo_stalled_against_a_wall_stops_the_loop_and_reset_recovers():
     q0 = np.array([0.6, 0.0, 1.2])
     d = ARM.jacobian(q0)[:3, 0] / np.linalg.norm(ARM.jacobian(q0)[:3, 0])
@@ -303,6 +304,7 @@ def test_a_servo_stalled_against_a_wall_stops_the_loop_and_reset_recovers():
     assert [s.regs.torque_enable for s in be.plant.servos] == [1, 1, 1]
 
 
+@pytest.mark.slow
 def test_a_target_dragged_near_a_joint_limit_moves_the_hand_without_a_fault():
     """The SO-101 folded on its shoulder_lift limit (where a serial arm rests and is
     caught): a target 2 cm aside and 2 cm down asks one RMRC step for some 10 rad/s of

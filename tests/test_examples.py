@@ -55,6 +55,7 @@ def test_fk_ik_example_prints_the_arms_own_fk_and_reaches_the_line_ends():
 
 
 @pytest.mark.timeout(300)
+@pytest.mark.slow
 def test_compliance_example_yields_by_the_static_gain_of_eq_2_15():
     f = run_example("03_compliance_headless.py")
     formula = metrics.static_gain(DEFAULT.k_f, DEFAULT.k_env)
@@ -66,6 +67,7 @@ def test_compliance_example_yields_by_the_static_gain_of_eq_2_15():
 
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize("kp,kv", [(DEFAULT.kp, DEFAULT.kv), (100.0, 4.0)])
+@pytest.mark.slow
 def test_step_example_puts_the_formulas_beside_the_ideal_joint_and_the_arm(kp, kv):
     f = run_example("02_step_response.py", str(kp), str(kv))
     wn, z = metrics.pd_natural_frequency(kp), metrics.pd_damping(kp, kv)

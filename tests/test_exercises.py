@@ -59,6 +59,7 @@ def test_at_least_eight_exercises_each_with_three_mistakes_and_a_starter():
 
 
 @pytest.mark.parametrize("name", NAMES)
+@pytest.mark.slow
 def test_lab_implementation_as_a_student_file_passes_every_case(tmp_path, name):
     report = check_file(reference_file(tmp_path, name))
     assert report.error is None
@@ -167,6 +168,7 @@ def test_exception_in_the_students_law_during_the_closed_loop_run(tmp_path):
     assert f"{path}:{bad}: RuntimeError: my law broke on the arm" in run.text, run.text
 
 
+@pytest.mark.slow
 def test_wrong_shape_nan_and_hang_are_reported_at_the_students_function(tmp_path, monkeypatch):
     monkeypatch.setattr(core, "VALUE_CASE_S", 0.5)
     path = student_file(tmp_path, "jacobian", """\
@@ -249,6 +251,7 @@ def test_notebook_check_is_one_call_on_the_function(capsys):
         armlab.check(my_function)
 
 
+@pytest.mark.slow
 def test_notebook_starter_is_nbformat_4_and_its_cells_check_the_function(tmp_path, capsys):
     path = write_starter("planar_ik", tmp_path, notebook=True)
     nb = json.loads(path.read_text())

@@ -73,6 +73,7 @@ def _in_range(handle) -> bool:
 
 
 @pytest.mark.parametrize("lesson", sorted(all_lessons()))
+@pytest.mark.slow
 def test_fuzzed_updates_to_every_control_are_refused_quietly(lesson, capfd):
     with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab:
         assert isinstance(lab.screen, UpdateScreen)
@@ -143,6 +144,7 @@ def test_fuzzed_updates_to_every_control_are_refused_quietly(lesson, capfd):
         assert all(len(line) <= 200 for line in err.splitlines() if line.startswith("armlab:"))
 
 
+@pytest.mark.slow
 def test_a_burst_of_updates_is_coalesced_and_the_latest_wins():
     with Lab(ServeOptions(http_port=0, realtime=False)) as lab:
         with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
@@ -163,6 +165,7 @@ UNREADABLE = [{"type": "NoSuchMessage", "x": 1}, {"nope": 1}, {"type": "GuiUpdat
                                                         "uuid": None, "updates": None}]
 
 
+@pytest.mark.slow
 def test_unreadable_messages_are_dropped_counted_and_the_page_keeps_working(capfd):
     with Lab(ServeOptions(http_port=0, realtime=False)) as lab:
         with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:

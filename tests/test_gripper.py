@@ -200,6 +200,7 @@ def test_the_lesson_opens_and_closes_the_gripper_on_the_servos():
             lab.close()
 
 
+@pytest.mark.slow
 def test_the_simulated_open_manipulator_x_has_its_gripper():
     """``--backend sim``: the same gripper servo in the simulated arm, driven by the loop."""
     backend = make_backend("sim", OMX)

@@ -43,6 +43,8 @@ def test_the_gripper_controls_say_what_the_robot_s_gripper_is(
             client.wait_for(lambda: client.shows(label), 60.0, f"the {label!r} slider")
             slider = client.find(label)
             assert (slider.props["min"], slider.props["max"]) == pytest.approx(ends, abs=0.05)
+            client.wait_for(lambda: bool(_markdown(client, "**Gripper**")), 60.0,
+                            "the Teach tab's gripper note")
             teach = _markdown(client, "**Gripper**")
             assert note in teach and not_said not in teach
             assert ("jaw's angle, in degrees" if revolute else "one finger, in mm") in teach

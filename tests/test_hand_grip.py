@@ -78,6 +78,7 @@ def test_grip_force_is_the_limit_and_never_crushes(stiffness):
     assert fig["time_to_grasp_s"] is not None and fig["time_to_grasp_s"] < 1.5
 
 
+@pytest.mark.slow
 def test_force_limit_sets_the_grip_force():
     weak = grasp_figures(grasp(0.4, 1000.0)[2], 0.4)
     strong = grasp_figures(grasp(1.2, 1000.0)[2], 1.2)

@@ -40,6 +40,7 @@ def test_lesson_is_registered():
     assert module.TITLE and module.HELP and module.ROBOTS == ("receptionist_arm",)
 
 
+@pytest.mark.slow
 def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(lesson):
     with client_of(lesson.server) as client:
         client.set_value(lesson.force_slider, 0.4)
@@ -66,6 +67,7 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
         assert lesson.loop.status.modes == ("holding",) * 3
 
 
+@pytest.mark.slow
 def test_open_releases_and_the_object_controls_change_the_object(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.close_button)

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 #: the top folders, each a layer (``armlab.<folder>``)
 PACKAGES = ("app", "control", "hardware", "kinematics")
@@ -170,6 +172,7 @@ def upward_imports() -> list[str]:
     return bad
 
 
+@pytest.mark.slow
 def test_graph_sees_the_packages():
     """The graph holds every module and the imports between them (a test that read no
     edges would pass whatever the code does)."""
@@ -181,6 +184,7 @@ def test_graph_sees_the_packages():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
+@pytest.mark.slow
 def test_no_import_circles():
     """No modules of app/, control/, hardware/, kinematics/ import each other in a circle."""
     found = cycles(import_graph())

@@ -89,6 +89,7 @@ def test_lesson_is_registered():
     assert "not statically stable" in module.HELP
 
 
+@pytest.mark.slow
 def test_walking_forward_the_stance_feet_stay_put_and_a_changes_the_stride(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
@@ -139,6 +140,7 @@ def test_a_foot_trail_sends_its_newest_piece_only_and_keeps_the_recent_points():
         server.stop()
 
 
+@pytest.mark.slow
 def test_walking_each_foot_leaves_a_trail_that_ends_where_it_is(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
@@ -159,6 +161,7 @@ def test_walking_each_foot_leaves_a_trail_that_ends_where_it_is(lesson):
             assert np.linalg.norm(segs[-1, 1] - feet[i]) < 0.05
 
 
+@pytest.mark.slow
 def test_turn_and_back_buttons_change_the_motion(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["left"])
@@ -170,6 +173,7 @@ def test_turn_and_back_buttons_change_the_motion(lesson):
         assert stride(snap) == pytest.approx(-2 * 0.04, rel=0.02)
 
 
+@pytest.mark.slow
 def test_crawl_keeps_a_positive_margin_and_refuses_to_turn(lesson):
     with client_of(lesson.server) as client:
         client.set_value(lesson.gait_dropdown, "crawl")
@@ -186,6 +190,7 @@ def test_crawl_keeps_a_positive_margin_and_refuses_to_turn(lesson):
         assert lesson.spec.command == "forward"
 
 
+@pytest.mark.slow
 def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])
@@ -229,6 +234,7 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
 
 
 @pytest.mark.parametrize("value", [1e9, float("nan"), -2.0])
+@pytest.mark.slow
 def test_bad_typed_step_length_is_refused_and_the_lesson_goes_on(lesson, value):
     with client_of(lesson.server) as client:
         client.set_value(lesson.gait_sliders["A"].handle, value)
@@ -285,6 +291,7 @@ def test_twelve_emulated_servos_walk_over_the_serial_bus():
             assert (legs_moved[:, 1] > np.radians(2)).all(), "every hip pitch servo moved"
 
 
+@pytest.mark.slow
 def test_estop_switches_the_twelve_servos_off_and_reset_stands_up_again(lesson):
     with client_of(lesson.server) as client:
         client.click(lesson.direction_buttons["forward"])

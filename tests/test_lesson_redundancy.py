@@ -25,6 +25,7 @@ def test_lesson_is_registered():
     assert module.TITLE and module.HELP and module.ROBOTS == ("redundant_planar",)
 
 
+@pytest.mark.slow
 def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(lesson):
     # Before a run every ghost stands at the paper's θ(0).
     for mode in SHOWN_MODES:
@@ -59,6 +60,7 @@ def test_run_button_produces_the_experiment_figures_and_the_paper_behaviour(less
     assert all(p.updates > 0 for p in lesson.plots.plots)
 
 
+@pytest.mark.slow
 def test_k_a_slider_changes_the_redundant_ghost(lesson):
     if lesson.results is None:
         lesson.run(wait=True)

@@ -67,6 +67,7 @@ def test_lines_of_one_kind_differ_in_dash(module, robot, pattern):
 
 
 @pytest.mark.parametrize("lesson", sorted(all_lessons()))
+@pytest.mark.slow
 def test_every_chart_tells_its_lines_apart_without_colour(lesson):
     with Lab(ServeOptions(http_port=0, lesson=lesson, realtime=False)) as lab, \
             HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:

@@ -111,6 +111,7 @@ def _omx_factory(torque, start, *, spec=XM430_W350, q0=(0.2, 0.2, 0.2, 0.2), see
 
 
 @pytest.mark.parametrize("torque", [0.3, -0.3, 0.1])
+@pytest.mark.slow
 def test_the_dob_and_the_rtob_on_simulated_xm430s_estimate_the_applied_torque(torque):
     opened = []
     fig = servo_observers(OMX, _omx_factory(torque, 5.0, seen=opened), joint=SHOULDER,

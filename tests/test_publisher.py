@@ -82,6 +82,7 @@ def test_pages_share_one_thread_and_each_gets_its_frames(frames: FrameThread) ->
             publisher.close(settle_s=0.0)
 
 
+@pytest.mark.slow
 def test_a_failing_frame_or_a_closed_publisher_leaves_the_others_going(frames: FrameThread) -> None:
     with pages(3) as three:
         bad, gone, good = Counter(three[0], fail=True), Counter(three[1]), Counter(three[2])
@@ -97,6 +98,7 @@ def test_a_failing_frame_or_a_closed_publisher_leaves_the_others_going(frames: F
             publisher.close(settle_s=0.0)
 
 
+@pytest.mark.slow
 def test_close_waits_for_the_frame_being_made(frames: FrameThread) -> None:
     with pages(1) as one:
         inside, release, made = threading.Event(), threading.Event(), threading.Event()
@@ -128,6 +130,7 @@ def test_close_waits_for_the_frame_being_made(frames: FrameThread) -> None:
         assert order == ["frame made", "close returned"]  # close returned after the frame
 
 
+@pytest.mark.slow
 def test_turns_are_fair_when_the_thread_cannot_keep_up(frames: FrameThread) -> None:
     with pages(4) as four:
         # 4 pages asking 200 frames/s each, every frame 5 ms: about 200 fit in a second

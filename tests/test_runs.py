@@ -423,6 +423,7 @@ def test_every_experiment_is_covered():
 
 
 @pytest.mark.parametrize("name", sorted(EXPERIMENT_RUNS))
+@pytest.mark.slow
 def test_save_run_writes_what_read_run_reads_with_the_figures(tmp_path, capsys, name):
     argv, robot, signals = EXPERIMENT_RUNS[name]
     path = tmp_path / f"{name}.armlab-run.zip"
@@ -441,6 +442,7 @@ def test_save_run_writes_what_read_run_reads_with_the_figures(tmp_path, capsys, 
     assert os.listdir(tmp_path) == [path.name]
 
 
+@pytest.mark.slow
 def test_thesis_line_run_holds_the_loop_record_bit_for_bit(tmp_path):
     """The file's poses are the loop's own recording, not a copy rounded on the way."""
     from armlab.app.cli import build_parser

@@ -164,6 +164,7 @@ def test_bounded_rate_never_leaves_the_bounds():
         assert np.all(qdot >= lo) and np.all(qdot <= hi)
 
 
+@pytest.mark.slow
 def test_modes_1_and_3_leave_the_limits_mode_1_on_joints_2_and_3(results, by_hand):
     v1 = results["1"]["max_violation_rad"]
     assert v1[0] <= LIMITS and by_hand["1"]["max_violation_rad"][0] <= LIMITS
@@ -174,6 +175,7 @@ def test_modes_1_and_3_leave_the_limits_mode_1_on_joints_2_and_3(results, by_han
     assert min(results["3"]["max_violation_rad"]) > 0.05
 
 
+@pytest.mark.slow
 def test_mode_1_leaves_joint_2_below_and_joint_3_above_their_limits(model, by_hand):
     """The paper: without redundancy or limits joints 2 and 3 leave their ranges. Joint 2
     ([-90°, 0°]) bends past -90° and joint 3 ([-180°, -90°]) opens past -90°."""
@@ -187,15 +189,18 @@ def test_mode_1_leaves_joint_2_below_and_joint_3_above_their_limits(model, by_ha
 
 
 @pytest.mark.parametrize("mode", ["2", "4", "bounded"])
+@pytest.mark.slow
 def test_limited_modes_never_leave_the_limits(results, mode):
     assert max(results[mode]["max_violation_rad"]) <= LIMITS
 
 
 @pytest.mark.parametrize("mode", list(MODES))
+@pytest.mark.slow
 def test_tracking_error_after_0_2_s_is_below_1_mm(results, mode):
     assert results[mode]["max_error_m"] < 1e-3
 
 
+@pytest.mark.slow
 def test_printed_method_gives_mode_4_the_motion_of_mode_2_and_bounded_beats_it(model, results,
                                                                               by_hand):
     # The paper claims w(mode 4) > w(mode 2). With its eq. 7-19 the manipulability
@@ -216,6 +221,7 @@ def test_printed_method_gives_mode_4_the_motion_of_mode_2_and_bounded_beats_it(m
     assert results["3"]["mean_manipulability"] > results["bounded"]["mean_manipulability"]
 
 
+@pytest.mark.slow
 def test_decomposition_jumps_the_self_motion_to_mid_range_in_one_sample(model, results):
     run = simulate_circle(model, "2")
     mid = (model.lower + model.upper) / 2

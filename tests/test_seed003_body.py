@@ -88,6 +88,7 @@ def walked():
     return model, backend, loop, np.array(tilts)
 
 
+@pytest.mark.slow
 def test_the_legs_carry_the_whole_robot(walked):
     model, backend, _, _ = walked
     assert backend.body.weight == pytest.approx(total_mass(model) * G)  # 1.19 kg
@@ -95,6 +96,7 @@ def test_the_legs_carry_the_whole_robot(walked):
     assert 3 <= backend.body.contact.sum() <= 4  # a diagonal and the foot it leans on
 
 
+@pytest.mark.slow
 def test_the_body_tilts_as_seed_003_reports(walked):
     _, _, _, tilts = walked
     # seed 003: 3.6-5.7° on flat ground; the lab: up to 7.3°, 3.9° on average
@@ -105,6 +107,7 @@ def test_the_body_tilts_as_seed_003_reports(walked):
     assert tilts.mean() == pytest.approx(3.86, abs=0.5)
 
 
+@pytest.mark.slow
 def test_the_servos_reports_imply_the_same_tilt(walked):
     model, backend, loop, _ = walked
     snap = loop.snapshot(0.02)
@@ -113,6 +116,7 @@ def test_the_servos_reports_imply_the_same_tilt(walked):
     assert implied_tilt_deg(model, snap["q"][-1]) == pytest.approx(truth, abs=0.6)
 
 
+@pytest.mark.slow
 def test_eq_4_1_error_as_seed_003_reports_with_servo_2_worst(walked):
     _, _, loop, _ = walked
     err = loop.angle_error(None)
@@ -124,6 +128,7 @@ def test_eq_4_1_error_as_seed_003_reports_with_servo_2_worst(walked):
     assert err["per_servo_pct"][1] == pytest.approx(2.72, abs=0.3)
 
 
+@pytest.mark.slow
 def test_the_servos_giving_way_set_the_size_of_the_lean():
     """On a diagonal the body leans onto a swing foot (geometry); the stance legs' servos
     give way under the weight (the body sags towards the stance feet), so the swing foot
@@ -143,6 +148,7 @@ def test_the_servos_giving_way_set_the_size_of_the_lean():
     assert loaded["eq41_error_pct"]["servo2"] > 2.5 * rigid["eq41_error_pct"]["servo2"]
 
 
+@pytest.mark.slow
 def test_cli_reports_eq41_and_tilt():
     out = io.StringIO()
     with redirect_stdout(out):
@@ -182,6 +188,7 @@ def test_over_the_emulator_the_legs_carry_the_body_too(capsys):
     assert r["eq41_samples"] >= 30
 
 
+@pytest.mark.slow
 def test_when_the_servos_let_go_the_body_sits_down_and_the_legs_carry_nothing():
     model = load_robot("quadruped")
     q0 = Walker(plan_gait(GaitSpec())).state().q

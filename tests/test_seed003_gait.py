@@ -152,6 +152,7 @@ def test_support_polygon_and_margin_signs():
     assert stability_margin([0.5, 0.2], line) == pytest.approx(-0.2)
 
 
+@pytest.mark.slow
 def test_cli_prints_one_cycle():
     out = io.StringIO()
     with redirect_stdout(out):

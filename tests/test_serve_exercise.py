@@ -300,6 +300,7 @@ def _html_has(page: HeadlessClient, text: str) -> bool:
 # ---------------------------------------------------------------------------- refusals
 
 
+@pytest.mark.slow
 def test_exercise_with_classroom_is_refused_and_nothing_served(tmp_path):
     done = armlab("serve", "--exercise", str(law_file(tmp_path)), "--classroom",
                   "--http-port", "0")
@@ -309,6 +310,7 @@ def test_exercise_with_classroom_is_refused_and_nothing_served(tmp_path):
     assert "--exercise" in line and "--classroom" in line
 
 
+@pytest.mark.slow
 def test_exercise_on_serial_servos_needs_the_flag(tmp_path):
     done = armlab("serve", "--exercise", str(law_file(tmp_path)), "--backend", "serial",
                   "--port", "/dev/null", "--http-port", "0")

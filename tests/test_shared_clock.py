@@ -100,6 +100,7 @@ def _same_record(a: ControlLoop, b: ControlLoop) -> None:
     np.testing.assert_allclose(ra, rb, rtol=0.0, atol=1e-9, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_class_on_a_shared_clock_equals_loops_on_their_own_sim_backends() -> None:
     plant, clock, loops = _class()
     _run(clock, dict(enumerate(loops)), 2.0, set())
@@ -123,6 +124,7 @@ def test_class_on_a_shared_clock_equals_loops_on_their_own_sim_backends() -> Non
         assert np.max(np.nanmax(q, axis=0) - np.nanmin(q, axis=0)) > 0.05
 
 
+@pytest.mark.slow
 def test_an_arm_joining_or_leaving_leaves_the_others_unchanged() -> None:
     _, ref_clock, ref = _class(2)
     _run(ref_clock, dict(enumerate(ref)), 1.2, set())
@@ -149,6 +151,7 @@ def test_an_arm_joining_or_leaving_leaves_the_others_unchanged() -> None:
     assert loops[1].status.steps == stopped_at + 5
 
 
+@pytest.mark.slow
 def test_a_failing_period_or_world_step_leaves_the_clock_and_other_arms_running() -> None:
     _, ref_clock, ref = _class(2)
     _run(ref_clock, dict(enumerate(ref)), 0.5, set())
@@ -318,6 +321,7 @@ def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
         clock.pacer(lambda: None, period=0.0, name="zero")
 
 
+@pytest.mark.slow
 def test_a_diverged_arm_is_put_back_by_on_error_and_the_others_go_on() -> None:
     _, ref_clock, ref = _class(2)
     _run(ref_clock, dict(enumerate(ref)), 0.3, set())
@@ -340,6 +344,7 @@ def test_a_diverged_arm_is_put_back_by_on_error_and_the_others_go_on() -> None:
         _same_record(a, b)
 
 
+@pytest.mark.slow
 def test_a_thread_waiting_for_the_class_lock_gets_it_between_two_ticks() -> None:
     """A page reading its arm (the Servos panel, the overview) takes the class lock. A
     clock that is behind (here always: each tick takes longer than its ``dt``) runs its

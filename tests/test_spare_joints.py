@@ -135,6 +135,7 @@ def _follow(model, q0: np.ndarray, goal: np.ndarray, aim: str) -> tuple[np.ndarr
     ("open_manipulator_x", [0.3, -1.2, 0.6, 1.6]),
     ("five_joint_arm", [0.2, 0.5, 1.5, 2.2, 0.4]),
 ])
+@pytest.mark.slow
 def test_the_hand_follows_its_target_while_the_spare_joints_leave_the_limits(name, q0):
     model = _arm(name)
     q0 = np.array(q0)
@@ -147,6 +148,7 @@ def test_the_hand_follows_its_target_while_the_spare_joints_leave_the_limits(nam
     assert h_on > h_off + 0.05, (h_off, h_on)
 
 
+@pytest.mark.slow
 def test_turning_the_spare_joints_on_while_holding_keeps_the_hand_and_moves_the_arm():
     model = _arm("five_joint_arm")
     q0 = np.array([0.2, 0.5, 1.5, 2.2, 0.4])

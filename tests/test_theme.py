@@ -78,6 +78,7 @@ def lab():
         yield running
 
 
+@pytest.mark.slow
 def test_one_page_switches_to_projector_the_others_and_the_arm_do_not(lab):
     lesson, rig = lab.lesson, lab.lesson.rig
     a, a_id = _page(lab)
@@ -125,6 +126,7 @@ def test_a_reload_keeps_the_browser_choice(lab):
         assert not lab.page_style.is_projector(cid)
 
 
+@pytest.mark.slow
 def test_serve_projector_is_the_default_of_a_browser_without_a_choice():
     from armlab.app.server import Lab, ServeOptions
 

@@ -55,6 +55,7 @@ def test_a_missing_non_security_hook_warns_and_a_missing_gate_hook_refuses(monke
     assert "gate" in text
 
 
+@pytest.mark.slow
 def test_serve_refuses_to_start_when_the_gates_hook_target_is_absent():
     """``armlab serve`` on a viser without what the gate patches: one clear message, a
     non-zero exit, and nothing listening on the port it was given."""
@@ -112,6 +113,7 @@ def _private_attrs_assigned(paths) -> set[str]:  # noqa: ANN001
     return {n for n in names if n.startswith("_") and not n.startswith("__")}
 
 
+@pytest.mark.slow
 def test_only_viser_ext_reaches_into_viser():
     """Outside app/viser_ext no module imports a private viser module or uses an
     underscore attribute that viser (and not the lab itself) defines."""

@@ -72,6 +72,7 @@ def test_torque_on_reboots_a_servo_that_shut_down():
     assert all(b.read().torque_on) and b.read().errors[1] == 0
 
 
+@pytest.mark.slow
 def test_the_compliance_loop_holds_open_manipulator_x_steady():
     """The thesis gains on the X-series arm: holding the line's start, the shoulder stays
     within a few counts of the thesis servos (without the Position D Gain the backends

@@ -130,6 +130,7 @@ def test_the_d_term_damps_with_the_horn_velocity_not_the_encoder_s_count_steps()
     assert np.max(np.abs(np.diff(currents))) <= 800 / 128 + 1  # the P term's count step
 
 
+@pytest.mark.slow
 def test_an_overload_shuts_the_torque_off_until_a_reboot():
     plant = _plant(params=ServoParams(overload_time=0.5))
     servo = plant.servos[1]
