@@ -210,11 +210,13 @@ class ArmControls:
         aim = next(k for k, v in AIM_LABELS.items() if v == self.aim.value)
         if aim == self._aim.aim:
             return
-        self._post_aim(UseSpareJoints(aim, self._aim.gain))
+        # the target is placed first: a drag that starts once the loop holds the new aim
+        # (all a page can see) must not have its target moved back by this call
         snap = self.loop.recorder.snapshot(0.1)
         if aim != "off" and self.loop.status.trajectory is None and len(snap["t"]) \
                 and np.all(np.isfinite(snap["q_cmd"][-1])):
             self._place_target(self.model.fk(snap["q_cmd"][-1])[:3, 3])
+        self._post_aim(UseSpareJoints(aim, self._aim.gain))
 
     def _show_aim(self) -> None:
         self.aim.value = AIM_LABELS[self._aim.aim]
