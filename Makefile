@@ -30,7 +30,8 @@ PYTEST := $(TESTENV) $(BIN)/python -m pytest -q
 # the tests off the wall clock and out of the browser run side by side, one pytest-xdist
 # worker per core (at most four), each module whole on one worker, so that its lab or
 # class starts once; FAST_PARALLEL= runs them in one process
-OFF_CLOCK := -m "not browser and not realtime"
+OFF_CLOCK_TESTS := not browser and not realtime
+OFF_CLOCK := -m "$(OFF_CLOCK_TESTS)"
 FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
 # the browser and real-time tests run in one process: beside a second worker, the
 # real-time tests of a 2-core machine lose their margin (PARALLEL="-n 2 --dist loadfile
@@ -48,7 +49,7 @@ test: $(DEVSTAMP)
 # the edit-test loop: the tests off the clock that take under a second each (`make test`
 # runs the slow ones: long simulations, a lab or a class served)
 test-fast: $(DEVSTAMP)
-	$(PYTEST) $(FAST_PARALLEL) -m "not browser and not realtime and not slow"
+	$(PYTEST) $(FAST_PARALLEL) -m "$(OFF_CLOCK_TESTS) and not slow"
 
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .

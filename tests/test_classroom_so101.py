@@ -17,10 +17,11 @@ from armlab.hardware.servos.sts import STS3215
 from armlab.hardware.sim.sts_servo import StsServoModel
 from armlab.kinematics import load_robot
 
+pytestmark = pytest.mark.slow  # a class served and its arms driven
+
 SO101 = load_robot("so101")
 
 
-@pytest.mark.slow
 def test_a_private_so101_has_its_sts3215_servos():
     """A student's own SO-101 is an STS3215 firmware model on the class's clock: its
     servos are :class:`StsServoModel`, it turns to a goal, the Servos panel says STS3215;
@@ -50,7 +51,6 @@ def test_a_private_so101_has_its_sts3215_servos():
     assert boxes.n_arms == 0
 
 
-@pytest.mark.slow
 def test_the_classroom_s_shared_so101_simulates_sts3215_servos():
     """``serve --classroom --robot so101``: the arm lesson's shared arm is an STS3215
     firmware model with its jaw's servo, in the server (the worker process simulates

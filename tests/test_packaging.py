@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # a wheel built from a copy of the repository, then installed
+
 ROOT = Path(__file__).resolve().parents[1]
 #: the repository's folders the wheel installs, from pyproject's map of armlab's parts
 SOURCES = tuple(tomllib.loads((ROOT / "pyproject.toml").read_text())
@@ -38,7 +40,6 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return found
 
 
-@pytest.mark.slow
 def test_every_file_in_the_wheel_lies_under_armlab_or_its_metadata(wheel: Path):
     names = zipfile.ZipFile(wheel).namelist()
     stray = [n for n in names if not (n.startswith("armlab/") or
@@ -46,7 +47,6 @@ def test_every_file_in_the_wheel_lies_under_armlab_or_its_metadata(wheel: Path):
     assert not stray, f"files outside armlab/: {stray[:10]}"
 
 
-@pytest.mark.slow
 def test_the_wheel_holds_every_module_and_robot_of_the_repository(wheel: Path):
     """pyproject lists the packages by hand: a new folder left out of it would be lost."""
     names = set(zipfile.ZipFile(wheel).namelist())
@@ -60,7 +60,6 @@ def test_the_wheel_holds_every_module_and_robot_of_the_repository(wheel: Path):
                 assert inside in names, f"{rel} is not in the wheel (pyproject's packages?)"
 
 
-@pytest.mark.slow
 def test_the_wheel_installed_beside_python_control_leaves_both_working(
         wheel: Path, tmp_path: Path):
     target = tmp_path / "site"

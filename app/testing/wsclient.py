@@ -337,7 +337,8 @@ class HeadlessClient:
         :data:`ACTION_WAIT_S`, as a person waits for a control to appear) or by the
         server's handle of it."""
         if isinstance(target, str):
-            self.wait_for(lambda: self.shows(target, kind), ACTION_WAIT_S,  # (one by one)
+            # a panel's fields may arrive one by one
+            self.wait_for(lambda: self.shows(target, kind), ACTION_WAIT_S,
                           f"a GUI element labelled {target!r}")
             return self.find(target, kind).uuid
         return uuid_of(target)  # a viser GUI handle (a test holding the server side)
