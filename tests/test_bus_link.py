@@ -71,7 +71,7 @@ def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model(
     from armlab.hardware.wire.bus import WrongModel
 
     with emulator("--ids", "4,9,200", "--servo", "AX-12A", "--robot", "receptionist_arm") as emu:
-        found = scan(emu.port, (1_000_000,), margin=0.05)  # a process answers, not a wire
+        found = scan(emu.port, (1_000_000,))  # a pty's policy: the emulator is a process
         with Bus(emu.port) as bus:
             assert bus.identify(4) is AX12A_TABLE
             with pytest.raises(WrongModel, match="servo 9 is a AX-12A .*expected a RX-24F"):

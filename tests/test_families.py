@@ -131,8 +131,10 @@ def test_one_ping_per_id_serves_both_families_that_share_the_frame():
     from armlab.hardware.wire.scan import DEFAULT_PROTOCOLS, scan_time_bound
 
     assert DEFAULT_PROTOCOLS == (1, 2, "sts")
-    bound = scan_time_bound((1_000_000,), range(10), 0.01, protocols=(1, "sts"))
-    assert bound == scan_time_bound((1_000_000,), range(10), 0.01, protocols=(1,))
+    bound = scan_time_bound("/dev/ttyUSB0", (1_000_000,), range(10), 0.01,
+                            protocols=(1, "sts"))
+    assert bound == scan_time_bound("/dev/ttyUSB0", (1_000_000,), range(10), 0.01,
+                                    protocols=(1,))
 
 
 def test_a_drafted_map_of_scanned_sts3215s_loads_back_as_sts(tmp_path):

@@ -14,7 +14,6 @@ from armlab.hardware.wire.scan import (
     ALL_IDS,
     COMMON_BAUDS,
     DEFAULT_BAUDS,
-    ping_policy,
     scan,
     scan_time_bound,
 )
@@ -50,8 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ids", type=_ids, default=list(ALL_IDS),
                         help="IDs to ping, e.g. 1,3,5 or 0-20 (default 0-253)")
     parser.add_argument("--timeout", type=float, default=None, metavar="S",
-                        help="s to wait beyond wire time for each reply (default 0.010; on a "
-                        "pseudo-terminal, the emulator, 0.060 and a second ping)")
+                        help="s to wait beyond wire time for each ping (default 0.010; on a "
+                        "pseudo-terminal, the emulator, 0.005; a late answer is asked "
+                        "again)")
     parser.add_argument("--json", action="store_true", help="print the servos as JSON")
     parser.add_argument("--write-map", metavar="MAP.toml",
                         help="draft a joint map from the servos that answered (IDs in chain "
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--baud must be > 0, got {b:g}")
     if args.timeout is not None and not args.timeout > 0:
         raise ValueError(f"--timeout must be > 0 s, got {args.timeout}")
-    bound = scan_time_bound(bauds, args.ids, *ping_policy(args.port, args.timeout))
+    bound = scan_time_bound(args.port, bauds, args.ids, args.timeout)
     tty = sys.stderr.isatty()
     print(f"scanning {args.port}: {len(args.ids)} IDs at {len(bauds)} baud rate(s), "
           f"at most {bound:.1f} s", file=sys.stderr)

@@ -5,9 +5,13 @@ read what answered; each servo's model number says its family
 
 Time is bounded: an absent ID costs one ping timeout (wire time + margin), so a
 scan takes at most about ``len(bauds) · 254 · timeout`` (see :func:`scan_time_bound`);
-protocol 2.0's broadcast PING costs the time 253 answers would take. On a
-pseudo-terminal (the emulator: a process that a busy machine can hold back, not a
-wire) each ID gets a longer margin and a second ping, so no servo is missed.
+protocol 2.0's broadcast PING costs the time 253 answers would take. An answer that
+comes after its ping's timeout (a busy machine held the emulator back, or an adapter
+its reply) arrives while later IDs are pinged, or while the scan listens after the
+last one; the bus notes its ID (:attr:`~armlab.hardware.wire.bus.Bus.late_ids`) and the
+scan asks that servo again with the bus's own, longer, timeout. So a pseudo-terminal
+(the emulator, which answers within microseconds unless held back) gets a short ping
+and a long listen at the end, and no servo is missed.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from armlab.hardware.families import FAMILIES, ServoFamily, family
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
 from armlab.hardware.wire import protocol1 as p1
-from armlab.hardware.wire.bus import Bus, BusError, NoReply, is_pty, reply_timeout
+from armlab.hardware.wire.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
 from armlab.hardware.wire.protocol1 import wire_time
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
@@ -33,9 +37,13 @@ ALL_IDS = range(0, p1.MAX_ID + 1)
 #: s beyond wire time a ping waits on a serial adapter (a servo answers within its
 #: return delay, 0.5 ms at the thesis's setting).
 WIRE_SCAN_MARGIN = 0.010
-#: s a ping waits on a pseudo-terminal (the emulator answers within microseconds unless the
-#: machine holds it back; each ID is pinged twice there)
-PTY_SCAN_MARGIN = 0.060
+#: s a ping waits on a pseudo-terminal (the emulator answers within microseconds; an
+#: answer the machine held back longer is caught late and asked again)
+PTY_SCAN_MARGIN = 0.005
+#: s the scan listens after the last ping of a baud for answers that came late (a
+#: serial adapter: its margin and 0.1 s more; a pseudo-terminal: this)
+WIRE_LATE_S = 0.1
+PTY_LATE_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -70,13 +78,27 @@ class Found:
     protocol: int | str = 1
 
 
-def ping_policy(port: str, margin: float | None = None) -> tuple[float, int]:
-    """(margin s, pings per ID) for ``port``: ``margin`` (default :data:`WIRE_SCAN_MARGIN`)
-    and one ping on a serial adapter; at least the bus's PTY margin and two pings on a
-    pseudo-terminal."""
+def ping_policy(port: str, margin: float | None = None) -> tuple[float, float]:
+    """(margin s of each ping, s to listen for late answers after a baud's last ping) on
+    ``port``: ``margin`` (default :data:`WIRE_SCAN_MARGIN`) on a serial adapter; at least
+    :data:`PTY_SCAN_MARGIN` and a listen of :data:`PTY_LATE_S` on a pseudo-terminal."""
     if is_pty(port):
-        return max(margin or 0.0, PTY_SCAN_MARGIN), 2
-    return (WIRE_SCAN_MARGIN if margin is None else margin), 1
+        return max(margin or 0.0, PTY_SCAN_MARGIN), PTY_LATE_S
+    margin = WIRE_SCAN_MARGIN if margin is None else margin
+    return margin, margin + WIRE_LATE_S
+
+
+def answer_margin(port: str, margin: float) -> float:
+    """s beyond wire time a broadcast PING, and each look at a servo that answered, waits:
+    the ping's ``margin`` on a serial adapter, at least the bus's own
+    (:data:`~armlab.hardware.wire.bus.PTY_MARGIN`) on a pseudo-terminal."""
+    return max(margin, PTY_MARGIN) if is_pty(port) else margin
+
+
+def broadcasts(port: str) -> int:
+    """Broadcast PINGs a scan sends at each baud: two on a pseudo-terminal (the second
+    for answers the machine held back), one on a wire."""
+    return 2 if is_pty(port) else 1
 
 
 def broadcast_time(baud: float, n_ids: int, margin: float) -> float:
@@ -86,23 +108,26 @@ def broadcast_time(baud: float, n_ids: int, margin: float) -> float:
         margin
 
 
-def scan_time_bound(bauds: Sequence[float], ids: Iterable[int], margin: float,
-                    tries: int = 1, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS
-                    ) -> float:
-    """Upper bound of a scan's time in s, if no servo answers (a PING is 6 + 6 bytes; one
-    PING per ID serves every family pinged that way)."""
+def scan_time_bound(port: str, bauds: Sequence[float], ids: Iterable[int],
+                    margin: float | None = None,
+                    protocols: Sequence[int | str] = DEFAULT_PROTOCOLS) -> float:
+    """Upper bound of a scan's time in s on ``port``, if no servo answers (a PING is 6 + 6
+    bytes; one PING per ID serves every family pinged that way; ``margin`` as
+    :func:`scan` takes it)."""
     n = len(list(ids))
+    margin, late = ping_policy(port, margin)
     fams = [family(p) for p in protocols]
     t = 0.0
     if any(not f.broadcast_ping for f in fams):
-        t += sum(n * tries * reply_timeout(6, 6, b, 254, margin) for b in bauds)
+        t += sum(n * reply_timeout(6, 6, b, 254, margin) + late for b in bauds)
+    wait = answer_margin(port, margin)
     for _ in (f for f in fams if f.broadcast_ping):
-        t += sum(tries * broadcast_time(b, n, margin) for b in bauds)
+        t += sum(broadcasts(port) * broadcast_time(b, n, wait) for b in bauds)
     return t
 
 
 def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] = ALL_IDS,
-         margin: float = 0.010, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS,
+         margin: float | None = None, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS,
          progress: Callable[[float, int, int], None] | None = None) -> list[Found]:
     """PING ``ids`` at each baud on ``port`` in each protocol; describe every servo that
     answers (servos found by a PING per ID first, then by a broadcast PING, each by baud
@@ -135,31 +160,31 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     if not fams:
         raise ValueError(f"protocols: some of {', '.join(map(repr, DEFAULT_PROTOCOLS))}, "
                          f"got {list(protocols)}")
-    margin, tries = ping_policy(port, margin)
     each_id = [f for f in fams if not f.broadcast_ping]
     if each_id:
-        found += _scan_each_id(port, bauds, ids, margin, tries, progress, each_id)
+        found += _scan_each_id(port, bauds, ids, margin, progress, each_id)
     for fam in fams:
         if fam.broadcast_ping:
-            found += _scan_broadcast(port, bauds, ids, margin, tries, progress, len(found), fam)
+            found += _scan_broadcast(port, bauds, ids, margin, progress, len(found), fam)
     return found
 
 
-def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], margin: float,
-                    tries: int, progress: Callable[[float, int, int], None] | None,
+def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], margin: float | None,
+                    progress: Callable[[float, int, int], None] | None,
                     n_before: int, fam: ServoFamily) -> list[Found]:
     """The servos of a family whose servos all answer one broadcast PING (protocol 2.0)."""
     found: list[Found] = []
     wanted = [i for i in ids if i <= fam.codec.MAX_ID]
     if not wanted:
         return found
-    with Bus(port, bauds[0], retries=2, timeout_margin=margin, protocol=fam) as bus:
+    wait = answer_margin(port, ping_policy(port, margin)[0])
+    with Bus(port, bauds[0], retries=2, timeout_margin=wait, protocol=fam) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             if progress is not None:
                 progress(baud, fam.codec.BROADCAST_ID, n_before + len(found))
             answers: dict[int, Any] = {}
-            for _ in range(tries):  # a pty: a second broadcast for answers held back
+            for _ in range(broadcasts(port)):
                 answers.update(bus.broadcast_ping(wanted))
             found += [_describe(bus, fam, i, baud, answers[i].error,
                                 model=int.from_bytes(answers[i].params[:2], "little"),
@@ -174,14 +199,16 @@ def _degrees(table: ControlTable | None, raw: int) -> float:
     return float("nan") if table is None else math.degrees(table.spec.raw_to_position(raw))
 
 
-def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: float,
-                  tries: int, progress: Callable[[float, int, int], None] | None,
+def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: float | None,
+                  progress: Callable[[float, int, int], None] | None,
                   fams: list[ServoFamily]) -> list[Found]:
     """The servos of families that are pinged one ID at a time (they share one frame:
     Dynamixel 1.0 and Feetech STS), each told apart by its model number."""
     found: list[Found] = []
     ids = [i for i in ids if i <= fams[0].codec.MAX_ID]  # STS: 0..252
-    with Bus(port, bauds[0], retries=2, timeout_margin=margin, protocol=fams[0]) as bus:
+    ping_margin, late = ping_policy(port, margin)
+    wait = answer_margin(port, ping_margin)
+    with Bus(port, bauds[0], retries=2, timeout_margin=wait, protocol=fams[0]) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             bus.late_ids.clear()
@@ -191,15 +218,15 @@ def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: flo
                 if progress is not None:
                     progress(baud, servo_id, len(found) + len(here))
                 try:
-                    status = bus.ping(servo_id, tries=tries)
+                    status = bus.ping(servo_id, tries=1, margin=ping_margin)
                 except NoReply:
                     missed.append(servo_id)
                     continue
                 here.append(_identify(bus, fams, servo_id, baud, int(status.error)))
             # a servo whose answer came late (the machine held the reply back) answered
-            # all the same: ask it again, with the bus's own retries
+            # all the same: ask it again, with the bus's own margin and retries
             if missed:
-                bus.collect_late(tries * margin + 0.1)  # the last IDs' answers may be coming
+                bus.collect_late(late)  # the last IDs' answers may be coming
             for servo_id in sorted(bus.late_ids.intersection(missed)):
                 try:
                     status = bus.ping(servo_id)
