@@ -40,8 +40,8 @@ WIRE_SCAN_MARGIN = 0.010
 #: s a ping waits on a pseudo-terminal (the emulator answers within microseconds; an
 #: answer the machine held back longer is caught late and asked again)
 PTY_SCAN_MARGIN = 0.005
-#: s the scan listens after the last ping of a baud for answers that came late (a
-#: serial adapter: its margin and 0.1 s more; a pseudo-terminal: this)
+#: s the scan listens after a baud's last ping for answers that came late: on a serial
+#: adapter the ping's margin and WIRE_LATE_S more, on a pseudo-terminal PTY_LATE_S
 WIRE_LATE_S = 0.1
 PTY_LATE_S = 0.5
 
