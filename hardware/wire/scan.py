@@ -78,27 +78,36 @@ class Found:
     protocol: int | str = 1
 
 
-def ping_policy(port: str, margin: float | None = None) -> tuple[float, float]:
-    """(margin s of each ping, s to listen for late answers after a baud's last ping) on
-    ``port``: ``margin`` (default :data:`WIRE_SCAN_MARGIN`) on a serial adapter; at least
-    :data:`PTY_SCAN_MARGIN` and a listen of :data:`PTY_LATE_S` on a pseudo-terminal."""
+@dataclass(frozen=True)
+class ScanPolicy:
+    """How long a scan waits on one port (see :func:`scan_policy`).
+
+    Attributes:
+        ping_margin: s beyond wire time each ping waits.
+        late_s: s the scan listens after a baud's last ping for answers that came late.
+        answer_margin: s beyond wire time a broadcast PING, and each look at a servo
+            that answered (its description, a second ask when its answer came late), waits.
+        broadcasts: broadcast PINGs sent at each baud.
+    """
+
+    ping_margin: float
+    late_s: float
+    answer_margin: float
+    broadcasts: int
+
+
+def scan_policy(port: str, margin: float | None = None) -> ScanPolicy:
+    """The waits of a scan on ``port``. On a serial adapter: ``margin`` (default
+    :data:`WIRE_SCAN_MARGIN`) for every ping and answer, a listen of that and
+    :data:`WIRE_LATE_S` more, one broadcast. On a pseudo-terminal: at least
+    :data:`PTY_SCAN_MARGIN` a ping, a listen of :data:`PTY_LATE_S`, at least the bus's
+    own margin (:data:`~armlab.hardware.wire.bus.PTY_MARGIN`) for answers, and a second
+    broadcast for answers the machine held back."""
     if is_pty(port):
-        return max(margin or 0.0, PTY_SCAN_MARGIN), PTY_LATE_S
-    margin = WIRE_SCAN_MARGIN if margin is None else margin
-    return margin, margin + WIRE_LATE_S
-
-
-def answer_margin(port: str, margin: float) -> float:
-    """s beyond wire time a broadcast PING, and each look at a servo that answered, waits:
-    the ping's ``margin`` on a serial adapter, at least the bus's own
-    (:data:`~armlab.hardware.wire.bus.PTY_MARGIN`) on a pseudo-terminal."""
-    return max(margin, PTY_MARGIN) if is_pty(port) else margin
-
-
-def broadcasts(port: str) -> int:
-    """Broadcast PINGs a scan sends at each baud: two on a pseudo-terminal (the second
-    for answers the machine held back), one on a wire."""
-    return 2 if is_pty(port) else 1
+        ping = max(margin or 0.0, PTY_SCAN_MARGIN)
+        return ScanPolicy(ping, PTY_LATE_S, max(ping, PTY_MARGIN), 2)
+    ping = WIRE_SCAN_MARGIN if margin is None else margin
+    return ScanPolicy(ping, ping + WIRE_LATE_S, ping, 1)
 
 
 def broadcast_time(baud: float, n_ids: int, margin: float) -> float:
@@ -115,14 +124,15 @@ def scan_time_bound(port: str, bauds: Sequence[float], ids: Iterable[int],
     bytes; one PING per ID serves every family pinged that way; ``margin`` as
     :func:`scan` takes it)."""
     n = len(list(ids))
-    margin, late = ping_policy(port, margin)
+    policy = scan_policy(port, margin)
     fams = [family(p) for p in protocols]
     t = 0.0
     if any(not f.broadcast_ping for f in fams):
-        t += sum(n * reply_timeout(6, 6, b, 254, margin) + late for b in bauds)
-    wait = answer_margin(port, margin)
+        t += sum(n * reply_timeout(6, 6, b, 254, policy.ping_margin) + policy.late_s
+                 for b in bauds)
     for _ in (f for f in fams if f.broadcast_ping):
-        t += sum(broadcasts(port) * broadcast_time(b, n, wait) for b in bauds)
+        t += sum(policy.broadcasts * broadcast_time(b, n, policy.answer_margin)
+                 for b in bauds)
     return t
 
 
@@ -141,7 +151,7 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
         port: serial device.
         bauds: bit/s to try, in order.
         ids: IDs to ping (default 0..253).
-        margin: s of timeout beyond wire time for each ping (None: :func:`ping_policy`'s).
+        margin: s of timeout beyond wire time for each ping (None: :func:`scan_policy`'s).
         protocols: which families to try, by protocol tag (1 and "sts": a PING per ID;
             2: one broadcast PING).
         progress: called as ``progress(baud, servo_id, n_found)`` before each ping.
@@ -160,16 +170,17 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     if not fams:
         raise ValueError(f"protocols: some of {', '.join(map(repr, DEFAULT_PROTOCOLS))}, "
                          f"got {list(protocols)}")
+    policy = scan_policy(port, margin)
     each_id = [f for f in fams if not f.broadcast_ping]
     if each_id:
-        found += _scan_each_id(port, bauds, ids, margin, progress, each_id)
+        found += _scan_each_id(port, bauds, ids, policy, progress, each_id)
     for fam in fams:
         if fam.broadcast_ping:
-            found += _scan_broadcast(port, bauds, ids, margin, progress, len(found), fam)
+            found += _scan_broadcast(port, bauds, ids, policy, progress, len(found), fam)
     return found
 
 
-def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], margin: float | None,
+def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], policy: ScanPolicy,
                     progress: Callable[[float, int, int], None] | None,
                     n_before: int, fam: ServoFamily) -> list[Found]:
     """The servos of a family whose servos all answer one broadcast PING (protocol 2.0)."""
@@ -177,14 +188,14 @@ def _scan_broadcast(port: str, bauds: Sequence[float], ids: list[int], margin: f
     wanted = [i for i in ids if i <= fam.codec.MAX_ID]
     if not wanted:
         return found
-    wait = answer_margin(port, ping_policy(port, margin)[0])
-    with Bus(port, bauds[0], retries=2, timeout_margin=wait, protocol=fam) as bus:
+    with Bus(port, bauds[0], retries=2, timeout_margin=policy.answer_margin,
+             protocol=fam) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             if progress is not None:
                 progress(baud, fam.codec.BROADCAST_ID, n_before + len(found))
             answers: dict[int, Any] = {}
-            for _ in range(broadcasts(port)):
+            for _ in range(policy.broadcasts):
                 answers.update(bus.broadcast_ping(wanted))
             found += [_describe(bus, fam, i, baud, answers[i].error,
                                 model=int.from_bytes(answers[i].params[:2], "little"),
@@ -199,16 +210,15 @@ def _degrees(table: ControlTable | None, raw: int) -> float:
     return float("nan") if table is None else math.degrees(table.spec.raw_to_position(raw))
 
 
-def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: float | None,
+def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], policy: ScanPolicy,
                   progress: Callable[[float, int, int], None] | None,
                   fams: list[ServoFamily]) -> list[Found]:
     """The servos of families that are pinged one ID at a time (they share one frame:
     Dynamixel 1.0 and Feetech STS), each told apart by its model number."""
     found: list[Found] = []
     ids = [i for i in ids if i <= fams[0].codec.MAX_ID]  # STS: 0..252
-    ping_margin, late = ping_policy(port, margin)
-    wait = answer_margin(port, ping_margin)
-    with Bus(port, bauds[0], retries=2, timeout_margin=wait, protocol=fams[0]) as bus:
+    with Bus(port, bauds[0], retries=2, timeout_margin=policy.answer_margin,
+             protocol=fams[0]) as bus:
         for baud in bauds:
             bus.set_baud(baud)
             bus.late_ids.clear()
@@ -218,7 +228,7 @@ def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: flo
                 if progress is not None:
                     progress(baud, servo_id, len(found) + len(here))
                 try:
-                    status = bus.ping(servo_id, tries=1, margin=ping_margin)
+                    status = bus.ping(servo_id, tries=1, margin=policy.ping_margin)
                 except NoReply:
                     missed.append(servo_id)
                     continue
@@ -226,7 +236,7 @@ def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], margin: flo
             # a servo whose answer came late (the machine held the reply back) answered
             # all the same: ask it again, with the bus's own margin and retries
             if missed:
-                bus.collect_late(late)  # the last IDs' answers may be coming
+                bus.collect_late(policy.late_s)  # the last IDs' answers may be coming
             for servo_id in sorted(bus.late_ids.intersection(missed)):
                 try:
                     status = bus.ping(servo_id)
