@@ -13,7 +13,11 @@ looks), so a full pass walks only what came after, a few thousand objects. A kep
 lesson that closes leaves garbage the collector cannot see; :func:`closed` notes it,
 and :func:`tidy` (the lab calls it before it builds the next shared lesson, and the
 class at most once a :data:`TIDY_EVERY_S`) unfreezes, collects and freezes again: one
-full pause at a moment something was closed, never in a class that is running.
+full pause at a moment something was closed, never in a class that is running. A lab
+that closes calls :func:`release`: nothing of it needs keeping out of the way any more,
+so what it kept is handed back to the collector, whose own passes free it later, with
+no full pause at the close (a notebook or a test process that opens lab after lab would
+otherwise walk its whole heap at every close).
 """
 
 from __future__ import annotations
@@ -39,6 +43,15 @@ def closed() -> None:
     """Something :func:`keep` froze was closed: its garbage waits for :func:`tidy`."""
     with _lock:
         _state["closed"] += 1
+
+
+def release() -> None:
+    """Unfreeze everything (a lab closed): what it kept is the collector's again, and its
+    garbage is freed by the collector's own passes, not by a full pass now. Nothing
+    frozen is left to hide garbage, so nothing closed is waiting for :func:`tidy`."""
+    with _lock:
+        _state["closed"] = 0
+        gc.unfreeze()
 
 
 def tidy(*, every_s: float = 0.0) -> float | None:

@@ -428,8 +428,7 @@ class Lab:
                 self.arm_process.close()
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
-            collector.closed()  # what the lab kept is garbage now
-            collector.tidy()
+            collector.release()  # what the lab kept is garbage now: the collector's to free
 
     def __enter__(self) -> Lab:
         return self
