@@ -48,7 +48,9 @@ def closed() -> None:
 def release() -> None:
     """Unfreeze everything (a lab closed): what it kept is the collector's again, and its
     garbage is freed by the collector's own passes, not by a full pass now. Nothing
-    frozen is left to hide garbage, so nothing closed is waiting for :func:`tidy`."""
+    frozen is left to hide garbage, so nothing closed is waiting for :func:`tidy`. (A
+    second lab in the same process, a test's, is unfrozen too, until its next
+    :func:`keep`; the lab a person serves is alone in its process.)"""
     with _lock:
         _state["closed"] = 0
         gc.unfreeze()

@@ -130,9 +130,9 @@ def scan_time_bound(port: str, bauds: Sequence[float], ids: Iterable[int],
     if any(not f.broadcast_ping for f in fams):
         t += sum(n * reply_timeout(6, 6, b, 254, policy.ping_margin) + policy.late_s
                  for b in bauds)
-    for _ in (f for f in fams if f.broadcast_ping):
-        t += sum(policy.broadcasts * broadcast_time(b, n, policy.answer_margin)
-                 for b in bauds)
+    n_broadcast = sum(f.broadcast_ping for f in fams)  # families pinged by broadcast
+    t += n_broadcast * policy.broadcasts * sum(broadcast_time(b, n, policy.answer_margin)
+                                               for b in bauds)
     return t
 
 
