@@ -31,20 +31,25 @@ PYTEST := $(TESTENV) $(BIN)/python -m pytest -q
 # worker per core (at most four), each module whole on one worker, so that its lab or
 # class starts once; FAST_PARALLEL= runs them in one process
 OFF_CLOCK_TESTS := not browser and not realtime
-OFF_CLOCK := -m "$(OFF_CLOCK_TESTS)"
 FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
-# the browser and real-time tests run in one process: beside a second worker, the
-# real-time tests of a 2-core machine lose their margin (PARALLEL="-n 2 --dist loadfile
-# --no-loadscope-reorder" runs them on two workers, each module whole on one)
-ON_CLOCK := -m "browser or realtime"
+# `make test` runs the real-time tests among them, on one worker more than there are
+# cores (at most five): a real-time test mostly waits on the clock (its emulator's
+# physics, a served lab's loop), and the extra worker computes meanwhile
+CORES := $(shell nproc 2>/dev/null || echo 2)
+WORKERS ?= $(shell echo $$(( $(CORES) < 4 ? $(CORES) + 1 : 5 )))
+NOT_BROWSER := -n $(WORKERS) --dist loadfile --no-loadscope-reorder -m "not browser"
+# the browser tests run in one process: each page drawn in software takes most of a
+# 2-core machine (PARALLEL="-n 2 --dist loadfile --no-loadscope-reorder" runs them on two
+# workers, each module whole on one)
+BROWSER := -m browser
 PARALLEL ?=
 
-# everything: the tests off the clock side by side, then those on it alone; either
+# everything: the tests out of the browser side by side, then those in it alone; either
 # part failing fails the run (the second runs anyway, so one run reports every failure)
 test: $(DEVSTAMP)
-	$(PYTEST) $(FAST_PARALLEL) $(OFF_CLOCK); off=$$?; \
-	$(PYTEST) $(PARALLEL) $(ON_CLOCK); on=$$?; \
-	test $$off -eq 0 && test $$on -eq 0
+	$(PYTEST) $(NOT_BROWSER); rest=$$?; \
+	$(PYTEST) $(PARALLEL) $(BROWSER); page=$$?; \
+	test $$rest -eq 0 && test $$page -eq 0
 
 # the edit-test loop: the tests off the clock that take under a second each (`make test`
 # runs the slow ones: long simulations, a lab or a class served)

@@ -202,8 +202,8 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
                 if st is not None and st.trajectory is None and st.active:
                     try:
                         lesson.run_line()
-                    except ValueError:
-                        pass
+                    except (ValueError, RuntimeError):  # the arm being rebuilt, or a page
+                        pass  # closing its lesson meanwhile (its scene's handles removed)
 
     player = threading.Thread(target=students_play, name="bench-students", daemon=True)
     try:
