@@ -21,8 +21,8 @@ settings.register_profile("ci", derandomize=True, deadline=None)
 settings.register_profile("explore", derandomize=False, deadline=None)
 settings.load_profile("ci")
 
-#: Modules that take longest on one core (``--durations``), slowest first. `make test` runs
-#: the tests out of the browser, and `make test-fast` those off the wall clock too, on
+#: Modules that take longest on one core (``--durations``), slowest first. `make test` and
+#: `make test-fast` run the tests off the wall clock and out of the browser on
 #: pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``: each module whole on
 #: one worker, so that its module fixtures, a lab or a class, start once), in the order of
 #: the run: a slow module handed out last would keep one worker busy alone at the end. A
