@@ -33,30 +33,18 @@ PYTEST := $(TESTENV) $(BIN)/python -m pytest -q
 OFF_CLOCK_TESTS := not browser and not realtime
 OFF_CLOCK := -m "$(OFF_CLOCK_TESTS)"
 FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
-# `make test` runs the tests on the wall clock (marked realtime, not browser) in one
-# process beside them: a real-time test mostly waits on the clock (its emulator's physics,
-# a served lab's loop), and those workers compute meanwhile, at a lower priority (nice),
-# so that the real-time tests keep the margin they have alone
-ON_CLOCK := -m "realtime and not browser"
-NICE := nice -n 10
-# the browser tests run last, in one process: each page drawn in software takes most of
-# a 2-core machine (PARALLEL="-n 2 --dist loadfile --no-loadscope-reorder" runs them on
-# two workers, each module whole on one)
-BROWSER := -m browser
+# the browser and real-time tests run in one process: beside a second worker, the
+# real-time tests of a 2-core machine lose their margin (PARALLEL="-n 2 --dist loadfile
+# --no-loadscope-reorder" runs them on two workers, each module whole on one)
+ON_CLOCK := -m "browser or realtime"
 PARALLEL ?=
 
-# everything: the tests on the clock (their report printed when they end) beside those off
-# it, then the browser tests; any part failing fails the run (the others run anyway, so
-# one run reports every failure)
+# everything: the tests off the clock side by side, then those on it alone; either
+# part failing fails the run (the second runs anyway, so one run reports every failure)
 test: $(DEVSTAMP)
-	clock_log=$$(mktemp); \
-	$(PYTEST) $(ON_CLOCK) > $$clock_log 2>&1 & clock_pid=$$!; \
-	$(TESTENV) $(NICE) $(BIN)/python -m pytest -q $(FAST_PARALLEL) $(OFF_CLOCK); off=$$?; \
-	wait $$clock_pid; clock=$$?; \
-	echo "--- the tests on the wall clock (run beside those above):"; \
-	cat $$clock_log; rm -f $$clock_log; \
-	$(PYTEST) $(PARALLEL) $(BROWSER); page=$$?; \
-	test $$off -eq 0 && test $$clock -eq 0 && test $$page -eq 0
+	$(PYTEST) $(FAST_PARALLEL) $(OFF_CLOCK); off=$$?; \
+	$(PYTEST) $(PARALLEL) $(ON_CLOCK); on=$$?; \
+	test $$off -eq 0 && test $$on -eq 0
 
 # the edit-test loop: the tests off the clock that take under a second each (`make test`
 # runs the slow ones: long simulations, a lab or a class served)
