@@ -662,10 +662,21 @@ class PlantPhysics:
         self.load = load  #: puts outside loads on the plants up to t (the quadruped's body)
 
     def advance_to(self, t: float) -> None:
-        if self.load is not None:
-            self.load(t)
-        for plant in self.plants:
-            plant.advance_to(t)
+        """Step the plants up to ``t`` s (to within half a step, as
+        :meth:`~armlab.hardware.sim.plant.Plant.advance_to`). With a load, step by step,
+        each step carrying the load put on for exactly that step: the bus ticks at every
+        packet, and a load put on up to each tick's ``t`` would add a copy of the body's
+        weight per packet to the step not yet taken (plant pushes add up)."""
+        if self.load is None:
+            for plant in self.plants:
+                plant.advance_to(t)
+            return
+        lead = self.plants[0]
+        while lead.t + 0.5 * lead.dt <= t:
+            now = lead.t + lead.dt
+            self.load(now)
+            for plant in self.plants:
+                plant.advance_to(now)
 
     def _servo(self, s: VirtualServo):
         p, j = self.slots[s.joint]
