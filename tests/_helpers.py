@@ -27,8 +27,11 @@ from armlab.app.lessons import LessonContext
 from armlab.app.testing.wsclient import HeadlessClient
 
 CHROMIUM = Path(os.environ.get("ARMLAB_CHROMIUM", "/usr/bin/chromium"))
-CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+#: WebGL in SwiftShader (software: no GPU here); the page's tiles rasterised by the CPU, not
+#: also through SwiftShader, as Debian's launcher asks (/etc/chromium.d/default-flags).
+CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--disable-gpu-rasterization",
+                 "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run"]
 #: ms a page waits for an element to be actionable (visible, enabled and standing still
 #: for two animation frames) before a click fails. Playwright's 30 s ran out once on a
 #: loaded machine, where a software-rendered 3D page draws a frame in seconds.

@@ -21,23 +21,27 @@ settings.register_profile("ci", derandomize=True, deadline=None)
 settings.register_profile("explore", derandomize=False, deadline=None)
 settings.load_profile("ci")
 
-#: Modules that take longest on one core (``--durations``), slowest first. `make test` and
-#: `make test-fast` run the tests off the wall clock on pytest-xdist workers (``--dist
-#: loadfile --no-loadscope-reorder``: each module whole on one worker, so that its module
-#: fixtures, a lab or a class, start once), in the order of the run: a slow module handed
-#: out last would keep one worker busy alone at the end. A module not named here runs
+#: Modules that take longest (``--durations``), slowest first. `make test` runs each of its
+#: three parts (off the clock, in the browser, on the clock) on its own; those off and on
+#: the clock run on pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``: each
+#: module whole on one worker, so that its module fixtures, a lab or a class, start once),
+#: in the order of the run: a slow module handed out last would keep one worker busy alone
+#: at the end. So each part's slowest modules come first; a module not named here runs
 #: after these, the browser ones first, then those on the wall clock, then the rest.
 #: (Not xdist_group marks and ``--dist loadgroup``: pytest-xdist 3.8 names a group in
 #: ``item._nodeid``, which pytest 9 no longer reads, so the groups are lost.)
-SLOWEST_MODULES = (  # a browser module, then one that computes, so that the two workers'
-    # software-drawn pages and simulations mostly run beside each other, not two pages
-    "test_browser_lessons", "test_control_experiments", "test_browser_classroom",
-    "test_lesson_quadruped", "test_browser_lab", "test_classroom", "test_browser_panels",
-    "test_seed003_body", "test_screenshots", "test_ui_compliance", "test_browser_projector",
-    "test_classroom_room", "test_browser_framing", "test_fuzz_inputs", "test_lesson_redundancy",
-    "test_observers_servos", "test_batched_hand", "test_shared_clock", "test_batched_quadruped",
-    "test_bench_classroom", "test_seed003_gait", "test_control_compliance",
-    "test_seed002_redundancy",
+SLOWEST_MODULES = (
+    # on the clock
+    "test_link_faults", "test_so101_serial", "test_ui_compliance", "test_bus_observers",
+    "test_xseries_backend", "test_classroom_room", "test_bus_link", "test_bus_thesis_line",
+    "test_arm_lesson_controls", "test_replay_hand_gait",
+    # off the clock
+    "test_arm_process", "test_challenges", "test_classroom", "test_lesson_quadruped",
+    "test_bench_classroom", "test_batched_hand", "test_control_experiments",
+    "test_fuzz_inputs", "test_batched_quadruped", "test_bench_peers", "test_publisher",
+    "test_arm_from_urdf", "test_seed003_body", "test_lesson_redundancy",
+    "test_observers_servos", "test_shared_clock", "test_seed003_gait",
+    "test_control_compliance", "test_seed002_redundancy",
 )
 
 
