@@ -108,3 +108,27 @@ def test_quadruped_scan_and_backend_over_a_pty():
             assert b.map.servo == "AX-12A"
         finally:
             b.close()
+
+
+def test_the_bench_s_quadruped_wire_bound_counts_the_bytes_of_one_backend_cycle(tmp_path):
+    """``armlab bench --only bus`` sets ``bus_quadruped_cycle_median_ms`` beside a wire bound
+    of :func:`~armlab.app.benches.bus.protocol1_cycle_bytes` × 10 bits / baud: the bytes of
+    one cycle are what the protocol-1.0 backend sends and the twelve servos answer (a READ
+    and its status per servo, one SYNC_WRITE of the goals); for the thesis arm's three
+    servos, 3 × (8 + 12) + 23 bytes."""
+    from armlab.app.benches.bus import QUADRUPED_SERVOS, protocol1_cycle_bytes
+
+    with emulator("--robot", "quadruped", "--dt", "0.004", log_dir=tmp_path) as emu:
+        b = DynamixelBackend(load_robot("quadruped"), emu.port, timeout_margin=0.1)
+        try:
+            state = b.read()
+            seen = len(emu.timed())
+            b.write(state.position, np.full(12, 1.0))
+            b.read()
+            cycle = emu.timed()[seen:]
+        finally:
+            b.close()
+    assert [tag for _, tag, _ in cycle] == ["rx"] + ["rx", "tx"] * QUADRUPED_SERVOS
+    assert sum(len(raw) for _, _, raw in cycle) == protocol1_cycle_bytes(QUADRUPED_SERVOS) \
+        == 308
+    assert protocol1_cycle_bytes(3) == 3 * (8 + 12) + 23

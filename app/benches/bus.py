@@ -16,6 +16,10 @@
   ``_p99_ms``). Its emulator steps the plant at 2 ms (``--dt 0.002``): five joints and
   the jaw at 1 ms cost most of a core, and the plant is integrated up to each request
   before the servos answer it, which a shared machine would add to every cycle.
+- Protocol 1.0, the quadruped's twelve AX-12A (IDs 1..12) carrying its body, standing: the
+  gait loop's cycle, twelve READs and one SYNC_WRITE = 12 × (8 + 12) + 68 = 308 bytes =
+  3.08 ms (``bus_quadruped_wire_bound_ms``; the gait loop's period is 20 ms). Its emulator
+  steps the legs at 4 ms (``--dt 0.004``), as seed 003's test over the emulator does.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from armlab.control.walking import GaitSpec, Walker, plan_gait
 from armlab.hardware.backends import sts
 from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.backends.servo_bus import ServoBusBackend
@@ -41,19 +46,22 @@ from armlab.hardware.backends.xseries import (
     XSeriesBackend,
 )
 from armlab.hardware.wire import feetech as ft
+from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
-from armlab.hardware.wire.protocol1 import wire_time
 from armlab.kinematics.model import load_robot
 
 BAUD = 1_000_000
-#: bytes per cycle for three servos: READ 36..41 (8) + its status (12), three times; SYNC_WRITE
-CYCLE_BYTES = 3 * (8 + 12) + 23
+#: protocol 1.0: the backend READs 36..41 (present position, speed, load) of each servo and
+#: SYNC_WRITEs 30..33 (goal position, moving speed)
+PRESENT_AT_P1, GOAL_AT_P1 = 36, 30
 #: the OpenManipulator-X's servos on the bus: four joints and the gripper
 OMX_SERVOS = 5
 #: their IDs (the shipped map: joints 11..14, the gripper 15)
 OMX_IDS = tuple(range(11, 11 + OMX_SERVOS))
 #: the SO-101's servos on the bus: five joints and the jaw (IDs 1..6)
 SO101_SERVOS = 6
+#: the quadruped's servos on the bus: three per leg (IDs 1..12)
+QUADRUPED_SERVOS = 12
 
 
 @contextlib.contextmanager
@@ -101,6 +109,15 @@ def _median_p99_ms(samples: list[float]) -> tuple[float, float]:
             samples[min(len(samples) - 1, int(0.99 * len(samples)))] * 1e3)
 
 
+def protocol1_cycle_bytes(n_servos: int) -> int:
+    """Bytes on the wire in one protocol-1.0 backend cycle of ``n_servos`` (IDs 1..n): a
+    READ of Present Position .. Present Load and its status per servo, one SYNC_WRITE of
+    goal position and moving speed."""
+    ids = list(range(1, 1 + n_servos))
+    return sum(len(p1.read(i, PRESENT_AT_P1, 6)) + len(p1.status(i, 0, bytes(6))) for i in ids) \
+        + len(p1.sync_write(GOAL_AT_P1, 4, {i: bytes(4) for i in ids}))
+
+
 def protocol2_cycle_bytes(n_servos: int) -> int:
     """Bytes on the wire in one X-series backend cycle of ``n_servos``."""
     ids = list(range(11, 11 + n_servos))
@@ -136,17 +153,27 @@ def run(quick: bool) -> dict[str, float]:
         if so101.gripper is None:  # the jaw's servo is read and written with the arm's
             raise RuntimeError("the SO-101's map names no jaw servo")
         six = _cycles(so101, np.radians([0.0, -30.0, 60.0, 20.0, 0.0]), n)
+    with paced_emulator("--robot", "quadruped", "--baud", str(BAUD), "--dt", "0.004") as port:
+        quadruped = load_robot("quadruped")
+        twelve = _cycles(DynamixelBackend(quadruped, port, baud=BAUD, timeout_margin=0.1,
+                                          retries=5),
+                         Walker(plan_gait(GaitSpec())).state().q, n)
     median, p99 = _median_p99_ms(one)
     median2, p99_2 = _median_p99_ms(two)
     median_sts, p99_sts = _median_p99_ms(six)
+    median_quad, p99_quad = _median_p99_ms(twelve)
     return {
         "bus_cycle_median_ms": median,
         "bus_cycle_p99_ms": p99,
-        "bus_wire_bound_ms": wire_time(CYCLE_BYTES, BAUD) * 1e3,
+        "bus_wire_bound_ms": p1.wire_time(protocol1_cycle_bytes(3), BAUD) * 1e3,
         "bus2_cycle_median_ms": median2,
         "bus2_cycle_p99_ms": p99_2,
-        "bus2_wire_bound_ms": wire_time(protocol2_cycle_bytes(OMX_SERVOS), BAUD) * 1e3,
+        "bus2_wire_bound_ms": p1.wire_time(protocol2_cycle_bytes(OMX_SERVOS), BAUD) * 1e3,
         "bus_sts_cycle_median_ms": median_sts,
         "bus_sts_cycle_p99_ms": p99_sts,
-        "bus_sts_wire_bound_ms": wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD) * 1e3,
+        "bus_sts_wire_bound_ms": p1.wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD) * 1e3,
+        "bus_quadruped_cycle_median_ms": median_quad,
+        "bus_quadruped_cycle_p99_ms": p99_quad,
+        "bus_quadruped_wire_bound_ms": p1.wire_time(protocol1_cycle_bytes(QUADRUPED_SERVOS),
+                                                 BAUD) * 1e3,
     }
