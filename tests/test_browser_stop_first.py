@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 from _helpers import new_page_client as _client
 from _helpers import wait_for
-from test_browser_framing import _height_span
+from test_browser_framing import _spans
 
 from armlab.app.page import camera
 
@@ -95,7 +95,7 @@ def test_on_a_phone_the_robot_is_above_the_controls_and_estop_stays_in_view(brow
 
         wait_for(framed_for_view, 90,
                  "the page to show the view framed for the space above the controls")
-        span, reach = _height_span(client, seen[0], camera._views[lab.server.scene].up)
+        span, _, reach = _spans(client, seen[0], camera._views[lab.server.scene].up)
         assert span >= 0.4 and reach <= 1.0 + 1e-6, (span, reach)
         # open the charts and scroll the controls to their end: E-STOP stays, uncovered
         pg.get_by_text("Live charts", exact=True).first.click()

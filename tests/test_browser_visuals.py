@@ -203,7 +203,7 @@ class TestProjectorPage:
         wait_for(lambda: pg.evaluate(PICKER_JS, titles) is not None, 60.0, "the lesson picker")
         wait_for(lambda: pg.evaluate(PICKER_JS, titles)[1] == "22px", 60.0,
                  "the picker at projector size")
-        wait_for(lambda: not _picker_overflow(pg, titles)[1], 30.0,
+        wait_for(lambda: not _picker_overflow(pg, titles)[1], 120.0,
                  lambda: f"every lesson name to fit the picker: {_picker_overflow(pg, titles)}")
         # the open list shows each name unclipped as well
         pg.get_by_label("Lesson").first.click()
