@@ -50,6 +50,15 @@ class EmulatorProcess:
             out.append((float(t), tag, bytes.fromhex(hexs)))
         return out
 
+    def cycle_traffic(self, backend: Any, position: Any, speed: Any
+                      ) -> list[tuple[float, str, bytes]]:
+        """The packets logged (:meth:`timed`) during one cycle of ``backend``: a write of
+        ``position`` at ``speed``, then a read (what ``armlab bench --only bus`` times)."""
+        seen = len(self.timed())
+        backend.write(position, speed)
+        backend.read()
+        return self.timed()[seen:]
+
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 10.0) -> tuple[int, str]:
         """Signal the emulator and wait; returns (exit code, stderr)."""
         if self.proc.poll() is None:

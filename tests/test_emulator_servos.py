@@ -122,10 +122,7 @@ def test_the_bench_s_quadruped_wire_bound_counts_the_bytes_of_one_backend_cycle(
         b = DynamixelBackend(load_robot("quadruped"), emu.port, timeout_margin=0.1)
         try:
             state = b.read()
-            seen = len(emu.timed())
-            b.write(state.position, np.full(12, 1.0))
-            b.read()
-            cycle = emu.timed()[seen:]
+            cycle = emu.cycle_traffic(b, state.position, np.full(12, 1.0))
         finally:
             b.close()
     assert [tag for _, tag, _ in cycle] == ["rx"] + ["rx", "tx"] * QUADRUPED_SERVOS

@@ -158,10 +158,7 @@ def test_the_bench_s_sts_wire_bound_counts_the_bytes_of_one_backend_cycle(tmp_pa
         try:
             state = b.read()
             b.set_gripper(0.5)
-            seen = len(emu.timed())
-            b.write(state.position, np.full(5, 1.0))
-            b.read()
-            cycle = emu.timed()[seen:]
+            cycle = emu.cycle_traffic(b, state.position, np.full(5, 1.0))
         finally:
             b.close()
     assert [tag for _, tag, _ in cycle] == ["rx", "rx"] + ["tx"] * SO101_SERVOS
