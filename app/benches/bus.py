@@ -48,6 +48,7 @@ from armlab.hardware.backends.xseries import (
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.wire.protocol1 import wire_time
 from armlab.kinematics.model import load_robot
 
 BAUD = 1_000_000
@@ -165,15 +166,15 @@ def run(quick: bool) -> dict[str, float]:
     return {
         "bus_cycle_median_ms": median,
         "bus_cycle_p99_ms": p99,
-        "bus_wire_bound_ms": p1.wire_time(protocol1_cycle_bytes(3), BAUD) * 1e3,
+        "bus_wire_bound_ms": wire_time(protocol1_cycle_bytes(3), BAUD) * 1e3,
         "bus2_cycle_median_ms": median2,
         "bus2_cycle_p99_ms": p99_2,
-        "bus2_wire_bound_ms": p1.wire_time(protocol2_cycle_bytes(OMX_SERVOS), BAUD) * 1e3,
+        "bus2_wire_bound_ms": wire_time(protocol2_cycle_bytes(OMX_SERVOS), BAUD) * 1e3,
         "bus_sts_cycle_median_ms": median_sts,
         "bus_sts_cycle_p99_ms": p99_sts,
-        "bus_sts_wire_bound_ms": p1.wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD) * 1e3,
+        "bus_sts_wire_bound_ms": wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD) * 1e3,
         "bus_quadruped_cycle_median_ms": median_quad,
         "bus_quadruped_cycle_p99_ms": p99_quad,
-        "bus_quadruped_wire_bound_ms": p1.wire_time(protocol1_cycle_bytes(QUADRUPED_SERVOS),
+        "bus_quadruped_wire_bound_ms": wire_time(protocol1_cycle_bytes(QUADRUPED_SERVOS),
                                                  BAUD) * 1e3,
     }
