@@ -151,8 +151,16 @@ def test_reg_write_holds_a_goal_until_a_broadcast_action_moves_both_servos():
     Goal Position unchanged, the horn where it was); one broadcast ACTION starts both."""
     turn = (11, 13)  # the base turns freely, the elbow against gravity
     with emulator(*OMX) as emu, Bus(emu.port, protocol=2) as bus:
+        seen: list[dict[int, int]] = []
+
+        def at_rest() -> bool:  # the torque-off elbow swings down for a second at start
+            seen.append({i: bus.read(i, "present_position") for i in turn})
+            return (len(seen) >= 3 and seen[-3] == seen[-2] == seen[-1]
+                    and all(bus.read(i, "moving") == 0 for i in turn))
+
+        wait_for(at_rest, 30, "the torque-off arm at rest", every=0.1)
         held = {}
-        for i in turn:  # hold where the horn is now (the torque-off arm has settled)
+        for i in turn:  # hold where the horn is now
             held[i] = bus.read(i, "present_position")
             bus.write(i, "goal_position", held[i])
             bus.write(i, "torque_enable", 1)
