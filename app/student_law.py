@@ -23,6 +23,7 @@ Where student code runs: only in the lab it was given to (``--exercise`` is refu
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
 import threading
@@ -63,7 +64,8 @@ WHEN: dict[str, str] = {
     "environment": "runs while compliance is on (law 2.6)",
     "compliance": "runs while compliance is on with law 2.6",
 }
-#: A call may use this share of the control period (CPU time of the loop's thread).
+#: A call may use this share of the control period (CPU time of the loop's thread, its
+#: garbage collections left out: :func:`own_cpu_time`).
 BUDGET_FRACTION = 0.5
 #: s between two looks at the file's modification time and size.
 POLL_S = 0.1
@@ -83,15 +85,52 @@ def refusal(exercise: Exercise) -> str | None:
             f"{' and '.join(LIVE_LESSONS)}")
 
 
+class _CollectorTime:
+    """CPU time each thread has spent in Python's garbage collector (a ``gc.callbacks``
+    entry: a collection runs in the thread whose allocation set it off)."""
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    def __call__(self, phase: str, info: dict[str, int]) -> None:
+        here = self._local
+        if phase == "start":
+            here.start = time.thread_time()
+        elif getattr(here, "start", None) is not None:
+            here.total = getattr(here, "total", 0.0) + time.thread_time() - here.start
+            here.start = None
+
+    def spent(self) -> float:
+        """s this thread has spent collecting so far (a collection under way included)."""
+        here = self._local
+        start = getattr(here, "start", None)
+        return getattr(here, "total", 0.0) + (0.0 if start is None
+                                              else time.thread_time() - start)
+
+
+_COLLECTOR = _CollectorTime()
+_COLLECTOR_CODE = _CollectorTime.__call__.__code__
+gc.callbacks.append(_COLLECTOR)
+
+
+def own_cpu_time() -> float:
+    """This thread's CPU time (``time.thread_time``) without its garbage collections: a
+    collection the student's call happens to set off frees the whole process's garbage,
+    not theirs alone, and is not theirs to pay for."""
+    return time.thread_time() - _COLLECTOR.spent()
+
+
 @contextmanager
 def cpu_limit(seconds: float, what: str) -> Iterator[None]:
-    """Raise :class:`Hang` in this thread once its CPU time passes ``seconds`` from now,
-    at the next line of Python it runs (``sys.settrace``: works in any thread, unlike
-    SIGALRM; code in C runs to its end and is measured afterwards)."""
-    deadline = time.thread_time() + seconds
+    """Raise :class:`Hang` in this thread once its CPU time (:func:`own_cpu_time`) passes
+    ``seconds`` from now, at the next line of Python it runs (``sys.settrace``: works in
+    any thread, unlike SIGALRM; code in C runs to its end and is measured afterwards)."""
+    deadline = own_cpu_time() + seconds
 
     def trace(frame: types.FrameType, event: str, arg: Any) -> Any:
-        if time.thread_time() > deadline:
+        if frame.f_code is _COLLECTOR_CODE:  # (a collection's own callback: not theirs)
+            return None
+        if own_cpu_time() > deadline:
             raise Hang(f"{what} took more than {seconds * 1e3:.3g} ms")
         return trace
 
@@ -277,14 +316,14 @@ class LawGuard:
         if fn is None or law.error is not None:
             return None
         budget = BUDGET_FRACTION * self.period
-        start = time.thread_time()
+        start = own_cpu_time()
         try:
             with cpu_limit(budget, f"{law.exercise.function}()"):
                 out = fn(*args)
         except (Exception, Hang, SystemExit) as exc:  # (a sys.exit() ends no lab thread)
             law.fail(locate(exc, fallback=fn), generation=generation)
             return None
-        spent = time.thread_time() - start
+        spent = own_cpu_time() - start
         why = _wrong_output(out, law.field, args)
         if not why and spent > budget:
             why = (f"one call took {spent * 1e3:.3g} ms; it may take "

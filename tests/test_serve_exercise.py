@@ -9,10 +9,12 @@ live lesson) run the command line itself.
 
 from __future__ import annotations
 
+import gc
 import math
 import subprocess
 import sys
 import textwrap
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,7 +24,13 @@ from _helpers import wait_for
 from test_exercises import reference_file
 
 from armlab.app.backends import make_backend
-from armlab.app.student_law import LIVE_EXERCISES, LawLoop, StudentLaw, law_loop
+from armlab.app.student_law import (
+    BUDGET_FRACTION,
+    LIVE_EXERCISES,
+    LawLoop,
+    StudentLaw,
+    law_loop,
+)
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.commands import RunTrajectory
 from armlab.control.params import DEFAULT
@@ -61,6 +69,9 @@ LAW = """\
         if BROKEN == "hang":
             while True:
                 pass
+        if BROKEN == "collect":  # not broken: a collection of the process's garbage
+            import gc
+            gc.collect()
         return _reference(kp, kv, q_cmd, qd_cmd, q, qd, q_env, qd_env, qdd_env)
     """
 
@@ -127,6 +138,23 @@ def test_each_live_exercise_as_the_labs_own_runs_as_the_reference(tmp_path, name
     finally:
         loop.shutdown()
         law.close()
+
+
+def test_a_garbage_collection_in_the_students_call_is_not_counted_as_theirs(arm):
+    """A collection the student's call sets off visits the whole process's objects, not
+    theirs: its CPU time is left out of the call's budget (a correct law once failed with
+    "one call took 122 ms" in a worker of the suite that had made many objects)."""
+    law, loop, line = arm
+    heap = [[i] for i in range(1_000_000)]  # objects the collector visits
+    start = time.thread_time()
+    gc.collect()
+    assert time.thread_time() - start > BUDGET_FRACTION * 0.016  # over a call's budget
+    save(Path(law.path), "collect")
+    assert law.reload()
+    loop.post(RunTrajectory(line))
+    loop.run_for(0.2)
+    assert law.error is None and not loop.guard.held, law.error
+    del heap
 
 
 @pytest.mark.parametrize("broken,error", [
