@@ -22,12 +22,13 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 SIZES = ((1920, 1080), (1280, 720))
 
 
-def _spans(client, framing: camera.Framing, up) -> tuple[float, float, float]:
-    """(half the vertical and half the horizontal span of the framed points in the page's
-    view, as fractions of the view's height and width; the largest |x| or |y|, 1 at the
+def _spans(framing: camera.Framing, up) -> tuple[float, float, float]:
+    """(half the vertical and half the horizontal span of the framed points in the view
+    the page showed them in (:func:`armlab.app.page.camera.shown`: its camera and its
+    shape), as fractions of the view's height and width; the largest |x| or |y|, 1 at the
     view's edges)."""
-    cam = client.camera
-    x, y, _ = project(framing.points, cam.position, cam.look_at, up, cam.fov, cam.aspect)
+    x, y, _ = project(framing.points, framing.position, framing.look_at, up, framing.fov,
+                      framing.aspect)
     return (float(y.max() - y.min()) / 2.0, float(x.max() - x.min()) / 2.0,
             float(max(np.abs(x).max(), np.abs(y).max())))
 
@@ -38,11 +39,13 @@ def _view_aspect(pg) -> float:
     return box["width"] / box["height"]
 
 
-def _framed_for_the_view(client, pg, before: camera.Framing | None) -> bool:
-    """True once the page shows a framing made since ``before`` for its 3D view's shape
-    (the page reports its view's shape after it lays out its panels)."""
+def _framed_for_the_view(client, pg, before: camera.Framing | None) -> camera.Framing | None:
+    """The framing made since ``before`` for the page's 3D view's shape, once the page shows
+    it (the page reports its view's shape after it lays out its panels); else None."""
     shown = camera.shown(client, before)
-    return shown is not None and abs(shown.aspect / _view_aspect(pg) - 1.0) <= camera.RESHAPE
+    if shown is None or abs(shown.aspect / _view_aspect(pg) - 1.0) > camera.RESHAPE:
+        return None
+    return shown
 
 
 @pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
@@ -60,12 +63,18 @@ def test_every_lesson_frames_its_robot_and_frame_restores_it(browser, lab, size)
         for name in sorted(all_lessons()):
             before = camera.last_framing.get(client)
             lab.switch(name)
-            wait_for(lambda before=before: _framed_for_the_view(client, pg, before), 90,
-                     lambda name=name: f"{name}: the page to show a view framed for its "
-                                       f"shape ({_view_aspect(pg):.3f})")
-            framing = camera.shown(client)
+            seen: list[camera.Framing] = []  # (the page may report its view again at once)
+
+            def framed(before=before, seen=seen) -> bool:
+                shown = _framed_for_the_view(client, pg, before)
+                seen += [shown] if shown is not None else []
+                return shown is not None
+
+            wait_for(framed, 90, lambda name=name: f"{name}: the page to show a view framed "
+                                                   f"for its shape ({_view_aspect(pg):.3f})")
+            framing = seen[-1]
             up = camera._views[lab.server.scene].up
-            height, width, reach = _spans(client, framing, up)
+            height, width, reach = _spans(framing, up)
             # the robot fills the view's height, or its width where that is what limits it
             assert max(height, width) >= 0.4, (name, size, height, width, framing.aspect)
             assert reach <= 1.0 + 1e-6, (name, size, reach)

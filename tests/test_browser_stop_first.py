@@ -95,7 +95,7 @@ def test_on_a_phone_the_robot_is_above_the_controls_and_estop_stays_in_view(brow
 
         wait_for(framed_for_view, 90,
                  "the page to show the view framed for the space above the controls")
-        span, _, reach = _spans(client, seen[0], camera._views[lab.server.scene].up)
+        span, _, reach = _spans(seen[0], camera._views[lab.server.scene].up)
         assert span >= 0.4 and reach <= 1.0 + 1e-6, (span, reach)
         # open the charts and scroll the controls to their end: E-STOP stays, uncovered
         pg.get_by_text("Live charts", exact=True).first.click()
