@@ -22,12 +22,13 @@ settings.register_profile("explore", derandomize=False, deadline=None)
 settings.load_profile("ci")
 
 #: Modules that take longest (``--durations``), slowest first. `make test` runs each of its
-#: three parts (off the clock, in the browser, on the clock) on its own; those off and on
-#: the clock run on pytest-xdist workers (``--dist loadfile --no-loadscope-reorder``: each
-#: module whole on one worker, so that its module fixtures, a lab or a class, start once),
-#: in the order of the run: a slow module handed out last would keep one worker busy alone
-#: at the end. So each part's slowest modules come first; a module not named here runs
-#: after these, the browser ones first, then those on the wall clock, then the rest.
+#: three parts (off the clock, in the browser, on the clock) on its own; those off the clock
+#: (and on it, with REALTIME_PARALLEL) run on pytest-xdist workers (``--dist loadfile
+#: --no-loadscope-reorder``: each module whole on one worker, so that its module fixtures,
+#: a lab or a class, start once), in the order of the run: a slow module handed out last
+#: would keep one worker busy alone at the end. So each part's slowest modules come
+#: first; a module not named here runs after these, the browser ones first, then those
+#: on the wall clock, then the rest.
 #: (Not xdist_group marks and ``--dist loadgroup``: pytest-xdist 3.8 names a group in
 #: ``item._nodeid``, which pytest 9 no longer reads, so the groups are lost.)
 SLOWEST_MODULES = (
