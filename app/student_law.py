@@ -65,7 +65,7 @@ WHEN: dict[str, str] = {
     "compliance": "runs while compliance is on with law 2.6",
 }
 #: A call may use this share of the control period (CPU time of the loop's thread, its
-#: garbage collections left out: :func:`own_cpu_time`).
+#: garbage collections left out: :func:`cpu_limit`).
 BUDGET_FRACTION = 0.5
 #: s between two looks at the file's modification time and size.
 POLL_S = 0.1
@@ -85,61 +85,60 @@ def refusal(exercise: Exercise) -> str | None:
             f"{' and '.join(LIVE_LESSONS)}")
 
 
-class _CollectorTime:
-    """CPU time each thread has spent in Python's garbage collector (a ``gc.callbacks``
-    entry: a collection runs in the thread whose allocation set it off)."""
+class _Collections:
+    """CPU time the garbage collector spends in the thread that made this, while it is in
+    ``gc.callbacks`` (:func:`cpu_limit` puts it there for the student's call only: the
+    lab's other threads and calls pay nothing for it)."""
 
     def __init__(self) -> None:
-        self._local = threading.local()
+        self.thread = threading.get_ident()
+        self.total = 0.0
+        self._start: float | None = None
 
     def __call__(self, phase: str, info: dict[str, int]) -> None:
-        here = self._local
+        if threading.get_ident() != self.thread:
+            return
         if phase == "start":
-            here.start = time.thread_time()
-        elif getattr(here, "start", None) is not None:
-            here.total = getattr(here, "total", 0.0) + time.thread_time() - here.start
-            here.start = None
+            self._start = time.thread_time()
+        elif self._start is not None:
+            self.total += time.thread_time() - self._start
+            self._start = None
 
-    def spent(self) -> float:
-        """s this thread has spent collecting so far (a collection under way included)."""
-        here = self._local
-        start = getattr(here, "start", None)
-        return getattr(here, "total", 0.0) + (0.0 if start is None
-                                              else time.thread_time() - start)
-
-
-_COLLECTOR = _CollectorTime()
-_COLLECTOR_CODE = _CollectorTime.__call__.__code__
-gc.callbacks.append(_COLLECTOR)
+    def own_time(self) -> float:
+        """This thread's CPU time (``time.thread_time``) without its collections (one under
+        way included): a collection the student's call happens to set off frees the whole
+        process's garbage, not theirs alone, and is not theirs to pay for."""
+        now = time.thread_time()
+        return now - self.total - (0.0 if self._start is None else now - self._start)
 
 
-def own_cpu_time() -> float:
-    """This thread's CPU time (``time.thread_time``) without its garbage collections: a
-    collection the student's call happens to set off frees the whole process's garbage,
-    not theirs alone, and is not theirs to pay for."""
-    return time.thread_time() - _COLLECTOR.spent()
+_COLLECTIONS_CODE = _Collections.__call__.__code__
 
 
 @contextmanager
-def cpu_limit(seconds: float, what: str) -> Iterator[None]:
-    """Raise :class:`Hang` in this thread once its CPU time (:func:`own_cpu_time`) passes
-    ``seconds`` from now, at the next line of Python it runs (``sys.settrace``: works in
-    any thread, unlike SIGALRM; code in C runs to its end and is measured afterwards)."""
-    deadline = own_cpu_time() + seconds
+def cpu_limit(seconds: float, what: str) -> Iterator[_Collections]:
+    """Raise :class:`Hang` in this thread once its CPU time, its garbage collections left
+    out, passes ``seconds`` from now, at the next line of Python it runs (``sys.settrace``:
+    works in any thread, unlike SIGALRM; code in C runs to its end and is measured
+    afterwards). Yields the meter (:meth:`_Collections.own_time`)."""
+    meter = _Collections()
+    deadline = meter.own_time() + seconds
 
     def trace(frame: types.FrameType, event: str, arg: Any) -> Any:
-        if frame.f_code is _COLLECTOR_CODE:  # (a collection's own callback: not theirs)
+        if frame.f_code is _COLLECTIONS_CODE:  # (a collection's own callback: not theirs)
             return None
-        if own_cpu_time() > deadline:
+        if time.thread_time() > deadline and meter.own_time() > deadline:
             raise Hang(f"{what} took more than {seconds * 1e3:.3g} ms")
         return trace
 
     previous = sys.gettrace()
+    gc.callbacks.append(meter)
     sys.settrace(trace)
     try:
-        yield
+        yield meter
     finally:
         sys.settrace(previous)
+        gc.callbacks.remove(meter)
 
 
 class StudentLaw:
@@ -316,14 +315,14 @@ class LawGuard:
         if fn is None or law.error is not None:
             return None
         budget = BUDGET_FRACTION * self.period
-        start = own_cpu_time()
         try:
-            with cpu_limit(budget, f"{law.exercise.function}()"):
+            with cpu_limit(budget, f"{law.exercise.function}()") as meter:
+                start = meter.own_time()
                 out = fn(*args)
+                spent = meter.own_time() - start
         except (Exception, Hang, SystemExit) as exc:  # (a sys.exit() ends no lab thread)
             law.fail(locate(exc, fallback=fn), generation=generation)
             return None
-        spent = own_cpu_time() - start
         why = _wrong_output(out, law.field, args)
         if not why and spent > budget:
             why = (f"one call took {spent * 1e3:.3g} ms; it may take "
