@@ -57,6 +57,9 @@ if TYPE_CHECKING:
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
+#: px of the docked controls: viser's "large" width (24 em of 16 px). Every lesson's
+#: name fits its picker at projector size (22 px) in it, with room to spare.
+CONTROLS_PX = 384.0
 #: s: how long a Python thread may hold the GIL while another waits for it. The
 #: default 5 ms would let the web server's message encoding delay a control period
 #: by up to 5 ms; 0.5 ms keeps the loop's wake-up late by well under a millisecond.
@@ -244,8 +247,11 @@ class Lab:
             self.server.gui.configure_theme(show_share_button=False, control_width="large",
                                             brand_color=(30, 90, 170))
             # Docked, the controls never cover the 3D view: the camera frames the arm in
-            # the space left between them and a lesson's charts docked on the left.
+            # the space left between them and a lesson's charts docked on the left. A
+            # docked panel keeps the width it had when it docked, which is the theme's
+            # only if the theme reached the page first: its width is set, not left to that.
             self.server.gui.main_panel.dock_right()
+            self.server.gui.main_panel.set_width(CONTROLS_PX)
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
             install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
             install_panels(self.server)  # a browser's collapsed side panels kept on reload

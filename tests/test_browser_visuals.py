@@ -19,6 +19,7 @@ from _helpers import new_page_client, wait_for, wait_look_settled
 
 from armlab.app.lessons import all_lessons
 from armlab.app.page import camera
+from armlab.app.server import CONTROLS_PX
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 
@@ -64,7 +65,8 @@ FOLDERS_AND_BUTTONS_JS = """() => {
 }"""
 
 #: The lesson picker's input: its width for text (CSS px: inside its padding, less the
-#: chevron drawn at its right), and the width of each of ``titles`` in its font.
+#: chevron drawn at its right), its font size, the width of each of ``titles`` in its
+#: font, and the width of the control panel it is in.
 PICKER_JS = """(titles) => {
   const label = [...document.querySelectorAll('label')]
     .find(l => l.textContent.trim() === 'Lesson');
@@ -76,7 +78,9 @@ PICKER_JS = """(titles) => {
   const chevron = right ? right.getBoundingClientRect().width : 0;
   const room = input.clientWidth - parseFloat(cs.paddingLeft)
     - Math.max(parseFloat(cs.paddingRight), chevron);
-  return [room, cs.fontSize, titles.map(t => [t, ctx.measureText(t).width])];
+  const panel = input.closest('.mantine-Paper-root');
+  return [room, cs.fontSize, titles.map(t => [t, ctx.measureText(t).width]),
+          panel ? panel.getBoundingClientRect().width : 0];
 }"""
 
 #: NDC extent ([x min, y min], [x max, y max]) of the boxes round the meshes of the
@@ -172,7 +176,7 @@ def _picker_overflow(pg, titles: list[str]) -> tuple[float, list[tuple[str, floa
     got = pg.evaluate(PICKER_JS, titles)
     if got is None:
         return 0.0, [("no picker", 0.0)]
-    room, _, widths = got
+    room, _, widths, _ = got
     return room, [(t, round(w)) for t, w in widths if w > room]
 
 
@@ -203,6 +207,10 @@ class TestProjectorPage:
         wait_for(lambda: pg.evaluate(PICKER_JS, titles) is not None, 60.0, "the lesson picker")
         wait_for(lambda: pg.evaluate(PICKER_JS, titles)[1] == "22px", 60.0,
                  "the picker at projector size")
+        # the docked controls keep the lab's width (viser's own default is narrower)
+        wait_for(lambda: pg.evaluate(PICKER_JS, titles)[3] == CONTROLS_PX, 60.0,
+                 lambda: f"the controls {CONTROLS_PX} px wide: "
+                         f"{pg.evaluate(PICKER_JS, titles)[3]} px")
         wait_for(lambda: not _picker_overflow(pg, titles)[1], 120.0,
                  lambda: f"every lesson name to fit the picker: {_picker_overflow(pg, titles)}")
         # the open list shows each name unclipped as well

@@ -215,6 +215,39 @@ def test_dragging_the_hand_pulls_the_arm_with_a_spring(lab, client):
     wait_for(lambda: lesson._drag_anchor is None, 30.0, "the spring to let go")
 
 
+def test_quick_drags_leave_the_arm_free_once_the_hand_is_let_go(lab, client):
+    """Drags sent back to back, as a quick hand does, are handled in the order they came:
+    the last event is a let-go, so the arm ends free, the spring hidden; each drag's
+    start, updates and end reach the loop in that order (a spring to each anchor, then
+    none), none overtaking another (armlab.app.page.in_order)."""
+    lesson = lab.lesson
+    grab = lesson.rig.scene.hand.name
+    base = lesson.rig.model.base_pose
+    p0 = hand(lab, loop_of(lab).recorder.snapshot(0.1)["q"][-1])
+    start = tuple((base @ np.append(p0, 1.0))[:3])
+    before = len(lesson.runs.commands)
+    sent: list[list[float] | None] = []
+    for i in range(20):
+        for j, phase in enumerate(("start", "update", "update", "end")):
+            anchor = p0 + np.array([0.0, -0.002 * (i + 1), 0.001 * j])
+            client.drag(grab, phase, start=start, end=tuple((base @ np.append(anchor, 1.0))[:3]))
+            sent.append(None if phase == "end" else anchor.tolist())
+    springs = lambda: [c["anchor"] for c in lesson.runs.commands[before:]  # noqa: E731
+                       if c["kind"] == "Spring"]
+    wait_for(lambda: len(springs()) >= len(sent), 60.0,
+             lambda: f"the {len(sent)} drag events to reach the loop ({len(springs())} did)")
+    got = springs()
+    assert len(got) == len(sent)
+    for g, s in zip(got, sent, strict=True):
+        assert (g is None) == (s is None) and (s is None or np.allclose(g, s, atol=1e-9)), \
+            (g, s)
+    assert lesson._drag_anchor is None
+    plant = lesson.rig.backend.plant
+    wait_for(lambda: not np.any(plant.truth().external_torque), 30.0,
+             "the loop to let the arm go (no spring on it)")
+    wait_for(lambda: not lesson.rig.scene.spring.visible, 30.0, "the spring hidden")
+
+
 def test_estop_switches_torque_off_and_reset_restores(lab, client):
     loop = loop_of(lab)
     plant = lab.lesson.rig.backend.plant

@@ -54,6 +54,7 @@ from armlab.app.lessons.compliance_servos import LinkMonitor
 from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
+from armlab.app.page.in_order import InOrder
 from armlab.app.page.inputs import inward_range
 from armlab.app.page.surface import Surface
 from armlab.control.commands import EStop, RunTrajectory, SetTarget
@@ -183,14 +184,16 @@ class ArmLesson(LessonBase):
         show(self.server, View(roots=(self.view.moving_root, "/arm_target_base"),
                                direction=_view_direction(base, hand)))
 
-        @self.target.on_update
-        def _(event: viser.TransformControlsEvent) -> None:
+        def moved(event: viser.TransformControlsEvent) -> None:
             if event.client is None:
                 return
             if event.phase == "start":  # a stopped loop: said once, when the target is grabbed
                 guarded(event, lambda: check_running(self.loop.status))
             elif stopped_state(self.loop.status) is None:
                 self.set_target(np.asarray(self.target.position, dtype=float))
+
+        self._lane = InOrder("armlab-arm-target")  # the gizmo's moves in the page's order
+        self.target.on_update(self._lane(moved))
 
     def _build_gui(self) -> None:
         gui = self.server.gui
@@ -318,8 +321,8 @@ class ArmLesson(LessonBase):
             close_in_turn(self.publisher.close,
                           (lambda: self.loop.shutdown(torque_off=True)) if own else None,
                           self.backend.close if own else None, self.runs.remove,
-                          self.view.remove,
-                          self.controls.remove, self.base.remove, self._gui.remove_all)
+                          self.view.remove, self.controls.remove, self._lane.close,
+                          self.base.remove, self._gui.remove_all)
 
 
 def _view_direction(base: np.ndarray, hand: np.ndarray) -> tuple[float, float, float]:

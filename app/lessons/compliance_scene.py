@@ -18,6 +18,7 @@ import viser.transforms as vtf
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
+from armlab.app.page.in_order import InOrder
 from armlab.app.page.surface import Surface
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
@@ -87,11 +88,15 @@ class ComplianceScene:
             position=path[1])
         scene.add_icosphere(f"{sh}/target/dot", radius=0.01, color=(250, 180, 0))
 
-        @self.target.on_update  # a page's move only: setting the position from Python is silent
-        def _(event: viser.TransformControlsEvent) -> None:
-            if event.client is None:
+        # the gizmo's and the hand's events, handled in the order the page sent them
+        self._lane = InOrder("armlab-compliance-drags")
+
+        def moved(event: viser.TransformControlsEvent) -> None:
+            if event.client is None:  # a page's move only: a move from Python is silent
                 return
             on_target(np.array(self.target.position, dtype=float))
+
+        self.target.on_update(self._lane(moved))
 
         # Hand: a grab sphere riding on the last link; drag it to pull the arm.
         tip_link = model.link_names[-1] if model.link_names else None
@@ -100,14 +105,15 @@ class ComplianceScene:
         self.hand = scene.add_icosphere(f"{parent}/grab", radius=0.03, color=(255, 120, 120),
                                         opacity=0.35, position=tip[:3, 3])
 
-        @self.hand.on_drag
-        def _(event: viser.SceneNodeDragEvent) -> None:
+        def dragged(event: viser.SceneNodeDragEvent) -> None:
             if event.phase == "end":
                 on_drag_hand("end", None)
                 self.spring.visible = False
                 return
             anchor = self.to_base(np.asarray(event.end_position, dtype=float))
             on_drag_hand(event.phase, anchor)
+
+        self.hand.on_drag(self._lane(dragged))
 
         self.spring = scene.add_line_segments(f"{sh}/spring", points=np.zeros((1, 2, 3)),
                                               colors=(90, 90, 90), thickness=0.003,
@@ -168,6 +174,8 @@ class ComplianceScene:
         self.arrows.set(hand, applied, estimated)
 
     def remove(self) -> None:
+        """Remove the scene's nodes; events still queued for them are dropped."""
+        self._lane.close()
         self.root.remove()
 
 
