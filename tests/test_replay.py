@@ -14,7 +14,8 @@ import re
 
 import numpy as np
 import pytest
-from _helpers import settled, wait_for
+import viser
+from _helpers import new_page_client, settled, wait_for
 
 from armlab.app.lessons.replay_view import chart_index, sample_at
 from armlab.app.lessons.run_files import REFUSED, commands_in_record
@@ -30,9 +31,11 @@ ROBOT = "receptionist_arm"
 @pytest.fixture(scope="module")
 def page(lab):
     """A page on the module's lab with the lesson's Files tab on it."""
+    known = set(lab.server.get_clients())
     c = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
     c.wait_for(lambda: c.shows("Save run") and c.shows("Open run"), what="the Files tab")
     settled(lab.server, c)
+    c.handle = new_page_client(lab, known)  # type: ignore[attr-defined]  # the server's
     yield c
     c.close()
 
@@ -162,8 +165,27 @@ def test_a_bad_file_gets_its_message_and_the_lab_goes_on(lab, page, saved, bad):
     assert lab.lesson.runs.replay.run is None or lab.lesson.runs.replay.run.robot == ROBOT
     # the lab goes on: its loop runs and the page still gets answers
     assert lab.lesson.rig.loop.status.running
+    shown = lab.lesson.runs.replay.run  # (a good file of an earlier test, or none)
     page.upload("Open run", name, data)
-    wait_for(lambda: lab.lesson.runs.replay.run is not None, 60.0, "a good file after it")
+    wait_for(lambda: (run := lab.lesson.runs.replay.run) is not None and run is not shown,
+             60.0, "a good file after it")
+
+
+def test_an_upload_is_opened_once_however_many_callbacks_read_it(lab, page, saved):
+    """viser calls back on a pool of threads with the button, not the file: a callback
+    of an earlier upload that runs late reads the newest file. That file is opened (or
+    refused) once: the late call, made here as viser would make it, says nothing more."""
+    name, data = saved
+    runs = lab.lesson.runs
+    content, fname = data[: len(data) // 3], "third.armlab-run.zip"
+    before = len(refusals(page))
+    page.upload("Open run", fname, content)
+    page.wait_for(lambda: len(refusals(page)) > before, what="the refusal")
+    client = page.handle
+    runs._on_upload(viser.GuiEvent(client, client.client_id, runs.open))  # the late call
+    settled(client, page)  # a notification queued by it would have arrived
+    assert len(refusals(page)) == before + 1, refusals(page)[before:]
+    assert refusals(page)[-1].startswith(fname)
 
 
 def test_a_files_own_text_shows_as_plain_words(lab, page, saved):

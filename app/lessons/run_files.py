@@ -222,6 +222,8 @@ class RunControls:
                                           "charts, gains, figures) that opens offline")
         self.save.on_click(lambda e: send_download(e, self.save_file))
         self.export.on_click(lambda e: send_download(e, self.export_file))
+        self._upload_lock = threading.Lock()
+        self._last_upload: object = None  #: the upload last opened (or refused)
         self.open.on_upload(self._on_upload)
         try:
             limit_uploads(gui, max_bytes=MAX_FILE_BYTES, on_refused=self._refused)
@@ -310,7 +312,15 @@ class RunControls:
         return run
 
     def _on_upload(self, event: viser.GuiEvent) -> None:
-        file = self.open.value
+        # viser runs upload callbacks on a pool of threads and gives them the button, not
+        # the file: each reads the newest file, so two uploads in quick succession call
+        # back twice with the second file. It is opened once (the newest is what the
+        # person chose last); the call that finds it already taken returns.
+        with self._upload_lock:
+            file = self.open.value
+            if file is self._last_upload:
+                return
+            self._last_upload = file
         try:
             self.open_bytes(str(file.name)[:80], file.content)
         except ValueError as exc:  # RunFileError, or the arm being rebuilt
