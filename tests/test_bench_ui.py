@@ -27,3 +27,15 @@ def test_ui_bench_sees_the_arm_move_and_the_angle_chart_update():
     assert figures["arm_pose_hz"] > 0  # frames in which an arm joint turned
     assert figures["plot_hz"] > 0  # frames carrying new joint-angle data
     assert math.isfinite(figures["latency_p95_ms"])
+
+
+def test_the_drag_figures_time_drags_that_hold_and_let_go_of_the_arm():
+    lab = ui._Instrumented()
+    try:
+        hold, let_go = lab.drag_ms(3)
+        lab.check()
+        assert lab.lesson._drag_anchor is None  # the last drag let go
+    finally:
+        lab.close()
+    assert len(hold) == len(let_go) == 3
+    assert all(math.isfinite(x) and x > 0 for x in hold + let_go)

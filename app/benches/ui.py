@@ -20,6 +20,11 @@ Figures:
   recorded the newest sample to the moment a page has the frame built from it
   (a hidden probe node in each frame carries the sample's CLOCK_MONOTONIC time,
   read by the client process on the same clock).
+- ``ui_drag_hold_ms_p50`` / ``ui_drag_let_go_ms_p50``: from a page sending a drag's
+  "start" ("end") on the hand to the lesson holding the arm with its spring (letting it
+  go), median over the drags, the arm at rest: viser's dispatch and the lesson's own
+  thread for drags (:mod:`armlab.app.page.in_order`). This page runs in the bench's own
+  process: it only sends.
 - ``ui_loop_jitter_p99_ms_0_clients`` / ``_10_clients``: the control loop's
   lateness of period starts, p99 over its last 1000 periods, with no page and
   with 10 pages connected (target <= 1 ms, unchanged by clients).
@@ -237,6 +242,33 @@ class _Instrumented:
             self._runner.join(2.0)
         self._stop = threading.Event()
 
+    def drag_ms(self, n: int) -> tuple[list[float], list[float]]:
+        """ms from a page's drag "start" to the lesson's spring holding the arm, and from
+        its "end" to the spring let go, for each of ``n`` drags on the hand where it is."""
+        from armlab.app.testing.wsclient import HeadlessClient
+
+        lesson = self.lesson
+        grab = lesson.rig.scene.hand.name
+        model = lesson.rig.model
+        hand = model.fk(self.loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+        where = tuple(float(x) for x in (model.base_pose @ np.append(hand, 1.0))[:3])
+        hold: list[float] = []
+        let_go: list[float] = []
+        with HeadlessClient(self.ws_url).connect() as page:
+            for _ in range(n):
+                for phase, done, out in (("start", lambda: lesson._drag_anchor is not None,
+                                          hold),
+                                         ("end", lambda: lesson._drag_anchor is None, let_go)):
+                    t0 = time.monotonic()
+                    page.drag(grab, phase, start=where, end=where)
+                    deadline = t0 + 30.0
+                    while not done():
+                        if time.monotonic() > deadline:
+                            raise RuntimeError(f"a drag's {phase!r} was not handled in 30 s")
+                        time.sleep(0.0002)
+                    out.append((time.monotonic() - t0) * 1e3)
+        return hold, let_go
+
     def jitter_p99(self, seconds: float) -> float:
         time.sleep(seconds)
         v = self.loop.status.jitter_p99_ms
@@ -262,6 +294,7 @@ def run(quick: bool) -> dict[str, float]:
     try:
         jitter0 = lab.jitter_p99(window)
         idle = _clients(lab.ws_url, 1, measure)
+        hold, let_go = lab.drag_ms(10 if quick else 40)
         lab.keep_running_the_line()
         one = _clients(lab.ws_url, 1, measure)
         ten: dict[str, float] = {}
@@ -280,6 +313,8 @@ def run(quick: bool) -> dict[str, float]:
         "ui_latency_p95_ms": one["latency_p95_ms"],
         "ui_latency_p50_ms": one["latency_p50_ms"],
         "ui_latency_p95_ms_10_clients": ten["latency_p95_ms"],
+        "ui_drag_hold_ms_p50": float(np.median(hold)),
+        "ui_drag_let_go_ms_p50": float(np.median(let_go)),
         "ui_pose_hz": one["pose_hz"],
         "ui_arm_moved_hz": one["arm_pose_hz"],
         "ui_plot_hz": one["plot_hz"],
