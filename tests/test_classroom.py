@@ -244,7 +244,9 @@ def test_my_arm_is_private(classroom):
         assert shared.params.kp == kp_shared
         # A's step test runs on A's arm (its recorder), not the shared one.
         mine.run_step()
-        wait_for(lambda: mine.measured_pd is not None, 60, "A's step measured (Tp, %OS, Ts)")
+        wait_for(lambda: mine.measured_pd is not None, 60,
+                 lambda: f"A's step measured (Tp, %OS, Ts); the loop: {mine.rig.loop.status}, "
+                         f"the step: {mine.experiment}, said: {mine.last_run_text!r}")
         assert lab.lesson.measured_pd is None and theirs.measured_pd is None
         # Back to following: the private lesson closes, the arm is kept for the seat.
         a.set_value("View", "Follow the teacher")

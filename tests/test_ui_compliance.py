@@ -390,6 +390,21 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
         for e in client.gui.values()), 60.0, "the figures beside the Step button")
 
 
+def test_a_step_is_measured_with_no_page_open(lab):
+    """The measurement waits for the step to end, not for a page: with every page closed
+    (or its page behind, where a private lesson makes no frames) the figures come all the
+    same, and a page opened later shows them."""
+    lesson = lab.lesson
+    wait_for(lambda: not lab.server.get_clients(), 30.0, "every page closed")
+    wait_for(lambda: lesson.rig.loop.status.active, 60.0, "the arm holding")
+    lesson.measured_pd = None
+    lesson.run_step(joint=1, step_deg=10.0)
+    wait_for(lambda: lesson.measured_pd is not None, 60.0,
+             lambda: f"the step measured; said: {lesson.last_run_text!r}")
+    assert f"step of {lesson.joint_labels[1]} by +10°" in lesson.measured_pd.what
+    assert lesson.publisher.stats.skipped_idle > 0  # no frame was made meanwhile
+
+
 def test_link_length_preset_rebuilds_the_arm(lab, client):
     lesson = lab.lesson
     old_loop = lesson.rig.loop

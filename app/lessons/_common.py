@@ -126,11 +126,13 @@ class LessonBase:
             raise
 
     def publish(self, *, pose: Callable[[], None], plots: Callable[[bool], None],
-                pose_hz: float, plot_hz: float) -> None:
+                pose_hz: float, plot_hz: float,
+                every: Callable[[], None] | None = None) -> None:
         """Start :attr:`publisher`: ``pose()`` at ``pose_hz``, ``plots(force)`` at ``plot_hz``
-        (on the context's shared frame thread, if it has one)."""
+        (on the context's shared frame thread, if it has one), and ``every()`` at each of
+        its ticks, with a page open or not."""
         self.publisher = Publisher(self.server, pose=pose, plots=plots, pose_hz=pose_hz,
-                                   plot_hz=plot_hz, frames=self.ctx.frames)
+                                   plot_hz=plot_hz, frames=self.ctx.frames, every=every)
         self.publisher.start()
 
     def gui_handles(self) -> tuple[Any, ...]:

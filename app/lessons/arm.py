@@ -157,8 +157,9 @@ class ArmLesson(LessonBase):
             self._build_gui()
         if ctx.arms is None:
             self.loop.start()
+        # a push is measured once it is over, whether a page is open to see it or not
         self.publish(pose=self._pose_frame, plots=self._status_frame, pose_hz=pose_hz,
-                     plot_hz=min(pose_hz, 10.0))
+                     plot_hz=min(pose_hz, 10.0), every=self.controls.measure)
 
     # ================================================================== scene and GUI
 

@@ -283,8 +283,7 @@ class ArmControls:
         return f" · pushing {np.linalg.norm(push.force):.3g} N ({push.t1 - t:.1f} s left)"
 
     def plot_frame(self, force: bool) -> None:
-        """Charts, the spare joints' readout, the Teach tab (twice a second) and the
-        last push's figures once it is over."""
+        """Charts, the spare joints' readout and the Teach tab (twice a second)."""
         loop = self.loop
         snap = loop.recorder.snapshot(self.plots.window_s + 0.5)
         law = law_loop_of(loop)
@@ -299,7 +298,6 @@ class ArmControls:
         if force or now - self._last_teach > 0.5:
             self._last_teach = now
             self._update_teach(snap)
-        self._measure()
 
     def _update_teach(self, snap: dict[str, np.ndarray]) -> None:
         j = self.plots.joint
@@ -309,7 +307,9 @@ class ArmControls:
                                                        mode=self.loop.status.controller))
         set_content(self.design, design_table(params, None, self.measured_env))
 
-    def _measure(self) -> None:
+    def measure(self) -> None:
+        """The last push's figures, once it is over (the publisher calls this at each of
+        its ticks)."""
         push = self._push
         t = self.loop.status.t
         if push is None or push is self._measured or t < push.t1 + SETTLE_S:

@@ -200,8 +200,10 @@ class ComplianceLesson(LessonBase):
             self._build_gui(params, link_preset, model.joint_names)
             self.rig = self._make_rig(model, link_preset, params)
             show_gain_warning(self.warning, self.rig.loop.gains)
+        # an experiment is measured once it is over, whether a page is open to see it or
+        # not (or its page is behind: a private page skips frames then)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
-                     plot_hz=plot_hz)
+                     plot_hz=plot_hz, every=self._measure_due)
 
     # ================================================================== rig
 
@@ -595,7 +597,6 @@ class ComplianceLesson(LessonBase):
         if force or now - self._last_servos > 1.0:
             self._last_servos = now
             self.servo_html.content = safe_health_html(rig.backend, rig.model.joint_names)
-        self._measure(status, rig)
 
     def _update_status(self, st: LoopStatus, snap: dict[str, np.ndarray], rig: Rig) -> None:
         if self.reconnect_button.visible != st.link_down:
@@ -642,6 +643,11 @@ class ComplianceLesson(LessonBase):
         set_content(self.equations, f"{note}\n\n{eq}" if note else eq)
         set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
         set_content(self.last_run_md, self.last_run_text)
+
+    def _measure_due(self) -> None:
+        rig = self.rig
+        if rig is not None and self.experiment is not None and not self.experiment.done:
+            self._measure(rig.loop.status, rig)
 
     def _measure(self, st: LoopStatus, rig: Rig) -> None:
         exp = self.experiment

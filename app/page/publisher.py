@@ -69,17 +69,22 @@ class Publisher:
         plot_hz: chart update rate, Hz (at most ``pose_hz``).
         frames: the thread that makes the frames, shared with other publishers (None: a
             thread of this publisher's own).
+        every: called at every tick of the schedule, whether a frame is made or not (no
+            page open, or the page behind): what the lesson does at the frames' pace for
+            whoever watches, such as measuring an experiment once it is over.
     """
 
     def __init__(self, server: Surface, *, pose: Callable[[], None],
                  plots: Callable[[bool], None], pose_hz: float = 30.0,
-                 plot_hz: float = 11.0, frames: FrameThread | None = None) -> None:
+                 plot_hz: float = 11.0, frames: FrameThread | None = None,
+                 every: Callable[[], None] | None = None) -> None:
         if not (0 < pose_hz <= 240 and 0 < plot_hz <= 240):
             raise ValueError(f"pose_hz, plot_hz: expected 0 < Hz <= 240, got {pose_hz}, "
                              f"{plot_hz}")
         self.server = server
         self._pose = pose
         self._plots = plots
+        self._every = every
         self.pose_hz = pose_hz
         self.plot_hz = plot_hz
         self.stats = PublisherStats()
@@ -128,6 +133,13 @@ class Publisher:
 
     def _tick(self) -> float:
         """Make the frames that are due; return when the next one is (perf_counter s)."""
+        if self._every is not None:
+            try:
+                self._every()
+            except Exception:  # as a bad frame: logged, and the frames go on
+                self.stats.errors += 1
+                if self.stats.errors <= 3:
+                    log.exception("publisher tick failed")
         now = time.perf_counter()
         has_clients = bool(self.server.get_clients())
         force = has_clients and not self._had_clients
