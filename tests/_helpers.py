@@ -189,3 +189,27 @@ def my_arm_in(lab: Any, page: HeadlessClient, cid: int, lesson: str) -> Any:
     mine = lab.room.private_lesson(cid)
     assert mine is not lab.lesson and type(mine) is type(lab.lesson)
     return mine
+
+
+def hand_at_rest(lesson: Any, timeout: float = 120.0) -> np.ndarray:
+    """The hand (3,) m of an arm lesson (``lesson.loop``, ``lesson.model``) once it moved
+    less than 0.5 mm over 0.5 s of loop time (a gain just changed, or the arm just
+    started or was caught limp, moves it)."""
+    def hand() -> np.ndarray:
+        snap = lesson.loop.recorder.snapshot(0.1)
+        return (lesson.model.fk(snap["q"][-1])[:3, 3] if len(snap["t"])
+                else np.full(3, np.nan))
+
+    last = [hand(), lesson.loop.status.t]
+
+    def resting() -> bool:
+        if lesson.loop.status.t - last[1] < 0.5:
+            return False
+        now = hand()
+        done = bool(np.linalg.norm(now - last[0]) < 5e-4)
+        last[:] = [now, lesson.loop.status.t]
+        return done
+
+    wait_for(resting, timeout, "the hand at rest")
+    return last[0]
+

@@ -20,7 +20,7 @@ import pytest
 from armlab.app.server import Lab, ServeOptions
 from armlab.control.params import DEFAULT
 from armlab.kinematics.redundancy import joint_limit_criterion
-from tests._helpers import client_of, wait_for
+from tests._helpers import client_of, hand_at_rest, wait_for
 
 pytestmark = pytest.mark.realtime  # served labs whose loops run on the wall clock
 
@@ -56,23 +56,6 @@ def _q(lesson) -> np.ndarray:  # noqa: ANN001
 
 def _hand(lesson) -> np.ndarray:  # noqa: ANN001
     return lesson.model.fk(_q(lesson))[:3, 3]
-
-
-def _at_rest(lesson) -> np.ndarray:  # noqa: ANN001
-    """The hand (3,) m once it moved less than 0.5 mm over 0.5 s of loop time (a gain just
-    changed, or the arm just started, moves it: a push is measured from where it rests)."""
-    last = [_hand(lesson), lesson.loop.status.t]
-
-    def resting() -> bool:
-        if lesson.loop.status.t - last[1] < 0.5:
-            return False
-        now = _hand(lesson)
-        done = bool(np.linalg.norm(now - last[0]) < 5e-4)
-        last[:] = [now, lesson.loop.status.t]
-        return done
-
-    wait_for(resting, 120.0, "the hand at rest")
-    return last[0]
 
 
 def _settle(lesson, q: np.ndarray) -> None:  # noqa: ANN001
@@ -131,7 +114,7 @@ def test_a_students_own_copy_has_the_controls_on_its_own_arm():
             page.set_value(mine.controls.gains.sliders["kp"].handle, 14.0)
             wait_for(lambda: mine.loop.params.kp == 14.0, 30.0, "Kp 14 in the own loop")
             assert shared.params.kp == DEFAULT.kp
-            before_hand = _at_rest(mine)  # Kp 14 sags it a little under gravity first
+            before_hand = hand_at_rest(mine)  # Kp 14 sags it a little under gravity first
             page.click(mine.controls.pushes.button)  # 2 N down for 1.5 s
             wait_for(lambda: np.linalg.norm(_hand(mine) - before_hand) > 0.01, 30.0,
                      "the own arm pushed")
@@ -171,7 +154,7 @@ def test_a_bad_kp_is_refused_with_one_notification(omx, page, bad):
 def test_a_push_moves_the_hand_and_it_comes_back(omx, page):
     lesson = omx.lesson
     wait_for(lambda: np.all(np.isfinite(_q(lesson))), 30.0, "the arm read")
-    before = _at_rest(lesson)
+    before = hand_at_rest(lesson)
     page.set_value("Direction", "down (with gravity)")
     page.set_value("Push force (N)", 3.0)
     page.set_value("Duration (s)", 2.0)

@@ -28,7 +28,7 @@ import tomllib
 import numpy as np
 import pytest
 from _emulator import ROOT, emulator, pull_the_cable
-from _helpers import client_of, wait_for
+from _helpers import client_of, hand_at_rest, wait_for
 
 from armlab.app.backends import loop_over, make_backend
 from armlab.app.lessons.arm import ArmLesson
@@ -80,17 +80,6 @@ def _torque_off_broadcasts(packets: list[bytes]) -> int:
 def _hand(lesson: ArmLesson) -> np.ndarray:
     snap = lesson.loop.recorder.snapshot(0.1)
     return lesson.model.fk(snap["q"][-1])[:3, 3] if len(snap["t"]) else np.full(3, np.nan)
-
-
-def _at_rest(lesson: ArmLesson, *, window_s: float = 0.5, tol_m: float = 0.001) -> bool:
-    """Whether the hand moved less than ``tol_m`` over the last ``window_s`` s of the
-    loop's record."""
-    snap = lesson.loop.recorder.snapshot(window_s)
-    if len(snap["t"]) < 2 or snap["t"][-1] - snap["t"][0] < 0.9 * window_s:
-        return False
-    hands = np.array([lesson.model.fk(q)[:3, 3] for q in snap["q"]])
-    return bool(np.all(np.isfinite(hands))
-                and np.max(np.linalg.norm(hands - hands[-1], axis=1)) < tol_m)
 
 
 def _q(lesson: ArmLesson) -> np.ndarray:
@@ -190,7 +179,7 @@ def test_the_arm_lesson_holds_follows_the_target_and_grips_on_serial():
                      60, "the loop holding the arm")
             # it catches the arm falling (its torque was off); how long the catch takes
             # depends on the periods the loop gets, so wait for the arm at rest
-            wait_for(lambda: _at_rest(lesson), 90, "the arm caught, at rest")
+            hand_at_rest(lesson)
             here, t1 = _hand(lesson), loop.status.t
             wait_for(lambda: loop.status.t > t1 + 1.0, 60, "a second of holding")
             assert np.linalg.norm(_hand(lesson) - here) < 0.003  # held where it was

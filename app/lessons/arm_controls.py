@@ -311,8 +311,10 @@ class ArmControls:
         """The last push's figures, once it is over (the publisher calls this at each of
         its ticks)."""
         push = self._push
+        if push is None or push is self._measured:
+            return  # (the loop's status is read only while a push waits to be measured)
         t = self.loop.status.t
-        if push is None or push is self._measured or t < push.t1 + SETTLE_S:
+        if t < push.t1 + SETTLE_S:
             return
         self._measured = push
         snap = self.loop.recorder.snapshot(t - push.t0 + 0.2)

@@ -203,7 +203,7 @@ class ComplianceLesson(LessonBase):
         # an experiment is measured once it is over, whether a page is open to see it or
         # not (or its page is behind: a private page skips frames then)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
-                     plot_hz=plot_hz, every=self._measure_due)
+                     plot_hz=plot_hz, every=self._measure)
 
     # ================================================================== rig
 
@@ -644,15 +644,13 @@ class ComplianceLesson(LessonBase):
         set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
         set_content(self.last_run_md, self.last_run_text)
 
-    def _measure_due(self) -> None:
-        rig = self.rig
-        if rig is not None and self.experiment is not None and not self.experiment.done:
-            self._measure(rig.loop.status, rig)
-
-    def _measure(self, st: LoopStatus, rig: Rig) -> None:
-        exp = self.experiment
-        if exp is None or exp.done:
+    def _measure(self) -> None:
+        """The last experiment's figures, once it is over (the publisher calls this at each
+        of its ticks: the loop's status is read only while one runs)."""
+        exp, rig = self.experiment, self.rig
+        if exp is None or exp.done or rig is None:
             return
+        st = rig.loop.status
         if exp.kind == "line":
             if st.t < exp.t0 + 0.1 or st.trajectory is not None:
                 return

@@ -137,9 +137,7 @@ class Publisher:
             try:
                 self._every()
             except Exception:  # as a bad frame: logged, and the frames go on
-                self.stats.errors += 1
-                if self.stats.errors <= 3:
-                    log.exception("publisher tick failed")
+                self._failed("publisher tick failed")
         now = time.perf_counter()
         has_clients = bool(self.server.get_clients())
         force = has_clients and not self._had_clients
@@ -192,9 +190,13 @@ class Publisher:
                     self.stats.plot_frames += 1
                     self.stats.last_plot_s = time.perf_counter() - t1
         except Exception:  # one bad frame must not freeze every page: log it, go on
-            self.stats.errors += 1
-            if self.stats.errors <= 3:
-                log.exception("publisher frame failed")
+            self._failed("publisher frame failed")
+
+    def _failed(self, what: str) -> None:
+        """Count the error being handled; log the first three."""
+        self.stats.errors += 1
+        if self.stats.errors <= 3:
+            log.exception(what)
 
 
 class FrameThread:
