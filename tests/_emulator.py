@@ -75,7 +75,9 @@ class EmulatorProcess:
 def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProcess]:
     """Start ``python -m armlab.app emulate ARGS``, yield once it printed its port, always kill it.
 
-    An emulator that died on its own (not killed by the test) fails the test with its stderr.
+    An emulator that died on its own (not killed by the test) fails the test with its stderr;
+    a test that fails is told whether the emulator was still running, and what it said
+    (stopped with SIGTERM, it prints its packet counts and how far its plant slipped).
     """
     cmd = [sys.executable, "-m", "armlab.app", "emulate", *args]
     tmp = Path(tempfile.mkdtemp(prefix="armlab-emu-"))
@@ -96,7 +98,14 @@ def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProces
             proc.wait(timeout=10)
             raise RuntimeError(f"emulator did not start: {line!r} {err.read_text()}")
         emu = EmulatorProcess(line.split(" ", 1)[1].strip(), proc, log, err)
-        yield emu
+        try:
+            yield emu
+        except BaseException as exc:  # say what the emulator was doing when the test failed
+            died = proc.poll()
+            code, said = emu.stop() if died is None else (died, emu.stderr())
+            exc.add_note(f"the emulator {'had died' if died is not None else 'was running'}"
+                         f" (exit {code}); its stderr: {said.strip()}")
+            raise
         code = proc.poll()
         if code not in (None, 0, -signal.SIGKILL, -signal.SIGTERM):
             raise RuntimeError(f"the emulator died (exit {code}): {err.read_text()}")

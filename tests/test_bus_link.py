@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -91,7 +92,10 @@ def test_scan_command_finds_servos_only_at_their_baud_and_silence_is_explained()
             with pytest.raises(NoReply) as e:
                 bus.ping(1)
             assert bus.stats.retries == 1 and bus.stats.failures == 1
+        code, err = emu.stop()
     assert out.returncode == 0, out.stderr
+    # the servos heard none of the ten PINGs the scan sent at 1 Mbps, nor the bus's two
+    assert code == 0 and int(re.search(r"(\d+) packets at another baud", err)[1]) >= 12, err
     found = json.loads(out.stdout)
     assert [(f["servo_id"], f["model"], round(f["baud"])) for f in found] == [
         (1, "RX-24F", 57600), (3, "RX-24F", 57600), (5, "RX-24F", 57600)]
@@ -100,6 +104,19 @@ def test_scan_command_finds_servos_only_at_their_baud_and_silence_is_explained()
     assert "\n" not in msg
     for cause in ("power", "baud", "ID", "protocol 1.0"):
         assert cause in msg
+    assert "came back" not in msg  # silence: not a byte answered
+
+
+def test_a_servo_whose_replies_all_come_back_broken_is_told_from_silence():
+    with emulator("--corrupt", "1", "--seed", "2", "--ids", "1,2,3") as emu, \
+            Bus(emu.port, retries=2) as bus:
+        with pytest.raises(NoReply) as e:
+            bus.ping(2)
+        assert bus.stats.corrupt == 3  # each try's reply came, with a broken checksum
+    heard = bus.stats.bytes_in
+    assert heard == 3 * len(p1.status(2, 0))
+    assert f"servo 2 at 1000000 bps on {emu.port} after 3 tries ({heard} bytes came back, " \
+           "none of them its reply): check" in str(e.value)
 
 
 def test_dropped_and_corrupted_replies_are_retried_and_counted():

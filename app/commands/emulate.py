@@ -372,6 +372,8 @@ def run(args: argparse.Namespace) -> int:
     st = emu.stats
     print(f"emulator stopped: {st.packets} packets, {st.replies} replies "
           f"({st.dropped} dropped, {st.corrupted} corrupted, {st.delayed} delayed); "
+          f"{st.wrong_baud} packets at another baud than the servos'; "
+          f"{st.lost_bytes} reply bytes lost (nobody read the line); "
           f"plant clock slipped {st.slipped:.3f} s",
           file=sys.stderr)
     return 0

@@ -341,6 +341,7 @@ class Bus:
         delay = self.return_delay.get(servo_id, 254)
         want = {servo_id: reply_length - self.status_length()}
         with self._lock:
+            bytes_in = self.stats.bytes_in
             for attempt in range(tries):
                 if attempt:
                     self.stats.retries += 1
@@ -356,14 +357,20 @@ class Bus:
                 if statuses:
                     return statuses[servo_id]
             self.stats.failures += 1
-        raise self._no_reply([servo_id], tries)
+            heard = self.stats.bytes_in - bytes_in - (tries * len(packet) if self.echo else 0)
+        raise self._no_reply([servo_id], tries, heard=heard)
 
-    def _no_reply(self, ids: list[int], tries: int, what: str = "") -> NoReply:
+    def _no_reply(self, ids: list[int], tries: int, what: str = "", *,
+                  heard: int = 0) -> NoReply:
+        """The error for ``ids`` that never answered; ``heard``: bytes that came back all
+        the same (another servo's answers, or a wrong baud's noise), said when any did."""
         who = f"servo {ids[0]}" if len(ids) == 1 else \
             f"servos {', '.join(str(i) for i in ids)}"
+        came = (f" ({heard} bytes came back, none of them {'its' if len(ids) == 1 else 'their'}"
+                " reply)" if heard > 0 else "")
         error = NoReply(
             f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
-            f"after {tries} tries: check the servos' power (a U2D2 supplies none), "
+            f"after {tries} tries{came}: check the servos' power (a U2D2 supplies none), "
             f"the baud (armlab scan --port {self.port}), the ID, and that they speak "
             f"protocol {self.family.label}"
         )
