@@ -101,7 +101,7 @@ def test_the_switch_enlarges_one_page_only_and_a_reload_keeps_it(browser, other_
         switch.dispatch_event("click")
         wait_for(switch.is_checked, 60.0, "the Projector switch to turn on")
         wait_for(lambda: _smallest(pg)[0] >= 20.0, 120.0, "the page to take projector sizes")
-        wait_for(lambda: min(_tick_px(pg)) >= 18.0, 120.0,
+        wait_for(lambda: (px := _tick_px(pg)) and min(px) >= 18.0, 120.0,
                  "the page's charts to take projector tick sizes")
         # the other browser's page is as it was
         assert _smallest(other)[0] < 20.0 and max(_tick_px(other)) < 18.0

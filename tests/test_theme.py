@@ -47,17 +47,22 @@ def _page(lab, stored: str | None = None):
     return page, ids[0]
 
 
-def _tick_px(page) -> list[float]:
-    """px of every chart axis font the page shows now."""
+def _tick_px(page, title: str | None = None) -> list[float]:
+    """px of every chart axis font the page shows now (of the charts titled ``title``)."""
     return [float(re.match(r"(?:bold )?(\d+)px", a["font"]).group(1))
             for e in list(page.gui.values()) if e.kind == "GuiUplotMessage"
-            for a in e.props["axes"]]
+            and title in (None, e.props.get("title")) for a in e.props["axes"]]
+
+
+#: a chart of the hand lesson (the test switches to it: the compliance lesson has none)
+HAND_CHART = "Motor current (measured)"
 
 
 def _sheet(page) -> str:
-    return next(e.props["content"] for e in list(page.gui.values())
-                if e.kind == "GuiHtmlMessage" and "<style>" in e.props.get("content", "")
-                and ".u-title" in e.props["content"])
+    """The page's chart style sheet ("" while the page has none)."""
+    return next((e.props["content"] for e in list(page.gui.values())
+                 if e.kind == "GuiHtmlMessage" and "<style>" in e.props.get("content", "")
+                 and ".u-title" in e.props["content"]), "")
 
 
 def _label_scales(page) -> list[float]:
@@ -91,7 +96,7 @@ def test_one_page_switches_to_projector_the_others_and_the_arm_do_not(lab):
         # a's own switch, as its person clicks it
         a.set_value(lab.page_style.switch(a_id), True)
         # the sizes go out one element after another: wait for the last of them, whichever
-        a.wait_for(lambda: min(_tick_px(a)) >= 18.0 and "22px" in _sheet(a)
+        a.wait_for(lambda: _tick_px(a) and min(_tick_px(a)) >= 18.0 and "22px" in _sheet(a)
                    and len(_label_scales(a)) == COMPLIANCE_LABELS
                    and a.local_storage.get(theme.PROJECTOR_KEY) == "1", 60.0,
                    "a's charts, sheet and 3D labels in projector sizes, kept in its browser")
@@ -101,14 +106,14 @@ def test_one_page_switches_to_projector_the_others_and_the_arm_do_not(lab):
         assert "14px" in lab.page_style.sheet.content
         assert lab.lesson is lesson and lesson.rig is rig  # nothing re-opened or rebuilt
         # a chart built from now on (a lesson switch) reaches a in projector sizes
-        lab.switch("hand")
-        a.wait_for(lambda: _tick_px(a) and min(_tick_px(a)) >= 18.0, 60.0,
+        lab.switch("hand")  # the pages may still show the old charts: wait for the new
+        a.wait_for(lambda: _tick_px(a, HAND_CHART) and min(_tick_px(a)) >= 18.0, 60.0,
                    "the new lesson's charts in projector sizes on a")
-        b.wait_for(lambda: _tick_px(b) and max(_tick_px(b)) < 18.0, 60.0,
+        b.wait_for(lambda: _tick_px(b, HAND_CHART) and max(_tick_px(b)) < 18.0, 60.0,
                    "the new lesson's charts in normal sizes on b")
         # and back off
         a.set_value(lab.page_style.switch(a_id), False)
-        a.wait_for(lambda: max(_tick_px(a)) < 18.0 and "14px" in _sheet(a)
+        a.wait_for(lambda: _tick_px(a) and max(_tick_px(a)) < 18.0 and "14px" in _sheet(a)
                    and a.local_storage.get(theme.PROJECTOR_KEY) == "0", 60.0,
                    "a back to normal sizes, kept in its browser")
     lab.switch("compliance")
