@@ -102,7 +102,7 @@ def emulator(*args: str, log_dir: Path | None = None) -> Iterator[EmulatorProces
             yield emu
         except BaseException as exc:  # say what the emulator was doing when the test failed
             died = proc.poll()
-            code, said = emu.stop() if died is None else (died, emu.stderr())
+            code, said = emu.stop()  # the stop line of a live one; a dead one's last words
             exc.add_note(f"the emulator {'had died' if died is not None else 'was running'}"
                          f" (exit {code}); its stderr: {said.strip()}")
             raise

@@ -363,11 +363,11 @@ class Bus:
     def _no_reply(self, ids: list[int], tries: int, what: str = "", *,
                   heard: int = 0) -> NoReply:
         """The error for ``ids`` that never answered; ``heard``: bytes that came back all
-        the same (another servo's answers, or a wrong baud's noise), said when any did."""
+        the same to a one-servo request (another servo's answers, or a wrong baud's
+        noise), said when any did."""
         who = f"servo {ids[0]}" if len(ids) == 1 else \
             f"servos {', '.join(str(i) for i in ids)}"
-        came = (f" ({heard} bytes came back, none of them {'its' if len(ids) == 1 else 'their'}"
-                " reply)" if heard > 0 else "")
+        came = f" ({heard} bytes came back, none of them its reply)" if heard > 0 else ""
         error = NoReply(
             f"no reply{what} from {who} at {self._baud:.0f} bps on {self.port} "
             f"after {tries} tries{came}: check the servos' power (a U2D2 supplies none), "
