@@ -13,6 +13,7 @@ and "Frame" brings the framed view back.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -150,7 +151,14 @@ def _shows_framing(page: HeadlessClient, lab: Lab, *, fov: float, aspect: float
                 and np.allclose(cam["position"], f.position, atol=SAME_M)
                 and np.allclose(cam["look_at"], f.look_at, atol=SAME_M))
 
-    page.wait_for(there, what=f"the framing for a {aspect:.2f} view")
+    try:
+        page.wait_for(there, what=f"the framing for a {aspect:.2f} view")
+    except TimeoutError as exc:
+        for client in list(lab.server.get_clients().values()):
+            if (f := camera.last_framing.get(client)) is not None:
+                exc.add_note(f"the page's last framing was for fov {f.fov:.3f} rad, "
+                             f"aspect {f.aspect:.3f}; its camera is at {page.camera}")
+        raise
     shown = framing()
     assert shown is not None
     return shown
@@ -223,6 +231,40 @@ def test_a_page_that_reshapes_before_taking_a_framing_is_framed_for_its_last_sha
         page.report_view(width=852, height=720, fov=FOV, **had)
         again = _shows_framing(page, lab, fov=FOV, aspect=852 / 720)
         assert np.array_equal(again.position, wide.position)  # what the page reported
+
+
+def test_a_framing_for_a_shape_the_page_has_left_never_lands_after_its_new_one(monkeypatch):
+    """Framings of one page are made in several threads (viser runs each camera report's
+    callbacks in a pool, the Frame button another): one for the page's old shape, slow to
+    be worked out, must not land after the one for the shape it reported since. (Under
+    two CPU burners a page's first framing once lost this way to its connect-time one,
+    and stayed framed for a view it no longer had.)"""
+    with Lab(ServeOptions(http_port=0, lesson="ik_accuracy", realtime=False)) as lab, \
+            client_of(lab.server, token=lab.token) as page:
+        page.report_view(width=852, height=720, fov=FOV)
+        _shows_framing(page, lab, fov=FOV, aspect=852 / 720)
+        (client,) = lab.server.get_clients().values()
+        working, go_on = threading.Event(), threading.Event()
+        frame_points_now = camera.frame_points
+
+        def slow_first(*args, **kwargs):  # the first framing from here on waits for go_on
+            if not working.is_set():
+                working.set()
+                go_on.wait(120.0)
+            return frame_points_now(*args, **kwargs)
+
+        monkeypatch.setattr(camera, "frame_points", slow_first)
+        late = threading.Thread(target=camera.reframe, args=(client,), daemon=True)
+        late.start()  # "Frame", for the 852x720 view the page has now
+        assert working.wait(120.0), "the first framing never started"
+        page.report_view(width=458, height=720, fov=FOV)  # a side panel opened meanwhile
+        narrow = _shows_framing(page, lab, fov=FOV, aspect=458 / 720)
+        go_on.set()
+        late.join(120.0)
+        assert not late.is_alive()
+        settled(client, page)
+        assert camera.last_framing[client] is narrow
+        assert _shows_framing(page, lab, fov=FOV, aspect=458 / 720) is narrow
 
 
 def test_carry_moves_a_pages_camera_and_its_look_at_without_turning_it():

@@ -13,6 +13,7 @@ View" returns); a page already open keeps its camera until it is moved.
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import weakref
@@ -210,6 +211,14 @@ last_framing: weakref.WeakKeyDictionary[viser.ClientHandle, Framing] = \
 #: scene -> the View its lesson asked for (a server's scene, or a page's own for a
 #: student's private lesson)
 _views: weakref.WeakKeyDictionary[Any, View] = weakref.WeakKeyDictionary()
+#: Framings of a page are made in several threads at once (its view's reshapes, its
+#: "Frame" button, a lesson's :func:`show`); each takes a ticket as it reads the page's
+#: view, and one whose ticket is older than the last sent to that page is dropped, not
+#: sent: a framing for a shape the page has left never lands after one for its new shape.
+_order = threading.Lock()
+_tickets = itertools.count()
+#: page -> the ticket of the last framing sent to it
+_sent: weakref.WeakKeyDictionary[viser.ClientHandle, int] = weakref.WeakKeyDictionary()
 
 
 def _camera_of(client: viser.ClientHandle) -> tuple[float, float]:
@@ -267,24 +276,32 @@ def _framed_scene(scene: Any) -> tuple[View, np.ndarray] | None:
 
 def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
     """Frame ``points`` along ``view`` on ``client``'s camera, for its own field of view
-    and aspect; False if the page has gone or has not reported its camera yet."""
+    and aspect; False if the page has gone or has not reported its camera yet. A framing
+    overtaken by one made from a newer report of the page's view is dropped (True: the
+    page is framed for its view)."""
     if not connected(client):
         return False
-    fov, aspect = _camera_of(client)
+    with _order:
+        ticket = next(_tickets)
+        fov, aspect = _camera_of(client)
     position, look_at = frame_points(points, direction=view.direction, up=view.up,
                                      fov=fov, aspect=aspect)
-    try:
-        client.camera.up_direction = view.up
-        client.camera.position = tuple(position)
-        client.camera.look_at = tuple(look_at)  # after position, which drags look_at along
-    except (AssertionError, ValueError, RuntimeError):
-        return False  # not reported its camera yet: it starts at initial_camera
-    # viser sends no camera value equal to the page's last report; but a framing sent
-    # before that report may still be on its way (the page reshaped before it took it),
-    # and would then land last: so the framing is always sent (the newer of two waiting
-    # camera messages replaces the older)
-    send_view(client, position, look_at)
-    last_framing[client] = Framing(points, position, look_at, fov, aspect)
+    with _order:
+        if _sent.get(client, -1) > ticket:
+            return True  # a framing made from a newer view of the page has gone
+        try:
+            client.camera.up_direction = view.up
+            client.camera.position = tuple(position)
+            client.camera.look_at = tuple(look_at)  # after position: it drags look_at
+        except (AssertionError, ValueError, RuntimeError):
+            return False  # not reported its camera yet: it starts at initial_camera
+        # viser sends no camera value equal to the page's last report; but a framing
+        # sent before that report may still be on its way (the page reshaped before it
+        # took it), and would then land last: so the framing is always sent (the newer
+        # of two waiting camera messages replaces the older)
+        send_view(client, position, look_at)
+        _sent[client] = ticket
+        last_framing[client] = Framing(points, position, look_at, fov, aspect)
     return True
 
 
