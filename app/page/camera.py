@@ -196,13 +196,15 @@ def _glb_box(data: bytes) -> np.ndarray | None:
 @dataclass(frozen=True)
 class Framing:
     """One framing :func:`reframe` gave a page: the points it framed (k, 3), the camera
-    it set (position, look_at (3,)) and the page's view it was for (fov rad, aspect)."""
+    it set (position, look_at (3,)), the page's view it was for (fov rad, aspect) and
+    its ticket (the order in which framings read their page's view: :func:`_aim`)."""
 
     points: np.ndarray
     position: np.ndarray
     look_at: np.ndarray
     fov: float
     aspect: float
+    ticket: int
 
 
 #: page -> its last framing (for a person, or a test, checking what the page was shown)
@@ -213,12 +215,10 @@ last_framing: weakref.WeakKeyDictionary[viser.ClientHandle, Framing] = \
 _views: weakref.WeakKeyDictionary[Any, View] = weakref.WeakKeyDictionary()
 #: Framings of a page are made in several threads at once (its view's reshapes, its
 #: "Frame" button, a lesson's :func:`show`); each takes a ticket as it reads the page's
-#: view, and one whose ticket is older than the last sent to that page is dropped, not
-#: sent: a framing for a shape the page has left never lands after one for its new shape.
+#: view, and one whose ticket is older than the page's :data:`last_framing` is dropped,
+#: not sent: a framing for a shape the page has left never lands after one for its new.
 _order = threading.Lock()
 _tickets = itertools.count()
-#: page -> the ticket of the last framing sent to it
-_sent: weakref.WeakKeyDictionary[viser.ClientHandle, int] = weakref.WeakKeyDictionary()
 
 
 def _camera_of(client: viser.ClientHandle) -> tuple[float, float]:
@@ -287,7 +287,8 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
     position, look_at = frame_points(points, direction=view.direction, up=view.up,
                                      fov=fov, aspect=aspect)
     with _order:
-        if _sent.get(client, -1) > ticket:
+        last = last_framing.get(client)
+        if last is not None and last.ticket > ticket:
             return True  # a framing made from a newer view of the page has gone
         try:
             client.camera.up_direction = view.up
@@ -300,8 +301,7 @@ def _aim(client: viser.ClientHandle, view: View, points: np.ndarray) -> bool:
         # took it), and would then land last: so the framing is always sent (the newer
         # of two waiting camera messages replaces the older)
         send_view(client, position, look_at)
-        _sent[client] = ticket
-        last_framing[client] = Framing(points, position, look_at, fov, aspect)
+        last_framing[client] = Framing(points, position, look_at, fov, aspect, ticket)
     return True
 
 
