@@ -216,8 +216,8 @@ def _bomb_by_ratio() -> bytes:
 
 
 def _bomb_lying_about_its_size() -> bytes:
-    """Declares 1000 bytes and unpacks to 8 MiB: no more than the 1000 declared is ever
-    unpacked (here 1000 NULs, which are no CSV)."""
+    """Declares 1000 bytes and unpacks to 8 MiB: refused at the first chunk past the 1000
+    declared (no more than one chunk is ever unpacked)."""
     data, _ = zeros_bomb(8)
     return _beside_run_json(raw_zip("signals.csv", data, size=1000,
                                     crc=zlib.crc32(bytes(1000))))
@@ -284,7 +284,7 @@ BAD_FILES = [
     ("a zip bomb (size)", _bomb_by_size, "would unpack to 300.0 MiB, over the 256 MiB"),
     ("a zip bomb (ratio)", _bomb_by_ratio, "the mark of a zip bomb"),
     ("a zip bomb lying about its size", _bomb_lying_about_its_size,
-     "signals.csv's header disagrees with the columns run.json lists"),
+     "signals.csv unpacks to more than its declared 1000 bytes; refused (a forged zip)"),
     ("no signals.csv", _missing_csv, "has no signals.csv"),
     ("a zip of 65000 members", _many_members,
      "lists 65000 members in a 2990000-byte directory; a run file holds two"),
