@@ -1,7 +1,10 @@
 """Checking a student's function: its cases run, one line each, and the Gradescope results.
 
-``armlab check FILE`` is :func:`check_file`; a notebook's ``armlab.check(fn)`` is
-:func:`check`. Both return a :class:`Report`.
+``armlab check FILE`` is :func:`check_file`: the student's file runs in a child process
+(:mod:`armlab.exercises.boundary`) that only calls their function on the inputs this
+process sends; this process alone judges, scores and reports. A notebook's
+``armlab.check(fn)`` is :func:`check`: the function is called in the notebook's own
+kernel (formative feedback, not a grade). Both return a :class:`Report`.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from armlab.exercises.boundary import PRINTED_LINES, ChildGone, RemoteFunction, StudentProcess
 from armlab.exercises.catalog import BY_FUNCTION, BY_NAME, get
 from armlab.exercises.core import Exercise, Outcome, RunCase, judge_run, judge_value
 from armlab.exercises.student import StudentError, load_module
@@ -41,21 +45,32 @@ def load_student(path: str | Path, *, exercise: str | None = None) -> Student:
     p = Path(path)
     module = load_module(p)
     ns = vars(module)
-    name = exercise or ns.get("EXERCISE")
+    ex = _which(p, exercise or ns.get("EXERCISE"),
+                [fn for fn in BY_FUNCTION if callable(ns.get(fn))])
+    return Student(ex, ns[ex.function], str(p))
+
+
+def _which(p: Path, name: object, defined: list[str]) -> Exercise:
+    """The exercise a student's file answers: ``name`` (the option, or the file's
+    ``EXERCISE``), else the one whose function it alone defines, else the file's name;
+    ``defined`` are the exercises' function names the file defines.
+
+    Raises:
+        StudentError: no known exercise, or the file lacks its function.
+    """
     if not isinstance(name, str):
-        found = [fn for fn in BY_FUNCTION if callable(ns.get(fn))]
+        found = [fn for fn in BY_FUNCTION if fn in defined]
         name = BY_FUNCTION[found[0]].name if len(found) == 1 else p.stem
     try:
         ex = get(name)
     except ValueError as exc:
         raise StudentError(str(p), 0, f"which exercise is this? {exc}; put "
                            "EXERCISE = \"NAME\" at the top of the file") from None
-    fn = ns.get(ex.function)
-    if not callable(fn):
+    if ex.function not in defined:
         raise StudentError(str(p), 0, f"no function {ex.function}() in the file (exercise "
                            f"{ex.name} asks for it; `armlab exercise start {ex.name}` "
                            "writes its starter)")
-    return Student(ex, fn, str(p))
+    return ex
 
 
 @dataclass(frozen=True)
@@ -133,19 +148,48 @@ class Report:
 
 
 def run_cases(exercise: Exercise, fn: Callable[..., Any], source: str, *,
-              echo: Callable[[str], None] | None = None) -> Report:
-    """Run every case of ``exercise`` on ``fn``; ``echo`` gets each case's text as it ends."""
+              echo: Callable[[str], None] | None = None,
+              progress: Callable[[Report], None] | None = None) -> Report:
+    """Run every case of ``exercise`` on ``fn``; ``echo`` gets each case's text as it ends,
+    ``progress`` the report so far (the cases not run yet failed) before the first case
+    and after each.
+
+    When the student's process goes (:class:`ChildGone`: it died, hung past its limit),
+    the case it went in fails with one line saying why and the cases left fail as not run.
+    """
     start = time.monotonic()
-    outcomes = []
-    for case in exercise.cases():
-        if isinstance(case, RunCase):
-            outcome = judge_run(case, fn)
+    cases = list(exercise.cases())
+    outcomes: list[Outcome] = []
+    gone: str | None = None
+
+    def report(final: bool) -> Report:
+        rest = () if final else tuple(Outcome(c.name, False, (f"FAIL  {c.name}: not run yet",))
+                                      for c in cases[len(outcomes):])
+        return Report(exercise.name, source, (*outcomes, *rest),
+                      seconds=time.monotonic() - start)
+
+    if progress is not None:
+        progress(report(False))
+    for case in cases:
+        if gone is not None:
+            outcome = Outcome(case.name, False, (f"FAIL  {case.name}: not run (your code's "
+                                                 "process had stopped)",))
         else:
-            outcome = judge_value(exercise, case, fn)
+            try:
+                if isinstance(case, RunCase):
+                    outcome = judge_run(case, fn)
+                else:
+                    outcome = judge_value(exercise, case, fn)
+            except ChildGone as exc:
+                gone = exc.reason
+                outcome = Outcome(case.name, False, (
+                    f"FAIL  {case.name}: {gone}; this case and the ones left fail",))
         outcomes.append(outcome)
         if echo is not None:
             echo(outcome.text)
-    return Report(exercise.name, source, tuple(outcomes), seconds=time.monotonic() - start)
+        if progress is not None:
+            progress(report(False))
+    return report(True)
 
 
 def not_run(exercise: Exercise | None, source: str, error: StudentError) -> Report:
@@ -160,14 +204,42 @@ def not_run(exercise: Exercise | None, source: str, error: StudentError) -> Repo
 
 
 def check_file(path: str | Path, *, exercise: str | None = None,
-               echo: Callable[[str], None] | None = None) -> Report:
-    """Load the student's file and run its exercise's cases (``armlab check FILE``)."""
-    try:
-        student = load_student(path, exercise=exercise)
-    except StudentError as err:
-        guess = get(exercise) if exercise else _guess(Path(path))
-        return not_run(guess, str(path), err)
-    return run_cases(student.exercise, student.function, student.path, echo=echo)
+               echo: Callable[[str], None] | None = None,
+               progress: Callable[[Report], None] | None = None) -> Report:
+    """Check the student's file (``armlab check FILE``): it runs in a child process that
+    cannot import armlab and only calls their function on the inputs sent to it; this
+    process judges each value, so nothing the file does can change its verdict.
+
+    ``echo`` gets each case's text as it ends and, at the end, what the student's code
+    printed (at most :data:`PRINTED_LINES` lines, each marked ``  | ``); ``progress`` as
+    :func:`run_cases`.
+    """
+    p = Path(path)
+    guess = get(exercise) if exercise else _guess(p)
+    _preload()
+    with StudentProcess(p) as child:
+        try:
+            named, where = child.load(list(BY_FUNCTION))
+            ex = _which(p, exercise or named, list(where))
+        except StudentError as err:
+            return not_run(guess, str(p), err)
+        except ChildGone as exc:
+            return not_run(guess, str(p), StudentError(str(p), 0, exc.reason))
+        fn = RemoteFunction(child, ex.function, where[ex.function])
+        report = run_cases(ex, fn, str(p), echo=echo, progress=progress)
+    printed = child.printed()
+    if printed and echo is not None:
+        more = f" (the first {PRINTED_LINES} of {len(printed)})" if len(
+            printed) > PRINTED_LINES else ""
+        echo("\n".join([f"your code printed{more}:",
+                        *(f"  | {ln}" for ln in printed[:PRINTED_LINES])]))
+    return report
+
+
+def _preload() -> None:
+    """Import what the cases import lazily before the student's code runs (a file that
+    rewrote the lab's installed files would otherwise reach the modules loaded later)."""
+    import armlab.hardware.backends.sim  # noqa: F401  (the closed-loop runs' arm)
 
 
 def _guess(p: Path) -> Exercise | None:

@@ -9,7 +9,13 @@ variants of that reference (:class:`Mistake`), and its cases. A case is either a
 place of the lab's, compared with the lab's own run).
 
 A failed value case names the input, what was expected, what came back, and, when the
-student's output equals one of the planted mistakes' on that input, the mistake's hint.
+student's output equals what planted mistakes give on that input, their hints (every one
+that gives it: a hint is never a guess between two mistakes that look the same there).
+
+The student's function is either a plain callable (a notebook's ``armlab.check(fn)``,
+called in this process under :func:`guarded_call`) or a
+:class:`~armlab.exercises.boundary.RemoteFunction` (``armlab check``: their file runs in a
+child process, and this module only judges what comes back).
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from armlab.exercises.harness import Other
 from armlab.exercises.student import StudentError, guarded_call
 
 #: Seconds one value case may take before it counts as a hang.
@@ -130,9 +137,11 @@ def as_array(value: Any) -> np.ndarray:
     not numbers."""
     if value is None:
         raise ValueError("returned None, not numbers (a missing return?)")
+    if isinstance(value, Other):  # what the student's process said it was
+        raise ValueError(f"returned {value.text:.100}, not numbers")
     try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"returned {type(value).__name__} {value!r:.80}, not numbers "
                          f"({exc})") from None
 
@@ -156,7 +165,7 @@ def judge_value(exercise: Exercise, case: ValueCase, fn: Callable[..., Any]) -> 
                         exercise.reference(*copy.deepcopy(case.args),
                                            **copy.deepcopy(case.kwargs)))
     try:
-        out = guarded_call(fn, copy.deepcopy(case.args), copy.deepcopy(case.kwargs),
+        out = call_student(fn, copy.deepcopy(case.args), copy.deepcopy(case.kwargs),
                            seconds=VALUE_CASE_S)
         got = as_array(out)
     except StudentError as err:
@@ -171,6 +180,12 @@ def judge_value(exercise: Exercise, case: ValueCase, fn: Callable[..., Any]) -> 
         return _fail(case.name, call, f"got      {_show(got)}", why,
                      *_hint(exercise, case, got))
     assert want is not None
+    if got.shape != want.shape and got.size == want.size and (
+            got.squeeze().shape == want.squeeze().shape):
+        same = "the same numbers" if close(got.reshape(want.shape), want, case) else "numbers"
+        return _fail(case.name, call, f"got shape {got.shape}, expected shape {want.shape}: "
+                     f"{same} in another shape; return shape {want.shape}"
+                     f"{' (a plain float)' if want.shape == () else ''}")
     if got.shape != want.shape:
         return _fail(case.name, call, f"expected shape {want.shape}: {_show(want)}",
                      f"got      shape {got.shape}: {_show(got)}",
@@ -187,26 +202,52 @@ def judge_value(exercise: Exercise, case: ValueCase, fn: Callable[..., Any]) -> 
                  *_hint(exercise, case, got))
 
 
+def call_student(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any], *,
+                 seconds: float) -> Any:
+    """``fn(*args, **kwargs)`` within ``seconds``: across the process boundary for a
+    :class:`~armlab.exercises.boundary.RemoteFunction` (its child keeps the time), else in
+    this process under :func:`guarded_call`.
+
+    Raises:
+        StudentError: the student's code failed (their file and line).
+        ChildGone: (remote only) the student's process died or hung.
+    """
+    if getattr(fn, "remote", False):
+        fn.seconds = seconds  # type: ignore[attr-defined]
+        return fn(*args, **kwargs)
+    return guarded_call(fn, args, kwargs, seconds=seconds)
+
+
 def judge_run(case: RunCase, fn: Callable[..., Any]) -> Outcome:
     """Run one closed-loop case of ``fn`` and judge it."""
+    what = "closed loop: your function in place of the lab's"
     try:
-        why = guarded_call(case.run, (fn,), {}, seconds=RUN_CASE_S, user=False)
+        if getattr(fn, "remote", False):
+            with fn.run_limit(RUN_CASE_S):  # type: ignore[attr-defined]
+                why = case.run(fn)
+        else:
+            why = guarded_call(case.run, (fn,), {}, seconds=RUN_CASE_S, user=False)
     except StudentError as err:
-        return _fail(case.name, "closed loop: your function in place of the lab's",
-                     f"error: {err}")
+        return _fail(case.name, what, f"error: {err}")
+    except Exception as exc:  # the lab's run stopped on what the function gave it
+        text = str(exc).strip().splitlines()
+        return _fail(case.name, what, f"the lab's run stopped with your function in it: "
+                     f"{type(exc).__name__}: {text[0] if text else ''}")
     if not why:
         return Outcome(case.name, True, (f"PASS  {case.name}",))
-    return _fail(case.name, "closed loop: your function in place of the lab's", why)
+    return _fail(case.name, what, why)
 
 
 def _hint(exercise: Exercise, case: ValueCase, got: np.ndarray) -> list[str]:
-    """``["hint: ..."]`` for the first planted mistake whose output on this case equals the
-    student's, else ``[]``."""
+    """The hints of every planted mistake whose output on this case equals the student's
+    (and differs from the right answer): one line, ``hint (NAME): ...``, when one mistake
+    gives that value; when several do, a line saying so, then each one's hint."""
     want = None
     if case.check is None:
         want = as_array(case.expected if case.expected is not None else
                         exercise.reference(*copy.deepcopy(case.args),
                                            **copy.deepcopy(case.kwargs)))
+    hits = []
     for mistake in exercise.mistakes:
         try:
             planted = as_array(mistake.fn(*copy.deepcopy(case.args),
@@ -216,8 +257,10 @@ def _hint(exercise: Exercise, case: ValueCase, got: np.ndarray) -> list[str]:
         if want is not None and close(planted, want, case):
             continue  # the mistake makes no difference here: it cannot explain a failure
         if np.all(np.isfinite(planted)) and close(got, planted, case):
-            return [f"hint ({mistake.name}): {mistake.hint}"]
-    return []
+            hits.append(f"hint ({mistake.name}): {mistake.hint}")
+    if len(hits) > 1:
+        return [f"hint: {len(hits)} mistakes give this value here; one of them:", *hits]
+    return hits
 
 
 def _fail(name: str, *details: str) -> Outcome:

@@ -5,33 +5,29 @@ it went wrong as *their* file and line, never the checker's traceback.
 notebook) as a fresh module; :func:`guarded_call` calls one of its functions with a time
 limit. Both turn whatever goes wrong in the student's code (an exception, a syntax error,
 a hang) into one :class:`StudentError` carrying the student's file, line and the error.
-``armlab check`` uses them, and so can anything else that runs a student's function in
-place of the lab's own (``armlab serve --exercise``).
+``armlab serve --exercise`` and the notebook's ``armlab.check(fn)`` use them in their own
+process; ``armlab check`` runs the student's file in a child process instead
+(:mod:`armlab.exercises.boundary`, :mod:`armlab.exercises.harness`).
 """
 
 from __future__ import annotations
 
 import importlib.util
-import json
 import linecache
-import signal
 import sys
 import sysconfig
-import threading
-import time
 import traceback
 import types
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-#: Seconds a student's file may take to load (its top-level code).
-LOAD_S = 10.0
-#: A notebook cell that calls the check is not run again by ``armlab check``.
-CHECK_CALLS = ("armlab.check(", "exercises.check(")
+from armlab.exercises.harness import CHECK_CALLS, LOAD_S, Hang, sources, time_limit
+
+__all__ = ["CHECK_CALLS", "LOAD_S", "CheckedLaw", "Hang", "StudentError", "guarded_call",
+           "is_student_file", "load_module", "locate", "time_limit"]
 
 
 class StudentError(Exception):
@@ -50,11 +46,6 @@ class StudentError(Exception):
         message = error.partition(": ")[2]
         shown = source and not (message and message in source)  # not the raise of it again
         super().__init__(f"{where}: {error}" + (f"  [{source}]" if shown else ""))
-
-
-class Hang(BaseException):
-    """The student's code ran past its time limit (a BaseException: a student's
-    ``except Exception`` does not swallow it)."""
 
 
 def _library_dirs() -> tuple[str, ...]:
@@ -104,36 +95,6 @@ def locate(exc: BaseException, *, fallback: Callable[..., Any] | None = None) ->
 def _one_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
-
-
-@contextmanager
-def time_limit(seconds: float) -> Iterator[None]:
-    """Raise :class:`Hang` in the calling thread after ``seconds``.
-
-    Uses SIGALRM, so it acts only in the main thread (where ``armlab check`` and a
-    notebook's cells run); elsewhere it does nothing. A timer already running (pytest's
-    timeout, an outer limit) is shortened to this one and given back its rest afterwards.
-    """
-    if (threading.current_thread() is not threading.main_thread()
-            or not hasattr(signal, "setitimer")):
-        yield
-        return
-
-    def alarm(signum: int, frame: types.FrameType | None) -> None:
-        raise Hang(f"still running after {seconds:g} s (an endless loop?)")
-
-    outer, _ = signal.getitimer(signal.ITIMER_REAL)
-    start = time.monotonic()
-    previous = signal.signal(signal.SIGALRM, alarm)
-    signal.setitimer(signal.ITIMER_REAL, min(seconds, outer) if outer > 0 else seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
-        signal.signal(signal.SIGALRM, previous)
-        if outer > 0:
-            signal.setitimer(signal.ITIMER_REAL,
-                             max(outer - (time.monotonic() - start), 1e-3))
 
 
 def guarded_call(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any], *,
@@ -204,29 +165,20 @@ def _run_sources(p: Path, text: str, module: types.ModuleType) -> None:
 
 
 def _sources(p: Path, text: str) -> list[tuple[str, str]]:
-    """(filename, source) pairs to run: the file, or one per notebook code cell (each
-    cell's text registered with linecache, so errors show its line)."""
-    if p.suffix != ".ipynb":
-        return [(str(p), text)]
+    """(filename, source) pairs to run: the file, or one per notebook code cell."""
     try:
-        cells = json.loads(text)["cells"]
-    except (ValueError, KeyError, TypeError) as exc:
-        raise StudentError(str(p), 0, f"not a Jupyter notebook ({exc})") from None
-    out = []
-    for k, cell in enumerate(cells, start=1):
-        if cell.get("cell_type") != "code":
-            continue
-        src = cell.get("source", "")
-        src = "".join(src) if isinstance(src, list) else str(src)
-        if any(call in src for call in CHECK_CALLS):
-            continue
-        lines = [("pass  # " + ln if ln.lstrip().startswith(("%", "!")) else ln)
-                 for ln in src.splitlines(keepends=True)]
-        src = "".join(lines)
-        name = f"{p} [cell {k}]"
-        linecache.cache[name] = (len(src), None, src.splitlines(keepends=True), name)
-        out.append((name, src))
-    return out
+        return sources(p, text)
+    except ValueError as exc:
+        raise StudentError(str(p), 0, str(exc)) from None
+
+
+def definition(fn: Callable[..., Any]) -> tuple[str, int]:
+    """Where the student's function is defined: (file, line), ("your code", 0) unknown."""
+    where = getattr(fn, "where", None)  # a function across the process boundary
+    if isinstance(where, tuple):
+        return where
+    code = getattr(fn, "__code__", None)
+    return (code.co_filename, code.co_firstlineno) if code else ("your code", 0)
 
 
 class CheckedLaw:
@@ -243,15 +195,20 @@ class CheckedLaw:
         self.error: StudentError | None = None
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        """Call the student's function; its value as a float array (a float for one
+        number), so that the lab's loop never meets a list or a tuple."""
         try:
             out = self.fn(*args, **kwargs)
+        except StudentError as exc:  # from across the process boundary: located already
+            self.error = self.error or exc
+            raise
         except Exception as exc:
             self.error = self.error or locate(exc, fallback=self.fn)
             raise
         want = self.shape(args) if callable(self.shape) else self.shape
         try:
-            arr = np.asarray(out, dtype=float)
-        except (TypeError, ValueError):
+            arr = np.array(out, dtype=float)
+        except (TypeError, ValueError, OverflowError):
             arr = None
         why = ""
         if arr is None:
@@ -260,13 +217,11 @@ class CheckedLaw:
             why = f"{self.name} returned shape {arr.shape}, expected {want}"
         elif not np.all(np.isfinite(arr)):
             why = f"{self.name} returned NaN or inf: {arr.tolist()}"
-        if why:
-            code = getattr(self.fn, "__code__", None)
-            err = StudentError(code.co_filename if code else "your code",
-                               code.co_firstlineno if code else 0, why)
+        if why or arr is None:
+            err = StudentError(*definition(self.fn), why)
             self.error = self.error or err
             raise err
-        return out
+        return arr if arr.ndim else float(arr)
 
     def raise_error(self) -> None:
         """Raise the first error the run met in the student's function, if any."""

@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from test_exercises import LEG_IK
 
 from armlab.app.cli import main
 from armlab.exercises import EXERCISES, get
@@ -64,14 +65,7 @@ def test_check_exit_codes_and_results_file_of_the_real_command(tmp_path):
     assert results["score"] == 0 and len(results["tests"]) == len(cases)
 
     path = tmp_path / "leg_ik.py"
-    path.write_text(textwrap.dedent("""\
-        EXERCISE = "leg_ik"
-        from armlab.kinematics.leg_ik import LegGeometry, leg_ik as lab
-
-
-        def leg_ik(x, y, z, l1, l2):
-            return lab((x, y, z), LegGeometry(l1, l2)).angles
-        """))
+    path.write_text('EXERCISE = "leg_ik"\n' + LEG_IK)
     done = armlab("check", "leg_ik.py", "--results", "results.json", cwd=tmp_path)
     assert done.returncode == 0, done.stdout
     lines = done.stdout.splitlines()

@@ -20,12 +20,34 @@ NAMES = [ex.name for ex in EXERCISES]
 MISTAKES = [(ex.name, m.name) for ex in EXERCISES for m in ex.mistakes]
 
 
+#: The child of ``armlab check`` refuses ``import armlab``; a file can undo the refusal in
+#: its own process (docs/teaching.md says so). The reference files below do, on purpose:
+#: they are the lab's own implementation, to show that it passes every case.
+PAST_THE_REFUSAL = ("import sys\n"
+                    "sys.meta_path[:] = [f for f in sys.meta_path "
+                    "if not getattr(f, 'refuses_armlab', False)]\n")
+
+#: seed 003's leg IK written by hand, as a student would (numpy and math only).
+LEG_IK = """\
+import math
+
+
+def leg_ik(x, y, z, l1, l2):
+    t1 = math.atan2(x, y)
+    A = (x * x + y * y + z * z - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    A = min(1.0, max(-1.0, A))
+    t3 = math.atan2(math.sqrt(max(0.0, 1 - A * A)), A)
+    r, h = math.hypot(x, y), -z
+    k1, k2 = l1 + l2 * math.cos(t3), l2 * math.sin(t3)
+    return t1, math.atan2(h * k1 - r * k2, r * k1 + h * k2), t3
+"""
+
+
 def reference_file(directory: Path, name: str) -> Path:
     """The lab's own implementation of exercise ``name`` wrapped as a student's file."""
     ex = get(name)
     path = directory / f"{name}.py"
-    path.write_text(textwrap.dedent(f"""\
-        EXERCISE = "{name}"
+    path.write_text(f'EXERCISE = "{name}"\n' + PAST_THE_REFUSAL + textwrap.dedent(f"""\
         from armlab.exercises import get
 
         _reference = get("{name}").reference
@@ -270,7 +292,8 @@ def test_notebook_starter_is_nbformat_4_and_its_cells_check_the_function(tmp_pat
     # Filled in, the cells run as a kernel runs them: the last one checks the function.
     nb["cells"][1]["source"] = [code.replace(
         'raise NotImplementedError("fill in planar_ik (seed 004)")',
-        "from armlab.kinematics import planar_ik as p4\n"
+        textwrap.indent(PAST_THE_REFUSAL, "    ").lstrip() +
+        "    from armlab.kinematics import planar_ik as p4\n"
         "    return p4.solve(X, Y, arm=p4.PlanarArm(l1, l2, l3)).angles")]
     path.write_text(json.dumps(nb))
     namespace: dict = {}
@@ -302,15 +325,15 @@ def test_reference_angles_compare_modulo_a_turn():
 def test_a_students_own_helper_module_next_to_the_file_is_found(tmp_path):
     (tmp_path / "my_trig.py").write_text("import math\n\n\ndef wrap(a):\n"
                                           "    return math.atan2(math.sin(a), math.cos(a))\n")
+    (tmp_path / "my_leg.py").write_text(LEG_IK)
     path = student_file(tmp_path, "leg_ik", """\
         from my_trig import wrap
 
-        from armlab.kinematics.leg_ik import LegGeometry
-        from armlab.kinematics.leg_ik import leg_ik as lab
+        from my_leg import leg_ik as mine
 
 
         def leg_ik(x, y, z, l1, l2):
-            return tuple(wrap(a) for a in lab((x, y, z), LegGeometry(l1, l2)).angles)
+            return tuple(wrap(a) for a in mine(x, y, z, l1, l2))
         """)
     student = load_student(path)
     assert student.exercise.name == "leg_ik"  # found by its function's name

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -23,19 +24,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Exit 0: every case passed; 1: a case failed or the file could not be run."""
-    from armlab.exercises import check_file
+    """Exit 0: every case passed; 1: a case failed or the file could not be run.
+
+    The student's file runs in a child process; this one alone prints, writes the
+    results file and sets the exit status. With ``--results`` the file is written before
+    the first case (every case failed, "not run yet") and again after each, so a check
+    that is stopped part-way (killed, interrupted) leaves the score its cases had earned.
+    """
+    from armlab.exercises import Report, check_file
 
     if not Path(args.file).is_file():
         raise ValueError(f"no such file: {args.file}")
+
+    def write(report: Report) -> None:
+        if args.results is not None:
+            write_results(args.results, report.gradescope())
+
     report = check_file(args.file, exercise=args.exercise,
-                        echo=lambda text: print(text, flush=True))
+                        echo=lambda text: print(text, flush=True), progress=write)
     if report.error is not None:
         print(f"FAIL  {report.error}", flush=True)
     print(report.summary(), flush=True)
-    if args.results is not None:
-        args.results.parent.mkdir(parents=True, exist_ok=True)
-        args.results.write_text(json.dumps(report.gradescope(), indent=2) + "\n",
-                                encoding="utf-8")
+    write(report)
     sys.stdout.flush()
     return 0 if report.passed else 1
+
+
+def write_results(path: Path, results: dict[str, object]) -> None:
+    """Write Gradescope's ``results.json`` whole or not at all (a temporary file, then
+    renamed over ``path``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
