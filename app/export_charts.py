@@ -57,20 +57,32 @@ def envelope_indices(columns: np.ndarray, *, buckets: int) -> np.ndarray:
     return np.unique(np.concatenate(keep))
 
 
+#: The most ticks an axis gets, whatever its range.
+MAX_TICKS = 50
+
+
 def nice_ticks(lo: float, hi: float, *, count: int = 5) -> list[float]:
-    """About ``count`` round tick values (1, 2 or 5 times a power of ten apart) in [lo, hi]."""
+    """About ``count`` round tick values (1, 2 or 5 times a power of ten apart) in [lo, hi];
+    [lo] or [lo, hi] where no round ticks fit. Never more than :data:`MAX_TICKS`, and the
+    ticks are counted before they are made: a range too narrow for float spacing (2⁵³ to
+    2⁵³ + 2) or too wide for float64 gives its ends, never an endless loop."""
     span = hi - lo
     if not (span > 0 and math.isfinite(span)):
         return [lo]
     raw = span / max(count - 1, 1)
+    if not raw > 0:
+        return [lo, hi]
     power = 10.0 ** math.floor(math.log10(raw))
     step = next(s * power for s in (1.0, 2.0, 5.0, 10.0) if s * power >= raw)
-    first = math.ceil(lo / step - 1e-9) * step
-    ticks = []
-    v = first
-    while v <= hi + step * 1e-9:
-        ticks.append(0.0 if abs(v) < step * 1e-9 else v)
-        v += step
+    first, last = lo / step - 1e-9, hi / step + 1e-9
+    if not (step > 0 and math.isfinite(first) and math.isfinite(last)):
+        return [lo, hi]
+    k0, k1 = math.ceil(first), math.floor(last)
+    if not 0 < k1 - k0 + 1 <= MAX_TICKS:
+        return [lo, hi]
+    ticks = [0.0 if abs(k * step) < step * 1e-9 else k * step for k in range(k0, k1 + 1)]
+    if len(set(ticks)) != len(ticks):  # steps below float spacing: ticks coincide
+        return [lo, hi]
     return ticks
 
 
@@ -117,7 +129,7 @@ def line_chart(t: np.ndarray, series: Sequence[Series], *, title: str, y_label: 
     idx = envelope_indices(columns, buckets=buckets) if series else np.arange(t.size)
     t0, t1 = float(t[0]), float(t[-1])
     if not t1 > t0:
-        t1 = t0 + 1.0
+        t1 = t0 + max(1.0, abs(t0) * 1e-6)
     y0, y1 = _y_range(series, min_span)
     x_left, x_right = LEFT, WIDTH - RIGHT
     y_top, y_bottom = TOP, HEIGHT - BOTTOM

@@ -42,7 +42,7 @@ from armlab.app.export_charts import Series, line_chart
 from armlab.app.export_viewer import SCRIPT, STYLE
 from armlab.app.page.plots import COLORS
 from armlab.control.params import PARAM_SPECS
-from armlab.control.runs import save_file, writable_path
+from armlab.control.runs import check_drawable, save_file, writable_path
 from armlab.kinematics.hand import FingerGeometry, tip_positions
 from armlab.kinematics.model import (
     LEG_NAMES,
@@ -350,10 +350,12 @@ def export_html(run: Run, *, model: Drawn | None = None) -> str:
             the model it drives, which also covers a URDF of one's own).
 
     Raises:
-        ValueError: no model for the run's robot, or its joints differ from the run's.
+        ValueError: no model for the run's robot, or its joints differ from the run's, or a
+            value is beyond what can be drawn (:func:`armlab.control.runs.check_drawable`).
     """
     model = model_for(run) if model is None else model
     _check_model(run, model)
+    check_drawable(run, "the run")
     joints = _joints(model)
     t = np.asarray(run.t, dtype=float)
     duration = float(t[-1] - t[0]) if t.size else 0.0

@@ -36,6 +36,10 @@ MAX_NAME_CHARS = 128
 #: a loop's period is at least 1 ms.
 MAX_TIME_S = 1e9
 MIN_STEP_S = 1e-6
+#: The largest magnitude a signal's value may have for the run to be drawn (an angle in
+#: rad, a torque in N·m, a current in A): far beyond any robot's, far inside float64's
+#: range, so no chart's or pose's arithmetic overflows. The file itself keeps any float.
+MAX_DRAWN_VALUE = 1e6
 #: The suffix a saved run is given (any name is accepted when reading).
 SUFFIX = ".armlab-run.zip"
 #: The run file's two members.
@@ -43,9 +47,10 @@ JSON_MEMBER = "run.json"
 CSV_MEMBER = "signals.csv"
 
 __all__ = ["CSV_MEMBER", "FORMAT", "JSON_MEMBER", "LESSON_SIGNAL_NAME", "MAX_LESSON_SIGNALS",
-           "MAX_JOINTS", "MAX_NAME_CHARS", "MAX_TIME_S", "MAX_UNIT_CHARS",
-           "MIN_STEP_S", "SUFFIX", "VERSION", "Run", "RunFileError", "check_lesson_signals",
-           "check_run", "lab_version", "ordered_signals", "run_from_snapshot", "utc_now"]
+           "MAX_DRAWN_VALUE", "MAX_JOINTS", "MAX_NAME_CHARS", "MAX_TIME_S", "MAX_UNIT_CHARS",
+           "MIN_STEP_S", "SUFFIX", "VERSION", "Run", "RunFileError", "check_drawable",
+           "check_lesson_signals", "check_run", "lab_version", "ordered_signals",
+           "run_from_snapshot", "utc_now"]
 
 @dataclass(frozen=True)
 class Run:
@@ -253,6 +258,28 @@ def _check_times(t: np.ndarray, label: str) -> None:
         raise RunFileError(f"{label}: t advances by only {step[i - 1]:.3g} s at sample {i} "
                            f"({t[i - 1]!r} s then {t[i]!r} s); samples are at least "
                            f"{MIN_STEP_S:g} s apart")
+
+
+def check_drawable(run: Run, label: str) -> None:
+    """Refuse to draw ``run`` (export it, replay it) if a finite value of a signal is
+    beyond :data:`MAX_DRAWN_VALUE` (e.g. q = 1e308 rad: a run file may hold it, no arm
+    reaches it, and degrees of it overflow)."""
+    for name, values in run.signals.items():
+        with np.errstate(invalid="ignore"):
+            far = np.argwhere(np.isfinite(values) & (np.abs(values) > MAX_DRAWN_VALUE))
+        if len(far):
+            i, j = far[0]
+            raise RunFileError(
+                f"{label}: {quote(name)} is {values[i, j]:.6g} {_unit(run, name)} at sample "
+                f"{i}, joint {quote(run.joint_names[j])}, beyond the {MAX_DRAWN_VALUE:g} a "
+                "run may hold to be drawn; it was not recorded by a lab")
+
+
+def _unit(run: Run, name: str) -> str:
+    try:
+        return run.unit(name)
+    except KeyError:
+        return ""
 
 
 def check_lesson_signals(own: Mapping[Any, Any], label: str) -> None:

@@ -11,7 +11,7 @@
 - signals.csv is parsed as it is unpacked: its header at most :data:`MAX_HEADER_CHARS`
   characters, every later line at most :data:`MAX_CELL_CHARS` per cell, every cell at
   most :data:`MAX_NUMBER_CHARS`, and rows × columns at most :data:`MAX_CELLS`, checked
-  before each block of rows is allocated;
+  before a row is stored;
 - the run is then checked as a whole (:func:`armlab.control.run_model.check_run`).
 
 So any file of at most 64 MiB is read or refused in bounded memory and time (the bounds
@@ -68,8 +68,6 @@ MAX_COLUMNS = 1 + (len(SIGNALS) + MAX_LESSON_SIGNALS) * MAX_JOINTS
 #: The longest header line (characters), and the longest data line per column.
 MAX_HEADER_CHARS = MAX_COLUMNS * (MAX_NAME_CHARS + 40)
 MAX_CELL_CHARS = MAX_NUMBER_CHARS + 8
-#: Rows of signals.csv allocated at a time.
-_BLOCK_ROWS = 4096
 
 
 def read_run(source: str | Path | bytes, *, robot: str | None = None,
@@ -278,7 +276,7 @@ class _Lines:
 def _signals(data: bytes, member: Member, meta: Mapping[str, Any],
              label: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """t and the signals of signals.csv, parsed as it is unpacked, its header checked
-    against run.json, rows × columns bounded before each block of rows is made."""
+    against run.json, rows × columns bounded before a row is stored."""
     stream = io.BufferedReader(_Chunks(iter_member(data, member, label,
                                                    limit=MAX_UNPACKED_BYTES)), 2**16)
     text = io.TextIOWrapper(stream, encoding="utf-8-sig", newline="")
@@ -295,24 +293,28 @@ def _signals(data: bytes, member: Member, meta: Mapping[str, Any],
                          known=(*SIGNALS, *meta.get("lesson_signals", {})))
         width = len(header)
         lines.limit = width * MAX_CELL_CHARS
-        table = _table(rows, header, label)
+        t, signals = _table(rows, header, layout, label)
     except csv.Error as e:
         raise RunFileError(f"{label}: {CSV_MEMBER} is not readable CSV "
                            f"({clip(str(e))})") from None
     except UnicodeDecodeError as e:
         raise RunFileError(f"{label}: {CSV_MEMBER} is not UTF-8 text ({e.reason} at byte "
                            f"{e.start} of a chunk)") from None
-    return table[:, 0].copy(), {name: table[:, cols].copy() for name, cols in layout.items()}
+    return t, signals
 
 
-def _table(rows: Iterator[list[str]], header: list[str], label: str) -> np.ndarray:
-    """The data rows as one (m, width) array, in blocks of :data:`_BLOCK_ROWS` rows, none
-    made past :data:`MAX_CELLS` values."""
+def _table(rows: Iterator[list[str]], header: list[str], layout: Mapping[str, list[int]],
+           label: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """t and each signal of the data rows, never past :data:`MAX_CELLS` values: the arrays
+    of that bound are made at once but unfilled (their pages cost memory only as rows fill
+    them), and a row past it is refused before it is stored."""
     width = len(header)
     most_rows = MAX_CELLS // width
-    blocks: list[np.ndarray] = []
-    block = np.empty((0, width))
-    k = m = 0
+    t = np.empty(most_rows)
+    spans = [(cols[0], cols[-1] + 1) for cols in layout.values()]
+    arrays = [np.empty((most_rows, b - a)) for a, b in spans]
+    fill = list(zip(arrays, spans, strict=True))
+    m = 0
     for line, row in enumerate(rows, start=2):
         if len(row) != width:
             if not row:
@@ -321,23 +323,19 @@ def _table(rows: Iterator[list[str]], header: list[str], label: str) -> np.ndarr
             raise RunFileError(f"{label}: {CSV_MEMBER} line {line} has {len(row)} "
                                f"cells, the header {width} (ragged rows); the file was "
                                "cut or edited")
-        if k == len(block):
-            if m >= most_rows:
-                raise RunFileError(
-                    f"{label}: {CSV_MEMBER} holds more than {most_rows} rows of {width} "
-                    f"columns; a run file holds at most {MAX_CELLS} values "
-                    f"({MAX_CELLS // 2**20} Mi): record a shorter run")
-            block = np.empty((min(_BLOCK_ROWS, most_rows - m), width))
-            blocks.append(block)
-            k = 0
-        block[k] = [_number(c, line, header[i], label) for i, c in enumerate(row)]
-        k += 1
+        if m == most_rows:
+            raise RunFileError(
+                f"{label}: {CSV_MEMBER} holds more than {most_rows} rows of {width} "
+                f"columns; a run file holds at most {MAX_CELLS} values "
+                f"({MAX_CELLS // 2**20} Mi): record a shorter run")
+        values = [_number(c, line, header[i], label) for i, c in enumerate(row)]
+        t[m] = values[0]
+        for array, (a, b) in fill:
+            array[m] = values[a:b]
         m += 1
     if m == 0:
         raise RunFileError(f"{label}: {CSV_MEMBER} has a header but no samples")
-    blocks[-1] = block[:k]
-    table = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
-    return table
+    return t[:m], {name: array[:m] for name, array in zip(layout, arrays, strict=True)}
 
 
 def _layout(header: list[str], joints: list[str], label: str, *,

@@ -30,6 +30,7 @@ from armlab.control.run_model import (
     FORMAT,
     JSON_MEMBER,
     LESSON_SIGNAL_NAME,
+    MAX_DRAWN_VALUE,
     MAX_JOINTS,
     MAX_LESSON_SIGNALS,
     MAX_NAME_CHARS,
@@ -39,6 +40,7 @@ from armlab.control.run_model import (
     SUFFIX,
     VERSION,
     Run,
+    check_drawable,
     lab_version,
     run_from_snapshot,
     utc_now,
@@ -63,10 +65,10 @@ from armlab.control.run_zip import (
 
 __all__ = [
     "CSV_MEMBER", "FORMAT", "JSON_MEMBER", "LESSON_SIGNAL_NAME", "MAX_CELLS", "MAX_COLUMNS",
-    "MAX_DIRECTORY_BYTES", "MAX_FILE_BYTES", "MAX_JOINTS", "MAX_JSON_BYTES",
+    "MAX_DIRECTORY_BYTES", "MAX_DRAWN_VALUE", "MAX_FILE_BYTES", "MAX_JOINTS", "MAX_JSON_BYTES",
     "MAX_LESSON_SIGNALS", "MAX_MEMBERS", "MAX_NAME_BYTES", "MAX_NAME_CHARS",
     "MAX_NUMBER_CHARS", "MAX_RATIO", "MAX_TIME_S", "MAX_UNIT_CHARS", "MAX_UNPACKED_BYTES",
     "MIN_STEP_S", "QUOTE_CHARS", "RATIO_FLOOR_BYTES", "SUFFIX", "VERSION", "Run",
-    "RunFileError", "clip", "lab_version", "quote", "read_run", "run_bytes",
+    "RunFileError", "check_drawable", "clip", "lab_version", "quote", "read_run", "run_bytes",
     "run_from_snapshot", "save_file", "utc_now", "writable_path", "write_run",
 ]

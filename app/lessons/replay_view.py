@@ -27,7 +27,7 @@ from armlab.app.page.arm_view import ArmView
 from armlab.app.page.plots import COLORS, SeriesSpec, add_chart, dash, fixed_x, uplot_series
 from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed003 import joint_names as gait_joint_names
-from armlab.control.runs import Run
+from armlab.control.runs import Run, check_drawable
 from armlab.kinematics.hand import FingerGeometry
 from armlab.kinematics.model import Quadruped, SerialChain
 
@@ -228,8 +228,10 @@ class ReplayView:
         """Show ``run`` on a ghost of ``model`` (its joints the run's), at its start.
 
         Raises:
-            ValueError: the run's joints (names, in order) are not the model's.
+            ValueError: the run's joints (names, in order) are not the model's, or a value
+                is beyond what can be drawn (:func:`armlab.control.runs.check_drawable`).
         """
+        check_drawable(run, "the run")
         joints = ghost_joint_names(model)
         if tuple(run.joint_names) != joints:
             raise ValueError(f"its joints ({plain(', '.join(run.joint_names))}) are not this "

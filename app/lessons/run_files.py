@@ -30,6 +30,7 @@ layout, its parameters and the lesson's own signals (the hand's currents and for
 from __future__ import annotations
 
 import dataclasses
+import logging
 import threading
 import time
 from collections import deque
@@ -54,6 +55,7 @@ from armlab.control.runs import (
     SUFFIX,
     Run,
     RunFileError,
+    clip,
     read_run,
     run_bytes,
     run_from_snapshot,
@@ -67,6 +69,10 @@ MAX_COMMANDS = 5000
 LEAD_S = 0.5
 #: The title of every refusal of a file.
 REFUSED = "Run file refused"
+#: The most characters of a refusal's reason a notification shows.
+MAX_REASON_CHARS = 300
+
+log = logging.getLogger(__name__)
 
 
 class _Status(Protocol):
@@ -321,10 +327,16 @@ class RunControls:
             if file is self._last_upload:
                 return
             self._last_upload = file
+        name = clip(str(getattr(file, "name", "")), 80)
         try:
-            self.open_bytes(str(file.name)[:80], file.content)
+            self.open_bytes(name, file.content)
         except ValueError as exc:  # RunFileError, or the arm being rebuilt
-            notify(event.client, REFUSED, str(exc))
+            notify(event.client, REFUSED, clip(str(exc), MAX_REASON_CHARS))
+        except Exception as exc:  # noqa: BLE001 - never a silent failure: the page is told
+            log.exception("opening the uploaded run file %s failed", name)
+            notify(event.client, REFUSED,
+                   f"{name or 'the run file'} could not be opened ({type(exc).__name__}: "
+                   f"{clip(str(exc), 120)}); the lab goes on")
 
     def _refused(self, client_id: Any, name: str, why: str) -> None:
         """An upload refused before it was kept (too large): tell that page."""
