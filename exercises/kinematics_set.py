@@ -22,6 +22,7 @@ from armlab.kinematics.ik import (
     MAX_HALVINGS,
     damped_inverse,
     halved_step,
+    inverse_error,
     jacobian_inverse,
     joint_update,
     pseudo_inverse,
@@ -76,7 +77,8 @@ def _fk_cases() -> list[ValueCase]:
     arm = thesis_arm(0.185, 0.25)
     q_start = rmrc(arm, THESIS_LINE_START, THESIS_Q_GUESS).q
     cases = [
-        ValueCase("thesis ch. 4: the line's first point (-11.322, 7.653, 0) cm",
+        ValueCase("thesis ch. 4: the line's first point (-0.11322, 0.07653, 0) m "
+                  "(the thesis's -11.322, 7.653, 0 cm)",
                   (q_start, 0.185, 0.25), expected=THESIS_LINE_START, atol=2e-4),
         *(ValueCase(f"stretched arm, q = 0, preset {name}: (L1 + L2, 0, 0)",
                     (np.zeros(3), L1, L2)) for name, (L1, L2) in ARM_LENGTHS.items()),
@@ -105,6 +107,9 @@ FK = Exercise(
                 lambda q, L1, L2: _swapped_lengths(q, L1, L2)),
         Mistake("a missing term", "y = L2 (c1 s2 + c0 c2 s1) + L1 c0 s1: the upper arm's "
                 "term L1 c0 s1 is missing", _fk_missing_l1),
+        Mistake("centimetres for metres", "return metres, as L1 and L2 are given (the lab "
+                "shows cm, it computes in m): you returned 100 times the position",
+                lambda q, L1, L2: 100.0 * hand_position(q, L1, L2)),
     ),
     cases=_fk_cases,
     teaches="The product of transforms of eq. 3.8–3.12 worked out by hand for a 3-joint arm, "
@@ -197,6 +202,24 @@ def _rmrc_once(q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def
     return joint_update(np.asarray(q, float), J_inv, dX, np.asarray(lower), np.asarray(upper))
 
 
+def _rmrc_allowing(most: int, q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def]
+    """Eq. 3.21-3.22 giving up only after ``most`` halvings (an off-by-one)."""
+    dX_h, halvings = halved_step(np.asarray(J, float), np.asarray(J_inv, float),
+                                 np.asarray(dX, float), e, max_halvings=most)
+    if halvings > most:
+        return np.array(q, dtype=float)
+    return joint_update(np.asarray(q, float), np.asarray(J_inv, float), dX_h,
+                        np.asarray(lower, float), np.asarray(upper, float))
+
+
+def _rmrc_taken_anyway(q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def]
+    """Eq. 3.21-3.22 with the step taken after MAX_HALVINGS halvings even so."""
+    dX_h, _ = halved_step(np.asarray(J, float), np.asarray(J_inv, float),
+                          np.asarray(dX, float), e)
+    return joint_update(np.asarray(q, float), np.asarray(J_inv, float), dX_h,
+                        np.asarray(lower, float), np.asarray(upper, float))
+
+
 def _rmrc_cases() -> list[ValueCase]:
     arm = thesis_arm(0.185, 0.25)
     planar = load_robot("redundant_planar")
@@ -228,9 +251,17 @@ def _rmrc_cases() -> list[ValueCase]:
                            (q, J, J_inv, dX, 1e-9, lo, hi)))
     q = np.array([0.3, 0.2, 0.05])
     J = arm.jacobian(q)[:3]
-    cases.append(ValueCase("e too strict: more than 30 halvings, q unchanged",
-                           (q, J, damped_inverse(J, 0.05), np.array([0.01, -0.02, 0.015]),
-                            1e-15, lo, hi)))
+    J_inv = damped_inverse(J, 0.05)
+    dX = np.array([0.01, -0.02, 0.015])
+    cases.append(ValueCase(f"e too strict: more than {MAX_HALVINGS} halvings, q unchanged "
+                           "(exactly)", (q, J, J_inv, dX, 1e-15, lo, hi), atol=0.0, rtol=0.0))
+    err = inverse_error(J, J_inv, dX)  # halving dX halves it exactly (a power of 2)
+    for k, what in ((MAX_HALVINGS - 1, "taken"), (MAX_HALVINGS, "taken (the last allowed)"),
+                    (MAX_HALVINGS + 1, "given up: q unchanged (exactly)")):
+        # e between err/2^k and err/2^(k-1): exactly k halvings bring the error under e
+        cases.append(ValueCase(f"a step that needs exactly {k} halvings: {what}",
+                               (q, J, J_inv, dX, 1.5 * err * 0.5**k, lo, hi),
+                               atol=0.0 if k > MAX_HALVINGS else 1e-15, rtol=0.0))
     cases.append(ValueCase("zero step: q unchanged", (q, J, jacobian_inverse(J), np.zeros(3),
                                                       1e-9, lo, hi)))
     return cases
@@ -258,6 +289,15 @@ RMRC_STEP = Exercise(
                     q, J, J_inv, dX, e, np.full(len(q), -np.inf), np.full(len(q), np.inf))),
         Mistake("halved once", "halve dX *while* the error exceeds e (a loop), not once",
                 _rmrc_once),
+        Mistake("a step taken anyway", f"when {MAX_HALVINGS} halvings are not enough the "
+                "inverse cannot be trusted: return q unchanged, take no step",
+                _rmrc_taken_anyway),
+        Mistake("one halving too many", f"{MAX_HALVINGS} halvings are allowed: a step that "
+                f"needs a {MAX_HALVINGS + 1}st is given up (q unchanged)",
+                lambda *a: _rmrc_allowing(MAX_HALVINGS + 1, *a)),
+        Mistake("one halving too few", f"{MAX_HALVINGS} halvings are allowed: a step that "
+                f"needs exactly {MAX_HALVINGS} is taken",
+                lambda *a: _rmrc_allowing(MAX_HALVINGS - 1, *a)),
     ),
     cases=_rmrc_cases,
     teaches="Resolved motion rate control: why the inverse is checked (eq. 3.21) and the "
@@ -457,6 +497,13 @@ def _circle_run(fn) -> str:  # type: ignore[no-untyped-def]
     return ""
 
 
+def _null_full_rank(J, xd, g, k):  # type: ignore[no-untyped-def]
+    """Seed 002 eq. 4 with J⁺ written as Jᵀ(JJᵀ)⁻¹ (right only at full rank)."""
+    J = np.asarray(J, float)
+    J_plus = J.T @ np.linalg.inv(J @ J.T)
+    return J_plus @ xd + (np.eye(J.shape[1]) - J_plus @ J) @ (k * np.asarray(g, float))
+
+
 def _null_cases() -> list[ValueCase | RunCase]:
     planar = load_robot("redundant_planar")
     assert isinstance(planar, SerialChain)
@@ -474,6 +521,12 @@ def _null_cases() -> list[ValueCase | RunCase]:
                    0.0)),
         ValueCase("ẋ = 0: pure self-motion (the hand stays put)",
                   (planar.jacobian(q0)[:2], np.zeros(2), np.array([0.5, -1.0, 0.3]), 200.0)),
+        ValueCase("the stretched arm turned 0.4 rad (J has rank 1: J⁺ is not Jᵀ(JJᵀ)⁻¹)",
+                  (planar.jacobian(np.array([0.4, 0.0, 0.0]))[:2], np.array([0.1, -0.2]),
+                   np.array([0.5, -1.0, 0.3]), 200.0), atol=1e-9, rtol=1e-9),
+        ValueCase("the stretched arm along x (J's x row is zero, rank 1)",
+                  (planar.jacobian(np.zeros(3))[:2], np.array([0.0, 0.3]),
+                   np.array([0.5, -1.0, 0.3]), 200.0)),
         ValueCase("a 2 x 4 Jacobian (one more spare joint)",
                   (rng.normal(size=(2, 4)), np.array([0.2, 0.1]), rng.normal(size=4), 5.0)),
         RunCase("seed 002 simulation 3 (circle, redundancy, no limits): the paper's joint "
@@ -499,6 +552,9 @@ NULL_SPACE = Exercise(
         Mistake("a missing term", "θ̇ = J⁺ẋ + (I − J⁺J) k_a ∇w: the identity I is missing "
                 "from the projector", lambda J, xd, g, k: np.linalg.pinv(J) @ xd - (
                     np.linalg.pinv(J) @ J) @ (k * np.asarray(g))),
+        Mistake("the full-rank pseudo-inverse", "J⁺ = Jᵀ(JJᵀ)⁻¹ holds only while J has full "
+                "rank; at a singular pose (the stretched arm) use np.linalg.pinv(J)",
+                _null_full_rank),
     ),
     cases=_null_cases,
     teaches="Redundancy: a joint velocity in the null space of J moves the arm without "
