@@ -5,7 +5,9 @@ thesis's FK and Jacobian, an RMRC step, the PD reference model, the environment
 impedance, the compliance law, the disturbance observer, seed 004's planar IK, seed
 002's null-space step and seed 003's leg IK. ``armlab exercise start NAME`` writes the
 starter (:func:`write_starter`), ``armlab check FILE`` runs the cases
-(:func:`check_file`), a notebook calls :func:`check` on the function itself. The lab's
+(:func:`check_file`: the student's file in a child process that only calls their
+function, this process judging), a notebook calls :func:`check` on the function itself
+(in its own kernel: formative, not a grade). The lab's
 own implementation is each exercise's reference; the controller exercises also run the
 student's law in closed loop on the simulated arm in place of the lab's.
 

@@ -351,9 +351,9 @@ class _Student:
         except (OSError, UnicodeDecodeError) as exc:
             return {"error": {"path": str(p), "line": 0, "source": "",
                               "error": f"cannot read the file ({exc})"}}
-        module = types.ModuleType("student")
+        module = types.ModuleType("__student__")
         module.__file__ = str(p)
-        sys.modules["student"] = module  # what dataclasses and pickle look a module up in
+        sys.modules["__student__"] = module  # what dataclasses and pickle look a module up in
         sys.path.insert(0, str(p.resolve().parent))  # their own helpers next to the file
         try:
             pairs = sources(p, text)

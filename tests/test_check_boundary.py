@@ -230,3 +230,20 @@ def test_a_hang_that_ignores_the_alarm_is_stopped_and_the_cases_left_fail(
     passed = sum(ln.startswith("PASS") for ln in out.splitlines())
     assert results["score"] == passed > 0
     assert results["tests"][-1]["output"].endswith("not run (your code's process had stopped)")
+
+
+def test_the_results_file_is_the_checkers_before_the_first_case(tmp_path, capsys):
+    """What a check stopped part-way leaves: written before the first case (every case at
+    0, "not run yet"), and after each (the score so far)."""
+    seen = tmp_path / "seen.json"
+    body = WRONG_FK.replace("    t1, t0, t2 = q\n", f"""\
+    import os, shutil
+    if not os.path.exists({str(seen)!r}):
+        shutil.copy({str(tmp_path / "results.json")!r}, {str(seen)!r})
+    t1, t0, t2 = q
+""")
+    code, results, out = checked(tmp_path, body, capsys)
+    first = json.loads(seen.read_text())
+    assert first["score"] == 0 and len(first["tests"]) == len(results["tests"])
+    assert all(t["output"].endswith("not run yet") for t in first["tests"])
+    assert results["score"] > 0
