@@ -209,7 +209,7 @@ def check_run(run: Run, label: str) -> None:
     if len(bad_q):
         i, j = bad_q[0]
         raise RunFileError(f"{label}: q (the measured angles) is NaN or infinite at sample "
-                           f"{i} (t = {t[i]!r} s), joint {quote(joints[j])}; a run's poses "
+                           f"{i} (t = {float(t[i])!r} s), joint {quote(joints[j])}; a run's poses "
                            "must all be known")
     for key, value in run.params.items():
         if not isinstance(key, str) or not (
@@ -244,19 +244,19 @@ def _check_times(t: np.ndarray, label: str) -> None:
     far = np.flatnonzero(np.abs(t) > MAX_TIME_S)
     if len(far):
         i = int(far[0])
-        raise RunFileError(f"{label}: t is {t[i]!r} s at sample {i}, beyond the "
+        raise RunFileError(f"{label}: t is {float(t[i])!r} s at sample {i}, beyond the "
                            f"{MAX_TIME_S:g} s a loop time may reach")
     step = np.diff(t)
     back = np.flatnonzero(step <= 0.0)
     if len(back):
         i = int(back[0]) + 1
         raise RunFileError(f"{label}: t does not increase at sample {i} "
-                           f"({t[i - 1]!r} s then {t[i]!r} s); samples must be in time order")
+                           f"({float(t[i - 1])!r} s then {float(t[i])!r} s); samples must be in time order")
     short = np.flatnonzero(step < MIN_STEP_S)
     if len(short):
         i = int(short[0]) + 1
         raise RunFileError(f"{label}: t advances by only {step[i - 1]:.3g} s at sample {i} "
-                           f"({t[i - 1]!r} s then {t[i]!r} s); samples are at least "
+                           f"({float(t[i - 1])!r} s then {float(t[i])!r} s); samples are at least "
                            f"{MIN_STEP_S:g} s apart")
 
 

@@ -50,6 +50,12 @@ from armlab.control.run_model import (
 )
 from armlab.control.run_zip import Member, iter_member, list_members, read_member
 
+#: What reading and exporting any file of at most :data:`MAX_FILE_BYTES` costs at most, or
+#: what refusing it costs (``armlab export``'s peak resident memory, MiB, and CPU, s):
+#: about twice the 85 MiB of exporting the longest run the lab saves (docs/runs.md);
+#: measured by tests/test_hostile_runs.py.
+MEMORY_BOUND_MIB = 170
+CPU_BOUND_S = 30.0
 #: A run file larger than this is refused before it is opened.
 MAX_FILE_BYTES = 64 * 2**20
 #: The most signals.csv may unpack to (bytes).

@@ -22,12 +22,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Exit 0: the page was written; 2 (through ``armlab.app.cli``): the run file was
-    refused (read_run's message), the robot is unknown or the page cannot be written."""
+    refused (read_run's message, or a value no page can draw), the robot is unknown or
+    the page cannot be written."""
     from armlab.app.export_html import write_html
-    from armlab.control.runs import read_run
+    from armlab.control.runs import check_drawable, read_run
     from armlab.kinematics import load_robot
 
     run_ = read_run(args.run_file)
+    check_drawable(run_, str(args.run_file))  # named by its file, before any page work
     model = load_robot(args.robot) if args.robot else None
     out = write_html(run_, args.html, model=model)
     print(f"wrote {out} ({out.stat().st_size / 1024:.0f} kB): open it in any browser")
