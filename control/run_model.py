@@ -251,7 +251,8 @@ def _check_times(t: np.ndarray, label: str) -> None:
     if len(back):
         i = int(back[0]) + 1
         raise RunFileError(f"{label}: t does not increase at sample {i} "
-                           f"({float(t[i - 1])!r} s then {float(t[i])!r} s); samples must be in time order")
+                           f"({float(t[i - 1])!r} s then {float(t[i])!r} s); samples must be "
+                           "in time order")
     short = np.flatnonzero(step < MIN_STEP_S)
     if len(short):
         i = int(short[0]) + 1
