@@ -24,6 +24,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -149,7 +150,20 @@ class StudentProcess:
 
     def close(self) -> None:
         """Kill the child, its process group and every process it left behind (found as
-        this process's new children: it is their subreaper while the child runs)."""
+        this process's new children: it is their subreaper while the child runs).
+
+        SIGINT, SIGTERM and SIGHUP wait until it is done (a signal that stops the check
+        cannot leave the student's processes running)."""
+        blocked = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+        masked = threading.current_thread() is threading.main_thread()
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, blocked) if masked else None
+        try:
+            self._close()
+        finally:
+            if old is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    def _close(self) -> None:
         for fd in (self._to, self._from):
             if fd >= 0:
                 with contextlib.suppress(OSError):

@@ -5,6 +5,9 @@ results file is the checker's own."""
 
 import json
 import os
+import signal
+import subprocess
+import sys
 import textwrap
 import time
 from pathlib import Path
@@ -247,3 +250,34 @@ def test_the_results_file_is_the_checkers_before_the_first_case(tmp_path, capsys
     assert first["score"] == 0 and len(first["tests"]) == len(results["tests"])
     assert all(t["output"].endswith("not run yet") for t in first["tests"])
     assert results["score"] > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_file_that_forges_the_results_then_signals_the_checker_gets_what_it_earned(
+        tmp_path, signame):
+    """The real command: the student's function writes full marks into results.json, then
+    floods the checker with a signal. The checker stops, kills the student's processes,
+    writes the results its cases had earned, and exits 128 + the signal."""
+    results = tmp_path / "results.json"
+    body = WRONG_FK.replace("    t1, t0, t2 = q\n", f"""\
+    import os, signal
+    if abs(q[0]) > 2:  # the joint-limit cases, after some that pass
+        open({str(results)!r}, "w").write({FORGED!r})
+        while True:
+            os.kill(os.getppid(), signal.{signame})
+    t1, t0, t2 = q
+""")
+    path = tmp_path / "thesis_fk.py"
+    path.write_text(body)
+    done = subprocess.run([sys.executable, "-m", "armlab.app", "check", str(path),
+                           "--results", str(results)], capture_output=True, text=True,
+                          timeout=240, cwd=tmp_path)
+    signum = getattr(signal, signame)
+    assert done.returncode == 128 + signum, done.stdout + done.stderr
+    assert f"the check was stopped by {signame}" in done.stdout
+    assert "Traceback" not in done.stdout + done.stderr
+    data = json.loads(results.read_text())
+    passed = sum(ln.startswith("PASS") for ln in done.stdout.splitlines())
+    assert data["score"] == passed and 0 < passed < 12
+    assert len(data["tests"]) == 12

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 NAME = "check"
@@ -23,25 +25,59 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "(one test per case, the total score)")
 
 
+class Stopped(BaseException):  # noqa: N818 -- a signal, as KeyboardInterrupt is
+    """SIGINT, SIGTERM or SIGHUP arrived during the check."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
 def run(args: argparse.Namespace) -> int:
-    """Exit 0: every case passed; 1: a case failed or the file could not be run.
+    """Exit 0: every case passed; 1: a case failed or the file could not be run; 128 + N:
+    signal N stopped the check.
 
     The student's file runs in a child process; this one alone prints, writes the
     results file and sets the exit status. With ``--results`` the file is written before
     the first case (every case failed, "not run yet") and again after each, so a check
-    that is stopped part-way (killed, interrupted) leaves the score its cases had earned.
+    that is stopped part-way leaves the score its cases had earned; a check stopped by
+    SIGINT, SIGTERM or SIGHUP (from a terminal, a timeout, or the student's code) kills
+    the student's processes first, then writes it once more (whatever they wrote is
+    replaced).
     """
     from armlab.exercises import Report, check_file
 
     if not Path(args.file).is_file():
         raise ValueError(f"no such file: {args.file}")
+    last: list[Report] = []
 
     def write(report: Report) -> None:
+        last[:] = [report]
         if args.results is not None:
             write_results(args.results, report.gradescope())
 
-    report = check_file(args.file, exercise=args.exercise,
-                        echo=lambda text: print(text, flush=True), progress=write)
+    def stop(signum: int, frame: object) -> None:
+        for s in handled:  # the first one stops the check; more (a flood) are let be
+            signal.signal(s, signal.SIG_IGN)
+        raise Stopped(signum)
+
+    handled = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    main = threading.current_thread() is threading.main_thread()
+    previous = {s: signal.signal(s, stop) for s in handled} if main else {}
+    try:
+        report = check_file(args.file, exercise=args.exercise,
+                            echo=lambda text: print(text, flush=True), progress=write)
+    except (Stopped, KeyboardInterrupt) as exc:
+        signum = exc.signum if isinstance(exc, Stopped) else signal.SIGINT
+        if last:
+            write(last[0])
+            print(last[0].summary().replace(" cases pass", " cases pass before the check "
+                                            "was stopped"), flush=True)
+        print(f"the check was stopped by {signal.Signals(signum).name}", flush=True)
+        return 128 + int(signum)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     if report.error is not None:
         print(f"FAIL  {report.error}", flush=True)
     print(report.summary(), flush=True)
