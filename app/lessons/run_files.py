@@ -6,11 +6,13 @@
   signal the recorder holds from the run's start (the loop rate), the lesson's figures
   (``run_figures()``), the robot, the lab's version.
 - **Open run** takes a run file from the page (it arrives over the gated websocket;
-  larger than :data:`armlab.control.runs.MAX_FILE_BYTES` it is refused before it is
-  kept, :mod:`armlab.app.viser_ext.uploads`), checks it with
+  larger than :data:`armlab.control.runs.MAX_FILE_BYTES`, or past a page's or the lab's
+  unfinished uploads, it is refused before it is kept, and a page's unfinished uploads
+  go when it leaves: :mod:`armlab.app.viser_ext.uploads`), checks it with
   :func:`armlab.control.runs.read_run` for this lesson's robot, and plays it on a ghost
-  arm (:class:`armlab.app.lessons.replay_view.ReplayView`). A bad file gets one
-  notification with the reason; the lab goes on.
+  arm (:class:`armlab.app.lessons.replay_view.ReplayView`). A bad file, and every
+  upload that fails, gets one notification with the reason (at most 300 characters) on
+  the page that sent it; the lab goes on.
 - **Export page** sends the current run as one self-contained HTML page
   (:func:`armlab.app.export_html.export_html`).
 
@@ -232,7 +234,8 @@ class RunControls:
         self._last_upload: object = None  #: the upload last opened (or refused)
         self.open.on_upload(self._on_upload)
         try:
-            limit_uploads(gui, max_bytes=MAX_FILE_BYTES, on_refused=self._refused)
+            limit_uploads(gui, max_bytes=MAX_FILE_BYTES, on_refused=self._refused,
+                          connected=lambda: set(self.server.get_clients()))
         except HooksMissing as exc:  # no limit can be kept: take no files at all
             self.open.disabled = True
             self.open.hint = f"not available with this viser: {exc}"

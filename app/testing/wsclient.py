@@ -26,7 +26,7 @@ import asyncio
 import threading
 import time
 from collections import Counter, defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 from uuid import uuid4
@@ -355,10 +355,13 @@ class HeadlessClient:
                    "updates": {"value": True}})
 
     def upload(self, target: str | Any, name: str, content: bytes, *,
-               part_bytes: int = 512 * 1024, declared: int | None = None) -> None:
+               part_bytes: int = 512 * 1024, declared: int | None = None,
+               only: Sequence[int] | None = None) -> str:
         """Upload ``content`` as file ``name`` through the upload button labelled ``target``
         (or whose server handle it is), in parts of ``part_bytes`` as the page sends them;
-        ``declared`` claims another size than the content's (a hostile page)."""
+        ``declared`` claims another size than the content's, ``only`` sends those part
+        indices alone, in that order (a hostile page, or one that leaves mid-upload).
+        Returns the transfer's id."""
         uuid = self._uuid(target, "GuiUploadButtonMessage")
         transfer = uuid4().hex
         parts = [content[i:i + part_bytes] for i in range(0, len(content), part_bytes)]
@@ -366,9 +369,11 @@ class HeadlessClient:
                    "transfer_uuid": transfer, "filename": name,
                    "mime_type": "application/zip", "part_count": len(parts),
                    "size_bytes": len(content) if declared is None else declared})
-        for i, part in enumerate(parts):
+        for i in range(len(parts)) if only is None else only:
             self.send({"type": "FileTransferPart", "source_component_uuid": uuid,
-                       "transfer_uuid": transfer, "part_index": i, "content": part})
+                       "transfer_uuid": transfer, "part_index": i,
+                       "content": parts[i % len(parts)]})
+        return transfer
 
     def drag(self, name: str, phase: str, *, start: tuple[float, float, float],
              end: tuple[float, float, float]) -> None:
