@@ -141,7 +141,7 @@ class StudentProcess:
         rep_r, rep_w = os.pipe()  # the child's replies
         env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
         self.proc = subprocess.Popen(
-            [sys.executable, "-I", harness.__file__, str(req_r), str(rep_w)],
+            [sys.executable, "-I", "-u", harness.__file__, str(req_r), str(rep_w)],
             stdin=subprocess.DEVNULL, stdout=self._out, stderr=subprocess.STDOUT,
             pass_fds=(req_r, rep_w), env=env, start_new_session=True, close_fds=True)
         os.close(req_r)

@@ -58,8 +58,11 @@ def run(args: argparse.Namespace) -> int:
 
     def stop(signum: int, frame: object) -> None:
         for s in handled:  # the first one stops the check; more (a flood) are let be
-            signal.signal(s, signal.SIG_IGN)
+            signal.signal(s, let_be)  # (not SIG_IGN: one already caught would then raise)
         raise Stopped(signum)
+
+    def let_be(signum: int, frame: object) -> None:
+        """A signal after the first: the check is stopping already."""
 
     handled = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     main = threading.current_thread() is threading.main_thread()
