@@ -139,11 +139,12 @@ class StudentProcess:
         self._before = _children()
         req_r, req_w = os.pipe()  # the parent's requests
         rep_r, rep_w = os.pipe()  # the child's replies
-        env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+        # -P: the harness's folder (armlab's own exercises/) is not on sys.path; the
+        # environment stays (a course's PYTHONPATH, the student's own --user packages)
         self.proc = subprocess.Popen(
-            [sys.executable, "-I", "-u", harness.__file__, str(req_r), str(rep_w)],
+            [sys.executable, "-P", "-u", harness.__file__, str(req_r), str(rep_w)],
             stdin=subprocess.DEVNULL, stdout=self._out, stderr=subprocess.STDOUT,
-            pass_fds=(req_r, rep_w), env=env, start_new_session=True, close_fds=True)
+            pass_fds=(req_r, rep_w), start_new_session=True, close_fds=True)
         os.close(req_r)
         os.close(rep_w)
         self._to, self._from = req_w, rep_r

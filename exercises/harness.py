@@ -1,8 +1,8 @@
 """The child's side of ``armlab check``'s process boundary: a standalone script that runs a
 student's file and calls their function on the inputs the checker sends, nothing more.
 
-``armlab check`` starts it as ``python -I harness.py IN_FD OUT_FD`` (a fresh interpreter,
-no ``PYTHON*`` variables, the script's folder not on ``sys.path``). It imports only the
+``armlab check`` starts it as ``python -P -u harness.py IN_FD OUT_FD`` (a fresh
+interpreter, unbuffered, the script's folder not on ``sys.path``). It imports only the
 standard library and numpy, then refuses every import of ``armlab`` (:class:`RefuseArmlab`,
 first on ``sys.meta_path``), so the student's file cannot call the lab's reference by name.
 It reads requests from ``IN_FD`` and writes replies to ``OUT_FD``, one frame each (a 4-byte
