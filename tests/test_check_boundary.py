@@ -135,18 +135,23 @@ def test_os_exit_before_the_report_fails_every_case(tmp_path, capsys):
     assert "exited (status 0) during loading your file" in out
 
 
-def test_results_written_then_os_exit_in_the_function_fails_the_cases_left(tmp_path, capsys):
+@pytest.mark.parametrize("death,said", [
+    ("os._exit(0)", "exited (status 0) during a call"),
+    ("os.kill(os.getpid(), 9)", "was killed by signal 9 during a call"),
+])
+def test_results_written_then_death_in_the_function_fails_the_cases_left(
+        tmp_path, capsys, death, said):
     body = WRONG_FK.replace("    t1, t0, t2 = q\n", f"""\
     import os
     if abs(q[0]) > 2:  # the joint-limit cases, after some that pass
         open({str(tmp_path / "results.json")!r}, "w").write({FORGED!r})
-        os._exit(0)
+        {death}
     t1, t0, t2 = q
 """)
     code, results, out = checked(tmp_path, body, capsys)
     assert code == 1
     lines = out.splitlines()
-    gone = [ln for ln in lines if "exited (status 0) during a call" in ln]
+    gone = [ln for ln in lines if said in ln]
     assert len(gone) == 1 and gone[0].startswith("FAIL  at the lower joint limits")
     assert "this case and the ones left fail" in gone[0]
     after = lines[lines.index(gone[0]) + 1:-1]
