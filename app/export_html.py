@@ -33,6 +33,7 @@ import importlib.metadata
 import json
 import math
 from html import escape
+from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,6 +64,8 @@ MAX_FRAMES = 1500
 CHART_BUCKETS = 600
 #: Most commands listed (the first ones; the rest are counted).
 MAX_COMMANDS = 200
+#: Most figures and most parameters listed (the first ones; the rest are counted).
+MAX_TABLE_ROWS = 500
 #: Most characters of the run's ``extra`` shown.
 MAX_EXTRA_CHARS = 50_000
 #: m per stored position unit in the page's data (0.1 mm).
@@ -252,11 +255,17 @@ def _rows(rows: list[tuple[str, str]]) -> str:
     return "".join(f"<tr><th>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
 
 
+def _more(count: int, shown: int = MAX_TABLE_ROWS) -> str:
+    """The note under a table cut at ``shown`` rows of ``count``."""
+    more = count - shown
+    return f'<p class="note">… and {more} more (in the run file).</p>' if more > 0 else ""
+
+
 def _figures_table(figures: dict[str, object]) -> str:
     if not figures:
         return '<p class="note">No figures were measured in this run.</p>'
     body = []
-    for key, value in figures.items():
+    for key, value in islice(figures.items(), MAX_TABLE_ROWS):
         name, unit = _figure_label(str(key))
         if value is None:
             shown = "not measured"
@@ -266,14 +275,14 @@ def _figures_table(figures: dict[str, object]) -> str:
             shown = f"{_number(float(value))} {unit}".strip()
         body.append(f'<tr><th title="{escape(str(key))}">{escape(name)}</th>'
                     f'<td class="num" data-figure="{escape(str(key))}">{escape(shown)}</td></tr>')
-    return f'<table id="figures">{"".join(body)}</table>'
+    return f'<table id="figures">{"".join(body)}</table>{_more(len(figures))}'
 
 
 def _params_table(params: dict[str, object]) -> str:
     if not params:
         return '<p class="note">No parameters were recorded.</p>'
     body = []
-    for key, value in params.items():
+    for key, value in islice(params.items(), MAX_TABLE_ROWS):
         spec = PARAM_SPECS.get(str(key))
         name = spec.label if spec else str(key)
         unit = spec.unit if spec else ""
@@ -284,7 +293,7 @@ def _params_table(params: dict[str, object]) -> str:
         hint = f' title="{escape(spec.help)}"' if spec else ""
         body.append(f"<tr><th{hint}>{escape(name)}</th>"
                     f'<td class="num">{escape(shown)}</td></tr>')
-    return f'<table id="params">{"".join(body)}</table>'
+    return f'<table id="params">{"".join(body)}</table>{_more(len(params))}'
 
 
 def _commands_table(commands: tuple[dict, ...]) -> str:
@@ -334,6 +343,21 @@ def _charts(run: Run, joints: list[Joint]) -> str:
     return "".join(out)
 
 
+def _extra_text(extra: dict[str, object]) -> str:
+    """``extra`` as indented JSON, cut after :data:`MAX_EXTRA_CHARS` characters: written
+    piece by piece and stopped there, so a huge ``extra`` costs no whole text of it."""
+    encoder = json.JSONEncoder(indent=2, ensure_ascii=False, default=str)
+    parts: list[str] = []
+    length = 0
+    for chunk in encoder.iterencode(extra):
+        parts.append(chunk)
+        length += len(chunk)
+        if length > MAX_EXTRA_CHARS:
+            cut = "".join(parts)[:MAX_EXTRA_CHARS]
+            return cut + "\n… (cut: the whole of it is in the run file)"
+    return "".join(parts)
+
+
 def _lab_version() -> str:
     try:
         return importlib.metadata.version("armlab")
@@ -373,9 +397,7 @@ def export_html(run: Run, *, model: Drawn | None = None) -> str:
                   "measured. " if "q_cmd" in run.signals else "")
     extra = ""
     if run.extra:
-        text = json.dumps(run.extra, indent=2, ensure_ascii=False, default=str)
-        if len(text) > MAX_EXTRA_CHARS:
-            text = text[:MAX_EXTRA_CHARS] + "\n… (cut: the whole of it is in the run file)"
+        text = _extra_text(run.extra)
         extra = (f'<section><h2>More about the run</h2><pre id="extra">{escape(text)}</pre>'
                  "</section>")
     title = f"{run.robot} · {run.source}"

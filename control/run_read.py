@@ -5,7 +5,8 @@
 - the file is at most :data:`MAX_FILE_BYTES`, read in memory; its zip is read by
   :mod:`armlab.control.run_zip` (stored and deflated members only, each unpacked in
   chunks under a cap, members counted from the directory read);
-- run.json is at most :data:`MAX_JSON_BYTES` unpacked; every number in it is at most
+- run.json is at most :data:`MAX_JSON_BYTES` unpacked and :data:`MAX_JSON_VALUES` values
+  (counted before it is parsed); every number in it is at most
   :data:`MAX_NUMBER_CHARS` characters long, checked before it is converted (a
   4000-digit integer is refused, never made), and finite;
 - signals.csv is parsed as it is unpacked: its header at most :data:`MAX_HEADER_CHARS`
@@ -66,6 +67,11 @@ MAX_JSON_BYTES = 4 * 2**20
 #: float64 values, 32 MiB; the lab's longest run (30 s at 1 ms, all ten signals of three
 #: joints) holds 0.93 M.
 MAX_CELLS = 4 * 2**20
+#: The most values run.json may hold, counted as its ``{``, ``[`` and ``,`` before it is
+#: parsed (each value past the first of a list or object needs one): a parsed value costs
+#: up to ~200 bytes (an object in a list), so 4 MiB of ``[{},{},...]`` would cost 300 MiB.
+#: The longest run's run.json (5000 commands) holds about 90 k, an experiment's 8 k.
+MAX_JSON_VALUES = 250_000
 #: The longest number (characters) in run.json or a cell of signals.csv: a float's
 #: ``repr`` is at most 24.
 MAX_NUMBER_CHARS = 32
@@ -178,7 +184,13 @@ def _json_constant(word: str) -> Any:
 
 
 def parse_json(raw: bytes, label: str) -> Any:
-    """``raw`` (run.json) parsed with every number's length checked before conversion."""
+    """``raw`` (run.json) parsed with every number's length checked before conversion,
+    after its values are counted (at most :data:`MAX_JSON_VALUES`)."""
+    values = raw.count(b",") + raw.count(b"[") + raw.count(b"{")
+    if values > MAX_JSON_VALUES:
+        raise RunFileError(f"{label}: {JSON_MEMBER} holds up to {values} values (counted by "
+                           f"its commas and brackets); a run's holds at most "
+                           f"{MAX_JSON_VALUES}: refused, it was not written by armlab")
     try:
         return json.loads(raw.decode("utf-8-sig"), parse_int=_json_int,
                           parse_float=_json_float, parse_constant=_json_constant)

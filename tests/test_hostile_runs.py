@@ -34,6 +34,7 @@ from armlab.control.recorder import SIGNALS
 from armlab.control.run_read import CPU_BOUND_S, MEMORY_BOUND_MIB
 from armlab.control.runs import (
     MAX_CELLS,
+    MAX_JSON_VALUES,
     MAX_MEMBERS,
     Run,
     RunFileError,
@@ -341,6 +342,22 @@ def data_descriptor_lie() -> bytes:
                                          len(local), 0)
 
 
+def stored_run_json(meta: dict) -> bytes:
+    """A run file whose run.json is ``meta``, stored (not deflated: no ratio to refuse)."""
+    text = json.dumps(meta, separators=(",", ":")).encode()
+    csv_data = good_members()["signals.csv"]
+    return raw_zip([(b"run.json", text, 0, len(text), zlib.crc32(text)),
+                    (b"signals.csv", deflate(csv_data), 8, len(csv_data),
+                     zlib.crc32(csv_data))])
+
+
+def many_json_values() -> bytes:
+    """run.json of a million empty objects in 3 MiB: 300 MiB once parsed."""
+    meta = good_meta()
+    meta["junk"] = [{}] * 1_000_000
+    return stored_run_json(meta)
+
+
 # (case, how to make it, what its one line says)
 HOSTILE = [
     ("bzip2 member", bzip2_bomb, "'signals.csv' is packed with bzip2; run files hold only "
@@ -368,6 +385,8 @@ HOSTILE = [
      "is not an armlab run (its format is '"),
     ("2 MB string in the robot", lambda: long_string("robot"), "the robot is not named"),
     ("a member name with a NUL", nul_name, "'signals.csv\\x00.exe', with a NUL"),
+    ("a million values in run.json", many_json_values,
+     "run.json holds up to 2000034 values (counted by its commas and brackets)"),
     ("a data descriptor under-declaring", data_descriptor_lie,
      "signals.csv unpacks to more than its declared 1000 bytes"),
 ]
@@ -441,6 +460,20 @@ def test_a_run_of_as_many_values_as_a_file_may_hold_exports_within_the_bound(tmp
     code, stderr, cost = export_in_child(tmp_path, path.read_bytes(), "most")
     assert code == 0, stderr
     assert_within_bounds(cost, stderr)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("field", ["params", "figures", "extra"])
+def test_a_run_json_of_as_many_values_as_it_may_hold_exports_within_the_bound(tmp_path,
+                                                                               field):
+    """MAX_JSON_VALUES values (keys of one object) in the field the page lists."""
+    meta = good_meta()
+    meta[field] = {f"{i:x}": 0 for i in range(MAX_JSON_VALUES - 100)}
+    code, stderr, cost = export_in_child(tmp_path, stored_run_json(meta), field)
+    assert code == 0, stderr
+    assert_within_bounds(cost, stderr)
+    html = (tmp_path / f"{field}.html").read_text()
+    assert "in the run file" in html and len(html) < 2_000_000  # the rest is counted
 
 
 def test_a_zip64_member_with_a_data_descriptor_reads_as_before():

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from itertools import islice
 from typing import Protocol
 
 import numpy as np
@@ -381,14 +382,23 @@ def pose_line(run: Run, k: int, *, t: float) -> str:
     return f"t = {t:.3f} s (sample {k + 1} of {len(run.t)}) · {angles}"
 
 
+#: Most figures and most gains the Replay folder lists (a file may hold many more).
+ABOUT_MOST = 40
+
+
+def _more(items: dict) -> str:
+    return f" … and {len(items) - ABOUT_MOST} more" if len(items) > ABOUT_MOST else ""
+
+
 def about_markdown(run: Run, *, title: str) -> str:
     """What the Replay folder says of ``run``: its file, source, date, length, gains and
     figures (the file's text as plain words: no markup of its own reaches the page)."""
     duration = float(run.t[-1] - run.t[0])
-    figures = ", ".join(f"{plain(k)} {v:.3g}" for k, v in run.figures.items()
-                        if isinstance(v, float | int) and not isinstance(v, bool))
+    measured = [(k, v) for k, v in islice(run.figures.items(), ABOUT_MOST)
+                if isinstance(v, float | int) and not isinstance(v, bool)]
+    figures = ", ".join(f"{plain(k)} {v:.3g}" for k, v in measured) + _more(run.figures)
     gains = ", ".join(f"{plain(k)} {v:g}" if isinstance(v, float) else f"{plain(k)} {plain(v)}"
-                      for k, v in run.params.items())
+                      for k, v in islice(run.params.items(), ABOUT_MOST)) + _more(run.params)
     lines = [f"**{plain(title)}**: {plain(run.source)}, {plain(run.created)}, "
              f"{duration:.1f} s, {len(run.t)} samples, {len(run.commands)} commands "
              f"(lab {plain(run.lab_version)})"]
