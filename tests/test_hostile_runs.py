@@ -399,6 +399,7 @@ def test_a_hostile_file_is_refused_with_one_line_within_the_bounds(tmp_path, cas
     assert_refused(tmp_path, make(), says)
 
 
+@pytest.mark.slow
 def test_every_hostile_file_is_refused_in_process_too():
     """The same files through read_run (and export_html, for what it reads), named as
     an upload is: each one RunFileError of one short line; none goes past the reader
