@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from armlab.exercises import harness
-from armlab.exercises.harness import LinkBroken, Other, decode, encode, read_frame, write_frame
+from armlab.exercises.harness import LinkBroken, decode, encode, read_frame, write_frame
 from armlab.exercises.student import StudentError
 
 #: Seconds the parent waits past a call's own limit (the child's SIGALRM) before it takes
@@ -105,6 +105,21 @@ def _descendants(pid: int) -> set[int]:
     return found
 
 
+def _wait_dead(pids: set[int], seconds: float) -> None:
+    """Wait (at most ``seconds``) until each of ``pids`` has died: gone, or a zombie (its
+    exit done, its children handed to their subreaper)."""
+    end = time.monotonic() + seconds
+    for p in pids:
+        while time.monotonic() < end:
+            try:
+                state = Path(f"/proc/{p}/stat").read_text().rpartition(")")[2].split()[0]
+            except (OSError, IndexError):
+                break
+            if state in ("Z", "X"):
+                break
+            time.sleep(0.001)
+
+
 class StudentProcess:
     """The child running the student's file, and the link to it.
 
@@ -122,6 +137,7 @@ class StudentProcess:
         self._before: set[int] = set()
         self._dumpable: int | None = None
         self._reaper: int | None = None
+        self._closed = False
 
     def __enter__(self) -> StudentProcess:
         self.start()
@@ -165,6 +181,9 @@ class StudentProcess:
                 signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     def _close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
         for fd in (self._to, self._from):
             if fd >= 0:
                 with contextlib.suppress(OSError):
@@ -172,19 +191,25 @@ class StudentProcess:
         self._to = self._from = -1
         if self.proc is not None:
             pid = self.proc.pid
-            for _ in range(100):
-                left = _descendants(pid) | (_children() - self._before - {pid})
-                if self.proc.poll() is None:
-                    left.add(pid)
-                if not left:
-                    break
+            # while the child is unreaped its pid and group cannot name another process
+            doomed = _descendants(pid) if self.proc.poll() is None else set()
+            with contextlib.suppress(OSError):
+                os.killpg(pid, signal.SIGKILL)
+            for p in doomed:
                 with contextlib.suppress(OSError):
-                    os.killpg(pid, signal.SIGKILL)
-                for p in left:
+                    os.kill(p, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                self.proc.kill()
+            self.proc.wait()
+            _wait_dead(doomed, 2.0)  # dead, so their own children have come to us
+            for _ in range(1000):  # orphans come to this process, their subreaper
+                strays = _children() - self._before - {pid}
+                if not strays:
+                    break
+                for p in strays:
                     with contextlib.suppress(OSError):
                         os.kill(p, signal.SIGKILL)
-                self.proc.wait()
-                for p in left - {pid}:  # those the subreaper took in
+                for p in strays:
                     with contextlib.suppress(OSError):
                         os.waitpid(p, 0)
         if self._reaper is not None:
@@ -329,7 +354,3 @@ class RemoteFunction:
         finally:
             self._run_deadline = None
 
-
-def is_other(value: Any) -> bool:
-    """The child said its value was not numbers (a dict, an object, complex...)."""
-    return isinstance(value, Other)

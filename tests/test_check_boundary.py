@@ -286,3 +286,29 @@ def test_a_file_that_forges_the_results_then_signals_the_checker_gets_what_it_ea
     passed = sum(ln.startswith("PASS") for ln in done.stdout.splitlines())
     assert data["score"] == passed and 0 < passed < 12
     assert len(data["tests"]) == 12
+
+
+@pytest.mark.slow
+def test_a_tree_of_forked_processes_is_killed_to_the_last(tmp_path, capsys):
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    body = WRONG_FK + textwrap.dedent(f"""\
+        import os, time
+        for k in range(4):
+            if os.fork() == 0:
+                if k % 2:
+                    os.setsid()
+                for _ in range(2):
+                    if os.fork() == 0:
+                        break
+                open(os.path.join({str(pids)!r}, str(os.getpid())), "w").close()
+                while True:
+                    time.sleep(0.01)
+        while len(os.listdir({str(pids)!r})) < 12:
+            time.sleep(0.001)
+        """)
+    code, results, out = checked(tmp_path, body, capsys)
+    assert code == 1 and 0 < results["score"] < 12
+    found = [int(p.name) for p in pids.iterdir()]
+    assert len(found) == 12
+    assert all(_gone(pid) for pid in found)
