@@ -343,7 +343,7 @@ def _planar_cases() -> list[ValueCase]:
     cases = []
     for no in (*range(1, 6), *range(20, 25)):
         _, X, Y, X1, Y1, *_ = TABLE1[no - 1]
-        cases.append(ValueCase(f"seed 004 Table 1 row {no}: target ({X:g}, {Y:g}) cm",
+        cases.append(ValueCase(f"seed 004 Table 1 row {no}: target ({X:g}, {Y:g}) cm, judged in cm",
                                (X / 100, Y / 100, *L), check=_table_check(X1, Y1)))
     rng = _rng("planar_ik")
     arm = p4.PlanarArm()
@@ -355,10 +355,10 @@ def _planar_cases() -> list[ValueCase]:
             k += 1
             cases.append(ValueCase(f"random reachable target {k}", (X, Y, *L), angles=True))
     cases += [
-        ValueCase("stretched along x: (23.5, 0) cm", (0.235, 0.0, *L), angles=True, atol=1e-6),
-        ValueCase("out of reach (30, 0) cm: the stretched arm towards it",
+        ValueCase("stretched along x: (0.235, 0) m", (0.235, 0.0, *L), angles=True, atol=1e-6),
+        ValueCase("out of reach (0.30, 0) m: the stretched arm towards it",
                   (0.30, 0.0, *L), angles=True),
-        ValueCase("other links (10, 10, 5 cm)", (0.12, 0.08, 0.10, 0.10, 0.05), angles=True),
+        ValueCase("other links (0.10, 0.10, 0.05 m)", (0.12, 0.08, 0.10, 0.10, 0.05), angles=True),
     ]
     return cases
 
@@ -414,19 +414,19 @@ def _leg_cases() -> list[ValueCase]:
     rng = _rng("leg_ik")
     geom = LegGeometry()
     cases = [
-        ValueCase("standing foot (0, 10, -9) cm", (0.0, 0.10, -0.09, 0.075, 0.10), angles=True),
-        ValueCase("foot forward and low (4, 8, -11) cm", (0.04, 0.08, -0.11, 0.075, 0.10),
+        ValueCase("standing foot (0, 0.10, -0.09) m", (0.0, 0.10, -0.09, 0.075, 0.10), angles=True),
+        ValueCase("foot forward and low (0.04, 0.08, -0.11) m", (0.04, 0.08, -0.11, 0.075, 0.10),
                   angles=True),
-        ValueCase("leg stretched straight out (17.5, 0, 0) cm along x",
+        ValueCase("leg stretched straight out (0.175, 0, 0) m along x",
                   (0.175, 0.0, 0.0, 0.075, 0.10), angles=True, atol=1e-6),
-        ValueCase("out of reach (0, 30, 0) cm: stretched towards it",
+        ValueCase("out of reach (0, 0.30, 0) m: stretched towards it",
                   (0.0, 0.30, 0.0, 0.075, 0.10), angles=True),
     ]
     for k in range(1, 5):
         t = (rng.uniform(-0.8, 0.8), rng.uniform(-0.5, 1.0), rng.uniform(0.3, 2.0))
         x, y, z = leg_fk(t, geom)
         cases.append(ValueCase(f"random foot {k}", (x, y, z, 0.075, 0.10), angles=True))
-    cases.append(ValueCase("other links (6, 12 cm)", (0.02, 0.09, -0.08, 0.06, 0.12),
+    cases.append(ValueCase("other links (0.06, 0.12 m)", (0.02, 0.09, -0.08, 0.06, 0.12),
                            angles=True))
     return cases
 
