@@ -73,6 +73,7 @@ def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: A
     """The compliance :class:`~armlab.control.loop.ControlLoop` of ``model`` over ``backend``
     (``loop_kw``: ``realtime``, ``history_s``, ``clock``...), not started; ``backend`` is
     closed when the loop cannot be made (bad parameters), and the error goes on."""
+    loop_kw.setdefault("hold_off", getattr(backend, "uncalibrated", None))
     try:
         return ControlLoop(model, backend, params, controller="compliance", **loop_kw)
     except BaseException:

@@ -455,6 +455,7 @@ def law_loop(law: StudentLaw, backend: Backend, model: SerialChain, params: Para
     ``q0`` (n,) rad; not started. Both backends are closed when it cannot be made."""
     from armlab.app.backends import make_backend
 
+    loop_kw.setdefault("hold_off", getattr(backend, "uncalibrated", None))
     try:
         reference = make_backend("sim", model, q0=q0)
     except BaseException:

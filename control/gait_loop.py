@@ -33,6 +33,7 @@ from armlab.control.backend import Backend, BackendError
 from armlab.control.commands import EStop, Reset
 from armlab.control.loop_record import LoopRecord
 from armlab.control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
+from armlab.control.trajectory import APPROACH_SPEED
 from armlab.control.walking import (
     GaitPlan,
     Walker,
@@ -47,7 +48,9 @@ COLUMNS: dict[str, int] = {"t": 1, "walking": 1, "phase": 1, "q_cmd": 12, "q": 1
 #: Moving-speed limits sent with each goal, rad/s (AX-12A: about 6 rad/s unloaded).
 MIN_SPEED = 0.2
 MAX_SPEED = 6.0
-#: Seconds to rise from where the servos are to the standing pose before walking.
+#: Seconds to rise from where the servos are to the standing pose before walking, at the
+#: least: legs farther away rise at the lab's approach speed
+#: (:data:`~armlab.control.trajectory.APPROACH_SPEED`), however far they are.
 STAND_UP_S = 1.5
 
 @dataclass(frozen=True)
@@ -265,7 +268,8 @@ class GaitLoop(GaitRecord):
         self._torque = backend is not None
         self._torque_sent = False  # torque on is sent at the first period with servos
         self._last_goal = np.full(12, np.nan)
-        self._ramp: tuple[np.ndarray, float] | None = None  # (from q, start time)
+        #: the rise to standing: (from q, start time, duration s)
+        self._ramp: tuple[np.ndarray, float, float] | None = None
         self.state: WalkState = walker.state()
         self.status = self._make_status()
 
@@ -383,9 +387,10 @@ class GaitLoop(GaitRecord):
         goal = state.q
         if servos and self._torque:
             if self._ramp is None and np.all(np.isfinite(q_meas)):
-                self._ramp = (q_meas.copy(), t)
-            if self._ramp is not None and t - self._ramp[1] < STAND_UP_S:
-                s = (t - self._ramp[1]) / STAND_UP_S
+                rise = float(np.max(np.abs(goal - q_meas))) / APPROACH_SPEED
+                self._ramp = (q_meas.copy(), t, max(STAND_UP_S, rise))
+            if self._ramp is not None and t - self._ramp[1] < self._ramp[2]:
+                s = (t - self._ramp[1]) / self._ramp[2]  # linear: the speed is d / T
                 goal = (1.0 - s) * self._ramp[0] + s * goal
             prev = np.where(np.isfinite(self._last_goal), self._last_goal, goal)
             speed = np.clip(1.5 * np.abs(goal - prev) / self.period, MIN_SPEED, MAX_SPEED)
@@ -405,7 +410,7 @@ class GaitLoop(GaitRecord):
         self._ring.append(row)
 
     def _ramp_done(self, t: float) -> bool:
-        return self._ramp is None or t - self._ramp[1] >= STAND_UP_S + self.period
+        return self._ramp is None or t - self._ramp[1] >= self._ramp[2] + self.period
 
     def _make_status(self) -> GaitStatus:
         spec = self.walker.plan.spec
@@ -413,5 +418,5 @@ class GaitLoop(GaitRecord):
             t=max(self._t, 0.0), walking=self._walking, stopping=self._stopping,
             command=spec.command, gait=spec.gait, speed=self._speed,
             servos=self.backend is not None and not self._fault, torque_on=self._torque,
-            standing_up=self._ramp is not None and self._t - self._ramp[1] < STAND_UP_S,
+            standing_up=self._ramp is not None and self._t - self._ramp[1] < self._ramp[2],
             fault=self._fault, running=self._pacer.running)

@@ -115,6 +115,8 @@ class LoopStatus:
             servos may still hold torque (retried once a second until it goes out).
         link_down: the backend's link failed and is not back (retried once a second on a
             backend that can reconnect); Reset and Run do nothing until it is.
+        held_off: why the loop keeps the torque off until a person's Reset (an arm whose
+            joint map is not calibrated: its angles may not be the model's), or None.
     """
 
     running: bool
@@ -138,6 +140,7 @@ class LoopStatus:
     skipped_recent: int = 0
     torque_off_unsent: bool = False
     link_down: bool = False
+    held_off: str | None = None
 
 
 class _Fault(Exception):
@@ -165,13 +168,16 @@ class ControlLoop:
             the loop's time (e.g. ``armlab.hardware.backends.batched.BatchedArmBackend``).
         laws: the controller's equations (default: the lab's own; coursework runs a
             student's in their place, :class:`~armlab.control.compliance.Laws`).
+        hold_off: keep the torque off from the start, watching the arm and commanding
+            nothing, until a person's Reset; the text says why (shown in the status).
     """
 
     def __init__(self, model: SerialChain, backend: Backend, params: Params | None = None, *,
                  controller: Mode = "compliance", realtime: bool = True,
                  history_s: float = 20.0, max_accel: float = 500.0, max_lag: float = 0.5,
                  lag_time: float = 0.5, target_speed: float = TARGET_SPEED,
-                 clock: SharedClock | None = None, laws: Laws | None = None) -> None:
+                 clock: SharedClock | None = None, laws: Laws | None = None,
+                 hold_off: str | None = None) -> None:
         if not isinstance(backend, Backend):
             raise ValueError(f"backend must implement armlab.control.backend.Backend, got "
                              f"{type(backend).__name__}")
@@ -225,11 +231,13 @@ class ControlLoop:
         self._estopped = False
         self._backend_ok = True
         self._fault: str | None = None
-        self._message = ""
         self._torque_unsent = False  # the last torque-off could not be sent
         self._unsent_retry_t = 0.0
         self._reconnect_t = 0.0  # loop time of the next automatic reconnection attempt
-        self._await_reset = False  # a link found again stays torque-off until a Reset
+        #: torque stays off until a Reset: a link found again, or ``hold_off``
+        self._await_reset = hold_off is not None
+        self._held_off = hold_off
+        self._message = hold_off or ""
         self._gripper: GripperState | None = None  # the newest gripper reading
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime,
@@ -308,6 +316,7 @@ class ControlLoop:
                 overruns=pace.overruns, skipped=pace.skipped,
                 skipped_recent=pace.skipped_recent,
                 torque_off_unsent=self._torque_unsent, link_down=not self._backend_ok,
+                held_off=self._held_off,
             )
 
     def step(self) -> None:
@@ -386,6 +395,8 @@ class ControlLoop:
                 self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
                 return
             self._await_reset = False
+            with self._lock:
+                self._held_off = None
             self._start(meas)
         for cmd in cmds:
             self._apply(cmd, meas)
@@ -513,6 +524,8 @@ class ControlLoop:
 
     def _fail(self, why: str) -> None:
         sent = self._safe_estop()
+        if not sent and not self._torque_on:
+            why += "; the servos' torque was already off"
         with self._lock:
             if self._fault is None:
                 self._fault = why
@@ -529,7 +542,9 @@ class ControlLoop:
         except Exception:  # estop must not raise; a raise is a torque-off not sent
             sent = False
         with self._lock:
-            self._torque_unsent = not sent
+            # unsent matters only while the servos may hold torque: with the torque
+            # already off, a link that is down leaves nothing holding the arm
+            self._torque_unsent = not sent and (self._torque_on or self._torque_unsent)
             self._unsent_retry_t = self._t + 1.0
         return sent
 
@@ -555,10 +570,15 @@ class ControlLoop:
             with self._lock:
                 self._estopped = True
                 self._active = False
+                if sent:
+                    self._message = "e-stop: torque off; Reset to go on"
+                elif self._torque_on:
+                    self._message = ("e-stop: torque off could not be sent; switch the servo "
+                                     "power off")
+                else:
+                    self._message = ("e-stop: the link to the servos is down; their torque "
+                                     "was already off")
                 self._torque_on = not sent and self._torque_on
-                self._message = ("e-stop: torque off; Reset to go on" if sent else
-                                 "e-stop: torque off could not be sent; switch the servo "
-                                 "power off")
             return
         if isinstance(cmd, UseSpareJoints):
             self._use_spare_joints(cmd)

@@ -134,9 +134,17 @@ def minimum_jerk(q0: np.ndarray, q1: np.ndarray, duration: float, *, dt: float =
     return JointTrajectory(t, q, qd, qdd, name)
 
 
-def approach_duration(q0: np.ndarray, q1: np.ndarray, *, speed: float = 0.5,
+#: rad/s, the peak joint speed of every approach the lab makes to a goal away from the
+#: command (a slider, a trajectory's first point, the quadruped standing up): about 29°/s,
+#: a ninth of the slowest servo's no-load speed here (the STS3215's 45 rpm, 4.7 rad/s),
+#: slow enough for a person beside the arm to see it coming and step away
+APPROACH_SPEED = 0.5
+
+
+def approach_duration(q0: np.ndarray, q1: np.ndarray, *, speed: float = APPROACH_SPEED,
                       minimum: float = 0.5) -> float:
-    """A calm duration for :func:`minimum_jerk`: peak speed about ``speed`` rad/s."""
+    """A calm duration for :func:`minimum_jerk`: peak speed ``speed`` rad/s (a minimum-jerk
+    move of distance d over T peaks at 1.875 d / T)."""
     dist = float(np.max(np.abs(np.asarray(q1) - np.asarray(q0))))
     return max(minimum, 1.875 * dist / speed)
 

@@ -156,3 +156,41 @@ def pull_the_cable(emu: EmulatorProcess, loop: Any, status: Any, page: Any) -> s
     assert "torque off" not in content.replace(UNSENT_BANNER, ""), content
     assert "lost the serial link" in content  # why, under the banner
     return content
+
+
+def sync_goals(packets: list[bytes], protocol: int | str) -> dict[int, list[int]]:
+    """Raw Goal Positions per servo ID in the goals' SYNC_WRITEs the emulator received
+    (``packets``: :meth:`EmulatorProcess.packets`), in order, for servos of ``protocol``
+    (1, 2 or "sts"): each family lays its goal at the start of the SYNC_WRITE's block
+    (protocol 1.0 and STS: the goal position's 2 bytes first; the X-series: the Profile
+    Velocity's 4 bytes, then the goal position's 4)."""
+    from armlab.hardware.families import family
+
+    fam = family(protocol)
+    codec = fam.codec
+    goal_item = "goal_position"
+    out: dict[int, list[int]] = {}
+    for raw in packets:
+        try:
+            packet = codec.decode_instruction(raw)
+        except ValueError:
+            continue
+        if packet.instruction != codec.Instruction.SYNC_WRITE:
+            continue
+        p = bytes(packet.params)
+        if protocol == 2:
+            address, size, body, offset, width = (p[0] | p[1] << 8, p[2] | p[3] << 8, p[4:],
+                                                  4, 4)
+            table = fam.default_table
+            first = table.item("profile_velocity").address
+        else:
+            address, size, body, offset, width = p[0], p[1], p[2:], 0, 2
+            table = fam.default_table
+            first = table.item(goal_item).address
+        if address != first or size < offset + width:
+            continue
+        for k in range(0, len(body) - size, size + 1):  # (ID, size bytes) a servo
+            block = body[k + 1 : k + 1 + size]
+            out.setdefault(body[k], []).append(
+                table.decode(goal_item, bytes(block[offset : offset + width])))
+    return out

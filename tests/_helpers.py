@@ -213,3 +213,16 @@ def hand_at_rest(lesson: Any, timeout: float = 120.0) -> np.ndarray:
     wait_for(resting, timeout, "the hand at rest")
     return last[0]
 
+
+
+def confirm_clear(lesson: Any, timeout: float = 60.0) -> None:
+    """What a technician does on an uncalibrated arm (no calibration, or a drafted map),
+    which the lab opens with its torque off: confirm the arm is clear (the page's
+    "Torque on: the arm is clear", the loop's Reset). An arm held already is left alone."""
+    from armlab.control.commands import Reset
+
+    loop = lesson.loop
+    wait_for(lambda: loop.status.held_off is not None or loop.status.active, timeout,
+             "the loop holding the arm, or waiting for a person to confirm")
+    if loop.status.held_off is not None:
+        loop.post(Reset())

@@ -23,7 +23,7 @@ from armlab.hardware.backends.joint_map import draft_joint_map, load_joint_map
 from armlab.hardware.wire.scan import Found
 from armlab.kinematics import load_robot
 from tests._emulator import ROOT, emulator
-from tests._helpers import client_of, wait_for
+from tests._helpers import client_of, confirm_clear, wait_for
 
 DATA = Path(__file__).with_name("data")
 TWO = DATA / "two_joint_arm.urdf"
@@ -111,6 +111,9 @@ def test_two_joint_arm_scan_map_serve_slider_reaches_the_servos(tmp_path):
             lesson = lab.lesson
             assert lab.lesson_name == "arm" and lesson.model.joint_names == ("yaw", "elbow")
             assert lesson.backend.map.ids == (21, 22)
+            # a drafted map is not calibrated: torque off until a person confirms
+            wait_for(lambda: lesson.loop.status.held_off is not None, 60, "the torque held off")
+            confirm_clear(lesson)
             with client_of(lab.server, token=lab.token) as client:
                 client.wait_for(lambda: client.shows("elbow °"), 60.0,
                                 "the elbow slider")

@@ -28,12 +28,12 @@ import tomllib
 import numpy as np
 import pytest
 from _emulator import ROOT, emulator, pull_the_cable
-from _helpers import client_of, hand_at_rest, wait_for
+from _helpers import client_of, confirm_clear, hand_at_rest, wait_for
 
 from armlab.app.backends import loop_over, make_backend
 from armlab.app.lessons.arm import ArmLesson
 from armlab.app.server import Lab, ServeOptions
-from armlab.control.commands import RunTrajectory
+from armlab.control.commands import Reset, RunTrajectory
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold
 from armlab.hardware.backends.gripper import so101_gripper
@@ -175,6 +175,7 @@ def test_the_arm_lesson_holds_follows_the_target_and_grips_on_serial():
             lesson = lab.lesson
             assert isinstance(lesson, ArmLesson) and isinstance(lesson.backend, StsBackend)
             loop = lesson.loop
+            confirm_clear(lesson)  # no calibration: torque off until a person confirms
             wait_for(lambda: loop.status.active and np.all(np.isfinite(_hand(lesson))),
                      60, "the loop holding the arm")
             # it catches the arm falling (its torque was off); how long the catch takes
@@ -208,6 +209,7 @@ def test_a_target_dragged_on_the_page_from_where_the_arm_was_caught_moves_it():
         with Lab(ServeOptions(robot="so101", backend="serial", port=emu.port,
                               http_port=0)) as lab:
             lesson, loop = lab.lesson, lab.lesson.loop
+            confirm_clear(lesson)
             wait_for(lambda: loop.status.active and np.all(np.isfinite(_hand(lesson))),
                      60, "the loop holding the arm")
             t0 = loop.status.t
@@ -230,6 +232,8 @@ def _figures(backend, *, realtime: bool) -> dict[str, float]:
     loop = loop_over(backend, SO101, DEFAULT, realtime=realtime, history_s=30.0)
     loop.start()
     try:
+        if loop.status.held_off:  # servos with no calibration: a person confirms
+            loop.post(Reset())
         wait_for(lambda: loop.status.active, 60, "the loop holding")
 
         def settle(q: np.ndarray) -> dict[str, np.ndarray]:
@@ -291,6 +295,7 @@ def test_link_killed_mid_run_the_arm_lesson_says_torque_off_could_not_be_sent(ca
                               http_port=0)) as lab:
             lesson = lab.lesson
             loop = lesson.loop
+            confirm_clear(lesson)
             with HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
                 page.wait_for(lambda: loop.status.active, timeout=60, what="the loop holding")
                 pull_the_cable(emu, loop, lesson.status, page)
@@ -334,6 +339,7 @@ def test_a_servo_that_stops_answering_is_named_with_its_joint_and_torque_off_is_
         with Lab(ServeOptions(robot="so101", backend="serial", port=emu.port,
                               http_port=0)) as lab:
             loop = lab.lesson.loop
+            confirm_clear(lab.lesson)
             with client_of(lab.server, token=lab.token):
                 wait_for(lambda: loop.status.fault is not None, 90, "the loop to stop")
                 st = loop.status
@@ -372,6 +378,7 @@ def test_a_status_error_bit_stops_the_lab_naming_joint_and_servo_and_reset_recov
                               http_port=0)) as lab:
             lesson = lab.lesson
             loop = lesson.loop
+            confirm_clear(lesson)
             with client_of(lab.server, token=lab.token) as page:
                 wait_for(lambda: loop.status.fault is not None, 90, "the loop to stop")
                 st = loop.status

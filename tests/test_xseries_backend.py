@@ -24,7 +24,7 @@ import tomllib
 import numpy as np
 import pytest
 from _emulator import ROOT, emulator, goal_positions
-from _helpers import client_of, wait_for
+from _helpers import client_of, confirm_clear, wait_for
 
 from armlab.app.backends import make_backend
 from armlab.app.server import Lab, ServeOptions
@@ -127,6 +127,7 @@ def test_the_lab_on_open_manipulator_x_scan_map_serve_slider_reaches_the_servos(
         try:
             lesson = lab.lesson
             assert isinstance(lesson.backend, XSeriesBackend)
+            confirm_clear(lesson)  # a drafted map: torque off until a person confirms
             with client_of(lab.server, token=lab.token) as client:
                 client.wait_for(lambda: client.shows("joint2 °"), 60.0,
                                 "the joint2 slider")

@@ -29,6 +29,12 @@ hand on an arm whose torque is off: ``hold JOINT DEG`` holds a joint (name or in
 ``gripper`` for the gripper's servo) at DEG degrees of the joint until ``release JOINT``
 lets it go. The guided calibration (``armlab scan --calibrate``) is tested this way.
 
+``--pose JOINT=DEG,...`` starts the arm there (joint name or index, degrees of the joint;
+joints not named start at zero): each joint rests where it was put, as an
+unpowered arm rests on its gears where it was left, until its servo's torque comes on.
+So the lab can be tried on an arm that is not at zero when it is switched on, as a real
+one never is (every family, the quadruped's legs too).
+
 ``--link PATH`` also makes PATH a symlink to that pseudo-terminal (replacing one an
 earlier emulator left), so the emulator keeps its name across restarts, as a
 ``/dev/serial/by-id/...`` path does across re-plugs; the link goes when it exits.
@@ -47,7 +53,7 @@ from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 from armlab.app.commands.scan import _ids
-from armlab.hardware.backends.joint_map import default_joint_map
+from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.bus import Faults, PtyEmulator
 from armlab.hardware.families import FAMILIES
 from armlab.hardware.sim.plant import Plant
@@ -149,6 +155,28 @@ def _number(text: str, name: str) -> float:
     return v
 
 
+def parse_pose(text: str, names: Sequence[str]) -> dict[int, float]:
+    """``--pose JOINT=DEG,...`` -> {joint index: angle rad}.
+
+    Raises:
+        ValueError: one line naming the option, the part that is wrong and the format.
+    """
+    fmt = "JOINT=DEG,... (joint name or index, degrees), e.g. shoulder_lift=60,elbow_flex=-45"
+    pose: dict[int, float] = {}
+    for part in text.split(","):
+        joint, sep, deg = part.partition("=")
+        try:
+            if not sep:
+                raise ValueError(f"{part.strip()!r} is not JOINT=DEG")
+            k = joint_index(joint.strip(), names)
+            if k in pose:
+                raise ValueError(f"joint {names[k]} named twice")
+            pose[k] = math.radians(_number(deg, f"the angle of {names[k]}"))
+        except ValueError as exc:
+            raise ValueError(f"--pose {text!r}: {exc}; expected {fmt}") from None
+    return pose
+
+
 def _raise_priority(nice: int) -> None:
     """Servos never stall: ask the OS to schedule the emulator ahead of ordinary programs
     (``nice`` < 0 needs root or CAP_SYS_NICE; without them nothing changes)."""
@@ -208,6 +236,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control", metavar="FIFO",
                         help="a serial arm: read 'hold JOINT DEG' and 'release JOINT' lines "
                         "from this named pipe (made if missing), a hand moving the arm")
+    parser.add_argument("--pose", type=str, metavar="JOINT=DEG,...",
+                        help="start these joints at these angles (joint name or index, "
+                        "degrees), each resting there until its servo's torque comes on, "
+                        "e.g. shoulder_lift=60,elbow_flex=-45")
     parser.add_argument("--link", metavar="PATH",
                         help="also make PATH a symlink to the pseudo-terminal (replaced on "
                              "restart, like a /dev/serial/by-id name)")
@@ -304,6 +336,18 @@ def run(args: argparse.Namespace) -> int:
     # the servo family's own emulator (armlab.hardware.families); ValueError for a baud
     # its servos cannot take
     network = jmap.family.load("emulator")(model, jmap, baud=args.baud, dt=args.dt)
+    if args.pose:
+        names = [j.name for j in robot_joints(model)]
+        pose = dict.fromkeys(range(len(names)), 0.0) | parse_pose(args.pose, names)
+        for k, angle in pose.items():  # the joints not named rest at zero
+            lo, hi = jmap.joints[k].lower, jmap.joints[k].upper
+            if not lo <= angle <= hi:
+                raise ValueError(f"--pose: {names[k]} at {math.degrees(angle):+.1f}° is "
+                                 f"outside its limits {math.degrees(lo):+.1f}..."
+                                 f"{math.degrees(hi):+.1f}°")
+            network.physics.rest(k, angle)
+        for s in network.servos:
+            network.physics.report(s)
     disturbances = []
     if args.disturb:
         if not isinstance(model, SerialChain):
@@ -355,6 +399,7 @@ def run(args: argparse.Namespace) -> int:
                         for j, nm, t0 in disturbances)
               + "".join(f"; {names[flag]} on {model.joint_names[j]} after {t:g} s "
                         "of torque on" for j, flag, t in alerts)
+              + (f"; resting at {args.pose} until torque on" if args.pose else "")
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
     except ArithmeticError as exc:  # the simulated plant diverged: say so in one line

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import signal
 import sys
@@ -57,6 +58,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "own Projector switch)")
 
 
+def log_to_terminal() -> None:
+    """The lab's own log lines (the servos' set-up, E-STOP, a lost link, an uncalibrated
+    arm) on stderr, one line each from INFO up; the libraries' stay at their defaults."""
+    logger = logging.getLogger("armlab")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+
+
 def run(args: argparse.Namespace) -> int:
     from armlab.app.server import Lab, ServeOptions
     from armlab.app.viser_ext import HooksMissing
@@ -68,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
                            tip_link=args.tip_link,
                            package_paths=tuple(args.package_path), joint_map=args.joint_map,
                            exercise=args.exercise, next_to_robot=args.next_to_robot)
+    log_to_terminal()
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

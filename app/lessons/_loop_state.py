@@ -32,6 +32,8 @@ def stopped_state(st: LoopStatus) -> str | None:
         return "E-STOPPED: torque off (press Reset)"
     if st.fault:
         return f"stopped: {st.fault}"
+    if st.held_off:
+        return "torque off: confirm the arm is clear"
     return None
 
 
@@ -46,10 +48,14 @@ def check_running(st: LoopStatus) -> None:
                          "press Reset first")
     if st.estopped:
         raise ValueError("nothing happened: E-STOP is in force; press Reset first")
+    if st.held_off:
+        raise ValueError(f"nothing happened: the torque is off until you confirm the arm is "
+                         f"clear ({st.held_off})")
 
 
 def post_reset(loop: ControlLoop) -> None:
-    """Clear a fault or E-STOP: torque on, hold where the arm is (the loop's Reset).
+    """Clear a fault or E-STOP, or confirm an uncalibrated arm is clear: torque on, hold
+    where the arm is (the loop's Reset).
 
     Raises:
         ValueError: the link to the servos is down, so nothing can be reset: the

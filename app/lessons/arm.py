@@ -24,6 +24,8 @@ the servo (:mod:`armlab.app.lessons.arm_gripper`).
 from __future__ import annotations
 
 import math
+import threading
+import time
 from functools import partial
 
 import numpy as np
@@ -57,6 +59,7 @@ from armlab.app.page.camera import View, show
 from armlab.app.page.in_order import InOrder
 from armlab.app.page.inputs import inward_range
 from armlab.app.page.surface import Surface
+from armlab.control.backend import BackendError
 from armlab.control.commands import EStop, RunTrajectory, SetTarget
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold
@@ -83,6 +86,10 @@ SLIDER_HOLD_S = 0.2
 SLIDER_STEP_DEG = 0.5
 #: s of signals the loop's recorder keeps (the hand pose and the status read the newest).
 HISTORY_S = 20.0
+#: s after a person's last slider move before the sliders follow the arm again
+SLIDER_QUIET_S = 1.0
+#: the name of a slider's move (its trajectory), while it plays the sliders stay put
+SLIDER_MOVE = "joint slider"
 
 
 def build(server: Surface, ctx: LessonContext) -> ArmLesson:
@@ -140,6 +147,8 @@ class ArmLesson(LessonBase):
                  pose_hz: float = 30.0) -> None:
         super().__init__(server, ctx)
         self._link = LinkMonitor()
+        self._slider_t = -math.inf  # monotonic s of a person's last slider move
+        self._setting = threading.Lock()  # held while the lab sets a slider itself
         model = load_robot(ctx.robot, tip_link=ctx.tip_link, package_paths=ctx.package_paths)
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
@@ -165,11 +174,49 @@ class ArmLesson(LessonBase):
 
     def _held(self) -> np.ndarray:
         """(n,) rad the arm is at now: its newest recorded angles (a kept private arm), or
-        the neutral pose (a loop that has not read the servos yet)."""
+        what the servos report (a loop that has not started: real servos are wherever a
+        person left them, never at zero), else the neutral pose."""
         snap = self.loop.recorder.snapshot(1.0)
         if len(snap["t"]) and all_finite(snap["q"][-1]):
             return np.asarray(snap["q"][-1], dtype=float)
+        if self.ctx.arms is None and not self.loop.status.running:
+            try:
+                q = np.asarray(self.backend.read().position, dtype=float)
+            except (BackendError, OSError, ValueError):
+                q = np.full(self.model.n, np.nan)
+            if all_finite(q):
+                return np.clip(q, self.loop.lower, self.loop.upper)
         return self.model.neutral()
+
+    def _shown(self, snap: dict[str, np.ndarray]) -> np.ndarray | None:
+        """(n,) rad the joint sliders show, from the newest of ``snap`` (a recorder
+        snapshot): the command while the loop holds the arm; where the arm is while it
+        holds nothing (E-STOP, a fault, a lost link, torque held off: the arm may fall or
+        be moved by hand), so the next slider move or Reset starts there. None when
+        nothing is recorded yet."""
+        if not len(snap["t"]):
+            return None
+        q_cmd, q = snap["q_cmd"][-1], snap["q"][-1]
+        if self.loop.status.active and all_finite(q_cmd):
+            return np.asarray(q_cmd, dtype=float)
+        return np.asarray(q, dtype=float) if all_finite(q) else None
+
+    def _follow_arm(self, snap: dict[str, np.ndarray]) -> None:
+        """Keep the joint sliders on the pose the arm holds (:meth:`_shown`) when it was
+        not a slider that put it there: the hand target, Reset, E-STOP, a fault, a
+        reconnect. A slider a person moved in the last :data:`SLIDER_QUIET_S`, or whose
+        approach still plays, is left where the person put it."""
+        if time.monotonic() - self._slider_t < SLIDER_QUIET_S or \
+                self.loop.status.trajectory == SLIDER_MOVE:
+            return
+        q = self._shown(snap)
+        if q is None:
+            return
+        for slider, deg in zip(self.sliders, np.degrees(q), strict=True):
+            value = _on_step(float(deg), slider.min, slider.max)
+            if abs(value - float(slider.value)) > 0.5 * SLIDER_STEP_DEG:
+                with self._setting:  # not a person's move (see _on_slider)
+                    slider.value = value
 
     def _build_scene(self) -> None:
         base = self.model.base_pose
@@ -208,13 +255,20 @@ class ArmLesson(LessonBase):
                 lo, hi = math.degrees(lower[i]), math.degrees(upper[i])
                 # ends on the 0.5° step, inside the limits: round numbers at its ends
                 ends = inward_range(lo, hi, step=SLIDER_STEP_DEG)
-                start = float(np.clip(round(held[i] / SLIDER_STEP_DEG) * SLIDER_STEP_DEG,
-                                      *ends))
+                start = _on_step(float(held[i]), *ends)
                 slider = gui.add_slider(f"{j.name} °", min=ends[0], max=ends[1],
                                         step=SLIDER_STEP_DEG, initial_value=start,
                                         hint=f"Joint {j.name}: {lo:+.1f}° .. {hi:+.1f}°")
                 slider.on_update(self._on_slider)
                 self.sliders.append(slider)
+            # an uncalibrated arm on servos starts with torque off until a person says so
+            self.confirm = gui.add_button(
+                "Torque on: the arm is clear", color="orange", icon=viser.Icon.POWER,
+                visible=self.loop.status.held_off is not None,
+                hint="The joint map is not calibrated: the arm's angles may not be the "
+                     "model's. Check that nothing is in its way, then switch its torque on "
+                     "(it holds where it is)")
+            self.confirm.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
             reset = gui.add_button("Reset (after E-STOP or a fault)")
             reset.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
             self.gripper = GripperControls(gui, model=self.model, backend=self.backend,
@@ -247,19 +301,48 @@ class ArmLesson(LessonBase):
     # ================================================================== actions
 
     def _on_slider(self, event: viser.GuiEvent) -> None:
-        q = np.radians([float(s.value) for s in self.sliders])
-        guarded(event, lambda: self.move_to(q))
+        """A person moved one joint's slider: that joint's goal goes where the slider
+        says, every other joint's stays where the loop holds it (never where another
+        slider was last left)."""
+        if event.client is None and self._setting.locked():
+            return  # the lab keeping the slider on the arm (:meth:`_follow_arm`)
+        self._slider_t = time.monotonic()
+        i = next((k for k, s in enumerate(self.sliders) if s is event.target), None)
+        if i is None:
+            return
+        angle = math.radians(float(event.target.value))
+        guarded(event, lambda: self.move_joint(i, angle))
 
-    def move_to(self, q: np.ndarray) -> None:
-        """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits.
+    def move_joint(self, joint: int, angle: float) -> None:
+        """Move joint ``joint`` smoothly to ``angle`` rad (clipped into its limits), every
+        other joint held at its command: a slider moved by N° moves the goal N°.
 
         Raises:
-            ValueError: the loop is stopped (a lost link, a fault, E-STOP): saying why
-                nothing happened.
+            ValueError: the loop is stopped (a lost link, a fault, E-STOP, torque held off):
+                saying why nothing happened.
+        """
+        check_running(self.loop.status)
+        q = self._shown(self.loop.recorder.snapshot(0.2))
+        if q is None:
+            raise ValueError("nothing happened: the arm has not been read yet; try again")
+        q = q.copy()
+        q[joint] = angle
+        self.move_to(q)
+
+    def move_to(self, q: np.ndarray) -> None:
+        """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits:
+        a minimum-jerk approach from the command whose peak joint speed is the lab's
+        calm approach speed (:func:`~armlab.control.trajectory.approach_duration`,
+        0.5 rad/s), however far it is.
+
+        Raises:
+            ValueError: the loop is stopped (a lost link, a fault, E-STOP, torque held off):
+                saying why nothing happened.
         """
         check_running(self.loop.status)
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
-        self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S), approach=True))
+        self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S, name=SLIDER_MOVE),
+                                                approach=True))
 
     def set_target(self, xyz: np.ndarray) -> None:
         """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
@@ -275,15 +358,19 @@ class ArmLesson(LessonBase):
         if len(snap["t"]) and np.all(np.isfinite(snap["q"][-1])):
             self.view.set_q(snap["q"][-1])
             self.controls.pose_frame(snap)
+            self._follow_arm(snap)
         self.gripper.pose_frame()
 
     def _status_frame(self, force: bool) -> None:
         st = self.loop.status
         where = f"backend {self.ctx.backend}, loop t {st.t:.1f} s"
         state = stopped_state(st)
+        if self.confirm.visible != (st.held_off is not None):
+            self.confirm.visible = st.held_off is not None
         if state is not None:  # red; under an unsent torque-off, why the link failed
             color = STOPPED_COLOR
-            detail = st.fault if st.torque_off_unsent and st.fault else where
+            detail = (st.fault if st.torque_off_unsent and st.fault else
+                      st.held_off or where)
         else:
             state, color = ("holding", "#2e7d32") if st.active else ("starting", "#555")
             detail = st.message or where
@@ -337,6 +424,11 @@ def _view_direction(base: np.ndarray, hand: np.ndarray) -> tuple[float, float, f
     side = np.array([-h[1], h[0]])
     x, y = -h + 0.3 * side
     return float(x), float(y), -0.3
+
+
+def _on_step(deg: float, lo: float, hi: float) -> float:
+    """``deg`` on a joint slider's 0.5° step, inside its ends ``lo``..``hi``."""
+    return float(np.clip(round(deg / SLIDER_STEP_DEG) * SLIDER_STEP_DEG, lo, hi))
 
 
 def _wxyz(R: np.ndarray) -> np.ndarray:

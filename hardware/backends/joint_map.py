@@ -56,7 +56,14 @@ from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.servos.sts import StsSpec
 from armlab.hardware.servos.xseries import OperatingMode, XSpec
-from armlab.kinematics.model import Joint, Quadruped, SerialChain, URDFError, joint_limits
+from armlab.kinematics.model import (
+    ROBOT_FILES,
+    Joint,
+    Quadruped,
+    SerialChain,
+    URDFError,
+    joint_limits,
+)
 
 if TYPE_CHECKING:
     from armlab.hardware.wire.scan import Found
@@ -77,6 +84,10 @@ ROBOT_SERVOS = {"receptionist_arm": ("RX-24F", THESIS_LEFT_ARM_IDS),
                 # LeRobot's SO-101 follower: shoulder_pan 1 .. wrist_roll 5 (its gripper's
                 # servo, ID 6, is in ROBOT_GRIPPERS)
                 "so101": ("STS3215", (1, 2, 3, 4, 5))}
+#: Robots whose servos' zero is each arm's own (the SO-101's STS3215s are assembled at any
+#: horn angle; LeRobot calibrates every arm): the default map of one is not calibrated,
+#: nor is that of an arm from a URDF the lab does not ship
+OWN_ZERO = frozenset({"so101"})
 #: Robot -> the supply its servos run from, V, where it is not their datasheet's: the
 #: SO-101's 7.4 V STS3215s on the kit's 5 V supply (TheRobotStudio SO-ARM100 README).
 ROBOT_SUPPLY = {"so101": 5.0}
@@ -131,11 +142,17 @@ class JointMap:
         joints: one :class:`JointServo` per joint.
         gripper: the gripper's servo, or None (the same model, one that
             :func:`drives_gripper`).
+        calibrated: the offsets and signs are known to be the arm's own (a robot whose
+            servos' zero is its maker's, a calibration, a map a person wrote); False for a
+            drafted map or a robot whose servos sit at any horn angle (the SO-101): its
+            angles may not be the model's, so the lab keeps torque off until a person says
+            the arm is clear (:attr:`~armlab.control.loop.LoopStatus.held_off`).
     """
 
     servo: str
     joints: tuple[JointServo, ...]
     gripper: GripperServo | None = None
+    calibrated: bool = True
 
     def __post_init__(self) -> None:
         spec = servo_table(self.servo).spec  # ValueError for an unknown model
@@ -251,10 +268,11 @@ def default_joint_map(model: SerialChain | Quadruped, *, servo: str | None = Non
                 raise ValueError(f"ids: the gripper's servo takes the ID after the highest "
                                  f"({max(ids)}), and {after} is past 252")
             gripper = replace(gripper, servo_id=after)
+    calibrated = model.name in ROBOT_FILES and model.name not in OWN_ZERO
     return JointMap(servo, tuple(
         JointServo(j.name, int(i), 1, 0.0, max(j.lower, -half), min(j.upper, half))
         for j, i in zip(joints, ids, strict=True)
-    ), gripper)
+    ), gripper, calibrated)
 
 
 def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap:
@@ -324,8 +342,12 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
         gripper = _gripper_entry(data.get("gripper"), model, base.gripper)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"joint map {path}: {exc}") from None
+    calibrated = data.get("calibrated", True)  # a map a person wrote is theirs
+    if not isinstance(calibrated, bool):
+        raise ValueError(f"joint map {path}: calibrated must be true or false, "
+                         f"got {calibrated!r}")
     try:
-        return JointMap(base.servo, tuple(given[j.name] for j in joints), gripper)
+        return JointMap(base.servo, tuple(given[j.name] for j in joints), gripper, calibrated)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
 
@@ -411,9 +433,10 @@ def draft_joint_map(found: Sequence[Found], model: SerialChain | None = None) ->
                 f"servo ID {servos[len(names)].servo_id} has no joint: {model.name} has "
                 f"{len(names)} joints ({', '.join(names)}) but {len(servos)} servos answered")
     bauds = {f.baud for f in servos}
-    lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe.",
+    lines = ["# Drafted by armlab scan: check every sign and offset with the arm held safe,",
+             "# then set calibrated = true (until then the lab starts with torque off)",
              f'servo = "{servos[0].model}"', f"protocol = {toml_protocol(servos[0].protocol)}",
-             f"baud = {int(min(bauds))}", ""]
+             f"baud = {int(min(bauds))}", "calibrated = false", ""]
     for i, (name, f) in enumerate(zip(names, servos, strict=True)):
         wheel = f.cw_limit == f.ccw_limit == 0
         lo, hi = f.cw_limit_deg, f.ccw_limit_deg

@@ -136,7 +136,7 @@ def joint_map_toml(jmap: JointMap, *, baud: float, source: str = "") -> str:
     joint_map.load_joint_map` reads it."""
     lines = [f"# Written by armlab from {source}" if source else "# Written by armlab",
              f'servo = "{jmap.servo}"', f"protocol = {toml_protocol(jmap.protocol)}",
-             f"baud = {int(baud)}", ""]
+             f"baud = {int(baud)}", "calibrated = true", ""]
     for j in jmap.joints:
         lines += ["[[joints]]", f'name = "{j.name}"', f"id = {j.servo_id}",
                   f"sign = {j.sign}", f"offset_deg = {math.degrees(j.offset):.4f}",

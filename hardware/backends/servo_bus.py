@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
@@ -37,7 +38,7 @@ from armlab.hardware.backends.joint_map import (
 )
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.wire.bus import Bus, BusError, BusStats, NoReply
-from armlab.kinematics.model import Quadruped, SerialChain
+from armlab.kinematics.model import ROBOT_FILES, Quadruped, SerialChain
 
 log = logging.getLogger("armlab.dynamixel")
 
@@ -45,6 +46,20 @@ log = logging.getLogger("armlab.dynamixel")
 THESIS_STATUS_RETURN_LEVEL = 1
 #: rad/s towards the goal set when torque comes on (the present position, clamped).
 SAFE_SPEED = 1.0
+#: s: a torque-off sent again this soon after the last is the same press (the page's
+#: E-STOP sends one at once and the loop one at its next period): logged once
+ESTOP_REPEAT_S = 1.0
+
+
+def uncalibrated_note(model: SerialChain | Quadruped, port: str) -> str:
+    """What a person is told of an arm whose joint map is not calibrated: what it risks,
+    what the lab does and the command that calibrates it."""
+    robot = model.name if model.name in ROBOT_FILES else str(model.urdf_path or model.name)
+    return (f"uncalibrated: {model.name}'s joint map is not calibrated (no map, or one "
+            "drafted by a scan), so its angles may not be the arm's and a goal may drive a "
+            "joint into its stop or the table; torque stays off until you confirm on the "
+            f"page that the arm is clear. Calibrate: armlab scan --port {port} --robot "
+            f"{robot} --calibrate --write-map arm.toml, then serve with --joint-map arm.toml")
 
 
 class ServoBusBackend(GoalLimits, GripperHolder, ABC):
@@ -107,6 +122,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         self.configuration: list[str] = []
         self.estops = 0
         self._estop_unsent = False  # the last torque-off could not be written
+        self._estop_logged = -math.inf  # monotonic s of the last "torque off sent" line
         self._torque = False
         self._shutdown = np.zeros(self.map.n, dtype=bool)
         self._closed = False
@@ -120,6 +136,10 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
             raise ValueError("from_baud needs configure=True to switch the servos' baud")
         self._open(port, from_baud or baud, configure=configure, from_baud=from_baud)
         self._t0 = time.monotonic()
+        #: why the lab keeps the torque off until a person confirms (None: calibrated)
+        self.uncalibrated = None if self.map.calibrated else uncalibrated_note(model, port)
+        if self.uncalibrated:
+            log.warning(self.uncalibrated)
 
     def _open(self, port: str, baud: float, *, configure: bool,
               from_baud: float | None = None) -> None:
@@ -181,16 +201,27 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
             servos' torque is then unknown: the caller must say so, not "torque off").
         """
         self.estops += 1
+        was_on = self._torque
         try:
             self.bus.write_bytes(self.bus.broadcast_id, *self.table.encode("torque_enable", 0))
         except (BusError, OSError, ValueError) as exc:
             if not self._estop_unsent:  # one line per outage, not one per retry
-                log.error("e-stop: torque off could not be sent (%s)", exc)
+                if was_on:
+                    log.error("e-stop: torque off could not be sent (%s)", exc)
+                else:  # nothing holds the arm: say so, and do not alarm
+                    log.warning("e-stop: the link is down (%s); the servos' torque was "
+                                "already off", exc)
             self._estop_unsent = True
             return False
         self._torque = False
-        log.warning("e-stop: broadcast torque off sent%s",
-                    " (the link is back)" if self._estop_unsent else "")
+        now = time.monotonic()
+        # one press reaches here twice (the page's E-STOP, then the loop's): one line each
+        again = now - self._estop_logged < ESTOP_REPEAT_S and not self._estop_unsent
+        (log.debug if again else log.warning)(
+            "e-stop: broadcast torque off sent%s",
+            " (the link is back)" if self._estop_unsent else "")
+        if not again:
+            self._estop_logged = now
         self._estop_unsent = False
         return True
 

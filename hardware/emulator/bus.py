@@ -577,7 +577,49 @@ class PtyEmulator:
             self.log.flush()
 
 
-class ArmPhysics:
+def pin(plant: Plant, j: int, angle: float) -> None:
+    """Put joint ``j`` of ``plant`` at ``angle`` rad (of the plant), at rest, and tick its
+    servo's firmware once there: the servo senses where the arm was put (its report is
+    what it sensed at its last tick)."""
+    q, qd = plant.q, plant.qd
+    q[j], qd[j] = angle, 0.0
+    plant.set_state(q, qd)
+    plant.servos[j].update(plant.dt, plant.directions[j] * angle, 0.0)
+
+
+class RestingPose:
+    """Joints an emulator starts at a pose of a person's choosing (``armlab emulate
+    --pose``): each stays where it was put, as an unpowered arm rests on its gears'
+    friction where it was left, until its servo's torque first comes on; from then on the
+    plant moves it. A physics class says where a joint lives (:meth:`_locate`)."""
+
+    _resting: dict[int, float]  #: joint -> the angle it rests at, rad of the plant
+
+    def _locate(self, joint: int) -> tuple[Plant, int]:
+        """(plant, joint index in it) of emulated joint ``joint``; ValueError if none."""
+        raise NotImplementedError
+
+    def rest(self, joint: int, angle: float) -> None:
+        """Put ``joint`` at ``angle`` rad and keep it there until its servo's torque
+        comes on. ValueError for no such joint or a non-finite angle."""
+        if not math.isfinite(angle):
+            raise ValueError(f"angle must be finite, got {angle}")
+        plant, j = self._locate(joint)
+        pin(plant, j, float(angle))
+        self._resting[joint] = float(angle)
+
+    def _settle_resting(self) -> None:
+        """After the plants stepped: joints still resting go back where they rest; one
+        whose servo's torque is on is let go for good."""
+        for joint, angle in list(self._resting.items()):
+            plant, j = self._locate(joint)
+            if plant.servos[j].regs.torque_enable:
+                del self._resting[joint]
+            else:
+                pin(plant, j, angle)
+
+
+class ArmPhysics(RestingPose):
     """A serial arm's emulated servos moved by its simulated plant, and an arm's gripper
     servo by the gripper's plant (:func:`armlab.hardware.backends.gripper.gripper_plant`):
     the servo whose ``joint`` is one past the arm's last. A family's physics
@@ -589,26 +631,22 @@ class ArmPhysics:
         self.plant = plant
         self.gripper = gripper
         self._held: dict[int, float] = {}  # joint -> angle a hand holds it at, rad
+        self._resting = {}
 
     def advance_to(self, t: float) -> None:
         self.plant.advance_to(t)
         if self.gripper is not None:
             self.gripper.advance_to(t)
+        self._settle_resting()
         for joint, angle in self._held.items():
-            plant, j = self._plant_of(joint)
-            q, qd = plant.q, plant.qd
-            q[j], qd[j] = angle, 0.0
-            plant.set_state(q, qd)
-            # one firmware tick at the held angle: the servo senses where the hand put it
-            # (its report is what it sensed at its last tick)
-            plant.servos[j].update(plant.dt, plant.directions[j] * angle, 0.0)
+            pin(*self._locate(joint), angle)
 
     def hold(self, joint: int, angle: float | None) -> None:
         """Hold ``joint`` (the gripper's horn: one past the arm's last) at ``angle`` rad
         of the plant, as a person's hand moving the arm with its torque off would
         (``armlab emulate --control``); None lets go. ValueError for no such joint or a
         non-finite angle."""
-        self._plant_of(joint)
+        self._locate(joint)
         if angle is None:
             self._held.pop(joint, None)
         elif not math.isfinite(angle):
@@ -616,7 +654,7 @@ class ArmPhysics:
         else:
             self._held[joint] = float(angle)
 
-    def _plant_of(self, joint: int) -> tuple[Plant, int]:
+    def _locate(self, joint: int) -> tuple[Plant, int]:
         if 0 <= joint < self.plant.n:
             return self.plant, joint
         if joint == self.plant.n and self.gripper is not None:
@@ -644,7 +682,7 @@ def make_servos(tables: Sequence[ControlTable], ids: Sequence[int], *, baud_valu
     ]
 
 
-class PlantPhysics:
+class PlantPhysics(RestingPose):
     """Emulated servos moved by simulated plants (``armlab.hardware.sim.plant.Plant``).
 
     One plant per serial chain: the arm, or each leg of the quadruped (its hip
@@ -660,6 +698,7 @@ class PlantPhysics:
         self.plants = list(plants)
         self.slots = list(slots)
         self.load = load  #: puts outside loads on the plants up to t (the quadruped's body)
+        self._resting = {}
 
     def advance_to(self, t: float) -> None:
         """Step the plants up to ``t`` s (to within half a step, as
@@ -670,13 +709,20 @@ class PlantPhysics:
         if self.load is None:
             for plant in self.plants:
                 plant.advance_to(t)
-            return
-        lead = self.plants[0]
-        while lead.t + 0.5 * lead.dt <= t:
-            now = lead.t + lead.dt
-            self.load(now)
-            for plant in self.plants:
-                plant.advance_to(now)
+        else:
+            lead = self.plants[0]
+            while lead.t + 0.5 * lead.dt <= t:
+                now = lead.t + lead.dt
+                self.load(now)
+                for plant in self.plants:
+                    plant.advance_to(now)
+        self._settle_resting()
+
+    def _locate(self, joint: int) -> tuple[Plant, int]:
+        if not 0 <= joint < len(self.slots):
+            raise ValueError(f"no joint {joint} on this robot")
+        p, j = self.slots[joint]
+        return self.plants[p], j
 
     def _servo(self, s: VirtualServo):
         p, j = self.slots[s.joint]
