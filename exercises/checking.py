@@ -222,11 +222,12 @@ def check_file(path: str | Path, *, exercise: str | None = None,
             named, where = child.load(list(BY_FUNCTION))
             ex = _which(p, exercise or named, list(where))
         except StudentError as err:
-            return not_run(guess, str(p), err)
+            report = not_run(guess, str(p), err)
         except ChildGone as exc:
-            return not_run(guess, str(p), StudentError(str(p), 0, exc.reason))
-        fn = RemoteFunction(child, ex.function, where[ex.function])
-        report = run_cases(ex, fn, str(p), echo=echo, progress=progress)
+            report = not_run(guess, str(p), StudentError(str(p), 0, exc.reason))
+        else:
+            fn = RemoteFunction(child, ex.function, where[ex.function])
+            report = run_cases(ex, fn, str(p), echo=echo, progress=progress)
     printed = child.printed()
     if printed and echo is not None:
         more = f" (the first {PRINTED_LINES} of {len(printed)})" if len(
