@@ -8,7 +8,10 @@ answered with one notification on the page that sent it.
 
 from __future__ import annotations
 
+import sys
+
 import pytest
+import test_hostile_runs as hostile
 from _helpers import settled, wait_for
 
 from armlab.app.lessons.run_files import REFUSED
@@ -106,12 +109,14 @@ def test_a_page_that_leaves_mid_upload_leaves_nothing_behind(lab, pages):
     content = b"z" * (20 * 2**20)
     transfer = page.upload("Open run", "left.armlab-run.zip", content, part_bytes=PART,
                            only=list(range(30)))  # 15 of its 20 MiB, then it leaves
-    page.wait_for(lambda: kept(lab, transfer) and len(
-        lab.server.gui._current_file_upload_states[transfer]["parts"]) == 30,
-        what="the parts kept")
+    states = lab.server.gui._current_file_upload_states
+    page.wait_for(lambda: kept(lab, transfer) and len(states[transfer]["parts"]) == 30,
+                  what="the parts kept")
+    part = states[transfer]["parts"][0]
     page.close()
     wait_for(lambda: not kept(lab, transfer), 30.0, "the upload dropped")
     assert unfinished() == (0, 0)
+    assert sys.getrefcount(part) == 2  # this name and the call's: the lab holds no part
 
 
 @pytest.mark.parametrize("how,says", [
@@ -149,6 +154,24 @@ def test_every_failing_upload_is_answered_on_its_page(lab, pages, monkeypatch, h
     assert says in refusals(page)[-1]
     settled(lab.server, page)
     assert len(refusals(page)) == before + 1  # one notification, not one a part
+
+
+@pytest.mark.parametrize("case", ["4000-digit integer in a gain", "2 MB string in the robot",
+                                  "a member name with a NUL", "bzip2 member"])
+def test_a_hostile_file_is_answered_with_its_short_line(lab, pages, case):
+    """What killed the upload handler (a 4000-digit gain) or filled the page (a 2 MB
+    string) is one short notification; the lab goes on."""
+    make, says = next((m, w) for c, m, w in hostile.HOSTILE if c == case)
+    page = pages()
+    before = len(refusals(page))
+    page.upload("Open run", "hostile.armlab-run.zip", make())
+    page.wait_for(lambda: len(refusals(page)) > before, 60.0, what="the page told")
+    told = refusals(page)[-1]
+    assert told.startswith("hostile.armlab-run.zip") and len(told) <= 320, told[:1000]
+    if case != "2 MB string in the robot":  # the lab's robot is checked first there
+        assert says in told
+    settled(lab.server, page)
+    assert len(refusals(page)) == before + 1
 
 
 def uploads_uuid(page: HeadlessClient) -> str:
