@@ -262,6 +262,12 @@ def _rmrc_cases() -> list[ValueCase]:
         cases.append(ValueCase(f"a step that needs exactly {k} halvings: {what}",
                                (q, J, J_inv, dX, 1.5 * err * 0.5**k, lo, hi),
                                atol=0.0 if k > MAX_HALVINGS else 1e-15, rtol=0.0))
+    q0 = np.zeros(3)
+    J0 = arm.jacobian(q0)[:3]  # stretched: rank 2, x (along the arm) out of its reach
+    cases.append(ValueCase("the stretched arm (singular J, its pseudo-inverse): dX partly "
+                           "along the arm, halved until the error is under e",
+                           (q0, J0, np.linalg.pinv(J0), np.array([0.01, 0.02, -0.01]), 1e-9,
+                            lo, hi), atol=1e-15, rtol=1e-12))
     cases.append(ValueCase("zero step: q unchanged", (q, J, jacobian_inverse(J), np.zeros(3),
                                                       1e-9, lo, hi)))
     return cases
