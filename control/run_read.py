@@ -287,7 +287,7 @@ class _Lines:
         if len(line) > self.limit:
             raise RunFileError(f"{self._label}: {CSV_MEMBER} line {self.number} is longer "
                                f"than {self.limit} characters (it starts "
-                               f"{quote(line, 60)}); the file was edited or damaged")
+                               f"{clip(line, 60)}); the file was edited or damaged")
         return line
 
 

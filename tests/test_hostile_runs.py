@@ -319,6 +319,23 @@ def nul_name() -> bytes:
     return raw_zip(out)
 
 
+def long_name() -> bytes:
+    items = good_members()
+    out = [(n.encode(), deflate(d), 8, len(d), zlib.crc32(d)) for n, d in items.items()]
+    out.append((b"a" * 300, deflate(b"x"), 8, 1, zlib.crc32(b"x")))
+    return raw_zip(out)
+
+
+def long_cell(digits: int) -> bytes:
+    """signals.csv whose third row's first q_cmd cell is a number of ``digits`` digits."""
+    meta = good_meta()
+    width = len(meta["columns"]) - 1
+    rows = "".join(f"{0.016 * i!r}," + ",".join(
+        ["1" * digits if i == 2 and k == 0 else "0.1" for k in range(width)]) + "\n"
+        for i in range(5))
+    return with_members(signals_csv=csv_of(rows, meta))
+
+
 def data_descriptor_lie() -> bytes:
     """signals.csv with a data descriptor: its directory declares 1000 bytes, its stream
     unpacks to 8 MiB."""
@@ -385,6 +402,11 @@ HOSTILE = [
      "is not an armlab run (its format is '"),
     ("2 MB string in the robot", lambda: long_string("robot"), "the robot is not named"),
     ("a member name with a NUL", nul_name, "'signals.csv\\x00.exe', with a NUL"),
+    ("a member name of 300 bytes", long_name, "a member named with 300 bytes"),
+    ("a 200-digit number in a cell", lambda: long_cell(200),
+     "signals.csv line 4, column 'q_cmd.theta1': '1111"),
+    ("a 4000-digit number in a cell", lambda: long_cell(4000),
+     "signals.csv line 4 is longer than 280 characters (it starts 0.032,1111"),
     ("a million values in run.json", many_json_values,
      "run.json holds up to 2000034 values (counted by its commas and brackets)"),
     ("a data descriptor under-declaring", data_descriptor_lie,
