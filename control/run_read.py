@@ -399,6 +399,6 @@ def _number(cell: str, line: int, column: str, label: str) -> float:
             pass
         why = "is not a number"
     else:
-        why = f"is {len(cell)} characters long; a number is at most {MAX_NUMBER_CHARS}"
+        why = f"is too long: a number is at most {MAX_NUMBER_CHARS} characters"
     raise RunFileError(f"{label}: {CSV_MEMBER} line {line}, column {quote(column, 60)}: "
                        f"{quote(cell, 40)} {why}")
