@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
 import subprocess
 import sys
 
@@ -57,6 +58,21 @@ def _pose_arg(pose: dict[str, float]) -> str:
 def _q_deg(lesson) -> np.ndarray:
     snap = lesson.loop.recorder.snapshot(0.1)
     return np.degrees(snap["q"][-1]) if len(snap["t"]) else np.full(lesson.model.n, np.nan)
+
+
+def _at_rest(lesson) -> None:
+    """Wait until the arm moved less than a tenth of a degree over half a second."""
+    last = [_q_deg(lesson), lesson.loop.status.t]
+
+    def resting() -> bool:
+        if lesson.loop.status.t - last[1] < 0.5:
+            return False
+        now = _q_deg(lesson)
+        done = bool(np.max(np.abs(now - last[0])) < 0.1)
+        last[:] = [now, lesson.loop.status.t]
+        return done
+
+    wait_for(resting, 60, "the arm at rest")
 
 
 def _page_sliders(page, model) -> np.ndarray:
@@ -157,16 +173,29 @@ def test_the_page_starts_where_the_arm_is_and_no_goal_jumps(family, drafted, tmp
                 _largest_goal_jump(sent, robot)
             # E-STOP (the arm, unpowered, sinks), then Reset: held where it is then, the
             # sliders on the arm
+            said = len(caplog.records)
             lab.estop()
             wait_for(lambda: lesson.loop.status.estopped, 30, "the E-STOP")
-            wait_for(lambda: np.max(np.abs(_page_sliders(page, model) - _q_deg(lesson)))
-                     <= SLIDER_STEP, 30, "the sliders on the stopped arm")
+            # the page's press and the loop both send the torque-off: one line is said
+            lines = [r for r in caplog.records[said:] if r.levelno >= logging.WARNING
+                     and "torque off sent" in r.getMessage()]
+            assert len(lines) == 1, [r.getMessage() for r in caplog.records[said:]]
+            _at_rest(lesson)  # the unpowered arm sinks, maybe onto a stop
+            lo, hi = np.degrees(lesson.loop.lower), np.degrees(lesson.loop.upper)
+            # (a slider ends at its joint's limit, on its step, for an arm sunk past it)
+            wait_for(lambda: np.max(np.abs(_page_sliders(page, model)
+                                           - np.clip(_q_deg(lesson), lo, hi)))
+                     <= SLIDER_STEP + step, 30, lambda: f"the sliders on the stopped arm "
+                     f"({_page_sliders(page, model)} vs {_q_deg(lesson)})")
             before = len(emu.packets("rx"))
             page.click("Reset (after E-STOP or a fault)")
             wait_for(lambda: lesson.loop.status.active, 60, "the arm held again")
             held, t_held = _q_deg(lesson), lesson.loop.status.t
             wait_for(lambda: lesson.loop.status.t > t_held + 1.0, 30, "a second held")
-            assert np.max(np.abs(_q_deg(lesson) - held)) <= DROOP_DEG, (held, _q_deg(lesson))
+            if np.all((held > lo + DROOP_DEG) & (held < hi - DROOP_DEG)):
+                # (an arm that sank past a joint limit is brought back inside it)
+                assert np.max(np.abs(_q_deg(lesson) - held)) <= DROOP_DEG, \
+                    (held, _q_deg(lesson))
             wait_for(lambda: np.max(np.abs(_page_sliders(page, model) - held))
                      <= SLIDER_STEP + DROOP_DEG, 30, "the sliders on the arm after Reset")
             sent = emu.packets("rx")[before:]
@@ -219,3 +248,27 @@ def test_the_thesis_arm_is_held_where_it_is_and_its_line_approached_at_the_bound
         ok = k < len(tw)
         speed = np.abs(aw[k[ok]] - aw[ok]) / (tw[k[ok]] - tw[ok])
         assert speed.max() <= 1.2 * APPROACH_SPEED, (servo, speed.max())
+
+
+def test_a_link_lost_with_the_torque_already_off_says_so_and_does_not_alarm():
+    """E-STOP first, then the cable pulled: nothing holds the arm, so the lab says the
+    link is down and the torque was already off, never "Torque off could not be sent"."""
+    from armlab.app.lessons._loop_state import UNSENT_BANNER, stopped_state
+
+    robot, pose, _ = ARMS["xseries"]
+    with emulator("--robot", robot, "--pose", _pose_arg(pose)) as emu, \
+            Lab(ServeOptions(robot=robot, backend="serial", port=emu.port,
+                             http_port=0)) as lab:
+        loop = lab.lesson.loop
+        wait_for(lambda: loop.status.active, 60, "the arm held")
+        lab.estop()
+        wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 30, "E-STOP")
+        emu.stop(signal.SIGKILL)
+        wait_for(lambda: loop.status.link_down, 60, "the loop to notice the lost link")
+        lab.estop()  # pressed again: the link is gone
+        wait_for(lambda: "already off" in loop.status.message, 30,
+                 lambda: f"the message saying so ({loop.status.message!r})")
+        st = loop.status
+        assert not st.torque_off_unsent, st
+        assert stopped_state(st) != UNSENT_BANNER
+        assert "already off" in (st.fault or ""), st.fault

@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
@@ -123,6 +124,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         self.estops = 0
         self._estop_unsent = False  # the last torque-off could not be written
         self._estop_logged = -math.inf  # monotonic s of the last "torque off sent" line
+        self._estop_lock = threading.Lock()
         self._torque = False
         self._shutdown = np.zeros(self.map.n, dtype=bool)
         self._closed = False
@@ -200,6 +202,10 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
             True once the packet was written to the port; False when it could not be (the
             servos' torque is then unknown: the caller must say so, not "torque off").
         """
+        with self._estop_lock:  # the page's press and the loop's may come at once
+            return self._estop()
+
+    def _estop(self) -> bool:
         self.estops += 1
         was_on = self._torque
         try:
