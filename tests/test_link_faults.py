@@ -136,6 +136,7 @@ def _outcome(kind: str, rate: float, *, robot: str = "receptionist_arm",
     from armlab.app.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
     from armlab.control.backend import BackendError
+    from armlab.control.commands import Reset
 
     args = ["--robot", robot, f"--{kind}", str(rate), "--seed", "7", *emulate]
     if kind == "delay":
@@ -152,6 +153,8 @@ def _outcome(kind: str, rate: float, *, robot: str = "receptionist_arm",
             deadline = time.monotonic() + 120.0
             while time.monotonic() < deadline:  # poll: the loop's own clock decides
                 st = loop.status
+                if st.held_off is not None:  # an uncalibrated SO-101: a person confirms
+                    loop.post(Reset())
                 if st.fault is not None:
                     assert not st.active
                     return "stopped", st.fault

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -24,6 +25,7 @@ import numpy as np
 from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.gait_loop import STAND_UP_S, GaitLoop
 from armlab.control.runs import Run, lab_version, run_from_snapshot, utc_now
+from armlab.control.trajectory import APPROACH_SPEED
 from armlab.control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
 from armlab.kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
 from armlab.kinematics.model import Quadruped, load_robot
@@ -122,18 +124,27 @@ def walk_on_servos(backend_factory: Any, gait: str = "trot", params: SineParams 
     kw = {"q0": walker.state().q, "dt": SIM_DT} if not realtime else {}
     backend = backend_factory(model, **kw)
     to_servo = getattr(getattr(backend, "map", None), "to_servo", None)
+    # servos found folded rise for longer than STAND_UP_S, at the approach speed
+    rise_max = max(STAND_UP_S, math.pi / APPROACH_SPEED)
     loop = GaitLoop(walker, backend, period=period, realtime=realtime, speed=speed,
-                    to_servo=to_servo, history_s=STAND_UP_S + cycles / speed + 5.0)
+                    to_servo=to_servo, history_s=rise_max + cycles / speed + 5.0)
     try:
         loop.go(plan)
         duration = STAND_UP_S + cycles / speed + 2 * period
         if realtime:
             loop.start()
-            end = time.monotonic() + 3 * duration + 10.0
-            while loop.status.t < duration and not loop.status.fault:
-                if time.monotonic() > end:
-                    raise ValueError("the servos did not keep up with the gait loop")
-                time.sleep(0.02)
+            end = time.monotonic() + 3 * (rise_max + duration) + 10.0
+
+            def wait(done: Callable[[], bool]) -> None:
+                while not done() and not loop.status.fault:
+                    if time.monotonic() > end:
+                        raise ValueError("the servos did not keep up with the gait loop")
+                    time.sleep(0.02)
+
+            # risen from wherever the servos were, then the cycles walked
+            wait(lambda: loop.status.t > 3 * period and not loop.status.standing_up)
+            walked = loop.status.t + cycles / speed + 2 * period
+            wait(lambda: loop.status.t >= walked)
             loop.shutdown(torque_off=True)
         else:
             loop.run_for(duration)
