@@ -114,3 +114,37 @@ def test_on_a_phone_the_robot_is_above_the_controls_and_estop_stays_in_view(brow
         _estop_then_reset(lab, pg, lambda: pg.locator("[data-armlab=estop]").tap())
     finally:
         pg.close()
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 600)])
+def test_on_a_desktop_estop_stays_in_view_when_the_controls_scroll(browser, lab, size):
+    """The Gains tab is longer than the panel: scrolled to its end, E-STOP is still on
+    screen, uncovered, and a click on it stops the arm."""
+    assert lab.lesson_name == "compliance"
+    width, height = size
+    pg = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        pg.goto(lab.url)
+        pg.get_by_role("button", name="Run thesis line").wait_for(timeout=120_000)
+        wait_for(lambda: _marked(pg, "estop", "estop-row"), 60, "the page's script to mark E-STOP")
+        pg.get_by_role("tab", name="Gains").click()
+        scroller = pg.locator("[data-armlab=estop-row]").evaluate_handle(
+            "e => e.closest('.mantine-ScrollArea-viewport')")
+
+        def scrolled_far() -> bool:  # (the tab's fields may still be arriving)
+            return bool(scroller.evaluate(
+                "s => { if (!s) return false; s.scrollTop = s.scrollHeight; "
+                "return s.scrollTop > 100; }"))
+
+        wait_for(scrolled_far, 60, "the controls to scroll", every=0.5)
+        estop = pg.locator("[data-armlab=estop]").evaluate(RECT_JS)
+        assert 0 <= estop[1] and estop[1] + estop[3] <= height, estop
+        assert pg.evaluate(UNCOVERED_JS)
+        loop = lab.lesson.rig.loop
+        pg.locator("[data-armlab=estop]").click()  # from where the Gains tab is scrolled
+        wait_for(lambda: loop.status.estopped and not loop.status.torque_on, 60, "the e-stop")
+        pg.get_by_role("tab", name="Run").click()
+        pg.get_by_role("button", name="Reset").click()
+        wait_for(lambda: loop.status.torque_on and not loop.status.estopped, 60, "torque on")
+    finally:
+        pg.close()

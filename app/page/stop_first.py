@@ -1,4 +1,4 @@
-"""E-STOP first on every page: the first Tab stop, the Esc key, a large button, pinned on a phone.
+"""E-STOP first on every page: the first Tab stop, the Esc key, a large button, always in view.
 
 viser has no API for key presses or for an element's tab order (viser issue #691:
 "Not currently"). :func:`install` sends each page, when it connects, the small script
@@ -20,7 +20,9 @@ What the script does on the page:
   mobile layout) the controls fill the lower :data:`SHEET_VH` % of the screen, E-STOP
   is pinned just above them whatever they scroll to, and the 3D view takes the space
   above E-STOP, so the robot is framed there (``armlab.app.page.camera`` re-frames a page whose
-  view changed shape).
+  view changed shape); on a wider page E-STOP's row sticks to the top of the control
+  panel however far the panel is scrolled (the boxes between it and the panel's
+  scrolling area stop clipping it).
 
 If a viser release drops the message :mod:`armlab.app.viser_ext.page_js` uses, none of this happens
 (the buttons still work with the mouse); ``tests/test_browser_stop_first.py`` then fails.

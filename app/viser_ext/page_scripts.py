@@ -30,6 +30,11 @@ STOP_CSS = """
   [data-armlab="view"] {{ align-self: flex-start !important;
     height: calc({sheet_rest}vh - {estop_room}px) !important; }}
 }}
+@media (min-width: {desktop_min_width_px}px) {{
+  [data-armlab="estop-row"] {{ position: sticky !important; top: 0; z-index: 30;
+    background: var(--mantine-color-body); padding-bottom: 4px; }}
+  [data-armlab="unclip"] {{ overflow: visible !important; }}
+}}
 """
 
 #: What a page runs for E-STOP first (:mod:`armlab.app.page.stop_first` says what it does).
@@ -55,6 +60,13 @@ STOP_SCRIPT = """
         mark(b, 'estop');
         if (!b.parentElement) return;
         mark(b.parentElement, 'estop-row');
+        // on a desktop the row sticks to the top of the panel's scrolling area: the
+        // boxes between them that clip (overflow hidden) would hold it, so they do not
+        for (let up = b.parentElement.parentElement;
+             up && !up.classList.contains('mantine-ScrollArea-viewport') && up !== document.body;
+             up = up.parentElement) {
+          if (getComputedStyle(up).overflowY === 'hidden' && !up.dataset.armlab) mark(up, 'unclip');
+        }
         // viser's phone sheet: the ancestor fixed (inline) at the bottom of the screen
         let el = b.parentElement.parentElement;
         while (el && el !== document.body && el.style.position !== 'fixed') el = el.parentElement;
@@ -94,8 +106,10 @@ def stop_first_script(*, label: str, min_height_px: int, phone_max_width_px: int
     """The E-STOP-first script (:data:`STOP_SCRIPT`) for the button called ``label``: the
     first Tab focuses it, Esc presses it; its style makes it at least ``min_height_px``
     tall and, in a viewport at most ``phone_max_width_px`` wide, pins it above the
-    controls, which take the lower ``sheet_vh`` % of the screen."""
+    controls, which take the lower ``sheet_vh`` % of the screen; in a wider one it sticks to
+    the top of the control panel however far the panel is scrolled."""
     css = STOP_CSS.format(min_height_px=min_height_px, phone_max_width_px=phone_max_width_px,
+                          desktop_min_width_px=phone_max_width_px + 1,
                           sheet_vh=sheet_vh, sheet_rest=100 - sheet_vh,
                           estop_room=min_height_px + 12)
     return STOP_SCRIPT % {"label": json.dumps(label), "css": json.dumps(css)}
