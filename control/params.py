@@ -260,6 +260,31 @@ def servo_loop_pole(kp: float, kv: float, period: float, *, omega_s: float = SER
     return float(zetas[i]), float(abs(roots[i]))
 
 
+def _settles(kp: float, kv: float, period: float) -> bool:
+    """Whether the integrated PD loop settles at ``period`` on an ideal joint and, closed
+    through the servos' own lag, keeps some damping (ζ > 0.1)."""
+    radius = _dominant(integrated_pd_matrix(kp, kv, period), period)[0]
+    return radius < 0.999 and servo_loop_pole(kp, kv, period)[0] > 0.1
+
+
+def stabilising_fix(params: Params) -> str:
+    """What to change so that diverging gains settle, worked out for these gains: Kv for
+    ζp = 0.7 at this Kp when that settles, else the largest Kp (in steps of 20 %) that
+    settles with its own ζp = 0.7 Kv, else a shorter period."""
+    kp, kv, T = params.kp, params.kv, params.period
+    kv_good = 2.0 * 0.7 * math.sqrt(max(kp, 0.0))
+    if kp > 0.0 and _settles(kp, kv_good, T):
+        return (f"{'raise' if kv_good > kv else 'lower'} Kv to about {kv_good:.2g} "
+                "(ζp = 0.7)")
+    k = kp
+    for _ in range(40):
+        k *= 0.8
+        if _settles(k, 2.0 * 0.7 * math.sqrt(k), T):
+            return (f"lower Kp to about {k:.2g} with Kv about "
+                    f"{2.0 * 0.7 * math.sqrt(k):.2g} (ζp = 0.7)")
+    return f"shorten the period below {T * 1e3:g} ms"
+
+
 def _warning(params: Params, st: LoopStability) -> str | None:
     """A sentence for the student when the gains are unstable, badly damped or too fast.
 
@@ -269,8 +294,10 @@ def _warning(params: Params, st: LoopStability) -> str | None:
     T = params.period
     msgs: list[str] = []
     if st.radius >= 1.0 - 1e-12:
-        msgs.append(f"unstable: the PD loop diverges at T = {T * 1e3:g} ms "
-                    f"(pole radius {st.radius:.3f}); lower Kp or Kv or the period")
+        cause = "Kv = 0: nothing damps it, " if params.kv == 0.0 else ""
+        msgs.append(f"the PD loop diverges at T = {T * 1e3:g} ms ({cause}pole radius "
+                    f"{st.radius:.4f}: at 1 or more the sampled loop never settles); "
+                    f"{stabilising_fix(params)}")
     elif params.kp == 0.0:
         msgs.append("Kp = 0: no position feedback, the arm drifts")
     else:
@@ -292,7 +319,7 @@ def _warning(params: Params, st: LoopStability) -> str | None:
                         f"{st.servo_omega:.1f} rad/s); lower Kv or Kp")
     if params.compliance:
         if st.env_radius >= 1.0 - 1e-12:
-            msgs.append(f"unstable: the environment filter (2.7) diverges at T = {T * 1e3:g} ms; "
+            msgs.append(f"the environment filter (2.7) diverges at T = {T * 1e3:g} ms; "
                         "raise M_env or lower D_env, K_env")
         else:
             if st.env_zeta < 0.2:

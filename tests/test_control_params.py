@@ -68,7 +68,7 @@ def test_gains_that_diverge_at_the_period_are_reported_unstable():
     # Kv·T > 2 makes the sampled loop diverge (semi-implicit Euler): 50 · 0.05 = 2.5
     p = Params(kp=10.0, kv=50.0, period=0.05)
     assert loop_stability(p).unstable
-    assert "unstable" in warning_of(p)
+    assert "diverges" in warning_of(p)
     # the same gains at 16 ms converge
     assert not loop_stability(Params(kp=10.0, kv=50.0, period=0.016)).unstable
 
@@ -76,10 +76,11 @@ def test_gains_that_diverge_at_the_period_are_reported_unstable():
 def test_the_rule_refuses_unstable_gains_on_servos_only_and_says_why():
     p = Params(kp=10.0, kv=50.0, period=0.05)  # Kv·T = 2.5: diverges
     with pytest.raises(ValueError, match=r"^unstable gains are refused on real servos: "
-                                         r"unstable: the PD loop diverges at T = 50 ms"):
+                                         r"the PD loop diverges at T = 50 ms"):
         check_gains(p, servos=True)
     taken = check_gains(p, servos=False)  # a simulated arm takes them, to be seen failing
-    assert taken.unstable and taken.params is p and taken.warning.startswith("unstable")
+    assert taken.unstable and taken.params is p
+    assert taken.warning.startswith("the PD loop diverges")
     # badly damped but convergent gains are taken on servos too, with their warning
     t41 = check_gains(preset("thesis Table 4.1"), servos=True)
     assert not t41.unstable and "badly damped" in t41.warning
@@ -95,3 +96,23 @@ def test_too_fast_for_the_period_is_flagged():
     assert warn is not None and warn.startswith("too fast for the period: ωp·T = 0.69")
     # and closed through the servos' own lag it grows (ζ = -0.46 at 15.9 rad/s)
     assert "likely unstable on the servos" in warn and "15.9 rad/s" in warn
+
+
+def test_a_diverging_loop_is_told_its_cause_and_a_fix_that_settles():
+    """Kp 200, Kv 0 at 16 ms: nothing damps the loop (pole radius 1, not "lower Kv"); the
+    fix named is one that settles, through the servos' lag too; Kv·T too large is told to
+    lower Kv."""
+    import re
+
+    from armlab.control.params import _settles
+
+    said = warning_of(Params(kp=200.0, kv=0.0, period=0.016))
+    assert said.startswith("the PD loop diverges at T = 16 ms (Kv = 0: nothing damps it")
+    assert "unstable" not in said and "lower Kp or Kv" not in said
+    kp, kv = map(float, re.search(r"lower Kp to about ([\d.]+) with Kv about ([\d.]+)",
+                                  said).groups())
+    assert _settles(kp, kv, 0.016) and check_gains(Params(kp=kp, kv=kv, period=0.016),
+                                                   servos=True).warning is None
+    said = warning_of(Params(kp=10.0, kv=50.0, period=0.05))
+    kv = float(re.search(r"lower Kv to about ([\d.]+)", said).group(1))
+    assert _settles(10.0, kv, 0.05)

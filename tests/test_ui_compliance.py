@@ -496,7 +496,7 @@ def test_unstable_gains_on_servos_are_refused_with_one_message_and_the_slider_ba
         assert len(checked) == 2 and checked[1].kv == 50.0  # the rule, once, said no
         (title, body), = page.notifications[seen:]
         assert title == "Value refused"
-        assert body.startswith(f"{REFUSED_ON_SERVOS}: unstable: the PD loop diverges at "
+        assert body.startswith(f"{REFUSED_ON_SERVOS}: the PD loop diverges at "
                                "T = 50 ms"), body
         assert body.endswith(f"; kept {DEFAULT.kv:g}.")
         assert loop.params.kv == DEFAULT.kv and lab.lesson.gains.params == loop.params
