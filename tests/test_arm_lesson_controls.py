@@ -217,3 +217,23 @@ def _spare_joints_do_their_job(lab, page, q0: np.ndarray, offset: np.ndarray) ->
 def test_spare_joints_keep_the_hand_on_the_target_and_leave_the_limits(omx, page):
     _spare_joints_do_their_job(omx, page, np.array([0.3, -1.2, 0.6, 1.6]),
                                np.array([0.03, -0.03, 0.02]))
+
+
+def test_home_brings_the_arm_back_at_the_approach_speed(omx, page):
+    """After a move far from home, **Home** moves every joint back to its zero, its command
+    never faster than the lab's approach speed (Reset only holds the arm where it is)."""
+    from armlab.control.trajectory import APPROACH_SPEED
+
+    lesson = omx.lesson
+    _settle(lesson, np.radians([40.0, -30.0, 30.0, 20.0]))
+    t0 = lesson.loop.status.t
+    page.click("Home")
+    wait_for(lambda: lesson.loop.status.trajectory is not None, 30.0, "the move home")
+    wait_for(lambda: lesson.loop.status.trajectory is None, 60.0, "the arm home")
+    wait_for(lambda: np.abs(_q(lesson)).max() < math.radians(2.0), 60.0,
+             lambda: f"the arm at zero ({np.degrees(_q(lesson))})")
+    snap = lesson.loop.recorder.snapshot(lesson.loop.status.t - t0)
+    t, q_cmd = snap["t"], snap["q_cmd"]
+    ok = np.isfinite(q_cmd).all(axis=1)
+    speed = np.abs(np.diff(q_cmd[ok], axis=0)) / np.diff(t[ok])[:, None]
+    assert speed.max() <= APPROACH_SPEED * 1.01, speed.max()

@@ -75,6 +75,19 @@ def test_serve_prints_a_loopback_url_on_a_free_port_and_stops_on_ctrl_c():
     assert "stopping" in out
 
 
+def test_a_class_on_loopback_is_told_that_no_phone_can_join():
+    """``serve --classroom`` without ``--host``: the console says the students cannot join
+    and what to pass."""
+    proc, url = start_serve("--classroom", "--http-port", "0")
+    try:
+        assert urllib.parse.urlsplit(url).hostname == "127.0.0.1"
+    finally:
+        code, out, err = stop(proc)
+    assert code == 0, err
+    warned = [line for line in err.splitlines() if "cannot join" in line]
+    assert len(warned) == 1 and "--host 0.0.0.0" in warned[0], err
+
+
 def test_serve_refuses_serial_without_a_port():
     res = subprocess.run([sys.executable, "-m", "armlab.app", "serve", "--backend", "serial"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)

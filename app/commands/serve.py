@@ -95,6 +95,10 @@ def run(args: argparse.Namespace) -> int:
             return 3
         try:
             lab.wait_until_loadable()
+            if lab.roles is not None and options.host in ("127.0.0.1", "localhost", "::1"):
+                print(f"warning: the class listens on {options.host} only: students' phones "
+                      "and laptops cannot join; start it with --host 0.0.0.0 (or this "
+                      "machine's address on the room's network)", file=sys.stderr, flush=True)
             if options.host not in ("127.0.0.1", "localhost", "::1") and lab.roles is None:
                 print(f"warning: listening on {options.host} without --classroom: every "
                       "browser with the URL then controls the arm", file=sys.stderr, flush=True)

@@ -271,6 +271,11 @@ class ArmLesson(LessonBase):
             self.confirm.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
             reset = gui.add_button("Reset (after E-STOP or a fault)")
             reset.on_click(lambda e: guarded(e, lambda: post_reset(self.loop)))
+            home = gui.add_button("Home", icon=viser.Icon.HOME,
+                                  hint="Move every joint back to the arm's home pose (its "
+                                       "zero, inside the limits) at the lab's calm approach "
+                                       "speed")
+            home.on_click(lambda e: guarded(e, self.home))
             self.gripper = GripperControls(gui, model=self.model, backend=self.backend,
                                            loop=self.loop, view=self.view)
         self.controls = ArmControls(self.server, self._gui, tabs, model=self.model,
@@ -343,6 +348,16 @@ class ArmLesson(LessonBase):
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
         self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S, name=SLIDER_MOVE),
                                                 approach=True))
+
+    def home(self) -> None:
+        """Move the arm to its home pose (the model's zero, clipped into the limits) at the
+        lab's approach speed: the way back after a run left it far away (Reset only holds
+        it where it is, as on a real arm).
+
+        Raises:
+            ValueError: the loop is stopped: saying why nothing happened (Reset first).
+        """
+        self.move_to(self.model.neutral())
 
     def set_target(self, xyz: np.ndarray) -> None:
         """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
