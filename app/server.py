@@ -337,7 +337,12 @@ class Lab:
         return LessonContext(robot=o.robot, backend=o.backend, port=o.port, baud=o.baud,
                              realtime=o.realtime, tip_link=o.tip_link,
                              package_paths=tuple(o.package_paths), joint_map=o.joint_map,
-                             arm_process=self.arm_process, law=self.law)
+                             arm_process=self.arm_process, law=self.law, who=self._who)
+
+    def _who(self, client_id: int) -> str:
+        """The name page ``client_id`` goes by in the class ("" with no class)."""
+        room = getattr(self, "room", None)
+        return "" if room is None else room.roles.name(client_id)
 
     def _open(self, name: str) -> None:
         module = self._lessons[name]

@@ -303,6 +303,12 @@ class RingBuffer:
         with self._lock:
             return self._last(max(0, min(self._written - written, self._count))), self._written
 
+    def recent(self, rows: int) -> tuple[np.ndarray, int]:
+        """The newest ``rows`` rows kept, oldest first (a copy), and the number ever written,
+        read together: where a follower of the buffer (:meth:`since`) starts, with a lead."""
+        with self._lock:
+            return self._last(max(0, min(int(rows), self._count))), self._written
+
     def clear(self) -> None:
         with self._lock:
             self._head = self._count = 0

@@ -110,7 +110,21 @@ class Recorder:
             {"t": (m,), "wall": (m,), signal: (m, n), ...}, oldest first; safe to keep
             and modify.
         """
-        data = self._ring.rows(window_s, max_points=max_points)
+        return self.unpack(self._ring.rows(window_s, max_points=max_points))
+
+    def recent(self, rows: int) -> tuple[np.ndarray, int]:
+        """The newest ``rows`` raw rows and the count ever appended, read together (a
+        follower's start: :meth:`since` from that count on)."""
+        return self._ring.recent(rows)
+
+    @property
+    def width(self) -> int:
+        """Floats in a raw row (:meth:`since`): t, wall, then n per signal."""
+        return self._ring.width
+
+    def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        """Raw rows (m, :attr:`width`) as :meth:`snapshot` gives them: {"t": (m,), "wall":
+        (m,), signal: (m, n)} (views of ``data``)."""
         out = {"t": data[:, 0], "wall": data[:, 1]}
         for name in SIGNALS:
             out[name] = data[:, self._cols[name]]

@@ -37,6 +37,7 @@ The other modules (``_common``, ``compliance_plots``, ...) are the lessons' help
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -84,6 +85,8 @@ class LessonContext:
             classroom's private pages share one; None: a thread of the lesson's own).
         law: a student's own law (``armlab serve --exercise``): a servo-arm lesson's loop
             runs it in place of the lab's, beside a reference arm (None: the lab's own).
+        who: client id -> the name that page goes by in a class (None: no class); a run
+            file says who saved it.
     """
 
     robot: str = "receptionist_arm"
@@ -98,6 +101,7 @@ class LessonContext:
     arm_process: ArmProcess | None = None
     frames: FrameThread | None = None
     law: StudentLaw | None = None
+    who: Callable[[int], str] | None = None
 
 
 class ArmSource(Protocol):

@@ -175,6 +175,7 @@ class ComplianceLesson(LessonBase):
         self._last_servos = 0.0
         self._link = LinkMonitor()
         self.experiment: Experiment | None = None
+        self._measured: Experiment | None = None  #: the last experiment measured whole
         self.run_start: float | None = None  #: loop time the last run started (CSV)
         self.run_label = "recording"
         self.measured_pd: Measured | None = None
@@ -286,7 +287,9 @@ class ComplianceLesson(LessonBase):
         with tabs.add_tab("Files", viser.Icon.FILE):  # Save run, Open run (replay), Export page
             self.runs = RunControls(self.server, gui, lesson=NAME, arm=self._arm_now,
                                     figures=self.run_figures, start=lambda: self.run_start,
-                                    extra=self._run_extra, ghost_root="/compliance_replay")
+                                    extra=self._run_extra, ghost_root="/compliance_replay",
+                                    ctx=self.ctx, backend=self._backend_now,
+                                    live_figures=False)
         with self._gui.chart_panel("Live charts") as charts:
             self.plots = JointPlots(gui, charts, joint_names, default_joint=SERVO_3,
                                     reference=self.ctx.law is not None)
@@ -375,10 +378,15 @@ class ComplianceLesson(LessonBase):
         return rig.model, rig.loop
 
     def _run_extra(self) -> dict[str, object]:
-        """What a run file keeps besides the contract's fields: link lengths, backend, run."""
+        """What a run file keeps besides the contract's fields: the link lengths (the run,
+        law and backend: :class:`RunControls`)."""
         rig = self.rig
-        return {"link_lengths_cm": None if rig is None else rig.preset,
-                "backend": self.ctx.backend, "run": self.run_label}
+        return {"link_lengths_cm": None if rig is None else rig.preset}
+
+    def _backend_now(self) -> Backend | None:
+        """The arm's backend now (a run file names its servos)."""
+        rig = self.rig
+        return None if rig is None else rig.backend
 
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
@@ -394,7 +402,7 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
         t0 = self._now()
-        self.runs.post(rig.loop, RunTrajectory(rig.line))
+        self.runs.post(rig.loop, RunTrajectory(rig.line), run="thesis line")
         self.run_start, self.run_label = t0, "thesis line"
         self.experiment = Experiment("line", t0, ready_at=math.inf, label="thesis line")
         rig.scene.set_target(THESIS_LINE_END)
@@ -415,7 +423,8 @@ class ComplianceLesson(LessonBase):
                          step=math.radians(size), lower=loop.lower,
                          upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
-        self.runs.post(loop, RunTrajectory(plan.trajectory, approach=False))
+        self.runs.post(loop, RunTrajectory(plan.trajectory, approach=False),
+                       run=f"step {label}")
         self.run_start, self.run_label = t0, f"step {label}"
         self.experiment = Experiment(
             "step", t0, ready_at=t0 + plan.wait_s, joint=plan.joint, q0=plan.q0, q1=plan.q1,
@@ -436,10 +445,11 @@ class ComplianceLesson(LessonBase):
         force = size * np.array(PUSH_DIRECTIONS[pushes.direction])
         duration = pushes.duration if duration is None else duration
         t0 = self._now()
+        pushed_line = self._mark_line_pushed(push_n=size)
         self.runs.post(rig.loop, Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
-                                      duration=duration))
+                                      duration=duration), run=None if pushed_line else "push")
         self._push = (force, t0 + duration)
-        if self._mark_line_pushed(push_n=size):
+        if pushed_line:
             return
         self.run_start, self.run_label = t0, "push"
         self.experiment = Experiment("push", t0, ready_at=t0 + duration, push_n=size, label=(
@@ -508,10 +518,14 @@ class ComplianceLesson(LessonBase):
             return  # a malformed drag event: ignore it
         k = self._spring_k.value
         self._drag_anchor = anchor
+        drag = phase == "start" and not self._mark_line_pushed()
         self.runs.post(rig.loop, Spring(anchor, stiffness=k, link=rig.model.n - 1,
-                                        point=rig.model.tip[:3, 3]))
-        if phase == "start" and not self._mark_line_pushed():
+                                        point=rig.model.tip[:3, 3]),
+                       run="hand drag" if drag else None)
+        if drag:
             self.run_start, self.run_label = self._now(), "hand drag"
+        elif phase == "end" and self.runs.run_label == "hand drag":
+            self.runs.finish_run({}, t=self._now())  # a drag measures nothing
 
     def _mark_line_pushed(self, *, push_n: float | None = None) -> bool:
         """A push (of ``push_n`` N) or drag during a line run makes it a pushed run
@@ -647,10 +661,39 @@ class ComplianceLesson(LessonBase):
     def _measure(self) -> None:
         """The last experiment's figures, once it is over (the publisher calls this at each
         of its ticks: the loop's status is read only while one runs)."""
+        self.runs.tick()  # the run's rows kept apart from the recorder's window
         exp, rig = self.experiment, self.rig
         if exp is None or exp.done or rig is None:
             return
         st = rig.loop.status
+        try:
+            self._measure_experiment(exp, rig, st)
+        finally:
+            if exp.done:  # the run file keeps this run's own figures, nothing older
+                self.runs.finish_run(self._figures_of(exp), t=st.t)
+
+    def _figures_of(self, exp: Experiment) -> dict[str, float | None]:
+        """The figures experiment ``exp`` measured (those the page showed for it)."""
+        figures = self.run_figures()
+        if self._measured is not exp:  # not measured (no samples, a step cut short)
+            return {}
+        if exp.kind == "line":
+            names = (("pushed_error_deg", "yield_deg", "line_push_n") if exp.pushed
+                     else ("max_error_deg",))
+            return {k: getattr(figures, k) for k in names}
+        if exp.kind == "step" and self.measured_pd is not None:
+            m = self.measured_pd
+            return {"overshoot_pct": m.overshoot_pct, "peak_time_s": m.peak_time_s,
+                    "settling_s": m.settling_time_s, "rise_time_s": m.rise_time_s,
+                    "step_joint": figures.step_joint}
+        if exp.kind == "push" and self.measured_env is not None:
+            return {"push_n": figures.push_n, "static_gain_rad_per_nm":
+                    self.measured_env.static_gain,
+                    "stiffness_nm_per_rad": figures.stiffness_nm_per_rad}
+        return {}
+
+    def _measure_experiment(self, exp: Experiment, rig: Rig, st: LoopStatus) -> None:
+        """Measure ``exp`` if it is over (``exp.done`` then)."""
         if exp.kind == "line":
             if st.t < exp.t0 + 0.1 or st.trajectory is not None:
                 return
@@ -675,6 +718,7 @@ class ComplianceLesson(LessonBase):
                 self.chapter4 = Chapter4(err, ch4.pushed, None)
             self.last_run_text = chapter4_markdown(
                 self.chapter4, self.joint_labels)
+            self._measured = exp
             return
         if st.t < exp.ready_at:
             return
@@ -686,6 +730,7 @@ class ComplianceLesson(LessonBase):
                                                 q1=exp.q1, what=exp.label)
                 self._step_joint = exp.joint
                 set_content(self.step_result, measured_line(self.measured_pd))
+                self._measured = exp
             elif exp.kind == "push":
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
@@ -693,6 +738,7 @@ class ComplianceLesson(LessonBase):
                 self._push_n = exp.push_n
                 for beside in (self.pushes.result, self.push_result_run):  # both buttons
                     set_content(beside, measured_line(self.measured_env))
+                self._measured = exp
         except ValueError as exc:
             self.last_run_text = f"**Last run** ({exp.label}): not measured: {esc(str(exc))}"
 

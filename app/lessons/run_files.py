@@ -1,10 +1,17 @@
 """The Files tab of a lesson: **Save run**, **Open run**, **Export page**.
 
-- **Save run** sends the browser that pressed it the current run as a run file
-  (:mod:`armlab.control.runs`), named ``<robot>-<lesson>-<UTC time>.armlab-run.zip``:
-  the gains in force, the commands the lesson posted (with their loop times), every
-  signal the recorder holds from the run's start (the loop rate), the lesson's figures
-  (``run_figures()``), the robot, the lab's version.
+- **Save run** sends the browser that pressed it the last run as a run file
+  (:mod:`armlab.control.runs`), named ``<robot>-<lesson>-<UTC time>.armlab-run.zip``.
+  A run begins with the command a lesson posts with ``run=`` (a step, the thesis
+  line, a push): from then on its rows are kept apart from the recorder's window
+  (:class:`armlab.control.run_track.RunTrack`, at most 120 s) until the lesson
+  says it is over (:meth:`RunControls.finish_run`, with that run's own figures) and a
+  settling tail. The file holds the gains at its start and every change of them, the
+  commands from its first, every signal at the loop rate, its figures, who saved it
+  (the page's name in a class), which law ran (the lab's or the student's file, with
+  its SHA-256 and text), the backend and the lab's version. Saved while the run goes
+  on, it holds the run up to now, marked unfinished (no figures yet); with no run yet,
+  the recorder's live window, labelled so.
 - **Open run** takes a run file from the page (it arrives over the gated websocket;
   larger than :data:`armlab.control.runs.MAX_FILE_BYTES`, or past a page's or the lab's
   unfinished uploads, it is refused before it is kept, and a page's unfinished uploads
@@ -47,11 +54,13 @@ from armlab.app.export_html import export_html
 from armlab.app.lessons import RunFigures
 from armlab.app.lessons._common import send_download
 from armlab.app.lessons.replay_view import GhostModel, ReplayView, ghost_robot
+from armlab.app.lessons.run_facts import GainLog, backend_json, law_json
 from armlab.app.page.inputs import notify
 from armlab.app.page.surface import Surface
 from armlab.app.viser_ext import HooksMissing
 from armlab.app.viser_ext.uploads import limit_uploads
 from armlab.control.loop import ControlLoop
+from armlab.control.run_track import TAIL_S, RunTrack
 from armlab.control.runs import (
     MAX_FILE_BYTES,
     SUFFIX,
@@ -69,6 +78,8 @@ from armlab.kinematics.model import SerialChain
 MAX_COMMANDS = 5000
 #: s of record kept before the run's first command (the pose it started from)
 LEAD_S = 0.5
+#: What a run file's ``extra.run.state`` says (docs/runs.md).
+FINISHED, UNFINISHED, LIVE = "finished", "unfinished", "live window"
 #: The title of every refusal of a file.
 REFUSED = "Run file refused"
 #: The most characters of a refusal's reason a notification shows.
@@ -117,10 +128,25 @@ class Recording:
     extra: Mapping[str, object] = field(default_factory=dict)
 
 
-def arm_recording(model: SerialChain, loop: ControlLoop) -> Recording:
-    """A servo-arm lesson's :class:`Recording`: its loop's recorder and gains."""
+def arm_recording(model: SerialChain, loop: ControlLoop, *, whole: bool = True) -> Recording:
+    """A servo-arm lesson's :class:`Recording`: its loop's recorder (its whole window;
+    ``whole=False``: none of it, for a run kept apart) and gains."""
+    snap = loop.recorder.snapshot() if whole else {}
     return Recording(model=model, robot=model.name, joint_names=model.joint_names,
-                     snapshot=loop.recorder.snapshot(), params=loop.params.as_dict())
+                     snapshot=snap, params=loop.params.as_dict())
+
+
+@dataclass
+class _Run:
+    """The last run begun (:meth:`RunControls.begin_run`)."""
+
+    label: str
+    t0: float
+    params: dict[str, Any]
+    law: dict[str, Any]
+    track: RunTrack | None  #: its rows (None: a lesson without a recorder: the window's)
+    figures: dict[str, float | None] | None = None  #: frozen when measured
+    finished_at: float | None = None
 
 
 def command_json(command: object, *, t: float) -> dict[str, Any]:
@@ -191,6 +217,11 @@ class RunControls:
             record still holds, or the whole record).
         extra: () -> free JSON for the file's ``extra`` (link lengths, backend, ...).
         ghost_root: scene node of the replay ghost.
+        ctx: the lesson's context: its backend kind and port, the student's law, the
+            class's page names (None: a simulated arm, the lab's law, no class).
+        backend: () -> the backend object (its servos' models go into the file).
+        live_figures: a save with no run holds the lesson's figures (False: none, for a
+            lesson whose runs carry their own: a window's figures would be another run's).
 
     Attributes:
         replay: the replay (ghost, slider, chart).
@@ -203,7 +234,10 @@ class RunControls:
                  figures: Callable[[], RunFigures],
                  start: Callable[[], float | None] | None = None,
                  extra: Callable[[], Mapping[str, object]] | None = None,
-                 ghost_root: str) -> None:
+                 ghost_root: str, ctx: Any = None,
+                 backend: Callable[[], object] | None = None,
+                 live_figures: bool = True) -> None:
+        self._arm = arm
         if arm is not None:
             record, model = (lambda: arm_recording(*arm())), (lambda: arm()[0])
         if record is None or model is None:
@@ -217,6 +251,11 @@ class RunControls:
         self._extra = extra or dict
         self._commands: deque[dict[str, Any]] = deque(maxlen=MAX_COMMANDS)
         self._commands_lock = threading.Lock()  # posted from callbacks, read by Save
+        self._ctx = ctx
+        self._backend = backend or (lambda: None)
+        self._live_figures = live_figures
+        self._run: _Run | None = None
+        self._gains = GainLog()
         self.save = gui.add_button("Save run", icon=viser.Icon.DEVICE_FLOPPY,
                                    hint="Download this run as one file (.armlab-run.zip: "
                                         "gains, commands, every recorded signal, figures) "
@@ -228,8 +267,10 @@ class RunControls:
         self.export = gui.add_button("Export page", icon=viser.Icon.FILE_EXPORT,
                                      hint="Download this run as one HTML page (3D arm, "
                                           "charts, gains, figures) that opens offline")
-        self.save.on_click(lambda e: send_download(e, self.save_file))
-        self.export.on_click(lambda e: send_download(e, self.export_file))
+        self.save.on_click(lambda e: send_download(
+            e, lambda: self.save_file(by=getattr(e.client, "client_id", None))))
+        self.export.on_click(lambda e: send_download(
+            e, lambda: self.export_file(by=getattr(e.client, "client_id", None))))
         self._upload_lock = threading.Lock()
         self._last_upload: object = None  #: the upload last opened (or refused)
         self.open.on_upload(self._on_upload)
@@ -243,10 +284,61 @@ class RunControls:
 
     # ------------------------------------------------------------------ commands
 
-    def post(self, loop: CommandedLoop, command: object) -> None:
-        """Post ``command`` to ``loop`` and keep it for the file (at the loop's time)."""
+    def post(self, loop: CommandedLoop, command: object, *, run: str | None = None) -> None:
+        """Post ``command`` to ``loop`` and keep it for the file (at the loop's time); with
+        ``run`` (its label, e.g. "step θ2") the command begins a run
+        (:meth:`begin_run`)."""
+        t = loop.status.t
+        if run is not None:
+            self.begin_run(run, t=t)
         loop.post(command)
-        self.note(command, t=loop.status.t)
+        self.note(command, t=t)
+
+    def begin_run(self, label: str, *, t: float) -> None:
+        """A run labelled ``label`` begins at loop time ``t`` s (its first command's): its
+        rows are kept from now (and :data:`LEAD_S` s before), the last run's are let go."""
+        arm = self._arm() if self._arm is not None else None
+        params = arm[1].params.as_dict() if arm is not None else dict(self._record().params)
+        track = None
+        if arm is not None:
+            loop = arm[1]
+            track = RunTrack(loop.recorder, t0=t, period=float(loop.params.period))
+            self._gains.see(params, t=t)
+        self._run = _Run(label=label, t0=float(t), params=params, track=track,
+                         law=law_json(getattr(self._ctx, "law", None), params))
+
+    def finish_run(self, figures: Mapping[str, float | None] | None = None, *,
+                   t: float) -> None:
+        """The run is over at loop time ``t`` s, measured as ``figures`` (name -> value,
+        the unit in the name; only that run's): the file keeps those, and the rows to
+        :data:`~armlab.control.run_track.TAIL_S` s after ``t``."""
+        run = self._run
+        if run is None or run.finished_at is not None:
+            return
+        run.figures = {k: v for k, v in dict(figures or {}).items()}
+        run.finished_at = float(t)
+        if run.track is not None:
+            run.track.finish(t)
+
+    def tick(self) -> None:
+        """Keep the run's new rows and see the gains (a lesson calls this often, at least
+        once per recorder window: its publisher's every tick)."""
+        if self._arm is None:
+            return
+        try:
+            _, loop = self._arm()
+        except ValueError:  # the arm is being rebuilt
+            return
+        self._gains.see(loop.params.as_dict(), t=loop.status.t)
+        run = self._run
+        if run is not None and run.track is not None:
+            run.track.pull()
+
+    @property
+    def run_label(self) -> str | None:
+        """The last run's label (None: no run yet)."""
+        run = self._run
+        return None if run is None else run.label
 
     def note(self, command: object, *, t: float) -> None:
         """Keep ``command``, posted at loop time ``t`` s, for the file."""
@@ -262,13 +354,52 @@ class RunControls:
 
     # ------------------------------------------------------------------ the run
 
-    def current_run(self) -> Run:
-        """The run now: from its start (or the oldest command the record holds) to the
-        newest sample.
+    def current_run(self, *, by: int | None = None) -> Run:
+        """The last run (whole, or up to now marked unfinished), or with no run the
+        record's live window; saved by page ``by`` (its client id, for who saved it).
 
         Raises:
             ValueError: nothing recorded yet.
         """
+        run = self._run
+        if run is None or (run.track is None and self._arm is not None):
+            return self._live_run(by)
+        if run.track is not None:
+            model, loop = self._arm() if self._arm is not None else (None, None)
+            rec = arm_recording(model, loop, whole=False)
+            snap = {k: np.asarray(v) for k, v in run.track.snapshot().items()}
+        else:
+            rec = self._record()
+            snap = {k: np.asarray(v) for k, v in rec.snapshot.items()}
+            keep = np.asarray(snap["t"]) >= run.t0 - LEAD_S
+            if np.count_nonzero(keep) >= 2:
+                snap = {k: v[keep] for k, v in snap.items()}
+        t = snap["t"]
+        if len(t) == 0 or not np.isfinite(snap["q"]).all(axis=1).any():
+            raise ValueError("nothing recorded of the last run yet")
+        t_end = float(t[-1])
+        commands = [c for c in self.commands if run.t0 - 1e-9 <= c["t"] <= t_end]
+        finished = run.finished_at is not None
+        track = run.track
+        state = FINISHED if finished else UNFINISHED
+        about: dict[str, Any] = {
+            "label": run.label, "state": state, "t0_s": run.t0, "t_end_s": t_end,
+            "lead_s": LEAD_S}
+        if finished:
+            about["finished_at_s"] = run.finished_at
+            about["tail_s"] = TAIL_S
+        if track is not None and track.cut:
+            about["cut"] = (f"cut at the bound of {track.max_s:g} s or {track.max_rows} "
+                            "samples")
+        if track is not None and track.lost:
+            about["lost_samples"] = track.lost
+        figures = dict(run.figures or {}) if finished else {}
+        return self._make_run(rec, snap, commands=commands, figures=figures,
+                              params=run.params, about=about, law=run.law, by=by,
+                              gains=self._gains.between(run.t0, t_end))
+
+    def _live_run(self, by: int | None) -> Run:
+        """The record's window now, labelled as the live window (no run yet)."""
         rec = self._record()
         snap = {k: np.asarray(v) for k, v in rec.snapshot.items()}
         t = snap["t"]
@@ -276,31 +407,54 @@ class RunControls:
             raise ValueError("nothing recorded yet")
         commands = commands_in_record(self.commands, t)
         start = self._start()
-        if start is None and commands:
-            start = commands[0]["t"]
         if start is not None:
             keep = t >= start - LEAD_S
             if np.count_nonzero(keep) >= 2:
                 snap = {k: v[keep] for k, v in snap.items()}
             commands = [c for c in commands if c["t"] >= start - LEAD_S]
-        figures = dataclasses.asdict(self._figures())
+        t = snap["t"]
+        figures = dataclasses.asdict(self._figures()) if self._live_figures else {}
+        about = {"label": LIVE, "state": LIVE, "t0_s": float(t[0]), "t_end_s": float(t[-1])}
+        params = dict(rec.params)
+        return self._make_run(rec, snap, commands=commands, figures=figures, params=params,
+                              about=about, law=law_json(getattr(self._ctx, "law", None),
+                                                        params), by=by,
+                              gains=self._gains.between(float(t[0]), float(t[-1])))
+
+    def _make_run(self, rec: Recording, snap: Mapping[str, np.ndarray], *,
+                  commands: list[dict[str, Any]], figures: Mapping[str, Any],
+                  params: Mapping[str, Any], about: dict[str, Any], law: dict[str, Any],
+                  by: int | None, gains: list[dict[str, Any]]) -> Run:
+        """The :class:`Run` of ``snap`` with what every file says (who, law, backend)."""
+        ctx = self._ctx
+        who = getattr(ctx, "who", None)
+        name = who(by) if who is not None and by is not None else ""
+        extra: dict[str, object] = {**rec.extra, **self._extra()}
+        extra.update({
+            "run": about, "law": law, "gain_changes": gains,
+            "backend": backend_json(str(getattr(ctx, "backend", "sim")),
+                                    port=getattr(ctx, "port", None), backend=self._backend()),
+        })
+        if name:
+            extra["student"] = name
         return run_from_snapshot(
             snap, robot=rec.robot, joint_names=rec.joint_names, source=f"page:{self.lesson}",
-            params=dict(rec.params), commands=commands, figures=figures,
-            extra={**rec.extra, **self._extra()}, lesson_signals=rec.lesson_signals)
+            params=dict(params), commands=commands, figures=dict(figures),
+            extra=extra, lesson_signals=rec.lesson_signals)
 
     def file_name(self, run: Run, suffix: str) -> str:
         """``<robot>-<lesson>-<UTC time><suffix>``."""
         return f"{run.robot}-{self.lesson}-{file_stamp()}{suffix}"
 
-    def save_file(self) -> tuple[str, bytes]:
-        """(name, bytes) of the current run's file (ValueError: nothing recorded yet)."""
-        run = self.current_run()
+    def save_file(self, *, by: int | None = None) -> tuple[str, bytes]:
+        """(name, bytes) of the current run's file, saved by page ``by`` (ValueError:
+        nothing recorded yet)."""
+        run = self.current_run(by=by)
         return self.file_name(run, SUFFIX), run_bytes(run)
 
-    def export_file(self) -> tuple[str, bytes]:
+    def export_file(self, *, by: int | None = None) -> tuple[str, bytes]:
         """(name, bytes) of the current run's self-contained HTML page."""
-        run = self.current_run()
+        run = self.current_run(by=by)
         return self.file_name(run, ".html"), export_html(run, model=self._model()).encode()
 
     # ------------------------------------------------------------------ opening
