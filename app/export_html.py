@@ -3,8 +3,12 @@ the page's "Export page" button).
 
 The page shows the arm moving through the run in 3D (orbit with a drag, zoom with the
 wheel or two fingers, a time slider, play/pause), a chart per joint of the commanded
-and the measured angle and one of the torques recorded, the figures, gains and
-parameters as text, and the robot, source, date and lab version. It opens from a disk or
+and the measured angle and one of the torques recorded (at least the live page's spans:
+4° and 0.5 N·m, so a servo's one-step jitter at rest looks as small as it is), the
+figures measured (with the live page's labels and units), gains and parameters as
+text, the commands summarised (their raw JSON folded away), which law ran, and the
+robot, lesson, run, student, backend, date and lab version; its title says robot,
+lesson, run, student and UTC time (:mod:`armlab.app.export_sections`). It opens from a disk or
 a course site, offline, in any current browser, and asks no server for anything.
 
 Technique: the arm is drawn by a small hand-written script on a 2D ``<canvas>``
@@ -33,16 +37,15 @@ import importlib.metadata
 import json
 import math
 from html import escape
-from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from armlab.app import export_sections as sections
 from armlab.app.export_charts import Series, line_chart
 from armlab.app.export_viewer import SCRIPT, STYLE
-from armlab.app.page.plots import COLORS
-from armlab.control.params import PARAM_SPECS
+from armlab.app.page.plots import ANGLE_SPAN_DEG, COLORS, TORQUE_SPAN_NM
 from armlab.control.runs import check_drawable, save_file, writable_path
 from armlab.kinematics.hand import FingerGeometry, tip_positions
 from armlab.kinematics.model import (
@@ -63,9 +66,9 @@ MAX_FRAMES = 1500
 #: Time buckets of a chart (each keeps its lowest and highest sample of every line).
 CHART_BUCKETS = 600
 #: Most commands listed (the first ones; the rest are counted).
-MAX_COMMANDS = 200
+MAX_COMMANDS = sections.MAX_COMMANDS
 #: Most figures and most parameters listed (the first ones; the rest are counted).
-MAX_TABLE_ROWS = 500
+MAX_TABLE_ROWS = sections.MAX_TABLE_ROWS
 #: Most characters of the run's ``extra`` shown.
 MAX_EXTRA_CHARS = 50_000
 #: m per stored position unit in the page's data (0.1 mm).
@@ -85,8 +88,7 @@ Drawn = SerialChain | Quadruped | FingerGeometry
 HAND_ROBOT = "hand"
 
 #: How a figure's key names its unit (suffix -> unit shown).
-FIGURE_UNITS = {"_pct": "%", "_deg": "°", "_s": "s", "_nm": "N·m", "_n": "N", "_mm": "mm",
-                "_cm": "cm", "_m": "m", "_rad": "rad", "_hz": "Hz"}
+FIGURE_UNITS = sections.FIGURE_UNITS
 
 
 def model_for(run: Run) -> Drawn:
@@ -234,83 +236,8 @@ def _json_for_html(value: object) -> str:
             .replace("\u2028", "\\u2028").replace("\u2029", "\\u2029"))
 
 
-def _number(value: float) -> str:
-    return f"{value:.4g}" if math.isfinite(value) else str(value)
-
-
-def _figure_label(key: str) -> tuple[str, str]:
-    """(name, unit) of a figure key: "overshoot_pct" -> ("overshoot", "%"),
-    "max_yield_deg.theta1" (one per joint) -> ("max yield (theta1)", "°")."""
-    base, _, which = key.partition(".")
-    unit = ""
-    for suffix, named in FIGURE_UNITS.items():
-        if base.endswith(suffix) and len(base) > len(suffix):
-            base, unit = base[: -len(suffix)], named
-            break
-    name = base.replace("_", " ")
-    return (f"{name} ({which})" if which else name), unit
-
-
 def _rows(rows: list[tuple[str, str]]) -> str:
     return "".join(f"<tr><th>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
-
-
-def _more(count: int, shown: int = MAX_TABLE_ROWS) -> str:
-    """The note under a table cut at ``shown`` rows of ``count``."""
-    more = count - shown
-    return f'<p class="note">… and {more} more (in the run file).</p>' if more > 0 else ""
-
-
-def _figures_table(figures: dict[str, object]) -> str:
-    if not figures:
-        return '<p class="note">No figures were measured in this run.</p>'
-    body = []
-    for key, value in islice(figures.items(), MAX_TABLE_ROWS):
-        name, unit = _figure_label(str(key))
-        if value is None:
-            shown = "not measured"
-        elif isinstance(value, bool) or not isinstance(value, int | float):
-            shown = str(value)
-        else:
-            shown = f"{_number(float(value))} {unit}".strip()
-        body.append(f'<tr><th title="{escape(str(key))}">{escape(name)}</th>'
-                    f'<td class="num" data-figure="{escape(str(key))}">{escape(shown)}</td></tr>')
-    return f'<table id="figures">{"".join(body)}</table>{_more(len(figures))}'
-
-
-def _params_table(params: dict[str, object]) -> str:
-    if not params:
-        return '<p class="note">No parameters were recorded.</p>'
-    body = []
-    for key, value in islice(params.items(), MAX_TABLE_ROWS):
-        spec = PARAM_SPECS.get(str(key))
-        name = spec.label if spec else str(key)
-        unit = spec.unit if spec else ""
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            shown = f"{_number(float(value))} {unit}".strip()
-        else:
-            shown = str(value)
-        hint = f' title="{escape(spec.help)}"' if spec else ""
-        body.append(f"<tr><th{hint}>{escape(name)}</th>"
-                    f'<td class="num">{escape(shown)}</td></tr>')
-    return f'<table id="params">{"".join(body)}</table>{_more(len(params))}'
-
-
-def _commands_table(commands: tuple[dict, ...]) -> str:
-    if not commands:
-        return '<p class="note">No commands were recorded.</p>'
-    body = []
-    for cmd in commands[:MAX_COMMANDS]:
-        t = cmd.get("t")
-        when = f"{t:.3f} s" if isinstance(t, int | float) and not isinstance(t, bool) else ""
-        rest = {k: v for k, v in cmd.items() if k not in ("t", "kind")}
-        body.append(f'<tr><td class="num">{escape(when)}</td>'
-                    f'<td>{escape(str(cmd.get("kind", "")))}</td>'
-                    f"<td><code>{escape(json.dumps(rest, ensure_ascii=False))}</code></td></tr>")
-    more = len(commands) - MAX_COMMANDS
-    note = f'<p class="note">… and {more} more (in the run file).</p>' if more > 0 else ""
-    return ('<table id="commands"><tr><th>time</th><th>kind</th><th>fields</th></tr>'
-            f'{"".join(body)}</table>{note}')
 
 
 def _charts(run: Run, joints: list[Joint]) -> str:
@@ -321,8 +248,10 @@ def _charts(run: Run, joints: list[Joint]) -> str:
         angle = [Series(label, color, np.asarray(run.signals[key], dtype=float)[:, j] * factor,
                         dash) for key, label, color, dash in ANGLE_SERIES if key in run.signals]
         kind = "position" if joint.kind == "prismatic" else "angle"
-        out.append(line_chart(t, angle, title=f"{name}: {kind}", y_label=f"{kind} ({unit})",
-                              min_span=1.0, buckets=CHART_BUCKETS))
+        span = 1.0 if joint.kind == "prismatic" else ANGLE_SPAN_DEG  # cm, or the live page's °
+        shown = sections.clip(sections.joint_label(name), 80)
+        out.append(line_chart(t, angle, title=f"{shown}: {kind}", y_label=f"{kind} ({unit})",
+                              min_span=span, buckets=CHART_BUCKETS))
         torque = []
         for key, label, color, dash in TORQUE_SERIES:
             if key in run.signals:
@@ -330,8 +259,9 @@ def _charts(run: Run, joints: list[Joint]) -> str:
                 if np.isfinite(values).any():
                     torque.append(Series(label, color, values, dash))
         if torque:
-            out.append(line_chart(t, torque, title=f"{name}: torque", y_label="torque (N·m)",
-                                  min_span=0.01, buckets=CHART_BUCKETS))
+            out.append(line_chart(t, torque, title=f"{shown}: torque",
+                                  y_label="torque (N·m)", min_span=TORQUE_SPAN_NM,
+                                  buckets=CHART_BUCKETS))
     for signal in run.lesson_signals:  # one chart each, a line per joint
         values = np.asarray(run.signals[signal], dtype=float)
         lines = [Series(joint, COLORS[k % len(COLORS)], values[:, k], "" if k == 0 else "6 3")
@@ -344,18 +274,12 @@ def _charts(run: Run, joints: list[Joint]) -> str:
 
 
 def _extra_text(extra: dict[str, object]) -> str:
-    """``extra`` as indented JSON, cut after :data:`MAX_EXTRA_CHARS` characters: written
-    piece by piece and stopped there, so a huge ``extra`` costs no whole text of it."""
-    encoder = json.JSONEncoder(indent=2, ensure_ascii=False, default=str)
-    parts: list[str] = []
-    length = 0
-    for chunk in encoder.iterencode(extra):
-        parts.append(chunk)
-        length += len(chunk)
-        if length > MAX_EXTRA_CHARS:
-            cut = "".join(parts)[:MAX_EXTRA_CHARS]
-            return cut + "\n… (cut: the whole of it is in the run file)"
-    return "".join(parts)
+    """``extra`` as indented JSON, cut after :data:`MAX_EXTRA_CHARS` characters (the law's
+    source, shown apart, left out)."""
+    law = extra.get("law")
+    if isinstance(law, dict) and "source" in law:
+        extra = {**extra, "law": {k: v for k, v in law.items() if k != "source"}}
+    return sections.raw_json(extra, MAX_EXTRA_CHARS)
 
 
 def _lab_version() -> str:
@@ -384,13 +308,24 @@ def export_html(run: Run, *, model: Drawn | None = None) -> str:
     t = np.asarray(run.t, dtype=float)
     duration = float(t[-1] - t[0]) if t.size else 0.0
     period = duration / (t.size - 1) if t.size > 1 else math.nan
-    meta = [("Robot", run.robot), ("Joints", ", ".join(run.joint_names)),
-            ("Source", run.source), ("Recorded", run.created),
+    about = sections.run_about(run)
+    meta = [("Robot", run.robot), ("Lesson", sections.lesson_of(run)),
+            ("Run", sections.run_label(run))]
+    if sections.student_of(run):
+        meta.append(("Student", sections.student_of(run)))
+    if sections.backend_text(run):
+        meta.append(("Backend", sections.backend_text(run)))
+    if sections.gain_changes_text(run):
+        meta.append(("Gain changes", sections.gain_changes_text(run)))
+    if isinstance(about.get("cut"), str):
+        meta.append(("Cut", sections.clip(about["cut"])))
+    meta += [("Joints", ", ".join(run.joint_names)),
+            ("Source", run.source), ("Recorded", sections.utc_time(run)),
             ("Duration", f"{duration:.3f} s, {t.size} samples"
              + (f" at {period * 1000:.3g} ms" if math.isfinite(period) else "")),
             ("Lab version", f"armlab {run.lab_version} (exported with armlab {_lab_version()})")]
     joint_rows = "".join(
-        f"<tr><th>{escape(name)}</th><td class=\"num\" data-joint=\"{j}\" "
+        f"<tr><th>{escape(sections.joint_label(name))}</th><td class=\"num\" data-joint=\"{j}\" "
         f"data-unit=\"{escape(_display_scale(joint)[1])}\">–</td></tr>"
         for j, (name, joint) in enumerate(zip(run.joint_names, joints, strict=True)))
     ghost_note = ("The blue, see-through arm is the commanded pose; the solid one the "
@@ -398,9 +333,10 @@ def export_html(run: Run, *, model: Drawn | None = None) -> str:
     extra = ""
     if run.extra:
         text = _extra_text(run.extra)
-        extra = (f'<section><h2>More about the run</h2><pre id="extra">{escape(text)}</pre>'
-                 "</section>")
-    title = f"{run.robot} · {run.source}"
+        extra = ('<section><h2>More about the run</h2><details><summary>Everything else the '
+                 f'run file says (JSON)</summary><pre id="extra">{escape(text)}</pre>'
+                 "</details></section>")
+    title = sections.title(run)
     script_hash = base64.b64encode(hashlib.sha256(SCRIPT.encode("utf-8")).digest()).decode()
     csp = (f"default-src 'none'; script-src 'sha256-{script_hash}'; "
            "style-src 'unsafe-inline'; base-uri 'none'; form-action 'none'")
@@ -416,8 +352,9 @@ def export_html(run: Run, *, model: Drawn | None = None) -> str:
 </head>
 <body>
 <main>
-<h1>{escape(run.robot)}: {escape(run.source)}</h1>
-<p class="sub">Recorded {escape(run.created)} · armlab {escape(run.lab_version)}</p>
+<h1>{escape(run.robot)}: {escape(sections.lesson_of(run))}, {escape(sections.run_label(run))}</h1>
+<p class="sub">{escape(" · ".join(p for p in (sections.student_of(run), sections.utc_time(run),
+                                               "armlab " + run.lab_version) if p))}</p>
 <section>
 <div class="viewer">
 <div>
@@ -437,10 +374,11 @@ not.</p></noscript>
 <table id="joints"><tr><th>joint</th><th>measured</th></tr>{joint_rows}</table>
 </div>
 </section>
-<section><h2>Figures</h2>{_figures_table(run.figures)}</section>
-<section><h2>Gains and parameters</h2>{_params_table(run.params)}</section>
+<section><h2>Figures</h2>{sections.figures_table(run)}</section>
+<section><h2>Law</h2>{sections.law_section(run)}</section>
+<section><h2>Gains and parameters</h2>{sections.params_table(run.params)}</section>
 <section><h2>Charts</h2><div class="charts">{_charts(run, joints)}</div></section>
-<section><h2>Commands</h2>{_commands_table(run.commands)}</section>
+<section><h2>Commands</h2>{sections.commands_section(run)}</section>
 {extra}
 <section><h2>About this run</h2><table id="meta">{_rows(meta)}</table>
 <p class="note">Written by <code>armlab export</code>: one file, no network needed. The run file

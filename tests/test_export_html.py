@@ -8,6 +8,7 @@ slider), shows the run's figures as text and runs nothing a hostile run file hol
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -22,6 +23,9 @@ from armlab.control.runs import Run, RunFileError, lab_version, read_run, write_
 from armlab.kinematics import load_robot
 
 ROBOT = "receptionist_arm"
+#: Where the teacher's page's screenshot goes (ARMLAB_SHOTS, to look at it; else the
+#: test's own folder).
+SHOT_DIR = Path(os.environ["ARMLAB_SHOTS"]) if os.environ.get("ARMLAB_SHOTS") else None
 FIGURES = {"overshoot_pct": 25.4, "settling_s": 0.71, "yield_deg": None}
 
 #: Text of a run that tries to run script or fetch something when shown.
@@ -253,8 +257,8 @@ def test_the_page_opens_offline_and_draws_the_run(browser, tmp_path):
              timeout=60, what="Play to move the time slider")
     assert page.inner_text("#time-readout") != "t = 0.000 s"
     figures = page.inner_text("#figures")
-    assert "overshoot" in figures and "25.4 %" in figures and "0.71 s" in figures
-    assert "not measured" in figures
+    assert "%OS, overshoot" in figures and "25.4 %" in figures and "0.71 s" in figures
+    assert "not measured" not in figures and "yield" not in figures  # only what was measured
     params = page.inner_text("#params")
     assert "Kp" in params and "3.8" in params and "2.26" in params
     assert page.locator("svg.chart").count() == 5  # 3 angle charts, 2 with a torque
@@ -282,8 +286,8 @@ def test_a_hostile_run_is_shown_as_text_and_runs_nothing(browser, tmp_path):
     assert page.get_attribute("#figures th", "title") == HOSTILE  # the key, whole
     assert page.get_attribute("#figures td", "data-figure") == HOSTILE
     assert '<img src=x onerror="window' in page.text_content("#figures th")  # its label
-    assert "window.__pwned=4" in page.inner_text("#extra")
-    assert page.title() == f"{HOSTILE} · {HOSTILE}"
+    assert "window.__pwned=4" in page.text_content("#extra")
+    assert page.title().startswith(f"{HOSTILE} · {HOSTILE}")
     assert page.evaluate(CANVAS_JS)[0] > 3  # the page's own script still ran
     page.close()
     assert requests == [url]
@@ -294,10 +298,10 @@ def test_a_hostile_run_is_shown_as_text_and_runs_nothing(browser, tmp_path):
 def test_figures_read_with_their_units_and_joints():
     html = export_html(step_run(m=300, figures={"max_yield_deg.theta1": 7.331,
                                                 "overshoot_pct": 12.0, "grip_n": None}))
-    assert '>max yield (theta1)</th><td class="num" data-figure="max_yield_deg.theta1">' \
+    assert '>max yield (θ1)</th><td class="num" data-figure="max_yield_deg.theta1">' \
         '7.331 °</td>' in html
-    assert ">overshoot</th>" in html and ">12 %</td>" in html
-    assert ">grip</th>" in html and ">not measured</td>" in html
+    assert ">%OS, overshoot</th>" in html and ">12 %</td>" in html
+    assert "grip" not in html and "not measured" not in html  # a null is not a figure
 
 
 def test_the_receptionist_arm_is_drawn_with_the_link_lengths_its_run_kept():
@@ -307,3 +311,76 @@ def test_the_receptionist_arm_is_drawn_with_the_link_lengths_its_run_kept():
         tip = np.array(page_data(export_html(run))["frames"][0][-3:]) * POSITION_SCALE
         expected = (model.base_pose @ model.link_poses(run.signals["q"][0])[-1] @ model.tip)
         np.testing.assert_allclose(tip, expected[:3, 3], atol=POSITION_SCALE)
+
+
+def handed_in_run() -> Run:
+    """A step test as the lab saves it (issue 51): at rest but for one servo step of
+    0.29° on θ2, figures partly not measured, the lab's run facts in ``extra``."""
+    run = step_run(m=2000, figures={"overshoot_pct": 8.21, "peak_time_s": 0.91,
+                                    "settling_s": 1.62, "rise_time_s": None,
+                                    "step_joint": 2.0, "max_error_deg": None,
+                                    "stiffness_nm_per_rad": None})
+    q = np.zeros_like(run.signals["q"])
+    q[1000:, 2] = np.radians(0.29)  # one position unit of the RX-24F
+    trajectory = {"name": "step θ2", "times": list(np.linspace(0, 3, 400)),
+                  "q": [[0.0, 0.0, float(x)] for x in np.linspace(0, -0.349, 400)]}
+    commands = ({"t": 0.5, "kind": "RunTrajectory", "trajectory": trajectory,
+                 "approach": False},
+                {"t": 2.0, "kind": "Push", "force": [0.0, -4.0, 0.0], "link": 2,
+                 "point": [0.0, 0.0, 0.1], "duration": 2.0})
+    extra = {"link_lengths_cm": "18.5/25", "student": "Ada Lovelace",
+             "run": {"label": "step θ2", "state": "finished", "t0_s": 0.5},
+             "law": {"by": "student", "file": "compliance_law.py", "sha256": "ab" * 32,
+                     "source": "def compliance_accel(...):\n    return 0\n",
+                     "exercise": "compliance_law"},
+             "backend": {"kind": "simulated", "servos": "RX-24F"},
+             "gain_changes": [{"t": 1.0, "kp": 25.0}]}
+    params = {"kp": 20.0, "kv": 5.0, "compliance": True, "law": "2.6", "feedforward": False}
+    return Run(robot=run.robot, joint_names=run.joint_names, source="page:compliance",
+               lab_version=run.lab_version, created="2026-12-01T22:03:41Z", params=params,
+               commands=commands, figures=run.figures, t=run.t,
+               signals={"q_cmd": q.copy(), "q": q, "tau_dyn": run.signals["tau_dyn"] * 0.01},
+               extra=extra)
+
+
+@pytest.mark.browser
+@pytest.mark.timeout(900)
+def test_a_teacher_reads_the_page(browser, tmp_path):
+    out = write_html(handed_in_run(), tmp_path / "handed-in.html")
+    page, requests, errors, url = open_offline(browser, out)
+    assert page.title() == ("receptionist_arm · compliance lesson · step θ2 · Ada Lovelace"
+                            " · 2026-12-01 22:03 UTC")
+    figures = page.inner_text("#figures")
+    assert "not measured" not in figures and "rise" not in figures
+    for shown in ("%OS, overshoot\t8.21 %", "Tp, peak time\t0.91 s",
+                  "Ts, settling time\t1.62 s", "stepped joint\tθ2"):
+        assert shown in figures
+    params = page.inner_text("#params")
+    assert "Compliance\ton" in params and "Feed-forward θ̈_cmd\toff" in params
+    assert "eq. 2.6" in params and "Kp\t20 1/s²" in params
+    assert "stiffness nm per" not in page.inner_text("main") and "True" not in params
+    law = page.inner_text("#law") + page.inner_text("#law-file")
+    assert "student's own law" in law and "compliance_law.py" in law and "ab" * 32 in law
+    assert not page.locator("#law-source").is_visible()  # folded away
+    commands = page.inner_text("#commands")
+    assert "0.50 s\tRunTrajectory\tstep θ2, 3 s to θ1 0°, θ0 0°, θ2 -20°" in commands
+    assert "Push\t4 N for 2 s" in commands
+    assert not page.locator("#commands-raw").is_visible()  # the raw JSON folded away
+    assert page.locator("#commands").bounding_box()["height"] < 200
+    meta = page.inner_text("#meta")
+    assert "Ada Lovelace" in meta and "simulated arm (RX-24F model)" in meta
+    assert "Kp 25" in meta  # the gain change, with its time
+    # the charts at rest keep the live page's 4° span: a 0.29° step is a small one
+    ticks = page.evaluate("""() => [...document.querySelectorAll('svg.chart')].filter(
+        svg => svg.querySelector('text.title').textContent === 'θ2: angle').map(svg =>
+        [...svg.querySelectorAll('text.tick[text-anchor=end]')].map(
+            t => parseFloat(t.textContent.replace('\u2212', '-'))))""")
+    (y,) = ticks
+    assert max(y) - min(y) >= 3.0  # ticks over 4° at least (round ones inside it)
+    titles = page.locator("svg.chart text.title").all_text_contents()
+    assert "θ1: torque" in titles and "θ2: angle" in titles  # the live page's joint names
+    page.screenshot(path=str(SHOT_DIR / "handed-in.png") if SHOT_DIR else
+                    str(tmp_path / "handed-in.png"), full_page=True)
+    page.close()
+    assert requests == [url]
+    assert errors == []
