@@ -644,6 +644,8 @@ def test_a_follower_saves_and_exports_the_shared_run_to_its_page_alone(classroom
         name = next(n for n in follower.downloads if n.endswith(".armlab-run.zip"))
         run = read_run(follower.downloads[name], robot=lab.lesson_ctx.robot)
         assert "RunTrajectory" in [c["kind"] for c in run.commands]  # the teacher's run
+        assert run.extra["run"]["state"] == "unfinished"  # saved while the demo runs
+        assert run.extra["student"] == lab.roles.name(fid)  # who saved it
         follower.click(lesson.runs.export)
         follower.wait_for(lambda: any(n.endswith(".html") for n in follower.downloads),
                           60.0, "the follower's exported page")

@@ -52,7 +52,7 @@ def backend_json(kind: str, *, port: str | None = None,
     servos' models as far as the backend tells them."""
     if kind == "sim":
         models = sorted({str(getattr(s, "name", s)) for s in getattr(backend, "specs", ())})
-        return {"kind": "simulated", "servos": ", ".join(models) or "RX-24F"}
+        return {"kind": "simulated", **({"servos": ", ".join(models)} if models else {})}
     out: dict[str, Any] = {"kind": kind}
     if port:
         out["port"] = port

@@ -252,7 +252,7 @@ class RunControls:
         self._commands: deque[dict[str, Any]] = deque(maxlen=MAX_COMMANDS)
         self._commands_lock = threading.Lock()  # posted from callbacks, read by Save
         self._ctx = ctx
-        self._backend = backend or (lambda: None)
+        self._backend = backend or self._loop_backend
         self._live_figures = live_figures
         self._run: _Run | None = None
         self._gains = GainLog()
@@ -333,6 +333,15 @@ class RunControls:
         run = self._run
         if run is not None and run.track is not None:
             run.track.pull()
+
+    def _loop_backend(self) -> object | None:
+        """The backend of the arm's loop (None: no arm, or it is being rebuilt)."""
+        if self._arm is None:
+            return None
+        try:
+            return getattr(self._arm()[1], "backend", None)
+        except ValueError:
+            return None
 
     @property
     def run_label(self) -> str | None:
