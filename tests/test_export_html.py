@@ -384,3 +384,37 @@ def test_a_teacher_reads_the_page(browser, tmp_path):
     page.close()
     assert requests == [url]
     assert errors == []
+
+
+@pytest.mark.browser
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_the_labs_export_page_of_a_step_names_it_and_shows_its_figures(browser, tmp_path):
+    """The lab's Export page of a step test (a headless lab on loop time): its title, and
+    the figures the page showed beside the Step button."""
+    from _helpers import served_lesson
+
+    from armlab.app.lessons import LessonContext
+    from armlab.app.lessons.compliance import build
+
+    with served_lesson(build, LessonContext(realtime=False)) as lesson:
+        wait_for(lambda: lesson.rig.loop.status.active, 60.0, "the arm to hold")
+        lesson.run_step()
+        wait_for(lambda: lesson.experiment.done, 120.0, "the step to be measured")
+        shown = lesson.measured_pd
+        name, data = lesson.runs.export_file()
+    out = tmp_path / name
+    out.write_bytes(data)
+    page, requests, errors, url = open_offline(browser, out)
+    assert re.fullmatch(r"receptionist_arm · compliance lesson · step θ2 · "
+                        r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", page.title())
+    figures = page.inner_text("#figures")
+    assert f"%OS, overshoot\t{shown.overshoot_pct:.3g} %" in figures
+    assert f"Ts, settling time\t{shown.settling_time_s:.3g} s" in figures
+    assert "not measured" not in figures and "max |θ_cmd − θ|" not in figures
+    assert "The lab's own law: eq. 2.6" in page.inner_text("#law")
+    assert "simulated arm" in page.inner_text("#meta")
+    assert "RunTrajectory" in page.inner_text("#commands")
+    page.close()
+    assert requests == [url]
+    assert errors == []
