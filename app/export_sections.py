@@ -229,7 +229,7 @@ def command_target(command: Mapping[str, Any], joints: tuple[str, ...]) -> str:
         return f"hand to {xyz}" if xyz else "target cleared"
     if kind == "Push":
         force = command.get("force")
-        size = (math.sqrt(sum(float(v) ** 2 for v in force[:3]))
+        size = (math.hypot(*(float(v) for v in force[:3]))  # (never overflows: inf)
                 if isinstance(force, list) and len(force) >= 3 and all(
                     isinstance(v, int | float) for v in force[:3]) else None)
         dur = command.get("duration")

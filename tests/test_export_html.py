@@ -418,3 +418,21 @@ def test_the_labs_export_page_of_a_step_names_it_and_shows_its_figures(browser, 
     page.close()
     assert requests == [url]
     assert errors == []
+
+
+def test_odd_commands_and_facts_are_summarised_without_failing():
+    """A run file's commands and run facts of any shape: summarised in bounded text."""
+    commands = ({"t": 0.1, "kind": "Push", "force": [1e200, 1e300, 1e300], "duration": 1e31},
+                {"t": 0.2, "kind": "RunTrajectory", "trajectory": {"name": "x" * 5000,
+                                                                   "times": "no", "q": [[]]}},
+                {"t": 0.3, "kind": "SetTarget", "xyz": None},
+                {"t": 0.4, "kind": "Spring", "anchor": [0.1, 0.2, 0.3], "stiffness": 200.0},
+                {"t": 0.5, "kind": "Other", "a": {"b": [1] * 10_000}})
+    extra = {"run": "a label", "law": {"by": "student", "source": 5}, "backend": [1],
+             "gain_changes": [{"t": "x"}, 3, {"t": 1.0, "kp": "y" * 1000}], "student": 4}
+    run = step_run(m=50, extra=extra)
+    run = Run(**{**run.__dict__, "commands": commands})
+    html = export_html(run)
+    assert "1e+300 N for 1e+31 s" in html and "hand pulled to (10, 20, 30) cm" in html
+    assert "x" * 200 not in html.split('id="commands-raw"')[0]  # the summary is short
+    assert "<title>receptionist_arm · compliance lesson · a label · 2026-11-28 03:20 UTC" in html
