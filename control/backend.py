@@ -171,6 +171,28 @@ class Pushable(Protocol):
 
 
 @runtime_checkable
+class Touchable(Protocol):
+    """A backend whose world holds a wall the hand can touch (the simulator), and which
+    knows the force of that contact (its ground truth: the controller only ever sees the
+    servos' loads)."""
+
+    def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
+                 stiffness: float, damping: float) -> None:
+        """A plane through ``origin`` (3,) m with unit ``normal`` (3,) towards the free
+        side, base frame, pushing back ``stiffness`` N/m of penetration and ``damping``
+        N·s/m; None removes it."""
+        ...
+
+    def wall_force(self) -> float:
+        """N, the wall's normal force on the hand now."""
+        ...
+
+    def wall_peak(self) -> float:
+        """N, the largest wall force since the last call (an impact between two periods)."""
+        ...
+
+
+@runtime_checkable
 class Gripping(Protocol):
     """A backend that drives a gripper's servo beside the arm's joints (read and written in
     the same bus transactions as the joints; its torque off with theirs)."""

@@ -27,7 +27,8 @@ from armlab.control.runs import Run
 Keep = Callable[[Run], None]
 
 #: The modules of this package that define experiments (adding one: add its name here).
-MODULES: tuple[str, ...] = ("hand", "observers", "seed002", "seed003", "seed004", "thesis",
+MODULES: tuple[str, ...] = ("contact", "hand", "observers", "seed002", "seed003", "seed004",
+                            "thesis",
                             "thesis_readings")
 
 

@@ -272,6 +272,23 @@ class SimBackend(GoalLimits):
         with self._lock:
             self.plant.set_spring(anchor, stiffness=stiffness, link=link, point=point)
 
+    def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
+                 stiffness: float, damping: float) -> None:
+        """A plane the hand touches (``armlab.control.backend.Touchable``): ``origin`` (3,)
+        m on it, ``normal`` (3,) towards the free side, both base frame; None removes it."""
+        with self._lock:
+            self.plant.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+
+    def wall_force(self) -> float:
+        """N, the wall's normal force on the hand now (the plant's ground truth)."""
+        with self._lock:
+            return self.plant.wall_force()
+
+    def wall_peak(self) -> float:
+        """N, the largest wall force at any plant step since the last call."""
+        with self._lock:
+            return self.plant.wall_peak()
+
     def _check_open(self) -> None:
         if self._closed:
             raise BackendError("the simulated arm is closed; open a new backend")

@@ -135,6 +135,18 @@ def checked_wall(origin_base: object, normal_base: object, stiffness: object, da
         pt = np.zeros(3)
     return vector("origin_base", origin_base, 3), nrm / length, k, c, li, pt
 
+def _wall_push(wall: _Wall, p: Sequence[float], v: Sequence[float]) -> float:
+    """N of the wall's normal push on contact point ``p`` (3,) moving at ``v`` (3,), base
+    frame: a spring on the penetration and a damper on its rate, never pulling (0 off the
+    wall)."""
+    nrm = wall.normal
+    depth = sum((p[r] - wall.origin[r]) * nrm[r] for r in range(3))
+    if depth >= 0.0:
+        return 0.0
+    vn = sum(v[r] * nrm[r] for r in range(3))
+    return max(0.0, -wall.stiffness * depth - wall.damping * vn)
+
+
 class Plant:
     """Arm + servos, stepped at a fixed ``dt``.
 
@@ -214,6 +226,7 @@ class Plant:
         self._pushes: list[_Push] = []
         self._spring: _Spring | None = None
         self._wall: _Wall | None = None
+        self._wall_peak = 0.0  #: N, the largest wall force since :meth:`wall_peak` was read
         self._push_tau = [0.0] * n
         self._joint_torques: list[_JointTorque] = []
 
@@ -343,6 +356,8 @@ class Plant:
         self._k += 1
         if not finite(self._qd):
             raise FloatingPointError(f"plant diverged at t = {self.t:.3f} s (q = {self._q})")
+        if self._wall is not None:  # an impact lasts a few steps: its peak is kept
+            self._wall_peak = max(self._wall_peak, self.wall_force())
 
     def _held_torques(self) -> tuple[list[float], ...]:
         """The joint torques held over this step, in the order the derivative adds them:
@@ -479,16 +494,29 @@ class Plant:
                 f = [src.stiffness * (src.anchor[r] - p[r]) - src.damping * v[r]
                      for r in range(3)]
             else:
-                nrm = src.normal
-                depth = sum((p[r] - src.origin[r]) * nrm[r] for r in range(3))
-                if depth >= 0.0:
+                mag = _wall_push(src, p, v)
+                if mag == 0.0:
                     continue
-                vn = sum(v[r] * nrm[r] for r in range(3))
-                mag = max(0.0, -src.stiffness * depth - src.damping * vn)
-                f = [mag * nrm[r] for r in range(3)]
+                f = [mag * src.normal[r] for r in range(3)]
             for j, col in enumerate(cols):
                 tau[j] += col[0] * f[0] + col[1] * f[1] + col[2] * f[2]
         return tau
+
+    def wall_peak(self) -> float:
+        """N, the largest wall force at the end of any step since the last call (then
+        forgotten): an impact's peak, which a controller's period may fall between."""
+        peak, self._wall_peak = self._wall_peak, 0.0
+        return peak
+
+    def wall_force(self) -> float:
+        """N, the wall's normal force on the arm now (ground truth: 0 off the wall, or
+        without one): what a force sensor at the contact would read."""
+        w = self._wall
+        if w is None:
+            return 0.0
+        p, cols = self._point(self._dyn.frames(self._q), w.link, w.point)
+        v = [sum(cols[j][r] * self._qd[j] for j in range(len(cols))) for r in range(3)]
+        return _wall_push(w, p, v)
 
     # -- ground truth and reports -------------------------------------------------
 

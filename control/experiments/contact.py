@@ -1,0 +1,216 @@
+"""``armlab experiment contact``: the hand driven into a wall, PD against the compliance law.
+
+The receptionist arm stands at the thesis line's start; a wall (a plane across the line's
+direction, ``--wall-cm`` ahead of the hand) blocks the way; the command moves the hand
+along the line at the thesis's hand speed (2.5 mm per 16 ms) to ``--depth-cm`` behind the
+wall's surface, then holds there. The wall pushes back ``--stiffness`` N/m of
+penetration and ``--damping`` N·s/m (the plant's contact, never pulling).
+
+What it measures, from the plant's ground truth (a force sensor the arm does not have):
+the peak force of the impact (the largest at any plant step), the steady force (the mean
+over the last second), how often the hand bounced off (contact lost and made again), and
+how long the force took to settle within 10 % of its steady value (None: it never did).
+Beside them, the steady force the law's static stiffness predicts: the compliance law
+(eq. 2.6 with 2.7) holds a steady external torque with θ − θ_cmd = K_f τ / K_env, a joint stiffness
+K_q = K_env / K_f on every joint (1 / K_f for the literal eq. 2.26); through the
+Jacobian at the command, the hand's compliance along the wall's normal n is
+nᵀ J K_q⁻¹ Jᵀ n, in series with the wall's 1 / k, so a command d behind the surface
+presses with f = d / (nᵀ J K_q⁻¹ Jᵀ n + 1 / k). The PD law (eq. 2.20) has no finite
+stiffness: its reference integrates the error twice, so against a wall it winds up until
+the servo's torque or the lab's lag check stops it (:data:`PD_NOTE`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Literal
+
+import numpy as np
+
+from armlab.control.backend import Touchable
+from armlab.control.commands import RunTrajectory
+from armlab.control.experiments import BackendOptions, Experiment, Keep, option
+from armlab.control.loop import TARGET_SPEED, ControlLoop
+from armlab.control.params import DEFAULT, Params
+from armlab.control.runs import run_from_snapshot
+from armlab.control.trajectory import cartesian_to_joint, hold, line_points, thesis_line
+from armlab.kinematics.model import SerialChain, load_robot
+
+SETTLE_S = 0.5  #: s held at the start before the move
+HOLD_S = 4.0  #: s held at the command behind the wall after it
+STEADY_S = 1.0  #: s at the end the steady force is the mean of
+SETTLE_BAND = 0.10  #: the force has settled once it stays within 10 % of its steady value
+#: N: the hand touches the wall while the force is above this (a bounce: it falls below
+#: and rises again after the first touch)
+TOUCH_N = 0.05
+#: What the PD law's run says when its reference winds up against the wall
+PD_NOTE = ("PD (eq. 2.20) has no finite stiffness: blocked, its reference integrates the "
+           "error twice and winds up until the servo's torque or the lab's lag check stops it")
+
+
+def joint_stiffness(params: Params, controller: str) -> float | None:
+    """N·m/rad of every joint's static stiffness under ``controller`` with ``params``: the
+    compliance law holds a steady external torque τ with θ − θ_cmd = K_f τ / K_env (eq. 2.6,
+    2.7), so K_q = K_env / K_f (1 / K_f for the literal eq. 2.26); None for PD and no
+    controller (no finite stiffness: the reference integrates the error)."""
+    if controller != "compliance" or not params.compliance:
+        return None
+    if params.law == "2.26":
+        return 1.0 / params.k_f
+    return params.k_env / params.k_f
+
+
+def predicted_force(model: SerialChain, q: np.ndarray, normal: np.ndarray, depth: float, *,
+                    k_joint: float, k_wall: float) -> float:
+    """N the hand presses a wall with at rest, ``depth`` m of command behind its surface:
+    f = d / (nᵀ J K_q⁻¹ Jᵀ n + 1 / k), J the position rows of the Jacobian at ``q`` (n,)
+    rad, K_q = ``k_joint`` I (N·m/rad), n the wall's unit ``normal`` (3,), k ``k_wall`` N/m."""
+    J = model.jacobian(np.asarray(q, dtype=float))[:3]
+    n = np.asarray(normal, dtype=float)
+    compliance = float(n @ J @ J.T @ n) / k_joint
+    return float(depth / (compliance + 1.0 / k_wall))
+
+
+def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[str, Any]:
+    """The figures of one contact run: ``force`` (N) and ``peak`` (N, the largest at any
+    plant step of each period) sampled at loop times ``t`` (s)."""
+    touching = force > TOUCH_N
+    if not touching.any():
+        return {"touched": False, "peak_force_n": 0.0, "steady_force_n": None,
+                "bounces": 0, "settle_s": None, "first_touch_s": None}
+    first = int(np.argmax(touching))
+    # a bounce: contact lost after the first touch, and made again
+    edges = np.flatnonzero(np.diff(touching[first:].astype(int)) == 1)
+    steady_rows = t >= t[-1] - STEADY_S
+    steady = float(np.mean(force[steady_rows]))
+    band = max(SETTLE_BAND * abs(steady), TOUCH_N)
+    out = np.flatnonzero(np.abs(force - steady) > band)
+    if not len(out):
+        settle: float | None = 0.0
+    elif out[-1] + 1 >= len(t) or t[-1] - t[out[-1] + 1] < STEADY_S:
+        settle = None  # still moving in the last second: never settled
+    else:
+        settle = float(t[out[-1] + 1] - t[first])
+    return {"touched": True, "peak_force_n": float(np.max(peak)),
+            "steady_force_n": steady, "bounces": int(len(edges)),
+            "settle_s": settle, "first_touch_s": float(t[first])}
+
+
+@dataclass(frozen=True)
+class ContactOptions(BackendOptions):
+    """Options of ``contact``."""
+
+    controller: Literal["pd", "compliance"] = option(
+        "compliance", "the law that drives the hand into the wall")
+    wall_cm: float = option(4.0, "cm from the hand to the wall along the thesis line")
+    depth_cm: float = option(2.0, "cm behind the wall's surface the command ends")
+    stiffness: float = option(2e4, "N/m the wall pushes back per m of penetration "
+                              "(default: a wooden table under a servo arm's hand)")
+    damping: float = option(50.0, "N·s/m of the wall's damping while in contact")
+    k_env: float | None = option(None, "K_env, N·m/rad (default: the lab's)")
+    k_f: float | None = option(None, "K_f (default: the lab's)")
+
+
+def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
+                controller: str, wall: float, depth: float, stiffness: float,
+                damping: float, keep: Keep | None = None) -> dict[str, Any]:
+    """Drive the hand of ``model`` into a wall ``wall`` m ahead, to ``depth`` m behind it
+    (see the module docstring); the figures, the prediction and, when the loop stopped,
+    why.
+
+    Raises:
+        ValueError: a backend without a wall to touch (real servos: the wall is virtual
+            there, rendered by the controller), or options out of range.
+    """
+    for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.15),
+                                ("--depth-cm", depth, 0.0, 0.1),
+                                ("--stiffness", stiffness, 100.0, 1e6),
+                                ("--damping", damping, 0.0, 1e4)):
+        if not (math.isfinite(value) and lo <= value <= hi):
+            scale = 100.0 if name.endswith("-cm") else 1.0
+            raise ValueError(f"{name} must be in {lo * scale:g}..{hi * scale:g}, got "
+                             f"{value * scale:g}")
+    line = thesis_line(model)
+    q0 = line.q[0]
+    x0 = model.fk(q0)[:3, 3]
+    u = model.fk(line.q[-1])[:3, 3] - x0
+    u /= np.linalg.norm(u)
+    origin, normal = x0 + wall * u, -u
+    period = params.period
+    points = line_points(x0, x0 + (wall + depth) * u, TARGET_SPEED * period)
+    move = cartesian_to_joint(model, points, q0, dt=period, name="into the wall")
+    plan = hold(q0, SETTLE_S).then(move).then(hold(move.q[-1], HOLD_S), name="contact")
+    backend = backend_factory(model, q0=q0)
+    loop: ControlLoop | None = None
+    try:
+        if not isinstance(backend, Touchable):
+            raise ValueError("this backend has no wall to touch: on real servos the wall is "
+                             "virtual (the controller renders it); use --backend sim")
+        backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]
+                           realtime=False, history_s=plan.duration + 5.0)
+        loop.post(RunTrajectory(plan, approach=False))
+        t, force, peak = [], [], []
+        while loop.status.t < plan.duration and loop.status.fault is None:
+            loop.step()
+            t.append(loop.status.t)
+            force.append(backend.wall_force())
+            peak.append(backend.wall_peak())
+        fault = loop.status.fault
+        snap = loop.recorder.snapshot()
+    finally:
+        if loop is not None:
+            loop.shutdown()
+        backend.close()
+    figures = contact_figures(np.array(t), np.array(force), np.array(peak))
+    k_q = joint_stiffness(params, controller)
+    figures.update({
+        "controller": controller, "fault": fault,
+        "predicted_force_n": None if k_q is None else predicted_force(
+            model, move.q[-1], normal, depth, k_joint=k_q, k_wall=stiffness),
+        "joint_stiffness_nm_per_rad": k_q,
+        "wall": {"origin_m": origin.tolist(), "normal": normal.tolist(),
+                 "stiffness_n_per_m": stiffness, "damping_ns_per_m": damping,
+                 "distance_m": wall, "depth_m": depth},
+    })
+    if fault is not None:
+        figures["steady_force_n"] = None
+    if k_q is None:
+        figures["note"] = PD_NOTE
+    if keep is not None:
+        keep(run_from_snapshot(
+            snap, robot=model.name, joint_names=model.joint_names, source="experiment:contact",
+            params={**params.as_dict(), "controller": controller},
+            commands=({"t": 0.0, "kind": "RunTrajectory", "name": plan.name,
+                       "duration_s": plan.duration},),
+            figures={k: float(v) for k, v in figures.items()
+                     if isinstance(v, int | float) and not isinstance(v, bool)},
+            extra={"wall": figures["wall"]}))
+    return figures
+
+
+def _contact_run(options: ContactOptions, *, backend_factory: Any,
+                 keep: Keep | None = None) -> dict[str, Any]:
+    o = options
+    params = DEFAULT
+    if o.k_env is not None:
+        params = replace(params, k_env=o.k_env)
+    if o.k_f is not None:
+        params = replace(params, k_f=o.k_f)
+    return run_contact(load_robot("receptionist_arm"), backend_factory, params,
+                       controller=o.controller, wall=o.wall_cm / 100.0,
+                       depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
+                       keep=keep)
+
+
+def _contact_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    return [{"figure": k, "value": v} for k, v in result.items()
+            if not isinstance(v, dict)]
+
+
+EXPERIMENTS = (
+    Experiment("contact", "the hand driven into a wall (PD or the compliance law): peak "
+               "and steady force, the force the law's stiffness predicts, bounces, settling",
+               ContactOptions, _contact_run, _contact_rows, needs=("backend_factory",)),
+)
