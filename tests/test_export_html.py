@@ -415,6 +415,8 @@ def test_the_labs_export_page_of_a_step_names_it_and_shows_its_figures(browser, 
     assert "The lab's own law: eq. 2.6" in page.inner_text("#law")
     assert "simulated arm" in page.inner_text("#meta")
     assert "RunTrajectory" in page.inner_text("#commands")
+    if SHOT_DIR:
+        page.screenshot(path=str(SHOT_DIR / "lab-step.png"), full_page=True)
     page.close()
     assert requests == [url]
     assert errors == []

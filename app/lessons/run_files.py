@@ -289,9 +289,9 @@ class RunControls:
         ``run`` (its label, e.g. "step θ2") the command begins a run
         (:meth:`begin_run`)."""
         t = loop.status.t
+        loop.post(command)  # (refused: the last run stays the last)
         if run is not None:
             self.begin_run(run, t=t)
-        loop.post(command)
         self.note(command, t=t)
 
     def begin_run(self, label: str, *, t: float) -> None:
