@@ -11,10 +11,11 @@ Pure (no server, no page): what the lab's Challenge panel and a classroom's grad
 - :func:`judge`: a run's figures against a challenge -> :class:`Verdict` (passed, and per
   threshold the figure, the limit and whether it is met; a missing or non-finite figure
   fails, saying why);
-- :class:`RunLog`: the distinct runs seen of one arm (figures and the UTC time they were
-  first seen), its last run and its best run against a challenge;
-- :func:`gradebook_csv`: one row per student (name, challenge, thresholds, best figures,
-  passed, time).
+- :class:`RunLog`: the distinct runs seen of one arm (figures, which challenge's run
+  measured each, and the UTC time they were first seen), its last run and its best run
+  against a challenge: only a run started as that challenge's run counts for it;
+- :func:`gradebook_csv`: one row per student (name, seat, challenge, thresholds, best
+  figures as the page shows them, passed, time), for a spreadsheet.
 
 The figures are the names of :class:`armlab.app.lessons.RunFigures`' fields (SI, or the unit
 in the name: ``overshoot_pct``, ``settling_s``, ``pushed_error_deg``, ``push_n``,
@@ -29,7 +30,7 @@ import csv
 import io
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from typing import Literal
 
@@ -59,6 +60,7 @@ class Threshold:
         limit: the limit (the target for "near").
         tolerance_pct: "near" only: the tolerance, % of the target.
         lo, hi: the range a teacher may set the limit within.
+        joint: the figure is a joint's index, shown as the page names the joint ("θ2").
     """
 
     figure: str
@@ -69,6 +71,7 @@ class Threshold:
     tolerance_pct: float = 0.0
     lo: float = 0.0
     hi: float = math.inf
+    joint: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in _SYMBOL:
@@ -82,10 +85,24 @@ class Threshold:
                 raise ValueError(f"{self.label}: a target of 0 has no relative tolerance")
 
     def text(self) -> str:
-        """The threshold as a person reads it: "%OS ≤ 10 %", "K ≈ 8 N·m/rad ± 10 %"."""
+        """The threshold as a person reads it: "%OS ≤ 10 %", "K ≈ 8 N·m/rad ± 10 %",
+        "joint stepped = θ2"."""
         unit = f" {self.unit}" if self.unit else ""
         tol = f" ± {self.tolerance_pct:g} %" if self.kind == "near" else ""
-        return f"{self.label} {_SYMBOL[self.kind]} {self.limit:g}{unit}{tol}"
+        value = joint_name(self.limit) if self.joint else f"{self.limit:g}"
+        return f"{self.label} {_SYMBOL[self.kind]} {value}{unit}{tol}"
+
+    def number(self, x: float) -> str:
+        """The figure ``x`` as the page shows it, without its unit: 3 significant digits
+        ("2.27"), a joint by its name ("θ2")."""
+        return joint_name(x) if self.joint else f"{x:.3g}"
+
+    def show(self, x: float | None) -> str:
+        """The figure ``x`` as the page shows it, with its unit ("2.27 %", "θ2"; "—":
+        none)."""
+        if x is None:
+            return "—"
+        return self.number(x) + (f" {self.unit}" if self.unit else "")
 
     def met_by(self, x: float) -> bool:
         """Whether the finite figure ``x`` meets this threshold."""
@@ -251,6 +268,12 @@ class Verdict:
         return {c.threshold.figure: c.figure for c in self.checks}
 
 
+def joint_name(index: float) -> str:
+    """A joint's index as the lesson's page names the joint: 2 -> "θ2" (the receptionist
+    arm's joints are θ0, θ1, θ2; an index that is not a whole number is shown as it is)."""
+    return f"θ{int(index)}" if float(index).is_integer() else f"joint {index:g}"
+
+
 def _figure(figures: Mapping[str, object], name: str) -> tuple[float | None, str]:
     """(the finite figure ``name``, "") or (None, why there is none)."""
     if name not in figures or figures[name] is None:
@@ -278,7 +301,7 @@ def judge(challenge: Challenge, figures: Mapping[str, object]) -> Verdict:
         elif t.met_by(x):
             checks.append(Check(t, x, True))
         else:
-            checks.append(Check(t, x, False, f"{x:.3g} does not meet {t.text()}"))
+            checks.append(Check(t, x, False, f"{t.show(x)} does not meet {t.text()}"))
     return Verdict(challenge.key, all(c.ok for c in checks), tuple(checks))
 
 
@@ -287,53 +310,120 @@ def utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+#: what a figure's tag says when no challenge's run measured it
+NOT_A_CHALLENGE_RUN = "not measured as this challenge's run: press Run the challenge"
+
+
 @dataclass(frozen=True)
 class LoggedRun:
-    """A run as a :class:`RunLog` keeps it: its figures and when they were first seen."""
+    """A run as a :class:`RunLog` keeps it: its figures, when they were first seen, and per
+    figure the key of the challenge whose run measured it (absent or None: a run the
+    student made otherwise)."""
 
     figures: Mapping[str, float | None]
     when: str
+    tags: Mapping[str, str | None] = field(default_factory=dict)
+
+    def counted(self, key: str) -> dict[str, float | None]:
+        """The figures that count for challenge ``key``: those its own run measured (the
+        others None)."""
+        return {k: (v if self.tags.get(k) == key else None) for k, v in self.figures.items()}
 
 
 class RunLog:
     """The distinct runs of one arm, as the server saw its lesson's figures change.
 
-    The lab reads a lesson's figures now and then (:meth:`observe`); a run is kept when
-    they differ from the last kept ones. Its last and best runs are worked out against
-    whichever challenge is set now, so a teacher's new limits apply to runs already made.
+    The lab reads a lesson's figures now and then (:meth:`observe`), with the challenge
+    whose run measured each (a lesson's ``run_tags()``); a run is kept when they differ
+    from the last kept ones. Its last and best runs are worked out against whichever
+    challenge is set now, so a teacher's new limits apply to runs already made; only
+    figures measured by that challenge's own run count (a step made before the challenge
+    was set, or by the Step button, does not). A lesson that tags nothing (the hand, the
+    quadruped) is tagged here: :meth:`expect` says a challenge's run was started, and the
+    next change of that challenge's figures is its run.
     Not thread-safe: one owner calls it (the lab's ticker, under its lock).
     """
 
     def __init__(self, *, max_runs: int = MAX_RUNS) -> None:
         self.runs: list[LoggedRun] = []
         self._max = max_runs
+        self._expect: tuple[str, tuple[str, ...], dict[str, float | None]] | None = None
+        self._result = 0  #: the newest challenge run taken by :meth:`take`
 
-    def observe(self, figures: Mapping[str, float | None], *, when: str | None = None) -> bool:
-        """Keep ``figures`` as a new run if they differ from the last kept; True if kept."""
+    def take(self, results: Iterable[tuple[int, Mapping[str, float | None],
+                                           Mapping[str, str | None]]]) -> int:
+        """Keep a lesson's challenge runs not kept yet: (number, figures, tags), numbered
+        from 1 (a lesson's ``challenge_results()``; each kept even if the lesson's figures
+        changed again before this look); how many were new."""
+        new = 0
+        for number, figures, tags in results:
+            if number > self._result:
+                self._result = number
+                new += self.observe(figures, tags=tags)
+        return new
+
+    def expect(self, challenge: Challenge, figures: Mapping[str, float | None]) -> None:
+        """``challenge``'s run was just started on an arm whose figures are ``figures``
+        now (for a lesson without ``run_tags``): its next change of them is that run."""
+        self._expect = (challenge.key, challenge.figures,
+                        {f: figures.get(f) for f in challenge.figures})
+
+    def observe(self, figures: Mapping[str, float | None], *,
+                tags: Mapping[str, str | None] | None = None, when: str | None = None) -> bool:
+        """Keep ``figures`` (with ``tags``: figure -> key of the challenge whose run measured
+        it) as a new run if they differ from the last kept; True if kept."""
         figures = dict(figures)
-        if self.runs and _same(self.runs[-1].figures, figures):
+        tags = self._tag(figures) if tags is None else dict(tags)
+        if self.runs and _same(self.runs[-1].figures, figures) and self.runs[-1].tags == tags:
             return False
-        self.runs.append(LoggedRun(figures, when or utc_now()))
+        self.runs.append(LoggedRun(figures, when or utc_now(), tags))
         del self.runs[:-self._max]
         return True
 
-    def last(self, challenge: Challenge) -> tuple[LoggedRun, Verdict] | None:
-        """The newest run that measured any of ``challenge``'s figures, judged; or None."""
-        for run in reversed(self.runs):
-            verdict = judge(challenge, run.figures)
+    def _tag(self, figures: Mapping[str, float | None]) -> dict[str, str | None]:
+        """Tags of an untagged lesson's ``figures``: the expected challenge's once its
+        figures changed, else those of the last run (figures left as they were)."""
+        last = dict(self.runs[-1].tags) if self.runs else {}
+        if self._expect is not None:
+            key, names, before = self._expect
+            now = {f: figures.get(f) for f in names}
+            if not _same(now, before) and all(v is not None for v in now.values()):
+                self._expect = None
+                return {**{k: None for k in figures}, **dict.fromkeys(names, key)}
+        if self.runs and not _same(self.runs[-1].figures, figures):
+            changed = {k for k in figures if not _same({k: figures[k]},
+                                                       {k: self.runs[-1].figures.get(k)})}
+            return {k: (None if k in changed else last.get(k)) for k in figures}
+        return last
+
+    def _judged(self, challenge: Challenge) -> Iterable[tuple[LoggedRun, Verdict]]:
+        for run in self.runs:
+            verdict = judge(challenge, run.counted(challenge.key))
             if verdict.measured:
-                return run, verdict
-        return None
+                yield run, _why_not_counted(verdict, run)
+
+    def last(self, challenge: Challenge) -> tuple[LoggedRun, Verdict] | None:
+        """The newest run of ``challenge``'s own (one that measured any of its figures),
+        judged; or None."""
+        judged = list(self._judged(challenge))
+        return judged[-1] if judged else None
 
     def best(self, challenge: Challenge) -> tuple[LoggedRun, Verdict] | None:
-        """The best run against ``challenge`` (a pass first, then the one furthest inside
-        its limits; the earlier of equals), judged; None before any measured run."""
+        """The best run of ``challenge``'s own (a pass first, then the one furthest inside
+        its limits; the earlier of equals), judged; None before any."""
         best: tuple[LoggedRun, Verdict] | None = None
-        for run in self.runs:
-            verdict = judge(challenge, run.figures)
-            if verdict.measured and (best is None or verdict.rank() < best[1].rank()):
+        for run, verdict in self._judged(challenge):
+            if best is None or verdict.rank() < best[1].rank():
                 best = (run, verdict)
         return best
+
+
+def _why_not_counted(verdict: Verdict, run: LoggedRun) -> Verdict:
+    """``verdict`` with a figure measured by another run than the challenge's said so."""
+    checks = tuple(replace(c, reason=NOT_A_CHALLENGE_RUN)
+                   if c.figure is None and run.figures.get(c.threshold.figure) is not None
+                   else c for c in verdict.checks)
+    return replace(verdict, checks=checks)
 
 
 def _same(a: Mapping[str, object], b: Mapping[str, object]) -> bool:
@@ -354,28 +444,51 @@ def _cell(text: str) -> str:
     return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
 
 
-def gradebook_csv(challenge: Challenge,
-                  rows: Iterable[tuple[str, tuple[LoggedRun, Verdict] | None]]) -> str:
-    """The gradebook: one row per (student name, best run or None), in the given order.
+def figure_header(t: Threshold) -> str:
+    """A gradebook column's header: the figure as the page labels it, with its unit
+    ("%OS (%)", "Ts (s)", "joint stepped")."""
+    return f"{t.label} ({t.unit})" if t.unit else t.label
 
-    Columns: name, challenge, thresholds, one per judged figure (the best run's, SI or
-    the unit in its name), passed ("yes", "no", or "no run"), time (UTC ISO 8601, when the
-    server first saw the best run).
+
+#: the gradebook's encoding: UTF-8 with a byte-order mark, so a spreadsheet reads "≤", "θ2"
+GRADEBOOK_ENCODING = "utf-8-sig"
+
+
+def gradebook_csv(challenge: Challenge,
+                  rows: Iterable[tuple[str, str, tuple[LoggedRun, Verdict] | None]]) -> str:
+    """The gradebook: one row per (student name, seat, best run or None), in the given
+    order (encode it with :data:`GRADEBOOK_ENCODING`; :func:`gradebook_bytes`).
+
+    Columns: name, seat (tells two students of one name apart), challenge, thresholds,
+    one per judged figure (headed and written as the page shows it: 3 significant
+    digits in the header's unit, a joint by its name, "θ2"), passed ("yes", "no", or
+    "no run"), time_utc (ISO 8601, when the server first saw the best run). Lines end in
+    CRLF (RFC 4180).
     """
     out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(["name", "challenge", "thresholds", *challenge.figures, "passed", "time_utc"])
-    for name, best in rows:
+    w = csv.writer(out, lineterminator="\r\n")
+    w.writerow(["name", "seat", "challenge", "thresholds",
+                *(figure_header(t) for t in challenge.thresholds), "passed", "time_utc"])
+    for name, seat, best in rows:
         if best is None:
             figs: list[str] = [""] * len(challenge.figures)
             passed, when = "no run", ""
         else:
             run, verdict = best
             got = verdict.figures()
-            figs = ["" if got[f] is None else repr(got[f]) for f in challenge.figures]
+            figs = ["" if got[t.figure] is None else t.number(float(got[t.figure]))  # type: ignore[arg-type]
+                    for t in challenge.thresholds]
             passed, when = ("yes" if verdict.passed else "no"), run.when
-        w.writerow([_cell(name), challenge.key, challenge.text(), *figs, passed, when])
+        w.writerow([_cell(name), _cell(seat), challenge.key, challenge.text(), *figs, passed,
+                    when])
     return out.getvalue()
+
+
+def gradebook_bytes(challenge: Challenge,
+                    rows: Iterable[tuple[str, str, tuple[LoggedRun, Verdict] | None]]) -> bytes:
+    """:func:`gradebook_csv` as the file a spreadsheet opens: UTF-8 with a byte-order
+    mark."""
+    return gradebook_csv(challenge, rows).encode(GRADEBOOK_ENCODING)
 
 
 # ---------------------------------------------------------------------------- presets
@@ -387,7 +500,8 @@ def _step() -> Challenge:
                  "time (eq. 2.16, 2.18), measured on the arm.",
         lesson="compliance", robot="receptionist_arm", run=RunSpec("step", step_deg=-20.0),
         thresholds=(
-            Threshold("step_joint", "joint stepped (index)", "", "equal", 2.0, lo=0.0, hi=5.0),
+            Threshold("step_joint", "joint stepped", "", "equal", 2.0, lo=0.0, hi=5.0,
+                      joint=True),
             Threshold("overshoot_pct", "%OS", "%", "max", 2.0, lo=0.0, hi=100.0),
             Threshold("settling_s", "Ts", "s", "max", 3.0, lo=0.05, hi=20.0),
         ),

@@ -4,6 +4,7 @@ marks nothing passed; the gradebook has one row per student with their best run.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import dataclasses
 import io
@@ -21,6 +22,7 @@ from armlab.control.challenges import (
     RunLog,
     RunSpec,
     Threshold,
+    figure_header,
     gradebook_csv,
     judge,
 )
@@ -104,17 +106,18 @@ def test_limits_are_checked_and_near_targets_have_a_tolerance():
 
 def test_the_run_log_keeps_distinct_runs_and_finds_the_last_and_the_best():
     step = PRESETS["step"]
+    tags = dict.fromkeys(step.figures, "step")  # each the step challenge's own run
     log = RunLog()
     none = dict.fromkeys(PASSING["step"])
     assert log.observe(none, when="t0") and log.last(step) is None and log.best(step) is None
     fail = {"step_joint": 2.0, "overshoot_pct": 4.1, "settling_s": 1.73}
     near_pass = {"step_joint": 2.0, "overshoot_pct": 1.9, "settling_s": 2.9}
     good_pass = {"step_joint": 2.0, "overshoot_pct": 0.5, "settling_s": 1.0}
-    assert log.observe(fail, when="t1")
-    assert not log.observe(dict(fail), when="t1b")  # the same figures: the same run
-    log.observe(good_pass, when="t2")
-    log.observe(near_pass, when="t3")
-    log.observe(dict(good_pass), when="t4")  # an equal run later: the earlier is best
+    assert log.observe(fail, tags=tags, when="t1")
+    assert not log.observe(dict(fail), tags=tags, when="t1b")  # the same figures: one run
+    log.observe(good_pass, tags=tags, when="t2")
+    log.observe(near_pass, tags=tags, when="t3")
+    log.observe(dict(good_pass), tags=tags, when="t4")  # equal, later: the earlier is best
     log.observe(none, when="t5")  # the lesson reopened, nothing measured: not a run
     assert log.last(step)[0].when == "t4"
     best_run, best = log.best(step)
@@ -128,19 +131,20 @@ def test_the_run_log_keeps_distinct_runs_and_finds_the_last_and_the_best():
 
 def test_the_gradebook_has_one_row_per_student_and_names_cannot_be_formulas():
     step = PRESETS["step"]
+    tags = dict.fromkeys(step.figures, "step")
     a, b = RunLog(), RunLog()
-    a.observe(PASSING["step"], when="2026-11-28T03:00:00Z")
-    b.observe({"step_joint": 2.0, "overshoot_pct": 4.1, "settling_s": 1.73},
+    a.observe(PASSING["step"], tags=tags, when="2026-11-28T03:00:00Z")
+    b.observe({"step_joint": 2.0, "overshoot_pct": 4.1, "settling_s": 1.73}, tags=tags,
               when="2026-11-28T03:01:00Z")
-    text = gradebook_csv(step, [("Ana", a.best(step)), ("=HYPERLINK(1)", b.best(step)),
-                                ("Cy", None)])
-    rows = list(csv.DictReader(io.StringIO(text)))
+    text = gradebook_csv(step, [("Ana", "1", a.best(step)),
+                                ("=HYPERLINK(1)", "2", b.best(step)), ("Cy", "", None)])
+    rows = list(csv.DictReader(io.StringIO(text, newline="")))
     assert [r["name"] for r in rows] == ["Ana", "'=HYPERLINK(1)", "Cy"]
     assert rows[0]["passed"] == "yes" and rows[0]["time_utc"] == "2026-11-28T03:00:00Z"
-    assert float(rows[0]["overshoot_pct"]) == 0.9 and rows[0]["challenge"] == "step"
+    assert float(rows[0]["%OS (%)"]) == 0.9 and rows[0]["challenge"] == "step"
     assert rows[0]["thresholds"] == step.text() and "%OS ≤ 2 %" in step.text()
-    assert rows[1]["passed"] == "no" and float(rows[1]["settling_s"]) == 1.73
-    assert rows[2]["passed"] == "no run" and rows[2]["overshoot_pct"] == ""
+    assert rows[1]["passed"] == "no" and float(rows[1]["Ts (s)"]) == 1.73
+    assert rows[2]["passed"] == "no run" and rows[2]["%OS (%)"] == ""
 
 
 # ---------------------------------------------------------------------- real runs
@@ -340,7 +344,9 @@ def test_in_a_class_forged_messages_pass_nothing_and_the_gradebook_has_each_stud
             teacher.wait_for(lambda: any(n.startswith("armlab-gradebook-step")
                                          for n in teacher.downloads), 30, "the download")
             (name,) = [n for n in teacher.downloads if n.startswith("armlab-gradebook-step")]
-            rows = list(csv.DictReader(io.StringIO(teacher.downloads[name].decode())))
+            data = teacher.downloads[name]
+            assert data.startswith(codecs.BOM_UTF8)  # a spreadsheet reads it as UTF-8
+            rows = list(csv.DictReader(io.StringIO(data.decode("utf-8-sig"), newline="")))
             assert sorted(r["name"] for r in rows) == ["Ana", "Bo!"]
             by = {r["name"]: r for r in rows}
             assert by["Bo!"]["passed"] == "no run"
@@ -348,8 +354,9 @@ def test_in_a_class_forged_messages_pass_nothing_and_the_gradebook_has_each_stud
             assert a["passed"] == ("yes" if ana_verdict.passed else "no")
             assert a["time_utc"] == ana_run.when and a["challenge"] == "step"
             assert "%OS ≤ 10 %" in a["thresholds"]
-            for figure in ("step_joint", "overshoot_pct", "settling_s"):
-                assert float(a[figure]) == pytest.approx(ana_run.figures[figure])
+            assert {a["seat"], by["Bo!"]["seat"]} == {"1", "2"}  # each seat its number
+            for t in lab.challenges.challenge.thresholds:  # as the page shows them
+                assert a[figure_header(t)] == t.number(ana_run.figures[t.figure])
             # the overview shows each student's best
             teacher.wait_for(lambda: "best: " in str(next(
                 (e.props.get("content") for e in teacher.gui.values()

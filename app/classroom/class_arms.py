@@ -24,6 +24,7 @@ process of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.periodic import SharedClock
+from armlab.control.restart import RestartableArm
 from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.sim.batched_plant import BatchedPlant
@@ -92,13 +94,13 @@ class ClassArms:
                 plant = self._plants.get(preset)
                 if plant is None:
                     plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
-                row = add_sim_arm(plant, q0=q0, lock=self.lock)
-                backend = BatchedArmBackend(plant, row, lock=self.lock)
+                backend = _restartable_arm(plant, q0, self.lock)
+                row = backend.arm
             try:
                 loop = loop_over(backend, model, params, history_s=history_s, clock=self.clock)
             except BaseException:  # (the backend is closed)
                 if plant is not None and row is not None:
-                    plant.remove_arm(row)
+                    plant.remove_arm(backend.arm)
                 raise
             loop.start()
             return Arm(preset, row, backend, loop)
@@ -108,8 +110,8 @@ class ClassArms:
         with self.lock:
             arm.loop.shutdown(torque_off=True)
             arm.backend.close()
-            if arm.row is not None:
-                self._plants[arm.preset].remove_arm(arm.row)
+            if arm.row is not None:  # (the arm's id now: a restart makes a new one)
+                self._plants[arm.preset].remove_arm(getattr(arm.backend, "arm", arm.row))
 
     def close(self, arms: list[Arm] | tuple[Arm, ...] = ()) -> None:
         """Stop the clock, then free ``arms`` (the ones still held).
@@ -121,6 +123,21 @@ class ClassArms:
         with self.lock:
             for arm in arms:
                 self.free(arm)
+
+
+def _restartable_arm(plant: BatchedPlant, q0: np.ndarray, lock: Any) -> RestartableArm:
+    """A new arm of ``plant`` at ``q0`` that a challenge's run can start again at a pose
+    (:class:`RestartableArm`: a fresh arm of the plant in its place, the old one taken
+    out; ``lock`` is the clock's, held while it ticks)."""
+    def make(q: np.ndarray) -> BatchedArmBackend:
+        return BatchedArmBackend(plant, add_sim_arm(plant, q0=q, lock=lock), lock=lock)
+
+    def drop(old: Any) -> None:
+        old.close()
+        with lock:
+            plant.remove_arm(old.arm)
+
+    return RestartableArm(make, q0, drop=drop)
 
 
 class OwnArms:
@@ -139,11 +156,11 @@ class OwnArms:
             history_s: float) -> Arm:
         """A new simulated arm of ``model`` at ``q0`` (n,) rad, its compliance loop
         started (``preset`` names it)."""
-        loop = loop_over(make_backend("sim", model, q0=q0), model, params,
-                         realtime=self.realtime, history_s=history_s)
+        backend = RestartableArm(lambda q: make_backend("sim", model, q0=q), q0)
+        loop = loop_over(backend, model, params, realtime=self.realtime,  # type: ignore[arg-type]
+                         history_s=history_s)
         loop.start()
-        backend = loop.backend
-        return Arm(preset, None, backend, loop)
+        return Arm(preset, None, backend, loop)  # type: ignore[arg-type]
 
     def free(self, arm: Arm) -> None:
         """Stop ``arm``'s loop with torque off and close its backend."""

@@ -61,7 +61,7 @@ def best_html(best: tuple[LoggedRun, Verdict] | None) -> str:
     if best is None:
         return "—"
     run, verdict = best
-    figs = ", ".join(f"{c.threshold.label} {_fmt(c.figure, '.3g')}" for c in verdict.checks)
+    figs = ", ".join(f"{c.threshold.label} {c.threshold.show(c.figure)}" for c in verdict.checks)
     mark = ("<b style='color:#2e7d32'>✓</b>" if verdict.passed
             else "<b style='color:#b00020'>✗</b>")
     return f"{mark} {esc(figs)} <span style='color:#555'>{esc(run.when[11:19])}</span>"

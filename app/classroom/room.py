@@ -44,7 +44,9 @@ from armlab.app.page.challenge_panel import (
     ChallengeDesk,
     MyChallenge,
     figures_of,
+    results_of,
     start_run,
+    tags_of,
 )
 from armlab.app.page.inputs import UpdateScreen, notify
 from armlab.app.page.publisher import FrameThread
@@ -52,7 +54,7 @@ from armlab.app.viser_ext.clients import queue
 from armlab.app.viser_ext.handles import uuid_of
 from armlab.app.viser_ext.messages import GuiUpdateMessage
 from armlab.app.viser_ext.page_js import ask_item, mask_text_input
-from armlab.control.challenges import RunLog, gradebook_csv, utc_now
+from armlab.control.challenges import RunLog, gradebook_bytes, utc_now
 
 #: the role line of a page that follows the teacher
 FOLLOWER_TEXT = ("**Following the teacher.** Only the presenter changes the shared arm; "
@@ -84,6 +86,8 @@ class _PageState:
     seat: str | None = None
     private: LessonHandle | None = None  #: the page's own lesson, while it shows "My arm"
     figures: RunFigures | None = None  #: of its own lesson when it closed
+    tags: dict[str, str | None] | None = None  #: and which challenge's run measured each
+    results: list = dataclasses.field(default_factory=list)  #: and its challenge runs
     overview: ClassOverview | None = None  #: a presenter's class overview
     mine: MyChallenge | None = None  #: a student's own challenge panel
 
@@ -148,6 +152,9 @@ class Room:
         self.desk: ChallengeDesk | None = None
         self._runs: dict[str, RunLog] = {}
         self._seat_names: dict[str, str] = {}
+        #: each seat's number (1, 2, ... in the order seats first ran): the gradebook's seat
+        #: column, which tells two students of one name apart without showing their key
+        self._seat_numbers: dict[str, int] = {}
         self._stop = threading.Event()
         #: makes the private pages' frames, one after another (armlab.app.page.publisher)
         self._frames = FrameThread(name="armlab-private-frames")
@@ -346,7 +353,8 @@ class Room:
             lesson, state.private = state.private, None
         if lesson is None:
             return
-        state.figures = lesson.run_figures()
+        state.figures, state.tags = lesson.run_figures(), tags_of(lesson)
+        state.results = results_of(lesson)
         lesson.close()
         collector.closed()
         if not gone:
@@ -471,7 +479,12 @@ class Room:
         lesson = state.private
         if lesson is None:
             raise ValueError("choose My arm in View first: the challenge runs on your own arm")
-        return start_run(lesson, self.lab.lesson_name, challenge)
+        before = figures_of(lesson)
+        started = start_run(lesson, self.lab.lesson_name, challenge)
+        if tags_of(lesson) is None and state.seat is not None:  # the log tags its run
+            with self._lock:
+                self._seat_log(state.seat).expect(challenge, before)
+        return started
 
     def _observe(self) -> None:
         """Read each student's figures (measured here, from their own arm) into their
@@ -490,14 +503,25 @@ class Room:
             if s.seat is not None:
                 figures = figures_of(s.private) if s.private is not None else (
                     _plain(dataclasses.asdict(s.figures)) if s.figures is not None else {})
+                tags = tags_of(s.private) if s.private is not None else s.tags
+                results = results_of(s.private) if s.private is not None else s.results
                 with self._lock:
-                    log = self._runs.setdefault(s.seat, RunLog())
+                    log = self._seat_log(s.seat)
                     self._seat_names[s.seat] = self.roles.name(s.client.client_id)
+                    log.take(results)
                     if figures:
-                        log.observe(figures)
+                        log.observe(figures, tags=tags)
             if s.mine is not None:
                 with self._lock:  # (the gradebook may observe from another thread)
                     s.mine.show(challenge, log)
+
+    def _seat_log(self, seat: str) -> RunLog:
+        """Seat ``seat``'s runs (a new log, and the seat's number, the first time; the lock
+        held)."""
+        if seat not in self._runs:
+            self._runs[seat] = RunLog()
+            self._seat_numbers[seat] = len(self._seat_numbers) + 1
+        return self._runs[seat]
 
     def gradebook(self) -> tuple[str, bytes]:
         """(file name, CSV) of the gradebook: one row per student (every seat, and every
@@ -507,13 +531,14 @@ class Room:
             raise ValueError("pick a challenge first (the Challenge folder)")
         self._observe()
         with self._lock:
-            rows = [(self._seat_names.get(seat, "?"), log.best(challenge))
-                    for seat, log in self._runs.items()]
-            rows += [(self.roles.name(s.client.client_id), None) for s in self._pages.values()
+            rows = [(self._seat_names.get(seat, "?"), str(self._seat_numbers[seat]),
+                     log.best(challenge)) for seat, log in self._runs.items()]
+            rows += [(self.roles.name(s.client.client_id), "", None)
+                     for s in self._pages.values()
                      if s.seat is None and not self.roles.is_presenter(s.client.client_id)]
         stamp = utc_now().replace(":", "").replace("-", "")
         name = f"armlab-gradebook-{challenge.key}-{stamp}.csv"
-        return name, gradebook_csv(challenge, rows).encode()
+        return name, gradebook_bytes(challenge, rows)
 
     def best_of(self, client_id: int) -> Any:
         """The best run of page ``client_id``'s seat against the challenge, judged, or

@@ -24,11 +24,13 @@ from armlab.app.classroom.class_quadrupeds import ClassQuadruped, ClassQuadruped
 from armlab.app.classroom.remote_gait import FREED as QUAD_FREED
 from armlab.app.classroom.worker_process import FREED, REPORTS_S
 from armlab.control.backend import BackendError
+from armlab.control.commands import Reset
 from armlab.control.gait_loop import Command as GaitCommand
 from armlab.control.grip import GripParams
 from armlab.control.grip_loop import Command as GripCommand
 from armlab.control.loop import LoopStatus
 from armlab.control.params import GainCheck, Params
+from armlab.control.restart import RestartableArm
 from armlab.control.walking import GaitSpec
 from armlab.hardware.sim.dynamixel_servo import ServoReport
 from armlab.hardware.sim.hand import GraspObject
@@ -150,6 +152,25 @@ class QuadKind:
 MEMBER_KINDS = {kind.name: kind for kind in (HandKind, QuadKind)}
 
 
+def restart(arm: Arm, q: np.ndarray, plan: list) -> int:
+    """Start ``arm`` again at ``q`` at rest (:meth:`RestartableArm.restart`, then a Reset
+    posted), ``plan``'s commands posted after; the restart's number."""
+    backend = arm.backend
+    if not isinstance(backend, RestartableArm):
+        raise ValueError("this arm cannot be started again from a pose")
+    number = backend.restart(q, plan, arm.loop.post)
+    arm.loop.post(Reset())
+    return number
+
+
+def restarted(arm: Arm) -> tuple[int, float | None]:
+    """(restarts done, loop time of the last) of ``arm`` (:class:`RestartableArm`)."""
+    backend = arm.backend
+    if not isinstance(backend, RestartableArm):
+        return 0, None
+    return backend.restarts, backend.restarted_at
+
+
 def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class") -> None:
     """The worker process: a :class:`ClassArms` (``kind`` "class") or :class:`OwnArms`
     ("own") run by the server's calls, mirrored every ``mirror_s`` s, until the server
@@ -263,6 +284,8 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             f, link=link, point=point, duration=d),
         "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
             anchor, stiffness=k, link=link, point=point),
+        "restart": lambda i, q, plan: restart(arm_of(i), q, plan),
+        "restarted": lambda i: restarted(arm_of(i)),
         **member_ops("hand"),
         **member_ops("quad"),
         "quad_estop": lambda i: member_of("quad", i).loop.estop(),

@@ -248,6 +248,18 @@ class RemoteBackend:
         """``Pushable.set_spring`` in the worker."""
         self._owner.call("spring", self.arm_id, anchor, stiffness, link, point)
 
+    def restart(self, q: np.ndarray, plan: list[tuple[int, Command]]) -> int:
+        """Start the arm again at ``q`` (n,) rad, at rest, its controller reset, then post
+        ``plan``'s (periods, command) (:class:`armlab.control.restart.RestartableArm`, in
+        the worker); the restart's number."""
+        return int(self._owner.call("restart", self.arm_id, np.asarray(q, dtype=float),
+                                    list(plan)))
+
+    def restarted(self) -> tuple[int, float | None]:
+        """(restarts done, loop time of the last one's period)."""
+        done, at = self._owner.call("restarted", self.arm_id)
+        return int(done), at
+
 
 class _Call:
     def __init__(self) -> None:

@@ -24,22 +24,31 @@ from armlab.app.student_law import law_loop
 from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
+from armlab.control.restart import RestartableArm
 from armlab.kinematics.model import SerialChain
 
 
 def open_arm(ctx: LessonContext, model: SerialChain, params: Params, *, preset: str,
-             q0: np.ndarray, history_s: float, backend_kw: dict[str, Any] | None = None
-             ) -> tuple[Backend, ControlLoop]:
+             q0: np.ndarray, history_s: float, backend_kw: dict[str, Any] | None = None,
+             restartable: bool = False) -> tuple[Backend, ControlLoop]:
     """The arm a lesson drives and its compliance loop (see the module docstring): a
     student's or a worker's at ``q0`` (n,) rad when new, named ``preset``; the lab's
-    opened by ``make_backend(ctx.backend, model, port, baud, **backend_kw)``."""
+    opened by ``make_backend(ctx.backend, model, port, baud, **backend_kw)``, with
+    ``restartable`` a simulated one that a challenge's run can start again at a pose
+    (:class:`armlab.control.restart.RestartableArm`, its ``q0`` in ``backend_kw``; a
+    class's arms always can)."""
     if ctx.arms is not None:
         return ctx.arms.arm_for(model, params, preset=preset, q0=q0, history_s=history_s)
     if ctx.arm_process is not None and not has_firmware_sim(model):
         arm = ctx.arm_process.add(model, params, preset=preset, q0=q0, history_s=history_s)
         return arm.backend, arm.loop
-    backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud,
-                           **(backend_kw or {}))
+    kw = dict(backend_kw or {})
+    if restartable and ctx.backend == "sim" and not has_firmware_sim(model):
+        def fresh(q: np.ndarray) -> Backend:
+            return make_backend("sim", model, port=ctx.port, baud=ctx.baud, **{**kw, "q0": q})
+        backend: Any = RestartableArm(fresh, kw.get("q0", q0))
+    else:
+        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud, **kw)
     if ctx.law is not None:  # the student's law, the lab's own on a reference arm beside it
         return backend, law_loop(ctx.law, backend, model, params, q0=q0,
                                  realtime=ctx.realtime, history_s=history_s)

@@ -41,6 +41,7 @@ from armlab.app.lessons._loop_state import (
     stopped_state,
 )
 from armlab.app.lessons._servo_arm import open_arm, shut_arm
+from armlab.app.lessons.compliance_challenge import ChallengeRuns
 from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
 from armlab.app.lessons.compliance_plots import JointPlots
 from armlab.app.lessons.compliance_push import PushControls
@@ -60,6 +61,7 @@ from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.surface import Surface
 from armlab.control.backend import Backend, Pushable
+from armlab.control.challenges import Challenge
 from armlab.control.commands import (
     EStop,
     Push,
@@ -175,6 +177,8 @@ class ComplianceLesson(LessonBase):
         self._last_servos = 0.0
         self._link = LinkMonitor()
         self.experiment: Experiment | None = None
+        #: the challenges' runs: from the challenge's own start, tagged with its key
+        self.challenges = ChallengeRuns(self)
         self._measured: Experiment | None = None  #: the last experiment measured whole
         self.run_start: float | None = None  #: loop time the last run started (CSV)
         self.run_label = "recording"
@@ -219,7 +223,7 @@ class ComplianceLesson(LessonBase):
         line = thesis_line(model)
         start = {"q0": line.q[0]} if self.ctx.backend == "sim" else {}  # on the line
         backend, loop = open_arm(self.ctx, model, params, preset=preset, q0=line.q[0],
-                                 history_s=HISTORY_S, backend_kw=start)
+                                 history_s=HISTORY_S, backend_kw=start, restartable=True)
         try:
             scene = ComplianceScene(
                 self.server, model, path=np.vstack([THESIS_LINE_START, THESIS_LINE_END]),
@@ -253,6 +257,7 @@ class ComplianceLesson(LessonBase):
             old = self.rig
             if old is None or old.preset == preset or self._closed:
                 return
+            self.challenges.cancel("new link lengths")
             self.rig = None
             self._close_rig(old)
             self.rig = self._make_rig(self._load_model(preset), preset, self.gains.params)
@@ -390,6 +395,7 @@ class ComplianceLesson(LessonBase):
 
     def _apply_params(self, params: Params) -> None:
         """Swap ``params`` into the loop (next period). Raises ValueError to refuse."""
+        self.challenges.cancel("new gains")
         apply_gains(self._loop(), params, warning=self.warning)
 
     def _now(self) -> float:
@@ -401,6 +407,8 @@ class ComplianceLesson(LessonBase):
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
+        self.challenges.busy()
+        self.challenges.untag("line_push")
         t0 = self._now()
         self.runs.post(rig.loop, RunTrajectory(rig.line), run="thesis line")
         self.run_start, self.run_label = t0, "thesis line"
@@ -414,6 +422,7 @@ class ComplianceLesson(LessonBase):
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
+        self.challenges.busy()
         loop = rig.loop
         if joint is not None and not 0 <= joint < len(self.joint_labels):
             raise ValueError(f"step: no joint {joint} (the arm has {len(self.joint_labels)})")
@@ -423,6 +432,7 @@ class ComplianceLesson(LessonBase):
                          step=math.radians(size), lower=loop.lower,
                          upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
+        self.challenges.untag("step")
         self.runs.post(loop, RunTrajectory(plan.trajectory, approach=False),
                        run=f"step {label}")
         self.run_start, self.run_label = t0, f"step {label}"
@@ -438,6 +448,7 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         if not isinstance(rig.backend, Pushable):
             raise ValueError("real servos: push the arm by hand")
+        self.challenges.busy()
         pushes = self.pushes
         size = pushes.force if force_n is None else force_n
         if not (math.isfinite(size) and size > 0):
@@ -446,6 +457,7 @@ class ComplianceLesson(LessonBase):
         duration = pushes.duration if duration is None else duration
         t0 = self._now()
         pushed_line = self._mark_line_pushed(push_n=size)
+        self.challenges.untag("line_push" if pushed_line else "push")
         self.runs.post(rig.loop, Push(force, link=rig.model.n - 1, point=rig.model.tip[:3, 3],
                                       duration=duration), run=None if pushed_line else "push")
         self._push = (force, t0 + duration)
@@ -456,11 +468,13 @@ class ComplianceLesson(LessonBase):
             f"push of {size:g} N {pushes.direction} for {duration:g} s"))
 
     def stop(self) -> None:
+        self.challenges.cancel("Stop")
         self.runs.post(self._loop(), Stop())
 
     def reset(self) -> None:
         """Clear a fault or E-STOP: torque on, hold. ValueError (shown to the person) while
         the link to the servos is down: nothing can be reset then."""
+        self.challenges.cancel("Reset")
         post_reset(self._loop())
         self._push = None
 
@@ -476,6 +490,7 @@ class ComplianceLesson(LessonBase):
         rig = self.rig
         if rig is None:
             return
+        self.challenges.cancel("E-STOP")
         try:
             rig.loop.post(EStop())
             if not rig.loop.status.running:  # no loop to apply it: do it here
@@ -505,9 +520,54 @@ class ComplianceLesson(LessonBase):
                           stiffness_nm_per_rad=(None if gain is None or not gain > 0
                                                 else 1.0 / gain))
 
+    # ------------------------------------------------------------------ challenges
+
+    def run_challenge(self, challenge: Challenge) -> str:
+        """Start ``challenge``'s run from its own start (:mod:`.compliance_challenge`);
+        what was started, for a person. ValueError when it cannot be."""
+        return self.challenges.start(challenge)
+
+    def run_tags(self) -> dict[str, str | None]:
+        """Per figure of :meth:`run_figures`, the key of the challenge whose run measured
+        it (None: a run made otherwise)."""
+        return self.challenges.tags()
+
+    def challenge_results(self) -> list[tuple[int, dict[str, float | None],
+                                              dict[str, str | None]]]:
+        """The challenge runs measured (number, figures, tags), newest last."""
+        return list(self.challenges.results)
+
+    def pushable(self) -> bool:
+        """Whether the lab can push this arm (a simulated one)."""
+        rig = self.rig
+        return rig is not None and isinstance(rig.backend, Pushable)
+
+    def take_step(self, measured: Measured, joint: int) -> None:
+        """A challenge's step, measured: the lesson's step figures and the page's line."""
+        self.measured_pd, self._step_joint = measured, joint
+        set_content(self.step_result, measured_line(measured))
+
+    def take_push(self, measured: Measured, force_n: float) -> None:
+        """A challenge's push, measured: the lesson's push figures and the page's lines."""
+        self.measured_env, self._push_n = measured, force_n
+        for beside in (self.pushes.result, self.push_result_run):
+            set_content(beside, measured_line(measured))
+
+    def take_pushed_line(self, err_deg: np.ndarray, q: np.ndarray, force_n: float) -> None:
+        """A challenge's line under a push, measured: chapter 4's pushed figures (its
+        largest error per joint, °; the yield from the last free line run, if any)."""
+        free_q, yld = self._free_q, None
+        if free_q is not None and free_q.shape[1] == q.shape[1]:
+            m = min(len(q), len(free_q))
+            yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
+        self.chapter4 = Chapter4(self.chapter4.free, err_deg, yld)
+        self._line_push_n = force_n
+        self.last_run_text = chapter4_markdown(self.chapter4, self.joint_labels)
+
     def _on_target(self, xyz: np.ndarray) -> None:
         rig = self.rig
         if rig is not None and np.all(np.isfinite(xyz)):  # a page cannot send NaN on
+            self.challenges.cancel("a new target")
             self.runs.post(rig.loop, SetTarget(xyz))
 
     def _on_drag(self, phase: str, anchor: np.ndarray | None) -> None:
@@ -517,6 +577,8 @@ class ComplianceLesson(LessonBase):
         if anchor is not None and not np.all(np.isfinite(anchor)):
             return  # a malformed drag event: ignore it
         k = self._spring_k.value
+        if anchor is not None:
+            self.challenges.cancel("a drag of the hand")
         self._drag_anchor = anchor
         drag = phase == "start" and not self._mark_line_pushed()
         self.runs.post(rig.loop, Spring(anchor, stiffness=k, link=rig.model.n - 1,
@@ -662,6 +724,7 @@ class ComplianceLesson(LessonBase):
         """The last experiment's figures, once it is over (the publisher calls this at each
         of its ticks: the loop's status is read only while one runs)."""
         self.runs.tick()  # the run's rows kept apart from the recorder's window
+        self.challenges.measure()
         exp, rig = self.experiment, self.rig
         if exp is None or exp.done or rig is None:
             return

@@ -50,6 +50,20 @@ def figures_of(lesson: LessonHandle | None) -> dict[str, float | None]:
             for k, v in dataclasses.asdict(lesson.run_figures()).items()}
 
 
+def tags_of(lesson: LessonHandle | None) -> dict[str, str | None] | None:
+    """Per figure of the lesson's, the key of the challenge whose run measured it (its
+    ``run_tags()``); None: the lesson tags none (the run log tags it, ``RunLog.expect``)."""
+    tags = getattr(lesson, "run_tags", None)
+    return None if tags is None else dict(tags())
+
+
+def results_of(lesson: LessonHandle | None) -> list:
+    """The lesson's challenge runs (its ``challenge_results()``: number, figures, tags),
+    or [] (a lesson that keeps none)."""
+    results = getattr(lesson, "challenge_results", None)
+    return [] if results is None else list(results())
+
+
 def _lesson_title(name: str) -> str:
     """The switcher's title of lesson ``name`` ("Hand grasp")."""
     module = all_lessons().get(name)
@@ -66,12 +80,6 @@ def target_markdown(challenge: Challenge | None) -> str:
     return "\n".join(lines)
 
 
-def _fmt(x: float | None, unit: str) -> str:
-    if x is None:
-        return "—"
-    return f"{x:.3g}" + (f" {unit}" if unit else "")
-
-
 def verdict_markdown(title: str, judged: tuple[LoggedRun, Verdict] | None) -> str:
     """One judged run (its time, ✓/✗ per threshold with the figure) as markdown."""
     if judged is None:
@@ -81,7 +89,7 @@ def verdict_markdown(title: str, judged: tuple[LoggedRun, Verdict] | None) -> st
     lines = [f"**{title}** ({run.when.replace('T', ' ').rstrip('Z')} UTC): {head}"]
     for c in verdict.checks:
         mark = "✓" if c.ok else "✗"
-        got = _fmt(c.figure, c.threshold.unit)
+        got = c.threshold.show(c.figure)
         why = f" — {c.reason}" if c.reason and c.figure is None else ""
         lines.append(f"- {mark} {c.threshold.label}: {got} (target {c.threshold.text()}){why}")
     return "\n".join(lines)
@@ -114,16 +122,8 @@ def start_run(lesson: LessonHandle | None, lesson_name: str, challenge: Challeng
                          "lesson: open it first")
     run = challenge.run
     act: Any = lesson
-    if run.kind == "step":
-        joint = challenge.setting("step_joint")
-        act.run_step(joint=None if joint is None else int(joint), step_deg=run.step_deg)
-        return f"a {run.step_deg:+g}° step"
-    if run.kind in ("line_push", "push"):
-        force = challenge.setting("line_push_n" if run.kind == "line_push" else "push_n")
-        if run.kind == "line_push":
-            act.run_line()
-        act.push(force_n=4.0 if force is None else force, duration=run.push_s)
-        return "the thesis line under a push" if run.kind == "line_push" else "a push"
+    if run.kind in ("step", "line_push", "push"):  # from the challenge's own start, tagged
+        return str(act.run_challenge(challenge))
     if run.kind == "grasp":
         if any(m not in ("idle", "opening") for m in act.loop.status.modes):
             raise ValueError("open the hand first (Open), then run the challenge")
@@ -279,7 +279,13 @@ class ChallengeDesk:
         c = self.challenge
         if c is None:
             raise ValueError("pick a challenge first")
-        return start_run(self.lab.lesson, self.lab.lesson_name, c)
+        lesson = self.lab.lesson
+        before = figures_of(lesson)
+        started = start_run(lesson, self.lab.lesson_name, c)
+        if tags_of(lesson) is None:
+            with self._lock:
+                self.log.expect(c, before)
+        return started
 
     def runs(self) -> RunLog:
         """A copy of :attr:`log` (the lab's own lesson's runs), for another thread."""
@@ -290,10 +296,12 @@ class ChallengeDesk:
 
     def read(self) -> None:
         """Read the lab's lesson's figures into :attr:`log` and show where it stands."""
-        figures = figures_of(self.lab.lesson)
+        lesson = self.lab.lesson
+        figures, tags, results = figures_of(lesson), tags_of(lesson), results_of(lesson)
         with self._lock:
+            self.log.take(results)
             if figures:
-                self.log.observe(figures)
+                self.log.observe(figures, tags=tags)
             self._show_result()
 
     def _show_result(self) -> None:

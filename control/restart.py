@@ -1,0 +1,179 @@
+"""A simulated arm that a challenge's run can start again from a pose at rest.
+
+A challenge's judged run must be a function of the gains, the challenge and the robot
+alone (issue 50 item 3), whatever the arm did before and however busy the machine is.
+So its run does not start from where the arm happens to be: :class:`RestartableArm`
+wraps a simulated backend (``make(q)`` opens a fresh one at ``q``, at rest: a new
+``SimBackend``, or a new arm of a class's batched plant) and, asked to
+(:meth:`RestartableArm.restart`), puts a fresh one in its place inside the loop's own
+period, as follows (all in loop time, none of it on the wall clock):
+
+1. ``restart(q, plan, post)`` arms it; the caller then posts ``Reset`` to the loop;
+2. at every period's ``sync`` while armed the arm is made fresh again at ``q`` (so the
+   periods before the Reset is applied leave nothing behind) and goals are not written;
+3. the Reset's torque-on (``set_torque(True)``, the loop's ``_start``, in the period the
+   Reset is applied) ends it: the controller starts at rest from the fresh arm's
+   reading. That period's loop time is :attr:`RestartableArm.restarted_at`;
+4. each ``(periods, command)`` of ``plan`` is posted (``post``) at the ``sync``
+   ``periods + 1`` periods after that one, so the loop applies it ``periods + 2`` periods
+   after the restart, whatever the wall clock did meanwhile.
+
+Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed).
+
+A real (serial) arm cannot be put back: its challenge runs are judged from the run's
+own start (where the arm was), and the lab says so.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from armlab.control.backend import Backend, JointState
+from armlab.control.commands import Command
+
+
+class RestartableArm:
+    """A simulated backend that :meth:`restart` replaces by a fresh one at a pose, at rest,
+    in step with the loop (module docstring). Every other call goes to the backend in use.
+
+    Args:
+        make: opens a fresh backend at ``q`` (n,) rad, at rest, torque on (the old one is
+            closed through ``drop`` when replaced).
+        q0: the first backend's pose.
+        drop: lets a replaced backend go (default: its ``close()``).
+    """
+
+    def __init__(self, make: Callable[[np.ndarray], Backend], q0: np.ndarray, *,
+                 drop: Callable[[Backend], None] | None = None) -> None:
+        self._make = make
+        self._drop = drop or (lambda b: b.close())
+        self._lock = threading.RLock()
+        self.inner: Backend = make(np.asarray(q0, dtype=float))
+        self._offset = 0.0  #: the loop time the backend in use started at
+        self._t = 0.0
+        self._armed: tuple[np.ndarray, list[tuple[int, Command]], Callable[[Command], None]
+                           ] | None = None
+        self._fresh = False  #: armed, and the backend in use was made at this period's sync
+        self._plan: list[tuple[int, Command]] = []
+        self._post: Callable[[Command], None] | None = None
+        self._since = 0  #: periods since the restart
+        self.restarts = 0  #: restarts done
+        self.restarted_at: float | None = None  #: loop time of the last restart's period
+
+    # -- restarting -------------------------------------------------------------------
+
+    def restart(self, q: np.ndarray, plan: Sequence[tuple[int, Command]],
+                post: Callable[[Command], None]) -> int:
+        """Arm a restart at ``q`` (n,) rad (then post ``Reset`` to the loop); ``plan``'s
+        commands go to ``post`` that many periods after it. Returns the restart's number
+        (:attr:`restarts` reaches it once done)."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.n,) or not np.all(np.isfinite(q)):
+            raise ValueError(f"restart: the pose must be {self.n} finite angles, got {q!r}")
+        with self._lock:
+            self._armed = (q.copy(), sorted(plan, key=lambda p: p[0]), post)
+            self._plan, self._post = [], None
+            return self.restarts + 1
+
+    @property
+    def armed(self) -> bool:
+        """A restart is asked for and not done yet."""
+        return self._armed is not None
+
+    def sync(self, t: float) -> None:
+        """The loop's period at loop time ``t``: armed, a fresh arm at the pose; else the
+        backend in use brought to ``t``, and the plan's due commands posted."""
+        with self._lock:
+            self._t = float(t)
+            if self._armed is not None:
+                old, self.inner = self.inner, self._make(self._armed[0])
+                self._drop(old)
+                self._offset, self._fresh = self._t, True
+            elif self._post is not None:
+                self._since += 1
+                due = [c for k, c in self._plan if k < self._since]
+                self._plan = [(k, c) for k, c in self._plan if k >= self._since]
+                for command in due:
+                    self._post(command)
+                if not self._plan:
+                    self._post = None
+            self.inner.sync(self._t - self._offset)
+
+    def set_torque(self, on: bool) -> None:
+        """Torque on or off; the torque-on of the Reset that follows a fresh arm ends the
+        restart (module docstring, 3)."""
+        with self._lock:
+            self.inner.set_torque(on)
+            if on and self._armed is not None and self._fresh:
+                _, plan, post = self._armed
+                self._armed, self._fresh = None, False
+                self._plan, self._post, self._since = plan, post, 0
+                self.restarted_at = self._t
+                self.restarts += 1
+                if not plan:
+                    self._post = None
+
+    def cancel(self) -> None:
+        """Post nothing more of the last restart's plan (the run was cut short)."""
+        with self._lock:
+            self._plan, self._post = [], None
+
+    # -- the Backend protocol, to the backend in use ------------------------------------
+
+    @property
+    def n(self) -> int:
+        return self.inner.n
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self.inner.lower
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self.inner.upper
+
+    def read(self) -> JointState:
+        with self._lock:
+            return self.inner.read()
+
+    def write(self, position: np.ndarray, speed: np.ndarray) -> None:
+        """Goals to the backend in use (none while armed: the fresh arm holds its pose)."""
+        with self._lock:
+            if self._armed is None:
+                self.inner.write(position, speed)
+
+    def estop(self) -> bool:
+        with self._lock:
+            return self.inner.estop()
+
+    def close(self) -> None:
+        with self._lock:
+            self.inner.close()
+
+    def push(self, force: np.ndarray, *, link: int, point: np.ndarray, duration: float) -> None:
+        """A push on the backend in use (none while armed: the fresh arm starts unpushed,
+        even by a push applied in the Reset's period before the Reset)."""
+        with self._lock:
+            if self._armed is not None:
+                return
+            self.inner.push(force, link=link, point=point, duration=duration)  # type: ignore[attr-defined]
+
+    def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
+                   point: np.ndarray) -> None:
+        """A spring on the backend in use (none while armed, as :meth:`push`)."""
+        with self._lock:
+            if self._armed is not None:
+                return
+            self.inner.set_spring(anchor, stiffness=stiffness, link=link,  # type: ignore[attr-defined]
+                                  point=point)
+
+    def __getattr__(self, name: str) -> Any:
+        """Anything else (``plant``, ``specs``, ``checked_goal``, a batched arm's ``arm``)
+        from the backend in use."""
+        if name.startswith("__") or name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
