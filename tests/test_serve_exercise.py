@@ -291,6 +291,43 @@ def test_error_shows_on_the_page_the_arm_holds_and_a_saved_fix_runs(served, brow
 
 
 @pytest.mark.realtime
+@pytest.mark.slow
+def test_while_the_law_fails_commands_are_refused_and_the_status_says_so_in_red(served):
+    """Run thesis line, Step, Push and a challenge's run are refused with the law's error;
+    the status dot says "holding: your law failed" in the error's colour, not a green
+    "holding"; a saved fix takes them again."""
+    from armlab.app.lessons.law_view import ERROR_COLOR
+    from armlab.control.challenges import PRESETS
+
+    lab, path = served
+    lesson = lab.lesson
+    page = HeadlessClient(lab.url.replace("http://", "ws://")).connect()
+    with page:
+        page.wait_for(lambda: _html_has(page, "● holding"), 60.0, "the green holding")
+        assert _html_has(page, "color:#2e7d32'>● holding")
+        save(path, "raise")
+        wait_for(lambda: lab.law.error is not None, 30.0, "the error loaded")
+        for what, command in (("Run thesis line", lesson.run_line),
+                              ("Step", lesson.run_step), ("Push", lesson.push),
+                              ("The challenge's run",
+                               lambda: lesson.run_challenge(PRESETS["step"]))):
+            with pytest.raises(ValueError, match="refused while your law fails") as refused:
+                command()
+            assert str(refused.value).startswith(what) and "ZeroDivisionError" in str(
+                refused.value)
+        assert lesson.rig.loop.status.trajectory is None and lesson.experiment is None
+        page.wait_for(lambda: _html_has(page, f"color:{ERROR_COLOR}'>● holding: your law "
+                                              "failed"), 60.0, "the red status")
+        assert not _html_has(page, "color:#2e7d32'>● holding")
+        save(path, None)
+        wait_for(lambda: lab.law.error is None, 30.0, "the fix loaded")
+        lesson.run_line()
+        wait_for(lambda: lesson.experiment.done, 60.0, "the line to end")
+        page.wait_for(lambda: _html_has(page, "color:#2e7d32'>● holding"), 60.0,
+                      "the green holding again")
+
+
+@pytest.mark.realtime
 def test_the_any_arm_lesson_runs_the_law_too_with_its_reference(tmp_path):
     from armlab.app.server import Lab, ServeOptions
 

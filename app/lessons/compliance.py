@@ -56,7 +56,7 @@ from armlab.app.lessons.compliance_teach import (
     measured_line,
     thesis_preset_note,
 )
-from armlab.app.lessons.law_view import LawView, law_loop_of, reference_angle
+from armlab.app.lessons.law_view import ERROR_COLOR, LawView, law_loop_of, reference_angle
 from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.surface import Surface
@@ -407,6 +407,7 @@ class ComplianceLesson(LessonBase):
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
+        self._law_works("Run thesis line")
         self.challenges.busy()
         self.challenges.untag("line_push")
         t0 = self._now()
@@ -422,6 +423,7 @@ class ComplianceLesson(LessonBase):
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
         check_running(rig.loop.status)
+        self._law_works("Step")
         self.challenges.busy()
         loop = rig.loop
         if joint is not None and not 0 <= joint < len(self.joint_labels):
@@ -448,6 +450,7 @@ class ComplianceLesson(LessonBase):
             raise ValueError("the arm is being rebuilt; try again")
         if not isinstance(rig.backend, Pushable):
             raise ValueError("real servos: push the arm by hand")
+        self._law_works("Push")
         self.challenges.busy()
         pushes = self.pushes
         size = pushes.force if force_n is None else force_n
@@ -525,7 +528,13 @@ class ComplianceLesson(LessonBase):
     def run_challenge(self, challenge: Challenge) -> str:
         """Start ``challenge``'s run from its own start (:mod:`.compliance_challenge`);
         what was started, for a person. ValueError when it cannot be."""
+        self._law_works("The challenge's run")
         return self.challenges.start(challenge)
+
+    def _law_works(self, what: str) -> None:
+        """Refuse ``what`` (ValueError, shown) while the student's law fails."""
+        if self.law_view is not None:
+            self.law_view.refuse_commands(what)
 
     def run_tags(self) -> dict[str, str | None]:
         """Per figure of :meth:`run_figures`, the key of the challenge whose run measured
@@ -686,6 +695,10 @@ class ComplianceLesson(LessonBase):
             state, color = f"running {st.trajectory} ({100 * st.progress:.0f} %)", "#1f5eea"
         else:
             state, color = "holding", "#2e7d32"
+        failing = None if self.law_view is None or stopped is not None else (
+            self.law_view.failing_state())
+        if failing is not None:  # the student's law: the dot says so, as red as its error
+            state, color = failing, ERROR_COLOR
         push = self._push
         if st.active and push is not None and len(snap["t"]) and snap["t"][-1] <= push[1]:
             state += (f" · pushing {np.linalg.norm(push[0]):.3g} N "

@@ -24,7 +24,9 @@ from armlab.kinematics.smallarrays import all_finite
 
 #: The reference arm's colour: see-through grey-green, apart from the blue command ghost.
 REFERENCE_RGBA = (0.2, 0.75, 0.35, 0.3)
-ERROR_STYLE = "color:#b00020;font-size:0.85em;white-space:pre-wrap"
+#: The colour of the law's error, and of the status dot while it fails.
+ERROR_COLOR = "#b00020"
+ERROR_STYLE = f"color:{ERROR_COLOR};font-size:0.85em;white-space:pre-wrap"
 
 
 def law_loop_of(loop: ControlLoop | None) -> LawLoop | None:
@@ -82,6 +84,21 @@ class LawView:
             set_content(self.note, text)
         line = error_line(self.law)
         return f"<div style='{ERROR_STYLE}'>{esc(line)}</div>" if line else ""
+
+    def failing_state(self) -> str | None:
+        """The status's state while the law fails ("holding: your law failed", shown in
+        :data:`ERROR_COLOR`), or None while it runs."""
+        if self.law.error is None:
+            return None
+        return ("stopped: your law failed" if self.law.servos
+                else "holding: your law failed")
+
+    def refuse_commands(self, what: str) -> None:
+        """Raise ValueError (the page shows it) while the law fails: ``what`` (a command:
+        "Run thesis line") would run on a law that does not work."""
+        if self.law.error is not None:
+            raise ValueError(f"{what} refused while your law fails ({self.law.error}): "
+                             "save a fix first")
 
     def draw(self, loop: LawLoop, model: SerialChain, *, visible: bool = True) -> None:
         """Pose the reference ghost at the reference arm's newest angles (made on first
