@@ -505,12 +505,13 @@ def _step() -> Challenge:
             Threshold("overshoot_pct", "%OS", "%", "max", 2.0, lo=0.0, hi=100.0),
             Threshold("settling_s", "Ts", "s", "max", 3.0, lo=0.05, hi=20.0),
         ),
-        source="Measured on the simulated arm, three steps in a row: the lab's default (Kp "
-               "20, Kv 5; designed %OS 12 %, Ts 1.6 s, control/params.py) gives %OS 3.8–7.9 "
-               "% and fails; Kv 8 (ζp = Kv/(2√Kp) 0.89, eq. 2.12) gives 0–0.9 %, Ts 1.8–2.8 "
-               "s. Ts is within 2 % of a 20° step, 0.4°: about the servos' resolution, so it "
-               "varies from step to step; its limit is loose. Joint 2 is θ2, the thesis's "
-               "servo 3 (chapter 4's metric).")
+        source="Measured on the simulated arm by the challenge's run (from the thesis "
+               "line's start at rest: the same figures every run): the lab's default (Kp "
+               "20, Kv 5; designed %OS 12 %, Ts 1.6 s, control/params.py) gives %OS 4.28 %, "
+               "Ts 1.74 s and fails; Kv 8 (ζp = Kv/(2√Kp) 0.89, eq. 2.12) gives 0 %, Ts "
+               "2.08 s. Ts is within 2 % of a 20° step, 0.4°: about the servos' resolution, "
+               "so a small change of gains moves it much; its limit is loose. Joint 2 is "
+               "θ2, the thesis's servo 3 (chapter 4's metric).")
 
 
 def _line_push() -> Challenge:
@@ -526,8 +527,9 @@ def _line_push() -> Challenge:
         ),
         source="Thesis ch. 4: the free line stays under 6° with the PD loop, the pushed one "
                "goes over 15° on servo 3 with compliance on (fig. 4.9/4.12); the lesson's "
-               "push is 4 N. Measured on the simulated arm: the default gains give 10.9°; a "
-               "stiffer environment (K_env 64, Kv 8) 5.4°.")
+               "push is 4 N. Measured on the simulated arm by the challenge's run (the push "
+               "begins with the line, from its start at rest): the default gains give "
+               "15.4°; K_env 64, Kv 8 7.7°; K_env 100, Kv 8 4.6°.")
 
 
 def _stiffness() -> Challenge:
@@ -544,7 +546,7 @@ def _stiffness() -> Challenge:
         ),
         source="The default K_env 16 N·m/rad, K_f 4 give 1/C_f = K_env/K_f = 4 N·m/rad "
                "(control/params.py, eq. 2.15; measured 4.04); the target doubles it, within "
-               "10 % (K_env 32 measured 7.97).")
+               "10 % (K_env 32 measured 8.00).")
 
 
 def _grasp() -> Challenge:
