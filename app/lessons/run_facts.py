@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
@@ -75,6 +76,7 @@ class GainLog:
     :data:`MAX_GAIN_CHANGES`)."""
 
     def __init__(self) -> None:
+        self._lock = threading.Lock()  # seen from the publisher and from a run's start
         self._last: dict[str, Any] | None = None
         self._changes: deque[dict[str, Any]] = deque(maxlen=MAX_GAIN_CHANGES)
 
@@ -82,14 +84,15 @@ class GainLog:
         """The parameters in force at loop time ``t`` s: a change from the last seen is
         kept as ``{"t": s, name: new value, ...}`` (only what changed)."""
         now = dict(params)
-        last = self._last
-        self._last = now
-        if last is None:
-            return
-        changed = {k: v for k, v in now.items() if last.get(k) != v}
-        if changed:
-            self._changes.append({"t": float(t), **changed})
+        with self._lock:
+            last, self._last = self._last, now
+            if last is None:
+                return
+            changed = {k: v for k, v in now.items() if last.get(k) != v}
+            if changed:
+                self._changes.append({"t": float(t), **changed})
 
     def between(self, t0: float, t1: float = math.inf) -> list[dict[str, Any]]:
         """The changes seen from ``t0`` to ``t1`` s, oldest first."""
-        return [c for c in list(self._changes) if t0 <= c["t"] <= t1]
+        with self._lock:
+            return [c for c in self._changes if t0 <= c["t"] <= t1]
