@@ -344,6 +344,7 @@ def handed_in_run() -> Run:
 
 
 @pytest.mark.browser
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_a_teacher_reads_the_page(browser, tmp_path):
     out = write_html(handed_in_run(), tmp_path / "handed-in.html")

@@ -145,6 +145,7 @@ class _Run:
     params: dict[str, Any]
     law: dict[str, Any]
     track: RunTrack | None  #: its rows (None: a lesson without a recorder: the window's)
+    extra: dict[str, object] = field(default_factory=dict)  #: the lesson's, at its start
     figures: dict[str, float | None] | None = None  #: frozen when measured
     finished_at: float | None = None
 
@@ -305,7 +306,8 @@ class RunControls:
             track = RunTrack(loop.recorder, t0=t, period=float(loop.params.period))
             self._gains.see(params, t=t)
         self._run = _Run(label=label, t0=float(t), params=params, track=track,
-                         law=law_json(getattr(self._ctx, "law", None), params))
+                         law=law_json(getattr(self._ctx, "law", None), params),
+                         extra=dict(self._extra()))  # (its link lengths, if rebuilt since)
 
     def finish_run(self, figures: Mapping[str, float | None] | None = None, *,
                    t: float) -> None:
@@ -405,7 +407,7 @@ class RunControls:
         figures = dict(run.figures or {}) if finished else {}
         return self._make_run(rec, snap, commands=commands, figures=figures,
                               params=run.params, about=about, law=run.law, by=by,
-                              gains=self._gains.between(run.t0, t_end))
+                              gains=self._gains.between(run.t0, t_end), extra=run.extra)
 
     def _live_run(self, by: int | None) -> Run:
         """The record's window now, labelled as the live window (no run yet)."""
@@ -433,12 +435,14 @@ class RunControls:
     def _make_run(self, rec: Recording, snap: Mapping[str, np.ndarray], *,
                   commands: list[dict[str, Any]], figures: Mapping[str, Any],
                   params: Mapping[str, Any], about: dict[str, Any], law: dict[str, Any],
-                  by: int | None, gains: list[dict[str, Any]]) -> Run:
-        """The :class:`Run` of ``snap`` with what every file says (who, law, backend)."""
+                  by: int | None, gains: list[dict[str, Any]],
+                  extra: Mapping[str, object] | None = None) -> Run:
+        """The :class:`Run` of ``snap`` with what every file says (who, law, backend);
+        ``extra``: the lesson's extra as it was when the run began (default: now)."""
         ctx = self._ctx
         who = getattr(ctx, "who", None)
         name = who(by) if who is not None and by is not None else ""
-        extra: dict[str, object] = {**rec.extra, **self._extra()}
+        extra = {**rec.extra, **(self._extra() if extra is None else extra)}
         extra.update({
             "run": about, "law": law, "gain_changes": gains,
             "backend": backend_json(str(getattr(ctx, "backend", "sim")),
