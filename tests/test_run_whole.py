@@ -179,3 +179,25 @@ def test_the_students_law_is_in_the_file_with_its_hash(tmp_path):
     assert set(run.figures) <= {"overshoot_pct", "peak_time_s", "settling_s", "rise_time_s",
                                 "step_joint"}
     assert all(v is None or math.isfinite(v) for v in run.figures.values())
+
+
+def test_the_backend_and_law_facts_say_what_they_know():
+    from types import SimpleNamespace
+
+    from armlab.app.lessons.run_facts import GainLog, backend_json, law_json
+
+    serial = SimpleNamespace(map=SimpleNamespace(servo="RX-24F", joints=[
+        SimpleNamespace(servo_id=i) for i in (1, 2, 3)]), bus=SimpleNamespace(baud=1_000_000))
+    assert backend_json("serial", port="/dev/ttyUSB0", backend=serial) == {
+        "kind": "serial", "port": "/dev/ttyUSB0", "servos": "RX-24F", "servo_ids": [1, 2, 3],
+        "baud": 1_000_000}
+    sim = SimpleNamespace(specs=[SimpleNamespace(name="RX-24F")] * 3)
+    assert backend_json("sim", backend=sim) == {"kind": "simulated", "servos": "RX-24F"}
+    assert backend_json("sim") == {"kind": "simulated"}  # nothing claimed it does not know
+    gone = SimpleNamespace(path="/nowhere/law.py", exercise=SimpleNamespace(name="x"))
+    assert law_json(gone)["by"] == "student" and "sha256" not in law_json(gone)
+    log = GainLog()
+    log.see({"kp": 20.0, "kv": 5.0}, t=0.0)
+    log.see({"kp": 20.0, "kv": 5.0}, t=1.0)
+    log.see({"kp": 25.0, "kv": 5.0}, t=2.0)
+    assert log.between(0.0) == [{"t": 2.0, "kp": 25.0}] and log.between(0.0, 1.5) == []
