@@ -210,7 +210,7 @@ def test_alone_the_same_challenge_run_twice_gives_the_same_figures():
     with Lab(ServeOptions(http_port=0)) as lab:
         lesson, desk = lab.lesson, lab.challenges
         wait_for(lambda: lesson.rig.loop.status.t > 0.3, 60, "the arm running")
-        for key in ("step", "stiffness"):
+        for key in ("step", "line_push", "stiffness"):
             desk.set_challenge(PRESETS[key])
             runs = []
             for k in range(2):
@@ -218,9 +218,33 @@ def test_alone_the_same_challenge_run_twice_gives_the_same_figures():
                     lesson.run_step(joint=1, step_deg=10.0 * k)
                     wait_for(lambda: lesson.experiment.done, 60, "a step of its own")
                 runs.append(_challenge_run(lesson, desk.run))
-            figures = PRESETS[key].figures
-            assert {f: runs[0][f] for f in figures} == {f: runs[1][f] for f in figures}, key
-            assert all(runs[0][f] is not None for f in figures), runs[0]
+            challenge = PRESETS[key]
+            shown = [{t.figure: t.show(run[t.figure]) for t in challenge.thresholds}
+                     for run in runs]
+            assert shown[0] == shown[1], key  # every digit the page prints
+            for f in challenge.figures:  # (and to the last bits of the loop's time sums)
+                assert runs[0][f] is not None and runs[1][f] == pytest.approx(runs[0][f],
+                                                                               rel=1e-9), f
         desk.read()
         assert desk.log.best(PRESETS["stiffness"]) is not None
         assert figures_of(lesson)["stiffness_nm_per_rad"] == runs[1]["stiffness_nm_per_rad"]
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_an_arm_that_cannot_be_put_back_runs_the_challenge_from_where_it_is(monkeypatch):
+    """Real servos cannot be put back at the challenge's pose: the step starts from the
+    arm's present command, is judged from the run's own start, and the page says so."""
+    from armlab.app.lessons import compliance_challenge
+
+    monkeypatch.setattr(compliance_challenge, "can_restart", lambda backend: False)
+    with Lab(ServeOptions(http_port=0)) as lab:
+        lesson = lab.lesson
+        wait_for(lambda: lesson.rig.loop.status.t > 0.3, 60, "the arm running")
+        restarts = lesson.rig.backend.restarts
+        started: list[str] = []
+        figures = _challenge_run(lesson, lambda: started.append(lesson.run_challenge(STEP)))
+        assert compliance_challenge.SERVOS_NOTE in started[0]
+        assert lesson.rig.backend.restarts == restarts  # nothing put back
+        assert figures["step_joint"] == 2.0 and figures["overshoot_pct"] is not None
+        assert lesson.run_tags()["overshoot_pct"] == "step"

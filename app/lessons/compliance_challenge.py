@@ -33,6 +33,7 @@ from armlab.control.challenges import Challenge
 from armlab.control.commands import Command, Push, Reset, RunTrajectory
 from armlab.control.response import line_errors, measure_push, measure_step, plan_step
 from armlab.control.restart import RestartableArm
+from armlab.control.trajectory import JointTrajectory, hold
 
 #: s the arm holds the challenge's start pose after its restart, before the run's commands
 HOLD_S = 1.0
@@ -90,6 +91,19 @@ def restart_arm(backend: Any, loop: Any, q: np.ndarray,
         return number
     remote = getattr(backend, "restart", None)  # a private arm in the class's worker
     return None if remote is None else int(remote(q, plan))
+
+
+def steady_end(line: JointTrajectory, period: float) -> JointTrajectory:
+    """``line`` then two periods at rest at its end: the loop samples a trajectory at
+    t − t_start in its absolute time, whose last bits differ from run to run; at the end of
+    a trajectory moving to the last sample (θ̇, θ̈ ≠ 0) they decide whether a period gets
+    the last segment or the end at rest. Ending at rest, both give the same command."""
+    return line.then(hold(line.q[-1], 2.0 * period, dt=period), name=line.name)
+
+
+def can_restart(backend: Any) -> bool:
+    """Whether the arm behind ``backend`` can be put back at a pose (a simulated one)."""
+    return isinstance(backend, RestartableArm) or callable(getattr(backend, "restart", None))
 
 
 def restarted(backend: Any) -> tuple[int, float | None]:
@@ -170,7 +184,8 @@ class ChallengeRuns:
             raise ValueError("the arm is stopped: press Reset first")
         spec = challenge.run
         period = loop.params.period
-        delay = int(round(HOLD_S / period))
+        fresh = can_restart(rig.backend)
+        delay = int(round(HOLD_S / period)) if fresh else 0
         q0 = np.asarray(rig.line.q[0], dtype=float)
         tip = dict(link=rig.model.n - 1, point=rig.model.tip[:3, 3])
         plan: list[tuple[int, Command]]
@@ -179,7 +194,8 @@ class ChallengeRuns:
             if not 0 <= joint < rig.model.n:
                 raise ValueError(f"step: no joint {joint} (the arm has {rig.model.n})")
             label = lesson.joint_labels[joint]
-            step = plan_step({"q_cmd": q0[None, :]}, joint=joint,
+            start = {"q_cmd": q0[None, :]} if fresh else loop.recorder.snapshot(0.2)
+            step = plan_step(start, joint=joint,
                              step=math.radians(spec.step_deg), lower=loop.lower,
                              upper=loop.upper, params=loop.params, label=label)
             plan = [(delay, RunTrajectory(step.trajectory, approach=False))]
@@ -196,7 +212,7 @@ class ChallengeRuns:
             push = Push(force * np.array((0.0, -1.0, 0.0)), duration=spec.push_s, **tip)
             span = spec.push_s
             if spec.kind == "line_push":
-                plan = [(delay, RunTrajectory(rig.line)), (delay, push)]
+                plan = [(delay, RunTrajectory(steady_end(rig.line, period))), (delay, push)]
                 span = max(span, rig.line.duration) + LINE_TAIL_S
                 label = f"thesis line under a push of {force:g} N"
             else:
@@ -207,7 +223,7 @@ class ChallengeRuns:
                              label, force_n=force)
         else:
             raise ValueError(f"the {spec.kind} challenge runs in another lesson")
-        run.number = restart_arm(rig.backend, loop, q0, plan)
+        run.number = restart_arm(rig.backend, loop, q0, plan) if fresh else None
         if run.number is None:  # real servos: from where the arm is, now
             run.t0 = loop.status.t
             for _, command in plan:
