@@ -98,7 +98,7 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
             loop.post(lambda: None)  # type: ignore[arg-type]
         unstable = Params(kp=200.0, kv=0.0)  # a simulated arm takes them, with the warning
         gains = loop.set_params(unstable)
-        assert gains.unstable and gains.warning.startswith("unstable")
+        assert gains.unstable and gains.warning.startswith("the PD loop diverges")
         assert loop.params == unstable and loop.gains == gains
         assert loop.status.fault is None
     finally:

@@ -413,6 +413,7 @@ EXPERIMENT_RUNS = {
                                                    "estimate"}),
     "observers": ([], "torque_joint", {"q", "tau_ext"}),
     "thesis-readings": (["--reading", "SI"], "receptionist_arm", set(SIGNALS)),
+    "contact": (["--controller", "compliance"], "receptionist_arm", set(SIGNALS)),
 }
 
 

@@ -209,6 +209,32 @@ def text_size_sheet(*, controls_px: int, chart_title_px: int) -> str:
         "<style>"
         f".mantine-Paper-root *:not(svg):not(path):not(canvas) {{font-size:{c}px !important;"
         "line-height:1.3 !important}"
+        # nothing wider than the panel: its scrolling content is as wide as the panel (not
+        # as its widest table), a table shares that width out and wraps its cells
+        ".mantine-Paper-root .mantine-ScrollArea-content {display:block !important;"
+        "min-width:0 !important}"
+        # a folder's body (viser: a one-row grid that animates its opening) as wide as
+        # its folder, not as its widest table
+        ".mantine-Paper-root [style*='display: grid'][style*='grid-template-rows'] {"
+        "grid-template-columns:minmax(0, 1fr)}"
+        ".mantine-Paper-root [style*='display: grid'][style*='grid-template-rows'] > * {"
+        "min-width:0}"
+        # a table of up to five columns shares the panel's width out and wraps its cells
+        # (a word is broken only where it cannot fit); a wider one (the paper's Table 1)
+        # scrolls sideways inside the panel, its numbers whole
+        ".mantine-Paper-root table:not(.u-legend) :is(td, th) {padding-left:0.25em !important;"
+        "padding-right:0.25em !important}"
+        ".mantine-Paper-root table:not(.u-legend):not(:has(tr > :nth-child(6))) {"
+        "table-layout:fixed;width:100%}"
+        ".mantine-Paper-root table:not(.u-legend):not(:has(tr > :nth-child(6))) :is(td, th) {"
+        "overflow-wrap:break-word;white-space:normal !important}"
+        ".mantine-Paper-root table:not(.u-legend):has(tr > :nth-child(6)) {display:block;"
+        "overflow-x:auto;max-width:100%}"
+        ".mantine-Paper-root table:not(.u-legend):has(tr > :nth-child(6)) :is(td, th) {"
+        "white-space:nowrap !important}"
+        # a slider's number field (viser: 3rem wide) holds its value at any text size
+        ".mantine-Paper-root .mantine-NumberInput-root[style*='width: 3rem'] {"
+        "width:3.7em !important}"
         f".u-title, .u-legend, .u-legend * {{font-size:{t}px !important;"
         "line-height:1.3 !important}"
         f".mantine-Notification-root * {{font-size:{c}px !important}}"
