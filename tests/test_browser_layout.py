@@ -50,18 +50,24 @@ MISFITS_JS = """() => {
 TEXT_PX = {False: "14px", True: "22px"}
 
 
+def _page(browser, lab, size: tuple[int, int], *, projector: bool):  # noqa: ANN001, ANN202
+    """A page of ``lab`` at ``size`` (px) with its Projector switch as asked."""
+    pg = browser.new_page(viewport={"width": size[0], "height": size[1]})
+    pg.goto(lab.url)
+    box = pg.get_by_role("checkbox", name="Projector")
+    box.wait_for(timeout=120_000)
+    if box.is_checked() != projector:
+        box.click()
+    return pg
+
+
 @pytest.mark.parametrize("size", [(1920, 1080), (1280, 720)], ids=["1920x1080", "1280x720"])
 @pytest.mark.parametrize("projector", [False, True], ids=["normal", "projector"])
 def test_nothing_in_the_panel_is_clipped_on_any_tab(browser, lab, size, projector):
     assert lab.lesson_name == "compliance"
-    width, height = size
-    pg = browser.new_page(viewport={"width": width, "height": height})
+    pg = _page(browser, lab, size, projector=projector)
     try:
-        pg.goto(lab.url)
         pg.get_by_role("button", name="Run thesis line").wait_for(timeout=120_000)
-        box = pg.get_by_role("checkbox", name="Projector")
-        if box.is_checked() != projector:
-            box.click()
 
         def sized() -> bool:  # the page's style sheet for its mode has arrived
             return pg.evaluate("() => { const e = document.querySelector("
@@ -98,14 +104,8 @@ def ik_lab():
                          ids=["1920x1080-projector", "1280x720-normal"])
 def test_the_ik_accuracy_table_fits_its_panel(browser, ik_lab, size, projector):
     assert ik_lab.lesson_name == "ik_accuracy"
-    width, height = size
-    pg = browser.new_page(viewport={"width": width, "height": height})
+    pg = _page(browser, ik_lab, size, projector=projector)
     try:
-        pg.goto(ik_lab.url)
-        pg.get_by_role("checkbox", name="Projector").wait_for(timeout=120_000)
-        box = pg.get_by_role("checkbox", name="Projector")
-        if box.is_checked() != projector:
-            box.click()
         pg.get_by_role("button", name="Run the paper's table").click()  # its 24 rows
         pg.get_by_text("Out of range (14 rows)").first.wait_for(timeout=120_000)
         wait_for(lambda: not pg.evaluate(MISFITS_JS), 60,

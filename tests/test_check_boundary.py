@@ -206,6 +206,10 @@ def test_a_forked_process_that_waits_to_rewrite_results_is_killed(tmp_path, caps
                 except OSError:
                     pass
                 time.sleep(0.001)
+        for _ in range(10000):  # the module goes on once the rewriter is in place
+            if os.path.exists({str(pidfile)!r}) and open({str(pidfile)!r}).read():
+                break
+            time.sleep(0.001)
         """)
     path = tmp_path / "thesis_fk.py"
     path.write_text(body)

@@ -110,12 +110,12 @@ def test_every_way_in_holds_gains_to_the_rule_once_and_none_goes_around_it(monke
 
     monkeypatch.setattr(loop_module, "check_gains", rule)
     unstable = Params(kp=10.0, kv=50.0, period=0.05)
-    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: unstable"):
+    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: the PD loop diverges"):
         ControlLoop(ARM, Faulty(), unstable, realtime=False)
     assert checked == [(unstable, True)]
     loop = ControlLoop(ARM, Faulty(), realtime=False)
     checked.clear()
-    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: unstable"):
+    with pytest.raises(ValueError, match=f"^{REFUSED_ON_SERVOS}: the PD loop diverges"):
         loop.set_params(unstable)
     with pytest.raises(TypeError):
         loop.set_params(unstable, force=True)  # type: ignore[call-arg]  # no way around

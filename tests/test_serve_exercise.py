@@ -342,6 +342,22 @@ def test_the_any_arm_lesson_runs_the_law_too_with_its_reference(tmp_path):
         save(path, "raise")
         page.wait_for(lambda: _html_has(page, "ZeroDivisionError"), 60.0, "the law's error")
         assert loop.status.active and loop.status.torque_on and loop.guard.held
+        # while it fails a joint move, Home, the target and a push are refused, named, and
+        # the status dot says so in the error's red
+        from armlab.app.lessons.law_view import ERROR_COLOR
+
+        lesson = lab.lesson
+        for what, command in (("A joint move", lambda: lesson.move_joint(1, 0.3)),
+                              ("A joint move", lesson.home),
+                              ("Moving the target", lambda: lesson.set_target(
+                                  np.array([0.2, 0.0, 0.2]))),
+                              ("Push", lesson.controls.push)):
+            with pytest.raises(ValueError, match="refused while your law fails") as refused:
+                command()
+            assert str(refused.value).startswith(what), refused.value
+        assert loop.status.trajectory is None
+        page.wait_for(lambda: _html_has(page, f"color:{ERROR_COLOR}'>● holding: your law "
+                                              "failed"), 60.0, "the red status")
 
 
 def test_a_lesson_without_a_live_law_is_refused_before_serving(tmp_path):

@@ -517,3 +517,26 @@ def test_push_from_the_run_tab_shows_its_figures_beside_the_button(lab, client):
     text = lab.lesson.push_result_run.content
     assert "push of 4 N against the line" in text and "Tp" in text and "C_f" in text
     assert loop.status.fault is None
+
+
+def test_home_brings_the_arm_back_to_the_line_start_at_the_approach_speed(lab, client):
+    """After a step far from it, **Home** moves the arm back to the thesis line's start,
+    its command never faster than the lab's approach speed (Reset only holds it)."""
+    from armlab.control.trajectory import APPROACH_SPEED
+
+    lesson = lab.lesson
+    loop = lesson.rig.loop
+    wait_for(lambda: loop.status.active, 60, "the arm held")
+    lesson.run_step(joint=2, step_deg=-25.0)
+    wait_for(lambda: loop.status.trajectory is None and loop.status.t > 2.0, 60,
+             "the step done")
+    start = lesson.rig.line.q[0]
+    t0 = loop.status.t
+    client.click("Home")
+    wait_for(lambda: loop.status.trajectory is not None, 30, "the move home")
+    wait_for(lambda: loop.status.trajectory is None, 60, "the arm home")
+    snap = loop.recorder.snapshot(loop.status.t - t0)
+    assert np.abs(snap["q_cmd"][-1] - start).max() < 1e-6
+    ok = np.isfinite(snap["q_cmd"]).all(axis=1)
+    speed = np.abs(np.diff(snap["q_cmd"][ok], axis=0)) / np.diff(snap["t"][ok])[:, None]
+    assert speed.max() <= APPROACH_SPEED * 1.01, speed.max()

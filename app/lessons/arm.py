@@ -23,6 +23,7 @@ the servo (:mod:`armlab.app.lessons.arm_gripper`).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -53,6 +54,7 @@ from armlab.app.lessons.arm_controls import ArmControls
 from armlab.app.lessons.arm_gripper import GripperControls
 from armlab.app.lessons.compliance_controls import GainControls
 from armlab.app.lessons.compliance_servos import LinkMonitor
+from armlab.app.lessons.law_view import ERROR_COLOR
 from armlab.app.lessons.run_files import RunControls
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
@@ -235,10 +237,14 @@ class ArmLesson(LessonBase):
         def moved(event: viser.TransformControlsEvent) -> None:
             if event.client is None:
                 return
-            if event.phase == "start":  # a stopped loop: said once, when the target is grabbed
-                guarded(event, lambda: check_running(self.loop.status))
+            if event.phase == "start":  # said once, when the target is grabbed: a stopped
+                # loop, or the student's law failing
+                guarded(event, lambda: (check_running(self.loop.status),
+                                        self.controls.refuse_while_law_fails(
+                                            "Moving the target")))
             elif stopped_state(self.loop.status) is None:
-                self.set_target(np.asarray(self.target.position, dtype=float))
+                with contextlib.suppress(ValueError):  # (refused: said at the start)
+                    self.set_target(np.asarray(self.target.position, dtype=float))
 
         self._lane = InOrder("armlab-arm-target")  # the gizmo's moves in the page's order
         self.target.on_update(self._lane(moved))
@@ -345,6 +351,7 @@ class ArmLesson(LessonBase):
                 saying why nothing happened.
         """
         check_running(self.loop.status)
+        self.controls.refuse_while_law_fails("A joint move")
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
         self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S, name=SLIDER_MOVE),
                                                 approach=True))
@@ -360,7 +367,9 @@ class ArmLesson(LessonBase):
         self.move_to(self.model.neutral())
 
     def set_target(self, xyz: np.ndarray) -> None:
-        """Make the hand follow ``xyz`` (3,) m in the arm's base frame."""
+        """Make the hand follow ``xyz`` (3,) m in the arm's base frame (refused, with the
+        reason, while the student's law fails)."""
+        self.controls.refuse_while_law_fails("Moving the target")
         self.runs.post(self.loop, SetTarget(xyz))
 
     def _place_target(self, xyz: np.ndarray) -> None:
@@ -389,6 +398,9 @@ class ArmLesson(LessonBase):
         else:
             state, color = ("holding", "#2e7d32") if st.active else ("starting", "#555")
             detail = st.message or where
+            failing = self.controls.failing_state()
+            if failing is not None:  # the student's law: the dot as red as its error
+                state, color = failing, ERROR_COLOR
         set_content(self.status, status_html(state + self.controls.status_note(), color,
                                              esc(detail),
                                              extra=link_note(self._link, self.backend)

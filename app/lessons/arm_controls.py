@@ -236,10 +236,22 @@ class ArmControls:
 
     # ================================================================== actions
 
+    def refuse_while_law_fails(self, what: str) -> None:
+        """Raise ValueError (the page shows it) while the student's law fails
+        (``armlab serve --exercise``): ``what`` would run on a law that does not work."""
+        if self.law_view is not None:
+            self.law_view.refuse_commands(what)
+
+    def failing_state(self) -> str | None:
+        """The status's state while the student's law fails (shown in its error's red),
+        or None."""
+        return None if self.law_view is None else self.law_view.failing_state()
+
     def push(self) -> None:
         """Push the hand as the Push tab says (the simulated arm)."""
         if self.servos:
             raise ValueError("real servos: push the arm by hand")
+        self.refuse_while_law_fails("Push")
         snap = self.loop.recorder.snapshot(0.2)
         if not len(snap["t"]) or not np.all(np.isfinite(snap["q"][-1])):
             raise ValueError("the arm has not been read yet; try again")

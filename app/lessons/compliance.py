@@ -78,6 +78,7 @@ from armlab.control.trajectory import (
     THESIS_LINE_END,
     THESIS_LINE_START,
     JointTrajectory,
+    hold,
     thesis_line,
 )
 from armlab.kinematics.fk import fk_and_jacobian
@@ -308,6 +309,10 @@ class ComplianceLesson(LessonBase):
                               hint="Stop the motion and hold where the command is")
         reset = gui.add_button("Reset", icon=viser.Icon.REFRESH,
                                hint="After an E-STOP or a fault: torque on, hold where the arm is")
+        home = gui.add_button("Home", icon=viser.Icon.HOME,
+                              hint="Move the arm back to the thesis line's start at the lab's "
+                                   "calm approach speed (after Reset, if it stopped far away)")
+        home.on_click(lambda e: guarded(e, self.home))
         self.reconnect_button = gui.add_button(
             "Reconnect", color="orange", icon=viser.Icon.PLUG, visible=False,
             hint="The link to the servos is down: open the port again now (the lab also "
@@ -473,6 +478,19 @@ class ComplianceLesson(LessonBase):
     def stop(self) -> None:
         self.challenges.cancel("Stop")
         self.runs.post(self._loop(), Stop())
+
+    def home(self) -> None:
+        """Move the arm to the lesson's home pose, the thesis line's start, at the lab's
+        approach speed: the way back after gains or a run left it far away (Reset only
+        holds it where it is, as on a real arm). ValueError (shown) while the loop is
+        stopped or the student's law fails."""
+        rig = self.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        check_running(rig.loop.status)
+        self._law_works("Home")
+        self.challenges.cancel("Home")
+        self.runs.post(rig.loop, RunTrajectory(hold(rig.line.q[0], 0.2, name="home")))
 
     def reset(self) -> None:
         """Clear a fault or E-STOP: torque on, hold. ValueError (shown to the person) while
