@@ -201,3 +201,21 @@ def test_the_backend_and_law_facts_say_what_they_know():
     log.see({"kp": 20.0, "kv": 5.0}, t=1.0)
     log.see({"kp": 25.0, "kv": 5.0}, t=2.0)
     assert log.between(0.0) == [{"t": 2.0, "kp": 25.0}] and log.between(0.0, 1.5) == []
+
+
+@pytest.mark.slow
+def test_a_challenge_run_is_the_run_save_run_saves(lesson):
+    """After a step challenge's run, Save run holds that run (from its restart, labelled
+    as the challenge's), with the figures it was judged on."""
+    from armlab.control.challenges import PRESETS
+
+    lesson.run_challenge(PRESETS["step"])
+    wait_for(lambda: lesson.challenges.pending is None and lesson.runs._run is not None
+             and lesson.runs._run.label.startswith("challenge "), 300.0,
+             "the challenge's run measured")
+    run = saved(lesson)
+    about = run.extra["run"]
+    assert about["label"].startswith("challenge ") and about["state"] == FINISHED
+    judged = lesson.challenges.results[-1][1]
+    assert run.figures["overshoot_pct"] == judged["overshoot_pct"]
+    assert run.t[0] <= lesson.run_start <= run.t[-1]

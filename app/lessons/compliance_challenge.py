@@ -167,6 +167,8 @@ class ChallengeRuns:
         rig = self.lesson.rig
         if rig is not None and isinstance(rig.backend, RestartableArm):
             rig.backend.cancel()
+        if run.t0 is not None and rig is not None:  # its file ends here, unmeasured
+            self.lesson.runs.finish_run(None, t=rig.loop.status.t)
         self.lesson.last_run_text = f"**Challenge run** ({run.label}): cut short by {why}"
 
     # -- starting ----------------------------------------------------------------------
@@ -249,6 +251,8 @@ class ChallengeRuns:
                 return
             run.t0 = at
             self.lesson.run_start = at
+            # Save run keeps this run whole, from its restart (armlab.app.lessons.run_files)
+            self.lesson.runs.begin_run(f"challenge {run.label}", t=at)
         loop = rig.loop
         period = loop.params.period
         if loop.status.t < run.t0 + (run.length + 1) * period:
@@ -265,6 +269,7 @@ class ChallengeRuns:
         except ValueError as exc:
             self.lesson.last_run_text = (f"**Challenge run** ({run.label}): not measured: "
                                          f"{exc}")
+            self.lesson.runs.finish_run(None, t=loop.status.t)
             return
         for name in FIGURES[run.kind]:
             self._tags[name] = run.challenge.key
@@ -273,6 +278,8 @@ class ChallengeRuns:
                    for k, v in dataclasses.asdict(self.lesson.run_figures()).items()}
         self.results.append((self._measured, figures, self.tags()))
         del self.results[:-KEEP]
+        self.lesson.runs.finish_run({name: figures.get(name) for name in FIGURES[run.kind]},
+                                    t=loop.status.t)
 
     def _take(self, run: PendingRun, snap: dict[str, np.ndarray]) -> None:
         """The figures of ``run`` from its window ``snap``, into the lesson."""
