@@ -334,9 +334,8 @@ class ArmLesson(LessonBase):
         """
         check_running(self.loop.status)
         q = self._shown(self.loop.recorder.snapshot(0.2))
-        if q is None:
-            raise ValueError("nothing happened: the arm has not been read yet; try again")
-        q = q.copy()
+        # (a loop that has not recorded yet holds the pose the lesson opened at)
+        q = (self._held() if q is None else q).copy()
         q[joint] = angle
         self.move_to(q)
 
