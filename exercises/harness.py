@@ -20,7 +20,8 @@ A failure of the student's code (an exception, a syntax error, a hang, ``sys.exi
 values; nothing this process does can reach its verdict.
 
 The parent imports this module too (as ``armlab.exercises.harness``) for :func:`encode`,
-:func:`decode`, :func:`sources` and :func:`time_limit`, which is why it imports no armlab.
+:func:`decode`, :func:`sources`, :func:`time_limit` and :func:`outside`, which is why it
+imports no armlab.
 """
 
 from __future__ import annotations
@@ -301,6 +302,19 @@ class RefuseArmlab(importlib.abc.MetaPathFinder):
         return None
 
 
+def outside(filename: str, dirs: tuple[str, ...]) -> bool:
+    """Whether a frame's ``filename`` lies outside every folder of ``dirs`` (resolved
+    paths) and is a file at all (not ``<frozen ...>``, ``<string>``, numpy's
+    ``<__array_function__>``): a frame of the student's code."""
+    if filename.startswith("<frozen") or filename in ("<string>", "<__array_function__>"):
+        return False
+    try:
+        resolved = str(Path(filename).resolve())
+    except (OSError, ValueError):
+        resolved = filename
+    return not any(resolved == d or resolved.startswith(d + "/") for d in dirs)
+
+
 def _library_dirs() -> tuple[str, ...]:
     paths = sysconfig.get_paths()
     dirs = {paths[k] for k in ("stdlib", "platstdlib", "purelib", "platlib") if k in paths}
@@ -316,14 +330,7 @@ class _Student:
         self.namespace: dict[str, Any] = {}
 
     def is_theirs(self, filename: str) -> bool:
-        if filename.startswith("<frozen") or filename in ("<string>", "<__array_function__>"):
-            return False
-        try:
-            resolved = str(Path(filename).resolve())
-        except (OSError, ValueError):
-            resolved = filename
-        return resolved != self.me and not any(
-            resolved == d or resolved.startswith(d + "/") for d in self.library)
+        return outside(filename, self.library + (self.me,))
 
     def locate(self, exc: BaseException, fallback: Any = None) -> dict[str, Any]:
         """Where ``exc`` happened in the student's code: their innermost frame, else

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.exercises.harness import CHECK_CALLS, LOAD_S, Hang, sources, time_limit
+from armlab.exercises.harness import CHECK_CALLS, LOAD_S, Hang, outside, sources, time_limit
 
 __all__ = ["CHECK_CALLS", "LOAD_S", "CheckedLaw", "Hang", "StudentError", "guarded_call",
            "is_student_file", "load_module", "locate", "time_limit"]
@@ -68,13 +68,7 @@ def is_student_file(filename: str) -> bool:
     global _LIBRARY
     if _LIBRARY is None:
         _LIBRARY = _library_dirs()
-    if filename.startswith("<frozen") or filename in ("<string>", "<__array_function__>"):
-        return False
-    try:
-        resolved = str(Path(filename).resolve())
-    except (OSError, ValueError):
-        resolved = filename
-    return not any(resolved == d or resolved.startswith(d + "/") for d in _LIBRARY)
+    return outside(filename, _LIBRARY)
 
 
 def locate(exc: BaseException, *, fallback: Callable[..., Any] | None = None) -> StudentError:
