@@ -162,6 +162,9 @@ class ArmLesson(LessonBase):
                                            backend_kw=extra)
         # a student's arm stays with their seat; the lab's is let go if the page fails
         undo = None if ctx.arms is not None else partial(shut_arm, self.backend, self.loop)
+        #: (n,) rad where the arm was when the lesson opened: the sliders and the target
+        #: start there (the servos read once)
+        self._opened_at = self._held()
         with self.opening(undo):
             self.view = ArmView(server, model, root="/arm")
             self._build_scene()
@@ -190,16 +193,17 @@ class ArmLesson(LessonBase):
                 return np.clip(q, self.loop.lower, self.loop.upper)
         return self.model.neutral()
 
-    def _shown(self, snap: dict[str, np.ndarray]) -> np.ndarray | None:
+    @staticmethod
+    def _shown(snap: dict[str, np.ndarray], *, active: bool) -> np.ndarray | None:
         """(n,) rad the joint sliders show, from the newest of ``snap`` (a recorder
-        snapshot): the command while the loop holds the arm; where the arm is while it
-        holds nothing (E-STOP, a fault, a lost link, torque held off: the arm may fall or
-        be moved by hand), so the next slider move or Reset starts there. None when
-        nothing is recorded yet."""
+        snapshot): the command while the loop holds the arm (``active``); where the arm is
+        while it holds nothing (E-STOP, a fault, a lost link, torque held off: the arm may
+        fall or be moved by hand), so the next slider move or Reset starts there. None
+        when nothing is recorded yet."""
         if not len(snap["t"]):
             return None
         q_cmd, q = snap["q_cmd"][-1], snap["q"][-1]
-        if self.loop.status.active and all_finite(q_cmd):
+        if active and all_finite(q_cmd):
             return np.asarray(q_cmd, dtype=float)
         return np.asarray(q, dtype=float) if all_finite(q) else None
 
@@ -208,10 +212,12 @@ class ArmLesson(LessonBase):
         not a slider that put it there: the hand target, Reset, E-STOP, a fault, a
         reconnect. A slider a person moved in the last :data:`SLIDER_QUIET_S`, or whose
         approach still plays, is left where the person put it."""
-        if time.monotonic() - self._slider_t < SLIDER_QUIET_S or \
-                self.loop.status.trajectory == SLIDER_MOVE:
+        if time.monotonic() - self._slider_t < SLIDER_QUIET_S:
             return
-        q = self._shown(snap)
+        st = self.loop.status  # (one snapshot a frame)
+        if st.trajectory == SLIDER_MOVE:
+            return
+        q = self._shown(snap, active=st.active)
         if q is None:
             return
         for slider, deg in zip(self.sliders, np.degrees(q), strict=True):
@@ -222,7 +228,7 @@ class ArmLesson(LessonBase):
 
     def _build_scene(self) -> None:
         base = self.model.base_pose
-        hand = self.model.fk(self._held())[:3, 3]
+        hand = self.model.fk(self._opened_at)[:3, 3]
         scene = self.server.scene
         self.base = scene.add_frame("/arm_target_base", show_axes=False,
                                     position=base[:3, 3],
@@ -254,7 +260,7 @@ class ArmLesson(LessonBase):
         self.status = self._gui.add_status(try_this=TRY)
         tabs = self._gui.add(gui.add_tab_group(order=-70.0))
         lower, upper = self.loop.lower, self.loop.upper
-        held = np.degrees(self._held())
+        held = np.degrees(self._opened_at)
         with tabs.add_tab("Joints", viser.Icon.ADJUSTMENTS):
             self.sliders = []
             for i, j in enumerate(self.model.joints):
@@ -332,10 +338,11 @@ class ArmLesson(LessonBase):
             ValueError: the loop is stopped (a lost link, a fault, E-STOP, torque held off):
                 saying why nothing happened.
         """
-        check_running(self.loop.status)
-        q = self._shown(self.loop.recorder.snapshot(0.2))
+        st = self.loop.status
+        check_running(st)
+        q = self._shown(self.loop.recorder.snapshot(0.2), active=st.active)
         # (a loop that has not recorded yet holds the pose the lesson opened at)
-        q = (self._held() if q is None else q).copy()
+        q = (self._opened_at if q is None else q).copy()
         q[joint] = angle
         self.move_to(q)
 

@@ -226,7 +226,8 @@ class Plant:
         self._pushes: list[_Push] = []
         self._spring: _Spring | None = None
         self._wall: _Wall | None = None
-        self._wall_peak = 0.0  #: N, the largest wall force since :meth:`wall_peak` was read
+        #: N, the largest wall force since :meth:`wall_peak` was read (None: never asked)
+        self._wall_peak: float | None = None
         self._push_tau = [0.0] * n
         self._joint_torques: list[_JointTorque] = []
 
@@ -356,7 +357,8 @@ class Plant:
         self._k += 1
         if not finite(self._qd):
             raise FloatingPointError(f"plant diverged at t = {self.t:.3f} s (q = {self._q})")
-        if self._wall is not None:  # an impact lasts a few steps: its peak is kept
+        if self._wall is not None and self._wall_peak is not None:  # (asked for: an
+            # impact lasts a few steps, its peak is kept)
             self._wall_peak = max(self._wall_peak, self.wall_force())
 
     def _held_torques(self) -> tuple[list[float], ...]:
@@ -504,9 +506,10 @@ class Plant:
 
     def wall_peak(self) -> float:
         """N, the largest wall force at the end of any step since the last call (then
-        forgotten): an impact's peak, which a controller's period may fall between."""
+        forgotten): an impact's peak, which a controller's period may fall between. The
+        plant keeps it from the first call on (until then its steps skip the work)."""
         peak, self._wall_peak = self._wall_peak, 0.0
-        return peak
+        return self.wall_force() if peak is None else max(peak, self.wall_force())
 
     def wall_force(self) -> float:
         """N, the wall's normal force on the arm now (ground truth: 0 off the wall, or
