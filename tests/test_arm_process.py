@@ -1,4 +1,5 @@
-"""The students' private arms in a worker process (app/arm_process.py): what a lesson
+"""The students' private arms in a worker process
+(armlab/app/classroom/worker_process.py): what a lesson
 reads of an arm is mirrored without a gap, what it asks is answered (a refusal raised
 here), and a worker that dies leaves the server healthy and the next arm working."""
 

@@ -1,5 +1,6 @@
 """The class's hands: N batched hands and grasp controllers equal N single ones, and the
-loop that runs them (app/class_hands.py) gives each student's hand its own grasp."""
+loop that runs them (armlab/app/classroom/class_hands.py) gives each student's hand its
+own grasp."""
 
 from __future__ import annotations
 

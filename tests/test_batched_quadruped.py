@@ -474,7 +474,8 @@ def test_a_gait_loop_walks_one_robot_of_a_batch_as_it_walks_a_quadruped_backend(
 
 @pytest.mark.slow
 def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> None:
-    """The classroom's way (app/class_quadrupeds.py): the loop's periods run on the clock
+    """The classroom's way (armlab/app/classroom/class_quadrupeds.py): the loop's periods
+    run on the clock
     that steps the batch (``GaitLoop(clock=)``), the backend only checks the time. The
     record equals the loop's own on a QuadrupedSimBackend, row for row."""
     plan = plan_gait(GaitSpec())
@@ -501,7 +502,8 @@ def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> Non
 
 @pytest.mark.slow
 def test_the_class_walks_each_students_robot_on_its_own() -> None:
-    """app/class_quadrupeds.py: robots on the class's clock (its step CLASS_DT); one walks,
+    """armlab/app/classroom/class_quadrupeds.py: robots on the class's clock (its step
+    CLASS_DT); one walks,
     its neighbour stands; an E-STOP sits that one down alone; a freed robot is gone."""
     from armlab.app.classroom.class_quadrupeds import CLASS_DT, ClassQuadrupeds
 

@@ -1,6 +1,6 @@
 """The classroom's Passcode field in real Chromium: masked as a password field on every
-page, and the passcode typed into it still makes a presenter (app/classroom/room.py,
-app/viser_ext/page_scripts.py)."""
+page, and the passcode typed into it still makes a presenter (armlab/app/classroom/room.py,
+armlab/app/viser_ext/page_scripts.py)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""Roles in a classroom (app/classroom.py): only the presenter changes the shared arm.
+"""Roles in a classroom (armlab/app/classroom/roles.py): only the presenter changes the shared arm.
 
 The server refuses, it does not merely hide: these tests send what a hand-made
-websocket client would (app/wsclient.py speaks the page's protocol) to a real lab on
+websocket client would (armlab/app/testing/wsclient.py speaks the page's protocol) to a real lab on
 a free loopback port.
 """
 

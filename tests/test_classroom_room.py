@@ -1,5 +1,5 @@
 """A room of 30 pages, each with a private arm playing the thesis line, beside the shared
-arm (app/benches/classroom.py's room, shorter): nothing dies. The figures it measures are
+arm (armlab/app/benches/classroom.py's room, shorter): nothing dies. The figures it measures are
 the bench's (``armlab bench``), never asserted here: the machine is shared."""
 
 from __future__ import annotations

@@ -235,8 +235,8 @@ def test_compiled_model_is_built_once_and_readable():
 
 
 def shipped_chains() -> list[tuple[str, object]]:
-    """Every serial chain the lab ships: each URDF in kinematics/robots (a quadruped's four
-    legs). The hand's fingers are planar tendon linkages (kinematics/hand.py), not chains."""
+    """Every serial chain the lab ships: each URDF in armlab/kinematics/robots (a quadruped's four
+    legs). The hand's fingers are planar tendon linkages (armlab/kinematics/hand.py), not chains."""
     from armlab.kinematics.model import ROBOTS_DIR, Quadruped
 
     out = []

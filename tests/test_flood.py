@@ -1,6 +1,6 @@
 """Fair share, functionally: while one page floods a slider, another keeps getting poses.
 
-The figures (>= 20 Hz, real time within 2 %) are bench figures (app/benches/flood.py);
+The figures (>= 20 Hz, real time within 2 %) are bench figures (armlab/app/benches/flood.py);
 here the flood's are judged against the calm blocks of the same run.
 """
 

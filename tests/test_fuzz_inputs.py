@@ -1,4 +1,5 @@
-"""Strict, quiet validation (app/inputs.py UpdateScreen): fuzzed GUI updates from a raw client.
+"""Strict, quiet validation (armlab/app/page/inputs.py): fuzzed GUI updates from a raw
+client.
 
 A hypothesis fuzz sends values of every type (NaN, inf, huge, negative, bool,
 str, None, list, dict, a 10 MB string) to every input of every lesson, through

@@ -1,4 +1,5 @@
-"""The gate in front of the lab's websocket (app/gate.py): token and Origin, before any state.
+"""The gate in front of the lab's websocket (armlab/app/gate.py): token and Origin, before
+any state.
 
 Raw websocket clients and a real Chromium, against the whole lab on a free loopback port.
 """

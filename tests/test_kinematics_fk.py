@@ -73,7 +73,8 @@ def _chains(name):
     """The serial chains of a known robot (each leg of the quadruped); skip if not written."""
     path = ROBOTS_DIR / ROBOT_FILES[name]
     if not path.exists():
-        pytest.skip(f"{path.name} is not written yet (kinematics/robots/{path.name} missing)")
+        pytest.skip(f"{path.name} is not written yet "
+                    f"(armlab/kinematics/robots/{path.name} missing)")
     model = load_robot(name)
     if isinstance(model, Quadruped):
         return list(model.legs.values())

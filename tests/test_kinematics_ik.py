@@ -34,7 +34,7 @@ def _chains():
     for name, fname in ROBOT_FILES.items():
         if not (ROBOTS_DIR / fname).exists():
             out.append(pytest.param(None, None, id=name, marks=pytest.mark.skip(
-                reason=f"kinematics/robots/{fname} is not written yet")))
+                reason=f"armlab/kinematics/robots/{fname} is not written yet")))
             continue
         model = load_robot(name)
         dims = (0, 1) if name in ("redundant_planar", "planar_servo_arm") else (0, 1, 2)

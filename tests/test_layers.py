@@ -1,7 +1,8 @@
 """The packages' imports point downwards and no modules import each other in a circle.
 
-The module import graph is read from the source (``ast``, nothing imported) over
-``app/``, ``control/``, ``hardware/`` and ``kinematics/``: app → hardware/control →
+The module import graph is read from the source (``ast``, nothing imported) over the
+package's layers, ``armlab/app``, ``armlab/exercises``, ``armlab/control``,
+``armlab/hardware`` and ``armlab/kinematics``: app → exercises → hardware/control →
 kinematics, and only app imports viser. An import inside a function counts as one at the
 top (it runs when the function does). An import inside ``if TYPE_CHECKING:`` names a type
 for an annotation only; it counts for the layers (an annotation must not point upwards
@@ -18,13 +19,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-#: the top folders, each a layer (``armlab.<folder>``)
-PACKAGES = ("app", "control", "hardware", "kinematics")
+#: the package folder: a file's path under it is its import path
+PACKAGE = ROOT / "armlab"
+#: the package's folders, each a layer (``armlab.<folder>``)
+PACKAGES = ("app", "exercises", "control", "hardware", "kinematics")
 #: what each layer must never import (a layer above it, or viser outside app)
 FORBIDDEN: dict[str, tuple[str, ...]] = {
-    "kinematics": ("armlab.control", "armlab.hardware", "armlab.app", "viser"),
-    "control": ("armlab.hardware", "armlab.app", "viser"),
-    "hardware": ("armlab.app", "viser"),
+    "kinematics": ("armlab.control", "armlab.hardware", "armlab.exercises", "armlab.app",
+                   "viser"),
+    "control": ("armlab.hardware", "armlab.exercises", "armlab.app", "viser"),
+    "hardware": ("armlab.exercises", "armlab.app", "viser"),
+    "exercises": ("armlab.app", "viser"),
     "app": (),
 }
 
@@ -40,8 +45,9 @@ class Import:
 
 
 def module_name(path: Path) -> str:
-    """``app/classroom/room.py`` -> ``armlab.app.classroom.room`` (a package: its name)."""
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    """``armlab/app/classroom/room.py`` -> ``armlab.app.classroom.room`` (a package: its
+    name)."""
+    parts = list(path.relative_to(PACKAGE).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(["armlab", *parts])
@@ -86,15 +92,15 @@ def imports_of(path: Path, known: set[str]) -> list[Import]:
 
 
 def sources() -> dict[str, Path]:
-    """Module name -> file, for every module of the four packages."""
-    files = [p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))
+    """Module name -> file, for every module of the layers."""
+    files = [p for pkg in PACKAGES for p in sorted((PACKAGE / pkg).rglob("*.py"))
              if "__pycache__" not in p.parts]
     return {module_name(p): p for p in files}
 
 
 @cache
 def all_imports() -> dict[str, tuple[Path, list[Import]]]:
-    """Module name -> (file, its imports), every module of the four packages read once
+    """Module name -> (file, its imports), every module of the layers read once
     for the whole module of tests (the tree does not change while they run)."""
     mods = sources()
     known = set(mods)
@@ -102,7 +108,7 @@ def all_imports() -> dict[str, tuple[Path, list[Import]]]:
 
 
 def import_graph() -> dict[str, set[str]]:
-    """Module -> the modules of the four packages it imports when it runs (at its top or
+    """Module -> the modules of the layers it imports when it runs (at its top or
     inside a function; a name from a module counts as that module)."""
     found = all_imports()
     graph: dict[str, set[str]] = {}
@@ -186,14 +192,15 @@ def test_graph_sees_the_packages():
 
 @pytest.mark.slow
 def test_no_import_circles():
-    """No modules of app/, control/, hardware/, kinematics/ import each other in a circle."""
+    """No modules of the layers import each other in a circle."""
     found = cycles(import_graph())
     assert not found, "modules importing each other in a circle:\n" + "\n".join(
         " <-> ".join(c) for c in found)
 
 
 def test_imports_point_downwards():
-    """kinematics imports no control/hardware/app; control no hardware/app; hardware no
-    app; only app imports viser."""
+    """kinematics imports no control/hardware/exercises/app; control no
+    hardware/exercises/app; hardware no exercises/app; exercises no app; only app imports
+    viser."""
     bad = upward_imports()
     assert not bad, "imports pointing upwards:\n" + "\n".join(bad)

@@ -1,4 +1,5 @@
-"""The one pacer and the one ring buffer every loop of the lab shares (control/periodic.py)."""
+"""The one pacer and the one ring buffer every loop of the lab shares
+(armlab/control/periodic.py)."""
 
 from __future__ import annotations
 

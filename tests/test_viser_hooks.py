@@ -1,4 +1,4 @@
-"""The one door to viser's insides (app/viser_ext): every hook is checked when a lab starts,
+"""The one door to viser's insides (armlab/app/viser_ext): every hook is checked when a lab starts,
 and the gate fails closed: a lab whose gate cannot be put in place does not serve."""
 
 from __future__ import annotations
@@ -115,9 +115,9 @@ def _private_attrs_assigned(paths) -> set[str]:  # noqa: ANN001
 
 @pytest.mark.slow
 def test_only_viser_ext_reaches_into_viser():
-    """Outside app/viser_ext no module imports a private viser module or uses an
+    """Outside armlab/app/viser_ext no module imports a private viser module or uses an
     underscore attribute that viser (and not the lab itself) defines."""
-    root = Path(__file__).resolve().parent.parent / "app"
+    root = Path(__file__).resolve().parent.parent / "armlab" / "app"
     outside = [p for p in root.rglob("*.py") if "viser_ext" not in p.parts]
     viser_root = Path(viser.__file__).parent
     ours = _private_attrs_assigned(outside)
@@ -135,4 +135,4 @@ def test_only_viser_ext_reaches_into_viser():
                           if a.name.startswith("viser.") and "._" in f".{a.name}"]
             elif isinstance(node, ast.Attribute) and node.attr in theirs:
                 found.append(f"{where} .{node.attr}")
-    assert found == [], "private viser names outside app/viser_ext:\n" + "\n".join(found)
+    assert found == [], "private viser names outside armlab/app/viser_ext:\n" + "\n".join(found)

@@ -1,4 +1,5 @@
-"""The simulated X-series firmware (hardware/xservo.py) on the OpenManipulator-X's chain:
+"""The simulated X-series firmware (armlab/hardware/sim/xseries_servo.py) on the
+OpenManipulator-X's chain:
 the numbers of the e-manual's control tables and block diagrams, checked in motion.
 
 - Position Control with the XM430-W350's factory gains reaches a 30° goal, and its

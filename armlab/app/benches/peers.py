@@ -1,7 +1,7 @@
 """armlab beside its peers (``armlab bench --peers``): MuJoCo and Pinocchio on the same URDF,
 the official Dynamixel SDK on the same emulated servos.
 
-Everything runs in this process, on ``kinematics/robots/receptionist_arm.urdf`` (the
+Everything runs in this process, on ``armlab/kinematics/robots/receptionist_arm.urdf`` (the
 thesis arm, three joints), armlab's figure measured in the same run as the peer's:
 
 - ``peer_rnea_us`` / ``armlab_rnea_us``: one inverse-dynamics call (``pinocchio.rnea``

@@ -1,7 +1,7 @@
 """What an exercise is, and how one case of it judges a student's function.
 
 An :class:`Exercise` names the one function a student fills in (its name, signature and
-statement live in the starter, ``exercises/starters/NAME.py``), the lab's own
+statement live in the starter, ``armlab/exercises/starters/NAME.py``), the lab's own
 implementation it is checked against (``reference``), the common mistakes planted as
 variants of that reference (:class:`Mistake`), and its cases. A case is either a
 :class:`ValueCase` (one call, its output compared with the reference's) or a

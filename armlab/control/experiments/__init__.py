@@ -3,7 +3,7 @@
 Each module named in :data:`MODULES` defines ``EXPERIMENTS``: a tuple of
 :class:`Experiment`. An experiment's options are a frozen dataclass (one field
 per option, declared with :func:`option`); the command line
-(``app/commands/experiment.py``) turns its fields into command-line options and
+(``armlab/app/commands/experiment.py``) turns its fields into command-line options and
 calls ``run(options, keep=..., **needs)``. No argparse here: the experiments are plain
 functions of typed options, callable from a test or a script.
 
@@ -50,7 +50,7 @@ def option(default: Any, help: str, *, choices: Sequence[Any] | None = None,
 @dataclass(frozen=True)
 class BackendOptions:
     """Options of an experiment that runs on a backend the command line opens for it
-    (``needs=("backend_factory",)``; control/ never imports hardware/)."""
+    (``needs=("backend_factory",)``; armlab/control/ never imports armlab/hardware/)."""
 
     backend: Literal["sim", "serial"] = option(
         "sim", "simulated arm (default) or Dynamixel servos on --port")
@@ -72,7 +72,7 @@ class Experiment:
         rows: turns that dict into flat table rows for ``--csv`` and the
             human-readable table (None: print the dict's top-level items).
         needs: names of factories the caller passes to ``run`` as keyword arguments
-            (control/ never imports hardware/), e.g. "hand_plant" =
+            (armlab/control/ never imports armlab/hardware/), e.g. "hand_plant" =
             ``armlab.hardware.sim.hand.make_hand``, "backend_factory" (with
             :class:`BackendOptions`).
     """

@@ -11,7 +11,7 @@ the right legs' frame is its mirror image (y = −body y). :func:`leg_to_body` a
 :func:`body_to_leg` convert. The URDF's joint axes are chosen so that the URDF joint
 angles are exactly the seed's θ1, θ2, θ3 on every leg.
 
-``kinematics/robots/quadruped.urdf`` is ``quadruped_urdf()`` written out
+``armlab/kinematics/robots/quadruped.urdf`` is ``quadruped_urdf()`` written out
 (tests/test_seed003_model.py checks they agree).
 """
 

@@ -1,7 +1,7 @@
 """Gaits of the seed 003 quadruped: the sine pattern (Table 1.1), trot, a crawl, walking.
 
 Foot positions are in each leg's seed frame (x forward, y outward, z up, origin at the
-hip; see kinematics/quadruped.py). A cycle is one turn of the phase ω ∈ [0°, 360°).
+hip; see armlab/kinematics/quadruped.py). A cycle is one turn of the phase ω ∈ [0°, 360°).
 
 Table 1.1 as extracted has two typos (docs/seed003-quadruped.md): it prints the same y for
 both phase indices and the same x and y for both direction indices. Here the step's sign

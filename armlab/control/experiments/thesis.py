@@ -12,7 +12,7 @@ joint compared with the free run).
 figures measured on the sampled ideal joint and on eq. 2.3 (with its zero).
 
 The backend comes from ``backend_factory`` (the CLI makes it from
-``--backend``/``--port``/``--baud``): control/ never imports hardware/.
+``--backend``/``--port``/``--baud``): armlab/control/ never imports hardware/.
 """
 
 from __future__ import annotations

@@ -507,7 +507,7 @@ def _step() -> Challenge:
         ),
         source="Measured on the simulated arm by the challenge's run (from the thesis "
                "line's start at rest: the same figures every run): the lab's default (Kp "
-               "20, Kv 5; designed %OS 12 %, Ts 1.6 s, control/params.py) gives %OS 4.28 %, "
+               "20, Kv 5; designed %OS 12 %, Ts 1.6 s, armlab/control/params.py) gives %OS 4.28 %, "
                "Ts 1.74 s and fails; Kv 8 (ζp = Kv/(2√Kp) 0.89, eq. 2.12) gives 0 %, Ts "
                "2.08 s. Ts is within 2 % of a 20° step, 0.4°: about the servos' resolution, "
                "so a small change of gains moves it much; its limit is loose. Joint 2 is "
@@ -545,7 +545,7 @@ def _stiffness() -> Challenge:
                       tolerance_pct=10.0, lo=0.1, hi=1000.0),
         ),
         source="The default K_env 16 N·m/rad, K_f 4 give 1/C_f = K_env/K_f = 4 N·m/rad "
-               "(control/params.py, eq. 2.15; measured 4.04); the target doubles it, within "
+               "(armlab/control/params.py, eq. 2.15; measured 4.04); the target doubles it, within "
                "10 % (K_env 32 measured 8.00).")
 
 
@@ -561,7 +561,7 @@ def _grasp() -> Challenge:
             Threshold("grasp_force_n", "steady force", "N", "min", 1.0, lo=0.05, hi=5.0),
             Threshold("grasp_peak_n", "peak force", "N", "max", 1.5, lo=0.05, hi=10.0),
         ),
-        source="The lesson's default force limit is 0.8 N (app/lessons/hand.py; `armlab "
+        source="The lesson's default force limit is 0.8 N (armlab/app/lessons/hand.py; `armlab "
                "experiment hand-grip`: steady 0.800 N, peak 0.801 N): the student raises F "
                "to hold 1 N, and no higher than 1.5 N (the grasp should not crush). The "
                "simulated hand does not slip: 'held' is every finger at 90 % of F.")
@@ -578,7 +578,7 @@ def _walk() -> Challenge:
                       hi=100.0),
         ),
         source="Seed 003 §4.1.2: the paper's robot measured 1.201 % "
-               "(app/lessons/quadruped.py, PAPER_ERROR_PCT). Measured on the simulated "
+               "(armlab/app/lessons/quadruped.py, PAPER_ERROR_PCT). Measured on the simulated "
                "robot: 1.38 % at the lesson's 0.5 cycles/s, 1.12 % at 0.25.")
 
 

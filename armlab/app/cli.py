@@ -1,6 +1,6 @@
 """The ``armlab`` command line (also ``python -m armlab.app``).
 
-Subcommands live in ``app/commands/``, listed in ``commands.COMMANDS``: each module
+Subcommands live in ``armlab/app/commands/``, listed in ``commands.COMMANDS``: each module
 defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 """
 

@@ -155,7 +155,7 @@ class StudentProcess:
         self._before = _children()
         req_r, req_w = os.pipe()  # the parent's requests
         rep_r, rep_w = os.pipe()  # the child's replies
-        # -P: the harness's folder (armlab's own exercises/) is not on sys.path; the
+        # -P: the harness's folder (armlab's own armlab/exercises/) is not on sys.path; the
         # environment stays (a course's PYTHONPATH, the student's own --user packages)
         self.proc = subprocess.Popen(
             [sys.executable, "-P", "-u", harness.__file__, str(req_r), str(rep_w)],

@@ -1,4 +1,4 @@
-"""Every exercise by name, and its starter (``exercises/starters/NAME.py``, package data)."""
+"""Every exercise by name, and its starter (``armlab/exercises/starters/NAME.py``, package data)."""
 
 from __future__ import annotations
 

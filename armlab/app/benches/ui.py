@@ -49,7 +49,7 @@ PROBE = "/bench_probe"
 OWN_PROBE = "/bench_probe_mine"
 #: s the client process waits for every page to draw its own arm (``--my-arm``)
 OWN_ARM_TIMEOUT_S = 240.0
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]  # the checkout: armlab/app/benches/ui.py
 
 
 # ---------------------------------------------------------------- client process
