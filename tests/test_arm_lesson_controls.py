@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.app.server import Lab, ServeOptions
 from armlab.control.params import DEFAULT
 from armlab.kinematics.redundancy import joint_limit_criterion
@@ -136,7 +137,21 @@ def test_a_kp_change_reaches_the_loop(omx, page):
     page.wait_for(lambda: page.find(KP).value == pytest.approx(3.8), 30.0, "the Kp slider 3.8")
 
 
-@pytest.mark.parametrize("bad", [float("nan"), 1e6])
+def test_a_kp_past_its_range_is_set_to_its_end_and_the_page_told_so(omx, page):
+    """The page's one rule for a typed number: past the range, the nearest end is applied
+    and the message names that value (the field itself clamps to it on blur)."""
+    loop = omx.lesson.loop
+    seen = len(page.notifications)
+    page.set_value(KP, 1e6)
+    page.wait_for(lambda: len(page.notifications) > seen, 30.0, "a notification")
+    wait_for(lambda: loop.params.kp == 200.0, 30.0, "Kp 200 in the loop")
+    title, body = page.notifications[seen]
+    assert title == LIMIT_TITLE and body == (
+        "Kp: 1e+06 is above the largest value, 200; set to 200."), page.notifications[seen:]
+    page.wait_for(lambda: page.find(KP).value == pytest.approx(200.0), 30.0, "the slider 200")
+
+
+@pytest.mark.parametrize("bad", [float("nan")])
 def test_a_bad_kp_is_refused_with_one_notification(omx, page, bad):
     loop = omx.lesson.loop
     kp = loop.params.kp

@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 from armlab.app.gate import DROPS
 from armlab.app.lessons import all_lessons
 from armlab.app.lessons.compliance_controls import slider_label
-from armlab.app.page.inputs import UpdateScreen, why_bad_value
+from armlab.app.page.inputs import UpdateScreen, clamp_to_range, why_bad_value
 from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
@@ -46,8 +46,16 @@ def test_why_bad_value_checks_type_and_range():
         value, min, max = (0.0, 0.0, 0.0), None, None
 
     assert why_bad_value(Slider, 2) is None and why_bad_value(Slider, 10.0) is None
-    for bad in (True, "2", None, [1.0], math.nan, math.inf, 10.5, -0.1, 10**400):
+    for bad in (True, "2", None, [1.0], math.nan, math.inf, 10**400):
         assert why_bad_value(Slider, bad) is not None, bad
+    # a finite number past the range is taken, as the nearest end, and the page told so
+    for past, end in ((10.5, 10.0), (-0.1, 0.0), (1e300, 10.0)):
+        assert why_bad_value(Slider, past) is None
+        value, note = clamp_to_range(Slider, past, name="Kp")
+        assert value == end and note == (
+            f"Kp: {past:g} is {'above the largest' if past > 0 else 'below the smallest'} "
+            f"value, {end:g}; set to {end:g}.")
+    assert clamp_to_range(Slider, 2.5, name="Kp") == (2.5, None)
     assert why_bad_value(Check, True) is None and why_bad_value(Check, 1) is not None
     assert why_bad_value(Drop, "b") is None and why_bad_value(Drop, "c") is not None
     assert why_bad_value(Drop, TEN_MB) is not None

@@ -10,6 +10,7 @@ from _helpers import client_of, served_lesson, wait_for
 
 from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.hand import build
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.hand import GripOptions, run_grip
 from armlab.hardware.sim.hand import make_hand
 
@@ -92,7 +93,22 @@ def test_open_releases_and_the_object_controls_change_the_object(lesson):
                  "the bigger, harder object in the loop and the scene")
 
 
-@pytest.mark.parametrize("value", [1e9, -0.3, float("nan")])
+@pytest.mark.parametrize("value", [1e9, -0.3])
+def test_a_typed_force_past_its_range_is_applied_as_its_end(lesson, value):
+    end = lesson.force.hi if value > 0 else lesson.force.lo
+    side = "above the largest" if value > 0 else "below the smallest"
+    with client_of(lesson.server) as client:
+        client.set_value(lesson.force_slider, value)
+        body = client.wait_notification(LIMIT_TITLE)
+        assert body == f"force limit: {value:g} is {side} value, {end:g}; set to {end:g}."
+        wait_for(lambda: lesson.loop.params.force_limit == end, 30.0, "the end applied")
+        wait_for(lambda: lesson.force_slider.value == end, 30.0, "the slider at the end")
+        assert not any(t == "Value refused" for t, _ in client.notifications)
+        client.set_value(lesson.force_slider, 0.8)
+        wait_for(lambda: lesson.loop.params.force_limit == 0.8, 30.0, "0.8 again")
+
+
+@pytest.mark.parametrize("value", [float("nan")])
 def test_bad_typed_force_is_refused_and_the_lesson_goes_on(lesson, value):
     with client_of(lesson.server) as client:
         client.set_value(lesson.force_slider, value)

@@ -13,7 +13,8 @@ from _helpers import client_of, served_lesson, wait_for
 
 from armlab.app.cli import main
 from armlab.app.lessons import LessonContext
-from armlab.app.lessons.ik_accuracy import BAD_RGB, OK_RGB, build
+from armlab.app.lessons.ik_accuracy import BAD_RGB, OK_RGB, TARGET_LIMIT_CM, build
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.seed004_data import TABLE1
 from armlab.kinematics.planar_ik import fk
 
@@ -140,13 +141,26 @@ def test_target_outside_the_workspace_gives_one_clear_message(lesson):
         assert lesson.message == "" and "outside the workspace" not in lesson.readout.content
 
 
-@pytest.mark.parametrize("value", [1e9, float("nan"), -31.0])
+@pytest.mark.parametrize("value", [1e9, -1e9])
+def test_a_typed_target_past_its_range_is_set_to_its_end(lesson, value):
+    """The page's one rule: the nearest end is applied and the message names it."""
+    end = TARGET_LIMIT_CM if value > 0 else -TARGET_LIMIT_CM
+    side = "above the largest" if value > 0 else "below the smallest"
+    with client_of(lesson.server) as client:
+        client.set_value(lesson.x_input, value)
+        body = client.wait_notification(LIMIT_TITLE)
+        assert body == f"Target X (cm): {value:g} is {side} value, {end:g}; set to {end:g}."
+        wait_for(lambda: lesson.target[0] == pytest.approx(end / 100), 30.0, "the end applied")
+        assert lesson.x_input.value == pytest.approx(end)
+
+
+@pytest.mark.parametrize("value", [float("nan")])
 def test_bad_typed_target_is_refused_and_the_server_goes_on(lesson, value):
     with client_of(lesson.server) as client:
         before = lesson.target
         client.set_value(lesson.x_input, value)
         body = client.wait_notification("Value refused")
-        assert body.startswith("target X (cm)")
+        assert body.startswith("Target X (cm)")
         # the page is told first, then its input is put back
         wait_for(lambda: lesson.x_input.value == pytest.approx(before[0] * 100), 30.0,
                  "the input put back")

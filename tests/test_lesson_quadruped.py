@@ -14,6 +14,7 @@ from _helpers import client_of, served_lesson, wait_for
 from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.quadruped import build
 from armlab.app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.walking import (
     angle_error_pct,
     mean_angle_error_pct,
@@ -233,7 +234,20 @@ def test_eq_4_1_error_is_computed_from_the_servos_feedback(lesson):
     assert all(p.updates >= 1 for p in lesson.joint_plots)
 
 
-@pytest.mark.parametrize("value", [1e9, float("nan"), -2.0])
+@pytest.mark.parametrize("value,end,says", [
+    (1e9, 8.0, "A: 1e+09 is above the largest value, 8; set to 8."),
+    (-2.0, 0.0, "A: -2 is below the smallest value, 0; set to 0.")])
+@pytest.mark.slow
+def test_a_typed_step_length_past_its_range_is_set_to_its_end(lesson, value, end, says):
+    with client_of(lesson.server) as client:
+        client.set_value(lesson.gait_sliders["A"].handle, value)
+        assert client.wait_notification(LIMIT_TITLE) == says
+        wait_for(lambda: lesson.params.A == pytest.approx(end / 100), 30.0, "the end applied")
+        client.set_value(lesson.gait_sliders["A"].handle, 4.0)
+        wait_for(lambda: lesson.params.A == pytest.approx(0.04), 30.0, "4 cm again")
+
+
+@pytest.mark.parametrize("value", [float("nan")])
 @pytest.mark.slow
 def test_bad_typed_step_length_is_refused_and_the_lesson_goes_on(lesson, value):
     with client_of(lesson.server) as client:

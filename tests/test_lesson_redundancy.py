@@ -11,6 +11,7 @@ from _helpers import client_of, served_lesson, wait_for
 
 from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.redundancy import SHOWN_MODES, build
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.seed002 import circle
 
 
@@ -94,7 +95,17 @@ def test_show_checkbox_hides_a_panel(lesson):
         wait_for(lambda: lesson.scene.views["3"].root.visible, timeout=30.0)
 
 
-@pytest.mark.parametrize("value", [1e9, float("nan"), 600.0])
+@pytest.mark.parametrize("value", [1e9, 600.0])
+def test_a_typed_gain_past_its_range_is_set_to_its_end(lesson, value):
+    hi = lesson.gain.hi
+    with client_of(lesson.server) as client:
+        client.set_value(lesson.gain_slider, value)
+        body = client.wait_notification(LIMIT_TITLE)
+        assert body == f"K: {value:g} is above the largest value, {hi:g}; set to {hi:g}."
+        wait_for(lambda: lesson.gain.value == hi, 30.0, "the end applied")
+
+
+@pytest.mark.parametrize("value", [float("nan")])
 def test_bad_typed_gain_is_refused_and_the_server_goes_on(lesson, value):
     before = lesson.gain.value
     with client_of(lesson.server) as client:

@@ -20,6 +20,7 @@ from _emulator import emulator
 from _helpers import settled, wait_for
 
 import armlab.control.loop as loop_module
+from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.params import DEFAULT, PRESETS, REFUSED_ON_SERVOS, check_gains
 
@@ -262,7 +263,27 @@ def test_estop_switches_torque_off_and_reset_restores(lab, client):
     assert all(r.torque_enable for r in plant.reports())
 
 
-@pytest.mark.parametrize("bad", [float("nan"), float("inf"), 1e6, -5.0])
+@pytest.mark.parametrize("typed,applied,says", [
+    (1e6, 200.0, "Kp: 1e+06 is above the largest value, 200; set to 200."),
+    (999999.0, 200.0, "Kp: 999999 is above the largest value, 200; set to 200."),
+    (-5.0, 0.0, "Kp: -5 is below the smallest value, 0; set to 0.")])
+def test_a_typed_value_past_the_range_is_applied_as_its_end(lab, client, typed, applied,
+                                                            says):
+    """One rule, one message: the value applied is the value the message names."""
+    loop = loop_of(lab)
+    kp = loop.params.kp
+    n0 = len(client.notifications)
+    client.set_value(KP, typed)
+    client.wait_for(lambda: len(client.notifications) > n0, 30.0, "a notification")
+    wait_for(lambda: loop.params.kp == applied, 30.0, "the end of the range in the loop")
+    title, body = client.notifications[n0]
+    assert (title, body) == (LIMIT_TITLE, says)
+    assert all(t != "Value refused" for t, _ in client.notifications[n0:])
+    client.set_value(KP, kp)
+    wait_for(lambda: loop.params.kp == kp, 30.0, "Kp back")
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
 def test_bad_typed_value_is_refused_with_a_notification(lab, client, bad):
     loop = loop_of(lab)
     kp = loop.params.kp

@@ -46,6 +46,7 @@ from armlab.app.page.camera import reframe, reframe_on_reshape
 from armlab.app.page.challenge_panel import ChallengeDesk
 from armlab.app.page.inputs import UpdateScreen
 from armlab.app.page.look import Looks
+from armlab.app.page.number_keys import install as install_number_keys
 from armlab.app.page.panels import install as install_panels
 from armlab.app.page.stop_first import install as install_stop_first
 from armlab.app.page.theme import PageStyle
@@ -255,6 +256,7 @@ class Lab:
             reframe_on_reshape(self.server)  # each page's camera fits its own 3D view
             install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
             install_panels(self.server)  # a browser's collapsed side panels kept on reload
+            install_number_keys(self.server)  # a number field says what it cannot take
             # a page drawing WebGL on the CPU gets the plain look (armlab.app.page.look)
             self.looks = Looks(self.server, plain_on_software=options.plain_on_software)
             port = self.server.get_port()
@@ -285,9 +287,9 @@ class Lab:
             if self.law is not None:
                 self.law.close()
             if getattr(self, "room", None) is not None:
-                self.room.close()
+                self.room.close()  # type: ignore[union-attr]  # the getattr above: set, not None
             if getattr(self, "arm_process", None) is not None:
-                self.arm_process.close()
+                self.arm_process.close()  # type: ignore[union-attr]  # the getattr above: set, not None
             with contextlib.redirect_stdout(io.StringIO()):
                 self.server.stop()
             raise
@@ -304,7 +306,7 @@ class Lab:
         self.frame_button = gui.add_button(
             "Frame", icon=viser.Icon.FOCUS_CENTERED, order=-95.0,
             hint="Point this page's camera at the lesson's robot again (after an orbit)")
-        self.frame_button.on_click(lambda event: event.client is not None
+        self.frame_button.on_click(lambda event: event.client is not None  # type: ignore[type-var]  # the callback's result is dropped by viser
                                    and reframe(event.client))
         if self.roles is not None:  # both only make things safe or change one page's view
             self.roles.open(self.estop_button, self.frame_button)
@@ -376,10 +378,10 @@ class Lab:
                 self._open(name)  # its scene frames itself on every open page (page.camera)
             except (ValueError, OSError, RuntimeError):
                 self._open(previous)  # back to the lesson that worked
-                self.lesson_dropdown.value = self._lessons[previous].TITLE
+                self.lesson_dropdown.value = self._lessons[previous].TITLE  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 raise
             # every page's switcher names the open lesson, however it was opened
-            self.lesson_dropdown.value = self._lessons[name].TITLE
+            self.lesson_dropdown.value = self._lessons[name].TITLE  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def estop(self, *, by: viser.ClientHandle | None = None) -> None:
         """Torque off now through the open lesson; never raises. In a classroom the

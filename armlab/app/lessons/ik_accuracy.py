@@ -29,14 +29,20 @@ from armlab.app.lessons._common import LessonBase, esc, guarded, remove_quietly,
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
-from armlab.app.page.inputs import check_number, notify
+from armlab.app.page.inputs import notify, tell_limit, typed_value
 from armlab.app.page.plots import COLORS, SeriesSpec, add_chart, dash, fixed_x, uplot_series
 from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from armlab.control.experiments.seed004 import table
 from armlab.control.experiments.seed004_data import TABLE1
 from armlab.kinematics.model import SerialChain, load_robot
-from armlab.kinematics.planar_ik import PlanarArm, PlanarIKResult, in_range_alternative, solve
+from armlab.kinematics.planar_ik import (
+    Alternative,
+    PlanarArm,
+    PlanarIKResult,
+    in_range_alternative,
+    solve,
+)
 
 NAME = "ik_accuracy"
 TITLE = "IK accuracy"
@@ -135,7 +141,7 @@ class IKAccuracyLesson(LessonBase):
         self.elbow = "down"
         self.target = (0.02, 0.21)
         self.result: PlanarIKResult | None = None
-        self.alternative = None
+        self.alternative: Alternative | None = None
         self.table_result: dict[str, Any] | None = None
         self.message = ""
         self._outside = False
@@ -288,29 +294,34 @@ class IKAccuracyLesson(LessonBase):
         if event.client is None:
             return
         handle = (self.x_input, self.y_input)[axis]
-        name = ("target X (cm)", "target Y (cm)")[axis]
+        name = str(handle.label)  # (as the page's screen names it)
         with self._lock:
             if self._closed:
                 return
             raw = handle.value
-            try:
-                v = check_number(raw, name=name, lo=-TARGET_LIMIT_CM, hi=TARGET_LIMIT_CM) / 100
+            try:  # the page's one rule: past the range, its end (and the page told)
+                cm, clamped = typed_value(raw, name=name, lo=-TARGET_LIMIT_CM,
+                                          hi=TARGET_LIMIT_CM)
             except ValueError as exc:
                 self.refused += 1
                 notify(event.client, "Value refused",
                        f"{exc}; kept {self.target[axis] * 100:.2f}.")
                 self._write_inputs()
                 return
+            if clamped is not None:
+                tell_limit(event.client, name, clamped)
+            v = cm / 100
             target = list(self.target)
-            if v == round(target[axis], 4):
-                return
-            target[axis] = v
-            self.set_target(target[0], target[1], client=event.client, from_inputs=True)
+            if v != round(target[axis], 4):
+                target[axis] = v
+                self.set_target(target[0], target[1], client=event.client, from_inputs=True)
+            if clamped is not None:  # the input shows the end it was set to
+                self._write_inputs()
 
     def _write_inputs(self) -> None:
         """Show the target in the typed inputs (their callbacks ignore writes from Python)."""
-        self.x_input.value = round(self.target[0] * 100.0, 2)
-        self.y_input.value = round(self.target[1] * 100.0, 2)
+        self.x_input.value = round(self.target[0] * 100.0, 2)  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+        self.y_input.value = round(self.target[1] * 100.0, 2)  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def set_mode(self, *, elbow: str | None = None, rounding: str | None = None) -> None:
         """Change the elbow branch or the rounding and solve the target again."""

@@ -1,10 +1,19 @@
-"""Number inputs that refuse bad values: non-finite or outside their range.
+"""Number inputs with one rule for what a person types (:func:`typed_value`).
 
 A browser can send anything (a typed "1e999", NaN from a hand-made message, a
-value outside the slider's range). :class:`GuardedNumber` wraps a viser slider
-or number handle: a bad value is refused with a notification to the client that
-sent it and the input is put back to its last good value, so the server state
-and every page stay consistent and nothing downstream ever sees it.
+value outside the slider's range). The rule, the same for every number on the page:
+
+- a finite number inside the input's range is applied as it is;
+- a finite number outside it is applied as the nearest end of the range (the value
+  the browser's own field clamps to when it loses focus), and the page that sent it
+  is told so: "Kp: 999999 is above the largest value, 200; set to 200.";
+- anything else (NaN, inf, text, a bool) is refused and the input keeps its value:
+  "Kp: nan is not a finite number; kept 20.".
+
+So the value applied is always the value the message names. :class:`GuardedNumber`
+wraps a viser slider or number handle and applies the rule with its own range (and
+its ``apply`` may refuse a value, e.g. a gain the loop cannot take);
+:class:`UpdateScreen` applies it to every input before viser sees the value.
 """
 
 from __future__ import annotations
@@ -14,14 +23,63 @@ import math
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from typing import Any
 
 import viser
 
 from armlab.app.viser_ext.dispatch import screen_gui_updates
-from armlab.app.viser_ext.handles import gui_inputs
+from armlab.app.viser_ext.handles import gui_inputs, uuid_of
 from armlab.kinematics.validate import check_number
+
+#: The title of the message that a typed value was set to the end of its range.
+LIMIT_TITLE = "Value set to its limit"
+
+
+def typed_value(raw: object, *, name: str, lo: float, hi: float) -> tuple[float, str | None]:
+    """What a typed number ``raw`` is applied as, under the page's one rule (module
+    docstring): ``(value, None)`` inside [lo, hi]; ``(the nearest end, the message that
+    says so)`` outside it.
+
+    Raises:
+        ValueError: ``raw`` is not a finite number (the message names ``name``).
+    """
+    if isinstance(raw, bool):
+        raise ValueError(f"{name}: {raw!r} is not a number")
+    v = check_number(raw, name=name, lo=-math.inf, hi=math.inf)
+    if lo <= v <= hi:
+        return v, None
+    end, side = (lo, "below the smallest") if v < lo else (hi, "above the largest")
+    return end, f"{name}: {v:g} is {side} value, {end:g}; set to {end:g}."
+
+
+#: s a page's message that a control's value was set to its limit stays open; a further
+#: value of that control past its range within it updates that message (typing "999999"
+#: sends six values: one message, naming the last).
+LIMIT_SECONDS = 6.0
+_limit_notes: dict[tuple[Any, str], tuple[Any, float]] = {}
+_limit_lock = threading.Lock()
+
+
+def tell_limit(client: viser.ClientHandle | None, control: str, body: str) -> None:
+    """Tell ``client`` that ``control``'s value was set to the end of its range (``body``,
+    from :func:`typed_value`): one message per control and page, updated while open."""
+    if client is None:
+        return
+    now = time.monotonic()
+    key = (client.client_id, control)
+    with _limit_lock:
+        for k in [k for k, (_, t) in _limit_notes.items() if now - t > LIMIT_SECONDS]:
+            del _limit_notes[k]
+        shown = _limit_notes.get(key)
+        if shown is not None:
+            shown[0].body = body
+            _limit_notes[key] = (shown[0], shown[1])  # (closes as first opened)
+            return
+        handle = client.add_notification(LIMIT_TITLE, body, color="yellow",
+                                         auto_close_seconds=LIMIT_SECONDS)
+        _limit_notes[key] = (handle, now)
 
 
 def notify(client: viser.ClientHandle | None, title: str, body: str, *,
@@ -29,11 +87,19 @@ def notify(client: viser.ClientHandle | None, title: str, body: str, *,
     """Show a notification to ``client`` (nothing when the change came from Python)."""
     if client is None:
         return
-    client.add_notification(title, body, color=color, auto_close_seconds=seconds)
+    client.add_notification(title, body, color=color, auto_close_seconds=seconds)  # type: ignore[call-overload]  # color: one of viser's colour names (the callers')
+
+
+#: The inputs a :class:`GuardedNumber` applies the rule to, by their uuid (the guard knows
+#: whether its ``apply`` takes the end of the range: :class:`UpdateScreen` leaves the value
+#: to it rather than announce a value that may then be refused).
+_GUARDED: weakref.WeakValueDictionary[str, GuardedNumber] = weakref.WeakValueDictionary()
 
 
 class GuardedNumber:
-    """A slider/number input whose bad values are refused and reverted.
+    """A slider/number input under the page's one rule (module docstring): a value outside
+    its range applied as the nearest end and the page told, a bad value refused and the
+    input put back.
 
     Args:
         handle: viser slider or number handle (float-valued).
@@ -60,23 +126,26 @@ class GuardedNumber:
         self.value = float(handle.value)
         self.refused = 0  #: how many values were refused (for tests and the status line)
         handle.on_update(self._on_update)
+        _GUARDED[uuid_of(handle)] = self
 
     def _on_update(self, event: viser.GuiEvent) -> None:
         with self._lock:
             raw = self.handle.value
             try:
-                v = check_number(raw, name=self.name, lo=self.lo, hi=self.hi)
+                v, clamped = typed_value(raw, name=self.name, lo=self.lo, hi=self.hi)
             except ValueError as exc:
                 self._refuse(event.client, str(exc))
                 return
-            if v == self.value:
-                return
-            try:
-                self._apply(v)
-            except ValueError as exc:
-                self._refuse(event.client, str(exc))
-                return
-            self.value = v
+            if v != self.value:
+                try:
+                    self._apply(v)
+                except ValueError as exc:
+                    self._refuse(event.client, str(exc))
+                    return
+                self.value = v
+            if clamped is not None:  # every page, the typer's too, shows what was applied
+                tell_limit(event.client, self.name, clamped)
+                self.handle.value = v
 
     def _refuse(self, client: viser.ClientHandle | None, message: str) -> None:
         self.refused += 1
@@ -141,6 +210,8 @@ def _is_number(v: Any) -> bool:
 
 
 def _check_scalar(v: Any, current: Any, lo: Any, hi: Any) -> str | None:
+    """Why ``v`` cannot go where ``current`` is (None: it can). A number outside [lo, hi]
+    can: :func:`clamp_to_range` puts it at the nearest end first."""
     if isinstance(current, bool):
         return None if isinstance(v, bool) else f"{_brief(v)} is not true/false"
     if isinstance(current, (int, float)):
@@ -148,14 +219,38 @@ def _check_scalar(v: Any, current: Any, lo: Any, hi: Any) -> str | None:
             return f"{_brief(v)} is not a finite number"
         if isinstance(current, int) and not isinstance(v, int) and not float(v).is_integer():
             return f"{_brief(v)} is not a whole number"
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
-            return f"{v:g} is outside [{lo}, {hi}]"
         return None
     if isinstance(current, str):
         if not isinstance(v, str) or len(v) > MAX_TEXT:
             return f"{_brief(v)} is not a text of at most {MAX_TEXT} characters"
         return None
     return f"{_brief(v)} is not accepted here"
+
+
+def clamp_to_range(handle: Any, value: Any, *, name: str) -> tuple[Any, str | None]:
+    """``value`` (one :func:`why_bad_value` accepts) for input ``handle``, a number outside
+    the handle's range put at its nearest end (:func:`typed_value`), with the message
+    that says so (None: nothing changed). A vector's items are each put in range."""
+    current = handle.value
+    lo, hi = getattr(handle, "min", None), getattr(handle, "max", None)
+
+    def one(v: Any, c: Any, lo: Any, hi: Any) -> tuple[Any, str | None]:
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or isinstance(v, bool):
+            return v, None
+        got, note = typed_value(v, name=name, lo=-math.inf if lo is None else float(lo),
+                                hi=math.inf if hi is None else float(hi))
+        return (int(got) if isinstance(c, int) else got, note) if note else (v, None)
+
+    if isinstance(current, tuple):
+        out, notes = [], []
+        for i, (v, c) in enumerate(zip(value, current, strict=True)):
+            got, note = one(v, c, lo[i] if isinstance(lo, tuple) else lo,
+                            hi[i] if isinstance(hi, tuple) else hi)
+            out.append(got)
+            if note:
+                notes.append(f"item {i}: {note}")
+        return (tuple(out), " ".join(notes)) if notes else (value, None)
+    return one(value, current, lo, hi)
 
 
 def why_bad_value(handle: Any, value: Any) -> str | None:
@@ -251,7 +346,13 @@ class UpdateScreen:
             return
         why = why_bad_value(handle, updates["value"])
         if why is None:
-            await self._coalesce(uuid, client_id, message)
+            label = str(handle.label)[:40]
+            value, clamped = (updates["value"], None) if uuid in _GUARDED else clamp_to_range(
+                handle, updates["value"], name=label)
+            if clamped is not None:  # applied as the end of the range, and the page told
+                updates["value"] = value
+                tell_limit(self._server.get_clients().get(client_id), uuid, clamped)
+            await self._coalesce(uuid, client_id, message)  # (the field clamps on blur)
             return
         self.refused += 1
         label = str(handle.label)[:40]

@@ -240,3 +240,109 @@ def text_size_sheet(*, controls_px: int, chart_title_px: int) -> str:
         f".mantine-Notification-root * {{font-size:{c}px !important}}"
         "</style>"
     )
+
+
+#: What a page runs so that a number field takes what a person types
+#: (:mod:`armlab.app.page.number_keys`). Mantine's NumberInput drops every key but digits,
+#: one decimal point and a leading minus, silently: "1e9" typed became "19". The script
+#: stops such a key before the field drops it. An "e" starts an exponent, kept by the
+#: script (not the field) and shown under it: Enter or Tab types mantissa × 10^exponent
+#: into the field in plain digits (as if typed, so the page sends it and the lab's rule
+#: applies; the focus stays, a second Tab leaves) and so does leaving the field;
+#: Backspace takes the exponent back, Esc drops it. Any
+#: other key the field cannot take is named under it for a few seconds.
+NUMBER_KEYS_SCRIPT = """
+(() => {
+  if (window.armlabNumberKeys) return;
+  window.armlabNumberKeys = true;
+  const SAYS = %(says)s;
+  const EXPONENT = %(exponent)s;
+  const SHOW_MS = %(show_ms)d;
+  const setValue = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, 'value').set;
+  const field = (el) => el instanceof HTMLInputElement &&
+    el.closest('.mantine-NumberInput-root') ? el : null;
+  const note = (el, text, ms) => {
+    const root = el.closest('.mantine-NumberInput-root');
+    let n = root.querySelector('[data-armlab="number-note"]');
+    if (!n) {
+      n = document.createElement('div');
+      n.dataset.armlab = 'number-note';
+      n.setAttribute('role', 'status');
+      // under the field, as wide as its words (the field itself is a few digits wide)
+      if (getComputedStyle(root).position === 'static') root.style.position = 'relative';
+      n.style.cssText = 'position: absolute; top: 100%%; right: 0; z-index: 40; ' +
+        'width: max-content; max-width: 20em; font-size: 0.85em; line-height: 1.25; ' +
+        'padding: 3px 6px; border-radius: 4px; color: var(--mantine-color-orange-9); ' +
+        'background: var(--mantine-color-body); box-shadow: 0 1px 4px rgba(0,0,0,0.25);';
+      root.appendChild(n);
+    }
+    n.textContent = text;
+    clearTimeout(n.armlabTimer);
+    if (ms) n.armlabTimer = setTimeout(() => n.remove(), ms);
+  };
+  const plain = (v) => v.toLocaleString('en-US', { useGrouping: false,
+                                                   maximumFractionDigits: 20 });
+  const show = (el) => {
+    const v = Number(el.armlabBase + 'e' + el.armlabExp);
+    note(el, EXPONENT.replace('{typed}', el.armlabBase + 'e' + el.armlabExp)
+      .replace('{value}', /[0-9]/.test(el.armlabExp) && isFinite(v) ? plain(v) : '…'), 0);
+  };
+  const done = (el, apply) => {
+    const exp = el.armlabExp;
+    el.armlabExp = null;
+    const v = Number(el.armlabBase + 'e' + exp);
+    if (apply && /[0-9]/.test(exp) && isFinite(v)) {
+      setValue.call(el, plain(v));
+      el.dispatchEvent(new Event('input', { bubbles: true }));
+    }
+    const n = el.closest('.mantine-NumberInput-root').querySelector(
+      '[data-armlab="number-note"]');
+    if (n) n.remove();
+  };
+  document.addEventListener('keydown', (ev) => {
+    const el = field(ev.target);
+    if (!el || ev.ctrlKey || ev.metaKey || ev.altKey) return;
+    const inExp = typeof el.armlabExp === 'string';
+    if (inExp) {
+      if (ev.key === 'Enter' || ev.key === 'Tab') {  // typed in, sent; a second leaves
+        ev.preventDefault(); done(el, true); return; }
+      if (ev.key === 'Escape') { ev.preventDefault(); ev.stopPropagation(); done(el, false);
+                                 return; }
+      if (ev.key === 'Backspace') {
+        ev.preventDefault();
+        if (el.armlabExp === '') done(el, false);
+        else { el.armlabExp = el.armlabExp.slice(0, -1); show(el); }
+        return;
+      }
+      if (ev.key.length !== 1) return;
+      ev.preventDefault();
+      if (/^[0-9]$/.test(ev.key) || (ev.key === '-' && el.armlabExp === '')) {
+        el.armlabExp += ev.key;
+        show(el);
+      }
+      return;
+    }
+    if (ev.key.length !== 1 || /^[0-9.]$/.test(ev.key) || ev.key === '-') return;
+    ev.preventDefault();
+    if ((ev.key === 'e' || ev.key === 'E') && /[0-9]/.test(el.value)) {
+      el.armlabBase = el.value;
+      el.armlabExp = '';
+      show(el);
+      return;
+    }
+    note(el, SAYS.replace('{key}', ev.key), SHOW_MS);
+  }, true);
+  document.addEventListener('blur', (ev) => {
+    const el = field(ev.target);
+    if (el && typeof el.armlabExp === 'string') done(el, true);
+  }, true);
+})();
+"""
+
+
+def number_keys_script(*, says: str, exponent: str, show_ms: int) -> str:
+    """The number fields' script (:data:`NUMBER_KEYS_SCRIPT`): a key a number field would
+    drop is stopped and ``says`` (``{key}``: that key) shown under it for ``show_ms``; an
+    exponent being typed is shown as ``exponent`` (``{typed}``, ``{value}``)."""
+    return NUMBER_KEYS_SCRIPT % {"says": json.dumps(says), "exponent": json.dumps(exponent),
+                                 "show_ms": int(show_ms)}
