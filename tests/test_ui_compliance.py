@@ -136,7 +136,10 @@ def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
                      30.0, "4 N for 2 s in the lesson")
         client.click("Run thesis line")
         wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run to start")
-        if pushed:
+        if pushed:  # run again from its end pose, the arm travels back first: push the line
+            start = lesson.rig.line.q[0]
+            wait_for(lambda: np.max(np.abs(loop.recorder.snapshot(0.05)["q_cmd"][-1] - start))
+                     < 0.02, 60.0, "the line itself to begin")
             client.click("Push")
         wait_for(lambda: loop.status.trajectory is None, 60.0, "the run to end")
         wait_for(lambda p=pushed: (lesson.chapter4.pushed if p else lesson.chapter4.free)
@@ -146,8 +149,16 @@ def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
     # the compliant arm falls far behind its command under the push (the thesis: > 15°)
     assert ch4.pushed[2] > ch4.free[2] + 5.0
     assert ch4.yield_deg is not None and ch4.yield_deg[2] > 3.0
+    # the pushed run began at the free run's end pose (it travelled back first): its yield
+    # and its error are over the same samples of the line, both from the line's start, so
+    # |θ_pushed − θ_free| ≤ |θ_pushed − θ_cmd| + |θ_cmd − θ_free| (it read 72° beside 11°)
+    for j in range(3):
+        assert ch4.yield_deg[j] <= ch4.pushed[j] + ch4.free[j] + 0.5, (j, ch4)
     text = lesson.last_run_text
     assert "free: θ1" in text and "pushed" in text and "yield" in text
+    push = lesson._push  # (the push outlasts the line: the next test starts from rest)
+    end = push[1] if push is not None else loop.status.t
+    wait_for(lambda: loop.status.t > end + 1.5, 60.0, "the push over and the arm settled")
 
 
 def test_push_raises_external_torque_and_the_compliant_arm_yields(lab, client):

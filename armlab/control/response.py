@@ -201,6 +201,24 @@ def line_errors(snap: dict[str, np.ndarray], *, t0: float) -> np.ndarray:
     return np.nanmax(np.abs(snap["error"][keep]), axis=0)
 
 
+def line_part(q_cmd: np.ndarray, start: np.ndarray, *, tol: float = 1e-6) -> int:
+    """The index of the first row of ``q_cmd`` (N, n) rad at the line's first point
+    ``start`` (n,) rad: where the line itself begins, after any approach to it (a line run
+    again from its end pose first travels back). 0 when no row reaches it (nothing to
+    cut). Two runs of one line, each from this index, are sample for sample the same
+    command, so their θ can be compared (chapter 4's yield)."""
+    at = np.flatnonzero(np.all(np.abs(q_cmd - start) <= tol, axis=1))
+    return int(at[0]) if at.size else 0
+
+
+def line_yield(q_pushed: np.ndarray, q_free: np.ndarray) -> np.ndarray:
+    """(n,) chapter 4's yield under a push, rad: the largest |θ_pushed − θ_free| per joint
+    over the samples both runs have, each (N, n) rad from its line's start
+    (:func:`line_part`), so over the same push as the pushed run's error."""
+    m = min(len(q_pushed), len(q_free))
+    return np.nanmax(np.abs(q_pushed[:m] - q_free[:m]), axis=0)
+
+
 def simulate_ideal_joint_step(kp: float, kv: float, *, period: float = 1e-3,
                               duration: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step response of the sampled PD loop (eq. 2.20 integrated twice) on an ideal joint.

@@ -73,7 +73,15 @@ from armlab.control.commands import (
 )
 from armlab.control.loop import ControlLoop, LoopStatus
 from armlab.control.params import DEFAULT, Params
-from armlab.control.response import Measured, line_errors, measure_push, measure_step, plan_step
+from armlab.control.response import (
+    Measured,
+    line_errors,
+    line_part,
+    line_yield,
+    measure_push,
+    measure_step,
+    plan_step,
+)
 from armlab.control.trajectory import (
     THESIS_LINE_END,
     THESIS_LINE_START,
@@ -585,8 +593,7 @@ class ComplianceLesson(LessonBase):
         largest error per joint, °; the yield from the last free line run, if any)."""
         free_q, yld = self._free_q, None
         if free_q is not None and free_q.shape[1] == q.shape[1]:
-            m = min(len(q), len(free_q))
-            yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
+            yld = line_yield(q, free_q) * DEG
         self.chapter4 = Chapter4(self.chapter4.free, err_deg, yld)
         self._line_push_n = force_n
         self.last_run_text = chapter4_markdown(self.chapter4, self.joint_labels)
@@ -796,15 +803,16 @@ class ComplianceLesson(LessonBase):
             if not np.any(snap["t"] >= exp.t0):  # the loop stopped before recording the run
                 self.last_run_text = "**Last run** (thesis line): no samples (the loop stopped)"
                 return
-            err = line_errors(snap, t0=exp.t0) * DEG
-            q = snap["q"][snap["t"] >= exp.t0]
+            keep = snap["t"] >= exp.t0  # from the line's own start (after any approach):
+            first = line_part(snap["q_cmd"][keep], rig.line.q[0])  # error, yield alike
+            q = snap["q"][keep][first:]
+            err = line_errors(snap, t0=float(snap["t"][keep][first])) * DEG
             ch4 = self.chapter4
             if exp.pushed:
                 free_q = self._free_q
                 yld = None
                 if free_q is not None and free_q.shape[1] == q.shape[1]:
-                    m = min(len(q), len(free_q))
-                    yld = np.nanmax(np.abs(q[:m] - free_q[:m]), axis=0) * DEG
+                    yld = line_yield(q, free_q) * DEG
                 self.chapter4 = Chapter4(ch4.free, err, yld)
                 self._line_push_n = exp.push_n
             else:
