@@ -184,10 +184,13 @@ class GaitRecord(LoopRecord):
         commanded angles; NaN before the first); ``q`` is NaN without servos; ``walking``
         is 1 while the gait runs (after standing up).
         """
-        rows = self._ring.rows(window_s)
+        return self.unpack(self._ring.rows(window_s))
+
+    def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        """Raw rows (m, sum of COLUMNS' widths) as :meth:`snapshot` gives them (views)."""
         out, c = {}, 0
         for name, width in COLUMNS.items():
-            out[name] = rows[:, c] if width == 1 else rows[:, c:c + width]
+            out[name] = data[:, c] if width == 1 else data[:, c:c + width]
             c += width
         return out
 

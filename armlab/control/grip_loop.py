@@ -126,10 +126,13 @@ class GripRecord(LoopRecord):
 
         ``window_s``: only the last that many seconds (None: everything kept).
         """
-        rows = self._ring.rows(window_s)
-        out = {"t": rows[:, 0]}
+        return self.unpack(self._ring.rows(window_s))
+
+    def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        """Raw rows (m, 1 + 3·len(COLUMNS)) as :meth:`snapshot` gives them (views)."""
+        out = {"t": data[:, 0]}
         for i, name in enumerate(COLUMNS):
-            out[name] = rows[:, 1 + N_FINGERS * i: 1 + N_FINGERS * (i + 1)]
+            out[name] = data[:, 1 + N_FINGERS * i: 1 + N_FINGERS * (i + 1)]
         return out
 
     def last_grasp(self, force_limit: float, *, settle: float = 0.2

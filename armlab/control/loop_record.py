@@ -47,3 +47,22 @@ class LoopRecord:
         """The record's rows after the first ``written`` ever written, and the number
         written now (:meth:`armlab.control.periodic.RingBuffer.since`: a mirror's bookmark)."""
         return self._ring.since(written)
+
+    # --- a run's track follows the record (armlab.control.run_track.RowSource) ---------
+
+    @property
+    def width(self) -> int:
+        """Floats in a record row."""
+        return self._ring.width
+
+    def recent(self, rows: int) -> tuple[np.ndarray, int]:
+        """The newest ``rows`` rows and the number ever written, read together."""
+        return self._ring.recent(rows)
+
+    def since(self, written: int) -> tuple[np.ndarray, int]:
+        """:meth:`rows_since` (a :class:`~armlab.control.run_track.RunTrack` follows it)."""
+        return self._ring.since(written)
+
+    def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        """Raw rows (m, :attr:`width`) as the loop's ``snapshot`` gives them."""
+        raise NotImplementedError

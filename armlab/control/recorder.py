@@ -133,16 +133,26 @@ class Recorder:
     def to_csv(self, params: Params | None = None, window_s: float | None = None) -> str:
         """The recording as CSV text, parameters in ``#`` header lines, SI units in the
         column names (one column per joint and signal)."""
-        snap = self.snapshot(window_s)
-        buf = io.StringIO()
-        buf.write("# armlab recording (SI units)\n")
-        if params is not None:
-            buf.write("# " + ", ".join(f"{k}={v}" for k, v in params.as_dict().items()) + "\n")
-        cols = ["t_s", "wall_time_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
-                                         for s in SIGNALS for j in self.joint_names]
-        buf.write(",".join(cols) + "\n")
-        signals = np.column_stack([snap[s] for s in SIGNALS]) if len(snap["t"]) else []
-        for t, wall, row in zip(snap["t"], snap["wall"], signals, strict=True):
-            buf.write(",".join([f"{t:.6g}", "" if np.isnan(wall) else f"{wall:.4f}"]
-                               + ["" if np.isnan(v) else f"{v:.6g}" for v in row]) + "\n")
-        return buf.getvalue()
+        return snapshot_csv(self.snapshot(window_s), self.joint_names,
+                            None if params is None else params.as_dict())
+
+
+def snapshot_csv(snap: Mapping[str, np.ndarray], joint_names: Sequence[str],
+                 params: Mapping[str, object] | None = None) -> str:
+    """Rows in :meth:`Recorder.snapshot`'s layout (a window, or a run's rows kept apart:
+    :class:`armlab.control.run_track.RunTrack`) as CSV text: parameters in a ``#`` header
+    line, SI units in the column names (one column per joint and signal); times to 10
+    significant digits (a period of 1 ms stays apart for 10⁶ s of loop time)."""
+    buf = io.StringIO()
+    buf.write("# armlab recording (SI units)\n")
+    if params is not None:
+        buf.write("# " + ", ".join(f"{k}={v}" for k, v in params.items()) + "\n")
+    cols = ["t_s", "wall_time_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
+                                     for s in SIGNALS for j in joint_names]
+    buf.write(",".join(cols) + "\n")
+    signals: np.ndarray | list[np.ndarray] = (np.column_stack([snap[s] for s in SIGNALS])
+                                              if len(snap["t"]) else [])
+    for t, wall, row in zip(snap["t"], snap["wall"], signals, strict=True):
+        buf.write(",".join([f"{t:.10g}", "" if np.isnan(wall) else f"{wall:.4f}"]
+                           + ["" if np.isnan(v) else f"{v:.6g}" for v in row]) + "\n")
+    return buf.getvalue()

@@ -14,16 +14,20 @@ rows, 1.9 MB for three joints), 30 s at 1 ms (the longest run the lab saved befo
 whose file's reading cost docs/runs.md states). A run past it is cut there and says so.
 A pull must come within the recorder's window (30 s) of the rows it copies; rows the
 recorder dropped before a pull are counted in :attr:`RunTrack.lost`.
+
+What a track follows is a :class:`RowSource`: a servo arm's
+:class:`~armlab.control.recorder.Recorder`, or the record of a loop of its own
+(:class:`armlab.control.loop_record.LoopRecord`: the hand's 1 ms grip loop, whose
+bound is then 30 s, and the quadruped's gait loop, 120 s at 20 ms).
 """
 
 from __future__ import annotations
 
 import math
 import threading
+from typing import Protocol
 
 import numpy as np
-
-from armlab.control.recorder import Recorder
 
 #: s of record kept before the run's first command (the pose it started from).
 LEAD_S = 0.5
@@ -33,16 +37,41 @@ TAIL_S = 2.0
 MAX_RUN_S = 120.0
 MAX_RUN_ROWS = 30_000
 
-__all__ = ["LEAD_S", "MAX_RUN_ROWS", "MAX_RUN_S", "TAIL_S", "RunTrack"]
+__all__ = ["LEAD_S", "MAX_RUN_ROWS", "MAX_RUN_S", "TAIL_S", "RowSource", "RunTrack"]
+
+
+class RowSource(Protocol):
+    """A record of fixed-width rows, column 0 the loop time in s, that one loop writes
+    and a track reads (:class:`~armlab.control.recorder.Recorder`,
+    :class:`~armlab.control.loop_record.LoopRecord`)."""
+
+    @property
+    def width(self) -> int:
+        """Floats in a row."""
+        ...
+
+    def recent(self, rows: int) -> tuple[np.ndarray, int]:
+        """The newest ``rows`` rows (a copy, oldest first) and the count ever written."""
+        ...
+
+    def since(self, written: int) -> tuple[np.ndarray, int]:
+        """The rows written after the first ``written`` (those still kept) and the count."""
+        ...
+
+    def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        """Rows (m, width) as the record's snapshot gives them: {"t": (m,), name: ...}."""
+        ...
 
 
 class RunTrack:
     """The rows of one run, followed from ``recorder`` since loop time ``t0``.
 
     Args:
-        recorder: the loop's recorder (one writer, the loop; this reads it).
+        recorder: the loop's record (one writer, the loop; this reads it): a
+            :class:`RowSource`.
         t0: loop time the run's first command was posted, s.
-        period: the loop's period, s (how many rows the lead is).
+        period: the loop's period, s, or less (how many rows the lead may be: the lead is
+            then cut to :data:`LEAD_S` by time).
         max_s, max_rows: the bound (defaults :data:`MAX_RUN_S`, :data:`MAX_RUN_ROWS`).
 
     Attributes:
@@ -51,7 +80,7 @@ class RunTrack:
         recorder dropped before they were pulled (0 for a run pulled in time).
     """
 
-    def __init__(self, recorder: Recorder, *, t0: float, period: float,
+    def __init__(self, recorder: RowSource, *, t0: float, period: float,
                  max_s: float = MAX_RUN_S, max_rows: int = MAX_RUN_ROWS) -> None:
         self.recorder = recorder
         self.t0 = float(t0)

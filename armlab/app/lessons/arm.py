@@ -19,6 +19,13 @@ the target. An arm whose gripper has its own servo (the OpenManipulator-X's ID 1
 SO-101's ID 6, simulated or on the bus) gets Open / Close buttons and a slider (a sliding
 finger's travel in mm, a turning jaw's angle in degrees), and the 3D view's fingers follow
 the servo (:mod:`armlab.app.lessons.arm_gripper`).
+
+Runs (what Save run saves, :mod:`armlab.app.lessons.run_files`): a joint slider's move
+("joint <name>") and **Home** ("home"), each over once its trajectory has played; a drag
+of the hand target ("hand target"), over when the target is let go; a push ("push"),
+over once it is measured, with the figures the Push tab shows (how far the hand gave way
+and came back, and the environment filter's Tp, %OS, Ts and C_f when measured). A move
+measures nothing: its file has no figures. Every run keeps a settling tail.
 """
 
 from __future__ import annotations
@@ -50,7 +57,7 @@ from armlab.app.lessons._loop_state import (
     stopped_state,
 )
 from armlab.app.lessons._servo_arm import open_arm, shut_arm
-from armlab.app.lessons.arm_controls import ArmControls
+from armlab.app.lessons.arm_controls import PUSH_RUN, ArmControls
 from armlab.app.lessons.arm_gripper import GripperControls
 from armlab.app.lessons.compliance_controls import GainControls
 from armlab.app.lessons.compliance_servos import LinkMonitor
@@ -92,6 +99,9 @@ HISTORY_S = 20.0
 SLIDER_QUIET_S = 1.0
 #: the name of a slider's move (its trajectory), while it plays the sliders stay put
 SLIDER_MOVE = "joint slider"
+#: The labels of the lesson's runs (Save run): Home, a drag of the hand target (a joint
+#: slider's is "joint <name>"; a push's is arm_controls.PUSH_RUN)
+HOME_RUN, TARGET_RUN = "home", "hand target"
 
 
 def build(server: Surface, ctx: LessonContext) -> ArmLesson:
@@ -165,6 +175,8 @@ class ArmLesson(LessonBase):
         #: (n,) rad where the arm was when the lesson opened: the sliders and the target
         #: start there (the servos read once)
         self._opened_at = self._held()
+        #: the label of the last move's run (a slider, Home): over once it has played
+        self._move_run: str | None = None
         with self.opening(undo):
             self.view = ArmView(server, model, root="/arm")
             self._build_scene()
@@ -173,7 +185,7 @@ class ArmLesson(LessonBase):
             self.loop.start()
         # a push is measured once it is over, whether a page is open to see it or not
         self.publish(pose=self._pose_frame, plots=self._status_frame, pose_hz=pose_hz,
-                     plot_hz=min(pose_hz, 10.0), every=self.controls.measure)
+                     plot_hz=min(pose_hz, 10.0), every=self._measure)
 
     # ================================================================== scene and GUI
 
@@ -251,6 +263,8 @@ class ArmLesson(LessonBase):
             elif stopped_state(self.loop.status) is None:
                 with contextlib.suppress(ValueError):  # (refused: said at the start)
                     self.set_target(np.asarray(self.target.position, dtype=float))
+            if event.phase == "end":
+                self.target_released()
 
         self._lane = InOrder("armlab-arm-target")  # the gizmo's moves in the page's order
         self.target.on_update(self._lane(moved))
@@ -311,6 +325,7 @@ class ArmLesson(LessonBase):
                                                    "tip_link": self.ctx.tip_link},
                                     ghost_root="/arm_replay")
         self.controls.on_post = self.runs.note  # its pushes go into the run file too
+        self.controls.on_run = lambda label, t: self.runs.begin_run(label, t=t)
 
     def _tip_name(self) -> str:
         return self.ctx.tip_link or "the file's default tip"
@@ -344,13 +359,15 @@ class ArmLesson(LessonBase):
         # (a loop that has not recorded yet holds the pose the lesson opened at)
         q = (self._opened_at if q is None else q).copy()
         q[joint] = angle
-        self.move_to(q)
+        self.move_to(q, run=f"joint {self.model.joint_names[joint]}")
 
-    def move_to(self, q: np.ndarray) -> None:
+    def move_to(self, q: np.ndarray, *, run: str = HOME_RUN) -> None:
         """Move smoothly to joint angles ``q`` (n,) rad, clipped into the joint limits:
         a minimum-jerk approach from the command whose peak joint speed is the lab's
         calm approach speed (:func:`~armlab.control.trajectory.approach_duration`,
         0.5 rad/s), however far it is.
+
+        ``run``: the label of the run it begins (Save run), over once it has played.
 
         Raises:
             ValueError: the loop is stopped (a lost link, a fault, E-STOP, torque held off):
@@ -360,7 +377,8 @@ class ArmLesson(LessonBase):
         self.controls.refuse_while_law_fails("A joint move")
         q = np.clip(np.asarray(q, dtype=float), self.loop.lower, self.loop.upper)
         self.runs.post(self.loop, RunTrajectory(hold(q, SLIDER_HOLD_S, name=SLIDER_MOVE),
-                                                approach=True))
+                                                approach=True), run=run)
+        self._move_run = run
 
     def home(self) -> None:
         """Move the arm to its home pose (the model's zero, clipped into the limits) at the
@@ -376,7 +394,35 @@ class ArmLesson(LessonBase):
         """Make the hand follow ``xyz`` (3,) m in the arm's base frame (refused, with the
         reason, while the student's law fails)."""
         self.controls.refuse_while_law_fails("Moving the target")
-        self.runs.post(self.loop, SetTarget(xyz))
+        # a drag's first move begins its run; the rest are commands in it
+        going = self.runs.going_on
+        self.runs.post(self.loop, SetTarget(xyz),
+                       run=None if going == TARGET_RUN else TARGET_RUN)
+
+    def target_released(self) -> None:
+        """The hand target was let go: its drag's run is over (it measures nothing; the
+        settling tail holds the hand reaching it)."""
+        if self.runs.going_on == TARGET_RUN:
+            self.runs.finish_run({}, t=self.loop.status.t)
+
+    def _measure(self) -> None:
+        """At each publisher tick, a page open or not: measure a push that is over, keep
+        the run's rows, and end a run that is over (a move once played, a push once
+        measured)."""
+        self.controls.measure()
+        self.runs.tick()
+        going = self.runs.going_on
+        if going is None:
+            return
+        st = self.loop.status
+        if going == self._move_run:
+            t0 = self.runs.run_t0
+            if t0 is not None and st.trajectory is None and st.t >= t0 + 0.1:
+                self.runs.finish_run({}, t=st.t)
+        elif going == PUSH_RUN:
+            done = self.controls.push_figures
+            if done is not None and done[0] is self.controls.last_push:
+                self.runs.finish_run(done[1], t=st.t)
 
     def _place_target(self, xyz: np.ndarray) -> None:
         """Show the hand target at ``xyz`` (3,) m, base frame (viser reports only a page's

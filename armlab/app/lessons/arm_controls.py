@@ -110,6 +110,10 @@ def spare_readout(model: SerialChain, q: np.ndarray, lower: np.ndarray,
             f"**{esc(model.joint_names[j])}**, {math.degrees(gap):.1f}° away")
 
 
+#: The label of a push's run (Save run).
+PUSH_RUN = "push"
+
+
 @dataclass(frozen=True)
 class PushRun:
     """A push given: force (3,) N base frame, loop times it began and ends, its label."""
@@ -148,6 +152,11 @@ class ArmControls:
         self._measured: PushRun | None = None  # the push last measured
         #: told of each command posted here, with its loop time (the lesson's run file)
         self.on_post: Callable[..., None] | None = None
+        #: told, with its label and loop time, of a command that begins a run (a push)
+        self.on_run: Callable[[str, float], None] | None = None
+        #: the push last measured and its figures (those the Push tab shows; {}: not
+        #: measured), for its run file
+        self.push_figures: tuple[PushRun, dict[str, float | None]] | None = None
         self.measured_env: Measured | None = None
         self._last_teach = 0.0
         self.warning = lesson_gui.add(gui.add_html("", order=-79.0, visible=False))
@@ -262,11 +271,18 @@ class ArmControls:
         push = Push(force, link=self.model.n - 1, point=self.model.tip[:3, 3],
                     duration=pushes.duration)
         self.loop.post(push)
-        if self.on_post is not None:  # (the lesson's run file)
-            self.on_post(push, t=t0)
         self._push = PushRun(force, t0, t0 + pushes.duration,
                              f"push of {pushes.force:g} N {pushes.direction} for "
                              f"{pushes.duration:g} s")
+        if self.on_run is not None:  # (the lesson's run file: a push is a run)
+            self.on_run(PUSH_RUN, t0)
+        if self.on_post is not None:
+            self.on_post(push, t=t0)
+
+    @property
+    def last_push(self) -> PushRun | None:
+        """The push last given (None: none yet)."""
+        return self._push
 
     # ================================================================== frames
 
@@ -334,7 +350,11 @@ class ArmControls:
             most, last = hand_excursion(self.model, snap, t0=push.t0)
         except ValueError as exc:
             set_content(self.pushes.result, f"**Last push**: not measured: {esc(str(exc))}")
+            self.push_figures = (push, {})
             return
+        figures: dict[str, float | None] = {
+            "push_n": float(np.linalg.norm(push.force)), "hand_gave_way_cm": 100 * most,
+            "hand_back_mm": 1000 * last}
         text = (f"**Last push** ({esc(push.label)}): the hand gave way "
                 f"**{100 * most:.1f} cm** and came back to {1000 * last:.1f} mm from where "
                 "it was.")
@@ -342,9 +362,14 @@ class ArmControls:
             self.measured_env = measure_push(snap, t0=push.t0, t1=push.t1, what=push.label,
                                              joint_labels=self.plots.labels)
             text += "\n\n" + measured_line(self.measured_env)
+            m = self.measured_env
+            figures.update({"peak_time_s": m.peak_time_s, "overshoot_pct": m.overshoot_pct,
+                            "settling_s": m.settling_time_s,
+                            "static_gain_rad_per_nm": m.static_gain})
         except ValueError:  # compliance off: no θ_env to measure
             pass
         set_content(self.pushes.result, text)
+        self.push_figures = (push, figures)
 
     def remove(self) -> None:
         """Remove the force arrows and the reference ghost (the GUI goes with the lesson's

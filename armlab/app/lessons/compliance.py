@@ -118,7 +118,7 @@ PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "towards the body (−z)": (0.0, 0.0, -1.0),
     "away from the body (+z)": (0.0, 0.0, 1.0),
 }
-HISTORY_S = 30.0  #: seconds the recorder keeps (the CSV of a run comes from it)
+HISTORY_S = 30.0  #: seconds the recorder keeps (a run is kept apart from it: run_track)
 
 
 #: a student's page can hold a private copy of this lesson (``ctx.arms``)
@@ -635,23 +635,23 @@ class ComplianceLesson(LessonBase):
         return True
 
     def csv_bytes(self) -> tuple[str, bytes]:
-        """(file name, CSV) of the last run: from its start (or the last 10 s) to now."""
+        """(file name, CSV) of the run Save run saves (:meth:`RunControls.run_csv`: the
+        last run whole, or up to now marked unfinished; with no run the live window,
+        labelled so), its label, state and loop times in a header line."""
         rig = self.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
-        loop = rig.loop
-        now = loop.status.t
-        start = self.run_start if self.run_start is not None else now - 10.0
-        window = min(HISTORY_S, max(0.5, now - start + 0.5))
-        text = loop.recorder.to_csv(loop.params, window_s=window)
+        about, text = self.runs.run_csv()
         if text.count("\n") <= 3:
             raise ValueError("no samples recorded yet")
-        head = (f"# run: {self.run_label}; robot {rig.model.name}, link lengths "
-                f"{rig.preset} cm, backend {self.ctx.backend}; loop time {start:.3f} s on\n")
+        label = str(about["label"])
+        head = (f"# run: {label} ({about['state']}); robot {rig.model.name}, link lengths "
+                f"{rig.preset} cm, backend {self.ctx.backend}; loop time "
+                f"{about['t0_s']:.3f} s to {about['t_end_s']:.3f} s\n")
         first, rest = text.split("\n", 1)
-        label = self.run_label.replace(" ", "-")
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        return f"armlab-{label}-{stamp}.csv", (first + "\n" + head + rest).encode()
+        return (f"armlab-{label.replace(' ', '-')}-{stamp}.csv",
+                (first + "\n" + head + rest).encode())
 
     # ================================================================== publishing
 

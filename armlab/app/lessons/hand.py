@@ -14,6 +14,12 @@ loop's record and updates the scene (30 Hz) and charts (10 Hz). The Files folder
 (:mod:`armlab.app.lessons.run_files`) saves the grasp as a run file (finger angles, and
 the voltages, currents and forces as the hand's own signals), replays one on an orange
 hand beside the live one, and exports the HTML page.
+
+Runs (what Save run saves, kept apart from the loop's 10 s record): **Close** begins the
+run "grasp", over once the grasp settled (:meth:`HandLesson.run_figures`: its steady and
+peak force, whether it held, its time to grasp and final current, as the page shows
+them); **Open** begins the run "open", over once every finger is idle (it measures
+nothing). Each keeps a settling tail; a new Close or Open lets the last run go.
 """
 
 from __future__ import annotations
@@ -87,6 +93,8 @@ FIGURES_S = 0.5  #: s between two workings-out of the last grasp's figures
 #: finger angle ("angle") is the run's "q"
 RUN_SIGNALS = {name: unit for name, unit in COLUMNS.items() if name != "angle"}
 SETTLED_S = 0.5  #: s a grasp holds past its time to grasp before its figures are final
+#: The labels of the hand's runs (Save run): a close, an open.
+GRASP_RUN, OPEN_RUN = "grasp", "open"
 
 EXPLAIN = """\
 **How the hand knows its grip.** No force sensor: the current *I* of each motor
@@ -131,6 +139,8 @@ class HandLesson(LessonBase):
         self._settled: tuple[float | None, dict, bool] | None = None
         #: the grasp's figures read the whole record since the close: not every chart frame
         self._figures = Every(FIGURES_S)
+        #: a grasp that goes on is measured at this pace with no page open too (its run)
+        self._measuring = Every(FIGURES_S)
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
         params = GripParams(force_limit=DEFAULT_FORCE)
         history_s = WINDOW_S + 4.0
@@ -149,7 +159,7 @@ class HandLesson(LessonBase):
             self._build_gui()
         self.loop.start()
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
-                     plot_hz=plot_hz)
+                     plot_hz=plot_hz, every=self._measure)
 
     # ================================================================== GUI
 
@@ -203,6 +213,7 @@ class HandLesson(LessonBase):
         files = self._gui.add(gui.add_folder("Files", order=-30.0, expand_by_default=False))
         with files:  # Save run, Open run (a ghost hand replays it), Export page
             self.runs = RunControls(self.server, gui, lesson=NAME, record=self.recording,
+                                    rows=lambda: (self.loop, self.loop.dt),
                                     model=lambda: self.model.finger,
                                     figures=self.run_figures, ghost_root="/hand_replay")
         with self._gui.chart_panel("Current and force") as tab, tab:
@@ -226,12 +237,12 @@ class HandLesson(LessonBase):
     # ================================================================== actions
 
     def close_hand(self) -> None:
-        """Grasp: close with the force limit."""
-        self.runs.post(self.loop, CloseHand())
+        """Grasp: close with the force limit (the run "grasp")."""
+        self.runs.post(self.loop, CloseHand(), run=GRASP_RUN)
 
     def open_hand(self) -> None:
-        """Release the object."""
-        self.runs.post(self.loop, OpenHand())
+        """Release the object (the run "open")."""
+        self.runs.post(self.loop, OpenHand(), run=OPEN_RUN)
 
     def estop(self) -> None:
         """Motors off (the springs open the hand); never raises."""
@@ -307,12 +318,7 @@ class HandLesson(LessonBase):
         self.scene.set_label("closed on nothing" if modes[0] == "empty" else " ")
         if not figures:
             return
-        fig = self.loop.last_grasp(limit)
-        if fig is not None:
-            self._grasp = (st.closed_at, fig)
-        elif self._grasp is not None and self._grasp[0] == st.closed_at:
-            fig = self._grasp[1]  # the close has left the record: keep its figures
-        self._settle(st, fig)
+        fig = self._measure_grasp(st, limit)
         text = ""
         if fig is not None:
             grasped = fig["time_to_grasp_s"]
@@ -321,6 +327,29 @@ class HandLesson(LessonBase):
                     + (f"held after {grasped:.2f} s" if grasped is not None else "not held yet")
                     + f" · current {fig['final_current_A']:.3f} A")
         set_content(self.figures, text)
+
+    def _measure_grasp(self, st: GripStatus, limit: float) -> dict | None:
+        """The last grasp's figures now (None: no close yet), kept once it settled."""
+        fig = self.loop.last_grasp(limit)
+        if fig is not None:
+            self._grasp = (st.closed_at, fig)
+        elif self._grasp is not None and self._grasp[0] == st.closed_at:
+            fig = self._grasp[1]  # the close has left the record: keep its figures
+        self._settle(st, fig)
+        return fig
+
+    def _measure(self) -> None:
+        """At each publisher tick, a page open or not: keep the run's rows; measure a
+        grasp that goes on (its run is over, with its figures, once it settled); an open
+        is over once every finger is idle."""
+        self.runs.tick()
+        going = self.runs.going_on
+        if going == GRASP_RUN and self._measuring.due():
+            self._measure_grasp(self.loop.status, self.loop.params.force_limit)
+        elif going == OPEN_RUN:
+            st = self.loop.status
+            if set(st.modes) == {"idle"}:
+                self.runs.finish_run({}, t=st.t)
 
     def _settle(self, st: GripStatus, fig: dict | None) -> None:
         """Keep the grasp's figures once it has settled: every finger holding for
@@ -337,6 +366,22 @@ class HandLesson(LessonBase):
             self._settled = (st.closed_at, fig, True)
         elif not held and modes <= {"holding", "empty"}:
             self._settled = (st.closed_at, fig, False)
+        else:
+            return
+        if self.runs.going_on == GRASP_RUN:  # the grasp's run is over: its own figures
+            self.runs.finish_run(self.grasp_figures(), t=st.t)
+
+    def grasp_figures(self) -> dict[str, float | None]:
+        """The last settled grasp's figures as its run file keeps them (those the page
+        shows: steady and peak force, held, time to grasp, final current); {} before."""
+        settled = self._settled
+        if settled is None:
+            return {}
+        _, fig, held = settled
+        return {"grasp_force_n": fig["steady_force_N"], "grasp_peak_n": fig["peak_force_N"],
+                "grasp_held": 1.0 if held else 0.0,
+                "time_to_grasp_s": fig["time_to_grasp_s"],
+                "final_current_a": fig["final_current_A"]}
 
     def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
         """Save run and Export page: each answers the pressing page."""
@@ -351,11 +396,12 @@ class HandLesson(LessonBase):
         return RunFigures(grasp_force_n=fig["steady_force_N"], grasp_peak_n=fig["peak_force_N"],
                           grasp_held=1.0 if held else 0.0)
 
-    def recording(self) -> Recording:
+    def recording(self, rows: dict[str, np.ndarray] | None = None) -> Recording:
         """The hand's record for a run file: the finger angles as "q", the motor voltages,
         currents, true and estimated fingertip forces and the force cap as the hand's own
-        signals (:data:`RUN_SIGNALS`); the grasp's settings and the object as parameters."""
-        snap = self.loop.snapshot()
+        signals (:data:`RUN_SIGNALS`); the grasp's settings and the object as parameters.
+        ``rows``: a run's rows (the loop's snapshot layout) instead of the whole record."""
+        snap = self.loop.snapshot() if rows is None else rows
         obj = self.obj
         params = {**dataclasses.asdict(self.loop.params), "object_size_m": obj.size,
                   "object_stiffness_n_per_m": obj.stiffness, "period": self.loop.dt}

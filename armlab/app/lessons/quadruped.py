@@ -20,6 +20,12 @@ Data flow as in the compliance lesson: UI callbacks validate input, plan the gai
 the loop's latest state at 30 Hz and the charts at 10 Hz. The Files tab
 (:mod:`armlab.app.lessons.run_files`) saves a walk as a run file (the goals sent and the
 angles the servos read), replays one on a see-through quadruped and exports the HTML page.
+
+Runs (what Save run saves, kept apart from the loop's 20 s record, at most 120 s): a
+direction button begins a walk, labelled by its gait and direction ("trot forward"),
+over once the robot stands again (Stop, or Reset) with its eq. 4.1 error
+(:meth:`QuadrupedLesson.run_figures`, the figure the page shows for the last walk); a
+direction, gait or sine-input change while it walks is a command inside the same walk.
 """
 
 from __future__ import annotations
@@ -118,6 +124,9 @@ COMMAND_LABELS = {"forward": "Forward", "back": "Back", "left": "Turn left",
                   "right": "Turn right"}
 #: s between two workings-out of the Servos tab's table (10 s of record each)
 TABLE_S = 1.0
+#: s, at most the gait loop's period (20 ms simulated, 30 ms on a bus): a walk's run
+#: takes its lead from that many rows, cut to its time
+RUN_PERIOD_S = 0.02
 
 
 def leg_joint_labels(model: Quadruped, leg: str) -> tuple[str, ...]:
@@ -212,7 +221,7 @@ class QuadrupedLesson(LessonBase):
             self.scene.set_state(self.loop.state)
         self.loop.start()
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
-                     plot_hz=plot_hz)
+                     plot_hz=plot_hz, every=self._measure)
 
     # ================================================================== GUI
 
@@ -234,6 +243,7 @@ class QuadrupedLesson(LessonBase):
             gui.add_markdown(TEACH)
         with tabs.add_tab("Files", viser.Icon.FILE):  # Save run, Open run (replay), Export page
             self.runs = RunControls(self.server, gui, lesson=NAME, record=self.recording,
+                                    rows=lambda: (self.loop, RUN_PERIOD_S),
                                     model=lambda: self.model, figures=self.run_figures,
                                     ghost_root="/quadruped_replay")
         with self._gui.chart_panel("Charts") as tab:
@@ -348,7 +358,10 @@ class QuadrupedLesson(LessonBase):
             ValueError: e.g. turning with the crawl.
         """
         plan = self._replan(replace(self.spec, command=command))
+        t = self.loop.status.t
         self.loop.go(plan)
+        if self.runs.going_on is None or not self.loop.status.walking:
+            self.runs.begin_run(f"{self.spec.gait} {command}", t=t)  # (else: the same walk)
         self._note_plan("Walk")
 
     def stop(self) -> None:
@@ -445,13 +458,14 @@ class QuadrupedLesson(LessonBase):
             out[ok] = np.abs(angle_error_pct(c, a)).reshape(-1, 4, 3).mean(axis=1)
         return [out[:, j] for j in range(3)]
 
-    def recording(self) -> Recording:
+    def recording(self, rows: dict[str, np.ndarray] | None = None) -> Recording:
         """The robot's record for a run file: the goals sent as "q_cmd", the angles the
         servos read one period later as "q" (gait order, legs RF, LF, RH, LH); the gait,
         its sine inputs (m, °) and speed as parameters. After a servo fault the run is the
         last stretch the servos were read. Without servos nothing was read: "q" is then the
-        goals (``extra["q_is"]`` says so)."""
-        snap = self.loop.snapshot()
+        goals (``extra["q_is"]`` says so). ``rows``: a run's rows (the loop's snapshot
+        layout) instead of the whole record."""
+        snap = self.loop.snapshot() if rows is None else rows
         extra: dict[str, object] = {}
         read = np.isfinite(snap["q"]).all(axis=1)
         if read.any():
@@ -489,9 +503,16 @@ class QuadrupedLesson(LessonBase):
         began, self._walk_from = self._walk_from, None
         err = self.loop.angle_error(st.t - began + 0.5)
         self._walk_error = None if err is None else float(err["mean_pct"])
+        if self.runs.going_on is not None:  # the walk's run is over, with its own figure
+            self.runs.finish_run({"eq41_error_pct": self._walk_error}, t=st.t)
+
+    def _measure(self) -> None:
+        """At each publisher tick, a page open or not: keep the walk's rows, and measure a
+        walk once it is over (its run's figure)."""
+        self.runs.tick()
+        self._watch_walk(self.loop.status)
 
     def _update_status(self, st: GaitStatus) -> None:
-        self._watch_walk(st)
         state = self.loop.state
         if st.fault:
             head, color = f"servos stopped: {st.fault} (press Reset)", "#b00020"

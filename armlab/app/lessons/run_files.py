@@ -2,16 +2,19 @@
 
 - **Save run** sends the browser that pressed it the last run as a run file
   (:mod:`armlab.control.runs`), named ``<robot>-<lesson>-<UTC time>.armlab-run.zip``.
-  A run begins with the command a lesson posts with ``run=`` (a step, the thesis
-  line, a push): from then on its rows are kept apart from the recorder's window
-  (:class:`armlab.control.run_track.RunTrack`, at most 120 s) until the lesson
-  says it is over (:meth:`RunControls.finish_run`, with that run's own figures) and a
-  settling tail. The file holds the gains at its start and every change of them, the
-  commands from its first, every signal at the loop rate, its figures, who saved it
-  (the page's name in a class), which law ran (the lab's or the student's file, with
-  its SHA-256 and text), the backend and the lab's version. Saved while the run goes
-  on, it holds the run up to now, marked unfinished (no figures yet); with no run yet,
-  the recorder's live window, labelled so.
+  A run begins with the command a lesson posts with ``run=`` (or marks with
+  :meth:`RunControls.begin_run`): from then on its rows are kept apart from the loop's
+  record (:class:`armlab.control.run_track.RunTrack`, at most 120 s and 30 000 samples)
+  until the lesson says it is over (:meth:`RunControls.finish_run`, with that run's own
+  figures) and a settling tail. The runs each lesson marks (docs/runs.md has the
+  table): the compliance lesson's step, thesis line, push, hand drag and challenges; the
+  arm lesson's joint-slider moves, Home, hand-target drags and pushes; the hand's grasp
+  and open; the quadruped's walks. The file holds the gains at its start and every
+  change of them, the commands from its first, every signal at the loop rate, its
+  figures, who saved it (the page's name in a class), which law ran (the lab's or the
+  student's file, with its SHA-256 and text), the backend and the lab's version. Saved
+  while the run goes on, it holds the run up to now, marked unfinished (no figures
+  yet); with no run yet, the record's live window, labelled so.
 - **Open run** takes a run file from the page (it arrives over the gated websocket;
   larger than :data:`armlab.control.runs.MAX_FILE_BYTES`, or past a page's or the lab's
   unfinished uploads, it is refused before it is kept, and a page's unfinished uploads
@@ -33,13 +36,20 @@ A servo-arm lesson hands over its model and :class:`~armlab.control.loop.Control
 (``arm=``); a lesson with a loop of its own (the hand, the quadruped) hands over a
 :class:`Recording` of it (``record=``): the robot, its record in the recorder's
 layout, its parameters and the lesson's own signals (the hand's currents and forces,
-:attr:`armlab.control.runs.Run.lesson_signals`).
+:attr:`armlab.control.runs.Run.lesson_signals`), and its loop's record (``rows=``, a
+:class:`~armlab.control.run_track.RowSource`) that its runs' rows are kept from; the
+lesson lays a run's rows out (``record(rows=...)``). Every lesson calls
+:meth:`RunControls.tick` at its publisher's every tick, a page open or not.
+
+The compliance lesson's CSV download is :meth:`RunControls.run_csv`: the rows Save run
+saves, through the same selection (:meth:`RunControls._selected`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import threading
 import time
 from collections import deque
@@ -60,7 +70,8 @@ from armlab.app.page.surface import Surface
 from armlab.app.viser_ext import HooksMissing
 from armlab.app.viser_ext.uploads import limit_uploads
 from armlab.control.loop import ControlLoop
-from armlab.control.run_track import TAIL_S, RunTrack
+from armlab.control.recorder import snapshot_csv
+from armlab.control.run_track import TAIL_S, RowSource, RunTrack
 from armlab.control.runs import (
     MAX_FILE_BYTES,
     SUFFIX,
@@ -210,7 +221,12 @@ class RunControls:
         gui: its GUI API (call inside the tab).
         lesson: the lesson's name (the file's ``source`` is ``page:<lesson>``).
         arm: () -> the model and loop the lesson drives now (a servo-arm lesson).
-        record: () -> the lesson's :class:`Recording` now (instead of ``arm``).
+        record: () -> the lesson's :class:`Recording` now (instead of ``arm``); with
+            ``rows``, also ``record(rows=snap)``: the Recording of a run's rows ``snap``
+            (its loop record's ``unpack`` layout) instead of the window.
+        rows: () -> the loop record a ``record`` lesson's runs are kept from (a
+            :class:`~armlab.control.run_track.RowSource`: the hand's, the quadruped's) and
+            its period, s, or less (None: such a run is the record's window from its start).
         model: () -> what the lesson draws now (with ``record``: opening a run needs no
             record).
         figures: () -> the lesson's figures (``run_figures``).
@@ -230,7 +246,8 @@ class RunControls:
 
     def __init__(self, server: Surface, gui: viser.GuiApi, *, lesson: str,
                  arm: Callable[[], tuple[SerialChain, ControlLoop]] | None = None,
-                 record: Callable[[], Recording] | None = None,
+                 record: Callable[..., Recording] | None = None,
+                 rows: Callable[[], tuple[RowSource, float]] | None = None,
                  model: Callable[[], GhostModel] | None = None,
                  figures: Callable[[], RunFigures],
                  start: Callable[[], float | None] | None = None,
@@ -246,6 +263,7 @@ class RunControls:
         self.server = server
         self.lesson = lesson
         self._record = record
+        self._rows = rows
         self._model = model
         self._figures = figures
         self._start = start or (lambda: None)
@@ -305,6 +323,9 @@ class RunControls:
             loop = arm[1]
             track = RunTrack(loop.recorder, t0=t, period=float(loop.params.period))
             self._gains.see(params, t=t)
+        elif self._rows is not None:
+            source, period = self._rows()
+            track = RunTrack(source, t0=t, period=float(period))
         self._run = _Run(label=label, t0=float(t), params=params, track=track,
                          law=law_json(getattr(self._ctx, "law", None), params),
                          extra=dict(self._extra()))  # (its link lengths, if rebuilt since)
@@ -326,6 +347,9 @@ class RunControls:
         """Keep the run's new rows and see the gains (a lesson calls this often, at least
         once per recorder window: its publisher's every tick)."""
         if self._arm is None:
+            run = self._run
+            if run is not None and run.track is not None:
+                run.track.pull()
             return
         try:
             _, loop = self._arm()
@@ -351,6 +375,25 @@ class RunControls:
         run = self._run
         return None if run is None else run.label
 
+    @property
+    def going_on(self) -> str | None:
+        """The label of the run that goes on (begun, not finished yet), or None."""
+        run = self._run
+        return None if run is None or run.finished_at is not None else run.label
+
+    @property
+    def run_t0(self) -> float | None:
+        """Loop time the last run began, s (its first command's; None: no run)."""
+        run = self._run
+        return None if run is None else run.t0
+
+    @property
+    def run_span(self) -> tuple[float, float] | None:
+        """(first, last) loop time, s, the last run keeps so far (None: no run, or a run
+        without a track of its own)."""
+        run = self._run
+        return None if run is None or run.track is None else run.track.span()
+
     def note(self, command: object, *, t: float) -> None:
         """Keep ``command``, posted at loop time ``t`` s, for the file."""
         entry = command_json(command, t=t)
@@ -372,13 +415,36 @@ class RunControls:
         Raises:
             ValueError: nothing recorded yet.
         """
+        rec, snap, kw = self._selected()
+        return self._make_run(rec, snap, by=by, **kw)
+
+    def run_csv(self) -> tuple[dict[str, Any], str]:
+        """The rows :meth:`current_run` saves, as CSV text (a servo-arm lesson's: the
+        recorder's columns, :func:`armlab.control.recorder.snapshot_csv`, with the run's
+        gains in a header line), and what the file says of the run (its ``extra.run``:
+        label, state, times). One path with Save run: the same run, the same rows.
+
+        Raises:
+            ValueError: nothing recorded yet, or not a servo-arm lesson.
+        """
+        if self._arm is None:
+            raise ValueError("a CSV of the run is a servo-arm lesson's (save the run file)")
+        rec, snap, kw = self._selected()
+        return kw["about"], snapshot_csv(snap, rec.joint_names, kw["params"])
+
+    def _selected(self) -> tuple[Recording, dict[str, np.ndarray], dict[str, Any]]:
+        """What :meth:`current_run` saves: the recording, its rows, and the rest of
+        :meth:`_make_run`'s arguments (``about`` is the file's ``extra.run``)."""
         run = self._run
         if run is None or (run.track is None and self._arm is not None):
-            return self._live_run(by)
-        if run.track is not None:
-            model, loop = self._arm() if self._arm is not None else (None, None)
+            return self._live_selected()
+        if run.track is not None and self._arm is not None:
+            model, loop = self._arm()
             rec = arm_recording(model, loop, whole=False)
             snap = {k: np.asarray(v) for k, v in run.track.snapshot().items()}
+        elif run.track is not None:  # a loop of its own: the lesson lays its rows out
+            rec = self._record(rows=run.track.snapshot())
+            snap = {k: np.asarray(v) for k, v in rec.snapshot.items()}
         else:
             rec = self._record()
             snap = {k: np.asarray(v) for k, v in rec.snapshot.items()}
@@ -389,9 +455,12 @@ class RunControls:
         if len(t) == 0 or not np.isfinite(snap["q"]).all(axis=1).any():
             raise ValueError("nothing recorded of the last run yet")
         t_end = float(t[-1])
-        commands = [c for c in self.commands if run.t0 - 1e-9 <= c["t"] <= t_end]
-        finished = run.finished_at is not None
         track = run.track
+        # a command posted since the newest row is the run's (its effect yet to come),
+        # until the run's rows are all in
+        last = t_end if track is None or track.closed else math.inf
+        commands = [c for c in self.commands if run.t0 - 1e-9 <= c["t"] <= last]
+        finished = run.finished_at is not None
         state = FINISHED if finished else UNFINISHED
         about: dict[str, Any] = {
             "label": run.label, "state": state, "t0_s": run.t0, "t_end_s": t_end,
@@ -405,11 +474,11 @@ class RunControls:
         if track is not None and track.lost:
             about["lost_samples"] = track.lost
         figures = dict(run.figures or {}) if finished else {}
-        return self._make_run(rec, snap, commands=commands, figures=figures,
-                              params=run.params, about=about, law=run.law, by=by,
-                              gains=self._gains.between(run.t0, t_end), extra=run.extra)
+        return rec, snap, {"commands": commands, "figures": figures, "params": run.params,
+                           "about": about, "law": run.law,
+                           "gains": self._gains.between(run.t0, t_end), "extra": run.extra}
 
-    def _live_run(self, by: int | None) -> Run:
+    def _live_selected(self) -> tuple[Recording, dict[str, np.ndarray], dict[str, Any]]:
         """The record's window now, labelled as the live window (no run yet)."""
         rec = self._record()
         snap = {k: np.asarray(v) for k, v in rec.snapshot.items()}
@@ -427,10 +496,10 @@ class RunControls:
         figures = dataclasses.asdict(self._figures()) if self._live_figures else {}
         about = {"label": LIVE, "state": LIVE, "t0_s": float(t[0]), "t_end_s": float(t[-1])}
         params = dict(rec.params)
-        return self._make_run(rec, snap, commands=commands, figures=figures, params=params,
-                              about=about, law=law_json(getattr(self._ctx, "law", None),
-                                                        params), by=by,
-                              gains=self._gains.between(float(t[0]), float(t[-1])))
+        return rec, snap, {"commands": commands, "figures": figures, "params": params,
+                           "about": about,
+                           "law": law_json(getattr(self._ctx, "law", None), params),
+                           "gains": self._gains.between(float(t[0]), float(t[-1]))}
 
     def _make_run(self, rec: Recording, snap: Mapping[str, np.ndarray], *,
                   commands: list[dict[str, Any]], figures: Mapping[str, Any],
