@@ -20,6 +20,7 @@ from _emulator import emulator
 from _helpers import settled, wait_for
 
 import armlab.control.loop as loop_module
+from armlab.app.lessons.compliance_teach import STALE
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.params import DEFAULT, PRESETS, REFUSED_ON_SERVOS, check_gains
@@ -138,8 +139,9 @@ def test_teach_panel_reports_the_thesis_metric_free_and_pushed(lab, client):
         wait_for(lambda: loop.status.trajectory is not None, 30.0, "the run to start")
         if pushed:  # run again from its end pose, the arm travels back first: push the line
             start = lesson.rig.line.q[0]
-            wait_for(lambda: np.max(np.abs(loop.recorder.snapshot(0.05)["q_cmd"][-1] - start))
-                     < 0.02, 60.0, "the line itself to begin")
+            wait_for(lambda s=start: np.max(np.abs(
+                loop.recorder.snapshot(0.05)["q_cmd"][-1] - s)) < 0.02, 60.0,
+                "the line itself to begin")
             client.click("Push")
         wait_for(lambda: loop.status.trajectory is None, 60.0, "the run to end")
         wait_for(lambda p=pushed: (lesson.chapter4.pushed if p else lesson.chapter4.free)
@@ -420,6 +422,18 @@ def test_step_test_measures_the_pd_loop_beside_the_formulas(lab, client):
         str(e.props.get("_markdown", "")).startswith("**Measured** (step of θ2")
         and "Tp " in str(e.props["_markdown"]) and "%OS " in str(e.props["_markdown"])
         for e in client.gui.values()), 60.0, "the figures beside the Step button")
+    # a gain change leaves that step measured with the old gains: marked so on the page
+    assert m.params is not None and m.params.kp == lesson.gains.params.kp
+    kp = lesson.gains.params.kp
+    client.set_value("Kp (1/s²)", kp + 5.0)
+
+    def teach() -> str:
+        return " ".join(str(e.props.get("_markdown", "")) for e in client.gui.values())
+
+    client.wait_for(lambda: f"{STALE} Measured with Kp {kp:g}, not the gains in use" in teach(),
+                    60.0, "the measured column marked stale")
+    client.set_value("Kp (1/s²)", kp)
+    client.wait_for(lambda: f"{STALE} Measured with" not in teach(), 60.0, "no longer stale")
 
 
 def test_a_step_is_measured_with_no_page_open(lab):

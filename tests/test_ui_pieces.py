@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from armlab.app.lessons.compliance_servos import ServoHealth, advice
 from armlab.app.lessons.compliance_teach import (
+    STALE,
     Chapter4,
     LiveValues,
     chapter4_markdown,
     design_table,
     equations_markdown,
+    people,
     thesis_preset_note,
 )
 from armlab.app.page.inputs import check_number
@@ -21,7 +24,7 @@ from armlab.app.page.plots import decimate, fill_gaps
 from armlab.control import metrics
 from armlab.control.metrics import omega_from_peak, zeta_from_overshoot
 from armlab.control.params import PRESETS, Params
-from armlab.control.response import measure_response
+from armlab.control.response import Measured, measure_response
 from armlab.hardware.wire.protocol1 import error_names
 
 
@@ -170,3 +173,48 @@ def test_a_shared_decimation_keeps_what_masks_over_each_series_keep():
             np.testing.assert_array_equal(got[0], ref[0])
             for a, b in zip(got[1], ref[1], strict=True):
                 np.testing.assert_array_equal(a, b)
+
+
+def test_numbers_are_written_for_people():
+    assert [people(x, 2) for x in (100.0, 99.96, 85.08, 4.283, 0.25, 1e-5)] == [
+        "100", "100", "85", "4.3", "0.25", "1.0e-05"]
+    assert people(2.8601, 3) == "2.86" and people(-20.0, 3) == "-20" and people(0.0) == "0"
+
+
+def _measured(params: Params, *, ts: float = 1.0, band: float = math.radians(0.2)) -> Measured:
+    return Measured("step of θ2 by +10°", 2.0, 0.5, 99.96, 1.2, 0.5, ts, params=params,
+                    band=band)
+
+
+def test_a_measured_figure_is_marked_stale_when_its_gains_change():
+    p = Params()
+    fresh = design_table(p, _measured(p), None)
+    assert STALE not in fresh and "%OS" in fresh and "| 100 % |" in fresh  # not "1e+02 %"
+    later = replace(p, kp=30.0)
+    stale = design_table(later, _measured(p), None)
+    assert f"{STALE} old gains" in stale and f"| 100 % {STALE} |" in stale
+    assert f"{STALE} Measured with Kp 20, not the gains in use: press **Step** again" in stale
+    # the environment's gains do not make a PD step stale, nor the PD's a push
+    assert STALE not in design_table(replace(p, k_env=30.0), _measured(p), None)
+    env = design_table(replace(p, k_env=30.0), None, _measured(p))
+    assert f"{STALE} Measured with K_env 16" in env and "press **Push** again" in env
+    period = design_table(replace(p, period=0.008), _measured(p), None)
+    assert "Measured with T 16 ms" in period
+
+
+def test_a_long_measured_settling_time_names_its_band_and_the_servo_step():
+    p = Params()
+    design_ts = metrics.formula_metrics(metrics.pd_natural_frequency(p.kp),
+                                        metrics.pd_damping(p.kp, p.kv)).settling_time_s
+    long = design_table(p, _measured(p, ts=2.0 * design_ts), None, servo_step_deg=0.293)
+    assert ("Ts is the time θ stays within 2 % of the step (±0.2°, less than the servo's "
+            "0.29° position step") in long
+    assert "Ts is the time" not in design_table(p, _measured(p, ts=design_ts), None,
+                                                servo_step_deg=0.293)
+
+
+def test_one_name_per_quantity_in_the_design_table():
+    text = design_table(Params(), None, None)
+    pd, env = text.split("**environment**")
+    assert "ωn" not in text and "ζ²" not in text
+    assert "ωp" in pd and "ωf" not in pd and "ωf" in env and "ωp" not in env

@@ -46,6 +46,10 @@ class Measured:
         overshoot_pct, peak_time_s, rise_time_s, settling_time_s: as in
             :class:`armlab.control.metrics.StepMetrics`.
         static_gain: final / input (C_f for a push: rad per N·m), or None.
+        params: the gains it was measured with (None: not said); a figure measured with
+            other gains than those in use is stale beside their design figures.
+        band: the settling band's half-width, in the response's unit (2 % of the step:
+            rad for a joint's step), or None.
     """
 
     what: str
@@ -56,10 +60,13 @@ class Measured:
     rise_time_s: float | None
     settling_time_s: float | None
     static_gain: float | None = None
+    params: Params | None = None
+    band: float | None = None
 
 
 def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: float,
-                     what: str, static_gain: float | None = None) -> Measured:
+                     what: str, static_gain: float | None = None,
+                     params: Params | None = None) -> Measured:
     """Figures of a recorded step response ``y`` (N,) at times ``t`` (N,) from the step.
 
     Raises:
@@ -70,7 +77,8 @@ def measure_response(t: np.ndarray, y: np.ndarray, *, initial: float, final: flo
     m = metrics.measure_step(np.asarray(t) - t[0], y, final=final, initial=initial)
     z = metrics.zeta_from_overshoot(m.overshoot_pct)
     return Measured(what, metrics.omega_from_peak(m.peak_time_s, z), z, m.overshoot_pct,
-                    m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain)
+                    m.peak_time_s, m.rise_time_s, m.settling_time_s, static_gain,
+                    params=params, band=0.02 * abs(final - initial))
 
 
 @dataclass(frozen=True)
@@ -134,9 +142,10 @@ def plan_step(snap: dict[str, np.ndarray], *, joint: int, step: float, lower: np
 
 
 def measure_step(snap: dict[str, np.ndarray], *, t0: float, joint: int, q0: float, q1: float,
-                 what: str) -> Measured:
+                 what: str, params: Params | None = None) -> Measured:
     """The PD loop's response to a step of joint ``joint``'s command from ``q0`` to ``q1``
-    (rad) posted at loop time ``t0``: θ from the first period the command has stepped.
+    (rad) posted at loop time ``t0``: θ from the first period the command has stepped;
+    measured with ``params`` (kept in the result).
 
     Raises:
         ValueError: the command never stepped in ``snap`` (e-stopped, faulted).
@@ -148,13 +157,15 @@ def measure_step(snap: dict[str, np.ndarray], *, t0: float, joint: int, q0: floa
     if len(moved) == 0:
         raise ValueError("the command never stepped (was the arm e-stopped?)")
     k = moved[0]
-    return measure_response(snap["t"][k:], snap["q"][k:, j], initial=q0, final=q1, what=what)
+    return measure_response(snap["t"][k:], snap["q"][k:, j], initial=q0, final=q1, what=what,
+                            params=params)
 
 
 def measure_push(snap: dict[str, np.ndarray], *, t0: float, t1: float, what: str,
-                 joint_labels: Sequence[str]) -> Measured:
+                 joint_labels: Sequence[str], params: Params | None = None) -> Measured:
     """The environment filter's response (θ_env, eq. 2.7) to a push from ``t0`` to ``t1``
-    (loop time, s), on the joint that felt the most torque at its end.
+    (loop time, s), on the joint that felt the most torque at its end; measured with
+    ``params`` (kept in the result).
 
     The final values are the medians of the push's last 15 %; the static gain is
     Δθ_env / Δτ_ext (C_f = K_f / K_env for law 2.6, eq. 2.15). ``what`` is followed by
@@ -175,7 +186,7 @@ def measure_push(snap: dict[str, np.ndarray], *, t0: float, t1: float, what: str
         raise ValueError("the push did not reach the estimated torque")
     return measure_response(t, env[:, j], initial=e0, final=e1,
                             what=f"{what}, joint {joint_labels[j]}",
-                            static_gain=(e1 - e0) / (tau1 - tau0))
+                            static_gain=(e1 - e0) / (tau1 - tau0), params=params)
 
 
 def hand_excursion(model: SerialChain, snap: dict[str, np.ndarray], *, t0: float

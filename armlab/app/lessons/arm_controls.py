@@ -360,7 +360,8 @@ class ArmControls:
                 "it was.")
         try:
             self.measured_env = measure_push(snap, t0=push.t0, t1=push.t1, what=push.label,
-                                             joint_labels=self.plots.labels)
+                                             joint_labels=self.plots.labels,
+                                             params=self.loop.params)
             text += "\n\n" + measured_line(self.measured_env)
             m = self.measured_env
             figures.update({"peak_time_s": m.peak_time_s, "overshoot_pct": m.overshoot_pct,

@@ -89,6 +89,7 @@ from armlab.control.trajectory import (
     hold,
     thesis_line,
 )
+from armlab.hardware.servos.servo_spec import RX24F
 from armlab.kinematics.fk import fk_and_jacobian
 from armlab.kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
 from armlab.kinematics.smallarrays import all_finite
@@ -118,6 +119,8 @@ PUSH_DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "towards the body (−z)": (0.0, 0.0, -1.0),
     "away from the body (+z)": (0.0, 0.0, 1.0),
 }
+#: ° of the RX-24F's position step (300° / 1023), the thesis arm's servos, simulated or not
+SERVO_STEP_DEG = math.degrees(RX24F.position_unit)
 HISTORY_S = 30.0  #: seconds the recorder keeps (a run is kept apart from it: run_track)
 
 
@@ -755,7 +758,8 @@ class ComplianceLesson(LessonBase):
                                 mode=st.controller)
         note = thesis_preset_note(params)
         set_content(self.equations, f"{note}\n\n{eq}" if note else eq)
-        set_content(self.design, design_table(params, self.measured_pd, self.measured_env))
+        set_content(self.design, design_table(params, self.measured_pd, self.measured_env,
+                                              servo_step_deg=SERVO_STEP_DEG))
         set_content(self.last_run_md, self.last_run_text)
 
     def _measure(self) -> None:
@@ -829,14 +833,15 @@ class ComplianceLesson(LessonBase):
         try:
             if exp.kind == "step":
                 self.measured_pd = measure_step(snap, t0=exp.t0, joint=exp.joint, q0=exp.q0,
-                                                q1=exp.q1, what=exp.label)
+                                                q1=exp.q1, what=exp.label,
+                                                params=rig.loop.params)
                 self._step_joint = exp.joint
                 set_content(self.step_result, measured_line(self.measured_pd))
                 self._measured = exp
             elif exp.kind == "push":
                 self.measured_env = measure_push(
                     snap, t0=exp.t0, t1=exp.ready_at, what=exp.label,
-                    joint_labels=self.joint_labels)
+                    joint_labels=self.joint_labels, params=rig.loop.params)
                 self._push_n = exp.push_n
                 for beside in (self.pushes.result, self.push_result_run):  # both buttons
                     set_content(beside, measured_line(self.measured_env))

@@ -284,13 +284,17 @@ class ChallengeRuns:
     def _take(self, run: PendingRun, snap: dict[str, np.ndarray]) -> None:
         """The figures of ``run`` from its window ``snap``, into the lesson."""
         lesson = self.lesson
+        rig = lesson.rig
+        params = rig.loop.params if rig is not None else None  # (what they were run with)
         if run.kind == "step":
             lesson.take_step(measure_step(snap, t0=0.0, joint=run.joint, q0=run.q0,
-                                          q1=run.q1, what=run.label), run.joint)
+                                          q1=run.q1, what=run.label, params=params),
+                             run.joint)
         elif run.kind == "push":
             t = snap["t"]
             lesson.take_push(measure_push(snap, t0=t[run.delay], t1=t[-1], what=run.label,
-                                          joint_labels=lesson.joint_labels), run.force_n)
+                                          joint_labels=lesson.joint_labels, params=params),
+                             run.force_n)
         else:
             t = snap["t"]
             err = line_errors(snap, t0=t[run.delay]) * (180.0 / math.pi)

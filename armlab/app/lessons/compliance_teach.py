@@ -22,23 +22,67 @@ from armlab.kinematics.units import KGF_CM_PER_NM
 DEG = 180.0 / math.pi
 
 
-def _f(x: float | None, fmt: str = ".3g", unit: str = "") -> str:
+def people(x: float, digits: int = 3) -> str:
+    """``x`` to ``digits`` significant digits as people write it: plain digits between
+    0.001 and a million ("100", "0.25", "2.86"; never "1e+02"), else scientific."""
+    if x == 0 or not math.isfinite(x):
+        return f"{x:g}"
+    size = abs(x)
+    if not 1e-3 <= size < 1e6:
+        return f"{x:.{max(digits - 1, 0)}e}"
+    places = max(0, digits - 1 - math.floor(math.log10(size)))
+    text = f"{x:.{places}f}"
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def _f(x: float | None, digits: int = 3, unit: str = "") -> str:
     if x is None or not math.isfinite(x):
         return "—"
-    return f"{x:{fmt}}{(' ' + unit) if unit else ''}"
+    return f"{people(x, digits)}{(' ' + unit) if unit else ''}"
 
 
 def measured_line(m: Measured) -> str:
     """One line of what a step or push measured, shown beside the button that made it."""
-    parts = [f"Tp {_f(m.peak_time_s, unit='s')}", f"%OS {_f(m.overshoot_pct, '.2g', '%')}",
+    parts = [f"Tp {_f(m.peak_time_s, unit='s')}", f"%OS {_f(m.overshoot_pct, 2, '%')}",
              f"Ts {_f(m.settling_time_s, unit='s')}"]
     if m.static_gain is not None:
         parts.append(f"C_f {_f(m.static_gain, unit='rad/N·m')}")
     return f"**Measured** ({m.what}): " + ", ".join(parts) + " (Teach tab: beside the formulas)"
 
 
-def design_table(params: Params, pd: Measured | None, env: Measured | None) -> str:
-    """Markdown table: formula figures (2.11–2.19) beside the measured ones."""
+#: The mark of a measured figure whose gains are no longer those in use.
+STALE = "⚠"
+#: The gains each half of the table is measured with: a measured figure whose gains
+#: differ from those in use is stale beside their design figures.
+PD_GAINS = (("kp", "Kp"), ("kv", "Kv"), ("period", "T"))
+ENV_GAINS = (("m_env", "M_env"), ("d_env", "D_env"), ("k_env", "K_env"), ("k_f", "K_f"),
+             ("alpha", "α"), ("law", "law"), ("period", "T"))
+
+
+def stale_gains(m: Measured | None, params: Params, names: tuple[tuple[str, str], ...]
+                ) -> str | None:
+    """The gains ``m`` was measured with, where they differ from ``params`` ("Kp 20, Kv 5"),
+    or None (not stale, or not said)."""
+    if m is None or m.params is None:
+        return None
+    was = [(label, getattr(m.params, key)) for key, label in names
+           if getattr(m.params, key) != getattr(params, key)]
+
+    def shown(label: str, v: object) -> str:
+        if isinstance(v, str):
+            return f"{label} {v}"
+        return f"{label} {people(float(v) * 1000)} ms" if label == "T" else \
+            f"{label} {people(float(v))}"  # type: ignore[arg-type]  # a Params number
+
+    return ", ".join(shown(label, v) for label, v in was) or None
+
+
+def design_table(params: Params, pd: Measured | None, env: Measured | None, *,
+                 servo_step_deg: float | None = None) -> str:
+    """Markdown table: formula figures (2.11–2.19) beside the measured ones; a measured
+    half marked stale when it was measured with other gains than ``params``, and the
+    settling band stated beside the servo's position step (``servo_step_deg``) where a
+    measured Ts is longer than the formula's."""
     wp = metrics.pd_natural_frequency(params.kp) if params.kp > 0 else float("nan")
     zp = metrics.pd_damping(params.kp, params.kv) if params.kp > 0 else float("nan")
     wf = metrics.env_natural_frequency(params.m_env, params.k_env)
@@ -46,42 +90,64 @@ def design_table(params: Params, pd: Measured | None, env: Measured | None) -> s
     cf = metrics.static_gain(params.k_f, params.k_env)
     fp = metrics.formula_metrics(wp, zp) if params.kp > 0 else None
     fe = metrics.formula_metrics(wf, zf)
+    pd_old = stale_gains(pd, params, PD_GAINS)
+    env_old = stale_gains(env, params, ENV_GAINS)
 
-    def row(name: str, formula: str, a: float | None, b: float | None, fmt: str = ".3g",
-            unit: str = "") -> str:
-        return f"| {name} | {formula} | {_f(a, fmt, unit)} | {_f(b, fmt, unit)} |"
+    def row(name: str, formula: str, a: float | None, b: float | None, digits: int = 3,
+            unit: str = "", old: str | None = None) -> str:
+        got = _f(b, digits, unit)
+        mark = f" {STALE}" if old and got != "—" else ""
+        return f"| {name} | {formula} | {_f(a, digits, unit)} | {got}{mark} |"
 
     pd_m = pd or Measured("", None, None, None, None, None, None)
     env_m = env or Measured("", None, None, None, None, None, None)
     lines = [
         "| | formula | design | measured |",
         "|---|---|---|---|",
-        "| **PD loop** | | | |",
-        row("ωp", "√Kp (2.11)", wp, pd_m.omega_n, unit="rad/s"),
-        row("ζp", "Kv/(2√Kp) (2.12)", zp, pd_m.zeta),
-        row("Tp", "π/(ωn√(1−ζ²)) (2.16)", fp.peak_time_s if fp else None, pd_m.peak_time_s,
-            unit="s"),
-        row("%OS", "e^(−ζπ/√(1−ζ²))·100 (2.17)", fp.overshoot_pct if fp else None,
-            pd_m.overshoot_pct, ".2g", "%"),
-        row("Ts", "4/(ζωn) (2.18)", fp.settling_time_s if fp else None, pd_m.settling_time_s,
-            unit="s"),
-        row("Tr", "1.8/ωn (2.19)", fp.rise_time_s if fp else None, pd_m.rise_time_s,
-            unit="s"),
-        "| **environment** | | | |",
-        row("ωf", "√(K_env/M_env) (2.13)", wf, env_m.omega_n, unit="rad/s"),
-        row("ζf", "D_env/(2√(M_env K_env)) (2.14)", zf, env_m.zeta),
-        row("C_f", "K_f/K_env (2.15)", cf, env_m.static_gain, unit="rad/N·m"),
-        row("Tp", "(2.16)", fe.peak_time_s, env_m.peak_time_s, unit="s"),
-        row("%OS", "(2.17)", fe.overshoot_pct, env_m.overshoot_pct, ".2g", "%"),
-        row("Ts", "(2.18)", fe.settling_time_s, env_m.settling_time_s, unit="s"),
-        row("Tr", "(2.19)", fe.rise_time_s, env_m.rise_time_s, unit="s"),
+        f"| **PD loop** | | | {STALE + ' old gains' if pd_old else ''} |",
+        row("ωp", "√Kp (2.11)", wp, pd_m.omega_n, unit="rad/s", old=pd_old),
+        row("ζp", "Kv/(2√Kp) (2.12)", zp, pd_m.zeta, old=pd_old),
+        row("Tp", "π/(ωp√(1−ζp²)) (2.16)", fp.peak_time_s if fp else None, pd_m.peak_time_s,
+            unit="s", old=pd_old),
+        row("%OS", "e^(−ζpπ/√(1−ζp²))·100 (2.17)", fp.overshoot_pct if fp else None,
+            pd_m.overshoot_pct, 2, "%", old=pd_old),
+        row("Ts", "4/(ζpωp) (2.18)", fp.settling_time_s if fp else None,
+            pd_m.settling_time_s, unit="s", old=pd_old),
+        row("Tr", "1.8/ωp (2.19)", fp.rise_time_s if fp else None, pd_m.rise_time_s,
+            unit="s", old=pd_old),
+        f"| **environment** | | | {STALE + ' old gains' if env_old else ''} |",
+        row("ωf", "√(K_env/M_env) (2.13)", wf, env_m.omega_n, unit="rad/s", old=env_old),
+        row("ζf", "D_env/(2√(M_env K_env)) (2.14)", zf, env_m.zeta, old=env_old),
+        row("C_f", "K_f/K_env (2.15)", cf, env_m.static_gain, unit="rad/N·m", old=env_old),
+        row("Tp", "π/(ωf√(1−ζf²)) (2.16)", fe.peak_time_s, env_m.peak_time_s, unit="s",
+            old=env_old),
+        row("%OS", "e^(−ζfπ/√(1−ζf²))·100 (2.17)", fe.overshoot_pct, env_m.overshoot_pct, 2,
+            "%", old=env_old),
+        row("Ts", "4/(ζfωf) (2.18)", fe.settling_time_s, env_m.settling_time_s, unit="s",
+            old=env_old),
+        row("Tr", "1.8/ωf (2.19)", fe.rise_time_s, env_m.rise_time_s, unit="s", old=env_old),
     ]
     notes = []
     if pd is not None:
         notes.append(f"PD measured on: {pd.what}.")
+        if pd_old:
+            notes.append(f"{STALE} Measured with {pd_old}, not the gains in use: press **Step** "
+                         "again.")
+        ts, design_ts = pd.settling_time_s, fp.settling_time_s if fp else None
+        if (pd.band is not None and ts is not None and design_ts is not None
+                and ts > 1.25 * design_ts):
+            band = math.degrees(pd.band)
+            servo = (f", {'less than' if band < servo_step_deg else 'about'} the servo's "
+                     f"{people(servo_step_deg, 2)}° position step, so the arm settles when "
+                     "its servo's steps do" if servo_step_deg else "")
+            notes.append(f"Ts is the time θ stays within 2 % of the step (±{people(band, 2)}°"
+                         f"{servo}); the formula assumes a smooth joint.")
     if env is not None:
         notes.append(f"Environment measured on: {env.what} (θ_env against τ_ext; the LPF "
                      "on τ slows it).")
+        if env_old:
+            notes.append(f"{STALE} Measured with {env_old}, not the gains in use: press "
+                         "**Push** again.")
     if not notes:
         notes.append("Press **Step** (Run tab) or **Push** to measure.")
     return "\n".join(lines) + "\n\n" + " ".join(notes)
