@@ -12,7 +12,7 @@ import math
 from collections.abc import Mapping
 from html import escape
 from itertools import islice
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 from armlab.control.params import PARAM_SPECS
 
@@ -155,7 +155,7 @@ def measured_figures(run: Run) -> list[tuple[str, str, str]]:
     return out
 
 
-def _measured(value: object) -> bool:
+def _measured(value: object) -> TypeGuard[float]:
     return (isinstance(value, int | float) and not isinstance(value, bool)
             and math.isfinite(float(value)))
 

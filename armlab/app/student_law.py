@@ -206,7 +206,7 @@ class StudentLaw:
             if exercise is None:
                 raise ValueError(f"--exercise {self.path}: {error}")
             self._said = error
-            self._echo(self._line(error))
+            self._echo(self._line(error))  # type: ignore[arg-type]  # a None exercise comes with its error
         return exercise, fn, error
 
     def reload(self) -> bool:

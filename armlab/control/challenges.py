@@ -222,7 +222,7 @@ class Challenge:
             change[name] = check_number(value, name=t.label, lo=lo, hi=hi)
         if t.kind == "equal":
             change = {k: float(round(v)) for k, v in change.items()}
-        new = replace(t, **change)
+        new = replace(t, **change)  # type: ignore[arg-type]  # replace(): only the float fields are named here
         return replace(self, thresholds=tuple(new if x is t else x for x in self.thresholds))
 
 
@@ -476,7 +476,7 @@ def gradebook_csv(challenge: Challenge,
         else:
             run, verdict = best
             got = verdict.figures()
-            figs = ["" if got[t.figure] is None else t.number(float(got[t.figure]))  # type: ignore[arg-type]
+            figs = ["" if got[t.figure] is None else t.number(float(got[t.figure]))  # type: ignore[arg-type]  # got[t.figure] is not None: checked just before
                     for t in challenge.thresholds]
             passed, when = ("yes" if verdict.passed else "no"), run.when
         w.writerow([_cell(name), _cell(seat), challenge.key, challenge.text(), *figs, passed,

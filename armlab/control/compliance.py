@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 
@@ -31,10 +31,12 @@ Mode = Literal["none", "pd", "compliance"]
 MODES: tuple[str, ...] = ("none", "pd", "compliance")
 
 Array = np.ndarray | float
+#: one law's arrays and floats: all (n,) arrays (the loop) or all floats (a single joint)
+ArrayT = TypeVar("ArrayT", np.ndarray, float)
 
 
-def pd_reference_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Array,
-                       qd: Array) -> Array:
+def pd_reference_accel(kp: float, kv: float, q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT,
+                       qd: ArrayT) -> ArrayT:
     """Thesis eq. 2.20: θ̈_ref = Kp (θ_cmd − θ) + Kv (θ̇_cmd − θ̇).
 
     Args:
@@ -47,8 +49,8 @@ def pd_reference_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Arr
     return kp * (q_cmd - q) + kv * (qd_cmd - qd)
 
 
-def compliance_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Array, qd: Array,
-                     q_env: Array, qd_env: Array, qdd_env: Array) -> Array:
+def compliance_accel(kp: float, kv: float, q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT, qd: ArrayT,
+                     q_env: ArrayT, qd_env: ArrayT, qdd_env: ArrayT) -> ArrayT:
     """Thesis eq. 2.6 in joint space (the consistent form, default law):
 
     θ̈_ref = Kp (θ_cmd − θ − θ_env) + Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env.
@@ -60,8 +62,8 @@ def compliance_accel(kp: float, kv: float, q_cmd: Array, qd_cmd: Array, q: Array
 
 
 def compliance_accel_literal(kp: float, kv: float, m_env: float, d_env: float, k_env: float,
-                             q_cmd: Array, qd_cmd: Array, q: Array, qd: Array, q_env: Array,
-                             qd_env: Array, qdd_env: Array) -> Array:
+                             q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT, qd: ArrayT, q_env: ArrayT,
+                             qd_env: ArrayT, qdd_env: ArrayT) -> ArrayT:
     """Thesis eq. 2.26 as printed (thesis-literal variant):
 
     θ̈_ref = Kp (θ_cmd − θ − K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env.
@@ -73,8 +75,8 @@ def compliance_accel_literal(kp: float, kv: float, m_env: float, d_env: float, k
             - m_env * qdd_env)
 
 
-def environment_accel(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: Array,
-                      q_env: Array, qd_env: Array) -> Array:
+def environment_accel(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: ArrayT,
+                      q_env: ArrayT, qd_env: ArrayT) -> ArrayT:
     """Thesis eq. 2.7 as a differential equation: M θ̈_env + D θ̇_env + K θ_env = K_f τ_ext.
 
     Returns θ̈_env (rad/s²) for the current state and external torque (N·m).
@@ -82,8 +84,8 @@ def environment_accel(m_env: float, d_env: float, k_env: float, k_f: float, tau_
     return (k_f * tau_ext - d_env * qd_env - k_env * q_env) / m_env
 
 
-def environment_step(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: Array,
-                     q_env: Array, qd_env: Array, dt: float) -> tuple[Array, Array, Array]:
+def environment_step(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: ArrayT,
+                     q_env: ArrayT, qd_env: ArrayT, dt: float) -> tuple[ArrayT, ArrayT, ArrayT]:
     """One discrete step of the environment impedance (thesis eq. 2.7).
 
     Semi-implicit Euler: θ̈ from (2.7), then θ̇ += dt θ̈, then θ += dt θ̇.
@@ -96,8 +98,8 @@ def environment_step(m_env: float, d_env: float, k_env: float, k_f: float, tau_e
     return q_env + dt * qd, qd, qdd
 
 
-def integrate_reference(q_ref: Array, qd_ref: Array, qdd_ref: Array,
-                        dt: float) -> tuple[Array, Array]:
+def integrate_reference(q_ref: ArrayT, qd_ref: ArrayT, qdd_ref: ArrayT,
+                        dt: float) -> tuple[ArrayT, ArrayT]:
     """θ̈_ref integrated twice over one period (semi-implicit Euler, as the thesis's loop).
 
     Returns:
@@ -107,7 +109,7 @@ def integrate_reference(q_ref: Array, qd_ref: Array, qdd_ref: Array,
     return q_ref + dt * qd, qd
 
 
-def lpf(y: Array, x: Array, alpha: float) -> Array:
+def lpf(y: ArrayT, x: ArrayT, alpha: float) -> ArrayT:
     """The thesis's digital low-pass filter (ch. 4, on eq. 2.21–2.23): y + α (x − y).
 
     α = dt / (RC + dt); the thesis uses α = 0.05.
@@ -115,7 +117,7 @@ def lpf(y: Array, x: Array, alpha: float) -> Array:
     return y + alpha * (x - y)
 
 
-def external_torque(tau_dist_filtered: Array, tau_dyn: Array) -> Array:
+def external_torque(tau_dist_filtered: ArrayT, tau_dyn: ArrayT) -> ArrayT:
     """Thesis eq. 2.23: τ_ext = LPF(τ_dist) − τ_dyn (friction neglected, eq. 2.22).
 
     Args:
@@ -133,9 +135,11 @@ class Laws:
     it on the arm; each takes the arguments and returns what the lab's own function does.
     """
 
-    pd: Callable[..., Array] = pd_reference_accel  #: eq. 2.20
-    compliance: Callable[..., Array] = compliance_accel  #: eq. 2.6
-    environment: Callable[..., tuple[Array, Array, Array]] = environment_step  #: eq. 2.7
+    # the loop's: (n,) arrays in, (n,) arrays out
+    pd: Callable[..., np.ndarray] = pd_reference_accel  #: eq. 2.20
+    compliance: Callable[..., np.ndarray] = compliance_accel  #: eq. 2.6
+    environment: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]] = (
+        environment_step)  #: eq. 2.7
 
 
 @dataclass

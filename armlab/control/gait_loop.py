@@ -26,6 +26,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -204,7 +205,7 @@ class GaitRecord(LoopRecord):
         return (ok, servo_angle_deg(self.to_servo(cmd[ok])),
                 servo_angle_deg(self.to_servo(act[ok])))
 
-    def angle_error(self, window_s: float | None = None) -> dict[str, object] | None:
+    def angle_error(self, window_s: float | None = None) -> dict[str, Any] | None:
         """Seed 003 eq. 4.1 over the walking samples of the last ``window_s`` s.
 
         Commanded = the goal sent (IK angle + the servo's set point), actual = the
@@ -253,7 +254,7 @@ class GaitLoop(GaitRecord):
         self.period = float(period)
         self.realtime = realtime
         if to_servo is not None:
-            self.to_servo = to_servo  # type: ignore[method-assign]
+            self.to_servo = to_servo  # type: ignore[method-assign,assignment]  # this instance's own mapping
         self._speed = SetSpeed(speed).speed  # validates
         self._ring = RingBuffer(sum(COLUMNS.values()), RingBuffer.rows_for(history_s, self.period))
         self._commands: deque[Command] = deque()
@@ -278,7 +279,7 @@ class GaitLoop(GaitRecord):
 
     # --- commands (any thread) ---------------------------------------------------------
 
-    def _send(self, command: Command) -> None:
+    def _send(self, command: Command) -> None:  # type: ignore[override]  # each loop takes its own command types
         self._commands.append(command)
 
     def estop(self) -> None:
@@ -368,6 +369,7 @@ class GaitLoop(GaitRecord):
         q_meas = np.full(12, np.nan)
         servos = self.backend is not None and not self._fault
         if servos:
+            assert self.backend is not None  # servos: it has one
             try:
                 if self._torque and not self._torque_sent:
                     self.backend.set_torque(True)  # goal = where each servo is: no jump
@@ -397,6 +399,7 @@ class GaitLoop(GaitRecord):
                 goal = (1.0 - s) * self._ramp[0] + s * goal
             prev = np.where(np.isfinite(self._last_goal), self._last_goal, goal)
             speed = np.clip(1.5 * np.abs(goal - prev) / self.period, MIN_SPEED, MAX_SPEED)
+            assert self.backend is not None  # servos: it has one
             try:
                 self.backend.write(goal, speed)
             except (BackendError, OSError) as exc:

@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -99,7 +99,8 @@ class HandPlant(Protocol):
     def obj(self) -> object:
         """The object between the fingers (None: nothing)."""
         ...
-    def set_object(self, obj: object) -> None:
+    # Any: each simulator takes its own object type (HandSim a GraspObject or None)
+    def set_object(self, obj: Any) -> None:
         """Put ``obj`` (the simulator's object, or None) between the fingers."""
         ...
     @property

@@ -184,7 +184,7 @@ class GripLoop(GripRecord):
         self.status = GripStatus(t=plant.t, modes=controller.modes)
 
     # --- commands (any thread) -----------------------------------------------------
-    def _send(self, command: Command) -> None:
+    def _send(self, command: Command) -> None:  # type: ignore[override]  # each loop takes its own command types
         self._commands.append(command)
 
     @property

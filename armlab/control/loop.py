@@ -461,7 +461,7 @@ class ControlLoop:
         for a Reset: a link found again otherwise stays torque-off until one)."""
         reset = any(isinstance(c, Reset) for c in cmds)
         if any(isinstance(c, EStop) for c in cmds):  # still try, and say what came of it
-            self._apply(EStop(), None)  # type: ignore[arg-type]
+            self._apply(EStop(), None)  # type: ignore[arg-type]  # an EStop needs no measured state
         if isinstance(self.backend, Reconnectable):
             asked = reset or any(isinstance(c, Reconnect) for c in cmds)
             if not (asked or t >= self._reconnect_t):

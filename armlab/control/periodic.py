@@ -31,6 +31,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -531,7 +532,7 @@ class HandOverLock:
     def _is_owned(self) -> bool:
         """Whether the calling thread holds it (as ``RLock._is_owned``, which
         ``threading.Condition`` uses)."""
-        return self._lock._is_owned()  # type: ignore[attr-defined]
+        return self._lock._is_owned()  # type: ignore[attr-defined]  # RLock's private _is_owned (threading.Condition uses it)
 
     def __enter__(self) -> bool:
         return self.acquire()
@@ -678,5 +679,6 @@ class SharedClock:
         """Between two ticks, the lock released: let the threads waiting on it take it
         before the next tick does (at most :attr:`hand_over_s`)."""
         deadline = time.perf_counter() + self.hand_over_s
-        while self.lock.waiting and time.perf_counter() < deadline:
+        lock = cast(HandOverLock, self.lock)  # _tick calls this only for a lock that counts
+        while lock.waiting and time.perf_counter() < deadline:
             time.sleep(0)  # gives the interpreter to a woken waiter

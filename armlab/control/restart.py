@@ -160,7 +160,7 @@ class RestartableArm:
         with self._lock:
             if self._armed is not None:
                 return
-            self.inner.push(force, link=link, point=point, duration=duration)  # type: ignore[attr-defined]
+            self.inner.push(force, link=link, point=point, duration=duration)  # type: ignore[attr-defined]  # a restartable arm is simulated: it can be pushed
 
     def set_spring(self, anchor: np.ndarray | None, *, stiffness: float, link: int,
                    point: np.ndarray) -> None:
@@ -168,7 +168,7 @@ class RestartableArm:
         with self._lock:
             if self._armed is not None:
                 return
-            self.inner.set_spring(anchor, stiffness=stiffness, link=link,  # type: ignore[attr-defined]
+            self.inner.set_spring(anchor, stiffness=stiffness, link=link,  # type: ignore[attr-defined]  # a restartable arm is simulated: it has a spring
                                   point=point)
 
     def __getattr__(self, name: str) -> Any:

@@ -211,6 +211,7 @@ def check_run(run: Run, label: str) -> None:
         raise RunFileError(f"{label}: q (the measured angles) is NaN or infinite at sample "
                            f"{i} (t = {float(t[i])!r} s), joint {quote(joints[j])}; a run's poses "
                            "must all be known")
+    value: object  # a parameter's, then a figure's
     for key, value in run.params.items():
         if not isinstance(key, str) or not (
                 isinstance(value, str | bool | int | float) and _finite(value)):

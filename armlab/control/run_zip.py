@@ -24,7 +24,7 @@ from __future__ import annotations
 import re
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass
 
 from armlab.control.run_errors import RunFileError, quote
@@ -280,7 +280,8 @@ def iter_member(data: bytes, member: Member, label: str, *, limit: int) -> Itera
         raise damaged(label, f"{member.name} fails its CRC check")
 
 
-def _inflate(view: memoryview, member: Member, label: str) -> Iterator[bytes]:
+def _inflate(view: memoryview, member: Member, label: str
+             ) -> Generator[bytes, None, tuple[int, int]]:
     """Deflate's output of ``view`` in chunks, stopped at the first byte past the declared
     size or past :data:`MAX_RATIO`:1; returns (bytes produced, CRC)."""
     d = zlib.decompressobj(-15)

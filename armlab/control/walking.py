@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 
@@ -310,7 +311,7 @@ class Walker:
         """Cycles from now to the next sample at which all four feet are on the floor."""
         T = self.plan.samples
         s = self._u * T
-        down = self.plan.touching[:-1].all(axis=1)
+        down = cast(np.ndarray, self.plan.touching[:-1].all(axis=1))  # (T,) bools
         for k in range(T + 1):
             j = math.ceil(s - 1e-9) + k
             if down[j % T]:

@@ -28,7 +28,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from armlab.exercises import harness
 from armlab.exercises.harness import LinkBroken, decode, encode, read_frame, write_frame
@@ -257,7 +257,7 @@ class StudentProcess:
         how = (f"was killed by signal {-code}" if code < 0 else f"exited (status {code})")
         return f"your code's process {how} during {what} (os._exit, a crash?)"
 
-    def _lose(self, reason: str) -> None:
+    def _lose(self, reason: str) -> NoReturn:
         self.gone = reason
         self.close()
         raise ChildGone(reason)

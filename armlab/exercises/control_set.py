@@ -160,7 +160,7 @@ PD = Exercise(
 # Environment impedance, eq. 2.7
 
 
-def _env_explicit(m, d, k, kf, tau, q, qd, dt):  # type: ignore[no-untyped-def]
+def _env_explicit(m, d, k, kf, tau, q, qd, dt):
     qdd = (kf * tau - d * qd - k * q) / m
     return q + dt * qd, qd + dt * qdd, qdd
 
@@ -251,7 +251,7 @@ COMPLIANCE = Exercise(
                 "with the push)", lambda kp, kv, qc, qdc, q, qd, e, ed, edd: compliance_accel(
                     kp, kv, qc, qdc, q, qd, -e, -ed, edd)),
         Mistake("a missing term", "the last term −θ̈_env is missing",
-                lambda *a: compliance_accel(*a[:8], 0.0 * np.asarray(a[8]))),
+                lambda *a: compliance_accel(*a[:8], 0.0 * np.asarray(a[8]))),  # type: ignore[call-arg]  # a's 9 arguments: the first 8, then the 9th zeroed
         Mistake("swapped gains", "Kp multiplies the position error, Kv the speed error",
                 lambda kp, kv, *a: compliance_accel(kv, kp, *a)),
         Mistake("a missing term", "the speed error is θ̇_cmd − θ̇ − θ̇_env: θ̇_env is missing",
@@ -279,13 +279,13 @@ def observer_step(z: float, current: float, qd: float, j_n: float, kt_n: float,
     return state.z, tau
 
 
-def _obs_euler_gain(z, current, qd, j_n, kt_n, g, dt):  # type: ignore[no-untyped-def]
+def _obs_euler_gain(z, current, qd, j_n, kt_n, g, dt):
     u = kt_n * current + g * j_n * qd
     z = z + g * dt * (u - z)
     return z, z - g * j_n * qd
 
 
-def _obs_sign(z, current, qd, j_n, kt_n, g, dt):  # type: ignore[no-untyped-def]
+def _obs_sign(z, current, qd, j_n, kt_n, g, dt):
     u = kt_n * current - g * j_n * qd
     z = z + lpf_gain(g, dt) * (u - z)
     return z, z + g * j_n * qd

@@ -213,7 +213,7 @@ def call_student(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str
         ChildGone: (remote only) the student's process died or hung.
     """
     if getattr(fn, "remote", False):
-        fn.seconds = seconds  # type: ignore[attr-defined]
+        fn.seconds = seconds  # type: ignore[attr-defined]  # a remote student function (a proxy) carries its time limit
         return fn(*args, **kwargs)
     return guarded_call(fn, args, kwargs, seconds=seconds)
 
@@ -223,7 +223,7 @@ def judge_run(case: RunCase, fn: Callable[..., Any]) -> Outcome:
     what = "closed loop: your function in place of the lab's"
     try:
         if getattr(fn, "remote", False):
-            with fn.run_limit(RUN_CASE_S):  # type: ignore[attr-defined]
+            with fn.run_limit(RUN_CASE_S):  # type: ignore[attr-defined]  # a remote student function (a proxy) has run_limit
                 why = case.run(fn)
         else:
             why = guarded_call(case.run, (fn,), {}, seconds=RUN_CASE_S, user=False)

@@ -384,9 +384,9 @@ class _Student:
         for name in functions:
             fn = self.namespace.get(name)
             if callable(fn):
-                code = getattr(fn, "__code__", None)
-                where[name] = ([code.co_filename, code.co_firstlineno] if code is not None
-                               else [str(p), 0])
+                fn_code = getattr(fn, "__code__", None)
+                where[name] = ([fn_code.co_filename, fn_code.co_firstlineno]
+                               if fn_code is not None else [str(p), 0])
         return {"loaded": {"exercise": exercise if isinstance(exercise, str) else None,
                            "where": where}}
 

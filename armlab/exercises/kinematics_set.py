@@ -195,14 +195,14 @@ def rmrc_step(q: np.ndarray, J: np.ndarray, J_inv: np.ndarray, dX: np.ndarray, e
                         np.asarray(lower, float), np.asarray(upper, float))
 
 
-def _rmrc_once(q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def]
+def _rmrc_once(q, J, J_inv, dX, e, lower, upper):
     J, J_inv, dX = (np.asarray(a, float) for a in (J, J_inv, dX))
     if np.linalg.norm(dX - J @ J_inv @ dX) > e:
         dX = 0.5 * dX
     return joint_update(np.asarray(q, float), J_inv, dX, np.asarray(lower), np.asarray(upper))
 
 
-def _rmrc_allowing(most: int, q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def]
+def _rmrc_allowing(most: int, q, J, J_inv, dX, e, lower, upper):
     """Eq. 3.21-3.22 giving up only after ``most`` halvings (an off-by-one)."""
     dX_h, halvings = halved_step(np.asarray(J, float), np.asarray(J_inv, float),
                                  np.asarray(dX, float), e, max_halvings=most)
@@ -212,7 +212,7 @@ def _rmrc_allowing(most: int, q, J, J_inv, dX, e, lower, upper):  # type: ignore
                         np.asarray(lower, float), np.asarray(upper, float))
 
 
-def _rmrc_taken_anyway(q, J, J_inv, dX, e, lower, upper):  # type: ignore[no-untyped-def]
+def _rmrc_taken_anyway(q, J, J_inv, dX, e, lower, upper):
     """Eq. 3.21-3.22 with the step taken after MAX_HALVINGS halvings even so."""
     dX_h, _ = halved_step(np.asarray(J, float), np.asarray(J_inv, float),
                           np.asarray(dX, float), e)
@@ -331,7 +331,7 @@ def _planar_typo(X: float, Y: float, l1: float, l2: float, l3: float) -> tuple[f
     return t1, t2, p4.wrist_angle(t0, t1, t2)
 
 
-def _table_check(X1: float, Y1: float):  # type: ignore[no-untyped-def]
+def _table_check(X1: float, Y1: float):
     def check(got: np.ndarray) -> str:
         if got.shape != (3,):
             return f"expected 3 angles, got shape {got.shape}"
@@ -480,7 +480,7 @@ def _circle_reference() -> np.ndarray:
     return simulate_circle(planar, "3").q
 
 
-def _circle_run(fn) -> str:  # type: ignore[no-untyped-def]
+def _circle_run(fn) -> str:
     planar = load_robot("redundant_planar")
     assert isinstance(planar, SerialChain)
     law = CheckedLaw(fn, "joint_rate", (planar.n,))
@@ -503,7 +503,7 @@ def _circle_run(fn) -> str:  # type: ignore[no-untyped-def]
     return ""
 
 
-def _null_full_rank(J, xd, g, k):  # type: ignore[no-untyped-def]
+def _null_full_rank(J, xd, g, k):
     """Seed 002 eq. 4 with J⁺ written as Jᵀ(JJᵀ)⁻¹ (right only at full rank)."""
     J = np.asarray(J, float)
     J_plus = J.T @ np.linalg.inv(J @ J.T)

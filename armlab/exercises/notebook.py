@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from armlab.exercises.catalog import get, starter_text
 
 
-def notebook_json(name: str) -> dict[str, object]:
+def notebook_json(name: str) -> dict[str, Any]:
     """The starter of exercise ``name`` as an nbformat 4 notebook: a title cell, the
     starter's code (the function to fill in), and ``armlab.check(function)``."""
     ex = get(name)
@@ -58,7 +59,7 @@ def write_starter(name: str, directory: str | Path = ".", *, notebook: bool = Fa
     path.parent.mkdir(parents=True, exist_ok=True)
     if notebook:
         nb = notebook_json(name)
-        for k, c in enumerate(nb["cells"]):  # type: ignore[arg-type]
+        for k, c in enumerate(nb["cells"]):
             c["id"] = f"{name[:20]}-{k}"  # nbformat 4.5 wants cell ids
         path.write_text(json.dumps(nb, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
     else:

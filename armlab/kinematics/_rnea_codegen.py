@@ -20,7 +20,7 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -186,7 +186,7 @@ def _emit_transforms(em: _Emitter, model: SerialChain, q: list[str]) -> _Joints:
 
 
 def _emit_rnea(em: _Emitter, model: SerialChain, tf: _Joints, qd: Sequence[Sym],
-               qdd: Sequence[Sym], g: Vec) -> list[Sym]:
+               qdd: Sequence[Sym], g: Sequence[Sym]) -> list[Sym]:
     """Thesis eq. 2.41–2.50 unrolled: forward velocity/acceleration pass, backward force pass.
 
     Quantities are in each link's own frame. Gravity enters as a base acceleration -g.
@@ -279,7 +279,8 @@ def _ldl_solve(em: _Emitter, Mx: list[list[Sym]], b: list[Sym]) -> list[Sym]:
     for j in range(n):
         D[j] = em.lin([(1.0, Mx[j][j], 1.0)]
                       + [(-1.0, em.mul(L[j][k], L[j][k]), D[k]) for k in range(j)])
-        if isinstance(D[j], float) and D[j] <= 0.0:
+        d = D[j]
+        if isinstance(d, float) and d <= 0.0:
             raise ValueError("mass matrix is singular: a joint moves no mass")
         rD[j] = em.new(f"1.0 / {_fmt(D[j])}")
         for i in range(j + 1, n):
@@ -348,7 +349,7 @@ def _build(model: SerialChain) -> DynamicsModel:
     qdd = [f"qdd{i}" for i in range(n)]
     tau_in = [f"tau{i}" for i in range(n)]
     arm = [f"arm{i}" for i in range(n)]
-    gv: Vec = ["g0", "g1", "g2"]
+    gv = ["g0", "g1", "g2"]
     sources = []
 
     em = _Emitter()
@@ -438,19 +439,21 @@ def _build(model: SerialChain) -> DynamicsModel:
     sources.append(_function("tip", ["q"], em, {"q": q}, tip_out))
 
     source = "\n\n".join(sources) + "\n"
-    namespace: dict[str, object] = {"_sin": math.sin, "_cos": math.cos}
+    # Any: the functions the generated source defines, each the field of its name below
+    namespace: dict[str, Any] = {"_sin": math.sin, "_cos": math.cos}
     exec(compile(source, f"<dynamics of {model.name}>", "exec"), namespace)  # noqa: S102
     return DynamicsModel(
         n=n,
         revolute=tuple(j.kind != "prismatic" for j in model.joints),
-        axes=tuple(tuple(float(x) for x in j.axis) for j in model.joints),
+        axes=tuple(cast("tuple[float, float, float]", tuple(float(x) for x in j.axis))  # (3,)
+                   for j in model.joints),
         source=source,
-        rnea=namespace["rnea"],  # type: ignore[arg-type]
-        bias=namespace["bias"],  # type: ignore[arg-type]
-        mass=namespace["mass"],  # type: ignore[arg-type]
-        fd=namespace["fd"],  # type: ignore[arg-type]
-        frames=namespace["frames"],  # type: ignore[arg-type]
-        tip=namespace["tip"],  # type: ignore[arg-type]
+        rnea=namespace["rnea"],
+        bias=namespace["bias"],
+        mass=namespace["mass"],
+        fd=namespace["fd"],
+        frames=namespace["frames"],
+        tip=namespace["tip"],
     )
 
 

@@ -28,13 +28,15 @@ import ast
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from armlab.kinematics._rnea_codegen import dynamics_model
 from armlab.kinematics.model import SerialChain
 
-_Fn = Callable[..., tuple[object, ...]]
+# Any: the generated code returns floats and (N,) arrays
+_Fn = Callable[..., tuple[Any, ...]]
 
 #: Up to this many arms :meth:`BatchedDynamics.fd` runs the float code once per arm: a
 #: numpy call costs about the same for 1 arm as for 30 (~65 µs for this code on the thesis
@@ -92,7 +94,7 @@ class BatchedDynamics:
         return _stack(self._raw["frames"](q), q.shape[1])
 
 
-def _stack(out: tuple[object, ...], n_arms: int) -> np.ndarray:
+def _stack(out: tuple[Any, ...], n_arms: int) -> np.ndarray:
     """The generated tuple (arrays (N,) and constant floats) as one new (m, N) array."""
     res = np.empty((len(out), n_arms))
     for i, x in enumerate(out):
@@ -185,7 +187,7 @@ def _compiled(source: str, name: str) -> tuple[dict[str, _Fn], int]:
     namespace: dict[str, object] = {"_sin": np.sin, "_cos": np.cos, **_UFUNC_NAMES,
                                     **constants.values}
     exec(compile(ast.fix_missing_locations(module), name, "exec"), namespace)  # noqa: S102
-    return {f: namespace[f] for f in ("rnea", "bias", "fd", "frames")}, into.count  # type: ignore[misc]
+    return {f: namespace[f] for f in ("rnea", "bias", "fd", "frames")}, into.count  # type: ignore[misc]  # the generated module's functions, by name
 
 
 _CACHE_KEY = "_armlab_batched_dynamics"
@@ -199,7 +201,7 @@ def batched_dynamics(model: SerialChain) -> BatchedDynamics:
     if cached is None:
         dyn = dynamics_model(model)
         raw, buffers = _compiled(dyn.source, f"<batched dynamics of {model.name}>")
-        cached = BatchedDynamics(n=dyn.n, source=dyn.source, revolute=dyn.revolute,  # type: ignore[arg-type]
+        cached = BatchedDynamics(n=dyn.n, source=dyn.source, revolute=dyn.revolute,
                                  axes=dyn.axes, _raw=raw, _float_fd=dyn.fd,
                                  _fd_buffers=buffers)
         model.__dict__[_CACHE_KEY] = cached

@@ -87,8 +87,8 @@ def rest_plane(feet: np.ndarray, com: np.ndarray, *, tol: float = CONTACT_TOL
     # The side the centre of mass lies on with the body level decides which way it tips
     # (a body that leans is held there too: its centre of mass moves with the lean).
     for axis in (np.array([0.0, 0.0, 1.0]), None):
-        for n, d, tri in faces:
-            if _in_triangle(com, tri, n if axis is None else axis):
+        for n, d, corners in faces:
+            if _in_triangle(com, corners, n if axis is None else axis):
                 chosen = (n, d)
                 break
         if chosen is not None:

@@ -23,6 +23,8 @@ thesis's simplified closed forms of §3.4 in :mod:`armlab.kinematics.thesis_dyna
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from armlab.kinematics._rnea_codegen import DynamicsModel, dynamics_model
@@ -186,7 +188,7 @@ def bias_torques(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
                                                _gravity(model, gravity)))
 
 
-def mass_matrix(model: SerialChain, q: np.ndarray) -> np.ndarray:
+def mass_matrix(model: SerialChain, q: np.ndarray | Sequence[float]) -> np.ndarray:
     """(n, n) joint-space inertia M(q), symmetric positive definite; column k = RNEA with
     qdd = e_k, qd = 0, no gravity."""
     n = model.n
@@ -225,8 +227,9 @@ def forward_dynamics(model: SerialChain, q: np.ndarray, qd: np.ndarray, tau: np.
     return np.array(qdd)
 
 
-def kinetic_energy(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
-                   armature: np.ndarray | None = None) -> float:
+def kinetic_energy(model: SerialChain, q: np.ndarray | Sequence[float],
+                   qd: np.ndarray | Sequence[float], *,
+                   armature: np.ndarray | Sequence[float] | None = None) -> float:
     """½ qdᵀ (M(q) + diag(armature)) qd, J."""
     qdv = vector("qd", qd, model.n)
     M = mass_matrix(model, q)
@@ -235,7 +238,7 @@ def kinetic_energy(model: SerialChain, q: np.ndarray, qd: np.ndarray, *,
     return float(0.5 * qdv @ M @ qdv)
 
 
-def potential_energy(model: SerialChain, q: np.ndarray, *,
+def potential_energy(model: SerialChain, q: np.ndarray | Sequence[float], *,
                      gravity: np.ndarray | None = None) -> float:
     """-Σ m_i g·c_i: gravitational potential energy relative to the base origin, J."""
     g = np.array(_gravity(model, gravity))

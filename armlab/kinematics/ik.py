@@ -222,7 +222,7 @@ def _problem(model: object, target: object, q0: object, tol: object, max_iter: o
             f"model.legs['RF']), got {type(model).__name__}"
         )
     try:
-        dims = [int(d) for d in task_dims]  # type: ignore[union-attr]
+        dims = [int(d) for d in task_dims]  # type: ignore[attr-defined]  # any object: validated here
     except (TypeError, ValueError):
         raise ValueError(f"task_dims must be a tuple of axis indices 0-2, got {task_dims!r}") \
             from None

@@ -17,6 +17,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, overload
 
 import numpy as np
 
@@ -526,6 +527,23 @@ RECEPTIONIST_PRESETS = {
 }
 
 
+#: The shipped robots that are one serial chain (every name of ROBOT_FILES but quadruped).
+ChainName = Literal["receptionist_arm", "redundant_planar", "planar_servo_arm",
+                    "open_manipulator_x", "so101"]
+
+
+@overload
+def load_robot(name_or_path: ChainName, *, preset: str | None = None,
+               tip_link: str | None = None,
+               package_paths: tuple[str | Path, ...] = ()) -> SerialChain: ...
+@overload
+def load_robot(name_or_path: Literal["quadruped"], *, preset: str | None = None,
+               tip_link: str | None = None,
+               package_paths: tuple[str | Path, ...] = ()) -> Quadruped: ...
+@overload
+def load_robot(name_or_path: str | Path, *, preset: str | None = None,
+               tip_link: str | None = None,
+               package_paths: tuple[str | Path, ...] = ()) -> SerialChain | Quadruped: ...
 def load_robot(name_or_path: str | Path, *, preset: str | None = None,
                tip_link: str | None = None,
                package_paths: tuple[str | Path, ...] = ()) -> SerialChain | Quadruped:

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 
-def clamp(x: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+def clamp(x: np.ndarray, lower: np.ndarray | float, upper: np.ndarray | float) -> np.ndarray:
     """``np.clip(x, lower, upper)`` (a new array; NaN stays NaN) with two ufunc calls
     instead of clip's slower wrapper."""
     return np.minimum(np.maximum(x, lower), upper)

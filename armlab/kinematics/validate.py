@@ -45,7 +45,7 @@ def floats(name: str, value: object, size: int) -> list[float]:
         if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.ndim == 1:
             vals = value.tolist()  # Python floats at once (iterating makes numpy scalars)
         else:
-            vals = [float(v) for v in value]  # type: ignore[attr-defined]
+            vals = [float(v) for v in value]  # type: ignore[attr-defined]  # any object: a TypeError is caught and said
     except (TypeError, ValueError):
         vals = []
     if len(vals) != size or not finite(vals):
@@ -71,7 +71,7 @@ def scalar(name: str, value: object, *, positive: bool = False,
            nonnegative: bool = False) -> float:
     """Return ``value`` as a finite float (> 0 or >= 0 if asked); ValueError otherwise."""
     try:
-        x = float(value)  # type: ignore[arg-type]
+        x = float(value)  # type: ignore[arg-type]  # any object: a TypeError is caught and said
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(x):
@@ -114,7 +114,7 @@ def check_number(value: object, *, name: str, lo: float, hi: float) -> float:
         ValueError: naming ``name`` when ``value`` is not a finite number in range.
     """
     try:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)  # type: ignore[arg-type]  # any object: a TypeError is caught and said
     except (TypeError, ValueError):
         raise ValueError(f"{name}: {value!r} is not a number") from None
     if not math.isfinite(v):

@@ -70,6 +70,7 @@ def paced_emulator(*args: str, timeout: float = 60.0) -> Iterator[str]:
     """``armlab emulate --pace ARGS`` in a subprocess; yields its port, always stops it."""
     proc = subprocess.Popen([sys.executable, "-m", "armlab.app", "emulate", "--pace", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None  # stdout=PIPE
     try:
         ready, _, _ = select.select([proc.stdout], [], [], timeout)
         line = proc.stdout.readline() if ready else ""

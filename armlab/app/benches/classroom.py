@@ -149,12 +149,12 @@ def _server_rss(room: Any) -> int:
             + (0 if shared is None else _rss_bytes(shared.pid)))
 
 
-def _probe(lesson: object) -> None:
+def _probe(lesson: Any) -> None:  # a class's compliance lesson
     """A hidden node of ``lesson``'s page that each of its frames moves (the bench counts
     them as the page receives them)."""
     from armlab.app.benches.ui import OWN_PROBE
 
-    node = lesson.server.scene.add_frame(OWN_PROBE, show_axes=False,  # type: ignore[attr-defined]
+    node = lesson.server.scene.add_frame(OWN_PROBE, show_axes=False,
                                          visible=False)
     seq = [0]
 
@@ -162,7 +162,7 @@ def _probe(lesson: object) -> None:
         seq[0] += 1
         node.position = (float(seq[0]), 0.0, 0.0)
 
-    lesson.publisher.add_frame_hook(hook)  # type: ignore[attr-defined]
+    lesson.publisher.add_frame_hook(hook)
 
 
 def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict[str, float]:
@@ -184,7 +184,8 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
 
     def students_play() -> None:
         while not stop.wait(0.5):
-            lessons = room.private_lessons()
+            # Any: the class's compliance lessons (their rig, publisher and run_line)
+            lessons: dict[int, Any] = room.private_lessons()
             now = time.monotonic()
             if len(lessons) >= pages and "start" not in rss:
                 rss["start"] = _server_rss(room)
@@ -257,8 +258,9 @@ def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
     plan = plan_gait(GaitSpec())
     q0 = Walker(plan).state().q
     loops: list[GaitLoop] = []
+    backend: Backend
     if batched:
-        batch = BatchedQuadrupeds(model, dt=CLASS_DT)  # type: ignore[arg-type]
+        batch = BatchedQuadrupeds(model, dt=CLASS_DT)
         clock = SharedClock(batch.step, dt=CLASS_DT, realtime=False)
         for _ in range(n):
             backend = BatchedQuadrupedBackend(batch, batch.add(q0), lock=clock.lock)
@@ -272,7 +274,7 @@ def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
             clock.run_for(s)
     else:
         for _ in range(n):
-            backend = QuadrupedSimBackend(model, q0=q0, dt=CLASS_DT)  # type: ignore[arg-type]
+            backend = QuadrupedSimBackend(model, q0=q0, dt=CLASS_DT)
             loops.append(GaitLoop(Walker(plan), backend, period=PERIOD, realtime=False))
         for loop in loops:
             loop.go(plan)
@@ -322,6 +324,7 @@ def private_room(lesson: str, *, seconds: float, pages: int = 30,
         for k in range(1, 1 << 30):
             if stop.wait(0.5):
                 return
+            own: Any  # a student's compliance lesson (its loop)
             for own in room.private_lessons().values():
                 if id(own) not in seen:
                     seen.add(id(own))

@@ -46,7 +46,7 @@ def run(quick: bool) -> dict[str, float]:
                 flooder.wait_for(lambda: any(e.label == SLIDER for e in flooder.gui.values()),
                                  timeout=30, what="the slider")
                 uuid = flooder.find(SLIDER).uuid
-                loop = lab.lesson.rig.loop
+                loop = lab.lesson.rig.loop  # type: ignore[union-attr]  # the lab's arm lesson, open
                 # calm and flooded blocks in turn, so a busy machine's load falls on both
                 rounds = 3 if quick else 5
                 wall = {"calm": 0.0, "flood": 0.0}

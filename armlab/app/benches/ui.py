@@ -41,6 +41,7 @@ import threading
 import time
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,7 @@ def client_main(argv: list[str] | None = None) -> int:
                for i in range(args.clients)]
     if args.my_arm:
         for c in clients:
-            c.wait_for(lambda c=c: any(e.label == "View" for e in c.gui.values()), 60.0,
+            c.wait_for(lambda c=c: any(e.label == "View" for e in c.gui.values()), 60.0,  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
                        "the View switch")
             c.set_value("View", "My arm")
         # every page has its own arm on screen before anything is counted (a busy server
@@ -197,7 +198,7 @@ class _Instrumented:
         from armlab.app.server import Lab, ServeOptions
 
         self.lab = Lab(ServeOptions(http_port=0, classroom=classroom))
-        lesson = self.lab.lesson
+        lesson: Any = self.lab.lesson  # the arm lesson (its rig, publisher and drag)
         self.lesson = lesson
         loop = lesson.rig.loop
         self.loop = loop
@@ -260,7 +261,7 @@ class _Instrumented:
                                           hold),
                                          ("end", lambda: lesson._drag_anchor is None, let_go)):
                     t0 = time.monotonic()
-                    page.drag(grab, phase, start=where, end=where)
+                    page.drag(grab, phase, start=where, end=where)  # type: ignore[arg-type]  # (3,) m: the target's position
                     deadline = t0 + 30.0
                     while not done():
                         if time.monotonic() > deadline:

@@ -100,7 +100,7 @@ class ClassArms:
                 loop = loop_over(backend, model, params, history_s=history_s, clock=self.clock)
             except BaseException:  # (the backend is closed)
                 if plant is not None and row is not None:
-                    plant.remove_arm(backend.arm)
+                    plant.remove_arm(backend.arm)  # type: ignore[attr-defined]  # row set: the batched plant's backend
                 raise
             loop.start()
             return Arm(preset, row, backend, loop)
@@ -157,10 +157,10 @@ class OwnArms:
         """A new simulated arm of ``model`` at ``q0`` (n,) rad, its compliance loop
         started (``preset`` names it)."""
         backend = RestartableArm(lambda q: make_backend("sim", model, q0=q), q0)
-        loop = loop_over(backend, model, params, realtime=self.realtime,  # type: ignore[arg-type]
+        loop = loop_over(backend, model, params, realtime=self.realtime,
                          history_s=history_s)
         loop.start()
-        return Arm(preset, None, backend, loop)  # type: ignore[arg-type]
+        return Arm(preset, None, backend, loop)
 
     def free(self, arm: Arm) -> None:
         """Stop ``arm``'s loop with torque off and close its backend."""

@@ -68,12 +68,12 @@ class ClassHand(GripRecord):
         self.closed_at: float | None = None
         self._ring = self._record_for(history_s, self.dt)
 
-    def _send(self, command: Command) -> None:
+    def _send(self, command: Command) -> None:  # type: ignore[override]  # each loop takes its own command types
         """To the class's next period (ValueError: this hand was freed)."""
         self._owner._post(self.hand, command)
 
     @property
-    def status(self) -> GripStatus:  # type: ignore[override]
+    def status(self) -> GripStatus:  # type: ignore[override]  # a property over the base's status attribute (read-only here)
         """The hand's state at the class's last period: time, its fingers' modes, its last
         close; a fault once it was freed or the class's loop failed."""
         t, rows, codes, fault = self._owner.view
@@ -189,7 +189,7 @@ class ClassHands:
                     k: v for k, v in changes.items() if v is not None}))
                 hand.params = grip.params(h)
             case SetObject(obj):
-                self.plant.set_object(h, obj)  # type: ignore[arg-type]
+                self.plant.set_object(h, obj)  # type: ignore[arg-type]  # a hand's object: the simulator's GraspObject (or None)
                 hand.obj = self.plant.obj(h)
 
     def _period(self) -> None:  # the clock's thread, holding self.lock

@@ -148,5 +148,5 @@ class ClassOverview:
         if tuple(self.pick.options) != options:
             keep = self.pick.value if self.pick.value in options else NOBODY
             self.pick.options = options
-            self.pick.value = keep
+            self.pick.value = keep  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
         self._ids = ids

@@ -58,7 +58,7 @@ class RemoteGait(RemoteMember, GaitRecord):
             pass
 
     @property
-    def status(self) -> GaitStatus:  # type: ignore[override]
+    def status(self) -> GaitStatus:  # type: ignore[override]  # a property over the base's status attribute (read-only here)
         """The loop's newest status (about ``MIRROR_S`` s old); a fault once freed, once the
         worker has ended, or while it has sent nothing for ``STALE_S`` s."""
         why = self._fault()

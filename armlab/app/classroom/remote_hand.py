@@ -58,7 +58,7 @@ class RemoteHand(RemoteMember, GripRecord):
         self._ring = RingBuffer(1 + N_FINGERS * len(COLUMNS), capacity)
 
     @property
-    def status(self) -> GripStatus:  # type: ignore[override]
+    def status(self) -> GripStatus:  # type: ignore[override]  # a property over the base's status attribute (read-only here)
         """The hand's newest state (about ``MIRROR_S`` s old); a fault once it was freed, the
         worker has ended or while it has sent nothing for ``STALE_S`` s."""
         why = self._fault()

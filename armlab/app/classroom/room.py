@@ -121,6 +121,11 @@ class ClassLab(Protocol):
         ...
 
     @property
+    def lesson_name(self) -> str:
+        """The shared lesson's name (a challenge names the lesson it runs in)."""
+        ...
+
+    @property
     def lesson_ctx(self) -> LessonContext:
         """What the shared lesson was built for."""
         ...
@@ -210,7 +215,7 @@ class Room:
             state.mine = MyChallenge(client, on_run=lambda: self._run_mine(state))
             with self._lock:
                 self._pages[client.client_id] = state
-            name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))
+            name.on_update(lambda _e: self.roles.set_name(client.client_id, name.value))  # type: ignore[type-var]  # the callback's result is dropped by viser
             code.on_update(lambda _e: self._on_passcode(state))
             view.on_update(lambda _e: self._on_view(state))
             mask_text_input(client, code)  # typed as a password: dots on the projector
@@ -234,7 +239,7 @@ class Room:
         typed = state.code.value
         if len(typed.strip()) < len(self.roles.passcode):
             return  # still typing
-        state.code.value = ""
+        state.code.value = ""  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
         self._try_passcode(state, typed, refused="Passcode refused", then="", seconds=8.0)
 
     def _presenter_link(self, state: _PageState) -> None:
@@ -263,7 +268,7 @@ class Room:
         """Page ``state`` now presents: its Passcode and View fields go, the students' QR
         code and the class overview come."""
         if state.view.value != FOLLOW:
-            state.view.value = FOLLOW  # a presenter drives the shared arm
+            state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none; a presenter drives the shared arm
         state.code.remove()
         state.view.remove()
         if state.mine is not None:  # a presenter runs the challenge on the shared arm
@@ -303,7 +308,7 @@ class Room:
             return
         if key and self._sandboxes.has(key):
             state.seat = key
-            state.view.value = MY_ARM  # fires _on_view
+            state.view.value = MY_ARM  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none; fires _on_view
 
     def _seat_of(self, state: _PageState) -> str:
         if state.seat is None:
@@ -324,13 +329,13 @@ class Room:
                 notify(state.client, "No private arm here",
                        f"The lesson {module.TITLE!r} has no private arm yet; you follow "
                        "the teacher.")
-                state.view.value = FOLLOW
+                state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 return
             try:
                 seat = self.sandboxes.seat(self._seat_of(state), page=state.client.client_id)
             except ClassFull as exc:
                 notify(state.client, "The class is full", str(exc))
-                state.view.value = FOLLOW
+                state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 return
             ctx = replace(lab.lesson_ctx, backend="sim", port=None, baud=None,
                           joint_map=None, arms=seat, frames=self._frames)
@@ -342,7 +347,7 @@ class Room:
             except BaseException:
                 self.stream.release(state.client)
                 self.show_shared(state.client, shown=True)
-                state.view.value = FOLLOW
+                state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 raise
             state.role.content = MY_ARM_TEXT
 
@@ -368,7 +373,7 @@ class Room:
             states = [s for s in self._pages.values() if s.private is not None]
         for state in states:
             self._close_private(state)
-            state.view.value = FOLLOW
+            state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
             notify(state.client, "The teacher opened another lesson",
                    "You follow the teacher again; choose My arm to try it yourself.")
 

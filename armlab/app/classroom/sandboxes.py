@@ -70,7 +70,7 @@ class _Arm:
 
     @property
     def loop(self) -> ControlLoop:
-        return self.arm.loop  # type: ignore[return-value]  # a RemoteLoop quacks as one
+        return self.arm.loop  # a RemoteLoop quacks as one
 
 
 class Seat:
@@ -107,13 +107,13 @@ class Seat:
                  history_s: float) -> RemoteHand:
         """The seat's hand: the one it has (as it was left), or a new one, open, around
         ``obj`` with grasp settings ``params``. It runs on the class's loop."""
-        return self._owner._member_for(  # type: ignore[return-value]
+        return self._owner._member_for(  # type: ignore[return-value]  # the hand kind's add: a RemoteHand
             self, RemoteHand.KIND, lambda p: p.add_hand(obj, params, history_s=history_s))
 
     def quadruped_for(self, spec: GaitSpec, *, speed: float, history_s: float) -> RemoteGait:
         """The seat's quadruped: the one it has (as it was left), or a new one standing,
         to walk ``spec`` at ``speed`` cycles/s. It walks on the class's clock."""
-        return self._owner._member_for(  # type: ignore[return-value]
+        return self._owner._member_for(  # type: ignore[return-value]  # the quadruped kind's add: a RemoteGait
             self, RemoteGait.KIND,
             lambda p: p.add_quadruped(spec, speed=speed, history_s=history_s))
 
@@ -229,9 +229,9 @@ class Sandboxes:
     def _arm_for(self, seat: Seat, model: SerialChain, params: Params, *, preset: str,
                  q0: np.ndarray, history_s: float) -> tuple[Backend, ControlLoop]:
         with self._lock:
-            arm = seat.arm
-            if arm is not None and arm.preset == preset and not _ended(arm.host):
-                return arm.arm.backend, arm.loop  # type: ignore[return-value]
+            kept = seat.arm
+            if kept is not None and kept.preset == preset and not _ended(kept.host):
+                return kept.arm.backend, kept.loop
             self._free_arm(seat)
             host: ArmProcess | ClassArms
             if has_firmware_sim(model):  # X-series, STS: in the server (see above)
@@ -242,7 +242,7 @@ class Sandboxes:
                 host = self._process_for("arm")
             arm = host.add(model, params, preset=preset, q0=q0, history_s=history_s)
             seat.arm = _Arm(host, arm)
-            return arm.backend, seat.arm.loop  # type: ignore[return-value]
+            return arm.backend, seat.arm.loop
 
     def _member_for(self, seat: Seat, kind: str,
                     add: Callable[[ArmProcess], RemoteHand | RemoteGait]

@@ -14,6 +14,7 @@ import sys
 import threading
 from collections.abc import Callable
 from multiprocessing.connection import Connection
+from typing import Any
 
 import numpy as np
 
@@ -181,10 +182,11 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
     held: dict[int, tuple[Arm, list[int]]] = {}  # arm id -> (arm, [rows mirrored])
     fresh: dict[int, Arm] = {}  # added, mirrored once the server has its answer
     held_lock = threading.Lock()
-    hosts: dict[str, object] = {}  # kind name -> its host, made at its first member
+    # Any: each kind's own host and members (MEMBER_KINDS[name] takes them)
+    hosts: dict[str, Any] = {}  # kind name -> its host, made at its first member
     #: member id -> (kind name, the member, what its mirror last sent)
-    members: dict[int, tuple[str, object, list]] = {}
-    fresh_members: dict[int, tuple[str, object]] = {}  # mirrored once the server has them
+    members: dict[int, tuple[str, Any, list]] = {}
+    fresh_members: dict[int, tuple[str, Any]] = {}  # mirrored once the server has them
     send_lock = threading.Lock()
     stop = threading.Event()
 
@@ -240,14 +242,14 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         return (loop.lower, loop.upper, loop.recorder.capacity, loop.status, loop.gains,
                 reports_of(arm))
 
-    def member_of(name: str, member_id: int) -> object:
+    def member_of(name: str, member_id: int) -> Any:
         with held_lock:
             found = members.get(member_id)
         if found is None or found[0] != name:
             raise ValueError(MEMBER_KINDS[name].freed)
         return found[1]
 
-    def member_add(name: str, member_id: int, *args: object) -> dict[str, object]:
+    def member_add(name: str, member_id: int, *args: Any) -> dict[str, object]:
         kind_of = MEMBER_KINDS[name]
         if name not in hosts:
             hosts[name] = kind_of.host(realtime)
@@ -280,9 +282,9 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         "set_params": lambda i, p: arm_of(i).loop.set_params(p),
         "estop": lambda i: arm_of(i).backend.estop(),
         "read": lambda i: arm_of(i).backend.read(),
-        "push": lambda i, f, link, point, d: arm_of(i).backend.push(
+        "push": lambda i, f, link, point, d: arm_of(i).backend.push(  # type: ignore[attr-defined]  # the worker's arms are simulated (a push, a spring)
             f, link=link, point=point, duration=d),
-        "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(
+        "spring": lambda i, anchor, k, link, point: arm_of(i).backend.set_spring(  # type: ignore[attr-defined]  # the worker's arms are simulated (a push, a spring)
             anchor, stiffness=k, link=link, point=point),
         "restart": lambda i, q, plan: restart(arm_of(i), q, plan),
         "restarted": lambda i: restarted(arm_of(i)),
@@ -329,7 +331,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             held.clear()
         arms.close(left)
         for host in hosts.values():
-            host.close()  # type: ignore[attr-defined]
+            host.close()
         conn.close()
 
 

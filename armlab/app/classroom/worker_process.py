@@ -207,6 +207,7 @@ class RemotePlant:
             why = "these simulated servos give no reports"
         if why is not None:
             raise BackendError(why)
+        assert reports is not None  # why is None: the loop has reports
         return reports
 
 
@@ -344,7 +345,7 @@ class ArmProcess:
             loop = RemoteLoop(self, arm_id, model, gains, lower=lower, upper=upper,
                               capacity=capacity, status=status, reports=reports)
             self._register(self._loops, arm_id, loop)
-        return Arm(preset, None, RemoteBackend(self, loop), loop)  # type: ignore[arg-type]
+        return Arm(preset, None, RemoteBackend(self, loop), loop)  # type: ignore[arg-type]  # a RemoteLoop quacks as the arm's ControlLoop
 
     def _wait_ready(self) -> None:
         """Wait for the worker to have started (BackendError when it did not in
@@ -370,12 +371,12 @@ class ArmProcess:
                  history_s: float) -> RemoteHand:
         """A new hand in the worker's class of hands (:meth:`ClassHands.add`), open, around
         ``obj`` with grasp settings ``params``; its proxy."""
-        return self._add_member(RemoteHand, obj, params, history_s)  # type: ignore[return-value]
+        return self._add_member(RemoteHand, obj, params, history_s)  # type: ignore[return-value]  # _add_member makes a RemoteHand here
 
     def add_quadruped(self, spec: GaitSpec, *, speed: float, history_s: float) -> RemoteGait:
         """A new robot in the worker's class of quadrupeds (:meth:`ClassQuadrupeds.add`),
         standing, its loop on the class's clock; its proxy."""
-        return self._add_member(RemoteGait, spec, speed, history_s)  # type: ignore[return-value]
+        return self._add_member(RemoteGait, spec, speed, history_s)  # type: ignore[return-value]  # _add_member makes a RemoteGait here
 
     def _add_member(self, kind: type[RemoteHand | RemoteGait], *args: object
                     ) -> RemoteHand | RemoteGait:

@@ -97,8 +97,8 @@ def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, floa
 #: the flags ``--fault`` takes by name, per protocol of the servos: the X-series's
 #: Hardware Error Status bits, the Feetech STS's status error bits
 FAULT_FLAGS: dict[int | str, dict[str, int]] = {
-    2: {flag.name.lower(): flag for flag in HardwareError},  # type: ignore[union-attr]
-    "sts": {**{flag.name.lower(): flag for flag in ft.ErrorBits},  # type: ignore[union-attr]
+    2: {flag.name.lower(): flag for flag in HardwareError},  # type: ignore[union-attr]  # an enum member's name is never None
+    "sts": {**{flag.name.lower(): flag for flag in ft.ErrorBits},  # type: ignore[union-attr]  # an enum member's name is never None
             "silent": SILENT},  # not a status bit: the servo stops answering
 }
 
@@ -248,7 +248,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _arm_plant(network: object) -> Plant:
     """The plant of a serial arm's emulated servos (any family's), for ``--disturb`` and
     ``--fault``."""
-    physics = network.physics  # type: ignore[attr-defined]
+    physics = network.physics  # type: ignore[attr-defined]  # every family's network has a physics
     return physics.plant if hasattr(physics, "plant") else physics.plants[0]
 
 
@@ -271,7 +271,7 @@ def control_handler(network: object, model: SerialChain, gripper: object | None
     """What ``--control`` does with a line: ``hold JOINT DEG`` / ``release JOINT`` on the
     network's physics (the gripper's horn follows its jaw or finger, ``gripper.to_servo``);
     a line it cannot take is said on stderr, in one line, and changes nothing."""
-    physics = network.physics  # type: ignore[attr-defined]
+    physics = network.physics  # type: ignore[attr-defined]  # every family's network has a physics
 
     def handle(line: str) -> None:
         words = line.split()
@@ -284,7 +284,7 @@ def control_handler(network: object, model: SerialChain, gripper: object | None
                     raise ValueError("this arm has no gripper servo")
                 joint = model.n
                 angle = None if len(words) == 2 else \
-                    gripper.to_servo(math.radians(_number(words[2], "DEG")))  # type: ignore[attr-defined]
+                    gripper.to_servo(math.radians(_number(words[2], "DEG")))  # type: ignore[attr-defined]  # a gripper servo here: it has to_servo
             else:
                 joint = joint_index(words[1], model.joint_names)
                 angle = None if len(words) == 2 else math.radians(_number(words[2], "DEG"))
@@ -363,7 +363,7 @@ def run(args: argparse.Namespace) -> int:
     alerts = [parse_fault(f, model.joint_names, protocol=jmap.protocol) for f in args.fault]
     for joint, flag, after in alerts:
         servo = _arm_plant(network).servos[joint]
-        inject = servo.inject_error if jmap.protocol == "sts" else servo.inject_hardware_error
+        inject = servo.inject_error if jmap.protocol == "sts" else servo.inject_hardware_error  # type: ignore[union-attr]  # the servo is of jmap's family (X or STS)
         inject(flag, after=after)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
@@ -389,7 +389,7 @@ def run(args: argparse.Namespace) -> int:
             make_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
-        names = {v: k for k, v in FAULT_FLAGS.get(jmap.protocol, {}).items()}
+        flag_names = {v: k for k, v in FAULT_FLAGS.get(jmap.protocol, {}).items()}
         gripper = f" and the gripper's {jmap.gripper.servo_id}" if jmap.gripper else ""
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
               f"{', '.join(str(i) for i in jmap.ids)}{gripper}, protocol "
@@ -397,7 +397,7 @@ def run(args: argparse.Namespace) -> int:
               f"{', paced' if args.pace else ''}"
               + "".join(f"; {nm:g} N·m on {model.joint_names[j]} from {t0:g} s"
                         for j, nm, t0 in disturbances)
-              + "".join(f"; {names[flag]} on {model.joint_names[j]} after {t:g} s "
+              + "".join(f"; {flag_names[flag]} on {model.joint_names[j]} after {t:g} s "
                         "of torque on" for j, flag, t in alerts)
               + (f"; resting at {args.pose} until torque on" if args.pose else "")
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)

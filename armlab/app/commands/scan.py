@@ -7,6 +7,7 @@ import json
 import sys
 import time
 from dataclasses import asdict, replace
+from typing import Any
 
 from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.wire.bus import BusError
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     tty = sys.stderr.isatty()
     print(f"scanning {args.port}: {len(args.ids)} IDs at {len(bauds)} baud rate(s), "
           f"at most {bound:.1f} s", file=sys.stderr)
-    state = {"baud": None, "t": 0.0}
+    state: dict[str, Any] = {"baud": None, "t": 0.0}
 
     def progress(baud: float, servo_id: int, n_found: int) -> None:
         now = time.monotonic()
@@ -161,7 +162,7 @@ def _calibrated_map(path: str, model: object, found: list) -> str:
         joint_map_toml,
     )
 
-    jmap = joint_map_from_lerobot(path, model)  # type: ignore[arg-type]
+    jmap = joint_map_from_lerobot(path, model)  # type: ignore[arg-type]  # an arm: the LeRobot calibration is a serial arm's
     by_id = {f.servo_id: f for f in found}
     named = [(j.name, j.servo_id) for j in jmap.joints]
     if jmap.gripper is not None:
@@ -188,8 +189,8 @@ def _guided_map(port: str, model: object, found: list) -> str:
 
     draft_joint_map(found, model)  # type: ignore[arg-type]  # ValueError: a joint without a servo
     servos = sorted(found, key=lambda f: f.servo_id)
-    n = model.n  # type: ignore[attr-defined]
-    jmap = default_joint_map(model, servo=servos[0].model,  # type: ignore[arg-type]
+    n = model.n  # type: ignore[attr-defined]  # an arm: scan drafts a serial arm's map
+    jmap = default_joint_map(model, servo=servos[0].model,  # type: ignore[arg-type]  # an arm: scan drafts a serial arm's map
                              ids=tuple(f.servo_id for f in servos[:n]))
     # the gripper's servo is the one past the joints' (the draft's rule), or none answered
     grip = None if jmap.gripper is None or len(servos) == n else \
@@ -206,5 +207,5 @@ def _guided_map(port: str, model: object, found: list) -> str:
         print(f"  {text}", file=sys.stderr, flush=True)
 
     with Bus(port, baud, protocol=jmap.family) as bus:
-        calibrated = calibrate(bus, model, ask=ask, say=say, jmap=jmap)  # type: ignore[arg-type]
+        calibrated = calibrate(bus, model, ask=ask, say=say, jmap=jmap)  # type: ignore[arg-type]  # an arm: scan calibrates a serial arm
     return joint_map_toml(calibrated, baud=baud, source="armlab scan --calibrate")

@@ -236,7 +236,7 @@ class ArmLesson(LessonBase):
             value = _on_step(float(deg), slider.min, slider.max)
             if abs(value - float(slider.value)) > 0.5 * SLIDER_STEP_DEG:
                 with self._setting:  # not a person's move (see _on_slider)
-                    slider.value = value
+                    slider.value = value  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def _build_scene(self) -> None:
         base = self.model.base_pose
@@ -257,8 +257,8 @@ class ArmLesson(LessonBase):
                 return
             if event.phase == "start":  # said once, when the target is grabbed: a stopped
                 # loop, or the student's law failing
-                guarded(event, lambda: (check_running(self.loop.status),
-                                        self.controls.refuse_while_law_fails(
+                guarded(event, lambda: (check_running(self.loop.status),  # type: ignore[func-returns-value]  # a tuple to run both checks (each raises ValueError to refuse)
+                                        self.controls.refuse_while_law_fails(  # type: ignore[func-returns-value]  # a tuple to run both checks (each raises ValueError to refuse)
                                             "Moving the target")))
             elif stopped_state(self.loop.status) is None:
                 with contextlib.suppress(ValueError):  # (refused: said at the start)

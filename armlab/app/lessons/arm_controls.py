@@ -228,7 +228,7 @@ class ArmControls:
         self._post_aim(UseSpareJoints(aim, self._aim.gain))
 
     def _show_aim(self) -> None:
-        self.aim.value = AIM_LABELS[self._aim.aim]
+        self.aim.value = AIM_LABELS[self._aim.aim]  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def _set_gain(self, gain: float) -> None:
         self._post_aim(UseSpareJoints(self._aim.aim, gain))

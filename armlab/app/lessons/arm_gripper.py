@@ -75,7 +75,7 @@ class GripperControls:
             e, lambda: self.grip(float(self.slider.value) / self._scale)))
         for label, end in (("Open gripper", self.range[1]), ("Close gripper", self.range[0])):
             button = gui.add_button(label, icon=viser.Icon.HAND_GRAB)
-            button.on_click(lambda e, end=end: guarded(e, lambda: self.grip(end)))
+            button.on_click(lambda e, end=end: guarded(e, lambda: self.grip(end)))  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
         self.text = gui.add_markdown("Gripper: not read yet")
 
     def add_teach(self, gui: viser.GuiApi) -> None:
@@ -106,7 +106,7 @@ class GripperControls:
         try:
             lo, hi = (x * self._scale for x in self.range)
             shown = min(max(position * self._scale, lo), hi)
-            self.slider.value = round(shown * 2.0) / 2.0
+            self.slider.value = round(shown * 2.0) / 2.0  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
         finally:
             self._setting = False
 

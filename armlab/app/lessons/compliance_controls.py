@@ -92,7 +92,7 @@ class GainControls:
                                     hint=spec.help)
             self.sliders[f.name] = GuardedNumber(
                 handle, name=spec.label, lo=spec.min * k, hi=spec.max * k,
-                apply=lambda v, name=f.name, k=k: self._set_field(name, v / k), lock=self._lock)
+                apply=lambda v, name=f.name, k=k: self._set_field(name, v / k), lock=self._lock)  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
 
         @self.preset.on_update
         def _(event: viser.GuiEvent) -> None:
@@ -121,12 +121,12 @@ class GainControls:
     def _set_field(self, name: str, value: float) -> None:
         """A slider moved (value in SI); raises ValueError to refuse it."""
         with self._lock:
-            self._commit(replace(self.params, **{name: value}))  # validates
+            self._commit(replace(self.params, **{name: value}))  # type: ignore[arg-type]  # replace(): each name a field of Params, its value checked there; validates
 
     def _set_other(self, event: viser.GuiEvent, **changes: object) -> None:
         with self._lock:
             try:
-                self._commit(replace(self.params, **changes))
+                self._commit(replace(self.params, **changes))  # type: ignore[arg-type]  # replace(): each name a field of Params, its value checked there
             except ValueError as exc:
                 notify(event.client, "Change refused", str(exc))
                 self._show(self.params)
@@ -137,7 +137,7 @@ class GainControls:
             return
         self._apply(new)
         self.params = new
-        self.preset.value = _preset_of(new)
+        self.preset.value = _preset_of(new)  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def set_params(self, params: Params) -> None:
         """Apply ``params`` at once (a preset) and show them on every page.
@@ -158,10 +158,10 @@ class GainControls:
             v = float(getattr(params, name)) * DISPLAY_SCALE.get(name, 1.0)
             g.value = v  # first, so the slider's callback sees no change
             g.handle.value = v
-        self.compliance.value = params.compliance
-        self.feedforward.value = params.feedforward
-        self.law.value = LAW_LABELS[params.law]
-        self.preset.value = _preset_of(params)
+        self.compliance.value = params.compliance  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+        self.feedforward.value = params.feedforward  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+        self.law.value = LAW_LABELS[params.law]  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+        self.preset.value = _preset_of(params)  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
 
 def apply_gains(loop: ControlLoop, params: Params, *, warning: viser.GuiHtmlHandle) -> None:

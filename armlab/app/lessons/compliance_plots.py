@@ -102,7 +102,7 @@ class JointPlots:
     def _build(self) -> None:
         j, u = self.labels[self._joint], self._unit
         k = KGF_CM_PER_NM if u == "kgf·cm" else 1.0
-        kw = {"window_s": self.window_s, "points": self.points}
+        kw: dict[str, Any] = {"window_s": self.window_s, "points": self.points}
         with self.container:
             self.angle = LivePlot(self.gui, title=f"Joint angle {j}", y_label="angle (°)",
                                   order=CHART_ORDER[0], series=(
@@ -166,7 +166,8 @@ class JointPlots:
             index = decimation(np.asarray(t, dtype=float), window_s=self.window_s,
                                points=self.points)
             sent = 0
-            angles = (col["q_cmd"] * DEG, col["q_ref"] * DEG, col["q"] * DEG)
+            angles: tuple[np.ndarray, ...] = (col["q_cmd"] * DEG, col["q_ref"] * DEG,
+                                              col["q"] * DEG)
             if self.reference:
                 ref = (np.full(len(t), np.nan) if reference is None
                        else reference(np.asarray(t, dtype=float), j))

@@ -204,6 +204,7 @@ class ForceArrows:
             handle.visible = False
             return
         # The arrow ends at the hand: it shows the push arriving there.
+        assert force is not None  # None: size 0, refused above
         tail = at - force * ARROW_M_PER_N
         handle.points = np.array([[tail, at]], dtype=np.float32)
         handle.visible = True
@@ -237,7 +238,7 @@ def estimated_hand_force(J: np.ndarray, tau_ext: np.ndarray) -> np.ndarray | Non
         return None
     Jv = np.asarray(J, dtype=float)[:3]
     if Jv.shape[1] >= 3:
-        F = _solve3(*(Jv @ Jv.T).tolist(), (Jv @ -tau_ext).tolist())
+        F = _solve3(*(Jv @ Jv.T).tolist(), (Jv @ -tau_ext).tolist())  # type: ignore[call-arg]  # (3, 3) rows, then the right side
         if F is not None:
             return np.array(F)
     return np.linalg.pinv(Jv.T) @ (-tau_ext)

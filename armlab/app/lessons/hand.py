@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
@@ -217,7 +217,7 @@ class HandLesson(LessonBase):
                                     model=lambda: self.model.finger,
                                     figures=self.run_figures, ghost_root="/hand_replay")
         with self._gui.chart_panel("Current and force") as tab, tab:
-            kw = {"window_s": WINDOW_S, "points": 200}
+            kw: dict[str, Any] = {"window_s": WINDOW_S, "points": 200}
             # each chart has a zero line: it keeps 0 in view, so a held force is a flat
             # line at F rather than an auto-zoomed band around it; its axis spans at least
             # CURRENT_SPAN_A / FORCE_SPAN_N (armlab.app.page.plots.fit_range)

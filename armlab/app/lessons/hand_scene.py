@@ -31,7 +31,7 @@ def stiffness_rgb(stiffness: float) -> tuple[int, int, int]:
     """Object colour: soft (100 N/m) light green to hard (50 kN/m) dark grey, log scale."""
     a = float(np.clip((math.log10(stiffness) - 2.0) / (math.log10(5e4) - 2.0), 0.0, 1.0))
     soft, hard = np.array([120, 210, 120]), np.array([80, 80, 90])
-    return tuple(int(v) for v in (1 - a) * soft + a * hard)  # type: ignore[return-value]
+    return tuple(int(v) for v in (1 - a) * soft + a * hard)  # type: ignore[return-value]  # three ints: an RGB colour
 
 
 #: rad a finger must turn before the page is sent its new pose (0.006°: not visible)
@@ -42,7 +42,7 @@ def pad_rgb(force: float, limit: float) -> tuple[int, int, int]:
     """Fingertip colour for ``force`` N against the limit ``limit`` N."""
     a = float(np.clip(force / limit, 0.0, 1.0)) if limit > 0 else 0.0
     c = (1 - a) * np.array(IDLE_RGB) + a * np.array(LIMIT_RGB)
-    return tuple(int(v) for v in c)  # type: ignore[return-value]
+    return tuple(int(v) for v in c)  # type: ignore[return-value]  # three ints: an RGB colour
 
 
 class HandScene:
@@ -134,8 +134,8 @@ class HandScene:
                 self.arrows.visible = False
             return
         tips = tip_positions(g, phi)
-        az = np.asarray(g.azimuths)
-        inward = -np.stack([np.cos(az), np.sin(az), np.zeros(3)], axis=1)
+        azimuths = np.asarray(g.azimuths)
+        inward = -np.stack([np.cos(azimuths), np.sin(azimuths), np.zeros(3)], axis=1)
         # the object pushes each pad outward; draw the finger's push on the object (inward)
         start = tips - inward * (force[:, None] * ARROW_M_PER_N)
         self.arrows.points = np.stack([start, tips], axis=1).astype(np.float32)

@@ -343,7 +343,7 @@ class IKAccuracyLesson(LessonBase):
             raise ValueError(f"target must be finite, got ({X}, {Y})")
         with self._lock:
             if self._closed:
-                return self.result  # type: ignore[return-value]
+                return self.result  # type: ignore[return-value]  # closed: the lesson's last result (None before any)
             r = solve(X, Y, arm=self.arm, elbow=self.elbow, rounding=self.rounding)
             self.target = (X, Y)
             self.result = r
@@ -457,7 +457,7 @@ class IKAccuracyLesson(LessonBase):
         result = self.table_result
         if result is None:
             raise ValueError("run the paper's table first")
-        rows = SEED004_EXPERIMENTS[0].rows(result)  # type: ignore[misc]
+        rows = SEED004_EXPERIMENTS[0].rows(result)  # type: ignore[misc]  # rows() of the paper's table experiment takes its result
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
         writer.writeheader()

@@ -159,7 +159,7 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
         return QuadrupedSimBackend(model, q0=q0, dt=SIM_DT), ""
     try:
         # the reply timeout is the bus's own (armlab.hardware.wire.bus: a wire's or an emulator's)
-        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)  # type: ignore[arg-type]
+        backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)
     except (BackendError, ValueError, OSError) as exc:
         return None, (f"The quadruped needs 12 AX-12A servos (IDs 1–12: legs "
                       f"{', '.join(LEGS)}, each {', '.join(leg_joint_labels(model, LEGS[0]))})"
@@ -205,6 +205,7 @@ class QuadrupedLesson(LessonBase):
                 walker, self.backend, period=0.02 if ctx.backend == "sim" else 0.03,
                 realtime=ctx.realtime, speed=0.5, to_servo=to_servo)
         elif ctx.arms is None:  # a simulated classroom: the shared robot off the server's GIL
+            assert self._worker is not None  # the branch above took the case without one
             self.backend, self.servo_message = None, ""
             self.loop = self._worker.add_quadruped(self.spec, speed=0.5, history_s=20.0)
         else:  # a student's own robot, kept by their seat (as it was left, on a reload)
@@ -257,7 +258,7 @@ class QuadrupedLesson(LessonBase):
             b = gui.add_button(COMMAND_LABELS[command], icon=icons[command],
                                color="blue" if command == "forward" else None,
                                hint=_command_hint(command))
-            b.on_click(lambda e, c=command: guarded(e, lambda: self.walk(c)))
+            b.on_click(lambda e, c=command: guarded(e, lambda: self.walk(c)))  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
             self.direction_buttons[command] = b
         self.stop_button = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP,
                                           hint="Walk on to the next moment all four feet "
@@ -296,7 +297,7 @@ class QuadrupedLesson(LessonBase):
             self.gait_sliders[key] = guarded_slider(
                 gui, label, name=key, lo=lo, hi=hi, step=step,
                 initial=float(getattr(p, field)) * k, lock=self._gait_lock,
-                apply=lambda v, field=field, k=k: self.set_params(**{field: v / k}))
+                apply=lambda v, field=field, k=k: self.set_params(**{field: v / k}))  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
         self.reachable_md = gui.add_markdown(_plan_md(self.plan))
 
     def _build_plots(self, gui: viser.GuiApi, container: Any) -> None:
@@ -304,7 +305,7 @@ class QuadrupedLesson(LessonBase):
         self._leg = "RF"
         self._leg_stale = False
         self._plot_lock = threading.Lock()
-        kw = {"window_s": CHART_WINDOW_S, "points": CHART_POINTS, "height": 130}
+        kw: dict[str, Any] = {"window_s": CHART_WINDOW_S, "points": CHART_POINTS, "height": 130}
         with container:
             self.leg_picker = gui.add_button_group("Leg", LEGS, order=1.0,
                                                    hint="The leg the joint charts show")
@@ -558,14 +559,14 @@ class QuadrupedLesson(LessonBase):
     def close(self) -> None:
         """Stop the publisher and the loop (torque off), close the servos, remove everything."""
         if self.mark_closed():
-            free = None if self._worker is None else partial(self._worker.free_member, self.loop)
+            free = None if self._worker is None else partial(self._worker.free_member, self.loop)  # type: ignore[arg-type]  # with a worker, the loop is the worker's RemoteGait
             close_in_turn(self.publisher.close, partial(self.loop.shutdown, torque_off=True),
                           free, self.runs.remove,
                           self.backend.close if self.backend is not None else None,
                           self.scene.remove, self._gui.remove_all)
 
 
-def servo_markdown(err: dict[str, object] | None, *, has_servos: bool, where: str,
+def servo_markdown(err: dict[str, Any] | None, *, has_servos: bool, where: str,
                    tilts: np.ndarray | None = None) -> str:
     """The eq. 4.1 table (servo tab), and the body tilt the servos' angles imply."""
     head = ("**Commanded vs servo angle, seed 003 eq. 4.1**: %Error = (servo angle − "

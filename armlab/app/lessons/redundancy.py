@@ -241,11 +241,11 @@ class RedundancyLesson(LessonBase):
             self.k_a_slider, self.gain_slider = self.k_a.handle, self.gain.handle
             self.speed_slider = self.speed.handle
             with gui.add_folder("Show", expand_by_default=False):
-                self.show_boxes = {}
+                self.show_boxes: dict[str, Any] = {}
                 for mode in self.modes:
                     box = gui.add_checkbox(MODE_LABELS[mode], True,
                                            hint=MODES[mode])
-                    box.on_update(lambda _e, m=mode: self.scene.show_mode(
+                    box.on_update(lambda _e, m=mode: self.scene.show_mode(  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
                         m, bool(self.show_boxes[m].value)))
                     self.show_boxes[mode] = box
         with tabs.add_tab("Figures", viser.Icon.TABLE):

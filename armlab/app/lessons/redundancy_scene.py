@@ -160,7 +160,7 @@ class RedundancyScene:
                                      anchor="bottom-left")
             light = tuple(int(0.45 * c + 0.55 * 255) for c in rgb)
             sticks = scene.add_line_segments(f"{b}/sticks", np.zeros((1, 2, 3), np.float32),
-                                             light, thickness=0.004, visible=False)
+                                             light, thickness=0.004, visible=False)  # type: ignore[arg-type]  # three ints: rgb's, lightened
             trace = scene.add_line_segments(f"{b}/trace", np.zeros((1, 2, 3), np.float32),
                                             rgb, thickness=0.008, visible=False)
             ellipse = scene.add_line_segments(f"{b}/ellipse",

@@ -53,9 +53,12 @@ GhostModel = SerialChain | Quadruped | FingerGeometry
 class Ghost(Protocol):
     """A replay's ghost: posed by the run's joint vector ``q``."""
 
-    model: GhostModel
-    joint_names: tuple[str, ...]
-    q: np.ndarray
+    @property
+    def model(self) -> GhostModel: ...
+    @property
+    def joint_names(self) -> tuple[str, ...]: ...
+    @property
+    def q(self) -> np.ndarray: ...
 
     def set_q(self, q: np.ndarray) -> None: ...
 
@@ -259,7 +262,7 @@ class ReplayView:
             set_content(self.about, about_markdown(run, title=title))
             self.folder.visible = True
             if self.time.value != 0.0:
-                self.time.value = 0.0
+                self.time.value = 0.0  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
             # published last: a slider moved from here on is not undone by the reset above
             self.run = run
             self._show_at(0.0)
@@ -311,7 +314,7 @@ class ReplayView:
             if self.run is None:
                 raise ValueError("no run is open: press Open run first")
             if float(self.time.value) >= float(self._t[-1]):
-                self.time.value = 0.0
+                self.time.value = 0.0  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
             self._playing.set()
             self.play.label = "Pause"
             self.play.icon = viser.Icon.PLAYER_PAUSE
@@ -341,7 +344,7 @@ class ReplayView:
                     break
                 end = float(self._t[-1])
                 at = min(end, float(self.time.value) + (now - last))
-                self.time.value = at
+                self.time.value = at  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
             last = now
             if at >= end:
                 break

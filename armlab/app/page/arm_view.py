@@ -15,6 +15,7 @@ import logging
 import math
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -89,7 +90,7 @@ class ArmView:
         with _quiet_yourdfpy():  # its own "can't find" lines would repeat ours
             parsed = yourdfpy.URDF.load(urdf_path, filename_handler=find)
         self._parsed = parsed
-        self._urdf = ViserUrdf(server, parsed, root_node_name=root, mesh_color_override=color)
+        self._urdf = ViserUrdf(server, parsed, root_node_name=root, mesh_color_override=color)  # type: ignore[arg-type]  # a Surface is the server or one client's handle
         # Places the fixed joints once (moving ones are set by set_q below).
         self._urdf.update_cfg(np.zeros(len(parsed.actuated_joint_names)))
         # ViserUrdf keeps one frame per URDF joint, named after the joint's child link.
@@ -167,21 +168,22 @@ class ArmView:
         of it to draw."""
         frame = self.link_frames.get(link)
         robot = self._parsed.robot
-        visuals = next((lk.visuals for lk in robot.links if lk.name == link), [])
+        visuals: list[Any] = next((lk.visuals for lk in robot.links if lk.name == link), [])
         if frame is None or not visuals:
             return False
+        assert self.model.urdf_path is not None  # its links' visuals came from it
         urdf_path = Path(self.model.urdf_path)
         package_paths = tuple(getattr(self.model, "package_paths", ()))
         shapes = [m for v in visuals
                   if (m := _shape(v.geometry, v.origin, urdf_path, package_paths)) is not None]
         if not shapes:
             return False
-        for mesh in self.meshes():
-            if mesh.name.rsplit("/", 1)[0] == frame.name:
-                mesh.visible = False
+        for node in self.meshes():
+            if node.name.rsplit("/", 1)[0] == frame.name:
+                node.visible = False
         if opacity <= 0.0:
             return True
-        mesh = trimesh.util.concatenate(shapes)
+        mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(shapes))  # of Trimeshes
         self._scene.add_mesh_simple(
             f"{frame.name}/see_through", mesh.vertices, mesh.faces, color=SEE_THROUGH_RGB,
             opacity=opacity, side="double")
@@ -224,9 +226,9 @@ class ArmView:
             kind = "collision"
             if not shapes:
                 shapes, kind = _capsules(robot, link.name), "capsule"
-            mesh = trimesh.util.concatenate(shapes)
+            mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(shapes))  # of Trimeshes
             server.scene.add_mesh_simple(f"{parent}/fallback_{kind}", mesh.vertices, mesh.faces,
-                                         color=rgb, opacity=opacity)
+                                         color=rgb, opacity=opacity)  # type: ignore[arg-type]  # three ints: color[:3] scaled
             drawn[link.name] = kind
         return drawn
 

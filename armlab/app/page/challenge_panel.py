@@ -241,7 +241,7 @@ class ChallengeDesk:
         c = self.challenge
         want = NO_CHALLENGE if c is None else c.title
         if self.pick.value != want:
-            self.pick.value = want
+            self.pick.value = want  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def _build_limits(self, challenge: Challenge | None) -> None:
         """The number inputs of ``challenge``'s limits (replacing the last one's)."""
@@ -260,14 +260,14 @@ class ChallengeDesk:
                 handle = gui.add_number(f"{t.label} {sym}{unit}", initial_value=t.limit,
                                         min=t.lo, max=t.hi, step=step)
                 GuardedNumber(handle, name=t.label, lo=t.lo, hi=t.hi,
-                              apply=lambda v, f=t.figure: self.set_limit(f, v))
+                              apply=lambda v, f=t.figure: self.set_limit(f, v))  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
                 self._limits.append(handle)
                 if t.kind == "near":
                     tol = gui.add_number(f"{t.label} tolerance (%)",
                                          initial_value=t.tolerance_pct, min=0.0, max=100.0,
                                          step=0.5)
                     GuardedNumber(tol, name=f"{t.label} tolerance", lo=0.0, hi=100.0,
-                                  apply=lambda v, f=t.figure: self.set_limit(
+                                  apply=lambda v, f=t.figure: self.set_limit(  # type: ignore[misc]  # mypy cannot infer a lambda with default arguments
                                       f, v, tolerance=True))
                     self._limits.append(tol)
 

@@ -242,7 +242,8 @@ def chart_height(s: theme.TextSizes, *, height: int, y_labels: Iterable[str | No
     return max(scaled, s.x_axis + LABEL_ROOM + label)
 
 
-def add_chart(gui: viser.GuiApi, *, title: str, series: Sequence[dict], scales: dict,
+def add_chart(gui: viser.GuiApi, *, title: str, series: Sequence[viser.uplot.Series],
+              scales: dict,
               y_label: str, y2_label: str | None = None, x_label: str = "t − now (s)",
               height: int, **kwargs: Any) -> viser.GuiUplotHandle:
     """``gui.add_uplot`` with the lab's axes and height in normal sizes; a page in
@@ -254,7 +255,7 @@ def add_chart(gui: viser.GuiApi, *, title: str, series: Sequence[dict], scales: 
                                           y_labels=(y_label, y2_label))}
             for mode in (False, True)}
     handle = gui.add_uplot(series=tuple(series), scales=scales, title=title,
-                           **look[False], **kwargs)  # type: ignore[arg-type]
+                           **look[False], **kwargs)  # type: ignore[arg-type]  # look's axes and sizes are add_uplot's keyword arguments
     return theme.sized(handle, normal=look[False], projector=look[True])
 
 
@@ -276,7 +277,7 @@ def uplot_series(spec: SeriesSpec) -> viser.uplot.Series:
                "scale": spec.scale}
     if spec.dash:
         s["dash"] = list(spec.dash)
-    return s  # type: ignore[return-value]
+    return s  # type: ignore[return-value]  # s: a plain dict built to uplot's Series keys
 
 
 def distinct_styles(series: Iterable[dict]) -> list[tuple[str, str]]:

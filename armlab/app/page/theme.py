@@ -211,7 +211,7 @@ class PageStyle:
                 for handle, entry in _sized_for(client):
                     set_props(client, handle, **(entry.projector if on else entry.normal))
         if switch.value != on:
-            switch.value = on
+            switch.value = on  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
         if remember:
             client.local_storage.set_item(PROJECTOR_KEY, "1" if on else "0")
 

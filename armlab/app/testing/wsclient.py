@@ -229,7 +229,7 @@ class HeadlessClient:
         zstd = zstandard.ZstdDecompressor()
         try:
             async with websockets.asyncio.client.connect(
-                self.url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
+                self.url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None,  # type: ignore[list-item]  # websockets' Subprotocol: a NewType of str
                 compression=None, additional_headers=self.headers or None,
                 open_timeout=self._open_timeout,
             ) as ws:

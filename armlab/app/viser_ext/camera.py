@@ -29,8 +29,8 @@ def missing() -> list[str]:
     return out
 
 
-def send_view(client: viser.ClientHandle, position: Sequence[float],
-              look_at: Sequence[float]) -> None:
+def send_view(client: viser.ClientHandle, position: Sequence[float] | np.ndarray,
+              look_at: Sequence[float] | np.ndarray) -> None:
     """Queue the page's camera position and look-at point (3,) m, whatever viser last
     heard of them (the newer of two waiting camera messages replaces the older)."""
     queue(client, SetCameraPositionMessage(tuple(float(v) for v in position)))
@@ -42,7 +42,7 @@ def shift_view(client: viser.ClientHandle, offset: Sequence[float]) -> bool:
     viser's record of the page's camera, and send the two points (the orientation is
     kept, so viser's work of finding it again is skipped). False if the page has gone,
     has not reported its camera yet, or the result is not finite."""
-    state = client.camera._state  # type: ignore[attr-defined]
+    state = client.camera._state
     if not connected(client) or state.update_timestamp == 0.0:
         return False
     dx, dy, dz = (float(v) for v in offset)

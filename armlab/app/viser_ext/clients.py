@@ -33,13 +33,13 @@ def missing() -> list[str]:
 
 def server_of(client: viser.ClientHandle) -> viser.ViserServer:
     """The server page ``client`` is connected to."""
-    return client._viser_server  # type: ignore[attr-defined]
+    return client._viser_server
 
 
 def queue(client: viser.ClientHandle, message: Any) -> None:
     """Queue viser message ``message`` (:mod:`armlab.app.viser_ext.messages`) to
     ``client``'s page only."""
-    client._websock_connection.queue_message(message)  # type: ignore[attr-defined]
+    client._websock_connection.queue_message(message)
 
 
 def connected(client: viser.ClientHandle) -> bool:
@@ -54,7 +54,7 @@ def behind(client: viser.ClientHandle) -> bool:
     """Whether messages queued to the page alone still wait to be sent to it (False on a
     viser without the buffer's counters)."""
     try:
-        buffer = client._websock_connection.get_message_buffer()  # type: ignore[attr-defined]
+        buffer = client._websock_connection.get_message_buffer()
         sent = buffer.generator_cursors.get(client.client_id)
         return sent is not None and buffer.message_counter - 1 > sent
     except AttributeError:

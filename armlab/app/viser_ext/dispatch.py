@@ -43,8 +43,8 @@ def screen_gui_updates(gui: viser.GuiApi, screen: Handler) -> Handler:
     """Put ``screen`` in place of ``gui``'s handler of the GUI updates pages send (a
     server's ``gui``, or a page's own); returns viser's handler, for ``screen`` to call
     with what it lets through."""
-    iface = gui._websock_interface  # type: ignore[attr-defined]
-    inner = gui._handle_gui_updates  # type: ignore[attr-defined]
+    iface = gui._websock_interface
+    inner = gui._handle_gui_updates
     iface.unregister_handler(GuiUpdateMessage, inner)
     iface.register_handler(GuiUpdateMessage, screen)
     return inner
@@ -55,7 +55,7 @@ def screen_server_messages(server: viser.ViserServer, screen: Handler) -> Handle
     the server's own handlers (the shared GUI and scene; a page's own elements' messages
     go to that page's handlers, not through it); returns viser's dispatch, for
     ``screen`` to call with what it lets through."""
-    iface = server._websock_server  # type: ignore[attr-defined]
+    iface = server._websock_server
     inner = iface._handle_incoming_message
-    iface._handle_incoming_message = screen
+    iface._handle_incoming_message = screen  # type: ignore[method-assign,assignment]  # armlab's screen wraps viser's handler
     return inner

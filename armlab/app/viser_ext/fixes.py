@@ -41,7 +41,7 @@ import numpy.typing as npt
 try:
     from viser.infra._async_message_buffer import AsyncMessageBuffer
 except ImportError:  # pragma: no cover - not this viser
-    AsyncMessageBuffer = None  # type: ignore[assignment,misc]
+    AsyncMessageBuffer = None  # type: ignore[assignment,misc]  # a viser without the class: the fix is skipped
 try:
     from viser import _scene_handles
     from viser._assignable_props_api import AssignablePropsBase, colors_to_uint8
@@ -88,8 +88,8 @@ def install() -> None:
             with contextlib.suppress(RuntimeError):  # a closed loop has no sender to wake
                 self.event_loop.call_soon_threadsafe(self.message_event.set)
 
-    fixed_push.armlab_fixed = True  # type: ignore[attr-defined]
-    AsyncMessageBuffer.push = fixed_push  # type: ignore[method-assign]
+    fixed_push.armlab_fixed = True  # type: ignore[attr-defined]  # marks the patched function (the fix is applied once)
+    AsyncMessageBuffer.push = fixed_push  # type: ignore[method-assign]  # patches viser's push (see the fix's docstring)
 
 
 #: viser's array type hints -> the dtype a value is cast to (viser 1.1.1's
@@ -142,6 +142,6 @@ def _install_fast_writes() -> None:
     if VISER_SET_POSE_VECTOR is None or getattr(_scene_handles._set_pose_vector,
                                                 "armlab_fixed", False):
         return
-    _set_pose_vector.armlab_fixed = True  # type: ignore[attr-defined]
+    _set_pose_vector.armlab_fixed = True  # type: ignore[attr-defined]  # marks the patched function (the fix is applied once)
     _scene_handles._set_pose_vector = _set_pose_vector
-    AssignablePropsBase._cast_value_recursive = _cast_value_recursive  # type: ignore[method-assign]
+    AssignablePropsBase._cast_value_recursive = _cast_value_recursive  # type: ignore[method-assign]  # patches viser's method (see the fix's docstring)

@@ -110,10 +110,11 @@ class UploadLimit:
         self.on_refused = on_refused
         self.connected = connected
         self.refused = 0
-        self._states: dict[str, dict[str, Any]] = gui._current_file_upload_states  # type: ignore[attr-defined]
-        iface = self._iface = gui._websock_interface  # type: ignore[attr-defined]
-        self._start = gui._handle_file_transfer_start  # type: ignore[attr-defined]
-        self._part = gui._handle_file_transfer_part  # type: ignore[attr-defined]
+        # viser's own upload states by transfer id (popped with a message's, maybe None)
+        self._states: dict[Any, Any] = gui._current_file_upload_states
+        iface = self._iface = gui._websock_interface
+        self._start = gui._handle_file_transfer_start
+        self._part = gui._handle_file_transfer_part
         iface.unregister_handler(FileTransferStartUpload, self._start)
         iface.unregister_handler(FileTransferPart, self._part)
         iface.register_handler(FileTransferStartUpload, self._screen_start)

@@ -28,7 +28,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from armlab.control.backend import Touchable
+from armlab.control.backend import Backend, Touchable
 from armlab.control.commands import RunTrajectory
 from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.loop import TARGET_SPEED, ControlLoop
@@ -141,14 +141,14 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     points = line_points(x0, x0 + (wall + depth) * u, TARGET_SPEED * period)
     move = cartesian_to_joint(model, points, q0, dt=period, name="into the wall")
     plan = hold(q0, SETTLE_S).then(move).then(hold(move.q[-1], HOLD_S), name="contact")
-    backend = backend_factory(model, q0=q0)
+    backend: Backend = backend_factory(model, q0=q0)
     loop: ControlLoop | None = None
     try:
         if not isinstance(backend, Touchable):
             raise ValueError("this backend has no wall to touch: on real servos the wall is "
                              "virtual (the controller renders it); use --backend sim")
         backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
-        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]
+        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
                            realtime=False, history_s=plan.duration + 5.0)
         loop.post(RunTrajectory(plan, approach=False))
         t, force, peak = [], [], []

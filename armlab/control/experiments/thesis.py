@@ -20,7 +20,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -105,7 +105,7 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
         if push_n > 0 and not isinstance(backend, Pushable):
             raise ValueError("this backend cannot be pushed; use --push 0 and push the "
                              "real arm by hand")
-        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]
+        loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Pushable backend is a Backend too (the factory's)
                            realtime=realtime, history_s=plan.duration + 15.0, laws=laws)
         if realtime:
             loop.start()
@@ -243,7 +243,7 @@ def _line_run(options: LineOptions, *, backend_factory: BackendFactory,
         params = replace(params, law=o.law)
     if o.feedforward:
         params = replace(params, feedforward=o.feedforward == "on")
-    model = load_robot(o.robot)
+    model = cast(SerialChain, load_robot(o.robot))  # an arm's name: the thesis line's arm
     return thesis_line_figures(model, backend_factory, params, controller=o.controller,
                                push_n=push, realtime=o.backend != "sim", keep=keep)
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -40,7 +40,7 @@ from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.experiments.thesis import BackendFactory, thesis_line_figures
 from armlab.control.params import PRESETS, Params, integrated_pd_matrix, servo_loop_pole
 from armlab.control.trajectory import THESIS_PERIOD
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.model import SerialChain, load_robot
 from armlab.kinematics.units import KGF_CM_PER_NM
 
 COUNT_DEG = 300.0 / 1023.0  #: degrees per Dynamixel position count (RX-24F, AX-12A)
@@ -126,7 +126,7 @@ def study(backend_factory: BackendFactory, *, robot: str = "receptionist_arm",
         "any_reproduces_all": bool}. Angles are max |θ_cmd − θ| per joint, degrees;
         "compliance_pushed" is the run with the 3 N push; None where not run.
     """
-    model = load_robot(robot)
+    model = cast(SerialChain, load_robot(robot))  # an arm's name: the study drives an arm
     base = PRESETS["thesis Table 4.1"]
     chosen = [r for r in readings(base.period) if only is None or r.name == only]
     if not chosen:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import threading
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,6 +42,9 @@ from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
 from armlab.hardware.sim.dynamixel_servo import ServoReport
 from armlab.hardware.wire import protocol1 as p1
 from armlab.kinematics.validate import scalar, vector
+
+if TYPE_CHECKING:
+    from armlab.control.periodic import HandOverLock
 
 POSITION_WORDS = 1024  #: Present Position words 0..1023
 SIGNED_WORDS = 2048  #: Present Speed / Present Load words: magnitude 0..1023, bit 10 = CW
@@ -100,7 +104,8 @@ class ArmOfPlant:
         batch: the shared plant. arm: the arm's id.
     """
 
-    def __init__(self, batch: BatchedPlant, arm: int, lock: threading.RLock) -> None:
+    def __init__(self, batch: BatchedPlant, arm: int,
+                 lock: threading.RLock | HandOverLock) -> None:
         self.batch = batch
         self.arm = arm
         self._lock = lock
@@ -152,7 +157,8 @@ class BatchedArmBackend(GoalLimits):
     the plant's time since the backend was made.
     """
 
-    def __init__(self, plant: BatchedPlant, arm: int, *, lock: threading.RLock) -> None:
+    def __init__(self, plant: BatchedPlant, arm: int, *,
+                 lock: threading.RLock | HandOverLock) -> None:
         self.batch = plant
         self.plant = ArmOfPlant(plant, int(arm), lock)
         self.arm = int(arm)

@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -145,7 +146,7 @@ class GripperServo:
     @property
     def angle_range(self) -> tuple[float, float]:
         """(lowest, highest) horn angle of the finger's range, rad."""
-        return tuple(sorted((self.closed_angle, self.open_angle)))  # type: ignore[return-value]
+        return tuple(sorted((self.closed_angle, self.open_angle)))  # type: ignore[return-value]  # sorted() of two floats: two floats
 
     def finger_force(self, torque: float) -> float:
         """Horn torque (N·m) -> the force a finger presses with (N): a revolute jaw's
@@ -211,7 +212,7 @@ class GripperHolder:
     simulated; the backend holds its servos' datasheet as ``spec``."""
 
     gripper: GripperServo | None
-    spec: object
+    spec: Any  # each backend's own datasheet: ServoSpec, XSpec or StsSpec
 
     @property
     def gripper_range(self) -> tuple[float, float] | None:
@@ -227,14 +228,14 @@ class GripperHolder:
     @property
     def gripper_note(self) -> str:
         """How the gripper's servo holds the finger and bounds its grip ("" without one)."""
-        return "" if self.gripper is None else grip_note(self.spec)  # type: ignore[arg-type]
+        return "" if self.gripper is None else grip_note(self.spec)
 
     def _gripper_goal_raw(self, position: float) -> tuple[float, int]:
         """The finger's goal ``position`` clamped into its range (ValueError for a
         non-finite one) and its servo's raw Goal Position for it."""
         assert self.gripper is not None
         x = self.gripper.clamp(position)
-        return x, self.spec.position_to_raw(self.gripper.to_servo(x))  # type: ignore[attr-defined]
+        return x, self.spec.position_to_raw(self.gripper.to_servo(x))
 
 
 def reflected_inertia(gripper: GripperServo, *, mass: float = FINGERS_MASS) -> float:
@@ -274,7 +275,7 @@ def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:
     as (item, raw value, a line for the log): Goal Current :data:`GRIPPER_CURRENT` (never
     above the model's Current Limit) and the Position D Gain the arm's servos get."""
     limit = x_table_for(spec.model_number).item("current_limit").default
-    raw = min(spec.current_to_raw(GRIPPER_CURRENT), int(limit))
+    raw = min(spec.current_to_raw(GRIPPER_CURRENT), int(limit))  # type: ignore[arg-type]  # the X tables give current_limit a default
     torque = spec.raw_to_torque(raw)
     return (("goal_current", raw, f"goal current {raw} ({spec.raw_to_current(raw):.2f} A: "
              f"at most {torque:.2f} N·m at the horn, a gentle grip)"),

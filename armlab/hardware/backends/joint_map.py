@@ -380,8 +380,8 @@ def _gripper_entry(entry: object, model: SerialChain | Quadruped,
     # the robot's own gripper keeps its jaw's lever and load (the SO-101's)
     same = shipped is not None and shipped.joint == joint
     return GripperServo(int(entry["id"]), str(joint), lower, upper, **angles,
-                        lever=shipped.lever if same else None,  # type: ignore[union-attr]
-                        inertia=shipped.inertia if same else None,  # type: ignore[union-attr]
+                        lever=shipped.lever if same else None,  # type: ignore[union-attr]  # same: shipped is not None
+                        inertia=shipped.inertia if same else None,  # type: ignore[union-attr]  # same: shipped is not None
                         revolute=is_revolute(model.urdf_path, str(joint)))
 
 

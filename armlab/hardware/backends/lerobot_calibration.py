@@ -99,7 +99,7 @@ def joint_from_range(joint: Joint, servo_id: int, spec: object, *, sign: int,
         ValueError: naming the joint and its servo, when the range reaches past the URDF's
             limits (more than :data:`TOLERANCE`).
     """
-    a = spec.raw_to_position  # type: ignore[attr-defined]
+    a = spec.raw_to_position  # type: ignore[attr-defined]  # a TurnEncoder spec (the LeRobot arms' servos)
     offset = -sign * a(middle)
     lo, hi = sorted(offset + sign * a(r) for r in ends)
     if lo < joint.lower - TOLERANCE or hi > joint.upper + TOLERANCE:

@@ -25,7 +25,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -131,7 +131,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         self._sync_t0: float | None = None
         #: s, the most a ``sync(t)`` came after its time (the loop or the OS stalled)
         self.late_max = 0.0
-        self._bus_options = {"retries": retries, "timeout_margin": timeout_margin,
+        self._bus_options: dict[str, Any] = {"retries": retries, "timeout_margin": timeout_margin,
                              "echo": echo, "rs485": rs485, "table": self.table,
                              "protocol": self.PROTOCOL}
         if not configure and from_baud is not None and from_baud != baud:
@@ -436,8 +436,9 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         self._guard(self.bus.sync_write, self._goal_at, self._goal_len,
                     {i: self._goal_bytes(g, sp) for i, (g, sp) in words.items()})
 
-    def _joint_state(self, pos: Sequence[float], vel: Sequence[float],
-                     load: Sequence[float], errors: Sequence[int], alarms: Sequence[str], *,
+    def _joint_state(self, pos: Sequence[float] | np.ndarray, vel: Sequence[float] | np.ndarray,
+                     load: Sequence[float] | np.ndarray, errors: Sequence[int],
+                     alarms: Sequence[str], *,
                      torque_on: tuple[bool, ...],
                      gripper: GripperState | None = None) -> JointState:
         """The servos' decoded readings (servo side, one per joint) as the joints' state,

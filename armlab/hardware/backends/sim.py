@@ -20,6 +20,8 @@ from armlab.control.backend import BackendError, GoalLimits, GripperState, Joint
 from armlab.hardware.backends.gripper import GripperHolder, GripperServo
 from armlab.hardware.servos.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
 from armlab.hardware.servos.servo_spec import COUNTS, RX24F, ServoSpec, TurnEncoder
+from armlab.hardware.servos.sts import StsSpec
+from armlab.hardware.servos.xseries import XSpec
 from armlab.hardware.sim.dynamixel_servo import ServoParams, ServoRegisters, ServoReport
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.wire import protocol1 as p1
@@ -148,7 +150,7 @@ class SimBackend(GoalLimits):
     """
 
     def __init__(self, model: SerialChain, *, specs: ServoSpec | Sequence[ServoSpec] | None = None,
-                 dt: float = 1e-3, q0: np.ndarray | None = None,
+                 dt: float = 1e-3, q0: np.ndarray | Sequence[float] | None = None,
                  directions: Sequence[float] | None = None,
                  params: ServoParams | Sequence[ServoParams] | None = None,
                  torque_on: bool = True) -> None:
@@ -196,7 +198,7 @@ class SimBackend(GoalLimits):
             self._check_open()
             reports = self.plant.reports()
             t = self.plant.t
-        return decode_reports(reports, self.specs, self.directions, t)
+        return decode_reports(reports, self.specs, self.directions, t)  # type: ignore[arg-type]  # a 1.0 plant's: its servos are ServoModels
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving Speed.
@@ -235,8 +237,8 @@ class SimBackend(GoalLimits):
         with self._lock:
             self._check_open()
             for servo, limit in zip(self.plant.servos, self._torque_limits, strict=True):
-                if on and servo.regs.torque_limit == 0:
-                    servo.regs.torque_limit = limit
+                if on and servo.regs.torque_limit == 0:  # type: ignore[union-attr]  # a 1.0 plant's: its servos are ServoModels
+                    servo.regs.torque_limit = limit  # type: ignore[union-attr]  # a 1.0 plant's: its servos are ServoModels
                 servo.regs.torque_enable = int(bool(on))
 
     def estop(self) -> bool:
@@ -306,7 +308,7 @@ class GrippedSimBackend(SimBackend, GripperHolder):
     gripper: GripperServo | None = None
     gripper_plant: Plant | None = None
 
-    def _open_arm(self, model: SerialChain, spec: TurnEncoder, *,
+    def _open_arm(self, model: SerialChain, spec: XSpec | StsSpec, *,
                   registers: Callable[..., Any], dt: float, q0: np.ndarray | None,
                   directions: Sequence[float] | None,
                   params: ServoParams | Sequence[ServoParams] | None, torque_on: bool) -> None:

@@ -77,8 +77,8 @@ class StsBackend(ServoBusBackend):
 
     def _layout(self) -> None:
         t = self.table
-        self._torque_limit_raw = round(self.torque_limit * t.item("max_torque").default)
-        self._gripper_limit_raw = round(SO101_GRIPPER_TORQUE_LIMIT
+        self._torque_limit_raw = round(self.torque_limit * t.item("max_torque").default)  # type: ignore[operator]  # the STS tables give max_torque a default
+        self._gripper_limit_raw = round(SO101_GRIPPER_TORQUE_LIMIT  # type: ignore[operator]  # the STS tables give max_torque a default
                                         * t.item("max_torque").default)
         #: (item, offset in the SYNC_READ's bytes) of what a read decodes
         self._present = {name: t.item(name).address - PRESENT_AT for name in (
@@ -105,7 +105,7 @@ class StsBackend(ServoBusBackend):
             pos.append(a)
             vel.append(v)
             load.append(tau)
-            err = int(self.bus.errors.get(j.servo_id, 0))
+            err = int(self.bus.errors.get(j.servo_id, 0))  # type: ignore[arg-type]  # a 1.0-frame bus: its errors are ErrorBits
             errors.append(err)
             alarms.append(sts_alarm(err, servo_id=j.servo_id))
             if err and not self._shutdown[k]:  # told once, until the torque comes on again
@@ -123,7 +123,7 @@ class StsBackend(ServoBusBackend):
         are told once and logged."""
         g = self.gripper
         assert g is not None
-        err = int(self.bus.errors.get(g.servo_id, 0))
+        err = int(self.bus.errors.get(g.servo_id, 0))  # type: ignore[arg-type]  # a 1.0-frame bus: its errors are ErrorBits
         if err and not self._gripper_alarm:  # told once
             self._gripper_alarm = sts_alarm(err, servo_id=g.servo_id)
             log.warning("gripper: %s", self._gripper_alarm)

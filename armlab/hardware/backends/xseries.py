@@ -35,7 +35,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -51,6 +51,8 @@ from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.servos.xseries import (
     VELOCITY_UNIT,
     OperatingMode,
+    XControlTable,
+    XSpec,
     hardware_alarm,
     lab_mode,
     lab_settings,
@@ -79,6 +81,8 @@ class XSeriesBackend(ServoBusBackend):
     """
 
     PROTOCOL = 2
+    table: XControlTable
+    spec: XSpec
     _goal_at, _goal_len = GOAL_AT, GOAL_LEN
 
     def _layout(self) -> None:
@@ -100,7 +104,7 @@ class XSeriesBackend(ServoBusBackend):
             vel.append(s.raw_to_velocity(int.from_bytes(raw[2:6], "little", signed=True)))
             pos.append(s.raw_to_position(int.from_bytes(raw[6:10], "little", signed=True)))
             load.append(s.raw_to_torque(current))
-            err = self.bus.errors.get(j.servo_id, p2.StatusError())
+            err = cast(p2.StatusError, self.bus.errors.get(j.servo_id, p2.StatusError()))  # 2.0's
             errors.append(err.byte)
             if err.alert and not self._shutdown[k]:  # asked once, told once
                 bits = self._guard(self.bus.read, j.servo_id, "hardware_error_status")
@@ -118,7 +122,7 @@ class XSeriesBackend(ServoBusBackend):
         finger's state; its hardware alert is asked about once and logged."""
         g = self.gripper
         assert g is not None
-        err = self.bus.errors.get(g.servo_id, p2.StatusError())
+        err = cast(p2.StatusError, self.bus.errors.get(g.servo_id, p2.StatusError()))  # 2.0's
         if err.alert and not self._gripper_alarm:
             bits = self._guard(self.bus.read, g.servo_id, "hardware_error_status")
             self._gripper_alarm = hardware_alarm(bits, servo_id=g.servo_id)
@@ -152,7 +156,7 @@ class XSeriesBackend(ServoBusBackend):
         ids = self.map.ids
         down = [ids[k] for k in range(self.n) if self._shutdown[k]]
         if self._gripper_alarm:
-            down.append(self.gripper.servo_id)  # type: ignore[union-attr]
+            down.append(self.gripper.servo_id)  # type: ignore[union-attr]  # a gripper alarm: there is a gripper
         for i in down:
             self._guard(self.bus.reboot, i)
         if down:

@@ -30,7 +30,7 @@ import time
 import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Protocol, Self, TextIO
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TextIO
 
 from armlab.hardware.backends.joint_map import JointMap, default_joint_map
 from armlab.hardware.families import family
@@ -250,6 +250,15 @@ class ServoBus:
     physics: Any
     t: float = 0.0
 
+    if TYPE_CHECKING:  # what each protocol's network (a subclass) defines, for mypy only
+        protocol: ClassVar[int | str]
+
+        def handle(self, packet: Any, *, baud: float | None = None
+                   ) -> list[tuple[Any, bytes]]: ...
+
+        def checksum_error(self, raw: bytes, *, baud: float | None = None
+                           ) -> list[tuple[Any, bytes]]: ...
+
     def tick(self, t: float) -> None:
         """Advance the plant to ``t`` s and refresh every servo's present values."""
         self.t = t
@@ -268,7 +277,7 @@ class ServoBus:
         for k in range(0, len(body), length + 1):
             s = by_id.get(body[k])
             if s is not None:
-                s.write(address, bytes(body[k + 1 : k + 1 + length]))  # type: ignore[attr-defined]
+                s.write(address, bytes(body[k + 1 : k + 1 + length]))  # type: ignore[attr-defined]  # each family's servo has write
                 self.physics.apply(s)
 
 
@@ -508,7 +517,7 @@ class PtyEmulator:
             except (self._p.ProtocolError, p1.ProtocolError):  # a status packet: not ours
                 continue
             self._tick(now)
-            replies = self.network.handle(packet, baud=baud)  # type: ignore[arg-type]
+            replies = self.network.handle(packet, baud=baud)
             self._schedule(raw, replies, now, wire_baud)
         bad = getattr(self._parser, "bad", [])  # protocol 1.0: broken checksums
         for raw in bad:
@@ -770,7 +779,7 @@ def emulated_network(model: SerialChain | Quadruped, *, ids: Sequence[int] | Non
     for c, chain in enumerate(chains):
         plants.append(Plant(chain, table.spec, dt=dt))
         slots += [(c, j) for j in range(chain.n)]
-    positions = [plants[p].servos[j].present_position() for p, j in slots]
+    positions = [plants[p].servos[j].present_position() for p, j in slots]  # type: ignore[union-attr]  # the plant's servos are of this table's family
     servos = make_servos([table] * len(slots), jmap.ids, baud_value=value_from_baud(baud),
                          positions=positions)
     load = None

@@ -65,7 +65,7 @@ class StsVirtualServo(TableImage):
 
     @property
     def sts(self) -> StsControlTable:
-        return self.table  # type: ignore[return-value]
+        return self.table  # type: ignore[return-value]  # an STS servo's table is an StsControlTable
 
     def put(self, name: str, value: int) -> None:
         """Set an item from the servo's side (present values), sign-magnitude encoded."""
@@ -107,7 +107,7 @@ class StsPlantPhysics(ArmPhysics):
     bus.ArmPhysics`: the arm's, the gripper's): each servo's registers go into its
     :class:`~armlab.hardware.sim.sts_servo.StsServoModel`, its report comes back."""
 
-    def _model(self, s: StsVirtualServo) -> StsServoModel:  # type: ignore[override]
+    def _model(self, s: StsVirtualServo) -> StsServoModel:  # type: ignore[override]  # an STS network's servos are StsVirtualServos
         return super()._model(s)
 
     def apply(self, s: StsVirtualServo) -> None:
@@ -238,7 +238,7 @@ def emulated_sts_network(model: SerialChain, ids: Sequence[int], *, servo: str =
     physics = StsPlantPhysics(plant, gripper=jaw)
     models = [*plant.servos, *(jaw.servos if jaw is not None else ())]
     servos = [StsVirtualServo.new(table, i, j, baud_value=baud_value,
-                                  present_position=m.present_position())
+                                  present_position=m.present_position())  # type: ignore[union-attr]  # the plant's servos are of this table's family
               for j, (i, m) in enumerate(zip(every, models, strict=True))]
     for s in servos:
         physics.apply(s)

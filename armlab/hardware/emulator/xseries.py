@@ -23,12 +23,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from armlab.hardware.backends.gripper import GripperServo, gripper_plant
 from armlab.hardware.backends.joint_map import JointMap
 from armlab.hardware.emulator.bus import ArmPhysics, ServoBus, TableImage
-from armlab.hardware.servos.xseries import TABLE_SIZE, OperatingMode, x_table_for
+from armlab.hardware.servos.xseries import TABLE_SIZE, OperatingMode, XControlTable, x_table_for
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.xseries_servo import XRegisters
 from armlab.hardware.wire import protocol2 as p2
@@ -56,6 +56,8 @@ class XVirtualServo(TableImage):
 
     hardware_error: int = 0
     FIRMWARE: ClassVar[int] = EMULATED_FIRMWARE
+    if TYPE_CHECKING:  # for mypy only: the dataclass's fields stay the base's
+        table: XControlTable
 
     def answers(self, instruction: int) -> bool:
         """Status Return Level (address 68): 0 = PING only, 1 = + READs, 2 = all."""
@@ -132,7 +134,7 @@ class XVirtualServo(TableImage):
         self.pending = None
         self.hardware_error = 0
 
-    def factory_reset(self, level: int) -> None:
+    def factory_reset(self, level: int) -> None:  # type: ignore[override]  # 2.0's reset takes a level (1.0's none)
         """FACTORY_RESET at ``level`` (0xFF everything, 0x01 keep the ID, 0x02 keep the ID
         and the baud rate)."""
         keep_id = self.servo_id if level in (p2.ResetLevel.KEEP_ID,

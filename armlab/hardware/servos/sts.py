@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
 from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
@@ -213,6 +214,9 @@ class StsControlTable(ControlTable):
     """The control table of an STS model: named access and range checks from
     :class:`ControlTable`, with sign-magnitude items and its own units."""
 
+    if TYPE_CHECKING:  # for mypy only: the dataclass's fields stay the base's
+        spec: StsSpec  # type: ignore[assignment]  # a family's table holds its own spec class
+
     def _raw(self, item: Item, value: int) -> int:
         sign = getattr(item, "sign_bit", None)
         return int(value) if sign is None else encode_sign_magnitude(value, sign)
@@ -241,7 +245,7 @@ class StsControlTable(ControlTable):
         memory[item.address : item.address + item.size] = \
             self._raw(item, value).to_bytes(item.size, "little")
 
-    def defaults(self, *, firmware: int = 0, servo_id: int = 1,  # type: ignore[override]
+    def defaults(self, *, firmware: int = 0, servo_id: int = 1,
                  present_position: int = CENTRE, baud_value: int | None = None) -> bytearray:
         """Power-on image (71 bytes): the factory values; goal position at the present
         position, torque limit at max torque."""
@@ -261,7 +265,7 @@ class StsControlTable(ControlTable):
     def to_si(self, name: str, raw: int) -> float:
         """Raw value -> SI: rad, rad/s, N·m, A, V, °C, s, bit/s (plain numbers as is)."""
         unit = self.item(name).unit
-        s: StsSpec = self.spec  # type: ignore[assignment]
+        s: StsSpec = self.spec
         raw = int(raw)
         if unit == "position":
             return s.raw_to_position(raw)
@@ -282,7 +286,7 @@ class StsControlTable(ControlTable):
     def from_si(self, name: str, value: float) -> int:
         """SI value -> raw value for writing ``name`` (range-checked by :meth:`encode`)."""
         unit = self.item(name).unit
-        s: StsSpec = self.spec  # type: ignore[assignment]
+        s: StsSpec = self.spec
         if unit == "position":
             return s.position_to_raw(value)
         if unit == "speed":
@@ -317,7 +321,7 @@ def lab_settings(table: StsControlTable, *, torque_limit: float
     ``torque_limit`` (a fraction) of the maximum. The STS backend writes them to real
     servos (the EEPROM ones only when they differ); the simulator sets them in its
     firmware model's registers."""
-    raw = round(torque_limit * table.item("max_torque").default)
+    raw = round(torque_limit * table.item("max_torque").default)  # type: ignore[operator]  # the tables give these items a default
     return (
         ("operating_mode", OperatingMode.POSITION, "operating mode 0 (position)"),
         ("p_coefficient", LAB_P_COEFFICIENT,
@@ -350,7 +354,7 @@ def sts_alarm(bits: int, *, servo_id: int | None = None) -> str:
     return f"{who}{describe_errors(bits)}" + (f": {'; '.join(ways)}" if ways else "")
 
 
-STS3215_TABLE = StsControlTable(STS3215, _items())  # type: ignore[arg-type]
+STS3215_TABLE = StsControlTable(STS3215, _items())
 STS_TABLES = {t.spec.model_number: t for t in (STS3215_TABLE,)}
 
 

@@ -16,6 +16,7 @@ reports Present Load in 0.1 % of its maximum torque at that address.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
 from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
@@ -221,6 +222,9 @@ class XControlTable(ControlTable):
     """The control table of one X-series model (named access and range checks from
     :class:`ControlTable`; its own units and power-on image)."""
 
+    if TYPE_CHECKING:  # for mypy only: the dataclass's fields stay the base's
+        spec: XSpec  # type: ignore[assignment]  # a family's table holds its own spec class
+
     def check_operating_mode(self, mode: int) -> int:
         """``mode`` if this model accepts it; ValueError naming the model otherwise."""
         if int(mode) not in self.spec.modes:
@@ -228,7 +232,7 @@ class XControlTable(ControlTable):
                              f"(it takes {', '.join(map(str, self.spec.modes))})")
         return int(mode)
 
-    def defaults(self, *, firmware: int = 0, servo_id: int = 1,  # type: ignore[override]
+    def defaults(self, *, firmware: int = 0, servo_id: int = 1,
                  present_position: int = CENTRE, baud_value: int | None = None) -> bytearray:
         """Power-on image (147 bytes) with the factory EEPROM values; Goal Position starts
         at the present position."""
@@ -251,7 +255,7 @@ class XControlTable(ControlTable):
     def to_si(self, name: str, raw: int) -> float:
         """Raw value -> SI: rad, rad/s, A, N·m (XL430 load), V, °C, s, bit/s, fraction."""
         unit = self.item(name).unit
-        s: XSpec = self.spec  # type: ignore[assignment]
+        s: XSpec = self.spec
         raw = int(raw)
         if unit == "position":
             return s.raw_to_position(raw)
@@ -274,7 +278,7 @@ class XControlTable(ControlTable):
     def from_si(self, name: str, value: float) -> int:
         """SI value -> raw value for writing item ``name`` (range-checked by ``encode``)."""
         unit = self.item(name).unit
-        s: XSpec = self.spec  # type: ignore[assignment]
+        s: XSpec = self.spec
         if unit == "position":
             return s.position_to_raw(value)
         if unit == "velocity":
@@ -296,9 +300,9 @@ class XControlTable(ControlTable):
         return int(round(value))
 
 
-XL430_W250_TABLE = XControlTable(XL430_W250, _items(XL430_W250))  # type: ignore[arg-type]
-XM430_W350_TABLE = XControlTable(XM430_W350, _items(XM430_W350))  # type: ignore[arg-type]
-XL330_M288_TABLE = XControlTable(XL330_M288, _items(XL330_M288))  # type: ignore[arg-type]
+XL430_W250_TABLE = XControlTable(XL430_W250, _items(XL430_W250))
+XM430_W350_TABLE = XControlTable(XM430_W350, _items(XM430_W350))
+XL330_M288_TABLE = XControlTable(XL330_M288, _items(XL330_M288))
 X_TABLES = {t.spec.model_number: t for t in (XL430_W250_TABLE, XM430_W350_TABLE,
                                              XL330_M288_TABLE)}
 
@@ -320,7 +324,7 @@ def x_table_for(model: int | str) -> XControlTable:
     return X_TABLES[int(model)]
 
 
-def lab_mode(spec: XSpec) -> OperatingMode:
+def lab_mode(spec: XSpec) -> int:
     """The operating mode the lab runs a servo in: current-based position control where it
     measures its current (Goal Current then bounds its torque), else position control."""
     return OperatingMode.CURRENT_BASED_POSITION if spec.has_current else OperatingMode.POSITION
@@ -335,9 +339,9 @@ def lab_settings(spec: XSpec, *, torque_limit: float) -> tuple[tuple[str, int, s
     table = x_table_for(spec.model_number)
     share = f"{torque_limit:.0%} of its limit"
     if not spec.has_current:
-        return (("goal_pwm", round(torque_limit * table.item("pwm_limit").default),
+        return (("goal_pwm", round(torque_limit * table.item("pwm_limit").default),  # type: ignore[operator]  # the tables give these items a default
                  f"goal PWM {share}"),)
-    return (("goal_current", round(torque_limit * table.item("current_limit").default),
+    return (("goal_current", round(torque_limit * table.item("current_limit").default),  # type: ignore[operator]  # the tables give these items a default
              f"goal current {share}"),
             ("position_d_gain", CURRENT_POSITION_D_GAIN,
              f"position D gain {CURRENT_POSITION_D_GAIN} (the damping the current loop "

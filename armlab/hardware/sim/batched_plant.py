@@ -42,7 +42,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import fields
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -182,7 +182,7 @@ class BatchedPlant:
         self._next_id = 0
         self._ids = np.zeros(0, dtype=np.int64)
         self._row_of: dict[int, int] = {}  # id -> row, rebuilt when an arm joins or leaves
-        self._s = {k: np.zeros((n, 0), dtype=t) for k, t in _STATE.items()}
+        self._s: dict[str, np.ndarray] = {k: np.zeros((n, 0), dtype=t) for k, t in _STATE.items()}
         self._r = {k: np.zeros((n, 0), dtype=np.int64) for k in REGISTERS}
         # pushes, one row each: arm row, link, force (3,), point (3,), until (s)
         self._p_row = np.zeros(0, dtype=np.int64)
@@ -190,7 +190,8 @@ class BatchedPlant:
         self._p_force = np.zeros((0, 3))
         self._p_point = np.zeros((0, 3))
         self._p_until = np.zeros(0)
-        self._f = {k: np.zeros((*shape, 0), dtype=t) for k, (shape, t) in _FIELDS.items()}
+        self._f: dict[str, np.ndarray] = {k: np.zeros((*shape, 0), dtype=t)
+                                          for k, (shape, t) in _FIELDS.items()}
         self._tip = tuple(float(x) for x in model.tip[:3, 3])
         for _ in range(int(n_arms)):
             self.add_arm(q0=q0, registers=registers)
@@ -228,7 +229,7 @@ class BatchedPlant:
             raise ValueError(f"registers must have {n} entries, got {len(registers)}")
         angle = [d * float(x) for d, x in zip(self.directions, q, strict=True)]
         present = [s.position_to_raw(a) for s, a in zip(self.specs, angle, strict=True)]
-        new: dict[str, list[object]] = {k: [0] * n for k in _STATE}
+        new: dict[str, Sequence[object]] = {k: [0] * n for k in _STATE}
         new["q"], new["qd"] = [float(x) for x in q], [float(x) for x in qd]
         new["present"] = present
         new["setpoint"] = [float(p) for p in present]
@@ -333,7 +334,7 @@ class BatchedPlant:
             raise ValueError(f"name must be a register ({', '.join(REGISTERS)}), got {name!r}")
         v = np.asarray(values)
         cols = self._rows(rows)
-        want = (self.n_arms if rows is None else int(np.size(cols)), self.n)
+        want = (self.n_arms if rows is None else int(np.size(cast(np.ndarray, cols))), self.n)
         if v.shape != want or not np.issubdtype(v.dtype, np.integer):
             raise ValueError(f"values must be integers of shape {want}, got {v.dtype} {v.shape}")
         if v.size and (v.min() < 0 or v.max() > 0xFFFF):
@@ -369,14 +370,14 @@ class BatchedPlant:
         """Torque Enable of every joint of every arm (or of the arm rows ``rows``): ``on`` one
         bool, or (N,) / (len(rows),) bools, one per arm."""
         cols = self._rows(rows)
-        count = self.n_arms if rows is None else int(np.size(cols))
+        count = self.n_arms if rows is None else int(np.size(cast(np.ndarray, cols)))
         flags = np.asarray(on)
         if flags.dtype != np.bool_ or flags.shape not in ((), (count,)):
             raise ValueError(f"on must be a bool or ({count},) bools, got {flags.dtype} "
                              f"{flags.shape}")
         self._r["torque_enable"][:, cols] = flags.astype(np.int64)
 
-    def _rows(self, rows: Sequence[int] | None) -> slice | np.ndarray:
+    def _rows(self, rows: Sequence[int] | np.ndarray | None) -> slice | np.ndarray:
         if rows is None:
             return slice(None)
         r = np.asarray(rows)

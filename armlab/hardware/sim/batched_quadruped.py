@@ -64,6 +64,7 @@ import dataclasses
 import threading
 import time
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -79,6 +80,9 @@ from armlab.kinematics.model import Quadruped, SerialChain
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry, foot_in_tibia
 from armlab.kinematics.validate import index, scalar, vector
 
+if TYPE_CHECKING:
+    from armlab.control.periodic import HandOverLock
+
 #: The link each foot is on (the tibia).
 FOOT_LINK = LEG_JOINTS - 1
 #: SerialChain fields that do not move a leg's plant: names, the viewer's files, and the
@@ -86,7 +90,7 @@ FOOT_LINK = LEG_JOINTS - 1
 _NOT_DYNAMICS = frozenset({"name", "base_pose", "urdf_path", "link_names", "package_paths"})
 
 
-def _equal(a: object, b: object) -> bool:
+def _equal(a: Any, b: Any) -> bool:  # any two field values
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
     if isinstance(a, tuple) and isinstance(b, tuple):
@@ -478,7 +482,8 @@ class RobotBody:
     ``tilt_deg``, ``contact`` (4,), ``forces`` (4,) N at its last load renewal, ``weight``
     N, ``q()`` (12,) rad. Every read holds ``lock``."""
 
-    def __init__(self, batch: BatchedQuadrupeds, robot: int, lock: threading.RLock) -> None:
+    def __init__(self, batch: BatchedQuadrupeds, robot: int,
+                 lock: threading.RLock | HandOverLock) -> None:
         self.batch = batch
         self.robot = robot
         self.weight = batch.weight
@@ -527,7 +532,8 @@ class BatchedQuadrupedBackend(GoalLimits):
     robot's Torque Limit registers when the backend is made.
     """
 
-    def __init__(self, batch: BatchedQuadrupeds, robot: int, *, lock: threading.RLock,
+    def __init__(self, batch: BatchedQuadrupeds, robot: int, *,
+                 lock: threading.RLock | HandOverLock,
                  drive: bool = False, wait_s: float = 1.0) -> None:
         self.batch = batch
         self.model = batch.model

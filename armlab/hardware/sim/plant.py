@@ -25,14 +25,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from armlab.hardware.families import FAMILIES, family_of_spec
 from armlab.hardware.servos.servo_spec import ServoSpec
+from armlab.hardware.servos.sts import StsSpec
 from armlab.hardware.servos.xseries import XSpec
 from armlab.hardware.sim.dynamixel_servo import ServoModel, ServoParams, ServoRegisters, ServoReport
 from armlab.hardware.sim.plant_step import rk4_step
+from armlab.hardware.sim.sts_servo import StsRegisters
 from armlab.hardware.sim.xseries_servo import XRegisters, XReport, XServoModel
 from armlab.kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from armlab.kinematics.model import SerialChain
@@ -167,11 +170,11 @@ class Plant:
     """
 
     def __init__(self, model: SerialChain,
-                 specs: ServoSpec | XSpec | Sequence[ServoSpec | XSpec], *,
-                 dt: float = 1e-3, q0: np.ndarray | None = None,
+                 specs: ServoSpec | XSpec | StsSpec | Sequence[ServoSpec | XSpec | StsSpec], *,
+                 dt: float = 1e-3, q0: np.ndarray | Sequence[float] | None = None,
                  qd0: np.ndarray | None = None, directions: Sequence[float] | None = None,
                  params: ServoParams | Sequence[ServoParams] | None = None,
-                 registers: Sequence[ServoRegisters | XRegisters] | None = None,
+                 registers: Sequence[ServoRegisters | XRegisters | StsRegisters] | None = None,
                  stops: JointStops | None = JointStops()) -> None:
         n = model.n
         self.model = model
@@ -181,7 +184,7 @@ class Plant:
             raise ValueError(f"dt must be <= 0.01 s for a stable servo loop, got {dt}")
         self._dyn = dynamics_model(model)
         one = isinstance(specs, tuple(f.spec_type for f in FAMILIES))
-        spec_list = [specs] * n if one else list(specs)  # type: ignore[list-item]
+        spec_list = [specs] * n if one else list(specs)  # type: ignore[arg-type]  # not one: a sequence (mypy cannot narrow on FAMILIES' spec types)
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
         # each servo's firmware model is its family's (:mod:`armlab.hardware.families`)
@@ -210,7 +213,7 @@ class Plant:
             raise ValueError(f"registers must have {n} entries, got {len(registers)}")
         self.servos: tuple[ServoModel | XServoModel, ...] = tuple(
             firmware[i](
-                spec_list[i], None if registers is None else registers[i],  # type: ignore[arg-type]
+                spec_list[i], None if registers is None else registers[i],
                 params=param_list[i], angle=dirs[i] * self._q[i]) for i in range(n))
         self._armature = [p.rotor_inertia for p in param_list]
         self._viscous = [p.viscous_friction for p in param_list]
@@ -295,7 +298,8 @@ class Plant:
         origin, normal, k, c, li, pt = checked_wall(
             origin_base, normal_base, stiffness, damping, link, point, n=self.n,
             tip=self.model.tip[:3, 3], link_index=self._link)
-        self._wall = _Wall(tuple(origin), tuple(normal), k, c, li, tuple(float(x) for x in pt))
+        self._wall = _Wall(tuple(origin), tuple(normal), k, c, li,
+                           cast("tuple[float, float, float]", tuple(float(x) for x in pt)))
 
     def apply_joint_torque(self, joint: int, torque: float, *, start: float = 0.0) -> None:
         """A known disturbance: a constant ``torque`` N·m on ``joint`` (positive along the

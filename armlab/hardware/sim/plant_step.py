@@ -91,4 +91,4 @@ def rk4_step(n: int, coulomb_joints: tuple[int, ...], held: int) -> StepFunction
     lines.append(f"    return [{new_q}], [{new_qd}]")
     namespace: dict[str, object] = {"_tanh": math.tanh}
     exec(compile("\n".join(lines) + "\n", f"<plant step, {n} joints>", "exec"), namespace)
-    return namespace["step"]  # type: ignore[return-value]
+    return namespace["step"]  # type: ignore[return-value]  # the generated step function

@@ -96,9 +96,9 @@ class StsRegisters:
     def factory(cls, table: StsControlTable, *, goal_position: int = CENTRE) -> StsRegisters:
         """The power-on registers of ``table``'s model (its items' factory values)."""
         items = {item.name: item for item in table.items}
-        values = {name: int(items[name].default) for name in cls.__dataclass_fields__
+        values = {name: int(items[name].default) for name in cls.__dataclass_fields__  # type: ignore[arg-type]  # only items with a default are read (filtered or known)
                   if name in items and items[name].default is not None}
-        values["torque_limit"] = int(items["max_torque"].default)
+        values["torque_limit"] = int(items["max_torque"].default)  # type: ignore[arg-type]  # only items with a default are read (filtered or known)
         values["goal_position"] = int(goal_position)
         return cls(**values)
 

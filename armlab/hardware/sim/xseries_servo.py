@@ -116,7 +116,7 @@ class XRegisters:
     def factory(cls, table: XControlTable, *, goal_position: int = CENTRE) -> XRegisters:
         """The power-on registers of ``table``'s model (its items' factory values)."""
         items = {item.name: item for item in table.items}
-        values = {name: int(items[name].default) for name in cls.__dataclass_fields__
+        values = {name: int(items[name].default) for name in cls.__dataclass_fields__  # type: ignore[arg-type]  # only items with a default are read (filtered or known)
                   if name in items and items[name].default is not None}
         if "goal_current" in items:
             values["goal_current"] = values.get("current_limit", 0)

@@ -399,7 +399,7 @@ class Bus:
         self.stats.bytes_out += len(packet)
         return backlog
 
-    def _lost(self, exc: BaseException) -> LinkLost:
+    def _lost(self, exc: BaseException | str) -> LinkLost:
         return LinkLost(
             f"lost the serial link on {self.port} ({exc}): is the adapter unplugged, "
             "the servo power off, or the emulator stopped?"
@@ -530,9 +530,9 @@ class Bus:
             timeout = backlog + wire_time(len(packet), self._baud) + len(ids) * each + \
                 (self.timeout_margin if margin is None else margin)
             answers = self._receive(packet, {i: 3 for i in ids}, timeout=timeout)
-        return answers  # type: ignore[return-value]
+        return answers  # type: ignore[return-value]  # 2.0 answers: protocol 2's status packets
 
-    def ping_other_protocol(self, ids: Sequence[int]) -> tuple[int, list[int]]:
+    def ping_other_protocol(self, ids: Sequence[int]) -> tuple[int | str, list[int]]:
         """Which servos answer a PING in the protocol this bus does *not* speak, at its baud.
 
         How a backend tells "nothing answers here" from "servos of the other family answer

@@ -114,7 +114,7 @@ class StatusPacket(_frame.StatusPacket):
     """A decoded status packet (what a servo answers): protocol 1.0's frame and fields
     (its ``encode``), the error byte Feetech's :class:`ErrorBits`."""
 
-    error: ErrorBits  # type: ignore[assignment]
+    error: ErrorBits  # type: ignore[assignment]  # Feetech's error bits in place of 1.0's (same frame)
 
     def check(self) -> StatusPacket:
         """Return self, or raise :class:`ServoError` when any error bit is set."""

@@ -70,7 +70,7 @@ def error_names(error: int) -> str:
     if not int(error) & 0x7F:
         return "ok"
     flags = ErrorBits(int(error) & 0x7F)
-    names = [bit.name.lower().replace("_", " ") for bit in ErrorBits if bit in flags]
+    names = [bit.name.lower().replace("_", " ") for bit in ErrorBits if bit in flags]  # type: ignore[union-attr]  # an enum member's name is never None
     return ", ".join(names)
 
 
