@@ -55,8 +55,10 @@ test: $(DEVSTAMP)
 test-fast: $(DEVSTAMP)
 	$(PYTEST) $(FAST_PARALLEL) -m "$(OFF_CLOCK_TESTS) and not slow"
 
+# ruff, then mypy on the whole package (pyproject.toml's [tool.mypy])
 lint: $(DEVSTAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 bench: $(STAMP)
 	$(BIN)/armlab bench
