@@ -79,3 +79,32 @@ def test_switching_lessons_from_the_page_stops_the_old_one():
             while not lab.lesson.rig.loop.status.estopped and time.monotonic() < deadline:
                 time.sleep(0.05)
             assert lab.lesson.rig.loop.status.estopped
+
+
+def test_a_lessons_gains_and_measurements_survive_a_switch_away_and_back():
+    """Switching to another lesson and back keeps the compliance lesson as it was left:
+    its gains, its measured step (the Teach tab's measured column) and chapter 4's
+    figures; they used to be lost with the lesson."""
+    from armlab.app.lessons.compliance_teach import design_table
+
+    with Lab(ServeOptions(http_port=0, realtime=False)) as lab:
+        lesson = lab.lesson
+        lesson.gains.sliders["kp"].set(24.0)
+        deadline = time.monotonic() + 60
+        while lesson.rig.loop.params.kp != 24.0 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        lesson.run_step(joint=2, step_deg=10.0)
+        deadline = time.monotonic() + 120
+        while lesson.measured_pd is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        measured = lesson.measured_pd
+        assert measured is not None and measured.params.kp == 24.0
+        text = lesson.step_result.content
+        lab.switch("arm")
+        lab.switch("compliance")
+        back = lab.lesson
+        assert back is not lesson and back.rig.loop.params.kp == 24.0
+        assert back.gains.params.kp == 24.0 and back.gains.sliders["kp"].handle.value == 24.0
+        assert back.measured_pd == measured and back.step_result.content == text
+        assert "PD measured on: step of θ2" in design_table(back.gains.params, back.measured_pd,
+                                                            back.measured_env)

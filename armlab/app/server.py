@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 import socket
 import sys
 import threading
@@ -278,6 +279,8 @@ class Lab:
                 f"{self.url}&{PRESENTER_QUERY}={self.room.roles.passcode}"
             self._build_chrome(name)
             self.lesson: LessonHandle | None = None
+            #: lesson name -> what it kept when last closed (LessonHandle.keep)
+            self._kept: dict[str, object | None] = {}
             self._open(name)
             #: the challenge every page shows (armlab.app.page.challenge_panel)
             self.challenges = ChallengeDesk(self, shared=self.room is not None)
@@ -353,6 +356,7 @@ class Lab:
             if not works_with(module, ctx.robot):  # the URDF options belong to the robot
                 ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
                               joint_map=None)
+        ctx = replace(ctx, kept=self._kept.get(name))  # its last opening's, if any
         collector.tidy()  # what a closed lesson left, freed while no lesson runs here
         self.lesson = module.build(self.server, ctx)
         collector.keep()  # the lab and its lesson: out of the collector's full passes
@@ -371,6 +375,11 @@ class Lab:
                 return
             previous = self.lesson_name
             if self.lesson is not None:
+                try:  # its gains and measurements, for when it opens again
+                    self._kept[previous] = self.lesson.keep()
+                except Exception:  # (a lesson that cannot say loses them, never the switch)
+                    logging.getLogger(__name__).exception(
+                        "armlab: %s kept nothing for its next opening", previous)
                 self.lesson.close()
                 self.lesson = None
                 collector.closed()

@@ -87,6 +87,9 @@ class LessonContext:
             runs it in place of the lab's, beside a reference arm (None: the lab's own).
         who: client id -> the name that page goes by in a class (None: no class); a run
             file says who saved it.
+        kept: what this lesson kept when it was last closed in this lab (its
+            :meth:`LessonHandle.keep`: its gains, link lengths and measurements), so that a
+            switch away and back loses nothing; None: a first open.
     """
 
     robot: str = "receptionist_arm"
@@ -102,6 +105,7 @@ class LessonContext:
     frames: FrameThread | None = None
     law: StudentLaw | None = None
     who: Callable[[int], str] | None = None
+    kept: object | None = None
 
 
 class ArmSource(Protocol):
@@ -197,6 +201,11 @@ class LessonHandle(Protocol):
 
     def estop(self) -> None:
         """Torque off now (the lab's E-STOP button); never raises. Nothing to stop: nothing."""
+        ...
+
+    def keep(self) -> object | None:
+        """What the lesson hands its next opening in this lab (``LessonContext.kept``),
+        taken just before it closes: its settings and measurements (None: nothing)."""
         ...
 
     def gui_handles(self) -> tuple[Any, ...]:

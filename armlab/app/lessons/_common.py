@@ -115,6 +115,10 @@ class LessonBase:
         self._closed = False
         self._gui = LessonGui(server.gui)
 
+    def keep(self) -> object | None:
+        """Nothing kept for the next opening (a lesson with measurements overrides this)."""
+        return None
+
     @contextmanager
     def opening(self, *undo: Callable[[], object] | None) -> Iterator[None]:
         """A block that adds the lesson to the page: if it raises, each of ``undo`` (None:
@@ -163,7 +167,7 @@ class LessonBase:
             return True
 
 
-def guarded(event: viser.GuiEvent | viser.TransformControlsEvent, action: Callable[[], object], *,
+def guarded(event: viser.GuiEvent, action: Callable[[], object], *,
             undo: Callable[[], object] | None = None) -> None:
     """Run a GUI callback's ``action``; a ValueError it raises is never passed on.
 

@@ -170,6 +170,25 @@ class Rig:
     line: JointTrajectory
 
 
+@dataclass(frozen=True)
+class Kept:
+    """What the lesson hands its next opening in the lab (:meth:`ComplianceLesson.keep`):
+    the link lengths, the gains and every measurement, so that a switch to another lesson
+    and back loses none of them (for the same robot)."""
+
+    robot: str
+    preset: str
+    params: Params
+    measured_pd: Measured | None
+    measured_env: Measured | None
+    chapter4: Chapter4
+    free_q: np.ndarray | None
+    last_run_text: str
+    step_joint: int | None
+    line_push_n: float | None
+    push_n: float | None
+
+
 class ComplianceLesson(LessonBase):
     """The compliance lesson on ``server`` (a :class:`armlab.app.lessons.LessonHandle`).
 
@@ -212,15 +231,44 @@ class ComplianceLesson(LessonBase):
         kept = None if ctx.arms is None else ctx.arms.kept()
         if kept is not None and kept[0] in RECEPTIONIST_PRESETS:
             link_preset, params = kept  # a reload: the student's arm as they left it
+        own = ctx.kept if isinstance(ctx.kept, Kept) and ctx.kept.robot == ctx.robot and \
+            ctx.kept.preset in RECEPTIONIST_PRESETS else None
+        if own is not None:  # back from another lesson: as it was left
+            link_preset, params = own.preset, own.params
         with self.opening():
             model = self._load_model(link_preset)
             self._build_gui(params, link_preset, model.joint_names)
             self.rig = self._make_rig(model, link_preset, params)
             show_gain_warning(self.warning, self.rig.loop.gains)
+        if own is not None:
+            self._take_kept(own)
         # an experiment is measured once it is over, whether a page is open to see it or
         # not (or its page is behind: a private page skips frames then)
         self.publish(pose=self._pose_frame, plots=self._plot_frame, pose_hz=pose_hz,
                      plot_hz=plot_hz, every=self._measure)
+
+    def keep(self) -> Kept | None:
+        """The link lengths, gains and measurements, for the lesson's next opening."""
+        rig = self.rig
+        if rig is None:
+            return None
+        return Kept(robot=self.ctx.robot, preset=rig.preset, params=self.gains.params,
+                    measured_pd=self.measured_pd, measured_env=self.measured_env,
+                    chapter4=self.chapter4, free_q=self._free_q,
+                    last_run_text=self.last_run_text, step_joint=self._step_joint,
+                    line_push_n=self._line_push_n, push_n=self._push_n)
+
+    def _take_kept(self, kept: Kept) -> None:
+        """The measurements of the lesson's last opening, shown again (:meth:`keep`)."""
+        self.measured_pd, self.measured_env = kept.measured_pd, kept.measured_env
+        self.chapter4, self._free_q = kept.chapter4, kept.free_q
+        self.last_run_text, self._step_joint = kept.last_run_text, kept.step_joint
+        self._line_push_n, self._push_n = kept.line_push_n, kept.push_n
+        if kept.measured_pd is not None:
+            set_content(self.step_result, measured_line(kept.measured_pd))
+        if kept.measured_env is not None:
+            for beside in (self.pushes.result, self.push_result_run):
+                set_content(beside, measured_line(kept.measured_env))
 
     # ================================================================== rig
 
