@@ -68,11 +68,10 @@ def stale_gains(m: Measured | None, params: Params, names: tuple[tuple[str, str]
     was = [(label, getattr(m.params, key)) for key, label in names
            if getattr(m.params, key) != getattr(params, key)]
 
-    def shown(label: str, v: object) -> str:
+    def shown(label: str, v: str | float) -> str:
         if isinstance(v, str):
             return f"{label} {v}"
-        return f"{label} {people(float(v) * 1000)} ms" if label == "T" else \
-            f"{label} {people(float(v))}"  # type: ignore[arg-type]  # a Params number
+        return f"{label} {people(v * 1000)} ms" if label == "T" else f"{label} {people(v)}"
 
     return ", ".join(shown(label, v) for label, v in was) or None
 
