@@ -167,7 +167,7 @@ class LessonBase:
             return True
 
 
-def guarded(event: viser.GuiEvent, action: Callable[[], object], *,
+def guarded(event: viser.GuiEvent | viser.TransformControlsEvent, action: Callable[[], object], *,
             undo: Callable[[], object] | None = None) -> None:
     """Run a GUI callback's ``action``; a ValueError it raises is never passed on.
 
