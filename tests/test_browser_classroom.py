@@ -154,3 +154,49 @@ def test_the_presenter_link_presents_without_showing_the_passcode(browser, class
         assert page.locator("label", has_text="Passcode").count() == 0
     finally:
         context.close()
+
+
+#: The url under the students' QR code: whether all of it lies inside the panel (its box
+#: within the scrolling panel's, and none of its text scrolled or cut inside the box).
+URL_WHOLE_JS = """(url) => {
+  const el = [...document.querySelectorAll('div')].find(
+    d => d.children.length === 0 && d.textContent.trim() === url);
+  if (!el) return 'no url shown';
+  const panel = el.closest('.mantine-ScrollArea-viewport') || document.body;
+  const r = el.getBoundingClientRect(), p = panel.getBoundingClientRect();
+  if (r.left < p.left - 1 || r.right > p.right + 1) {
+    return `off the panel: ${r.left}..${r.right} in ${p.left}..${p.right}`;
+  }
+  if (el.scrollWidth > el.clientWidth + 1) return `cut: ${el.scrollWidth} > ${el.clientWidth}`;
+  return '';
+}"""
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (390, 844)], ids=["1280x720", "390x844"])
+def test_a_loopback_class_tells_its_presenter_and_the_url_is_whole(browser, classroom, size):
+    """Started without --host, the class listens on 127.0.0.1: the presenter's page says,
+    above the QR code, that phones cannot join and what to pass; the url under the code
+    is whole at every width; the page's labels name their fields."""
+    lab = classroom
+    assert lab.host == "127.0.0.1"
+    context = browser.new_context(viewport={"width": size[0], "height": size[1]})
+    page = context.new_page()
+    try:
+        page.goto(f"{lab.local_url}&presenter={lab.roles.passcode}")
+        page.get_by_text("You now change the shared arm").first.wait_for(timeout=180_000)
+        alert = page.get_by_role("alert").filter(has_text="Phones cannot join")
+        alert.wait_for(timeout=60_000)  # (the folder opens itself on loopback)
+        alert.scroll_into_view_if_needed()
+        assert "--host 0.0.0.0" in alert.inner_text() and alert.is_visible()
+        wait_for(lambda: page.evaluate(URL_WHOLE_JS, lab.url) == "", PAGE_S,
+                 "the url under the QR code whole", every=0.5)
+        # the page's labels are tied to their fields (viser's text rows carry no input id)
+        name = page.get_by_label("Your name")
+        wait_for(lambda: name.count() == 1, PAGE_S, "the name field found by its label",
+                 every=0.5)
+        assert name.evaluate("e => e.tagName") == "INPUT"
+        page.get_by_text("Your name", exact=True).click()
+        wait_for(lambda: name.evaluate("e => document.activeElement === e"), PAGE_S,
+                 "a click on the label to focus its field", every=0.2)
+    finally:
+        context.close()

@@ -46,6 +46,7 @@ from armlab.app.lessons import (
 from armlab.app.page.camera import reframe, reframe_on_reshape
 from armlab.app.page.challenge_panel import ChallengeDesk
 from armlab.app.page.inputs import UpdateScreen
+from armlab.app.page.labels import install as install_labels
 from armlab.app.page.look import Looks
 from armlab.app.page.number_keys import install as install_number_keys
 from armlab.app.page.panels import install as install_panels
@@ -258,6 +259,7 @@ class Lab:
             install_stop_first(self.server)  # E-STOP: first Tab stop, Esc, pinned on a phone
             install_panels(self.server)  # a browser's collapsed side panels kept on reload
             install_number_keys(self.server)  # a number field says what it cannot take
+            install_labels(self.server)  # every label tied to its field
             # a page drawing WebGL on the CPU gets the plain look (armlab.app.page.look)
             self.looks = Looks(self.server, plain_on_software=options.plain_on_software)
             port = self.server.get_port()
@@ -266,6 +268,7 @@ class Lab:
             local = ("::1" if options.host == "::" else "127.0.0.1") if wildcard else options.host
             self.base_url = f"http://{_url_host(shown)}:{port}"
             self.url = f"{self.base_url}/?token={self.token}"
+            self.host = options.host  #: the interface it listens on
             self.local_url = f"http://{_url_host(local)}:{port}/?token={self.token}"
             self.room: Room | None = (Room(self, realtime=options.realtime)
                                       if options.classroom else None)

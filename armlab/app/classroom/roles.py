@@ -277,6 +277,19 @@ def address_of(server: viser.ViserServer, client_id: int) -> str | int:
         return client_id
 
 
+#: The names of this machine only: a class listening on one of them cannot be joined.
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def loopback_warning(host: str) -> str | None:
+    """What a class listening on ``host`` tells its teacher, on the console and on the
+    presenter's page, when no other machine can join it (None: others can)."""
+    if host not in LOOPBACK_HOSTS:
+        return None
+    return (f"The class listens on {host} only: students' phones and laptops cannot join. "
+            "Start it with --host 0.0.0.0 (or this machine's address on the room's network).")
+
+
 def qr_svg(url: str, *, scale: int = 4) -> str:
     """The QR code of ``url`` as inline SVG (dark on white, a quiet zone around it)."""
     import segno

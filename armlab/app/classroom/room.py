@@ -34,11 +34,18 @@ from armlab.app.classroom.overview import (
     StudentRow,
 )
 from armlab.app.classroom.private_page import Page
-from armlab.app.classroom.roles import Roles, address_of, new_passcode, presenter_link_code, qr_svg
+from armlab.app.classroom.roles import (
+    Roles,
+    address_of,
+    loopback_warning,
+    new_passcode,
+    presenter_link_code,
+    qr_svg,
+)
 from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
 from armlab.app.gate import Gate
 from armlab.app.lessons import LessonContext, LessonHandle, RunFigures, is_private
-from armlab.app.lessons._common import remove_quietly
+from armlab.app.lessons._common import esc, remove_quietly, warning_html
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.challenge_panel import (
     ChallengeDesk,
@@ -108,6 +115,11 @@ class ClassLab(Protocol):
     @property
     def url(self) -> str:
         """The page's url with its token (what students scan)."""
+        ...
+
+    @property
+    def host(self) -> str:
+        """The interface the lab listens on (loopback: no other machine can join)."""
         ...
 
     @property
@@ -278,10 +290,16 @@ class Room:
                                  button="Run the challenge on the shared arm")
         state.role.content = PRESENTER_TEXT
         gui = state.client.gui
-        with gui.add_folder("Students join", order=-94.0, expand_by_default=False):
+        alone = loopback_warning(self.lab.host)
+        with gui.add_folder("Students join", order=-94.0, expand_by_default=alone is not None):
+            if alone is not None:  # the code below cannot be joined: said before it
+                gui.add_html("<div role='alert'>"
+                             f"{warning_html('Phones cannot join', alone, color='#a15c00')}</div>")
+            # the url whole at every width: it wraps anywhere, never wider than the panel
             gui.add_html(f"<div style='text-align:center'>{qr_svg(self.lab.url)}"
-                         f"<div style='font-size:0.85em;word-break:break-all'>"
-                         f"{self.lab.url}</div></div>")
+                         "<div style='font-size:0.85em;overflow-wrap:anywhere;"
+                         "word-break:break-all;max-width:100%;white-space:normal'>"
+                         f"{esc(self.lab.url)}</div></div>")
         state.overview = ClassOverview(state.client, on_show=self.show_ghost,
                                        on_use=self.use_gains, on_gradebook=self.gradebook)
         state.client.add_notification("You present", "You now change the shared arm.",

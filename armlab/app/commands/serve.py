@@ -70,6 +70,7 @@ def log_to_terminal() -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from armlab.app.classroom.roles import loopback_warning
     from armlab.app.server import Lab, ServeOptions
     from armlab.app.viser_ext import HooksMissing
 
@@ -95,11 +96,10 @@ def run(args: argparse.Namespace) -> int:
             return 3
         try:
             lab.wait_until_loadable()
-            if lab.roles is not None and options.host in ("127.0.0.1", "localhost", "::1"):
-                print(f"warning: the class listens on {options.host} only: students' phones "
-                      "and laptops cannot join; start it with --host 0.0.0.0 (or this "
-                      "machine's address on the room's network)", file=sys.stderr, flush=True)
-            if options.host not in ("127.0.0.1", "localhost", "::1") and lab.roles is None:
+            alone = loopback_warning(options.host)
+            if lab.roles is not None and alone is not None:
+                print(f"warning: {alone}", file=sys.stderr, flush=True)
+            if alone is None and lab.roles is None:
                 print(f"warning: listening on {options.host} without --classroom: every "
                       "browser with the URL then controls the arm", file=sys.stderr, flush=True)
             print(f"url: {lab.url}", flush=True)

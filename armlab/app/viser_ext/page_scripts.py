@@ -346,3 +346,46 @@ def number_keys_script(*, says: str, exponent: str, show_ms: int) -> str:
     exponent being typed is shown as ``exponent`` (``{typed}``, ``{value}``)."""
     return NUMBER_KEYS_SCRIPT % {"says": json.dumps(says), "exponent": json.dumps(exponent),
                                  "show_ms": int(show_ms)}
+
+
+#: What a page runs to tie every control's label to its input (:mod:`armlab.app.page.labels`).
+#: viser writes ``<label for=UUID>`` for every control, but a text field's ``<input>`` (the
+#: Passcode, "Your name") carries no such id, and a slider's id is on a ``<div>``: the label
+#: then names nothing for a screen reader, a click on it focuses nothing, and a test cannot
+#: find the field by its label. The script gives such a field ``aria-labelledby`` (and its
+#: label an id), and a label click focuses it; re-done, at most once a frame, as viser
+#: re-renders.
+LABELS_SCRIPT = """
+(() => {
+  if (window.armlabLabels) return;
+  window.armlabLabels = true;
+  const labelable = (el) => el && ['INPUT', 'SELECT', 'TEXTAREA'].includes(el.tagName);
+  const fieldOf = (label) => {
+    for (let row = label.parentElement, up = 0; row && up < 4; row = row.parentElement, up++) {
+      const f = row.querySelector('input:not([type=hidden]), textarea, select');
+      if (f) return f;
+    }
+    return null;
+  };
+  const tie = () => {
+    for (const label of document.querySelectorAll('label[for]')) {
+      if (labelable(document.getElementById(label.htmlFor))) continue;
+      const field = fieldOf(label);
+      if (!field || field.getAttribute('aria-labelledby')) continue;
+      if (!label.id) label.id = 'armlab-label-' + label.htmlFor;
+      field.setAttribute('aria-labelledby', label.id);
+      if (!label.dataset.armlabTied) {
+        label.dataset.armlabTied = '1';
+        label.addEventListener('click', () => { const f = fieldOf(label); if (f) f.focus(); });
+      }
+    }
+  };
+  let queued = false;
+  new MutationObserver(() => {
+    if (queued) return;
+    queued = true;
+    requestAnimationFrame(() => { queued = false; tie(); });
+  }).observe(document.body, { childList: true, subtree: true });
+  tie();
+})();
+"""
