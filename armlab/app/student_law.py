@@ -46,6 +46,7 @@ from armlab.control.compliance import (
 )
 from armlab.control.loop import ControlLoop
 from armlab.control.params import GainCheck, Params
+from armlab.control.restart import RestartableArm
 from armlab.exercises import StudentError, load_student
 from armlab.exercises.core import Exercise
 from armlab.exercises.student import Hang, locate
@@ -425,6 +426,23 @@ class LawLoop(ControlLoop):
             self.reference.set_params(gains.params)
             return gains
 
+    def restart_reference(self, q: np.ndarray, plan: list[tuple[int, Command]]) -> None:
+        """A challenge's restart of the student's arm at ``q`` (n,) rad with ``plan``: the
+        reference arm is started again there too, at rest (:class:`RestartableArm`), by
+        the same Reset in the same period, and gets the plan's commands from a schedule of
+        its own, at the same period as the student's arm (whose plan goes to
+        :meth:`post_student`: posted at its sync, a command for both would reach the
+        reference, ticked after it, a period early). Call it before the student's arm's
+        restart and its Reset."""
+        backend = self.reference.backend
+        if isinstance(backend, RestartableArm):
+            with self._twin:
+                backend.restart(q, plan, self.reference.post)
+
+    def post_student(self, command: Command) -> None:
+        """Queue ``command`` for the student's arm alone (a restart's plan)."""
+        super().post(command)
+
     def records(self, window_s: float | None = None
                 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """The student's arm's record and the reference's, both taken between the same two
@@ -457,7 +475,8 @@ def law_loop(law: StudentLaw, backend: Backend, model: SerialChain, params: Para
 
     loop_kw.setdefault("hold_off", getattr(backend, "uncalibrated", None))
     try:
-        reference = make_backend("sim", model, q0=q0)
+        # (restartable: a challenge's run starts it again with the student's arm)
+        reference = RestartableArm(lambda q: make_backend("sim", model, q0=q), q0)
     except BaseException:
         backend.close()
         raise

@@ -217,7 +217,12 @@ class GaitRecord(LoopRecord):
             all servos), ``per_servo_pct`` (3,) by servo number in the leg (1 hip yaw,
             2 hip pitch, 3 knee), ``per_joint_pct`` (12,), ``samples``.
         """
-        ok, cmd, act = self.servo_angles_deg(self.snapshot(window_s))
+        return self.angle_error_of(self.snapshot(window_s))
+
+    def angle_error_of(self, snap: dict[str, np.ndarray]) -> dict[str, object] | None:
+        """:meth:`angle_error` over the rows of ``snap`` (a :meth:`snapshot`'s layout: a
+        challenge's window of periods)."""
+        ok, cmd, act = self.servo_angles_deg(snap)
         if not ok.any():
             return None
         per_joint = np.array([mean_angle_error_pct(cmd[:, j], act[:, j]) for j in range(12)])
@@ -316,6 +321,7 @@ class GaitLoop(GaitRecord):
                 self._walking = self._stopping = False
                 self._rest_at = None
                 self.walker.reset()
+                self._last_goal = np.full(12, np.nan)  # the rise starts from the reading
                 if self.backend is not None:
                     try:
                         self.backend.set_torque(True)

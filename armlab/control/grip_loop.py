@@ -5,6 +5,12 @@ every control period and appends a row to the record. The UI never touches
 either: it posts commands (callables run by the loop thread at its next
 period) and reads copies of the record (:meth:`GripLoop.snapshot`).
 
+A challenge's run (:meth:`GripLoop.restart`) starts the hand again open and at rest (the
+plant's state and a fresh controller with the settings in force, at the plant's time)
+inside one period, then posts its plan's commands at fixed numbers of periods from it:
+a function of the settings and the object alone, whatever the hand did before and
+however late the loop runs.
+
 Real time: each tick (``tick_s``, 10 ms) the loop runs the periods that are
 due on the wall clock (never more than ``max_catch_up`` s at once: a stalled
 machine skips time rather than racing). Not real time (tests, headless): it
@@ -29,6 +35,7 @@ from armlab.control.grip import (
 )
 from armlab.control.loop_record import LoopRecord
 from armlab.control.periodic import Pacer, RingBuffer
+from armlab.control.restart import Schedule
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
 COLUMNS: dict[str, str] = {
@@ -72,8 +79,17 @@ class SetObject:
     obj: object
 
 
-Command = CloseHand | OpenHand | MotorsOff | SetGripParams | SetObject
-COMMANDS = (CloseHand, OpenHand, MotorsOff, SetGripParams, SetObject)
+@dataclass(frozen=True)
+class RestartHand:
+    """Start the hand again open and at rest, a fresh controller with the settings in
+    force; ``plan``'s (periods, command) then follow, each applied ``periods + 1``
+    periods after this one (:meth:`GripLoop.restart`)."""
+
+    plan: tuple[tuple[int, object], ...] = ()
+
+
+Command = CloseHand | OpenHand | MotorsOff | SetGripParams | SetObject | RestartHand
+COMMANDS = (CloseHand, OpenHand, MotorsOff, SetGripParams, SetObject, RestartHand)
 
 
 @dataclass(frozen=True)
@@ -181,6 +197,9 @@ class GripLoop(GripRecord):
                             on_exit=self._stopped)
         self._current = plant.step(np.zeros(N_FINGERS), self.dt)
         self._closed_at: float | None = None
+        self._schedule = Schedule()  #: a restart's plan (the loop thread's)
+        self.restarts = 0  #: restarts done (:meth:`restart`)
+        self.restarted_at: float | None = None  #: plant time of the last one's period
         self.status = GripStatus(t=plant.t, modes=controller.modes)
 
     # --- commands (any thread) -----------------------------------------------------
@@ -201,6 +220,32 @@ class GripLoop(GripRecord):
     def obj(self) -> object:
         """The object between the fingers (None: nothing)."""
         return self.plant.obj
+
+    def restart(self, plan: list[tuple[int, Command]]) -> int:
+        """Start the hand again open and at rest at the loop's next period, then ``plan``'s
+        (periods, command), each applied ``periods + 1`` periods after that one; the
+        restart's number (:attr:`restarts` reaches it at that period, whose plant time
+        before its step is :attr:`restarted_at`)."""
+        if not callable(getattr(self.plant, "reset", None)):
+            raise ValueError("this hand cannot be put back open at rest")
+        number = self.restarts + 1
+        self.post(RestartHand(tuple(plan)))
+        return number
+
+    def cancel_plan(self) -> None:
+        """Apply nothing more of the last restart's plan (the run was cut short)."""
+        self._schedule.cancel()
+
+    def _restart(self, plan: tuple[tuple[int, object], ...]) -> None:
+        """:class:`RestartHand` in the loop thread."""
+        self.plant.reset(keep_time=True)  # type: ignore[attr-defined]  # the simulated hand the loop drives has reset
+        ctl = self.controller
+        self.controller = GripController(ctl.model, ctl.params, dt=ctl.dt)
+        self._current = np.zeros(N_FINGERS)
+        self._closed_at = None
+        self._schedule.begin(plan, self._commands.append)
+        self.restarted_at = self.plant.t
+        self.restarts += 1
 
     def _apply(self, command: Command, plant: HandPlant, ctl: GripController) -> None:
         match command:
@@ -239,9 +284,14 @@ class GripLoop(GripRecord):
                                  fault)
 
     def _period(self) -> None:
-        plant, ctl = self.plant, self.controller
+        self._schedule.tick()  # a restart's commands due this period
         while self._commands:
-            self._apply(self._commands.popleft(), plant, ctl)
+            command = self._commands.popleft()
+            if isinstance(command, RestartHand):
+                self._restart(command.plan)
+            else:
+                self._apply(command, self.plant, self.controller)
+        plant, ctl = self.plant, self.controller
         volts = ctl.update(self._current)
         self._current = plant.step(volts, self.dt)
         row = np.concatenate([

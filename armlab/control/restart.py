@@ -18,7 +18,18 @@ period, as follows (all in loop time, none of it on the wall clock):
    ``periods + 1`` periods after that one, so the loop applies it ``periods + 2`` periods
    after the restart, whatever the wall clock did meanwhile.
 
+A loop that applies its Reset before it syncs (the quadruped's
+:class:`armlab.control.gait_loop.GaitLoop`: ``sync_first=False``) ends the restart at the
+sync of the period its Reset is applied in, so both orders give the same restart period.
+With ``period`` the backend in use is brought to whole numbers of periods from its start
+(k · period, the same numbers for every run) rather than to the loop time less the
+restart's (whose last bits depend on when the run was made).
+
 Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed).
+
+:class:`Schedule` is the plan's part alone (commands timed in periods from an instant
+the loop marks), for a loop that starts its own plant again (the hand's
+:class:`armlab.control.grip_loop.GripLoop`).
 
 A real (serial) arm cannot be put back: its challenge runs are judged from the run's
 own start (where the arm was), and the lab says so.
@@ -36,6 +47,46 @@ from armlab.control.backend import Backend, JointState
 from armlab.control.commands import Command
 
 
+class Schedule:
+    """Commands timed in loop periods from an instant the loop marks: :meth:`begin` at the
+    restart's period, then :meth:`tick` at every later period posts each ``(periods,
+    command)`` of the plan at the tick ``periods + 1`` after that one (the loop applies
+    it at its next period: ``periods + 2`` periods after the restart). Not thread-safe:
+    its owner's lock (or its loop's thread) calls it."""
+
+    def __init__(self) -> None:
+        self._plan: list[tuple[int, Command]] = []
+        self._post: Callable[[Any], None] | None = None
+        self._since = 0  #: periods since :meth:`begin`
+
+    def begin(self, plan: Sequence[tuple[int, Any]], post: Callable[[Any], None]) -> None:
+        """The restart is this period: ``plan``'s commands go to ``post`` from the next."""
+        self._plan = sorted(plan, key=lambda p: p[0])
+        self._post, self._since = (post if self._plan else None), 0
+
+    def tick(self) -> None:
+        """One period later: post the commands due."""
+        if self._post is None:
+            return
+        self._since += 1
+        due = [c for k, c in self._plan if k < self._since]
+        self._plan = [(k, c) for k, c in self._plan if k >= self._since]
+        post = self._post
+        if not self._plan:
+            self._post = None
+        for command in due:
+            post(command)
+
+    def cancel(self) -> None:
+        """Post nothing more (the run was cut short)."""
+        self._plan, self._post = [], None
+
+    @property
+    def pending(self) -> bool:
+        """Commands are left to post."""
+        return self._post is not None
+
+
 class RestartableArm:
     """A simulated backend that :meth:`restart` replaces by a fresh one at a pose, at rest,
     in step with the loop (module docstring). Every other call goes to the backend in use.
@@ -45,10 +96,16 @@ class RestartableArm:
             closed through ``drop`` when replaced).
         q0: the first backend's pose.
         drop: lets a replaced backend go (default: its ``close()``).
+        period: the loop's period, s: the backend in use is brought to k · period from
+            its start (module docstring; None: to the loop time less its start's).
+        sync_first: the loop syncs before it applies a Reset (the arm's loop); False: it
+            applies the Reset first (the quadruped's), and the restart ends at that
+            period's sync.
     """
 
     def __init__(self, make: Callable[[np.ndarray], Backend], q0: np.ndarray, *,
-                 drop: Callable[[Backend], None] | None = None) -> None:
+                 drop: Callable[[Backend], None] | None = None,
+                 period: float | None = None, sync_first: bool = True) -> None:
         self._make = make
         self._drop = drop or (lambda b: b.close())
         self._lock = threading.RLock()
@@ -58,9 +115,11 @@ class RestartableArm:
         self._armed: tuple[np.ndarray, list[tuple[int, Command]], Callable[[Command], None]
                            ] | None = None
         self._fresh = False  #: armed, and the backend in use was made at this period's sync
-        self._plan: list[tuple[int, Command]] = []
-        self._post: Callable[[Command], None] | None = None
-        self._since = 0  #: periods since the restart
+        self._schedule = Schedule()
+        self._period = period
+        self._syncs = 0  #: syncs of the backend in use since it was made
+        self._sync_first = sync_first
+        self._torque_asked = False  #: (sync_first False) a Reset's torque-on while armed
         self.restarts = 0  #: restarts done
         self.restarted_at: float | None = None  #: loop time of the last restart's period
 
@@ -76,7 +135,8 @@ class RestartableArm:
             raise ValueError(f"restart: the pose must be {self.n} finite angles, got {q!r}")
         with self._lock:
             self._armed = (q.copy(), sorted(plan, key=lambda p: p[0]), post)
-            self._plan, self._post = [], None
+            self._schedule.cancel()
+            self._torque_asked = False
             return self.restarts + 1
 
     @property
@@ -92,35 +152,41 @@ class RestartableArm:
             if self._armed is not None:
                 old, self.inner = self.inner, self._make(self._armed[0])
                 self._drop(old)
-                self._offset, self._fresh = self._t, True
-            elif self._post is not None:
-                self._since += 1
-                due = [c for k, c in self._plan if k < self._since]
-                self._plan = [(k, c) for k, c in self._plan if k >= self._since]
-                for command in due:
-                    self._post(command)
-                if not self._plan:
-                    self._post = None
-            self.inner.sync(self._t - self._offset)
+                self._offset, self._fresh, self._syncs = self._t, True, 0
+                if self._torque_asked:  # the Reset came before this sync (sync_first False)
+                    self._end()
+            else:
+                self._syncs += 1
+                self._schedule.tick()
+            if self._period is None:
+                self.inner.sync(self._t - self._offset)
+            else:
+                self.inner.sync(self._syncs * self._period)
 
     def set_torque(self, on: bool) -> None:
         """Torque on or off; the torque-on of the Reset that follows a fresh arm ends the
         restart (module docstring, 3)."""
         with self._lock:
             self.inner.set_torque(on)
-            if on and self._armed is not None and self._fresh:
-                _, plan, post = self._armed
-                self._armed, self._fresh = None, False
-                self._plan, self._post, self._since = plan, post, 0
-                self.restarted_at = self._t
-                self.restarts += 1
-                if not plan:
-                    self._post = None
+            if on and self._armed is not None:
+                if not self._sync_first:
+                    self._torque_asked = True  # ended at this period's sync, still to come
+                elif self._fresh:
+                    self._end()
+
+    def _end(self) -> None:
+        """The restart is done in this period: the plan from the next (holding the lock)."""
+        assert self._armed is not None
+        _, plan, post = self._armed
+        self._armed, self._fresh, self._torque_asked = None, False, False
+        self._schedule.begin(plan, post)
+        self.restarted_at = self._t
+        self.restarts += 1
 
     def cancel(self) -> None:
         """Post nothing more of the last restart's plan (the run was cut short)."""
         with self._lock:
-            self._plan, self._post = [], None
+            self._schedule.cancel()
 
     # -- the Backend protocol, to the backend in use ------------------------------------
 

@@ -111,6 +111,80 @@ def _joints(args: tuple[Any, ...]) -> tuple[int, ...]:
 
 
 # ---------------------------------------------------------------------------
+# State carried from call to call: the function called in sequence, its own returned
+# state fed to its next call, the whole sequence compared with the lab's
+
+
+def _sequence_case(name: str, law_name: str, step: Callable[..., Any],
+                   calls: list[Callable[[Any], tuple[Any, ...]]], state0: Any,
+                   state_of: Callable[[np.ndarray], Any], shape: tuple[int, ...],
+                   labels: tuple[str, ...], n_state: int, stuck_hint: str, own_hint: str, *,
+                   rtol: float = 1e-7, atol: float = 1e-12) -> RunCase:
+    """A case that calls the function ``len(calls)`` times in a row: call ``k``'s
+    arguments are ``calls[k](state)`` with the state the previous call returned
+    (``state_of`` its output, whose first ``n_state`` rows of ``labels`` are the state;
+    ``state0`` first), for the student as for the lab's ``step``. The first call whose
+    output leaves the lab's fails, with the hint that fits (:func:`_carry_hint`)."""
+
+    def close(a: Any, b: Any) -> bool:
+        return bool(np.allclose(np.asarray(a, dtype=float), np.asarray(b, dtype=float),
+                                rtol=rtol, atol=atol))
+
+    def run(fn: Callable[..., Any]) -> str:
+        law = CheckedLaw(fn, law_name, shape)
+        ref_state, mine_state = state0, state0
+        for k, make in enumerate(calls):
+            want = np.array(step(*make(ref_state)), dtype=float)
+            got = np.asarray(law(*make(mine_state)), dtype=float)
+            if not close(got, want):
+                g, w = got.reshape(len(labels), -1), want.reshape(len(labels), -1)
+                bad = int(np.argmax(np.abs(g - w).max(axis=1)))
+                hint = _carry_hint(law, make, mine_state, g, w, labels, n_state, close,
+                                   stuck_hint, own_hint)
+                return (f"call {k + 1} of {len(calls)} in a row (each given the state the "
+                        f"call before returned): {labels[bad]} is "
+                        f"{np.round(g[bad], 9).tolist()}, the lab's "
+                        f"{np.round(w[bad], 9).tolist()}; {hint}")
+            ref_state, mine_state = state_of(want), state_of(got)
+        return ""
+
+    return RunCase(name, run)
+
+
+def _carry_hint(law: CheckedLaw, make: Callable[[Any], tuple[Any, ...]], state: Any,
+                got: np.ndarray, want: np.ndarray, labels: tuple[str, ...], n_state: int,
+                close: Callable[[Any, Any], bool], stuck_hint: str, own_hint: str) -> str:
+    """Why a call of a sequence is off, when the state carried explains it (each call
+    before it was right, so the state it was given is the lab's): the function keeps a
+    state of its own (two calls alike differ, or the state passed in changes nothing);
+    the state comes back as it went in; a new state is another of the lab's outputs;
+    else the step itself is off."""
+    given = np.asarray(state, dtype=float).reshape(n_state, -1)
+    again = np.asarray(law(*make(state)), dtype=float).reshape(got.shape)
+    moved = np.asarray(law(*make(_nudged(state))), dtype=float).reshape(got.shape)
+    if not close(again, got) or close(moved, got):
+        return f"hint (state from call to call): {own_hint}"
+    if close(got[:n_state], given) and not close(want[:n_state], given):
+        return f"hint (state from call to call): {stuck_hint}"
+    for i in range(n_state):
+        for j in range(len(labels)):
+            if j != i and close(got[i], want[j]) and not close(got[i], want[i]) \
+                    and not close(want[i], want[j]):
+                return (f"hint (state from call to call): your new {labels[i]} is the lab's "
+                        f"{labels[j]}: return the new {labels[i]}, which the next call is "
+                        "given")
+    return ("the state carried was right up to this call: the step itself is off for these "
+            "arguments")
+
+
+def _nudged(state: Any) -> Any:
+    """``state`` (a number or a tuple of arrays) moved a little."""
+    if isinstance(state, tuple):
+        return tuple(np.asarray(x, dtype=float) + 1e-3 for x in state)
+    return float(state) + 1e-3
+
+
+# ---------------------------------------------------------------------------
 # PD reference model, eq. 2.20
 
 
@@ -190,7 +264,33 @@ def _env_cases() -> list[ValueCase | RunCase]:
         "closed loop: the 20 cm line with a 3 N push, compliance (law 2.6), simulated arm",
         DEFAULT, "compliance", PUSH_N, "environment_step", "environment",
         lambda a: (3, *np.shape(a[4]))))
+    cases.append(_env_sequence_case())
     return cases
+
+
+#: the torques of the environment's sequence case: a push on, then off, N·m
+ENV_SEQUENCE_TAU = (np.array([0.0, 0.0, 0.0]),) * 3 + (np.array([0.4, -0.2, 0.1]),) * 20 \
+    + (np.array([0.0, 0.0, 0.0]),) * 12
+
+
+def _env_sequence_case() -> RunCase:
+    """30-odd samples of eq. 2.7 in a row, θ_env and θ̇_env fed back from each call."""
+    m, d, k, kf = THESIS.m_env, THESIS.d_env, THESIS.k_env, THESIS.k_f
+
+    calls = [lambda st, tau=tau: (m, d, k, kf, tau, st[0], st[1], 0.016)
+             for tau in ENV_SEQUENCE_TAU]
+    return _sequence_case(
+        f"in sequence: a push on then off, {len(calls)} samples, θ_env and θ̇_env fed back "
+        "from each call to the next (from an offset, moving)", "environment_step",
+        environment_step, calls,
+        (np.array([0.01, -0.02, 0.0]), np.array([0.1, 0.0, -0.05])),
+        lambda out: (out[0], out[1]), (3, 3),
+        ("θ_env", "θ̇_env", "θ̈_env"), 2,
+        "your θ_env and θ̇_env come back as they went in: return the new ones (θ̇ + dt θ̈, "
+        "then θ + dt θ̇), which the next call is given",
+        "your function does not work from the θ_env and θ̇_env it is given (a state of "
+        "its own, or one that starts again each call): step from the arguments alone",
+        rtol=1e-9, atol=1e-12)
 
 
 ENVIRONMENT = Exercise(
@@ -349,7 +449,30 @@ def _observer_cases() -> list[ValueCase | RunCase]:
             rtol=1e-7, atol=1e-12))
     cases.append(RunCase("closed loop: the observer's estimate fed back on the torque-driven "
                          "joint, a 3 mN·m load step", _observer_closed_loop))
+    cases.append(_observer_sequence_case())
     return cases
+
+
+#: the currents and speeds of the observer's sequence case: a current step, the joint
+#: speeding up (A, rad/s)
+OBSERVER_SEQUENCE = tuple((0.0 if k < 3 else 0.4, 0.05 * max(0, k - 3)) for k in range(40))
+
+
+def _observer_sequence_case() -> RunCase:
+    """40 samples of the observer in a row, its filter state z fed back from each call."""
+    j = TorqueJoint()
+    j_n, kt_n, g, dt = j.inertia, GRIPPER_KT, 200.0, 1e-4
+
+    calls = [lambda z, i=i, w=w: (z, i, w, j_n, kt_n, g, dt) for i, w in OBSERVER_SEQUENCE]
+    return _sequence_case(
+        f"in sequence: a current step, {len(calls)} samples, the filter state z fed back "
+        "from each call to the next (from z = 2e-3)", "observer_step", observer_step,
+        calls, 2e-3,
+        lambda out: float(out[0]), (2,), ("z (the filter's state)", "τ_dis (the estimate)"),
+        1, "your z comes back as it went in: return the filter's new state z + a (u − z), "
+        "which the next call is given",
+        "your function does not filter from the z it is given (a state of its own, or "
+        "one that starts again each call): z + a (u − z) with the z passed in")
 
 
 OBSERVER = Exercise(

@@ -86,7 +86,12 @@ def restart_arm(backend: Any, loop: Any, q: np.ndarray,
     reset, then ``plan``'s (periods, command); the restart's number, or None when the arm
     cannot be put back (real servos)."""
     if isinstance(backend, RestartableArm):
-        number = backend.restart(q, plan, loop.post)
+        post = loop.post
+        twin = getattr(loop, "restart_reference", None)  # serve --exercise: the ghost's arm
+        if twin is not None:  # started again with it, the plan at the same periods
+            twin(q, plan)
+            post = loop.post_student
+        number = backend.restart(q, plan, post)
         loop.post(Reset())
         return number
     remote = getattr(backend, "restart", None)  # a private arm in the class's worker
@@ -167,6 +172,9 @@ class ChallengeRuns:
         rig = self.lesson.rig
         if rig is not None and isinstance(rig.backend, RestartableArm):
             rig.backend.cancel()
+            twin = getattr(getattr(rig.loop, "reference", None), "backend", None)
+            if isinstance(twin, RestartableArm):  # serve --exercise: the ghost's plan too
+                twin.cancel()
         if run.t0 is not None and rig is not None:  # its file ends here, unmeasured
             self.lesson.runs.finish_run(None, t=rig.loop.status.t)
         self.lesson.last_run_text = f"**Challenge run** ({run.label}): cut short by {why}"

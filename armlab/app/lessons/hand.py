@@ -43,6 +43,7 @@ from armlab.app.lessons._common import (
 )
 from armlab.app.lessons.hand_scene import HandScene
 from armlab.app.lessons.replay_view import HAND_ROBOT, hand_joint_names
+from armlab.app.lessons.restart_challenge import RestartRuns
 from armlab.app.lessons.run_files import Recording, RunControls
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec, dash
@@ -141,6 +142,8 @@ class HandLesson(LessonBase):
         self._figures = Every(FIGURES_S)
         #: a grasp that goes on is measured at this pace with no page open too (its run)
         self._measuring = Every(FIGURES_S)
+        #: the grasp challenge's runs, from the hand open at rest (restart_challenge)
+        self.challenge_runs = RestartRuns(self, "grasp")
         self.obj = GraspObject(size=DEFAULT_SIZE_CM / 100.0, stiffness=DEFAULT_STIFFNESS)
         params = GripParams(force_limit=DEFAULT_FORCE)
         history_s = WINDOW_S + 4.0
@@ -238,19 +241,23 @@ class HandLesson(LessonBase):
 
     def close_hand(self) -> None:
         """Grasp: close with the force limit (the run "grasp")."""
+        self.challenge_runs.busy()
         self.runs.post(self.loop, CloseHand(), run=GRASP_RUN)
 
     def open_hand(self) -> None:
         """Release the object (the run "open")."""
+        self.challenge_runs.busy()
         self.runs.post(self.loop, OpenHand(), run=OPEN_RUN)
 
     def estop(self) -> None:
         """Motors off (the springs open the hand); never raises."""
+        self.challenge_runs.cancel("E-STOP")
         self.loop.post(MotorsOff())
         self.runs.note(MotorsOff(), t=self.loop.status.t)
 
     def set_force_limit(self, force: float) -> None:
         """New grip-force limit F, N (applied at the loop's next period). ValueError to refuse."""
+        self.challenge_runs.busy()
         replace(self.loop.params, force_limit=force)  # validates
         if force > self.model.max_force():
             raise ValueError(f"force limit must be <= {self.model.max_force():.2f} N")
@@ -258,6 +265,7 @@ class HandLesson(LessonBase):
 
     def set_approach_speed(self, cm_per_s: float) -> None:
         """Fingertip approach speed, cm/s."""
+        self.challenge_runs.busy()
         v = cm_per_s / 100.0
         replace(self.loop.params, approach_speed=v)  # validates
         self.runs.post(self.loop, SetGripParams(approach_speed=v))
@@ -269,6 +277,7 @@ class HandLesson(LessonBase):
         The size only changes with the hand open: a bigger object appearing
         inside closed fingers would be an impossible collision.
         """
+        self.challenge_runs.busy()
         with self._lock:
             size = self.obj.size if size_cm is None else size_cm / 100.0
             k = self.obj.stiffness if stiffness is None else stiffness
@@ -330,6 +339,10 @@ class HandLesson(LessonBase):
 
     def _measure_grasp(self, st: GripStatus, limit: float) -> dict | None:
         """The last grasp's figures now (None: no close yet), kept once it settled."""
+        if self.challenge_runs.pending is not None:  # measured over the run's own window
+            return None
+        if self._settled is not None and self._settled[0] == st.closed_at:
+            return self._settled[1]  # (the figures kept: the page shows what is judged)
         fig = self.loop.last_grasp(limit)
         if fig is not None:
             self._grasp = (st.closed_at, fig)
@@ -343,6 +356,8 @@ class HandLesson(LessonBase):
         grasp that goes on (its run is over, with its figures, once it settled); an open
         is over once every finger is idle."""
         self.runs.tick()
+        if self.challenge_runs.measure():
+            return
         going = self.runs.going_on
         if going == GRASP_RUN and self._measuring.due():
             self._measure_grasp(self.loop.status, self.loop.params.force_limit)
@@ -368,6 +383,7 @@ class HandLesson(LessonBase):
             self._settled = (st.closed_at, fig, False)
         else:
             return
+        self.challenge_runs.untag()  # (a grasp of the student's own)
         if self.runs.going_on == GRASP_RUN:  # the grasp's run is over: its own figures
             self.runs.finish_run(self.grasp_figures(), t=st.t)
 
@@ -386,6 +402,20 @@ class HandLesson(LessonBase):
     def page_only_buttons(self) -> tuple[viser.GuiButtonHandle, ...]:
         """Save run and Export page: each answers the pressing page."""
         return self.runs.page_only_buttons()
+
+    def run_challenge(self, challenge: Any) -> str:
+        """Start the grasp challenge's run: the hand open at rest again, then a close, its
+        figures over a fixed window (:mod:`armlab.app.lessons.restart_challenge`)."""
+        return self.challenge_runs.start(challenge)
+
+    def run_tags(self) -> dict[str, str | None]:
+        """Per grasp figure, the key of the challenge whose run measured it (None: a
+        grasp of the student's own)."""
+        return self.challenge_runs.tags()
+
+    def challenge_results(self) -> list:
+        """The challenge runs measured: (number, figures, tags), newest last."""
+        return list(self.challenge_runs.results)
 
     def run_figures(self) -> RunFigures:
         """The last settled grasp's steady and peak force, and whether it held."""

@@ -52,6 +52,7 @@ from armlab.app.lessons._common import (
     warning_html,
 )
 from armlab.app.lessons.quadruped_scene import QuadrupedScene
+from armlab.app.lessons.restart_challenge import RestartRuns
 from armlab.app.lessons.run_files import Recording, RunControls
 from armlab.app.page.inputs import GuardedNumber, guarded_slider
 from armlab.app.page.plots import (
@@ -68,6 +69,7 @@ from armlab.control.backend import Backend, BackendError
 from armlab.control.commands import Reset
 from armlab.control.experiments.seed003 import joint_names as gait_joint_names
 from armlab.control.gait_loop import GaitLoop, GaitStatus, SetInPlace, SetSpeed, StopWalking
+from armlab.control.restart import RestartableArm
 from armlab.control.walking import (
     COMMANDS,
     GAITS,
@@ -155,8 +157,9 @@ def open_servos(model: Quadruped, ctx: LessonContext, q0: np.ndarray
     A serial bus without all 12 AX-12A (IDs 1..12 by default) gives one message saying
     what is missing and what to do; the lesson then shows the gait without servos.
     """
-    if ctx.backend == "sim":
-        return QuadrupedSimBackend(model, q0=q0, dt=SIM_DT), ""
+    if ctx.backend == "sim":  # a challenge's walk starts it again standing at the start
+        return RestartableArm(lambda q: QuadrupedSimBackend(model, q0=q, dt=SIM_DT), q0,
+                              period=0.02, sync_first=False), ""
     try:
         # the reply timeout is the bus's own (armlab.hardware.wire.bus: a wire's or an emulator's)
         backend = make_backend(ctx.backend, model, port=ctx.port, baud=ctx.baud)
@@ -187,6 +190,8 @@ class QuadrupedLesson(LessonBase):
         self._table = Every(TABLE_S)  #: when the Servos tab is worked out again
         self._walk_from: float | None = None  #: loop time the present walk began
         self._walk_error: float | None = None  #: eq. 4.1 of the last walk, % (run_figures)
+        #: the walk challenge's runs, from the start at rest (restart_challenge)
+        self.challenge_runs = RestartRuns(self, "walk")
         model = _robot(ctx.robot)
         if not isinstance(model, Quadruped):
             raise ValueError(f"robot: {ctx.robot} is not a quadruped")
@@ -358,6 +363,7 @@ class QuadrupedLesson(LessonBase):
         Raises:
             ValueError: e.g. turning with the crawl.
         """
+        self.challenge_runs.busy()
         plan = self._replan(replace(self.spec, command=command))
         t = self.loop.status.t
         self.loop.go(plan)
@@ -366,14 +372,17 @@ class QuadrupedLesson(LessonBase):
         self._note_plan("Walk")
 
     def stop(self) -> None:
+        self.challenge_runs.cancel("Stop")
         self.runs.post(self.loop, StopWalking())
 
     def reset(self) -> None:
+        self.challenge_runs.cancel("Reset")
         self.runs.post(self.loop, Reset())
         self.scene.clear_trails()
 
     def set_speed(self, speed: float) -> None:
         """Gait speed, cycles/s (ValueError outside 0.05..3)."""
+        self.challenge_runs.busy()
         self.runs.post(self.loop, SetSpeed(speed))
 
     def _note_plan(self, kind: str) -> None:
@@ -384,6 +393,7 @@ class QuadrupedLesson(LessonBase):
 
     def set_gait(self, gait: str) -> None:
         """Trot or crawl (a turn becomes "forward" for the crawl, which walks straight)."""
+        self.challenge_runs.busy()
         command = self.spec.command
         if gait == "crawl" and command in ("left", "right"):
             command = "forward"
@@ -393,17 +403,20 @@ class QuadrupedLesson(LessonBase):
 
     def set_params(self, **changes: float) -> None:
         """New sine-pattern inputs (SI); raises ValueError (refused) when unwalkable."""
+        self.challenge_runs.busy()
         params = replace(self.spec.params, **changes)
         plan = self._replan(replace(self.spec, params=params))
         self.loop.set_plan(plan)
         self._note_plan("SetPlan")
 
     def set_in_place(self, in_place: bool) -> None:
+        self.challenge_runs.busy()
         self.runs.post(self.loop, SetInPlace(bool(in_place)))
         self.scene.clear_trails()
 
     def estop(self) -> None:
         """Torque off now; never raises."""
+        self.challenge_runs.cancel("E-STOP")
         self.loop.estop()
 
     # ================================================================== reading
@@ -489,6 +502,21 @@ class QuadrupedLesson(LessonBase):
         """Save run and Export page: each answers the pressing page."""
         return self.runs.page_only_buttons()
 
+    def run_challenge(self, challenge: Any) -> str:
+        """Start the walk challenge's run: standing at rest at the start again, a walk
+        forward stopped after ``walk_s`` of loop time, eq. 4.1 over a fixed window
+        (:mod:`armlab.app.lessons.restart_challenge`)."""
+        return self.challenge_runs.start(challenge)
+
+    def run_tags(self) -> dict[str, str | None]:
+        """The key of the challenge whose run measured eq. 4.1 (None: a walk of the
+        student's own)."""
+        return self.challenge_runs.tags()
+
+    def challenge_results(self) -> list:
+        """The challenge runs measured: (number, figures, tags), newest last."""
+        return list(self.challenge_runs.results)
+
     def run_figures(self) -> RunFigures:
         """Eq. 4.1 of the last walk (once it stopped), from the servos' feedback."""
         return RunFigures(eq41_error_pct=self._walk_error)
@@ -504,6 +532,7 @@ class QuadrupedLesson(LessonBase):
         began, self._walk_from = self._walk_from, None
         err = self.loop.angle_error(st.t - began + 0.5)
         self._walk_error = None if err is None else float(err["mean_pct"])
+        self.challenge_runs.untag()  # (a walk of the student's own)
         if self.runs.going_on is not None:  # the walk's run is over, with its own figure
             self.runs.finish_run({"eq41_error_pct": self._walk_error}, t=st.t)
 
@@ -511,7 +540,8 @@ class QuadrupedLesson(LessonBase):
         """At each publisher tick, a page open or not: keep the walk's rows, and measure a
         walk once it is over (its run's figure)."""
         self.runs.tick()
-        self._watch_walk(self.loop.status)
+        if not self.challenge_runs.measure():
+            self._watch_walk(self.loop.status)
 
     def _update_status(self, st: GaitStatus) -> None:
         state = self.loop.state

@@ -120,28 +120,12 @@ def start_run(lesson: LessonHandle | None, lesson_name: str, challenge: Challeng
     if lesson_name != challenge.lesson:
         raise ValueError(f"this challenge runs in the {_lesson_title(challenge.lesson)} "
                          "lesson: open it first")
-    run = challenge.run
     act: Any = lesson
-    if run.kind in ("step", "line_push", "push"):  # from the challenge's own start, tagged
-        return str(act.run_challenge(challenge))
-    if run.kind == "grasp":
-        if any(m not in ("idle", "opening") for m in act.loop.status.modes):
-            raise ValueError("open the hand first (Open), then run the challenge")
-        act.close_hand()
-        return "a grasp"
-    act.walk("forward")
-    stop = threading.Timer(run.walk_s, _stop_walk, args=(act,))
-    stop.daemon = True
-    stop.start()
-    return f"a walk of {run.walk_s:g} s"
-
-
-def _stop_walk(lesson: Any) -> None:
-    """The end of a challenge's walk (the lesson may be closed by then: nothing to do)."""
-    try:
-        lesson.stop()
-    except (ValueError, RuntimeError, OSError):
-        pass
+    if not callable(getattr(act, "run_challenge", None)):
+        raise ValueError(f"the {lesson_name} lesson has no challenge run")
+    # from the challenge's own state (the pose, the hand open, the robot standing at its
+    # start, at rest), its commands timed in loop periods, its figures tagged
+    return str(act.run_challenge(challenge))
 
 
 class DeskLab(Protocol):

@@ -305,9 +305,12 @@ class HandSim:
         """Put ``obj`` between the fingers (None: take it away)."""
         self._obj = check_object(obj, self._p.finger) if obj is not None else None
 
-    def reset(self) -> None:
-        """Back to t = 0, hand open and at rest."""
+    def reset(self, *, keep_time: bool = False) -> None:
+        """Back to t = 0 (``keep_time``: at the time it is), hand open and at rest."""
+        t = self._s.t
         self._s = self._initial()
+        if keep_time:
+            self._s.t = t
 
     def step(self, voltage: np.ndarray, duration: float) -> np.ndarray:
         """Drive the motors with ``voltage`` (3,) V for ``duration`` s; return the sensor reading.
