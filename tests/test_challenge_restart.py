@@ -243,3 +243,47 @@ def test_a_walk_on_the_wall_clock_stalled_midway_scores_as_one_that_was_not():
         period, speed = lesson.loop.period, lesson.loop.status.speed
         walk_n = round(WALK.run.walk_s / period)
         assert walk_n - 2 <= walked <= walk_n + math.ceil(1.0 / (speed * period)) + 2
+
+
+# ----------------------------------------------------------------------------- a class's hands
+
+
+class _Seats:
+    """Where a class's private lessons get their hands: every student's from one
+    :class:`ClassHands` (as the class's worker keeps them), here in this process."""
+
+    def __init__(self, hands) -> None:
+        self.hands = hands
+
+    def hand_for(self, obj, params, *, history_s: float):
+        return self.hands.add(obj, params, history_s=history_s)
+
+
+@pytest.mark.slow
+def test_two_students_hands_in_one_class_score_a_grasp_alike_after_other_grasps():
+    """Two students' private hands on the class's one batched loop: one closed first at
+    another force, the other's run made while the first one's hand is closing; the same
+    force limit gives both the same figures, every digit."""
+    from armlab.app.classroom.class_hands import ClassHands
+
+    hands = ClassHands(realtime=False)
+    ctx = LessonContext(realtime=False, arms=_Seats(hands))
+    try:
+        with served_lesson(hand_lesson.build, ctx) as ana, \
+                served_lesson(hand_lesson.build, ctx) as bo:
+            ana.set_force_limit(0.5)
+            ana.close_hand()  # Ana's earlier grasp, left closed
+            _sim_to(ana, 1.0)
+            for lesson in (ana, bo):
+                lesson.set_force_limit(1.0)
+            wait_for(lambda: ana.loop.params.force_limit == bo.loop.params.force_limit == 1.0,
+                     30, "the force limits")
+            bo_first = _run(bo, GRASP)
+            start_run(ana, "hand", GRASP)
+            bo.close_hand()  # Bo's own grasp going on meanwhile: a row beside Ana's
+            wait_for(lambda: ana.challenge_runs.pending is None, 120, "Ana's run measured")
+            ana_fig = ana.challenge_results()[-1][1]
+            assert ana_fig == bo_first
+            assert ana_fig["grasp_held"] == 1.0
+    finally:
+        hands.close()

@@ -84,6 +84,15 @@ class BatchedGrip:
         self._params.append(params)
         return self._rows.join()
 
+    def reset(self, hand: int) -> None:
+        """Controller ``hand`` as :meth:`add` makes one (idle, its hand open), its settings
+        kept: a challenge's restart (:class:`armlab.control.grip_loop.RestartHand`)."""
+        r = self.row(hand)
+        for name in MEMORY:
+            self._m[name][r] = 0.0
+        self._m["finger_angle"][r] = self.model.finger.open_angle
+        self._mode[r] = IDLE
+
     def remove(self, hand: int) -> None:
         """Take controller ``hand`` out."""
         r = self._rows.leave(hand)

@@ -88,8 +88,14 @@ class RestartHand:
     plan: tuple[tuple[int, object], ...] = ()
 
 
-Command = CloseHand | OpenHand | MotorsOff | SetGripParams | SetObject | RestartHand
-COMMANDS = (CloseHand, OpenHand, MotorsOff, SetGripParams, SetObject, RestartHand)
+@dataclass(frozen=True)
+class CancelPlan:
+    """Apply nothing more of the last restart's plan (its run was cut short)."""
+
+
+Command = (CloseHand | OpenHand | MotorsOff | SetGripParams | SetObject | RestartHand
+           | CancelPlan)
+COMMANDS = (CloseHand, OpenHand, MotorsOff, SetGripParams, SetObject, RestartHand, CancelPlan)
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,8 @@ class GripStatus:
         closed_at: plant time of the last close command, s (None: never closed).
         running: whether the thread runs.
         fault: "" or why the loop stopped.
+        restarts: restarts done (:class:`RestartHand`).
+        restarted_at: plant time of the last one's period, before its step (None: none).
     """
 
     t: float = 0.0
@@ -109,6 +117,8 @@ class GripStatus:
     closed_at: float | None = None
     running: bool = False
     fault: str = ""
+    restarts: int = 0
+    restarted_at: float | None = None
 
 
 class GripRecord(LoopRecord):
@@ -132,6 +142,19 @@ class GripRecord(LoopRecord):
     def open_hand(self) -> None:
         """Post a release."""
         self.post(OpenHand())
+
+    def restart(self, plan: list[tuple[int, Command]]) -> int:
+        """Start the hand again open and at rest at the loop's next period, then ``plan``'s
+        (periods, command), each applied ``periods + 1`` periods after that one; the
+        restart's number (``status.restarts`` reaches it at that period, whose plant time
+        before its step is ``status.restarted_at``)."""
+        number = self.status.restarts + 1
+        self.post(RestartHand(tuple(plan)))
+        return number
+
+    def cancel_plan(self) -> None:
+        """Apply nothing more of the last restart's plan (the run was cut short)."""
+        self.post(CancelPlan())
 
     @staticmethod
     def _record_for(history_s: float, dt: float) -> RingBuffer:
@@ -221,21 +244,6 @@ class GripLoop(GripRecord):
         """The object between the fingers (None: nothing)."""
         return self.plant.obj
 
-    def restart(self, plan: list[tuple[int, Command]]) -> int:
-        """Start the hand again open and at rest at the loop's next period, then ``plan``'s
-        (periods, command), each applied ``periods + 1`` periods after that one; the
-        restart's number (:attr:`restarts` reaches it at that period, whose plant time
-        before its step is :attr:`restarted_at`)."""
-        if not callable(getattr(self.plant, "reset", None)):
-            raise ValueError("this hand cannot be put back open at rest")
-        number = self.restarts + 1
-        self.post(RestartHand(tuple(plan)))
-        return number
-
-    def cancel_plan(self) -> None:
-        """Apply nothing more of the last restart's plan (the run was cut short)."""
-        self._schedule.cancel()
-
     def _restart(self, plan: tuple[tuple[int, object], ...]) -> None:
         """:class:`RestartHand` in the loop thread."""
         self.plant.reset(keep_time=True)  # type: ignore[attr-defined]  # the simulated hand the loop drives has reset
@@ -272,7 +280,7 @@ class GripLoop(GripRecord):
         """Stop the thread (waits for the current tick); the motors are left at 0 V."""
         self._pacer.stop(timeout=2.0)
         self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False,
-                                 self.status.fault)
+                                 self.status.fault, self.restarts, self.restarted_at)
 
     def run_for(self, seconds: float) -> None:
         """Run ``seconds`` of periods now, in the calling thread (the thread must not run)."""
@@ -281,7 +289,7 @@ class GripLoop(GripRecord):
     def _stopped(self, error: Exception | None) -> None:
         fault = "" if error is None else f"the hand loop stopped: {error}"
         self.status = GripStatus(self.plant.t, self.controller.modes, self._closed_at, False,
-                                 fault)
+                                 fault, self.restarts, self.restarted_at)
 
     def _period(self) -> None:
         self._schedule.tick()  # a restart's commands due this period
@@ -289,6 +297,8 @@ class GripLoop(GripRecord):
             command = self._commands.popleft()
             if isinstance(command, RestartHand):
                 self._restart(command.plan)
+            elif isinstance(command, CancelPlan):
+                self._schedule.cancel()
             else:
                 self._apply(command, self.plant, self.controller)
         plant, ctl = self.plant, self.controller
@@ -299,4 +309,5 @@ class GripLoop(GripRecord):
             ctl.force_cap, plant.finger_angle,
         ])
         self._ring.append(row)
-        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._pacer.running)
+        self.status = GripStatus(plant.t, ctl.modes, self._closed_at, self._pacer.running,
+                                 restarts=self.restarts, restarted_at=self.restarted_at)

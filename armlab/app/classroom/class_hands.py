@@ -27,16 +27,19 @@ import numpy as np
 from armlab.control.batched_grip import BatchedGrip
 from armlab.control.grip import MODES, N_FINGERS, GripModel, GripParams
 from armlab.control.grip_loop import (
+    CancelPlan,
     CloseHand,
     Command,
     GripRecord,
     GripStatus,
     MotorsOff,
     OpenHand,
+    RestartHand,
     SetGripParams,
     SetObject,
 )
 from armlab.control.periodic import SharedClock
+from armlab.control.restart import Schedule
 from armlab.hardware.sim.batched_hand import BatchedHand
 from armlab.hardware.sim.hand import GraspObject, HandParams, HandSim
 
@@ -66,6 +69,9 @@ class ClassHand(GripRecord):
         self.params = params
         self.obj = obj
         self.closed_at: float | None = None
+        self.restarts = 0  #: restarts done (:class:`RestartHand`)
+        self.restarted_at: float | None = None  #: class time of the last one, before its step
+        self.schedule = Schedule()  #: the last restart's plan (the class's loop's)
         self._ring = self._record_for(history_s, self.dt)
 
     def _send(self, command: Command) -> None:  # type: ignore[override]  # each loop takes its own command types
@@ -80,9 +86,10 @@ class ClassHand(GripRecord):
         row = rows.get(self.hand)
         if row is None:
             return GripStatus(t, ("idle",) * N_FINGERS, self.closed_at, False,
-                              fault or FREED)
+                              fault or FREED, self.restarts, self.restarted_at)
         modes = tuple(MODES[k] for k in codes[row])
-        return GripStatus(t, modes, self.closed_at, self._owner.clock.alive, fault)
+        return GripStatus(t, modes, self.closed_at, self._owner.clock.alive, fault,
+                          self.restarts, self.restarted_at)
 
     def start(self) -> None:
         """Nothing: the class's loop runs every hand it holds."""
@@ -188,11 +195,23 @@ class ClassHands:
                 grip.set_params(h, replace(grip.params(h), **{
                     k: v for k, v in changes.items() if v is not None}))
                 hand.params = grip.params(h)
+            case RestartHand(plan):  # a challenge's run: open and at rest, as a new hand
+                self.plant.reset(h)
+                grip.reset(h)
+                self._current[self.plant.row(h)] = 0.0
+                hand.closed_at = None
+                hand.schedule.begin(plan, lambda c, h=h: self._commands.append((h, c)))
+                hand.restarted_at = self.plant.t
+                hand.restarts += 1
+            case CancelPlan():
+                hand.schedule.cancel()
             case SetObject(obj):
                 self.plant.set_object(h, obj)  # type: ignore[arg-type]  # a hand's object: the simulator's GraspObject (or None)
                 hand.obj = self.plant.obj(h)
 
     def _period(self) -> None:  # the clock's thread, holding self.lock
+        for hand in self._rows:  # restarts' commands due this period
+            hand.schedule.tick()
         while self._commands:
             h, command = self._commands.popleft()
             if (hand := self._hands.get(h)) is not None:

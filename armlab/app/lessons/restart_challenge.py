@@ -17,9 +17,11 @@ challenge and the robot alone (issue 50 item 3), as the compliance lesson's are
 
 Two runs with the same settings give the same figures for every student, on a loaded
 machine, after any earlier runs. The figures are tagged with the challenge's key
-(:meth:`RestartRuns.tags`): only a run made as the challenge's run counts for it. A hand
-or robot that cannot be put back (real servos, a student's private copy in a classroom)
-runs from where it is, and the page says so.
+(:meth:`RestartRuns.tags`): only a run made as the challenge's run counts for it (a
+student's private hand in a class is restarted in the class's worker, the restart a
+command of its loop). A robot that cannot be put back (real servos, a quadruped in the
+class's worker) walks from where it is, stopped ``walk_s`` of loop time later, and the
+page says so.
 """
 
 from __future__ import annotations
@@ -209,12 +211,13 @@ class RestartRuns:
     def _restarted(self, run: Pending) -> float | None:
         """Loop time of the run's restart once done (None: not yet)."""
         if self.kind == "grasp":
-            holder: Any = self.lesson.loop
+            st = self.lesson.loop.status
+            done, at = st.restarts, st.restarted_at
         else:
-            holder = self.lesson.backend
-        if run.number is None or holder.restarts < run.number:
+            done, at = self.lesson.backend.restarts, self.lesson.backend.restarted_at
+        if run.number is None or done < run.number:
             return None
-        return holder.restarted_at
+        return at
 
     def _done(self, figures: dict[str, float | None], t: float) -> None:
         run, self.pending = self.pending, None
