@@ -137,18 +137,23 @@ def test_a_kp_change_reaches_the_loop(omx, page):
     page.wait_for(lambda: page.find(KP).value == pytest.approx(3.8), 30.0, "the Kp slider 3.8")
 
 
-def test_a_kp_past_its_range_is_set_to_its_end_and_the_page_told_so(omx, page):
+def test_a_gain_past_its_range_is_set_to_its_end_and_the_page_told_so(omx, page):
     """The page's one rule for a typed number: past the range, the nearest end is applied
     and the message names that value (the field itself clamps to it on blur)."""
     loop = omx.lesson.loop
+    kp = loop.params.kp
     seen = len(page.notifications)
-    page.set_value(KP, 1e6)
+    page.set_value(KP, -5.0)  # (past the top, Kp 200, is more than this arm follows)
     page.wait_for(lambda: len(page.notifications) > seen, 30.0, "a notification")
-    wait_for(lambda: loop.params.kp == 200.0, 30.0, "Kp 200 in the loop")
+    wait_for(lambda: loop.params.kp == 0.0, 30.0, "Kp 0 in the loop")
     title, body = page.notifications[seen]
     assert title == LIMIT_TITLE and body == (
-        "Kp: 1e+06 is above the largest value, 200; set to 200."), page.notifications[seen:]
-    page.wait_for(lambda: page.find(KP).value == pytest.approx(200.0), 30.0, "the slider 200")
+        "Kp: -5 is below the smallest value, 0; set to 0."), page.notifications[seen:]
+    # the typer's field shows the value applied once the typing pauses
+    page.wait_for(lambda: page.find(KP).value == pytest.approx(0.0), 30.0, "the field 0")
+    page.set_value(KP, kp)
+    wait_for(lambda: loop.params.kp == kp, 30.0, "Kp back")
+    assert loop.status.fault is None
 
 
 @pytest.mark.parametrize("bad", [float("nan")])

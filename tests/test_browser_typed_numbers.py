@@ -86,3 +86,24 @@ def test_esc_drops_an_exponent_and_a_key_no_number_takes_is_named(browser, lab):
         pg.close()
         lab.lesson.gains.sliders["kp"].set(kp0)
         wait_for(lambda: loop.params.kp == kp0, 30, "Kp back")
+
+
+def test_digits_typed_past_the_range_give_one_message_naming_the_last(browser, lab):
+    """"999999" typed sends 999, 9999, ... as it goes: one message, updated, naming the
+    value the lab applied for the last (not six, nor "kept 19")."""
+    loop = _loop(lab)
+    kp0 = loop.params.kp
+    pg, field = _kp_field(browser, lab)
+    try:
+        field.click()
+        field.press("Control+a")
+        field.press_sequentially("999999", delay=120)
+        wait_for(lambda: loop.params.kp == 200.0, 60, "Kp 200 in the loop", every=0.2)
+        last = pg.get_by_text("Kp: 999999 is above the largest value, 200; set to 200.")
+        last.wait_for(timeout=60_000)
+        assert pg.get_by_text(LIMIT_TITLE).count() == 1
+        assert pg.get_by_text("Value refused").count() == 0
+    finally:
+        pg.close()
+        lab.lesson.gains.sliders["kp"].set(kp0)
+        wait_for(lambda: loop.params.kp == kp0, 30, "Kp back")

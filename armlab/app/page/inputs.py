@@ -29,10 +29,17 @@ from typing import Any
 
 import viser
 
+from armlab.app.viser_ext.clients import connected, queue
 from armlab.app.viser_ext.dispatch import screen_gui_updates
 from armlab.app.viser_ext.handles import gui_inputs, uuid_of
+from armlab.app.viser_ext.messages import GuiUpdateMessage
 from armlab.kinematics.validate import check_number
 
+#: s a value typed past the range stays in the typer's field before it shows the value
+#: applied: once the typing pauses that long (the field itself clamps when it loses focus;
+#: sooner, the next digit would land after the shown end: "999" shown as 200, then "20099").
+SHOW_APPLIED_S = 1.0
+_show_timers: dict[tuple[int, int], threading.Timer] = {}
 #: The title of the message that a typed value was set to the end of its range.
 LIMIT_TITLE = "Value set to its limit"
 
@@ -58,7 +65,9 @@ def typed_value(raw: object, *, name: str, lo: float, hi: float) -> tuple[float,
 #: value of that control past its range within it updates that message (typing "999999"
 #: sends six values: one message, naming the last).
 LIMIT_SECONDS = 6.0
-_limit_notes: dict[tuple[Any, str], tuple[Any, float]] = {}
+#: page -> control -> (its open message, when it opened); a page's entries go with it
+_limit_notes: weakref.WeakKeyDictionary[Any, dict[str, tuple[Any, float]]] = \
+    weakref.WeakKeyDictionary()
 _limit_lock = threading.Lock()
 
 
@@ -68,18 +77,42 @@ def tell_limit(client: viser.ClientHandle | None, control: str, body: str) -> No
     if client is None:
         return
     now = time.monotonic()
-    key = (client.client_id, control)
     with _limit_lock:
-        for k in [k for k, (_, t) in _limit_notes.items() if now - t > LIMIT_SECONDS]:
-            del _limit_notes[k]
-        shown = _limit_notes.get(key)
-        if shown is not None:
-            shown[0].body = body
-            _limit_notes[key] = (shown[0], shown[1])  # (closes as first opened)
+        notes = _limit_notes.setdefault(client, {})
+        shown = notes.get(control)
+        if shown is not None and now - shown[1] < LIMIT_SECONDS:
+            shown[0].body = body  # (it closes when it was to close)
             return
-        handle = client.add_notification(LIMIT_TITLE, body, color="yellow",
-                                         auto_close_seconds=LIMIT_SECONDS)
-        _limit_notes[key] = (handle, now)
+        notes[control] = (client.add_notification(LIMIT_TITLE, body, color="yellow",
+                                                  auto_close_seconds=LIMIT_SECONDS), now)
+
+
+def show_applied_soon(client: viser.ClientHandle | None, handle: Any, value: Any) -> None:
+    """Once ``client``'s person has paused typing into ``handle`` for :data:`SHOW_APPLIED_S`,
+    its field shows ``value``, the value applied: every page's, when the input itself does
+    not hold it yet, else the typer's page's alone (the others were sent it already)."""
+    if client is None:
+        return
+    key = (id(client), id(handle))
+
+    def show() -> None:
+        with _limit_lock:
+            if _show_timers.get(key) is not timer:
+                return
+            del _show_timers[key]
+        if handle.value != value:
+            handle.value = value
+        elif connected(client) and GuiUpdateMessage is not None:
+            queue(client, GuiUpdateMessage(uuid_of(handle), {"value": handle.value}))
+
+    timer = threading.Timer(SHOW_APPLIED_S, show)
+    timer.daemon = True
+    with _limit_lock:
+        old = _show_timers.pop(key, None)
+        if old is not None:
+            old.cancel()
+        _show_timers[key] = timer
+    timer.start()
 
 
 def notify(client: viser.ClientHandle | None, title: str, body: str, *,
@@ -90,9 +123,10 @@ def notify(client: viser.ClientHandle | None, title: str, body: str, *,
     client.add_notification(title, body, color=color, auto_close_seconds=seconds)  # type: ignore[call-overload]  # color: one of viser's colour names (the callers')
 
 
-#: The inputs a :class:`GuardedNumber` applies the rule to, by their uuid (the guard knows
-#: whether its ``apply`` takes the end of the range: :class:`UpdateScreen` leaves the value
-#: to it rather than announce a value that may then be refused).
+#: The inputs a :class:`GuardedNumber` applies the rule to, by their uuid: the guard knows
+#: whether its ``apply`` takes the end of the range, so :class:`UpdateScreen` hands it the
+#: value typed (:meth:`GuardedNumber.typed`) and leaves the message to it rather than
+#: announce a value that may then be refused.
 _GUARDED: weakref.WeakValueDictionary[str, GuardedNumber] = weakref.WeakValueDictionary()
 
 
@@ -125,14 +159,26 @@ class GuardedNumber:
         self._lock = lock if lock is not None else threading.RLock()  # reverting re-enters
         self.value = float(handle.value)
         self.refused = 0  #: how many values were refused (for tests and the status line)
+        self._typed: Any = None  #: the value typed, when the screen put it in range
         handle.on_update(self._on_update)
         _GUARDED[uuid_of(handle)] = self
+
+    def typed(self, raw: object) -> None:
+        """The page typed ``raw``, which :class:`UpdateScreen` put in the input's range
+        before viser took it (the handle never holds a value outside it): the message
+        names ``raw``."""
+        with self._lock:
+            self._typed = raw
 
     def _on_update(self, event: viser.GuiEvent) -> None:
         with self._lock:
             raw = self.handle.value
+            typed, self._typed = self._typed, None
             try:
                 v, clamped = typed_value(raw, name=self.name, lo=self.lo, hi=self.hi)
+                if clamped is None and typed is not None:  # (the screen clamped it)
+                    end, clamped = typed_value(typed, name=self.name, lo=self.lo, hi=self.hi)
+                    clamped = clamped if end == v else None
             except ValueError as exc:
                 self._refuse(event.client, str(exc))
                 return
@@ -143,9 +189,20 @@ class GuardedNumber:
                     self._refuse(event.client, str(exc))
                     return
                 self.value = v
-            if clamped is not None:  # every page, the typer's too, shows what was applied
+            if clamped is not None:
                 tell_limit(event.client, self.name, clamped)
-                self.handle.value = v
+                show_applied_soon(event.client, self.handle, v)
+
+    def tell(self, client: viser.ClientHandle | None, raw: object) -> None:
+        """The page typed ``raw`` past the range while the input already held its end
+        (viser then calls no one): say so in the guard's words, if that end is applied."""
+        try:
+            end, note = typed_value(raw, name=self.name, lo=self.lo, hi=self.hi)
+        except ValueError:
+            return
+        if note is not None and end == self.value:
+            tell_limit(client, self.name, note)
+            show_applied_soon(client, self.handle, self.value)
 
     def _refuse(self, client: viser.ClientHandle | None, message: str) -> None:
         self.refused += 1
@@ -347,11 +404,19 @@ class UpdateScreen:
         why = why_bad_value(handle, updates["value"])
         if why is None:
             label = str(handle.label)[:40]
-            value, clamped = (updates["value"], None) if uuid in _GUARDED else clamp_to_range(
-                handle, updates["value"], name=label)
+            raw = updates["value"]
+            value, clamped = clamp_to_range(handle, raw, name=label)
             if clamped is not None:  # applied as the end of the range, and the page told
-                updates["value"] = value
-                tell_limit(self._server.get_clients().get(client_id), uuid, clamped)
+                updates["value"] = value  # (so no handle ever holds a value past its range)
+                guard = _GUARDED.get(uuid)
+                client = self._server.get_clients().get(client_id)
+                if guard is None:
+                    tell_limit(client, uuid, clamped)
+                    show_applied_soon(client, handle, value)
+                elif value != handle.value:  # the guard tells, once its apply has taken it
+                    guard.typed(raw)
+                else:  # unchanged: viser calls no one
+                    guard.tell(client, raw)
             await self._coalesce(uuid, client_id, message)  # (the field clamps on blur)
             return
         self.refused += 1
