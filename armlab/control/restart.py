@@ -44,7 +44,6 @@ from typing import Any
 import numpy as np
 
 from armlab.control.backend import Backend, JointState
-from armlab.control.commands import Command
 
 
 class Schedule:
@@ -55,7 +54,7 @@ class Schedule:
     its owner's lock (or its loop's thread) calls it."""
 
     def __init__(self) -> None:
-        self._plan: list[tuple[int, Command]] = []
+        self._plan: list[tuple[int, Any]] = []  #: (periods, a loop's command)
         self._post: Callable[[Any], None] | None = None
         self._since = 0  #: periods since :meth:`begin`
 
@@ -112,7 +111,7 @@ class RestartableArm:
         self.inner: Backend = make(np.asarray(q0, dtype=float))
         self._offset = 0.0  #: the loop time the backend in use started at
         self._t = 0.0
-        self._armed: tuple[np.ndarray, list[tuple[int, Command]], Callable[[Command], None]
+        self._armed: tuple[np.ndarray, list[tuple[int, Any]], Callable[[Any], None]
                            ] | None = None
         self._fresh = False  #: armed, and the backend in use was made at this period's sync
         self._schedule = Schedule()
@@ -125,8 +124,8 @@ class RestartableArm:
 
     # -- restarting -------------------------------------------------------------------
 
-    def restart(self, q: np.ndarray, plan: Sequence[tuple[int, Command]],
-                post: Callable[[Command], None]) -> int:
+    def restart(self, q: np.ndarray, plan: Sequence[tuple[int, Any]],
+                post: Callable[[Any], None]) -> int:
         """Arm a restart at ``q`` (n,) rad (then post ``Reset`` to the loop); ``plan``'s
         commands go to ``post`` that many periods after it. Returns the restart's number
         (:attr:`restarts` reaches it once done)."""

@@ -11,7 +11,7 @@ run is compared with the lab's own, so a law right at one sample only still fail
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from functools import lru_cache
 from typing import Any
@@ -116,7 +116,7 @@ def _joints(args: tuple[Any, ...]) -> tuple[int, ...]:
 
 
 def _sequence_case(name: str, law_name: str, step: Callable[..., Any],
-                   calls: list[Callable[[Any], tuple[Any, ...]]], state0: Any,
+                   calls: Sequence[Callable[..., tuple[Any, ...]]], state0: Any,
                    state_of: Callable[[np.ndarray], Any], shape: tuple[int, ...],
                    labels: tuple[str, ...], n_state: int, stuck_hint: str, own_hint: str, *,
                    rtol: float = 1e-7, atol: float = 1e-12) -> RunCase:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -200,7 +201,7 @@ class ClassHands:
                 grip.reset(h)
                 self._current[self.plant.row(h)] = 0.0
                 hand.closed_at = None
-                hand.schedule.begin(plan, lambda c, h=h: self._commands.append((h, c)))
+                hand.schedule.begin(plan, partial(self._queue, h))
                 hand.restarted_at = self.plant.t
                 hand.restarts += 1
             case CancelPlan():
@@ -209,9 +210,13 @@ class ClassHands:
                 self.plant.set_object(h, obj)  # type: ignore[arg-type]  # a hand's object: the simulator's GraspObject (or None)
                 hand.obj = self.plant.obj(h)
 
+    def _queue(self, h: int, command: Command) -> None:
+        """Queue ``command`` for hand ``h``, applied at the clock's next period."""
+        self._commands.append((h, command))
+
     def _period(self) -> None:  # the clock's thread, holding self.lock
-        for hand in self._rows:  # restarts' commands due this period
-            hand.schedule.tick()
+        for row in self._rows:  # restarts' commands due this period
+            row.schedule.tick()
         while self._commands:
             h, command = self._commands.popleft()
             if (hand := self._hands.get(h)) is not None:

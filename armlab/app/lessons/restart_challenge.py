@@ -266,6 +266,7 @@ class RestartRuns:
             return
         snap: dict[str, np.ndarray] | None = loop.snapshot(st.t - run.t0 + 1.0)
         if run.number is not None:
+            assert snap is not None  # (a loop that has run its periods has rows)
             snap = window(snap, run.t0, run.length, period)
         else:  # (from where it was: its rows from its start)
             assert snap is not None
