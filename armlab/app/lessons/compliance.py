@@ -42,6 +42,7 @@ from armlab.app.lessons._loop_state import (
 )
 from armlab.app.lessons._servo_arm import open_arm, shut_arm
 from armlab.app.lessons.compliance_challenge import ChallengeRuns
+from armlab.app.lessons.compliance_contact import ContactTab
 from armlab.app.lessons.compliance_controls import GainControls, apply_gains, show_gain_warning
 from armlab.app.lessons.compliance_plots import JointPlots
 from armlab.app.lessons.compliance_push import PushControls
@@ -343,6 +344,8 @@ class ComplianceLesson(LessonBase):
             self.gains = GainControls(gui, params, apply=self._apply_params)
         with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
             self._build_push_tab(gui)
+        with tabs.add_tab("Contact", viser.Icon.WALL):  # the hand run into a wall
+            self.contact = ContactTab(self, gui, servos=self.hardware)
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             self.equations = gui.add_markdown("")
             self.design = gui.add_markdown(design_table(params, None, None))
@@ -739,6 +742,7 @@ class ComplianceLesson(LessonBase):
             else:
                 self._push = None
         rig.scene.set_forces(hand, applied, estimated_hand_force(J, snap["tau_ext"][-1]))
+        self.contact.draw(hand)
 
     def _plot_frame(self, force: bool) -> None:
         rig = self.rig
@@ -750,6 +754,7 @@ class ComplianceLesson(LessonBase):
         law_loop = law_loop_of(loop)
         self.plots.update(snap, force=force, reference=None if law_loop is None
                           else partial(reference_angle, law_loop))
+        self.contact.plot(force)
         self._update_status(status, snap, rig)
         now = time.monotonic()
         if force or now - self._last_teach > 0.5:
@@ -815,6 +820,7 @@ class ComplianceLesson(LessonBase):
         of its ticks: the loop's status is read only while one runs)."""
         self.runs.tick()  # the run's rows kept apart from the recorder's window
         self.challenges.measure()
+        self.contact.tick()
         exp, rig = self.experiment, self.rig
         if exp is None or exp.done or rig is None:
             return

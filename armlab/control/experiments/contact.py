@@ -72,6 +72,18 @@ def predicted_force(model: SerialChain, q: np.ndarray, normal: np.ndarray, depth
     return float(depth / (compliance + 1.0 / k_wall))
 
 
+def wall_across_line(model: SerialChain, q_start: np.ndarray, q_end: np.ndarray,
+                     distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A wall across the hand's straight line from its place at ``q_start`` to its place
+    at ``q_end`` (rad), ``distance`` m ahead of the start: (x0, u, origin, normal), base
+    frame, x0 the start (3,) m, u the line's unit direction, origin a point of the wall
+    (3,) m and normal its unit normal towards the free side (−u, facing the hand)."""
+    x0 = model.fk(np.asarray(q_start, dtype=float))[:3, 3]
+    u = model.fk(np.asarray(q_end, dtype=float))[:3, 3] - x0
+    u = u / np.linalg.norm(u)
+    return x0, u, x0 + distance * u, -u
+
+
 def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[str, Any]:
     """The figures of one contact run: ``force`` (N) and ``peak`` (N, the largest at any
     plant step of each period) sampled at loop times ``t`` (s)."""
@@ -123,7 +135,7 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         ValueError: a backend without a wall to touch (real servos: the wall is virtual
             there, rendered by the controller), or options out of range.
     """
-    for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.15),
+    for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.2),
                                 ("--depth-cm", depth, 0.0, 0.1),
                                 ("--stiffness", stiffness, 100.0, 1e6),
                                 ("--damping", damping, 0.0, 1e4)):
@@ -133,10 +145,7 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
                              f"{value * scale:g}")
     line = thesis_line(model)
     q0 = line.q[0]
-    x0 = model.fk(q0)[:3, 3]
-    u = model.fk(line.q[-1])[:3, 3] - x0
-    u /= np.linalg.norm(u)
-    origin, normal = x0 + wall * u, -u
+    x0, u, origin, normal = wall_across_line(model, q0, line.q[-1], wall)
     period = params.period
     points = line_points(x0, x0 + (wall + depth) * u, TARGET_SPEED * period)
     move = cartesian_to_joint(model, points, q0, dt=period, name="into the wall")

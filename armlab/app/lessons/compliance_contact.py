@@ -1,0 +1,433 @@
+"""The compliance lesson's Contact tab: the hand run into a wall across the thesis line.
+
+A wall (a plane across the thesis line, some cm ahead of the line's start, facing the
+hand) is put into the simulated arm's world through its backend's
+:class:`armlab.control.backend.Touchable`; "Run into the wall" plays the thesis line (the
+Run tab's command) through it, so the command ends behind the surface. The 3D view draws
+the wall (a translucent slab) and its force on the hand (an arrow, scaled as the lesson's
+other force arrows); the figures of the run (peak and steady force, bounces, time to
+settle, the steady force the law's joint stiffness predicts) are those of
+``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions,
+from the wall's force sampled at each of the publisher's ticks and its peak kept at every
+plant step between them); one chart shows the wall's force beside the lab's estimate of
+the hand's force from τ_ext (eq. 2.23) along the wall's normal.
+
+Real servos touch no simulated wall: there the controls are disabled and the tab says the
+wall is virtual only in simulation for now (a wall the law renders on servos is issue 54's
+item 3).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import viser
+import viser.transforms as vtf
+
+from armlab.app.lessons._common import esc, guarded, set_content
+from armlab.app.lessons._loop_state import check_running
+from armlab.app.lessons.compliance_scene import (
+    ARROW_M_PER_N,
+    ARROW_MIN_N,
+    estimated_hand_force,
+)
+from armlab.app.lessons.compliance_teach import STALE, people
+from armlab.app.page.inputs import guarded_slider
+from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec
+from armlab.control.backend import Touchable
+from armlab.control.commands import RunTrajectory
+from armlab.control.experiments.contact import (
+    HOLD_S,
+    contact_figures,
+    joint_stiffness,
+    predicted_force,
+    wall_across_line,
+)
+from armlab.control.params import Params
+from armlab.control.trajectory import THESIS_LINE_END
+from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.smallarrays import all_finite
+
+if TYPE_CHECKING:
+    from armlab.app.lessons.compliance import ComplianceLesson, Rig
+
+RUN_LABEL = "into the wall"  #: the run's label in the Files tab's Save run
+#: What the tab says on real servos.
+VIRTUAL_NOTE = ("The wall is **virtual only in simulation** for now: real servos touch no "
+                "simulated wall (a wall the law renders on the servos is still to come). "
+                "Open the lab with the simulated arm to run into it.")
+DISTANCE_CM = 18.0  #: default: 2 cm before the line's end, the command ends 2 cm behind it
+#: N/m, default: a wooden table top under a servo arm's hand (``armlab experiment contact``'s
+#: default, so the tab's figures and the experiment's can be compared)
+STIFFNESS = 2e4
+DAMPING = 50.0  #: N·s/m, the experiment's default
+#: N: the wall is not put where the hand already presses harder than this (it would
+#: throw the arm back); Home first
+PLACE_MAX_N = 5.0
+WALL_RGB = (140, 100, 60)  #: wood
+WALL_OPACITY = 0.35
+WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (along n)
+CONTACT_RGB = (230, 120, 0)
+CHART_WINDOW_S = 10.0
+SAMPLES = 2000  #: samples kept for the chart (about 60 s at the publisher's 30 Hz)
+
+
+@dataclass(frozen=True)
+class WallSetting:
+    """The wall as the controls set it: on, cm ahead of the line's start, N/m, N·s/m."""
+
+    on: bool
+    distance_cm: float
+    stiffness: float
+    damping: float
+
+
+@dataclass
+class ContactRun:
+    """A run into the wall being measured (or measured)."""
+
+    t0: float
+    params: Params
+    wall: WallSetting
+    controller: str
+    normal: np.ndarray
+    depth: float  #: m of command behind the surface at the line's end
+    line_end: float | None = None  #: loop time the line ended, s
+    t: list[float] = field(default_factory=list)
+    force: list[float] = field(default_factory=list)
+    peak: list[float] = field(default_factory=list)
+    figures: dict[str, Any] | None = None
+
+
+class ContactTab:
+    """The Contact tab's controls, figures and chart, added to ``gui`` (inside the tab),
+    and its wall and arrow in the lesson's scene.
+
+    Args:
+        lesson: the compliance lesson (its rig, runs, challenges and law checks).
+        gui: where to add the controls.
+        servos: real servos: the controls are disabled and the tab says why.
+    """
+
+    def __init__(self, lesson: ComplianceLesson, gui: viser.GuiApi, *, servos: bool) -> None:
+        self._lesson = lesson
+        self._lock = threading.RLock()
+        self.servos = servos
+        if servos:
+            gui.add_markdown(VIRTUAL_NOTE)
+        else:
+            gui.add_markdown("Put a **wall** across the thesis line and run the hand into "
+                             "it: the orange arrow is the wall's force on the hand, the "
+                             "chart sets it beside the force the controller estimates "
+                             "from τ_ext. Compare PD with the compliance law (Gains tab).")
+        self.wall_on = gui.add_checkbox("Wall", False, disabled=servos,
+                                        hint="Put the wall across the thesis line (a "
+                                             "plane facing the hand)")
+        self.distance = guarded_slider(
+            gui, "Wall ahead of the hand (cm)", name="wall distance", lo=5.0, hi=20.0,
+            step=0.5, initial=DISTANCE_CM, apply=lambda v: self._changed(distance_cm=v),
+            hint="Along the thesis line from its start; the line is 20 cm, so the command "
+                 "ends (20 − this) cm behind the wall's surface")
+        self.stiffness = guarded_slider(
+            gui, "Wall stiffness (N/m)", name="wall stiffness", lo=1000.0, hi=100000.0,
+            step=1000.0, initial=STIFFNESS, apply=lambda v: self._changed(stiffness=v),
+            hint="N per m of penetration; 2·10⁴: a wooden table under a servo arm's hand")
+        self.damping = guarded_slider(
+            gui, "Wall damping (N·s/m)", name="wall damping", lo=0.0, hi=500.0, step=5.0,
+            initial=DAMPING, apply=lambda v: self._changed(damping=v),
+            hint="N per m/s of the penetration's rate while touching (it never pulls)")
+        self.button = gui.add_button("Run into the wall", color="green", disabled=servos,
+                                     icon=viser.Icon.WALL,
+                                     hint="Play the thesis line with the wall across it, "
+                                          "hold 4 s behind the surface, measure the force")
+        self.result = gui.add_markdown("")
+        self.chart = LivePlot(gui, title="Contact force along the wall's normal",
+                              y_label="force (N)", window_s=CHART_WINDOW_S, points=100,
+                              series=(SeriesSpec("wall (ground truth)", COLORS[3]),
+                                      SeriesSpec("estimate from τ_ext", COLORS[4], (6, 4))),
+                              y_span=5.0)
+        for guard in (self.distance, self.stiffness, self.damping):
+            guard.handle.disabled = servos
+        self.wall_on.on_update(lambda e: guarded(e, self._changed))
+        self.button.on_click(lambda e: guarded(e, self.run))
+        self._rig: Rig | None = None  #: the rig the wall and the nodes were placed on
+        self._placed: tuple[np.ndarray, np.ndarray] | None = None  #: (origin, normal), base
+        self._wall_node: viser.BoxHandle | None = None
+        self._arrow: viser.ArrowsHandle | None = None
+        self._force_now = 0.0
+        self._run: ContactRun | None = None
+        self._shown_stale: bool | None = None
+        self._samples: deque[tuple[float, float, float]] = deque(maxlen=SAMPLES)
+
+    # ------------------------------------------------------------------ the wall
+
+    def setting(self, **override: float) -> WallSetting:
+        """The wall as the controls set it (``override``: a value being applied)."""
+        return WallSetting(
+            on=bool(self.wall_on.value),
+            distance_cm=float(override.get("distance_cm", self.distance.value)),
+            stiffness=float(override.get("stiffness", self.stiffness.value)),
+            damping=float(override.get("damping", self.damping.value)))
+
+    def _changed(self, **override: float) -> None:
+        """Place (or remove) the wall as the controls say; ValueError (shown) to refuse."""
+        with self._lock:
+            rig = self._lesson.rig
+            if rig is None:
+                raise ValueError("the arm is being rebuilt; try again")
+            try:
+                self._place(rig, self.setting(**override))
+            except ValueError:
+                if self.wall_on.value and "distance_cm" not in override and \
+                        "stiffness" not in override and "damping" not in override:
+                    self._wall_off()  # (its callback removes the wall)
+                raise
+
+    def _wall_off(self) -> None:
+        """Untick Wall (on every page; its callback removes the wall)."""
+        box: Any = self.wall_on  # (viser's stubs type an input's value as read-only)
+        box.value = False
+
+    def _place(self, rig: Rig, wall: WallSetting) -> None:
+        backend = rig.backend
+        self._rig = rig
+        if not wall.on:
+            if isinstance(backend, Touchable):
+                backend.set_wall(None, stiffness=wall.stiffness, damping=wall.damping)
+            self._placed = None
+            self._remove_nodes()
+            return
+        if not isinstance(backend, Touchable):
+            raise ValueError("the wall is virtual only in simulation for now: this arm "
+                             "touches no simulated wall")
+        model = rig.model
+        _, _, origin, normal = wall_across_line(model, rig.line.q[0], rig.line.q[-1],
+                                                wall.distance_cm / 100.0)
+        moved = self._placed is None or not np.allclose(self._placed[0], origin)
+        snap = rig.loop.recorder.snapshot(0.05)  # (a new stiffness or damping: not checked)
+        if moved and len(snap["t"]) and all_finite(snap["q"][-1]):
+            hand = model.fk(snap["q"][-1])[:3, 3]
+            inside = -float((hand - origin) @ normal)
+            if inside * wall.stiffness > PLACE_MAX_N:
+                raise ValueError(f"the hand is {people(inside * 100)} cm behind that wall's "
+                                 "surface: press Home (Run tab) first, then place the wall")
+        backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping)
+        self._placed = (origin, normal)
+        self._draw_wall(rig, origin, normal)
+
+    def _draw_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray) -> None:
+        """The slab and the arrow's node under the arm's base frame, at ``origin``."""
+        scene = self._lesson.server.scene
+        sh = rig.scene.shoulder.name
+        z = normal / np.linalg.norm(normal)
+        x = np.cross([0.0, 0.0, 1.0], z)
+        x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-6 else np.array([1.0, 0.0, 0.0])
+        R = np.column_stack([x, np.cross(z, x), z])
+        wxyz = vtf.SO3.from_matrix(R).wxyz
+        centre = origin - z * WALL_SIZE_M[2] / 2  # its face on the plane, the slab behind
+        if self._wall_node is None:
+            self._wall_node = scene.add_box(f"{sh}/contact_wall", color=WALL_RGB,
+                                            dimensions=WALL_SIZE_M, opacity=WALL_OPACITY,
+                                            wxyz=wxyz, position=centre, cast_shadow=False)
+        else:
+            self._wall_node.wxyz, self._wall_node.position = wxyz, centre
+        if self._arrow is None:
+            self._arrow = scene.add_arrows(f"{sh}/contact_force", points=np.zeros((1, 2, 3)),
+                                           colors=CONTACT_RGB, shaft_radius=0.006,
+                                           head_radius=0.014, head_length=0.025,
+                                           visible=False)
+
+    def _remove_nodes(self) -> None:
+        for node in (self._wall_node, self._arrow):
+            if node is not None:
+                node.remove()
+        self._wall_node = self._arrow = None
+
+    def nodes(self) -> tuple[viser.BoxHandle | None, viser.ArrowsHandle | None]:
+        """The wall's and the arrow's scene nodes (None: not in the scene)."""
+        return self._wall_node, self._arrow
+
+    def _follow_rig(self, rig: Rig | None) -> None:
+        """A rebuilt rig (other link lengths): the wall placed again on its backend (its
+        scene is new: the nodes went with the old one)."""
+        if rig is self._rig:
+            return
+        self._wall_node = self._arrow = None  # (removed with the old rig's scene)
+        self._placed, self._rig, self._run = None, rig, None
+        if rig is not None and self.wall_on.value:
+            try:
+                self._place(rig, self.setting())
+            except ValueError as exc:
+                self._wall_off()
+                set_content(self.result, f"The wall is off: {esc(str(exc))}")
+
+    # ------------------------------------------------------------------ the run
+
+    def run(self) -> None:
+        """Play the thesis line with the wall across it and measure the contact."""
+        lesson = self._lesson
+        rig = lesson.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        if not isinstance(rig.backend, Touchable):
+            raise ValueError("the wall is virtual only in simulation for now")
+        with self._lock:
+            self._follow_rig(rig)
+            if self._placed is None:
+                raise ValueError("turn the wall on first (the Wall box above)")
+            check_running(rig.loop.status)
+            lesson._law_works("Run into the wall")
+            lesson.challenges.busy()
+            st = rig.loop.status
+            wall = self.setting()
+            origin, normal = self._placed
+            x0, u, _, _ = wall_across_line(rig.model, rig.line.q[0], rig.line.q[-1], 0.0)
+            length = float((rig.model.fk(rig.line.q[-1])[:3, 3] - x0) @ u)
+            lesson.runs.post(rig.loop, RunTrajectory(rig.line), run=RUN_LABEL)
+            lesson.run_start, lesson.run_label = st.t, RUN_LABEL
+            lesson.experiment = None  # (the lesson's own runs measure nothing of this)
+            rig.backend.wall_peak()  # the peak from here on
+            self._run = ContactRun(st.t, rig.loop.params, wall, st.controller, normal,
+                                   depth=length - wall.distance_cm / 100.0)
+            self._shown_stale = None
+            rig.scene.set_target(THESIS_LINE_END)
+            set_content(self.result, "**Into the wall**: running…")
+
+    def tick(self) -> None:
+        """Sample the wall's force and measure a run once it is over (the publisher's every
+        tick)."""
+        lesson = self._lesson
+        with self._lock:
+            rig = lesson.rig
+            self._follow_rig(rig)
+            if rig is None or self._placed is None or not isinstance(rig.backend, Touchable):
+                self._force_now = 0.0
+                if rig is not None:
+                    self._mark_stale(rig)
+                return
+            st = rig.loop.status
+            force, peak = rig.backend.wall_force(), rig.backend.wall_peak()
+            self._force_now = force
+            self._samples.append((st.t, force, self._estimate(rig, self._placed[1])))
+            run = self._run
+            if run is None or run.figures is not None:
+                self._mark_stale(rig)
+                return
+            if lesson.runs.going_on != RUN_LABEL:  # another run began: this one is cut
+                self._run = None
+                set_content(self.result, "**Into the wall**: cut short by another run")
+                return
+            run.t.append(st.t)
+            run.force.append(force)
+            run.peak.append(peak)
+            if run.line_end is None and st.t > run.t0 + 0.1 and st.trajectory is None:
+                run.line_end = st.t
+            if st.fault is None and (run.line_end is None or st.t < run.line_end + HOLD_S):
+                return
+            self._finish(rig, run, st.fault)
+
+    def _estimate(self, rig: Rig, normal: np.ndarray) -> float:
+        """N of the hand's force estimated from τ_ext (eq. 2.23) along the wall's normal
+        (NaN while τ_ext is not estimated: PD)."""
+        snap = rig.loop.recorder.snapshot(0.05)
+        if not len(snap["t"]) or not all_finite(snap["q"][-1]):
+            return math.nan
+        _, J = fk_and_jacobian(rig.model, snap["q"][-1])
+        f = estimated_hand_force(J, snap["tau_ext"][-1])
+        return math.nan if f is None else float(f @ normal)
+
+    def _finish(self, rig: Rig, run: ContactRun, fault: str | None) -> None:
+        figures = contact_figures(np.array(run.t), np.array(run.force), np.array(run.peak))
+        k_q = joint_stiffness(run.params, run.controller)
+        figures["predicted_force_n"] = None if k_q is None or run.depth <= 0 else \
+            predicted_force(rig.model, rig.line.q[-1], run.normal, run.depth, k_joint=k_q,
+                            k_wall=run.wall.stiffness)
+        figures["fault"] = fault
+        if fault is not None:
+            figures["steady_force_n"] = None
+        run.figures = figures
+        self._shown_stale = None
+        self._mark_stale(rig)
+        self._lesson.runs.finish_run(
+            {k: figures[k] for k in ("peak_force_n", "steady_force_n", "bounces", "settle_s",
+                                     "predicted_force_n")}, t=run.t[-1] if run.t else run.t0)
+
+    def figures(self) -> dict[str, Any] | None:
+        """The last run's figures (None: none measured yet)."""
+        run = self._run
+        return None if run is None else run.figures
+
+    def stale(self) -> bool:
+        """Whether the last run's figures were measured with other gains or another wall."""
+        rig, run = self._lesson.rig, self._run
+        if run is None or run.figures is None or rig is None:
+            return False
+        return run.params != rig.loop.params or run.wall != self.setting()
+
+    def _mark_stale(self, rig: Rig) -> None:
+        run = self._run
+        if run is None or run.figures is None:
+            return
+        old = self.stale()
+        if old != self._shown_stale:
+            self._shown_stale = old
+            set_content(self.result, figures_markdown(run, stale=old))
+
+    # ------------------------------------------------------------------ frames
+
+    def draw(self, hand: np.ndarray) -> None:
+        """The contact force's arrow at ``hand`` (3,) m, base frame (the pose frames)."""
+        with self._lock:
+            arrow, placed = self._arrow, self._placed
+            if arrow is None or placed is None:
+                return
+            f = self._force_now
+            if not (math.isfinite(f) and f >= ARROW_MIN_N):
+                if arrow.visible:
+                    arrow.visible = False
+                return
+            tail = hand - placed[1] * f * ARROW_M_PER_N  # from inside the wall to the hand
+            arrow.points = np.array([[tail, hand]], dtype=np.float32)
+            arrow.visible = True
+
+    def plot(self, force: bool) -> None:
+        """The chart's newest window (the plot frames)."""
+        with self._lock:
+            if len(self._samples) < 2:
+                return
+            rows = np.array(self._samples, dtype=float)
+        self.chart.update(rows[:, 0], (rows[:, 1], rows[:, 2]), force=force)
+
+
+def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
+    """The figures of ``run`` in the page's number style, one short paragraph."""
+    fig = run.figures or {}
+    w = run.wall
+    law = "compliance law" if joint_stiffness(run.params, run.controller) else "PD"
+    head = (f"**Into the wall** ({law}, wall {people(w.distance_cm)} cm ahead, "
+            f"{people(w.stiffness)} N/m, {people(w.damping)} N·s/m)")
+    if not fig.get("touched"):
+        text = f"{head}: the hand never touched the wall"
+    else:
+        def n(x: float | None) -> str:
+            return "—" if x is None else f"{people(x)} N"
+        settle = fig.get("settle_s")
+        lines = [f"peak **{n(fig['peak_force_n'])}**",
+                 f"steady **{n(fig['steady_force_n'])}**",
+                 f"the law predicts {n(fig.get('predicted_force_n'))}"
+                 + ("" if fig.get("predicted_force_n") is not None
+                    else " (PD: no finite stiffness)"),
+                 f"{fig['bounces']} bounce{'s' if fig['bounces'] != 1 else ''}",
+                 "settles in " + ("— (never within 10 %)" if settle is None
+                                  else f"{people(settle)} s")]
+        text = f"{head}: " + ", ".join(lines)
+    if fig.get("fault"):
+        text += f"; stopped: {esc(str(fig['fault']))}"
+    if stale:
+        text += f"\n\n{STALE} measured with other gains or another wall: run again"
+    return text
