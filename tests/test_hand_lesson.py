@@ -60,6 +60,13 @@ def test_force_limit_sets_the_grip_force_and_the_figures_match_the_experiment(le
         lesson._plot_frame(True)
         assert f"peak {expected['peak_force_N']:.3f} N" in lesson.figures.content
         assert lesson.force_plot.updates > 0 and lesson.current_plot.updates > 0
+        # "steady" only once the grasp has settled, and then the force the status shows
+        # (the first grasp said "steady 0.381 N" while the status showed 0.80 N)
+        wait_for(lambda: lesson._settled is not None, 60.0, "the grasp settled")
+        lesson._plot_frame(True)
+        steady = lesson._settled[1]["steady_force_N"]
+        assert f"steady {steady:.3f} N" in lesson.figures.content
+        assert steady == pytest.approx(float(np.mean(force_now(lesson))), abs=0.04)
         # a higher limit squeezes harder, read from the current alone
         client.set_value(lesson.force_slider, 1.0)
         wait_for(lambda: lesson.loop.params.force_limit == 1.0)

@@ -118,7 +118,7 @@ def test_scan_writes_the_map_from_the_calibration_and_the_servos_that_answer(tmp
     out = tmp_path / "so101.toml"
     with emulator(*SO101) as emu:
         run = subprocess.run(
-            [sys.executable, "-m", "app", "scan", "--port", emu.port, "--ids", "0-7",
+            [sys.executable, "-m", "armlab.app", "scan", "--port", emu.port, "--ids", "0-7",
              "--baud", "1000000", "--timeout", str(MARGIN), "--robot", "so101",
              "--calibration", str(_calibration(tmp_path)), "--write-map", str(out)],
             cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -331,7 +331,12 @@ class HandLesson(LessonBase):
         text = ""
         if fig is not None:
             grasped = fig["time_to_grasp_s"]
-            text = (f"**Last grasp** (F = {limit:g} N): steady {fig['steady_force_N']:.3f} N · "
+            done = self._settled is not None and self._settled[0] == st.closed_at
+            # a steady force only once the grasp has settled (the figures then kept); before,
+            # the force now, as the status line and the chart show it
+            force = (f"steady {fig['steady_force_N']:.3f} N" if done else
+                     f"closing: force now {float(np.mean(f)):.3f} N (steady once settled)")
+            text = (f"**Last grasp** (F = {limit:g} N): {force} · "
                     f"peak {fig['peak_force_N']:.3f} N · "
                     + (f"held after {grasped:.2f} s" if grasped is not None else "not held yet")
                     + f" · current {fig['final_current_A']:.3f} A")
