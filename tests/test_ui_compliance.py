@@ -586,3 +586,15 @@ def test_home_brings_the_arm_back_to_the_line_start_at_the_approach_speed(lab, c
     ok = np.isfinite(snap["q_cmd"]).all(axis=1)
     speed = np.abs(np.diff(snap["q_cmd"][ok], axis=0)) / np.diff(snap["t"][ok])[:, None]
     assert speed.max() <= APPROACH_SPEED * 1.01, speed.max()
+
+
+def test_the_status_names_joints_as_the_page_does(lab):
+    """A fault the loop words with the model's joint names ("joint theta2") is shown with
+    the page's ("θ2"), as in every other control of the lesson."""
+    lesson = lab.lesson
+    rig = lesson.rig
+    st = replace(rig.loop.status, fault="unstable: the reference speed of joint theta2 "
+                 "reached the servo's limit (4.8 rad/s); torque off (lower the gains)")
+    lesson._update_status(st, rig.loop.recorder.snapshot(0.2), rig)
+    shown = str(lesson.status.content)
+    assert "joint θ2 reached" in shown and "theta" not in shown

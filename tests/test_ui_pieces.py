@@ -105,7 +105,8 @@ def test_equations_show_live_numbers_in_degrees_and_the_law_in_use():
                       q_env=math.radians(-1.0), tau_load=0.5, tau_dyn=0.6, tau_ext=-0.1)
     p = Params()
     md = equations_markdown(p, live, torque_unit="kgf·cm")
-    assert "law 2.6" in md and "30.00°" in md and "28.00°" in md and "-1.00°" in md
+    assert "law 2.6" in md and "30.00°" in md and "28.00°" in md and "− (−1.00°)" in md
+    assert "− -" not in md and "− +" not in md  # (a negative subtrahend in brackets)
     assert "-1.02 kgf·cm" in md  # τ_ext = −0.1 N·m
     pd = equations_markdown(Params(compliance=False), live)
     assert "PD reference loop (2.20)" in pd and "θ_env" not in pd.split("External")[0]

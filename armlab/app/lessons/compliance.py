@@ -768,8 +768,8 @@ class ComplianceLesson(LessonBase):
         if self.reconnect_button.visible != st.link_down:
             self.reconnect_button.visible = st.link_down
         stopped = stopped_state(st)
-        if stopped is not None:
-            state, color = stopped, STOPPED_COLOR
+        if stopped is not None:  # (the loop names the model's joints: the page's names)
+            state, color = joint_label(stopped), STOPPED_COLOR
         elif not st.active:
             state, color = "starting", "#555"
         elif st.trajectory:
@@ -793,7 +793,7 @@ class ComplianceLesson(LessonBase):
             hand = f" · hand ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) cm"
         msg = ""
         if st.message and not st.fault and st.message != state:
-            msg = f"<div style='color:#555;font-size:0.85em'>{esc(st.message)}</div>"
+            msg = f"<div style='color:#555;font-size:0.85em'>{esc(joint_label(st.message))}</div>"
         msg += link_note(self._link, rig.backend)  # retries hold the arm; many are told
         if self.law_view is not None:  # the student's law: its error, file and line
             msg += self.law_view.status_extra()

@@ -178,6 +178,13 @@ def latest_values(snap: dict[str, np.ndarray], joint: int, name: str) -> LiveVal
     return None
 
 
+def after_minus(text: str) -> str:
+    """A number written after a minus sign: ``(−0.06 N·m)`` when it is negative, as it is
+    otherwise (never "− -0.06")."""
+    t = text.lstrip("+")
+    return f"(−{t[1:]})" if t.startswith("-") else t
+
+
 def torque_text(nm: float, unit: str) -> str:
     """A torque in N·m shown in ``unit`` ("N·m" or "kgf·cm")."""
     return f"{nm * KGF_CM_PER_NM:+.2f} kgf·cm" if unit == "kgf·cm" else f"{nm:+.3f} N·m"
@@ -202,7 +209,7 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
         if live is not None:
             e = (live.q_cmd - live.q) * DEG
             out.append(f"{live.joint}: Kp (θ_cmd − θ) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
-                       f"{live.q * DEG:.2f}°) = {p.kp * e:.3g} °/s²")
+                       f"{after_minus(f'{live.q * DEG:.2f}°')}) = {p.kp * e:.3g} °/s²")
     else:
         if p.law == "2.26":
             out.append("**Compliance, law 2.26 (thesis literal)**  \nθ̈_ref = Kp (θ_cmd − θ − "
@@ -216,11 +223,12 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
         if live is not None:
             k_env = p.k_env if p.law == "2.26" else 1.0
             pos = (live.q_cmd - live.q - k_env * live.q_env) * DEG
-            env_term = (f"{p.k_env:.3g}·{live.q_env * DEG:.2f}°" if p.law == "2.26"
-                        else f"{live.q_env * DEG:.2f}°")
+            env_term = (f"{p.k_env:.3g}·{after_minus(f'{live.q_env * DEG:.2f}°')}"
+                        if p.law == "2.26" else after_minus(f"{live.q_env * DEG:.2f}°"))
             out.append(f"{live.joint} now: Kp (θ_cmd − θ − {'K_env ' if p.law == '2.26' else ''}"
-                       f"θ_env) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − {live.q * DEG:.2f}° − "
-                       f"{env_term}) = {p.kp * pos:.3g} °/s²  \n"
+                       f"θ_env) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
+                       f"{after_minus(f'{live.q * DEG:.2f}°')} − {env_term}) = "
+                       f"{p.kp * pos:.3g} °/s²  \n"
                        f"steady state: θ_env → C_f τ_ext = {p.k_f / p.k_env:.3g} × "
                        f"{torque_text(live.tau_ext, 'N·m')} = "
                        f"{p.k_f / p.k_env * live.tau_ext * DEG:.2f}°; now "
@@ -229,7 +237,7 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
                f"LPF y += α(x − y), α = {p.alpha:.3g}")
     if live is not None:
         out.append(f"{live.joint} now: τ_ext = {torque_text(live.tau_load, torque_unit)} − "
-                   f"{torque_text(live.tau_dyn, torque_unit)} = "
+                   f"{after_minus(torque_text(live.tau_dyn, torque_unit))} = "
                    f"{torque_text(live.tau_ext, torque_unit)}")
     out.append(f"**Integration**: θ̇_ref += T θ̈_ref, θ_ref += T θ̇_ref, T = {p.period * 1e3:.3g} ms "
                "(θ_ref, θ̇_ref go to the servos as Goal Position and Moving Speed)")
