@@ -13,6 +13,7 @@ from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.redundancy import SHOWN_MODES, build
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.seed002 import circle
+from armlab.kinematics.model import load_robot
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +117,29 @@ def test_bad_typed_gain_is_refused_and_the_server_goes_on(lesson, value):
         # The server still answers: a good value is taken.
         client.set_value(lesson.speed_slider, 0.5)
         wait_for(lambda: lesson.speed.value == 0.5, timeout=30.0)
+
+
+def test_the_3d_labels_fit_their_panels_at_any_zoom():
+    """The five panels' labels are sized in the scene, so their room is a matter of
+    metres: each title and status line fits its column (no word over a neighbour's), the
+    status lies above the arm's highest point in every run, and the title below the row
+    above (screen-sized labels overprinted each other: "2 · J⁺ẋ + limits" on "4 · k_a∇w")."""
+    from armlab.app.lessons import redundancy as lesson_module
+    from armlab.app.lessons import redundancy_scene as rs
+
+    width = rs.LABEL_WIDTH_M
+    assert width < rs.COLUMN_M  # short of the next column's words
+    for mode in rs.GRID:
+        assert len(rs.SCENE_TITLES[mode]) * rs.GLYPH_EM * rs.TITLE_HEIGHT_M <= width, mode
+    assert rs.STATUS_CHARS * rs.GLYPH_EM * rs.STATUS_HEIGHT_M <= width
+    model = load_robot("redundant_planar")
+    runs = lesson_module.run_modes(model, gain=400.0, k_a=1.0)
+    top = max(float(p[..., 1].max()) for p in runs.points.values())
+    assert top < rs.LABEL_BOTTOM_M  # the arm never reaches its panel's words
+    for mode, run in runs.runs.items():
+        lines = {line for k in range(len(run.t))
+                 for line in lesson_module._mode_status(model, run, k).split("\n")}
+        assert max(len(line) for line in lines) <= rs.STATUS_CHARS, (mode, lines)
+    status_top = rs.LABEL_BOTTOM_M + 2 * rs.LINE_EM * rs.STATUS_HEIGHT_M
+    assert rs.TITLE_BOTTOM_M > status_top
+    assert rs.TITLE_BOTTOM_M + rs.LINE_EM * rs.TITLE_HEIGHT_M < rs.ROW_M  # below the row above

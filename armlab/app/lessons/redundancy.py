@@ -422,7 +422,8 @@ class RedundancyLesson(LessonBase):
 
 
 def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
-    """One line under a panel: which joints are outside their limits now, and w."""
+    """Two lines under a panel's title: which joints are outside their limits now; w and
+    the error (each at most ``STATUS_CHARS`` characters, the panel's budget)."""
     q = run.q[k]
     out = [joint_label(model.joint_names[i]) for i in range(model.n)
            if q[i] < model.lower[i] - 1e-9 or q[i] > model.upper[i] + 1e-9]
@@ -430,7 +431,7 @@ def _mode_status(model: SerialChain, run: CircleRun, k: int) -> str:
     err = run.error()[k] * 1000.0 if run.t[k] >= SETTLE_S else float("nan")
     limits = "limits kept" if not out else f"{', '.join(out)} outside limits!"
     e = f" · error {err:.3f} mm" if math.isfinite(err) else ""
-    return f"{limits} · w = {w:.3f}{e}"
+    return f"{limits}\nw = {w:.3f}{e}"
 
 
 def _legend_html() -> str:

@@ -23,7 +23,6 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
 from armlab.app.page.plots import COLORS
@@ -41,9 +40,33 @@ MODE_COLORS = {"1": COLORS[0], "2": COLORS[1], "3": COLORS[5], "4": COLORS[4],
 MODE_LABELS = {"1": "1 · J⁺ẋ, no limits", "2": "2 · J⁺ẋ + limits (decomposition)",
                "3": "3 · J⁺ẋ + k_a ∇w, no limits", "4": "4 · k_a ∇w + limits (paper)",
                "bounded": "bounded LSQ: ∇w + limits guaranteed"}
+#: Mode -> its title in the 3D view, short enough to fit its panel (MODE_LABELS, whole,
+#: name the modes in the panel's legend and table beside the same colours).
+SCENE_TITLES = {"1": "1 · J⁺ẋ", "2": "2 · J⁺ẋ + limits", "3": "3 · J⁺ẋ + k_a∇w",
+                "4": "4 · k_a∇w + limits", "bounded": "bounded: ∇w + limits"}
 #: Metres between panel origins, world x (columns) and world z (rows).
 COLUMN_M = 1.45
 ROW_M = 1.35
+#: The labels are sized in the scene (metres), not on the screen: at any zoom and window
+#: a panel's words stay inside its own column and above its arm, never over a neighbour's
+#: (screen-sized labels overprinted each other once the five panels were framed).
+#: m, where a panel's labels start (left of its base), and the width they may take.
+LABEL_X_M = -0.55
+LABEL_WIDTH_M = COLUMN_M - 0.12
+#: m, the status's two lines (bottom at LABEL_BOTTOM_M) and the title above them.
+STATUS_HEIGHT_M = 0.09
+TITLE_HEIGHT_M = 0.105
+LABEL_BOTTOM_M = 0.97
+#: a glyph's width and a line's height, per font height, that the budget assumes: a
+#: status line of 26 glyphs measured 0.44 em each in Chromium (the system sans-serif),
+#: taken with a margin; viser draws lines about 1.2 font heights apart
+GLYPH_EM = 0.52
+LINE_EM = 1.25
+#: m, the title's bottom: above the status's two lines, a little apart
+TITLE_BOTTOM_M = LABEL_BOTTOM_M + 2 * LINE_EM * STATUS_HEIGHT_M + 0.02
+#: characters a status line may hold ("θ1, θ2, θ3 outside limits!", "w = 0.123 · error
+#: 0.123 mm")
+STATUS_CHARS = 27
 #: Seconds between two stick pictures.
 STICK_S = 0.1
 #: Ellipse semi-axis (m) per unit singular value of J (m/rad).
@@ -154,9 +177,12 @@ class RedundancyScene:
             scene.add_frame(b, show_axes=False, wxyz=base_wxyz, position=base[:3, 3])
             scene.add_line_segments(f"{b}/circle", closed_segments(circle), CIRCLE_RGB,
                                     thickness=0.006)
-            theme.add_label(scene, f"{b}/title", MODE_LABELS[mode], position=(-0.55, 1.08, 0.0),
-                            anchor="bottom-left")
-            status = theme.add_label(scene, f"{b}/status", "", position=(-0.55, 1.0, 0.0),
+            scene.add_label(f"{b}/title", SCENE_TITLES[mode], font_size_mode="scene",
+                            font_scene_height=TITLE_HEIGHT_M,
+                            position=(LABEL_X_M, TITLE_BOTTOM_M, 0.0), anchor="bottom-left")
+            status = scene.add_label(f"{b}/status", "", font_size_mode="scene",
+                                     font_scene_height=STATUS_HEIGHT_M,
+                                     position=(LABEL_X_M, LABEL_BOTTOM_M, 0.0),
                                      anchor="bottom-left")
             light = tuple(int(0.45 * c + 0.55 * 255) for c in rgb)
             sticks = scene.add_line_segments(f"{b}/sticks", np.zeros((1, 2, 3), np.float32),
