@@ -115,6 +115,9 @@ class GaitStatus:
         standing_up: rising to the standing pose.
         fault: "" or why the servos are no longer driven (press Reset).
         running: whether the thread runs.
+        restarts: challenge restarts of its servos done (a
+            :class:`~armlab.control.restart.RestartableArm`'s; 0 for others).
+        restarted_at: loop time of the last one's period (None: none).
     """
 
     t: float = 0.0
@@ -128,6 +131,8 @@ class GaitStatus:
     standing_up: bool = False
     fault: str = ""
     running: bool = False
+    restarts: int = 0
+    restarted_at: float | None = None
 
 
 class GaitRecord(LoopRecord):
@@ -431,4 +436,6 @@ class GaitLoop(GaitRecord):
             command=spec.command, gait=spec.gait, speed=self._speed,
             servos=self.backend is not None and not self._fault, torque_on=self._torque,
             standing_up=self._ramp is not None and self._t - self._ramp[1] < self._ramp[2],
-            fault=self._fault, running=self._pacer.running)
+            fault=self._fault, running=self._pacer.running,
+            restarts=int(getattr(self.backend, "restarts", 0)),
+            restarted_at=getattr(self.backend, "restarted_at", None))

@@ -17,11 +17,17 @@ server by :class:`armlab.app.classroom.remote_gait.RemoteGait`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from armlab.control.gait_loop import GaitLoop
+import numpy as np
+
+from armlab.app.classroom.remote_gait import FREED
+from armlab.control.commands import Reset
+from armlab.control.gait_loop import Command, GaitLoop, SetPlan
 from armlab.control.periodic import SharedClock
-from armlab.control.walking import GaitSpec, Walker, plan_gait
+from armlab.control.restart import RestartableArm
+from armlab.control.walking import GaitPlan, GaitSpec, Walker, plan_gait
 from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
 from armlab.kinematics.model import Quadruped, load_robot
 
@@ -36,10 +42,12 @@ CLASS_DT = 5e-3
 
 @dataclass
 class ClassQuadruped:
-    """One student's robot: its id in the batch, its servos and its gait loop."""
+    """One student's robot: its id in the batch, its servos (its
+    :class:`BatchedQuadrupedBackend` inside a :class:`RestartableArm` that resets its row
+    of the batch) and its gait loop."""
 
     robot: int
-    backend: BatchedQuadrupedBackend
+    backend: RestartableArm
     loop: GaitLoop
 
 
@@ -75,8 +83,9 @@ class ClassQuadrupeds:
         walker = Walker(plan)
         with self.lock:  # joined and started on the same tick: robot and loop share t = 0
             robot = self.batch.add(walker.state().q)
-            backend = BatchedQuadrupedBackend(self.batch, robot, lock=self.lock)
+            servos = BatchedQuadrupedBackend(self.batch, robot, lock=self.lock)
             try:
+                backend = self._restartable(servos, walker.state().q)
                 loop = GaitLoop(walker, backend, period=PERIOD, realtime=self.realtime,
                                 speed=speed, history_s=history_s, clock=self.clock)
             except BaseException:
@@ -85,6 +94,35 @@ class ClassQuadrupeds:
             loop.start()
             made = self._robots[robot] = ClassQuadruped(robot, backend, loop)
             return made
+
+    def _restartable(self, servos: BatchedQuadrupedBackend, q0: np.ndarray
+                     ) -> RestartableArm:
+        """``servos`` restartable (:class:`RestartableArm`): a restart resets the robot's
+        row of the batch in place (:meth:`BatchedQuadrupeds.reset`: at the pose, at rest,
+        its time started again in that tick), so the robot keeps its id and the loop's
+        periods stay on the same ticks of the clock: robot time = loop time since the
+        restart, as at the robot's join. The gait loop applies its Reset before it syncs
+        (``sync_first=False``)."""
+        def make(q: np.ndarray) -> BatchedQuadrupedBackend:
+            with self.lock:
+                self.batch.reset(servos.robot, q)
+            return servos
+
+        return RestartableArm(make, q0, drop=lambda _b: None, sync_first=False)
+
+    def restart(self, made: ClassQuadruped, q: np.ndarray, plan: GaitPlan,
+                timed: Sequence[tuple[int, Command]]) -> int:
+        """Start ``made`` again standing at rest at ``q`` (12,) rad, ``plan`` its gait
+        (:class:`SetPlan`, then :class:`Reset`, applied in one period), ``timed``'s
+        (periods, command) posted that many periods after the restart
+        (:meth:`RestartableArm.restart`); the restart's number (ValueError: freed)."""
+        with self.lock:  # the three in one period
+            if self._robots.get(made.robot) is not made:
+                raise ValueError(FREED)
+            number = made.backend.restart(q, list(timed), made.loop.post)
+            made.loop.post(SetPlan(plan))
+            made.loop.post(Reset())
+            return number
 
     def free(self, made: ClassQuadruped) -> None:
         """Stop ``made``'s loop (torque off) and take its robot out (nothing if it is out)."""

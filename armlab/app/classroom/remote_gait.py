@@ -20,9 +20,9 @@ import numpy as np
 
 from armlab.app.classroom.worker_link import ESTOP_TIMEOUT_S, RemoteMember, WorkerLink
 from armlab.control.backend import BackendError
-from armlab.control.gait_loop import COLUMNS, GaitRecord, GaitStatus
+from armlab.control.gait_loop import COLUMNS, Command, GaitRecord, GaitStatus
 from armlab.control.periodic import RingBuffer
-from armlab.control.walking import GaitSpec, WalkState
+from armlab.control.walking import GaitPlan, GaitSpec, WalkState
 
 #: what a freed robot's status says
 FREED = "this quadruped was freed (a reload of the page makes a new one)"
@@ -66,6 +66,25 @@ class RemoteGait(RemoteMember, GaitRecord):
         if why is not None:
             return dataclasses.replace(st, running=False, servos=False, fault=why)
         return st
+
+    def restart(self, q: np.ndarray, plan: GaitPlan,
+                timed: list[tuple[int, Command]]) -> int:
+        """Start the robot again in the worker standing at rest at ``q`` (12,) rad, at the
+        origin, walking ``plan`` from its start, ``timed``'s (periods, command) posted
+        that many periods after the restart
+        (:meth:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds.restart`); the
+        restart's number (``status.restarts`` reaches it in the restart's period, whose
+        loop time is ``status.restarted_at``)."""
+        return int(self._owner.call("quad_restart", self.member_id,
+                                    np.asarray(q, dtype=float), plan, list(timed)))
+
+    def cancel_plan(self) -> None:
+        """Post nothing more of the last restart's ``timed`` commands (its run was cut
+        short); nothing when it was freed or the worker is gone (nothing posts then)."""
+        try:
+            self._owner.call("quad_cancel", self.member_id)
+        except (BackendError, ValueError):
+            pass
 
     def shutdown(self, *, torque_off: bool = True) -> None:
         """Nothing: the robot stays with its student's seat (the seat frees it)."""

@@ -291,6 +291,9 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         **member_ops("hand"),
         **member_ops("quad"),
         "quad_estop": lambda i: member_of("quad", i).loop.estop(),
+        "quad_restart": lambda i, q, plan, timed: hosts["quad"].restart(
+            member_of("quad", i), np.asarray(q, dtype=float), plan, timed),
+        "quad_cancel": lambda i: member_of("quad", i).backend.cancel(),
     }
     mirror_thread = threading.Thread(target=mirror, name="armlab-arm-mirror", daemon=True)
     mirror_thread.start()

@@ -38,7 +38,7 @@ Messages (tuples; the server's ``Connection`` end sends calls, the worker's answ
                                                          estop, push, spring, read, free;
                                                          hand_add, hand_post, hand_free,
                                                          quad_add, quad_post, quad_estop,
-                                                         quad_free
+                                                         quad_restart, quad_cancel, quad_free
                        ("close",)
     worker -> server   ("ready", scheduling)
                        ("reply", call_id, ok, value)     value: result or exception

@@ -19,9 +19,12 @@ Two runs with the same settings give the same figures for every student, on a lo
 machine, after any earlier runs. The figures are tagged with the challenge's key
 (:meth:`RestartRuns.tags`): only a run made as the challenge's run counts for it (a
 student's private hand in a class is restarted in the class's worker, the restart a
-command of its loop). A robot that cannot be put back (real servos, a quadruped in the
-class's worker) walks from where it is, stopped ``walk_s`` of loop time later, and the
-page says so.
+command of its loop; a class's quadruped, a student's private one or the shared one of
+a simulated class, is restarted there too, its row of the batch reset in place
+(:meth:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds.restart`, the worker's
+``quad_restart``), its restart's count and period mirrored in its ``GaitStatus``). A
+robot that cannot be put back (real servos) walks from where it is, stopped ``walk_s``
+of loop time later, and the page says so.
 """
 
 from __future__ import annotations
@@ -58,9 +61,8 @@ _NUMBERS = itertools.count(1)
 NOT_RESTARTED = {
     "grasp": "this hand cannot be put back open at rest, so the grasp starts from the "
              "hand as it is",
-    "walk": "this robot cannot be put back at the start (real servos, or a robot in the "
-            "class's worker), so this walk starts where it is and is judged from its own "
-            "start",
+    "walk": "this robot cannot be put back at the start (real servos), so this walk "
+            "starts where it is and is judged from its own start",
 }
 
 
@@ -171,17 +173,22 @@ class RestartRuns:
         cycle_n = int(math.ceil(1.0 / (st.speed * period)))
         label = f"a walk forward of {walk_s:g} s"
         backend = getattr(lesson, "backend", None)
+        remote = callable(getattr(loop, "restart", None))  # a robot in the class's worker
         lesson._walk_from = None  # (a walk going on is not measured: the run replaces it)
-        if isinstance(backend, RestartableArm):
+        if isinstance(backend, RestartableArm) or remote:
             delay = int(round(STAND_S / period))
             q0 = Walker(plan).state().q  # standing at the gait's start, at the origin
-            number = backend.restart(q0, [(delay, Walk(plan)), (delay + walk_n,
-                                                                StopWalking())], loop.post)
-            loop.post(SetPlan(plan))  # (the walker's start is this plan's: Reset takes it)
-            loop.post(Reset())
+            timed = [(delay, Walk(plan)), (delay + walk_n, StopWalking())]
+            if remote:  # its servos restarted in the worker, SetPlan and Reset with them
+                number = loop.restart(q0, plan, timed)
+            else:
+                assert isinstance(backend, RestartableArm)  # (not remote: the branch's case)
+                number = backend.restart(q0, timed, loop.post)
+                loop.post(SetPlan(plan))  # (the walker's start is this plan's: Reset takes it)
+                loop.post(Reset())
             return Pending(challenge, "walk", number, label, 0,
                            delay + 2 + walk_n + cycle_n + WALK_TAIL)
-        # real servos (or a robot elsewhere): from where it is, stopped in loop time
+        # real servos: from where it is, stopped in loop time
         t0 = st.t
         lesson.runs.begin_run(f"challenge {label}", t=t0)
         loop.go(plan)
@@ -213,8 +220,11 @@ class RestartRuns:
         if self.kind == "grasp":
             st = self.lesson.loop.status
             done, at = st.restarts, st.restarted_at
-        else:
+        elif isinstance(self.lesson.backend, RestartableArm):
             done, at = self.lesson.backend.restarts, self.lesson.backend.restarted_at
+        else:  # a robot in the class's worker: as its mirrored status says
+            st = self.lesson.loop.status
+            done, at = st.restarts, st.restarted_at
         if run.number is None or done < run.number:
             return None
         return at

@@ -39,7 +39,7 @@ from armlab.control.backend import BackendError, GoalLimits, JointState
 from armlab.hardware.backends.sim import raw_goals, servo_limits, sim_registers
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
-from armlab.hardware.sim.dynamixel_servo import ServoReport
+from armlab.hardware.sim.dynamixel_servo import ServoRegisters, ServoReport
 from armlab.hardware.wire import protocol1 as p1
 from armlab.kinematics.validate import scalar, vector
 
@@ -86,13 +86,28 @@ def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,
     registers, Angle Limits at the joint limits, goal at ``q0`` (n,) rad, default
     neutral; torque on unless ``torque_on`` is False), holding ``lock`` when given (the
     clock's, while it may be stepping). Returns its id."""
-    lower, upper = servo_limits(plant.model, plant.specs, plant.directions)
-    q = plant.model.neutral() if q0 is None else vector("q0", q0, plant.n)
-    regs = sim_registers(plant.specs, plant.directions, lower, upper, q, torque_on=torque_on)
+    q, regs = _sim_arm(plant, q0, torque_on)
     if lock is None:
         return plant.add_arm(q0=q, registers=regs)
     with lock:
         return plant.add_arm(q0=q, registers=regs)
+
+
+def reset_sim_arm(plant: BatchedPlant, arm: int, *, q0: np.ndarray | None = None,
+                  torque_on: bool = True) -> None:
+    """Arm ``arm`` of ``plant`` made again in its row as :func:`add_sim_arm` makes a new one
+    (:meth:`BatchedPlant.reset_arm`: at ``q0``, at rest, its registers fresh)."""
+    q, regs = _sim_arm(plant, q0, torque_on)
+    plant.reset_arm(arm, q0=q, registers=regs)
+
+
+def _sim_arm(plant: BatchedPlant, q0: np.ndarray | None, torque_on: bool
+             ) -> tuple[np.ndarray, list[ServoRegisters]]:
+    """A fresh simulated arm's pose and registers (:func:`add_sim_arm`)."""
+    lower, upper = servo_limits(plant.model, plant.specs, plant.directions)
+    q = plant.model.neutral() if q0 is None else vector("q0", q0, plant.n)
+    return q, sim_registers(plant.specs, plant.directions, lower, upper, q,
+                            torque_on=torque_on)
 
 
 class ArmOfPlant:

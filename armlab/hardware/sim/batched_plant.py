@@ -223,6 +223,40 @@ class BatchedPlant:
         its servos as a fresh ``Plant``'s would be (``registers``: one per joint, copied;
         default factory values with the goal at the start, torque off). Returns its id."""
         n = self.n
+        state, regs = self._fresh(q0, qd0, registers)
+        for k, v in state.items():
+            self._s[k] = np.concatenate([self._s[k], v.reshape(n, 1)], axis=1)
+        for k, v in regs.items():
+            self._r[k] = np.concatenate([self._r[k], v.reshape(n, 1)], axis=1)
+        for k, (shape, t) in _FIELDS.items():
+            self._f[k] = np.concatenate([self._f[k], np.zeros((*shape, 1), dtype=t)], axis=-1)
+        arm = self._next_id
+        self._next_id += 1
+        self._ids = np.append(self._ids, arm)
+        self._row_of[arm] = self._ids.size - 1
+        return arm
+
+    def reset_arm(self, arm: int, *, q0: np.ndarray | None = None,
+                  qd0: np.ndarray | None = None,
+                  registers: Sequence[ServoRegisters] | None = None) -> None:
+        """Arm ``arm`` made again as :meth:`add_arm` makes a new one (the same arguments),
+        in its own row and under its own id: its state, firmware and registers fresh, its
+        pushes, spring and wall gone. The plant's time goes on."""
+        r = self.row(arm)
+        state, regs = self._fresh(q0, qd0, registers)
+        for k, v in state.items():
+            self._s[k][:, r] = v
+        for k, v in regs.items():
+            self._r[k][:, r] = v
+        for k in self._f:
+            self._f[k][..., r] = 0
+        self._drop_pushes(self._p_row != r)
+
+    def _fresh(self, q0: np.ndarray | None, qd0: np.ndarray | None,
+               registers: Sequence[ServoRegisters] | None
+               ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """A new arm's firmware state and registers, each (n,) by name (:meth:`add_arm`)."""
+        n = self.n
         q = self.model.neutral() if q0 is None else vector("q0", q0, n)
         qd = np.zeros(n) if qd0 is None else vector("qd0", qd0, n)
         if registers is not None and len(registers) != n:
@@ -234,22 +268,11 @@ class BatchedPlant:
         new["present"] = present
         new["setpoint"] = [float(p) for p in present]
         new["velocity"] = [0.0] * n
-        for k, v in new.items():
-            self._s[k] = np.concatenate(
-                [self._s[k], np.array(v, dtype=_STATE[k]).reshape(n, 1)], axis=1)
+        state: dict[str, np.ndarray] = {k: np.array(v, dtype=_STATE[k]) for k, v in new.items()}
         regs = [registers[i] if registers is not None else
                 ServoRegisters(goal_position=present[i]) for i in range(n)]
-        for k in REGISTERS:
-            self._r[k] = np.concatenate(
-                [self._r[k], np.array([int(getattr(r, k)) for r in regs],
-                                      dtype=np.int64).reshape(n, 1)], axis=1)
-        for k, (shape, t) in _FIELDS.items():
-            self._f[k] = np.concatenate([self._f[k], np.zeros((*shape, 1), dtype=t)], axis=-1)
-        arm = self._next_id
-        self._next_id += 1
-        self._ids = np.append(self._ids, arm)
-        self._row_of[arm] = self._ids.size - 1
-        return arm
+        return state, {k: np.array([int(getattr(r, k)) for r in regs], dtype=np.int64)
+                       for k in REGISTERS}
 
     def remove_arm(self, arm: int) -> None:
         """Remove arm id ``arm``, its pushes, spring and wall; the rows after it move up."""

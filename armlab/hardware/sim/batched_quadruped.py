@@ -70,7 +70,12 @@ import numpy as np
 
 from armlab.control.backend import BackendError, GoalLimits, JointState
 from armlab.control.batch_rows import BatchRows
-from armlab.hardware.backends.batched import add_sim_arm, decode_words, word_tables
+from armlab.hardware.backends.batched import (
+    add_sim_arm,
+    decode_words,
+    reset_sim_arm,
+    word_tables,
+)
 from armlab.hardware.backends.sim import raw_goals, servo_limits
 from armlab.hardware.servos.servo_spec import AX12A, ServoSpec
 from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
@@ -308,6 +313,24 @@ class BatchedQuadrupeds:
         self._forces = np.vstack([self._forces, np.zeros((1, len(self.legs)))])
         self._reindex()
         return robot
+
+    def reset(self, robot: int, q0: Sequence[float] | np.ndarray | None = None, *,
+              torque_on: bool = True) -> None:
+        """Robot ``robot`` made again in its row, under its id, as :meth:`add` makes a new
+        one: at ``q0`` (12,) rad (default zeros), at rest, its servos fresh (torque on
+        unless ``torque_on`` is False), its pushes and springs gone, its body resting as
+        a new robot's, and its time started again now (its load renewed from this step,
+        as a robot that joined now)."""
+        r = self.row(robot)
+        n = LEG_JOINTS * len(self.legs)
+        q = np.zeros(n) if q0 is None else vector("q0", q0, n)
+        for k, (leg, arm) in enumerate(zip(self.legs, self._arms[int(robot)], strict=True)):
+            reset_sim_arm(leg.plant, arm, q0=q[LEG_JOINTS * k:LEG_JOINTS * (k + 1)],
+                          torque_on=torque_on)
+        self._k0[r] = self.steps
+        self._tilt[r] = 0.0
+        self._contact[r] = True
+        self._forces[r] = 0.0
 
     def remove(self, robot: int) -> None:
         """Remove robot ``robot`` (its arms, pushes and springs); the rows after it move up."""
