@@ -1,9 +1,11 @@
 """The presenter's class overview: who is there, their gains, the figures of their last run.
 
 A table on every presenter's page (refreshed once a second), a "Student" picker and
-two buttons: "Show" draws that student's arm as a ghost beside the shared one (on every
-page: the projector shows it), "Use these gains" copies the student's gains to the
-shared arm through the shared lesson's own validation and gain warning.
+two buttons: "Show" draws that student's arm as a ghost beside the shared one, labelled
+with their name, on the presenters' pages only (the projector shows it; no student's
+page does), and frames it with the shared arm ("Hide" while that student's ghost shows
+takes it away); "Use these gains" copies the student's gains to the shared arm through
+the shared lesson's own validation and gain warning.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ NOBODY = "—"
 #: m: where the ghost of a student's arm stands beside the shared one (world y)
 GHOST_OFFSET = (0.0, 0.55, 0.0)
 GHOST_RGBA = (0.2, 0.6, 0.9, 0.45)
+#: the button's label while nobody's ghost shows (or another's) / while the picked one's does
+SHOW, HIDE = "Show", "Hide"
 
 
 @dataclass(frozen=True)
@@ -96,7 +100,8 @@ class ClassOverview:
 
     Args:
         client: the presenter's page.
-        on_show: called with the picked student's client id (None: hide the ghost).
+        on_show: called with the picked student's client id, or None to hide the ghost
+            (the button pressed while the picked student's ghost shows: :meth:`showing`).
         on_use: called with the picked student's client id; returns the message to show.
         on_gradebook: makes the gradebook, (file name, CSV bytes); a ValueError's message
             is shown (no challenge yet).
@@ -107,13 +112,15 @@ class ClassOverview:
                  on_gradebook: Callable[[], tuple[str, bytes]] | None = None) -> None:
         self.client = client
         self._ids: dict[str, int] = {}
+        self._shown: int | None = None  #: whose ghost shows (:meth:`showing`)
         gui = client.gui
         with gui.add_folder("Class", order=-93.0, expand_by_default=True):
             self.table = gui.add_html(overview_html([]))
             self.pick = gui.add_dropdown("Student", (NOBODY,), initial_value=NOBODY)
-            self.show = gui.add_button("Show", icon=viser.Icon.EYE,
+            self.show = gui.add_button(SHOW, icon=viser.Icon.EYE,
                                        hint="Draw this student's arm as a ghost beside "
-                                            "the shared one (on every page)")
+                                            "the shared one, with their name, on the "
+                                            "presenters' pages (Hide: take it away)")
             self.use = gui.add_button("Use these gains", icon=viser.Icon.COPY,
                                       hint="Copy this student's gains to the shared arm "
                                            "(checked as any gain change)")
@@ -123,12 +130,27 @@ class ClassOverview:
                      "figures, passed, time (UTC)")
         if on_gradebook is not None:
             self.gradebook.on_click(lambda e: send_download(e, on_gradebook))
-        self.show.on_click(lambda _e: on_show(self.picked()))
+        self.show.on_click(lambda _e: on_show(None if self._hides() else self.picked()))
         self.use.on_click(lambda _e: self._use(on_use))
+        self.pick.on_update(lambda _e: self._label_button())
 
     def picked(self) -> int | None:
         """Client id of the picked student, or None."""
         return self._ids.get(str(self.pick.value))
+
+    def showing(self, client_id: int | None) -> None:
+        """Student ``client_id``'s ghost shows now (None: nobody's); the button hides it
+        while that student is picked."""
+        self._shown = client_id
+        self._label_button()
+
+    def _hides(self) -> bool:
+        return self._shown is not None and self.picked() == self._shown
+
+    def _label_button(self) -> None:
+        label = HIDE if self._hides() else SHOW
+        if self.show.label != label:
+            self.show.label = label
 
     def _use(self, on_use: Callable[[int], str]) -> None:
         cid = self.picked()
@@ -150,3 +172,4 @@ class ClassOverview:
             self.pick.options = options
             self.pick.value = keep  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
         self._ids = ids
+        self._label_button()

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import Any, Protocol
 
+import numpy as np
 import viser
 
 from armlab.app import collector
@@ -46,6 +47,7 @@ from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
 from armlab.app.gate import Gate
 from armlab.app.lessons import LessonContext, LessonHandle, RunFigures, is_private
 from armlab.app.lessons._common import esc, remove_quietly, warning_html
+from armlab.app.page import camera, theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.challenge_panel import (
     ChallengeDesk,
@@ -81,6 +83,34 @@ SEAT_ASK_S = 4.0
 #: Hz of the ghost's pose; the overview tables refresh every :data:`TABLE_EVERY` ticks
 GHOST_HZ = 10.0
 TABLE_EVERY = 10
+#: scene node of a student's ghost on a presenter's page (its own scene), and of its label
+GHOST_ROOT = "/class/ghost"
+GHOST_LABEL = f"{GHOST_ROOT}/label"
+#: m the ghost's label stands above the top of the ghost
+GHOST_LABEL_ABOVE = 0.06
+
+
+def ghost_text(name: str) -> str:
+    """What the label over a student's ghost says."""
+    return f"{name}'s arm"
+
+
+@dataclass
+class _GhostView:
+    """A student's ghost on one presenter's page."""
+
+    arm: ArmView
+    label: viser.LabelHandle
+    text: str
+
+
+@dataclass
+class _Ghost:
+    """The student's arm the presenters' pages show as a ghost."""
+
+    student: int  #: their page
+    loop: Any  #: their arm's loop
+    views: dict[int, _GhostView] = dataclasses.field(default_factory=dict)  #: by presenter
 
 
 @dataclass
@@ -163,7 +193,7 @@ class Room:
         self._sandboxes = Sandboxes(realtime=realtime) if sandboxes is None else sandboxes
         self._pages: dict[int, _PageState] = {}
         self._lock = threading.RLock()
-        self._ghost: tuple[int, ArmView] | None = None  #: (student's page, their arm's ghost)
+        self._ghost: _Ghost | None = None  #: the student's arm shown as a ghost, or None
         #: the lab's challenge (set by :meth:`use_challenges`), each seat's runs, and the
         #: name each seat last had (the gradebook keeps a student who has left)
         self.desk: ChallengeDesk | None = None
@@ -433,22 +463,74 @@ class Room:
         return self._sandboxes.loop_of(state.seat)
 
     def show_ghost(self, client_id: int | None) -> None:
-        """Draw the arm of student ``client_id`` as a ghost beside the shared one on every
-        page (None: remove it)."""
+        """Draw the arm of student ``client_id`` as a ghost beside the shared one, labelled
+        with their name, on every presenter's page and no other (each page's own scene),
+        and frame each presenter's view to take it in with the shared arm (None: take it
+        away, and frame the shared arm alone again)."""
         with self._lock:
             old, self._ghost = self._ghost, None
             if old is not None:
-                old[1].remove()
+                for view in old.views.values():
+                    remove_quietly(view.arm.root)
             loop = None if client_id is None else self._loop_of(client_id)
-            if client_id is None:
-                return
-            if loop is None:
+            if client_id is not None and loop is None:
                 self.tell_presenters("Nothing to show", "That student has no arm of their own "
                                      "yet (they choose My arm).")
-                return
-            ghost = ArmView(self.lab.server, loop.model, root="/class/ghost", color=GHOST_RGBA)
-            ghost.root.position = GHOST_OFFSET
-            self._ghost = (client_id, ghost)
+            if client_id is not None and loop is not None:
+                self._ghost = _Ghost(client_id, loop)
+            shown = self._sync_ghost()
+        clients = self.lab.server.get_clients()
+        for cid in set(shown) | (set() if old is None else set(old.views)):
+            if (client := clients.get(cid)) is not None:
+                camera.also_frame(client, shown.get(cid, ()))
+                camera.reframe(client)
+        self._ghost_shown()
+
+    def _sync_ghost(self) -> dict[int, tuple[str, ...]]:
+        """Draw the ghost on the presenters' pages that do not show it yet (a page that
+        presents since) and forget the pages gone; presenter -> the ghost's roots, for the
+        pages it was drawn on now (the lock held)."""
+        ghost = self._ghost
+        if ghost is None:
+            return {}
+        clients = self.lab.server.get_clients()
+        presenters = {cid: clients[cid] for cid in self.roles.presenters() if cid in clients}
+        for cid in set(ghost.views) - set(presenters):
+            remove_quietly(ghost.views.pop(cid).arm.root)
+        drawn: dict[int, tuple[str, ...]] = {}
+        for cid, client in presenters.items():
+            if cid not in ghost.views:
+                view = ghost.views[cid] = self._draw_ghost(client, ghost)
+                drawn[cid] = (view.arm.moving_root, view.label.name)
+        return drawn
+
+    def _draw_ghost(self, client: viser.ClientHandle, ghost: _Ghost) -> _GhostView:
+        """The student's ghost on one presenter's page, posed as their arm is now, and its
+        label just above it."""
+        arm = ArmView(Page(client), ghost.loop.model, root=GHOST_ROOT, color=GHOST_RGBA)
+        arm.see_through("torso", opacity=0.0)  # the student's arm, not a body it stands on
+        arm.root.position = GHOST_OFFSET
+        snap = ghost.loop.recorder.snapshot(0.1)
+        if len(snap["t"]):
+            arm.set_q(snap["q"][-1])
+        pts = camera.framed_points(client.scene, (arm.moving_root,))
+        if len(pts) == 0:  # nothing drawn that moves: above its root
+            pts = np.asarray([GHOST_OFFSET], dtype=float)
+        above = (0.5 * (pts[:, 0].min() + pts[:, 0].max()),
+                 0.5 * (pts[:, 1].min() + pts[:, 1].max()),
+                 pts[:, 2].max() + GHOST_LABEL_ABOVE)
+        text = ghost_text(self.roles.name(ghost.student))
+        label = theme.add_label(client.scene, GHOST_LABEL, text, anchor="bottom-center",
+                                position=tuple(np.subtract(above, GHOST_OFFSET)))
+        return _GhostView(arm, label, text)
+
+    def _ghost_shown(self) -> None:
+        """Tell every presenter's overview whose ghost shows (its button hides it then)."""
+        with self._lock:
+            student = None if self._ghost is None else self._ghost.student
+            overviews = [s.overview for s in self._pages.values() if s.overview is not None]
+        for overview in overviews:
+            overview.showing(student)
 
     def use_gains(self, client_id: int) -> str:
         """Copy student ``client_id``'s gains to the shared arm; what happened, for a person."""
@@ -579,26 +661,46 @@ class Room:
             ghost = self._ghost
             overviews = [s.overview for s in self._pages.values() if s.overview is not None]
         if ghost is not None:
-            loop = self._loop_of(ghost[0])
-            if loop is None:
+            if self._loop_of(ghost.student) is not ghost.loop:  # the student has left
                 self.show_ghost(None)
             else:
-                snap = loop.recorder.snapshot(0.1)
-                if len(snap["t"]):
-                    ghost[1].set_q(snap["q"][-1])
+                self._pose_ghost(ghost)
         if tables and overviews:
             rows = self.rows()
             challenge = None if self.desk is None else self.desk.challenge
             for overview in overviews:
                 overview.refresh(rows, challenge=challenge)
 
+    def _pose_ghost(self, ghost: _Ghost) -> None:
+        """Pose the ghost on each presenter's page as the student's arm is now, with their
+        name as it is now; draw it on a page that presents since (framed there)."""
+        with self._lock:
+            if self._ghost is not ghost:
+                return  # hidden or replaced meanwhile
+            drawn = self._sync_ghost()
+            views = list(ghost.views.values())
+        snap = ghost.loop.recorder.snapshot(0.1)
+        text = ghost_text(self.roles.name(ghost.student))
+        for view in views:
+            if len(snap["t"]):
+                view.arm.set_q(snap["q"][-1])
+            if view.text != text:
+                view.label.text = view.text = text
+        clients = self.lab.server.get_clients()
+        for cid, roots in drawn.items():
+            if (client := clients.get(cid)) is not None:
+                camera.also_frame(client, roots)
+                camera.reframe(client)
+        if drawn:
+            self._ghost_shown()
+
     def close(self) -> None:
         """Close every private lesson and the class's arms."""
         self._stop.set()
         with self._lock:
             ghost, self._ghost = self._ghost, None
-        if ghost is not None:
-            remove_quietly(ghost[1].root)
+        for view in () if ghost is None else list(ghost.views.values()):
+            remove_quietly(view.arm.root)
         with self._lock:
             states = list(self._pages.values())
         for state in states:

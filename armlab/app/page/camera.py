@@ -5,7 +5,9 @@ with :func:`show`; the camera then stands just far enough back along that direct
 the visible nodes under those roots, shapes and all (:func:`framed_points`), to fill the
 3D view (:func:`frame_points`), on new pages, on the pages already open (each for its own
 field of view and aspect), and again on a page's "Frame" button or when its 3D view
-changes shape (:func:`reframe`).
+changes shape (:func:`reframe`). A page may add nodes of its own scene to what its
+framing of the shared view takes in (:func:`also_frame`: a presenter's ghost of a
+student's arm, drawn on that page alone).
 
 ``server.initial_camera`` only sets where a *new* page starts (and where "Reset
 View" returns); a page already open keeps its camera until it is moved.
@@ -213,6 +215,10 @@ last_framing: weakref.WeakKeyDictionary[viser.ClientHandle, Framing] = \
 #: scene -> the View its lesson asked for (a server's scene, or a page's own for a
 #: student's private lesson)
 _views: weakref.WeakKeyDictionary[Any, View] = weakref.WeakKeyDictionary()
+#: page -> roots in its own scene that its framing of the shared view takes in too
+#: (:func:`also_frame`)
+_also: weakref.WeakKeyDictionary[viser.ClientHandle, tuple[str, ...]] = \
+    weakref.WeakKeyDictionary()
 #: Framings of a page are made in several threads at once (its view's reshapes, its
 #: "Frame" button, a lesson's :func:`show`); each takes a ticket as it reads the page's
 #: view, and one whose ticket is older than the page's :data:`last_framing` is dropped,
@@ -249,6 +255,8 @@ def show(server: Surface, view: View) -> None:
         own = _framed_scene(client.scene) if client.scene is not server.scene else None
         if own is not None:  # a page showing its own lesson keeps that lesson's view
             _aim(client, *own)
+        elif client.scene is not server.scene:  # and what the page draws alone (a ghost)
+            _aim(client, view, _with_also(client, points))
         else:
             _aim(client, view, points)
 
@@ -258,10 +266,45 @@ def reframe(client: viser.ClientHandle) -> bool:
     view and aspect (the "Frame" button; a page whose 3D view changed shape). The page's
     own lesson (a private arm), while it is open, wins over the server's. False if there
     is nothing to frame or the page has gone."""
-    shared = server_of(client).scene
-    # the page's own lesson first; once it has closed its nodes are gone: the shared view
-    framed = _framed_scene(client.scene) or _framed_scene(shared)
+    framed = page_framing(client)
     return framed is not None and _aim(client, *framed)
+
+
+def also_frame(client: viser.ClientHandle, roots: Sequence[str]) -> None:
+    """Have ``client``'s framing of the shared lesson's view take in, as well, the visible
+    nodes under ``roots`` of the page's own scene (``client.scene``: drawn on that page
+    alone, such as a presenter's ghost of a student's arm); ``()``: no longer."""
+    with _order:
+        if roots:
+            _also[client] = tuple(roots)
+        else:
+            _also.pop(client, None)
+
+
+def also_framed(client: viser.ClientHandle) -> tuple[str, ...]:
+    """The roots of ``client``'s own scene that :func:`also_frame` asked it to frame."""
+    with _order:
+        return _also.get(client, ())
+
+
+def page_framing(client: viser.ClientHandle) -> tuple[View, np.ndarray] | None:
+    """(the View, the points (k, 3)) that :func:`reframe` frames on ``client`` now: the
+    page's own lesson's while one is open, else the shared lesson's with the page's own
+    nodes of :func:`also_frame`; None: nothing to frame."""
+    # the page's own lesson first; once it has closed its nodes are gone: the shared view
+    own = _framed_scene(client.scene)
+    if own is not None:
+        return own
+    shared = _framed_scene(server_of(client).scene)
+    return None if shared is None else (shared[0], _with_also(client, shared[1]))
+
+
+def _with_also(client: viser.ClientHandle, points: np.ndarray) -> np.ndarray:
+    """``points`` and those of ``client``'s own nodes it was asked to frame too."""
+    with _order:
+        roots = _also.get(client, ())
+    extra = framed_points(client.scene, roots) if roots else np.zeros((0, 3))
+    return np.concatenate([points, extra]) if len(extra) else points
 
 
 def _framed_scene(scene: Any) -> tuple[View, np.ndarray] | None:

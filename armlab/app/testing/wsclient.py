@@ -273,6 +273,8 @@ class HeadlessClient:
                     el.value = v
                 else:
                     el.props[k] = v
+                    if k == "label":  # a relabelled control is found by its new label
+                        el.label = v
         elif kind == "GuiRemoveMessage" and uuid in self.gui:
             del self.gui[uuid]
         elif kind in ("NotificationShowMessage", "NotificationUpdateMessage"):
