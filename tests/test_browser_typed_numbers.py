@@ -41,6 +41,13 @@ def _loop(lab):  # noqa: ANN001, ANN202
     return lab.lesson.rig.loop
 
 
+def _done(pg, lab, kp0: float) -> None:  # noqa: ANN001
+    """Close the page and put Kp back as the test found it."""
+    pg.close()
+    lab.lesson.gains.sliders["kp"].set(kp0)
+    wait_for(lambda: _loop(lab).params.kp == kp0, 30, "Kp back")
+
+
 def test_an_exponent_typed_is_shown_then_applied_as_the_range_allows(browser, lab):
     loop = _loop(lab)
     kp0 = loop.params.kp
@@ -61,9 +68,7 @@ def test_an_exponent_typed_is_shown_then_applied_as_the_range_allows(browser, la
         assert pg.evaluate(NOTE_JS) is None
         assert loop.params.kp != 19.0
     finally:
-        pg.close()
-        lab.lesson.gains.sliders["kp"].set(kp0)
-        wait_for(lambda: loop.params.kp == kp0, 30, "Kp back")
+        _done(pg, lab, kp0)
 
 
 def test_esc_drops_an_exponent_and_a_key_no_number_takes_is_named(browser, lab):
@@ -83,9 +88,7 @@ def test_esc_drops_an_exponent_and_a_key_no_number_takes_is_named(browser, lab):
                  30, "the key named", every=0.2)
         assert field.input_value() == "3"
     finally:
-        pg.close()
-        lab.lesson.gains.sliders["kp"].set(kp0)
-        wait_for(lambda: loop.params.kp == kp0, 30, "Kp back")
+        _done(pg, lab, kp0)
 
 
 def test_digits_typed_past_the_range_give_one_message_naming_the_last(browser, lab):
@@ -104,6 +107,4 @@ def test_digits_typed_past_the_range_give_one_message_naming_the_last(browser, l
         assert pg.get_by_text(LIMIT_TITLE).count() == 1
         assert pg.get_by_text("Value refused").count() == 0
     finally:
-        pg.close()
-        lab.lesson.gains.sliders["kp"].set(kp0)
-        wait_for(lambda: loop.params.kp == kp0, 30, "Kp back")
+        _done(pg, lab, kp0)

@@ -132,6 +132,14 @@ def window(snap: dict[str, np.ndarray], t0: float, length: int, period: float
     return rows
 
 
+def refuse_while(pending: Any) -> None:
+    """Raise ValueError while a challenge's run ``pending`` (its ``label``) goes on: a
+    lesson's own commands wait for its figures (every lesson's challenge runs say so)."""
+    if pending is not None:
+        raise ValueError(f"the challenge's run ({pending.label}) is going on: wait "
+                         "for its figures")
+
+
 class ChallengeRuns:
     """A compliance lesson's challenge runs (module docstring).
 
@@ -160,9 +168,7 @@ class ChallengeRuns:
 
     def busy(self) -> None:
         """Raise ValueError while a challenge's run is going on (the person waits for it)."""
-        if self.pending is not None:
-            raise ValueError(f"the challenge's run ({self.pending.label}) is going on: wait "
-                             "for its figures")
+        refuse_while(self.pending)
 
     def cancel(self, why: str) -> None:
         """Cut the run going on short (it counts for nothing); ``why`` shown."""

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.app.lessons.compliance_challenge import KEEP, window
+from armlab.app.lessons.compliance_challenge import KEEP, refuse_while, window
 from armlab.control.challenges import Challenge
 from armlab.control.commands import Reset
 from armlab.control.gait_loop import SetPlan, StopWalking, Walk
@@ -110,9 +110,7 @@ class RestartRuns:
 
     def busy(self) -> None:
         """Raise ValueError while a challenge's run is going on."""
-        if self.pending is not None:
-            raise ValueError(f"the challenge's run ({self.pending.label}) is going on: wait "
-                             "for its figures")
+        refuse_while(self.pending)
 
     def cancel(self, why: str) -> None:
         """Cut the run going on short (it counts for nothing)."""
