@@ -261,20 +261,25 @@ NUMBER_KEYS_SCRIPT = """
   const setValue = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, 'value').set;
   const field = (el) => el instanceof HTMLInputElement &&
     el.closest('.mantine-NumberInput-root') ? el : null;
+  const rowOf = (el) => el.closest('.mantine-Flex-root') ||
+    el.closest('.mantine-NumberInput-root').parentElement;
+  const noteOf = (el) => {
+    const row = rowOf(el);
+    const next = row.nextElementSibling;
+    return next && next.dataset.armlab === 'number-note' ? next : null;
+  };
   const note = (el, text, ms) => {
-    const root = el.closest('.mantine-NumberInput-root');
-    let n = root.querySelector('[data-armlab="number-note"]');
+    // a line of its own under the field's row, the panel's width: whole at any size
+    let n = noteOf(el);
     if (!n) {
       n = document.createElement('div');
       n.dataset.armlab = 'number-note';
       n.setAttribute('role', 'status');
-      // under the field, as wide as its words (the field itself is a few digits wide)
-      if (getComputedStyle(root).position === 'static') root.style.position = 'relative';
-      n.style.cssText = 'position: absolute; top: 100%%; right: 0; z-index: 40; ' +
-        'width: max-content; max-width: 20em; font-size: 0.85em; line-height: 1.25; ' +
+      n.style.cssText = 'font-size: 0.85em; line-height: 1.25; margin: 2px 0 4px; ' +
         'padding: 3px 6px; border-radius: 4px; color: var(--mantine-color-orange-9); ' +
-        'background: var(--mantine-color-body); box-shadow: 0 1px 4px rgba(0,0,0,0.25);';
-      root.appendChild(n);
+        'background: var(--mantine-color-orange-0); white-space: normal; ' +
+        'overflow-wrap: anywhere; max-width: 100%%; box-sizing: border-box;';
+      rowOf(el).insertAdjacentElement('afterend', n);
     }
     n.textContent = text;
     clearTimeout(n.armlabTimer);
@@ -295,8 +300,7 @@ NUMBER_KEYS_SCRIPT = """
       setValue.call(el, plain(v));
       el.dispatchEvent(new Event('input', { bubbles: true }));
     }
-    const n = el.closest('.mantine-NumberInput-root').querySelector(
-      '[data-armlab="number-note"]');
+    const n = noteOf(el);
     if (n) n.remove();
   };
   document.addEventListener('keydown', (ev) => {
