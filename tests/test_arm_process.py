@@ -278,7 +278,14 @@ def test_a_worker_that_stops_answering_is_told_and_its_estop_lands_when_it_resum
             assert backend.estop() is False  # not known to have landed: said so
         finally:
             os.kill(pid, signal.SIGCONT)
+
+        def seen() -> str:
+            st = loop.status
+            return (f"the E-STOP applied on resuming (fault {st.fault!r}, estopped "
+                    f"{st.estopped}, torque on {st.torque_on}, t {st.t:.2f} s, worker "
+                    f"{boxes.process.ended or 'running'})")
+
         wait_for(lambda: loop.status.fault is None and loop.status.estopped
-                 and not loop.status.torque_on, 60, "the E-STOP applied on resuming")
+                 and not loop.status.torque_on, 60, seen)
     finally:
         boxes.close()

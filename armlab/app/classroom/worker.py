@@ -195,36 +195,54 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             conn.send(msg)
 
     def mirror() -> None:
-        reports_every = max(1, round(REPORTS_S / mirror_s))
+        """Every ``mirror_s`` s, one mirror; a cycle that fails unexpectedly is told once
+        on stderr and the next goes on (a dead mirror would leave the server calling a
+        running worker silent for good)."""
+        told: set[str] = set()
         for n in itertools.count(1):
             if stop.wait(mirror_s):
                 return
-            with held_lock:
-                items = list(held.items())
-            batch = []
-            for arm_id, (arm, bookmark) in items:
-                loop = arm.loop
-                status = loop.status  # first: the rows are at least as new as it says
-                rows, bookmark[0] = loop.recorder.since(bookmark[0])
-                try:
-                    reports = reports_of(arm) if n % reports_every == 0 else None
-                except ValueError:  # freed since the list was taken (its mirror is dropped)
-                    reports = None
-                batch.append((arm_id, status, rows, loop.recorder.capacity,
-                              loop.spare_joints, loop.gripper, reports))
-            with held_lock:
-                member_items = list(members.items())
-            by_kind: dict[str, list] = {}
-            for member_id, (name, member, sent) in member_items:
-                by_kind.setdefault(name, []).append(
-                    MEMBER_KINDS[name].item(member_id, member, sent))
             try:
-                if batch:
-                    send(("mirror", batch))
-                for name, items in by_kind.items():
-                    send((name, items))
-            except (OSError, ValueError):
-                return
+                if not mirror_once(n):  # the server's end is gone
+                    return
+            except Exception as exc:  # noqa: BLE001 - any other: say it, keep mirroring
+                said = f"{type(exc).__name__}: {exc}"
+                if said not in told:
+                    told.add(said)
+                    print(f"armlab worker: a mirror failed ({said}); going on",
+                          file=sys.stderr, flush=True)
+
+    def mirror_once(n: int) -> bool:
+        """Send the held arms' and members' news (the servos' reports every
+        :data:`REPORTS_S` s); False when the server's end of the pipe is gone."""
+        reports_every = max(1, round(REPORTS_S / mirror_s))
+        with held_lock:
+            items = list(held.items())
+        batch = []
+        for arm_id, (arm, bookmark) in items:
+            loop = arm.loop
+            status = loop.status  # first: the rows are at least as new as it says
+            rows, bookmark[0] = loop.recorder.since(bookmark[0])
+            try:
+                reports = reports_of(arm) if n % reports_every == 0 else None
+            except ValueError:  # freed since the list was taken (its mirror is dropped)
+                reports = None
+            batch.append((arm_id, status, rows, loop.recorder.capacity,
+                          loop.spare_joints, loop.gripper, reports))
+        with held_lock:
+            member_items = list(members.items())
+        by_kind: dict[str, list] = {}
+        for member_id, (name, member, sent) in member_items:
+            by_kind.setdefault(name, []).append(
+                MEMBER_KINDS[name].item(member_id, member, sent))
+        try:
+            if batch:
+                send(("mirror", batch))
+            for name, member_batch in by_kind.items():
+                send((name, member_batch))
+        except (OSError, ValueError):
+            return False
+        return True
 
     def arm_of(arm_id: int) -> Arm:
         with held_lock:

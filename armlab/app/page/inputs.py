@@ -31,7 +31,7 @@ import viser
 
 from armlab.app.viser_ext.clients import connected, queue
 from armlab.app.viser_ext.dispatch import screen_gui_updates
-from armlab.app.viser_ext.handles import gui_inputs, uuid_of
+from armlab.app.viser_ext.handles import gui_inputs, is_removed, uuid_of
 from armlab.app.viser_ext.messages import GuiUpdateMessage
 from armlab.kinematics.validate import check_number
 
@@ -101,7 +101,11 @@ def show_applied_soon(client: viser.ClientHandle | None, handle: Any, value: Any
                 return
             del _show_timers[key]
         if handle.value != value:
-            handle.value = value
+            try:
+                handle.value = value
+            except RuntimeError:  # removed meanwhile (its lesson or page went): no field
+                if not is_removed(handle):
+                    raise
         elif connected(client) and GuiUpdateMessage is not None:
             queue(client, GuiUpdateMessage(uuid_of(handle), {"value": handle.value}))
 
