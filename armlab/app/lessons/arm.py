@@ -161,6 +161,9 @@ class ArmLesson(LessonBase):
         self._link = LinkMonitor()
         self._slider_t = -math.inf  # monotonic s of a person's last slider move
         self._setting = threading.Lock()  # held while the lab sets a slider itself
+        #: each slider's value as the lab last set it or handled a person's move: a slider
+        #: showing another holds a person's value its handler has not run for yet
+        self._slider_known: list[float] = []
         model = load_robot(ctx.robot, tip_link=ctx.tip_link, package_paths=ctx.package_paths)
         if not isinstance(model, SerialChain):
             raise ValueError(f"robot: {ctx.robot} is not a serial arm")
@@ -222,9 +225,11 @@ class ArmLesson(LessonBase):
     def _follow_arm(self, snap: dict[str, np.ndarray]) -> None:
         """Keep the joint sliders on the pose the arm holds (:meth:`_shown`) when it was
         not a slider that put it there: the hand target, Reset, E-STOP, a fault, a
-        reconnect. A slider a person moved in the last :data:`SLIDER_QUIET_S`, or whose
-        approach still plays, is left where the person put it."""
-        if time.monotonic() - self._slider_t < SLIDER_QUIET_S:
+        reconnect. A slider a person moved in the last :data:`SLIDER_QUIET_S`, whose
+        approach still plays, or whose move viser has applied but not yet handed to
+        :meth:`_on_slider` (a busy machine: the value first, its handler a moment later),
+        is left where the person put it."""
+        if time.monotonic() - self._slider_t < SLIDER_QUIET_S or self._person_waiting():
             return
         st = self.loop.status  # (one snapshot a frame)
         if st.trajectory == SLIDER_MOVE:
@@ -232,11 +237,20 @@ class ArmLesson(LessonBase):
         q = self._shown(snap, active=st.active)
         if q is None:
             return
-        for slider, deg in zip(self.sliders, np.degrees(q), strict=True):
+        for i, (slider, deg) in enumerate(zip(self.sliders, np.degrees(q), strict=True)):
             value = _on_step(float(deg), slider.min, slider.max)
             if abs(value - float(slider.value)) > 0.5 * SLIDER_STEP_DEG:
+                if self._person_waiting():
+                    return
                 with self._setting:  # not a person's move (see _on_slider)
                     slider.value = value  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+                self._slider_known[i] = value
+
+    def _person_waiting(self) -> bool:
+        """Whether a slider shows a value neither the lab set nor :meth:`_on_slider`
+        handled: a person's move on its way to its handler."""
+        return any(float(s.value) != known
+                   for s, known in zip(self.sliders, self._slider_known, strict=True))
 
     def _build_scene(self) -> None:
         base = self.model.base_pose
@@ -287,6 +301,7 @@ class ArmLesson(LessonBase):
                                         hint=f"Joint {j.name}: {lo:+.1f}° .. {hi:+.1f}°")
                 slider.on_update(self._on_slider)
                 self.sliders.append(slider)
+                self._slider_known.append(float(start))
             # an uncalibrated arm on servos starts with torque off until a person says so
             self.confirm = gui.add_button(
                 "Torque on: the arm is clear", color="orange", icon=viser.Icon.POWER,
@@ -342,6 +357,7 @@ class ArmLesson(LessonBase):
         i = next((k for k, s in enumerate(self.sliders) if s is event.target), None)
         if i is None:
             return
+        self._slider_known[i] = float(event.target.value)
         angle = math.radians(float(event.target.value))
         guarded(event, lambda: self.move_joint(i, angle))
 
