@@ -52,20 +52,25 @@ def _shot(page, view) -> np.ndarray:  # noqa: ANN001
 def _label_box(page, view, label, at) -> tuple[int, int, int, int]:  # noqa: ANN001
     """(left, top, right, bottom) px in the 3D view of the pixels that change when the
     scene label ``label`` is hidden, searched round ``at`` (px) where its anchor (bottom
-    centre) is drawn."""
-    def steady() -> bool:  # two pictures agree (the arms hold still)
-        return bool(np.all(np.abs(_shot(page, view) - _shot(page, view)) <= 40))
-
-    wait_for(steady, PAGE_S, "a still picture", every=0.5)
-    with_label = _shot(page, view)
-    h, w = with_label.shape
+    centre) is drawn. (A holding arm may tremble by its servos' 0.29° steps, more on a
+    busy machine: only the search window must hold still, and a pixel counts as the
+    label's only where the hidden picture differs from both pictures with it.)"""
+    h, w = _shot(page, view).shape
     x0, x1 = max(0, int(at[0]) - 400), min(w, int(at[0]) + 400)
     y0, y1 = max(0, int(at[1]) - 150), min(h, int(at[1]) + 20)
+    shots: list[np.ndarray] = []
+
+    def steady() -> bool:  # two pictures of the window agree but for a few pixels
+        shots[:] = [_shot(page, view)[y0:y1, x0:x1], _shot(page, view)[y0:y1, x0:x1]]
+        return int(np.count_nonzero(np.abs(shots[0] - shots[1]) > 40)) < 30
+
+    wait_for(steady, PAGE_S, "a still picture round the label", every=0.5)
     found: list[tuple[int, int, int, int]] = []
     label.visible = False
     try:
         def gone() -> bool:
-            diff = np.abs(_shot(page, view) - with_label)[y0:y1, x0:x1] > 40
+            now = _shot(page, view)[y0:y1, x0:x1]
+            diff = (np.abs(now - shots[0]) > 40) & (np.abs(now - shots[1]) > 40)
             ys, xs = np.nonzero(diff)
             if len(xs) < 30:
                 return False

@@ -22,6 +22,10 @@ def test_a_chart_is_tall_enough_for_its_longest_y_label_in_both_sizes():
         plot = h - s.x_axis - plots.LABEL_ROOM
         assert plot >= plots.LABEL_CHAR_EM * s.ticks * len(label)
         assert h >= 130 + s.x_axis - theme.NORMAL.x_axis  # the plot never shrinks
+    # a projected chart's plot is 1.6 times its normal height: 136 px become 218 px
+    normal = plots.chart_height(theme.NORMAL, height=170, y_labels=("angle (°)",))
+    projected = plots.chart_height(theme.PROJECTOR, height=170, y_labels=("angle (°)",))
+    assert (normal, projected) == (170, 218 + theme.PROJECTOR.x_axis)
     axes = plots.chart_axes(theme.PROJECTOR, y_label="a", y2_label="b", x_label="t (s)")
     assert [a["label"] for a in axes] == ["t (s)", "a", "b"]
     assert all(a["labelSize"] == plots.LABEL_ROOM for a in axes)

@@ -72,14 +72,15 @@ class ComplianceScene:
             f"{root}/shoulder", show_axes=True, axes_length=0.08, axes_radius=0.003,
             wxyz=vtf.SO3.from_matrix(base[:3, :3]).wxyz, position=base[:3, 3])
         sh = f"{root}/shoulder"
+        # the labels reach inwards from their points (the line's end is the scene's
+        # rightmost point: a label hung to its right ran under the controls)
         self.shoulder_label = theme.add_label(
-            scene, f"{sh}/label", "shoulder (thesis frame, x = gravity)",
-            position=(0.09, 0.0, 0.0))
+            scene, f"{sh}/label", "shoulder frame, x = gravity", position=(0.09, 0.0, 0.0))
         path = np.asarray(path, dtype=float).reshape(2, 3)
         self.path = scene.add_line_segments(f"{sh}/path", points=path[None, :, :],
                                             colors=PATH_RGB, thickness=0.004)
         self.path_label = theme.add_label(scene, f"{sh}/path_label", "thesis 20 cm line",
-                                          position=path[1])
+                                          position=path[1], anchor="bottom-right")
         for i, p in enumerate(path):
             scene.add_icosphere(f"{sh}/path_end{i}", radius=0.006, color=PATH_RGB, position=p)
         # Target the hand follows by RMRC (translation only).

@@ -233,10 +233,10 @@ LABEL_MARGIN = 6
 
 def chart_height(s: theme.TextSizes, *, height: int, y_labels: Iterable[str | None]) -> int:
     """The height (px) of a chart asked for as ``height`` px in normal sizes, in sizes
-    ``s``: its plot as tall as in normal sizes (the x axis's room grows with its digits),
-    and at least tall enough that each y label, drawn rotated along the plot's height
-    (centred on it), is whole between the chart's edges."""
-    scaled = height + s.x_axis - theme.NORMAL.x_axis
+    ``s``: its plot ``s.plot_scale`` times as tall as in normal sizes (below it, the x
+    axis's room for its digits), and at least tall enough that each y label, drawn
+    rotated along the plot's height (centred on it), is whole between the chart's edges."""
+    scaled = round((height - theme.NORMAL.x_axis) * s.plot_scale) + s.x_axis
     longest = max((len(label) for label in y_labels if label), default=0)
     label = math.ceil(LABEL_CHAR_EM * s.ticks * longest) + 2 * LABEL_MARGIN
     return max(scaled, s.x_axis + LABEL_ROOM + label)

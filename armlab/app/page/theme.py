@@ -37,17 +37,22 @@ from armlab.app.viser_ext.visual_fixes import panel_style
 class TextSizes:
     """CSS px of the page's text: controls (labels, inputs, tabs, status), charts' titles
     and legends, the charts' canvas-drawn tick digits, and the room the charts' x and y
-    axes take for their digits and label."""
+    axes take for their digits and label; and how many times its normal height a chart's
+    plot is drawn (a projected chart is read from the back row: its lines need the room
+    its 20 px digits take beside them)."""
 
     controls: int
     chart_title: int
     ticks: int
     x_axis: int
     y_axis: int
+    plot_scale: float = 1.0
 
 
 NORMAL = TextSizes(controls=14, chart_title=14, ticks=13, x_axis=34, y_axis=52)
-PROJECTOR = TextSizes(controls=22, chart_title=22, ticks=20, x_axis=48, y_axis=80)
+#: a 170 px chart (a 136 px plot) is 266 px in Projector mode, its plot 218 px
+PROJECTOR = TextSizes(controls=22, chart_title=22, ticks=20, x_axis=48, y_axis=80,
+                      plot_scale=1.6)
 
 #: viser's ``font_screen_scale`` of the lab's 3D scene labels. Scale 1 draws text about
 #: 12 px tall at 1080p (the issue measured 7-8 px at 0.6): 1.75 gives >= 16 px glyph
