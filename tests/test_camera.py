@@ -80,6 +80,19 @@ def test_node_points_compose_poses_and_leave_hidden_and_non_finite_nodes_out():
         server.stop()
 
 
+def test_a_gizmo_is_framed_with_the_reach_of_its_arrows():
+    """A hand target's gizmo reaches ``scale`` out from its point (the URDF arm's ran off
+    the top of a 1280x720 view when only its point was framed)."""
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        server.scene.add_transform_controls("/t", scale=0.08, position=(1.0, 0.0, 0.5))
+        pts = camera.framed_points(server.scene, ("/t",))
+        assert np.allclose(pts.min(axis=0), (0.92, -0.08, 0.42))
+        assert np.allclose(pts.max(axis=0), (1.08, 0.08, 0.58))
+    finally:
+        server.stop()
+
+
 def test_the_compliance_camera_frames_the_arm_and_its_task_not_the_hands_trail():
     """The trail is the hand's history: the arm's move to its start leaves dots far from
     where it then stands, and later dots replace them. Framed, they would move the camera

@@ -83,7 +83,7 @@ HELP = ("Any arm from its URDF: a slider per joint, a hand target to drag (the l
         "can aim away from the limits. Limits come from the file; the Teach tab lists them.")
 #: The first action, shown under the status line.
 TRY = ("Move a slider on the **Joints** tab a few degrees, then drag the orange target: the "
-       "hand follows it.")
+       "hand follows it. (Your own arm: `armlab serve --robot your_arm.urdf`.)")
 ROBOTS = ("open_manipulator_x", "so101", ANY_URDF)
 ORDER = 50
 #: a student's page can hold a private copy of this lesson (``ctx.arms``)
@@ -455,7 +455,8 @@ class ArmLesson(LessonBase):
 
     def _status_frame(self, force: bool) -> None:
         st = self.loop.status
-        where = f"backend {self.ctx.backend}, loop t {st.t:.1f} s"
+        # (the arm named: the lesson opens the shipped OpenManipulator-X when no file is given)
+        where = f"{self.model.name} · backend {self.ctx.backend} · loop t {st.t:.1f} s"
         state = stopped_state(st)
         if self.confirm.visible != (st.held_off is not None):
             self.confirm.visible = st.held_off is not None

@@ -156,7 +156,8 @@ def _corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 def _local_box(handle: Any) -> np.ndarray | None:
     """Corners (8, 3) of a box round a scene node's shape in its own frame (its scale
-    applied), or None for a node without a shape (a frame, a label, a gizmo)."""
+    applied; a gizmo's reach of its arrows), or None for a node without a shape (a frame,
+    a label)."""
     if isinstance(handle, (viser.MeshHandle, viser.MeshSkinnedHandle)):
         v = np.asarray(handle.vertices, dtype=float).reshape(-1, 3)
         box = _corners(v.min(axis=0), v.max(axis=0)) if len(v) else None
@@ -171,6 +172,10 @@ def _local_box(handle: Any) -> np.ndarray | None:
     elif isinstance(handle, viser.CylinderHandle):  # a cube round it, whichever its axis
         r = max(float(handle.radius), 0.5 * float(handle.height))
         box = _corners(np.full(3, -r), np.full(3, r))
+    elif isinstance(handle, viser.TransformControlsHandle):  # its arrows reach ``scale`` out
+        r = float(handle.scale)
+        corners = _corners(np.full(3, -r), np.full(3, r))
+        return corners if np.all(np.isfinite(corners)) else None
     else:
         return None
     if box is None or not np.all(np.isfinite(box)):
