@@ -31,7 +31,8 @@ from armlab.kinematics.body_statics import (
     rest_plane,
     rest_planes,
 )
-from armlab.kinematics.model import Quadruped, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import Quadruped
 
 MODEL = load_robot("quadruped")
 DT = 2e-3  #: the lesson's SIM_DT

@@ -15,7 +15,7 @@ from armlab.hardware.backends.joint_map import JointMap, JointServo, load_joint_
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire.bus import Bus, NoReply, WrongModel
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

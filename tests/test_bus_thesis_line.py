@@ -27,7 +27,7 @@ from armlab.hardware.backends.xseries import XSeriesBackend
 from armlab.hardware.backends.xseries_sim import XSimBackend
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.servos.xseries import XM430_W350
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

@@ -33,7 +33,7 @@ from armlab.control.loop import ControlLoop
 from armlab.control.restart import RestartableArm
 from armlab.control.trajectory import minimum_jerk
 from armlab.hardware.backends.sim import SimBackend
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 STEP = PRESETS["step"]
 STEP_TAGS = dict.fromkeys(STEP.figures, "step")

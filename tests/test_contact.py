@@ -27,7 +27,7 @@ from armlab.control.experiments.contact import (
 from armlab.control.params import DEFAULT
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.sim.plant import Plant
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 ARM = load_robot("receptionist_arm")
 

@@ -19,9 +19,9 @@ from armlab.kinematics.dynamics import (
     rnea,
 )
 from armlab.kinematics.fk import link_poses
-from armlab.kinematics.model import chain_from_urdf
 from armlab.kinematics.points import point_force_torques, point_jacobian, point_position
 from armlab.kinematics.thesis_dynamics import thesis_closed_form
+from armlab.kinematics.urdf_read import chain_from_urdf
 
 # The thesis's arm: L1 = 18.5 cm, L2 = 25 cm, m1 = 176 g, m2 = 190 g, g = 9.81.
 L1, L2, M1, M2, G = 0.185, 0.25, 0.176, 0.19, 9.81
@@ -237,7 +237,8 @@ def test_compiled_model_is_built_once_and_readable():
 def shipped_chains() -> list[tuple[str, object]]:
     """Every serial chain the lab ships: each URDF in armlab/kinematics/robots (a quadruped's four
     legs). The hand's fingers are planar tendon linkages (armlab/kinematics/hand.py), not chains."""
-    from armlab.kinematics.model import ROBOTS_DIR, Quadruped
+    from armlab.kinematics.catalog import ROBOTS_DIR
+    from armlab.kinematics.model import Quadruped
 
     out = []
     for path in sorted(ROBOTS_DIR.glob("*.urdf")):

@@ -12,7 +12,7 @@ from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.emulator.bus import emulated_network
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire.scan import scan
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

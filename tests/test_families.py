@@ -26,7 +26,7 @@ from armlab.hardware.servos.sts import STS3215, STS3215_TABLE
 from armlab.hardware.servos.xseries import XM430_W350
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire.bus import Bus
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 
 @pytest.mark.parametrize(("tag", "want"), [

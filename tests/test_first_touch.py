@@ -27,7 +27,7 @@ from _helpers import client_of, wait_for
 from armlab.app.server import Lab, ServeOptions
 from armlab.control.trajectory import APPROACH_SPEED, approach_duration
 from armlab.hardware.backends.joint_map import default_joint_map
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = [pytest.mark.realtime, pytest.mark.timeout(300)]
 

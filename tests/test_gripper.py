@@ -34,7 +34,7 @@ from armlab.hardware.backends.joint_map import default_joint_map, draft_joint_ma
 from armlab.hardware.backends.xseries import XSeriesBackend
 from armlab.hardware.servos.xseries import XM430_W350, OperatingMode
 from armlab.hardware.wire.scan import Found
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 OMX = load_robot("open_manipulator_x")
 GRIPPER = open_manipulator_gripper(OMX.urdf_path)

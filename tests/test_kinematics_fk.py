@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from armlab.kinematics import Quadruped, URDFError, load_robot
+from armlab.kinematics.catalog import ROBOT_FILES, ROBOTS_DIR
 from armlab.kinematics.fk import fk, fk_and_jacobian, jacobian
-from armlab.kinematics.model import ROBOT_FILES, ROBOTS_DIR, chain_from_urdf
+from armlab.kinematics.urdf_read import chain_from_urdf
 
 PRESETS = [("18.5/25", 0.185, 0.25), ("18.5/18.5", 0.185, 0.185), ("17/25", 0.17, 0.25)]
 

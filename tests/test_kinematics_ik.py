@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from armlab.kinematics import Quadruped, load_robot
+from armlab.kinematics.catalog import ROBOT_FILES, ROBOTS_DIR
 from armlab.kinematics.ik import (
     damped_inverse,
     dls,
@@ -21,7 +22,6 @@ from armlab.kinematics.ik import (
     reach_bound,
     rmrc,
 )
-from armlab.kinematics.model import ROBOT_FILES, ROBOTS_DIR
 
 TOL = 1e-4  # 0.1 mm
 PRESETS = ["18.5/25", "18.5/18.5", "17/25"]

@@ -13,7 +13,7 @@ from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.redundancy import SHOWN_MODES, build
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.seed002 import circle
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 
 @pytest.fixture(scope="module")

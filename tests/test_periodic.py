@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from armlab.control.periodic import SPIN_S, Pacer, RingBuffer, SharedClock, sleep_until
+from armlab.control.periodic import SPIN_S, Pacer, SharedClock, sleep_until
+from armlab.control.ring_buffer import RingBuffer
 
 
 def test_ring_keeps_the_newest_rows_and_finds_a_window_by_time():

@@ -25,7 +25,7 @@ from armlab.kinematics.body_statics import (
     rest_plane,
     tilt_deg,
 )
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 #: Seed 003's published figures (../shared/seed-notes.md, 003: "Reported"): body tilt on
 #: flat ground, degrees, and the mean eq. 4.1 servo error, percent (servo 2 the worst).

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from viser.extras import ViserUrdf
 
 from armlab.kinematics import load_robot
+from armlab.kinematics.catalog import ROBOTS_DIR
 from armlab.kinematics.leg_ik import LegGeometry, leg_fk, leg_ik
-from armlab.kinematics.model import ROBOTS_DIR, quadruped_from_urdf
 from armlab.kinematics.quadruped import (
     LEGS,
     QuadrupedGeometry,
@@ -24,6 +24,7 @@ from armlab.kinematics.quadruped import (
     quadruped_urdf,
 )
 from armlab.kinematics.stability import centre_of_mass, centre_of_mass_model
+from armlab.kinematics.urdf_read import quadruped_from_urdf
 
 SEED_ROBOTS = ("redundant_planar", "planar_servo_arm", "quadruped")
 

@@ -16,7 +16,7 @@ from armlab.hardware.sim.dynamixel_servo import (
     effective_slope,
 )
 from armlab.hardware.sim.plant import Plant
-from armlab.kinematics.model import chain_from_urdf
+from armlab.kinematics.urdf_read import chain_from_urdf
 
 NO_FRICTION = ServoParams(coulomb_friction=0.0, viscous_friction=0.0)
 

@@ -42,7 +42,7 @@ from armlab.hardware.backends.sts_sim import StsSimBackend
 from armlab.hardware.servos.sts import CENTRE, STS3215, STS3215_TABLE
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire.bus import Bus
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

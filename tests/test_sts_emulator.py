@@ -20,7 +20,7 @@ from armlab.hardware.servos.sts import CENTRE, STS3215_TABLE
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire.bus import Bus
 from armlab.hardware.wire.scan import scan
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator over a pseudo-terminal
 

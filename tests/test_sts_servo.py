@@ -13,7 +13,7 @@ from armlab.hardware.sim.dynamixel_servo import ServoParams
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.sts_servo import KP_UNIT, StsRegisters, StsServoModel
 from armlab.hardware.wire.feetech import ErrorBits
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 
 def held(model: StsServoModel, seconds: float, *, angle: float = 0.0) -> None:

@@ -31,7 +31,7 @@ from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.commands import RunTrajectory
 from armlab.control.experiments.contact import contact_figures, run_contact
 from armlab.control.params import DEFAULT, PRESETS
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 

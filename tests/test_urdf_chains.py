@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from armlab.kinematics import URDFError, load_robot
-from armlab.kinematics.model import CONTINUOUS_LIMIT
 from armlab.kinematics.urdf import resolve_resource
+from armlab.kinematics.urdf_read import CONTINUOUS_LIMIT
 
 DATA = Path(__file__).with_name("data")
 MOBILE = DATA / "mobile_manipulator.urdf"

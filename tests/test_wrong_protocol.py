@@ -17,7 +17,7 @@ from armlab.control.backend import BackendError
 from armlab.hardware.backends.joint_map import default_joint_map
 from armlab.hardware.backends.xseries import open_servo_backend
 from armlab.hardware.wire.bus import Bus
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator over a pseudo-terminal
 

@@ -38,8 +38,8 @@ from armlab.hardware.servos.xseries import (
 )
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.bus import Bus
+from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.dynamics import gravity_torques
-from armlab.kinematics.model import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
 

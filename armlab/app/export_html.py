@@ -47,16 +47,11 @@ from armlab.app.export_charts import Series, line_chart
 from armlab.app.export_viewer import SCRIPT, STYLE
 from armlab.app.page.plots import ANGLE_SPAN_DEG, COLORS, TORQUE_SPAN_NM
 from armlab.control.runs import check_drawable, save_file, writable_path
+from armlab.kinematics.catalog import RECEPTIONIST_PRESETS, ROBOT_FILES
+from armlab.kinematics.catalog import load_robot as _load_robot
 from armlab.kinematics.hand import FingerGeometry, tip_positions
-from armlab.kinematics.model import (
-    LEG_NAMES,
-    RECEPTIONIST_PRESETS,
-    ROBOT_FILES,
-    Joint,
-    Quadruped,
-    SerialChain,
-)
-from armlab.kinematics.model import load_robot as _load_robot
+from armlab.kinematics.model import Joint, Quadruped, SerialChain
+from armlab.kinematics.urdf_read import LEG_NAMES
 
 if TYPE_CHECKING:
     from armlab.control.runs import Run

@@ -33,7 +33,8 @@ import numpy as np
 from armlab.control.backend import Backend, BackendError
 from armlab.control.commands import EStop, Reset
 from armlab.control.loop_record import LoopRecord
-from armlab.control.periodic import DrivenPacer, Pacer, RingBuffer, SharedClock
+from armlab.control.periodic import DrivenPacer, Pacer, SharedClock
+from armlab.control.ring_buffer import RingBuffer
 from armlab.control.trajectory import APPROACH_SPEED
 from armlab.control.walking import (
     GaitPlan,

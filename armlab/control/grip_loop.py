@@ -34,8 +34,9 @@ from armlab.control.grip import (
     grasp_figures,
 )
 from armlab.control.loop_record import LoopRecord
-from armlab.control.periodic import Pacer, RingBuffer
+from armlab.control.periodic import Pacer
 from armlab.control.restart import Schedule
+from armlab.control.ring_buffer import RingBuffer
 
 #: Record columns (besides t), each (3,) per row: name -> unit.
 COLUMNS: dict[str, str] = {

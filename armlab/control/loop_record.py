@@ -3,14 +3,14 @@
 The hand's :class:`armlab.control.grip_loop.GripLoop` and the quadruped's
 :class:`armlab.control.gait_loop.GaitLoop`, and the server's proxies of such loops running in a
 worker process (``armlab.app.classroom.remote_hand``, ``armlab.app.classroom.remote_gait``), share
-this surface; their records are :class:`armlab.control.periodic.RingBuffer` rows.
+this surface; their records are :class:`armlab.control.ring_buffer.RingBuffer` rows.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from armlab.control.periodic import RingBuffer
+from armlab.control.ring_buffer import RingBuffer
 
 
 class LoopRecord:
@@ -45,7 +45,7 @@ class LoopRecord:
 
     def rows_since(self, written: int) -> tuple[np.ndarray, int]:
         """The record's rows after the first ``written`` ever written, and the number
-        written now (:meth:`armlab.control.periodic.RingBuffer.since`: a mirror's bookmark)."""
+        written now (:meth:`armlab.control.ring_buffer.RingBuffer.since`: a mirror's bookmark)."""
         return self._ring.since(written)
 
     # --- a run's track follows the record (armlab.control.run_track.RowSource) ---------

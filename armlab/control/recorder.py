@@ -32,7 +32,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from armlab.control.params import Params
-from armlab.control.periodic import RingBuffer
+from armlab.control.ring_buffer import RingBuffer
 
 SIGNALS: tuple[str, ...] = ("q_cmd", "q_ref", "q", "error", "qd_ref", "load", "tau_load",
                             "tau_dyn", "tau_ext", "q_env")
@@ -41,8 +41,9 @@ UNITS = {"q_cmd": "rad", "q_ref": "rad", "q": "rad", "error": "rad", "qd_ref": "
 
 
 class Recorder:
-    """The last ``capacity`` periods of every signal: a :class:`~armlab.control.periodic.RingBuffer`
-    with one named column per joint and signal.
+    """The last ``capacity`` periods of every signal: a
+    :class:`~armlab.control.ring_buffer.RingBuffer` with one named column per joint and
+    signal.
 
     Args:
         n: number of joints.

@@ -18,6 +18,7 @@ from armlab.exercises.core import Exercise, Mistake, RunCase, ValueCase
 from armlab.exercises.student import CheckedLaw
 from armlab.kinematics import SerialChain, load_robot
 from armlab.kinematics import planar_ik as p4
+from armlab.kinematics.catalog import RECEPTIONIST_PRESETS
 from armlab.kinematics.ik import (
     MAX_HALVINGS,
     damped_inverse,
@@ -30,7 +31,6 @@ from armlab.kinematics.ik import (
 )
 from armlab.kinematics.leg_ik import LegGeometry, leg_fk
 from armlab.kinematics.leg_ik import leg_ik as lab_leg_ik
-from armlab.kinematics.model import RECEPTIONIST_PRESETS
 from armlab.kinematics.redundancy import (
     CircleTask,
     gradient_projection,

@@ -24,7 +24,7 @@ import numpy as np
 from armlab.kinematics.leg_ik import LegGeometry
 from armlab.kinematics.validate import scalar
 
-#: Legs in the order of armlab.kinematics.model.LEG_NAMES.
+#: Legs in the order of armlab.kinematics.urdf_read.LEG_NAMES.
 LEGS = ("RF", "LF", "RH", "LH")
 #: +1 for the left legs (outward = +y of the body), −1 for the right legs.
 SIDE = {"RF": -1, "LF": 1, "RH": -1, "LH": 1}
@@ -168,7 +168,7 @@ def quadruped_urdf(geom: QuadrupedGeometry = DEFAULT_GEOMETRY) -> str:
     Links per leg: ``<LEG>_hip`` (fixed mount on the body) → ``<LEG>_coxa`` (hip yaw θ1)
     → ``<LEG>_femur`` (hip pitch θ2) → ``<LEG>_tibia`` (knee θ3) → ``<LEG>_foot``
     (fixed, at the foot point). The body link ``body`` is the root, its centre of mass at
-    the body frame's origin. Load it with ``armlab.kinematics.model.quadruped_from_urdf``.
+    the body frame's origin. Load it with ``armlab.kinematics.urdf_read.quadruped_from_urdf``.
     """
     bx, by, bz = geom.body_size
     lines = [

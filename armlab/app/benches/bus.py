@@ -49,7 +49,7 @@ from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
 from armlab.hardware.wire.protocol1 import wire_time
-from armlab.kinematics.model import load_robot
+from armlab.kinematics.catalog import load_robot
 
 BAUD = 1_000_000
 #: protocol 1.0: the backend READs 36..41 (present position, speed, load) of each servo and

@@ -29,7 +29,8 @@ from armlab.control.periodic import SharedClock
 from armlab.control.restart import RestartableArm
 from armlab.control.walking import GaitPlan, GaitSpec, Walker, plan_gait
 from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
-from armlab.kinematics.model import Quadruped, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import Quadruped
 
 #: s, the gait loop's period (as the lesson's on simulated servos)
 PERIOD = 0.02

@@ -21,7 +21,7 @@ import numpy as np
 from armlab.app.classroom.worker_link import ESTOP_TIMEOUT_S, RemoteMember, WorkerLink
 from armlab.control.backend import BackendError
 from armlab.control.gait_loop import COLUMNS, Command, GaitRecord, GaitStatus
-from armlab.control.periodic import RingBuffer
+from armlab.control.ring_buffer import RingBuffer
 from armlab.control.walking import GaitPlan, GaitSpec, WalkState
 
 #: what a freed robot's status says

@@ -60,7 +60,8 @@ from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.sts_servo import SILENT
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire.protocol2 import HardwareError
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.validate import joint_index
 
 NAME = "emulate"

@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     if args.robot is not None:
         if args.write_map is None:
             raise ValueError("--robot is for --write-map (it names the map's joints)")
-        from armlab.kinematics.model import SerialChain, load_robot
+        from armlab.kinematics.catalog import load_robot
+        from armlab.kinematics.model import SerialChain
 
         model = load_robot(args.robot, tip_link=args.tip_link)
         if not isinstance(model, SerialChain):

@@ -72,8 +72,10 @@ from armlab.control.backend import BackendError
 from armlab.control.commands import EStop, RunTrajectory, SetTarget
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold
-from armlab.kinematics.model import CONTINUOUS_LIMIT, SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
+from armlab.kinematics.urdf_read import CONTINUOUS_LIMIT
 
 NAME = "arm"
 TITLE = "Your URDF arm"

@@ -91,8 +91,9 @@ from armlab.control.trajectory import (
     thesis_line,
 )
 from armlab.hardware.servos.servo_spec import RX24F
+from armlab.kinematics.catalog import RECEPTIONIST_PRESETS, load_robot
 from armlab.kinematics.fk import fk_and_jacobian
-from armlab.kinematics.model import RECEPTIONIST_PRESETS, SerialChain, load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
 
 NAME = "compliance"

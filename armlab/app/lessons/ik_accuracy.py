@@ -35,7 +35,8 @@ from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed004 import EXPERIMENTS as SEED004_EXPERIMENTS
 from armlab.control.experiments.seed004 import table
 from armlab.control.experiments.seed004_data import TABLE1
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.planar_ik import (
     Alternative,
     PlanarArm,

@@ -81,8 +81,9 @@ from armlab.control.walking import (
     walking_tilts_deg,
 )
 from armlab.hardware.sim.quadruped import SIM_DT, QuadrupedSimBackend
+from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.gait import SineParams
-from armlab.kinematics.model import Quadruped, SerialChain, load_robot
+from armlab.kinematics.model import Quadruped, SerialChain
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 from armlab.kinematics.units import deg
 

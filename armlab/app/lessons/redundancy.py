@@ -48,7 +48,8 @@ from armlab.app.lessons.redundancy_scene import (
 from armlab.app.page.inputs import guarded_slider, notify
 from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed002 import SETTLE_S, summarise
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.redundancy import (
     MODES,
     CircleRun,

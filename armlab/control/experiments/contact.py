@@ -35,7 +35,8 @@ from armlab.control.loop import TARGET_SPEED, ControlLoop
 from armlab.control.params import DEFAULT, Params
 from armlab.control.runs import run_from_snapshot
 from armlab.control.trajectory import cartesian_to_joint, hold, line_points, thesis_line
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 
 SETTLE_S = 0.5  #: s held at the start before the move
 HOLD_S = 4.0  #: s held at the command behind the wall after it

@@ -43,8 +43,9 @@ from armlab.control.observers import (
     simulate_observers,
 )
 from armlab.control.runs import Run, lab_version, utc_now
+from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.dynamics import bias_torques, mass_matrix
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.validate import index, joint_index, scalar, vector
 
 DECIMATE = 20  #: CSV rows: every 20th sample (2 ms at the 0.1 ms step)

@@ -17,7 +17,8 @@ import numpy as np
 
 from armlab.control.experiments import Experiment, Keep, option
 from armlab.control.runs import Run, lab_version, utc_now
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.redundancy import (
     MODES,
     CircleRun,

@@ -27,8 +27,9 @@ from armlab.control.gait_loop import STAND_UP_S, GaitLoop
 from armlab.control.runs import Run, lab_version, run_from_snapshot, utc_now
 from armlab.control.trajectory import APPROACH_SPEED
 from armlab.control.walking import GaitSpec, Walker, plan_gait, walking_tilts_deg
+from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.gait import SineParams, crawl, cycle_angles, cycle_margins, trot, walk
-from armlab.kinematics.model import Quadruped, load_robot
+from armlab.kinematics.model import Quadruped
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 
 SIM_DT = 2e-3  #: plant step of the simulated legs, s (armlab.hardware.sim.quadruped.SIM_DT)

@@ -40,7 +40,8 @@ from armlab.control.trajectory import (
     minimum_jerk,
     thesis_line,
 )
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 
 BackendFactory = Callable[..., Backend]
 

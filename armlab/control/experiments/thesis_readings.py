@@ -40,7 +40,8 @@ from armlab.control.experiments import BackendOptions, Experiment, Keep, option
 from armlab.control.experiments.thesis import BackendFactory, thesis_line_figures
 from armlab.control.params import PRESETS, Params, integrated_pd_matrix, servo_loop_pole
 from armlab.control.trajectory import THESIS_PERIOD
-from armlab.kinematics.model import SerialChain, load_robot
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.units import KGF_CM_PER_NM
 
 COUNT_DEG = 300.0 / 1023.0  #: degrees per Dynamixel position count (RX-24F, AX-12A)

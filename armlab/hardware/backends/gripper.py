@@ -60,7 +60,8 @@ from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.sts_servo import StsRegisters
 from armlab.hardware.sim.xseries_servo import XRegisters
 from armlab.hardware.wire import protocol2 as p2
-from armlab.kinematics.model import Joint, Link, SerialChain, joint_kind, joint_limits
+from armlab.kinematics.model import Joint, Link, SerialChain
+from armlab.kinematics.urdf_read import joint_kind, joint_limits
 
 #: The OpenManipulator-X's finger joint in its URDF.
 OMX_FINGER_JOINT = "gripper_left_joint"

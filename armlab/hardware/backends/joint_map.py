@@ -56,14 +56,9 @@ from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.servos.sts import StsSpec
 from armlab.hardware.servos.xseries import OperatingMode, XSpec
-from armlab.kinematics.model import (
-    ROBOT_FILES,
-    Joint,
-    Quadruped,
-    SerialChain,
-    URDFError,
-    joint_limits,
-)
+from armlab.kinematics.catalog import ROBOT_FILES
+from armlab.kinematics.model import Joint, Quadruped, SerialChain, URDFError
+from armlab.kinematics.urdf_read import joint_limits
 
 if TYPE_CHECKING:
     from armlab.hardware.wire.scan import Found

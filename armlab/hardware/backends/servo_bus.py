@@ -39,7 +39,8 @@ from armlab.hardware.backends.joint_map import (
 )
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.wire.bus import Bus, BusError, BusStats, NoReply
-from armlab.kinematics.model import ROBOT_FILES, Quadruped, SerialChain
+from armlab.kinematics.catalog import ROBOT_FILES
+from armlab.kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.dynamixel")
 
