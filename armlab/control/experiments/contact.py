@@ -85,6 +85,35 @@ def wall_across_line(model: SerialChain, q_start: np.ndarray, q_end: np.ndarray,
     return x0, u, x0 + distance * u, -u
 
 
+def wall_torque(model: SerialChain, q: np.ndarray, normal: np.ndarray,
+                force: np.ndarray) -> np.ndarray:
+    """(m, n) N·m the joints hold against the wall: −Jᵀ f n at each of ``q`` (m, n) rad,
+    ``force`` (m,) N the wall pushes the hand with along its unit ``normal`` (3,). That is
+    what the sensorless estimate of thesis eq. 2.21-2.23 reads: τ_ext = LPF(τ_dist) − τ_dyn
+    is the servos' load beyond the motion's own torque, the reaction to the push (Jᵀ f n)."""
+    n = np.asarray(normal, dtype=float)
+    return np.array([-(model.jacobian(qi)[:3].T @ (fi * n))
+                     for qi, fi in zip(np.asarray(q, dtype=float),
+                                       np.asarray(force, dtype=float), strict=True)]
+                    ).reshape(len(force), model.n)
+
+
+def estimate_figures(t: np.ndarray, tau_wall: np.ndarray, tau_ext: np.ndarray
+                     ) -> dict[str, Any]:
+    """How well the lab's estimate ``tau_ext`` (m, n) N·m (eq. 2.21-2.23, as the loop
+    recorded it) read the wall's torque ``tau_wall`` (m, n) at loop times ``t`` (m,) s: its
+    steady error on each joint (the means over the last :data:`STEADY_S` s) and the RMS
+    error over the whole run, N·m (the estimate's low-pass lags an impact)."""
+    steady = t >= t[-1] - STEADY_S
+    ok = np.all(np.isfinite(tau_ext), axis=1)
+    wall_mean = tau_wall[steady & ok].mean(axis=0)
+    est_mean = tau_ext[steady & ok].mean(axis=0)
+    return {"wall_torque_steady_nm": [float(v) for v in wall_mean],
+            "estimate_steady_nm": [float(v) for v in est_mean],
+            "estimate_steady_error_nm": [float(v) for v in est_mean - wall_mean],
+            "estimate_rms_error_nm": float(np.sqrt(np.mean((tau_ext[ok] - tau_wall[ok]) ** 2)))}
+
+
 def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[str, Any]:
     """The figures of one contact run: ``force`` (N) and ``peak`` (N, the largest at any
     plant step of each period) sampled at loop times ``t`` (s)."""
@@ -174,6 +203,11 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
             loop.shutdown()
         backend.close()
     figures = contact_figures(np.array(t), np.array(force), np.array(peak))
+    # the wall's torque on the joints beside the lab's estimate of it, period by period
+    t_rec = snap["t"]
+    pushed = np.interp(t_rec, np.array(t), np.array(force)) if len(t) else np.zeros(len(t_rec))
+    figures.update(estimate_figures(t_rec, wall_torque(model, snap["q"], normal, pushed),
+                                    snap["tau_ext"]))
     k_q = joint_stiffness(params, controller)
     figures.update({
         "controller": controller, "fault": fault,
