@@ -9,11 +9,11 @@ from armlab.exercises.core import Exercise
 from armlab.exercises.kinematics_set import EXERCISES as KINEMATICS
 
 _FK, _JAC, _RMRC, _PLANAR, _LEG, _NULL = KINEMATICS
-_PD, _ENV, _COMPLIANCE, _OBSERVER = CONTROL
+_PD, _ENV, _COMPLIANCE, _OBSERVER, _STIFFNESS = CONTROL
 
 #: The exercises in course order: kinematics, then control, then the other seeds.
 EXERCISES: tuple[Exercise, ...] = (_FK, _JAC, _RMRC, _PD, _ENV, _COMPLIANCE, _OBSERVER,
-                                   _PLANAR, _NULL, _LEG)
+                                   _STIFFNESS, _PLANAR, _NULL, _LEG)
 BY_NAME: dict[str, Exercise] = {ex.name: ex for ex in EXERCISES}
 BY_FUNCTION: dict[str, Exercise] = {ex.function: ex for ex in EXERCISES}
 assert len(BY_FUNCTION) == len(EXERCISES), "each exercise's function needs its own name"

@@ -24,6 +24,7 @@ from armlab.control.compliance import (
     environment_step,
     pd_reference_accel,
 )
+from armlab.control.experiments.contact import joint_stiffness, predicted_force, wall_across_line
 from armlab.control.experiments.thesis import LineRun, max_angle_error, run_line
 from armlab.control.observers import (
     ObserverState,
@@ -33,10 +34,12 @@ from armlab.control.observers import (
     simulate_observers,
 )
 from armlab.control.params import DEFAULT, PRESETS, Params
+from armlab.control.trajectory import thesis_line
 from armlab.exercises.core import Exercise, Mistake, RunCase, ValueCase
 from armlab.exercises.student import CheckedLaw
 from armlab.kinematics import SerialChain, load_robot
 from armlab.kinematics.hand import GRIPPER_KT
+from armlab.kinematics.stiffness import cartesian_compliance, cartesian_stiffness
 
 #: Closed-loop runs: the student's joint angles may differ from the lab's by this much, rad
 #: (a tenth of a degree: the servos' goal is whole position units of 0.29°, so a goal a
@@ -498,4 +501,90 @@ OBSERVER = Exercise(
            "current command); hand (current-driven fingers)",
 )
 
-EXERCISES = (PD, ENVIRONMENT, COMPLIANCE, OBSERVER)
+# ---------------------------------------------------------------------------
+# The hand's stiffness from the joints' (the contact lesson's prediction)
+
+
+def hand_stiffness(J: np.ndarray, K_q: np.ndarray) -> np.ndarray:
+    """Reference: K_x = (J K_q⁻¹ Jᵀ)⁻¹ (:func:`armlab.kinematics.stiffness.cartesian_stiffness`)."""
+    return cartesian_stiffness(J, K_q)
+
+
+def _stiffness_cases() -> list[ValueCase]:
+    arm = load_robot("receptionist_arm")
+    line = thesis_line(arm)
+    q_line = line.q[0]
+    J = arm.jacobian(q_line)[:3]
+    k_q = joint_stiffness(DEFAULT, "compliance")  # 4 N·m/rad: K_env 12 / K_f 3
+    assert k_q is not None
+    # the contact experiment's wall across the line, pressed 2 cm deep
+    _, _, _, normal = wall_across_line(arm, q_line, line.q[-1], 0.04)
+    depth, k_wall = 0.02, 2e4
+    force = predicted_force(arm, q_line, normal, depth, k_joint=k_q, k_wall=k_wall)
+
+    def presses(out: np.ndarray) -> str:
+        """The contact experiment's steady force from the student's K_x."""
+        if out.shape != (3, 3) or not np.all(np.isfinite(out)):
+            return f"expected a finite (3, 3) matrix, got shape {out.shape}"
+        try:
+            f = depth / (float(normal @ np.linalg.solve(out, normal)) + 1.0 / k_wall)
+        except np.linalg.LinAlgError:
+            return "your K_x is singular: it has no inverse to press the wall through"
+        if not math.isclose(f, force, rel_tol=1e-6):
+            return (f"pressing 2 cm into a 2·10⁴ N/m wall along n, your K_x gives "
+                    f"f = d / (nᵀ K_x⁻¹ n + 1/k) = {f:.4g} N; the lab predicts {force:.4g} N")
+        return ""
+
+    planar = load_robot("redundant_planar")
+    q_planar = np.array([0.4, -0.7, 0.9])
+    near = np.array([0.3, 0.2, 0.02])  # the elbow 1° from stretched: stiff along the arm
+    rng = np.random.default_rng(2026)
+    cases = [
+        ValueCase("the thesis line's start, K_q = K_env / K_f = 4 N·m/rad on every joint",
+                  (J, k_q * np.eye(3)), rtol=1e-7, atol=1e-9),
+        ValueCase("joints of different stiffness, K_q = diag(2, 8, 4)",
+                  (J, np.diag([2.0, 8.0, 4.0])), rtol=1e-7, atol=1e-9),
+        ValueCase("seed 002's redundant planar 3R: a (2, 3) J, K_q = I (three joints hold "
+                  "two directions)", (planar.jacobian(q_planar)[:2], np.eye(3)),
+                  rtol=1e-7, atol=1e-9),
+        ValueCase("the elbow 1° from stretched: far stiffer along the arm than across it",
+                  (arm.jacobian(near)[:3], k_q * np.eye(3)), rtol=1e-6, atol=1e-6),
+        ValueCase("the contact experiment's prediction: pressed 2 cm into the wall, "
+                  f"f = {force:.3g} N", (J, k_q * np.eye(3)), check=presses),
+    ]
+    for k in range(1, 3):
+        q = rng.uniform(arm.lower, arm.upper)
+        A = rng.normal(0.0, 1.0, (3, 3))
+        cases.append(ValueCase(f"random pose and a full joint stiffness {k}",
+                               (arm.jacobian(q)[:3], A @ A.T + 2.0 * np.eye(3)),
+                               rtol=1e-7, atol=1e-9))
+    return cases
+
+
+STIFFNESS = Exercise(
+    name="hand_stiffness",
+    title="the hand's stiffness from the joints': K_x = (J K_q⁻¹ Jᵀ)⁻¹ (contact; thesis "
+          "000, eq. 2.6 with 2.7 at rest)",
+    function="hand_stiffness",
+    reference=hand_stiffness,
+    mistakes=(
+        Mistake("the compliance for the stiffness", "J K_q⁻¹ Jᵀ is the hand's compliance "
+                "(m/N); the stiffness is its inverse",
+                lambda J, K: cartesian_compliance(J, K)),
+        Mistake("the joint stiffness pushed through J", "a stiffness does not map as "
+                "J K_q Jᵀ: a force f needs τ = Jᵀ f, which moves the joints by K_q⁻¹ τ and "
+                "the hand by J K_q⁻¹ Jᵀ f; invert that",
+                lambda J, K: np.asarray(J) @ np.asarray(K) @ np.asarray(J).T),
+        Mistake("J and Jᵀ swapped", "J K_q⁻¹ Jᵀ: J on the left (a row per direction of the "
+                "hand), Jᵀ on the right",
+                lambda J, K: np.linalg.inv(np.asarray(J).T @ np.linalg.solve(
+                    np.asarray(K), np.asarray(J)))),
+    ),
+    cases=_stiffness_cases,
+    teaches="How stiff the hand is, each way, when every joint holds with the compliance "
+            "law's K_env / K_f: stiff along a stretched arm, soft across it, and the force "
+            "a command behind a wall presses with.",
+    lesson="compliance (Contact tab; `armlab experiment contact`)",
+)
+
+EXERCISES = (PD, ENVIRONMENT, COMPLIANCE, OBSERVER, STIFFNESS)

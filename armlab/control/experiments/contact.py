@@ -37,6 +37,7 @@ from armlab.control.runs import run_from_snapshot
 from armlab.control.trajectory import cartesian_to_joint, hold, line_points, thesis_line
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
+from armlab.kinematics.stiffness import cartesian_compliance
 
 SETTLE_S = 0.5  #: s held at the start before the move
 HOLD_S = 4.0  #: s held at the command behind the wall after it
@@ -69,7 +70,7 @@ def predicted_force(model: SerialChain, q: np.ndarray, normal: np.ndarray, depth
     rad, K_q = ``k_joint`` I (N·m/rad), n the wall's unit ``normal`` (3,), k ``k_wall`` N/m."""
     J = model.jacobian(np.asarray(q, dtype=float))[:3]
     n = np.asarray(normal, dtype=float)
-    compliance = float(n @ J @ J.T @ n) / k_joint
+    compliance = float(n @ cartesian_compliance(J, k_joint * np.eye(model.n)) @ n)
     return float(depth / (compliance + 1.0 / k_wall))
 
 
