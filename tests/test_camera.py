@@ -28,6 +28,7 @@ from armlab.app.page import camera
 from armlab.app.page.camera import FILL, View, frame_points, node_points
 from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
+from armlab.app.viser_ext.handles import scene_nodes
 from armlab.kinematics import load_robot
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
@@ -178,8 +179,8 @@ def _shows_framing(page: HeadlessClient, lab: Lab, *, fov: float, aspect: float
 
 
 #: (width, height) of a page's 3D view: a 1920x1080 projector's and the narrow area two
-#: docked panels leave at 1280x720
-VIEWS = ((1600, 1000), (458, 640))
+#: docked panels leave at 1280x720, and a 390x844 phone's (above its controls)
+VIEWS = ((1600, 1000), (458, 640), (390, 345))
 FOV = 1.2  # rad, the page's vertical field of view
 
 
@@ -201,6 +202,41 @@ def test_every_lesson_frames_its_robot_in_the_page_view(lesson):
             if aspect > 1.0:  # a projector's view: the robot is the picture
                 span = (y.max() - y.min()) / 2.0
                 assert span >= 0.4, (lesson, width, height, span)
+            for name, box in _label_boxes(lab.server.scene, page, view.up, width, height):
+                assert box[0] >= 0 and box[1] >= 0 and box[2] <= width and \
+                    box[3] <= height, (lesson, name, (width, height), box)
+
+
+#: px tall a screen-sized label's text is per unit of ``font_screen_scale`` (viser draws
+#: scale 1 about 12 px tall) and px wide per character per px of height (measured in
+#: Chromium: "thesis 20 cm line" is 156 px wide at 20 px tall, 0.46; 0.5 leaves room)
+LABEL_PX_PER_SCALE = 12.0
+LABEL_CHAR_EM = 0.5
+
+
+def _label_boxes(scene, page, up, width: int, height: int):  # noqa: ANN001, ANN202
+    """(name, (left, top, right, bottom) px) of every screen-sized label with words that
+    the scene shows, where the page's camera puts it in a ``width`` x ``height`` view: its
+    anchor's place and its text's estimated size, laid out by its anchor (a label that runs
+    out of the view, or under a docked panel beside it, is cut)."""
+    out = []
+    for name, handle in scene_nodes(scene).items():
+        if not isinstance(handle, viser.LabelHandle) or not handle.text \
+                or handle.font_size_mode != "screen" or not len(node_points(scene, (name,))):
+            continue
+        point = node_points(scene, (name,))[0]
+        x, y, depth = project(point[None, :], page.camera["position"],
+                              page.camera["look_at"], up, FOV, width / height)
+        assert depth[0] > 0, name
+        px, py = (x[0] + 1.0) / 2.0 * width, (1.0 - y[0]) / 2.0 * height
+        tall = LABEL_PX_PER_SCALE * float(handle.font_screen_scale)
+        lines = str(handle.text).split("\n")
+        w, h = LABEL_CHAR_EM * tall * max(map(len, lines)), tall * len(lines)
+        vertical, horizontal = str(handle.anchor).split("-")
+        left = {"left": px, "center": px - w / 2.0, "right": px - w}[horizontal]
+        top = {"top": py, "center": py - h / 2.0, "bottom": py - h}[vertical]
+        out.append((name, (left, top, left + w, top + h)))
+    return out
 
 
 def test_an_orbit_is_left_alone_and_frame_brings_the_view_back():

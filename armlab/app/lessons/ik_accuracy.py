@@ -182,8 +182,9 @@ class IKAccuracyLesson(LessonBase):
         scene.add_line_segments(f"{b}/paper_line", points=np.array(
             [[[0.0, 0.23, 0.001], [0.23, 0.0, 0.001]]], dtype=np.float32),
                                 colors=(120, 120, 200), thickness=0.0015)
+        # (centred on its point: hung to its right it ran out of a narrow view)
         theme.add_label(scene, f"{b}/paper_label", "Table 1 line X + Y = 23 cm",
-                        position=(0.13, 0.11, 0.005))
+                        position=(0.13, 0.11, 0.005), anchor="top-center")
         self.reach = scene.add_line_segments(
             f"{b}/reach", points=arc_segments(np.zeros(2), self.arm.reach, -math.pi / 2,
                                               3 * math.pi / 2, n=96, z=0.001),
