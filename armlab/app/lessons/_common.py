@@ -210,7 +210,7 @@ def esc(text: str) -> str:
 
 
 def status_html(state: str, color: str, detail: str, *, extra: str = "") -> str:
-    """The status line at the top of the panel.
+    """The status line at the top of the panel (inset from its edges as the controls are).
 
     Args:
         state: what the lesson is doing (escaped), after a dot in ``color``.
@@ -218,7 +218,8 @@ def status_html(state: str, color: str, detail: str, *, extra: str = "") -> str:
         detail: HTML of the small grey line under it.
         extra: HTML appended below (a note, a figure).
     """
-    return (f"<div style='font-size:0.95em'><b style='color:{color}'>● {esc(state)}</b>"
+    return (f"<div style='font-size:0.95em;padding:0 var(--mantine-spacing-xs)'>"
+            f"<b style='color:{color}'>● {esc(state)}</b>"
             f"<div style='color:#555;font-size:0.85em'>{detail}</div>{extra}</div>")
 
 
