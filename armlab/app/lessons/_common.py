@@ -209,6 +209,10 @@ def esc(text: str) -> str:
     return html.escape(text, quote=False)
 
 
+#: CSS inset of an HTML element of the panel from its edges, as viser insets its controls
+INSET = "padding:0 var(--mantine-spacing-xs)"
+
+
 def status_html(state: str, color: str, detail: str, *, extra: str = "") -> str:
     """The status line at the top of the panel (inset from its edges as the controls are).
 
@@ -218,7 +222,7 @@ def status_html(state: str, color: str, detail: str, *, extra: str = "") -> str:
         detail: HTML of the small grey line under it.
         extra: HTML appended below (a note, a figure).
     """
-    return (f"<div style='font-size:0.95em;padding:0 var(--mantine-spacing-xs)'>"
+    return (f"<div style='font-size:0.95em;{INSET}'>"
             f"<b style='color:{color}'>● {esc(state)}</b>"
             f"<div style='color:#555;font-size:0.85em'>{detail}</div>{extra}</div>")
 

@@ -25,7 +25,14 @@ import viser
 import viser.uplot
 
 from armlab.app.lessons import LessonContext
-from armlab.app.lessons._common import LessonBase, esc, guarded, remove_quietly, send_download
+from armlab.app.lessons._common import (
+    INSET,
+    LessonBase,
+    esc,
+    guarded,
+    remove_quietly,
+    send_download,
+)
 from armlab.app.page import theme
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.camera import View, show
@@ -418,7 +425,7 @@ class IKAccuracyLesson(LessonBase):
                          f"({a.position[0] * 100:.2f}, {a.position[1] * 100:.2f}) cm, "
                          f"{alt.error * 1000:.2f} mm from the target.")
             lines.append(f"<div style='color:#b00020'>{esc(text)}</div>")
-        return "<div style='font-size:0.92em'>" + "<br>".join(lines) + "</div>"
+        return f"<div style='font-size:0.92em;{INSET}'>" + "<br>".join(lines) + "</div>"
 
     # ================================================================== the table
 
