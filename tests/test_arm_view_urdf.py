@@ -14,7 +14,7 @@ import viser
 from armlab.app.page.arm_view import ArmView
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.kinematics import load_robot
-from armlab.kinematics.urdf import MissingMeshWarning
+from armlab.kinematics.urdf_meshes import MissingMeshWarning
 from tests._helpers import wait_for
 
 DATA = Path(__file__).with_name("data")
@@ -37,7 +37,7 @@ def server():
 
 
 def test_every_link_reaches_the_page_and_each_missing_mesh_is_named_once(server):
-    from armlab.kinematics import urdf as urdf_module
+    from armlab.kinematics import urdf_meshes as urdf_module
 
     urdf_module._warned.clear()
     model = load_robot(DATA / "mobile_manipulator.urdf", tip_link="tcp_link")
@@ -75,7 +75,7 @@ def test_every_link_reaches_the_page_and_each_missing_mesh_is_named_once(server)
 
 
 def test_package_path_finds_the_camera_mesh(server):
-    from armlab.kinematics import urdf as urdf_module
+    from armlab.kinematics import urdf_meshes as urdf_module
 
     urdf_module._warned.clear()
     model = load_robot(DATA / "mobile_manipulator.urdf", tip_link="tcp_link",
@@ -87,7 +87,7 @@ def test_package_path_finds_the_camera_mesh(server):
 
 
 def test_panda_without_its_meshes_is_drawn_from_collision_spheres(server):
-    from armlab.kinematics import urdf as urdf_module
+    from armlab.kinematics import urdf_meshes as urdf_module
 
     urdf_module._warned.clear()
     view, missing = _draw(load_robot(DATA / "panda_style.urdf"), server)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from armlab.kinematics import URDFError, load_robot
-from armlab.kinematics.urdf import resolve_resource
+from armlab.kinematics.urdf_meshes import resolve_resource
 from armlab.kinematics.urdf_read import CONTINUOUS_LIMIT
 
 DATA = Path(__file__).with_name("data")

@@ -1,9 +1,14 @@
 """The one interface the controller sees of the servos: the ``Backend`` protocol.
 
-Two implementations exist: ``armlab.hardware.backends.sim.SimBackend`` (a simulated
-arm and its servos) and ``armlab.hardware.backends.dynamixel.DynamixelBackend`` (real
-or emulated servos over a serial port). The control loop works on either and
-never imports viser or pyserial.
+It is met in two ways. Simulated: ``armlab.hardware.backends.sim.SimBackend`` (an arm and
+its servos; ``XSimBackend``, ``StsSimBackend`` for the X-series and Feetech models, with a
+gripper), ``BatchedArmBackend`` (one arm of a class's batched plant),
+``QuadrupedSimBackend`` and ``BatchedQuadrupedBackend``. On a serial port (real or
+emulated servos), one per servo family over ``ServoBusBackend``:
+``armlab.hardware.backends.dynamixel.DynamixelBackend`` (protocol 1.0), ``XSeriesBackend``
+(protocol 2.0) and ``StsBackend`` (Feetech). The server holds a class worker's arms
+through ``RemoteBackend``. The control loop works on any of them and never imports viser
+or pyserial.
 
 Joint space throughout: positions in rad, speeds in rad/s, torques in N·m, in
 the robot model's joint order and sign convention. Each backend maps joints

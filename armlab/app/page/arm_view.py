@@ -28,7 +28,7 @@ from armlab.app.page.surface import Surface
 from armlab.app.viser_ext.urdf import joint_frames as urdf_joint_frames
 from armlab.app.viser_ext.urdf import meshes as urdf_meshes
 from armlab.kinematics.model import Quadruped, SerialChain
-from armlab.kinematics.urdf import resolve_resource, warn_missing_once
+from armlab.kinematics.urdf_meshes import resolve_resource, warn_missing_once
 
 #: Colour of a link drawn without its mesh (collision shape or capsule).
 FALLBACK_RGB = (150, 150, 160)
@@ -66,7 +66,8 @@ class ArmView:
         drawn_as: for every link with a <visual>: "visual" (its own shapes),
             "collision" (a mesh was missing: its collision shapes) or "capsule" (a
             mesh was missing and no collision shape could be drawn either). Each
-            missing mesh is warned about once (``armlab.kinematics.urdf.MissingMeshWarning``).
+            missing mesh is warned about once
+            (``armlab.kinematics.urdf_meshes.MissingMeshWarning``).
     """
 
     def __init__(self, server: Surface, model: SerialChain | Quadruped, *, root: str,
