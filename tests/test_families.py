@@ -123,8 +123,30 @@ def test_every_family_names_its_serial_and_simulated_backends():
     for f in FAMILIES:
         assert issubclass(f.load("real_backend"), ServoBusBackend)
         assert f.load("real_backend").PROTOCOL == f.protocol
-        if f.sim_backend is not None:
+        if f.has("sim_backend"):
             assert issubclass(f.load("sim_backend"), SimBackend)
+        assert f.has("emulator") and f.has("servo_model")
+    assert not FAMILIES[0].has("sim_backend")  # protocol 1.0: the plain SimBackend
+    with pytest.raises(ValueError, match="has no sim backend"):
+        FAMILIES[0].load("sim_backend")
+
+
+def test_every_familys_packet_module_is_its_codec():
+    """Each family's codec offers what the bus, the scan and the emulator call, its
+    parser counts what it dropped, and a family without SYNC_READ says so."""
+    from armlab.hardware.families import FAMILIES, Codec
+    from armlab.hardware.wire import protocol1 as p1
+
+    for f in FAMILIES:
+        codec: Codec = f.codec  # (mypy checks each module against Codec where they are made)
+        parser = codec.PacketParser()
+        assert list(parser.feed(codec.ping(1))) == [codec.ping(1)]
+        assert parser.broken == 0 and parser.pending == 0
+        assert codec.decode_instruction(codec.ping(3)).servo_id == 3
+        assert codec.decode_status(codec.status(4)).servo_id == 4
+        if not f.group_read:
+            with pytest.raises(p1.ProtocolError, match="no SYNC_READ"):
+                codec.sync_read(0, 2, [1, 2])
 
 
 def test_one_ping_per_id_serves_both_families_that_share_the_frame():

@@ -41,7 +41,7 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
         from armlab.hardware.families import family_of_model
 
         fam = family_of_model(default_servo(model.name))  # the servos the arm ships with
-        if fam.sim_backend is not None and "specs" not in kw:  # their family's simulation
+        if fam.has("sim_backend") and "specs" not in kw:  # their family's simulation
             jmap = default_joint_map(model)
             kw.setdefault("gripper", jmap.gripper)  # its own servo
             return fam.load("sim_backend")(model, spec=jmap.spec, **kw)
@@ -65,7 +65,7 @@ def has_firmware_sim(model: SerialChain) -> bool:
     from armlab.hardware.backends.joint_map import default_servo
     from armlab.hardware.families import family_of_model
 
-    return family_of_model(default_servo(model.name)).sim_backend is not None
+    return family_of_model(default_servo(model.name)).has("sim_backend")
 
 
 def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any

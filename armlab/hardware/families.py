@@ -7,16 +7,18 @@ factories and the emulator ask :func:`family` (by protocol, name or model) inste
 testing a protocol number, so adding a family is its own modules plus one entry in
 :data:`FAMILIES`.
 
-The heavy parts (backends, emulator, firmware models) are imported when first asked
-for: this module sits below them (``armlab.hardware.wire`` imports it).
+A family's packet module is typed by :class:`Codec` (each of ``wire/protocol1.py``,
+``wire/protocol2.py`` and ``wire/feetech.py`` is one, checked by mypy). The heavy parts
+(backends, emulator, firmware models) are imported when first asked for, by a function of
+the family's own (:class:`Parts`): this module sits below them (``armlab.hardware.wire``
+imports it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from types import ModuleType
-from typing import Any
+from typing import Any, Protocol
 
 from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
 from armlab.hardware.servos.sts import STS3215_TABLE, STS_TABLES, sts_table_for
@@ -26,10 +28,82 @@ from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
 
 
-def _load(path: str) -> Any:
-    """``"package.module:attribute"`` -> the attribute (imported on first use)."""
-    module, _, name = path.partition(":")
-    return getattr(__import__(module, fromlist=[name]), name)
+class Parser(Protocol):
+    """A family's stream parser: bytes in, whole packets out."""
+
+    def feed(self, data: bytes) -> Iterable[bytes]: ...
+    def discard(self) -> None: ...
+    @property
+    def pending(self) -> int: ...
+    @property
+    def broken(self) -> int: ...
+
+
+class Status(Protocol):
+    """A decoded status packet, as the bus reads it."""
+
+    @property
+    def servo_id(self) -> int: ...
+    @property
+    def error(self) -> Any: ...  # each family's own flags (ErrorBits, StatusError): falsy when none
+    @property
+    def params(self) -> bytes: ...
+
+
+class Instruction(Protocol):
+    """A decoded instruction packet, as the emulator reads it."""
+
+    @property
+    def servo_id(self) -> int: ...
+    @property
+    def instruction(self) -> int: ...
+    @property
+    def params(self) -> bytes: ...
+
+
+class Codec(Protocol):
+    """What the bus, the scan and the emulator call of a family's packet module (each
+    family's module is one: its functions build packets, its parser splits a stream)."""
+
+    @property
+    def BROADCAST_ID(self) -> int: ...  # noqa: N802 - the module's constant
+    @property
+    def MAX_ID(self) -> int: ...  # noqa: N802 - the module's constant
+    @property
+    def ProtocolError(self) -> type[ValueError]: ...  # noqa: N802 - the module's class
+    @property
+    def PacketParser(self) -> Callable[..., Parser]: ...  # noqa: N802 - the module's class
+
+    def ping(self, servo_id: int) -> bytes: ...
+    def read(self, servo_id: int, address: int, length: int) -> bytes: ...
+    def write(self, servo_id: int, address: int, data: bytes) -> bytes: ...
+    def reg_write(self, servo_id: int, address: int, data: bytes) -> bytes: ...
+    def action(self, servo_id: int = ...) -> bytes: ...
+    def sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> bytes: ...
+    def sync_read(self, address: int, length: int, ids: Sequence[int]) -> bytes: ...
+    def status(self, servo_id: int, error: int = ..., params: bytes = ...) -> bytes: ...
+    def decode_status(self, packet: bytes, *, checked: bool = ...) -> Status: ...
+    def decode_instruction(self, packet: bytes) -> Instruction: ...
+
+
+@dataclass(frozen=True)
+class Parts:
+    """A family's heavy parts, each imported by a function when first asked for (None:
+    the family has none yet; asking for it is a ValueError naming the family).
+
+    Attributes:
+        servo_model: the firmware model the plant runs (a class).
+        real_backend: the backend on a serial port (a ``ServoBusBackend`` class).
+        sim_backend: the simulated backend with this family's servos (None: the plain
+            ``SimBackend``).
+        emulator: the emulated network's factory ``(model, joint_map, *, baud, dt) ->
+            network``.
+    """
+
+    servo_model: Callable[[], type] | None = None
+    real_backend: Callable[[], type] | None = None
+    sim_backend: Callable[[], type] | None = None
+    emulator: Callable[[], Callable[..., Any]] | None = None
 
 
 @dataclass(frozen=True)
@@ -40,10 +114,7 @@ class ServoFamily:
         key: short name ("dynamixel1", "xseries", "sts").
         title: what a person calls it ("Dynamixel protocol 1.0").
         protocol: the protocol tag a joint map, a scan and a bus use (1, 2, "sts").
-        codec: the packet module (``ping``, ``read``, ``write``, ``reg_write``,
-            ``action``, ``sync_write``, ``status``, ``decode_status``,
-            ``decode_instruction``, ``PacketParser``, ``ProtocolError``,
-            ``BROADCAST_ID``, ``MAX_ID``).
+        codec: the packet module (:class:`Codec`).
         tables: control tables by model number.
         default_table: the table a bus assumes for a servo not yet identified.
         table_for: model number or name -> its table (ValueError naming the known ones).
@@ -59,17 +130,13 @@ class ServoFamily:
         replies_all_level: the status return level at which a servo answers every
             instruction (Dynamixel 2; Feetech's Response Status Level 1), below which it
             answers PING and READ only.
-        servo_model, real_backend, sim_backend, emulator: ``module:attribute`` of the
-            firmware model the plant runs, the backend on a serial port, the simulated
-            backend (None: the plain ``SimBackend``), and the emulated network factory
-            ``(model, joint_map, *, baud, dt) -> network``; None where the family has
-            none yet (asking for it is a ValueError naming the family).
+        parts: its firmware model, backends and emulator (:class:`Parts`, :meth:`load`).
     """
 
     key: str
     title: str
     protocol: int | str
-    codec: ModuleType
+    codec: Codec
     tables: Mapping[int, ControlTable] = field(repr=False)
     default_table: ControlTable = field(repr=False)
     table_for: Callable[[int | str], ControlTable]
@@ -82,10 +149,7 @@ class ServoFamily:
     spec_type: type
     firmware_item: str
     limit_items: tuple[str, str]
-    servo_model: str | None
-    real_backend: str | None
-    sim_backend: str | None
-    emulator: str | None
+    parts: Parts
     replies_all_level: int = 2
     aliases: tuple[str, ...] = field(default=())
 
@@ -105,10 +169,14 @@ class ServoFamily:
     def load(self, part: str) -> Any:
         """One of the lazily imported parts: "servo_model", "real_backend",
         "sim_backend" or "emulator"."""
-        path = getattr(self, part)
-        if path is None:
+        loader = getattr(self.parts, part)
+        if loader is None:
             raise ValueError(f"the {self.title} family has no {part.replace('_', ' ')}")
-        return _load(path)
+        return loader()
+
+    def has(self, part: str) -> bool:
+        """Whether the family has the part :meth:`load` would import."""
+        return getattr(self.parts, part) is not None
 
     def knows(self, model: int | str) -> bool:
         """Whether ``model`` (number or name) is one of this family's."""
@@ -123,16 +191,42 @@ def _spec_type(table: ControlTable) -> type:
     return type(table.spec)
 
 
+# Each family's heavy parts, imported when first asked for (they import this module).
+
+def _dxl_parts() -> tuple[type, type, Callable[..., Any]]:
+    from armlab.hardware.backends.dynamixel import DynamixelBackend
+    from armlab.hardware.emulator.bus import network_for_map
+    from armlab.hardware.sim.dynamixel_servo import ServoModel
+
+    return ServoModel, DynamixelBackend, network_for_map
+
+
+def _x_parts() -> tuple[type, type, type, Callable[..., Any]]:
+    from armlab.hardware.backends.xseries import XSeriesBackend
+    from armlab.hardware.backends.xseries_sim import XSimBackend
+    from armlab.hardware.emulator.xseries import x_network_for_map
+    from armlab.hardware.sim.xseries_servo import XServoModel
+
+    return XServoModel, XSeriesBackend, XSimBackend, x_network_for_map
+
+
+def _sts_parts() -> tuple[type, type, type, Callable[..., Any]]:
+    from armlab.hardware.backends.sts import StsBackend
+    from armlab.hardware.backends.sts_sim import StsSimBackend
+    from armlab.hardware.emulator.sts import sts_network_for_map
+    from armlab.hardware.sim.sts_servo import StsServoModel
+
+    return StsServoModel, StsBackend, StsSimBackend, sts_network_for_map
+
+
 DYNAMIXEL1 = ServoFamily(
     key="dynamixel1", title="Dynamixel protocol 1.0", protocol=1, codec=p1, tables=TABLES,
     default_table=RX24F_TABLE, table_for=table_for, model_address=0, ping_data=0,
     status_overhead=p1.OVERHEAD, id_offset=2, group_read=False, broadcast_ping=False,
     spec_type=_spec_type(RX24F_TABLE), firmware_item="firmware_version",
     limit_items=("cw_angle_limit", "ccw_angle_limit"),
-    servo_model="armlab.hardware.sim.dynamixel_servo:ServoModel",
-    real_backend="armlab.hardware.backends.dynamixel:DynamixelBackend",
-    sim_backend=None,
-    emulator="armlab.hardware.emulator.bus:network_for_map",
+    parts=Parts(servo_model=lambda: _dxl_parts()[0], real_backend=lambda: _dxl_parts()[1],
+                emulator=lambda: _dxl_parts()[2]),
     aliases=("1", "1.0", "protocol1"),
 )
 XSERIES = ServoFamily(
@@ -141,10 +235,8 @@ XSERIES = ServoFamily(
     ping_data=3, status_overhead=p2.status_length(0), id_offset=4, group_read=True,
     broadcast_ping=True, spec_type=_spec_type(XM430_W350_TABLE),
     firmware_item="firmware_version", limit_items=("min_position_limit", "max_position_limit"),
-    servo_model="armlab.hardware.sim.xseries_servo:XServoModel",
-    real_backend="armlab.hardware.backends.xseries:XSeriesBackend",
-    sim_backend="armlab.hardware.backends.xseries_sim:XSimBackend",
-    emulator="armlab.hardware.emulator.xseries:x_network_for_map",
+    parts=Parts(servo_model=lambda: _x_parts()[0], real_backend=lambda: _x_parts()[1],
+                sim_backend=lambda: _x_parts()[2], emulator=lambda: _x_parts()[3]),
     aliases=("2", "2.0", "protocol2", "dynamixel2"),
 )
 STS = ServoFamily(
@@ -153,10 +245,8 @@ STS = ServoFamily(
     status_overhead=ft.OVERHEAD, id_offset=2, group_read=True, broadcast_ping=False,
     spec_type=_spec_type(STS3215_TABLE), firmware_item="firmware_major",
     limit_items=("min_position_limit", "max_position_limit"),
-    servo_model="armlab.hardware.sim.sts_servo:StsServoModel",
-    real_backend="armlab.hardware.backends.sts:StsBackend",
-    sim_backend="armlab.hardware.backends.sts_sim:StsSimBackend",
-    emulator="armlab.hardware.emulator.sts:sts_network_for_map",
+    parts=Parts(servo_model=lambda: _sts_parts()[0], real_backend=lambda: _sts_parts()[1],
+                sim_backend=lambda: _sts_parts()[2], emulator=lambda: _sts_parts()[3]),
     replies_all_level=1,
     aliases=("feetech", "scs", "sms_sts"),
 )

@@ -198,7 +198,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "1..5 for so101, else 1..n); the gripper's servo (open_manipulator_x, "
                         "so101) takes the ID after "
                         "the highest (15 by default)")
-    parser.add_argument("--servo", choices=tuple(t.name for f in FAMILIES if f.emulator
+    parser.add_argument("--servo", choices=tuple(t.name for f in FAMILIES if f.has("emulator")
                                                  for t in f.tables.values()),
                         help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
                         "open_manipulator_x, STS3215 for so101, else AX-12A); X-series servos "

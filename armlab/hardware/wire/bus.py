@@ -39,7 +39,7 @@ from types import ModuleType
 
 import serial
 
-from armlab.hardware.families import FAMILIES, ServoFamily, family
+from armlab.hardware.families import FAMILIES, ServoFamily, Status, family
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
 from armlab.hardware.wire import feetech as ft
@@ -327,7 +327,7 @@ class Bus:
 
     def transact(self, packet: bytes, *, reply: bool, reply_length: int | None = None,
                  tries: int | None = None, margin: float | None = None
-                 ) -> p1.StatusPacket | p2.StatusPacket | None:
+                 ) -> Status | None:
         """Send one instruction packet; return its status packet (None when none is due).
 
         ``reply_length``: bytes of the expected status packet (default: one without
@@ -407,7 +407,7 @@ class Bus:
 
     def _receive(self, request: bytes, want: dict[int, int], *, timeout: float,
                  echo_only: bool = False, protocol: ModuleType | None = None
-                 ) -> dict[int, p1.StatusPacket | p2.StatusPacket]:
+                 ) -> dict[int, Status]:
         """The status packets of the servos in ``want`` (ID -> bytes of data each answers
         with) that arrive within ``timeout`` s; all of them, or those that came when the
         wait ended (a timeout, or a broken reply after which nothing more is pending).
@@ -422,7 +422,7 @@ class Bus:
         echo_pending = self.echo
         if echo_pending:
             deadline += wire_time(len(request), self._baud)
-        got: dict[int, p1.StatusPacket | p2.StatusPacket] = {}
+        got: dict[int, Status] = {}
         while True:
             # past the deadline still look once (timeout 0): a client the OS paused
             # must not miss a reply that came in time
@@ -453,10 +453,10 @@ class Bus:
                 got[status.servo_id] = status
                 if len(got) == len(want):
                     return got
-            if _broken(parser) and not parser.pending:
+            if parser.broken and not parser.pending:
                 break  # a broken reply: retry now rather than wait out the timeout
         self.stats.timeouts += 1
-        self.stats.corrupt += _broken(parser)
+        self.stats.corrupt += parser.broken
         if not echo_only:
             log.debug("no valid reply to %s within %.1f ms", request.hex(" "), timeout * 1e3)
         return got
@@ -504,7 +504,7 @@ class Bus:
     # -- instructions -------------------------------------------------------
 
     def ping(self, servo_id: int, *, tries: int | None = None,
-             margin: float | None = None) -> p1.StatusPacket | p2.StatusPacket:
+             margin: float | None = None) -> Status:
         """PING one servo (answers at every status return level; on protocol 2.0 with its
         model number and firmware version as data)."""
         status = self.transact(self._p.ping(servo_id), reply=True, tries=tries, margin=margin,
@@ -587,7 +587,7 @@ class Bus:
                 and self.status_return_level.get(servo_id, level) >= level)
 
     def write_bytes(self, servo_id: int, address: int, data: bytes
-                    ) -> p1.StatusPacket | p2.StatusPacket | None:
+                    ) -> Status | None:
         """WRITE ``data`` at ``address``; raise :class:`~armlab.hardware.wire.protocol1.ServoError`
         (protocol 1.0: range, instruction, checksum, or an angle-limit error on a goal)
         or :class:`~armlab.hardware.wire.protocol2.ServoError` (2.0: any error number) when the
@@ -601,7 +601,7 @@ class Bus:
         return status
 
     def _check_refused(self, servo_id: int, address: int, data: bytes,
-                       status: p1.StatusPacket | p2.StatusPacket | None) -> None:
+                       status: Status | None) -> None:
         """Raise the protocol's ServoError when ``status``, the answer to a write of
         ``data`` at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
         if status is None or isinstance(status, ft.StatusPacket):
@@ -795,10 +795,6 @@ class Bus:
         return table
 
 
-def _broken(parser: p1.PacketParser | p2.PacketParser) -> int:
-    """Packets a parser dropped for a bad checksum (1.0) or CRC (2.0)."""
-    stats = parser.stats
-    return stats.bad_checksums if isinstance(stats, p1.ParserStats) else stats.bad_crcs
 
 
 def sync_data(values: dict[int, tuple[int, ...]], sizes: tuple[int, ...]) -> dict[int, bytes]:

@@ -38,19 +38,16 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from armlab.hardware.wire import protocol1 as _frame
-from armlab.hardware.wire.protocol1 import (  # the frame is protocol 1.0's
-    OVERHEAD,
-    InstructionPacket,  # an instruction packet is the same frame and fields
-    PacketParser,
-    ParserStats,
-    ProtocolError,
-    checksum,
-    decode_instruction,
-    encode_packet,
-)
 
-__all__ = ["OVERHEAD", "InstructionPacket", "PacketParser", "ParserStats", "ProtocolError",
-           "checksum", "decode_instruction"]
+# the frame is protocol 1.0's, and so are these parts of the family's codec (re-exported)
+from armlab.hardware.wire.protocol1 import OVERHEAD as OVERHEAD
+from armlab.hardware.wire.protocol1 import InstructionPacket as InstructionPacket
+from armlab.hardware.wire.protocol1 import PacketParser as PacketParser
+from armlab.hardware.wire.protocol1 import ParserStats as ParserStats
+from armlab.hardware.wire.protocol1 import ProtocolError as ProtocolError
+from armlab.hardware.wire.protocol1 import checksum as checksum
+from armlab.hardware.wire.protocol1 import decode_instruction as decode_instruction
+from armlab.hardware.wire.protocol1 import encode_packet
 
 BROADCAST_ID = 0xFE
 MAX_ID = 0xFC  #: 252, the highest ID (FTServo SDK, ``scservo_def.py``)

@@ -19,7 +19,7 @@ prints 207.9°, which is not what 0x252 means on a 300°, 10-bit servo)::
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 HEADER = b"\xff\xff"
@@ -214,6 +214,12 @@ def sync_write(address: int, length: int, data: Mapping[int, bytes]) -> bytes:
     return encode_packet(BROADCAST_ID, Instruction.SYNC_WRITE, params)
 
 
+def sync_read(address: int, length: int, ids: Sequence[int]) -> bytes:
+    """Protocol 1.0 has no SYNC_READ (a servo is read on its own: :func:`read`); raises
+    :class:`ProtocolError` saying so (the family's ``group_read`` is False)."""
+    raise ProtocolError("protocol 1.0 has no SYNC_READ: read each servo")
+
+
 def status(servo_id: int, error: int = 0, params: bytes = b"") -> bytes:
     """A status packet (what the emulator sends back)."""
     return encode_packet(servo_id, int(error) & 0x7F, params)
@@ -297,6 +303,11 @@ class PacketParser:
     def pending(self) -> int:
         """Bytes held while waiting for the rest of a packet."""
         return len(self._buf)
+
+    @property
+    def broken(self) -> int:
+        """Packets dropped so far for a bad checksum (a reply broken on the wire)."""
+        return self.stats.bad_checksums
 
     def discard(self) -> None:
         """Forget any partial packet (the 100 ms inter-byte gap rule, or after a timeout)."""

@@ -457,6 +457,11 @@ class PacketParser:
         """Bytes held while waiting for the rest of a packet."""
         return len(self._buf)
 
+    @property
+    def broken(self) -> int:
+        """Packets dropped so far for a bad CRC (a reply broken on the wire)."""
+        return self.stats.bad_crcs
+
     def discard(self) -> None:
         """Forget any partial packet (after a timeout)."""
         self.stats.discarded_bytes += len(self._buf)

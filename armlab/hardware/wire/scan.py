@@ -232,7 +232,7 @@ def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], policy: Sca
                 except NoReply:
                     missed.append(servo_id)
                     continue
-                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))  # type: ignore[arg-type]  # a 1.0-frame family's ping: ErrorBits, never 2.0's StatusError
+                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))
             # a servo whose answer came late (the machine held the reply back) answered
             # all the same: ask it again, with the bus's own margin and retries
             if missed:
@@ -242,7 +242,7 @@ def _scan_each_id(port: str, bauds: Sequence[float], ids: list[int], policy: Sca
                     status = bus.ping(servo_id)
                 except NoReply:
                     continue
-                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))  # type: ignore[arg-type]  # a 1.0-frame family's ping: ErrorBits, never 2.0's StatusError
+                here.append(_identify(bus, fams, servo_id, baud, int(status.error)))
             found += sorted(here, key=lambda f: f.servo_id)
     return found
 
