@@ -160,8 +160,8 @@ def test_an_injected_flag_comes_after_its_torque_on_time_and_shutdown_decides_th
     plant = Plant(OMX, XM430_W350)  # torque off
     hot, low = plant.servos[1], plant.servos[2]
     assert hot.regs.shutdown == 0x34
-    hot.inject_hardware_error(HardwareError.OVERHEATING, after=0.5)
-    low.inject_hardware_error(HardwareError.INPUT_VOLTAGE, after=0.5)
+    hot.inject_error(HardwareError.OVERHEATING, after=0.5)
+    low.inject_error(HardwareError.INPUT_VOLTAGE, after=0.5)
     plant.advance_to(1.0)
     assert hot.hardware_error == low.hardware_error == 0  # its clock runs with torque on
     for s in (hot, low):
@@ -177,7 +177,7 @@ def test_an_injected_flag_comes_after_its_torque_on_time_and_shutdown_decides_th
     assert hot.hardware_error == 0 and hot.report().torque_enable == 1  # once only
     for bits, after in ((0x02, 0.0), (0x40, 0.0), (0, 0.0), (0x20, -1.0)):
         with pytest.raises(ValueError, match="bits|after"):
-            hot.inject_hardware_error(bits, after=after)
+            hot.inject_error(bits, after=after)
 
 
 @pytest.mark.parametrize("text,want", [

@@ -364,8 +364,7 @@ def run(args: argparse.Namespace) -> int:
     alerts = [parse_fault(f, model.joint_names, protocol=jmap.protocol) for f in args.fault]
     for joint, flag, after in alerts:
         servo = _arm_plant(network).servos[joint]
-        inject = servo.inject_error if jmap.protocol == "sts" else servo.inject_hardware_error  # type: ignore[union-attr]  # the servo is of jmap's family (X or STS)
-        inject(flag, after=after)
+        servo.inject_error(flag, after=after)  # type: ignore[union-attr]  # the servo is of jmap's family (X or STS): each model's own error flags
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)

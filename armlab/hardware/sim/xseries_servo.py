@@ -22,7 +22,7 @@ models' pages: "Operating Mode", "Profile Velocity", "Position PID Gain"; docs/s
 5. report Present Position, Velocity, PWM and Current (or Present Load on the XL430,
    which has no current sensor), Moving, and the Hardware Error Status (an overload:
    full PWM without moving for ``overload_time``; any other bit when injected,
-   :meth:`XServoModel.inject_hardware_error`; a bit set in Shutdown switches the torque
+   :meth:`XServoModel.inject_error`; a bit set in Shutdown switches the torque
    off until a REBOOT).
 
 Between ticks the horn torque follows the DC-motor line, as for the protocol-1.0
@@ -319,7 +319,7 @@ class XServoModel(GearedMotor):
             return 0.0
         return current_counts * unit * self.spec.torque_constant
 
-    def inject_hardware_error(self, bits: int, *, after: float = 0.0) -> None:
+    def inject_error(self, bits: int, *, after: float = 0.0) -> None:
         """Raise Hardware Error Status ``bits`` once the torque has been on for ``after`` s
         in all (a test-and-teaching fault: what the firmware sets by itself on an input
         voltage out of range, a hot motor, a broken encoder...). Once: a REBOOT clears it
