@@ -24,6 +24,13 @@ torque is switched off and on (an overload also holds the output back, as the
 firmware's own), or ``silent``: the servo stops answering for good (a cut cable).
 Repeatable.
 
+``--wall X,Y,Z@NX,NY,NZ`` puts a wall in the emulated arm's world: a plane through the
+point (X, Y, Z) cm, base frame, facing the free side along (NX, NY, NZ), that the hand
+presses into with ``--wall-stiffness`` N/m (default 2·10⁴, a wooden table top) and
+``--wall-damping`` N·s/m (default 50), as the simulated arm's (``armlab experiment
+contact``): the lab over the real serial path feels it in its servos' loads only, as an
+arm touching a real table does.
+
 ``--control FIFO`` makes FIFO a named pipe the emulator reads lines from, as a person's
 hand on an arm whose torque is off: ``hold JOINT DEG`` holds a joint (name or index, or
 ``gripper`` for the gripper's servo) at DEG degrees of the joint until ``release JOINT``
@@ -51,6 +58,8 @@ import stat
 import sys
 from collections.abc import Callable, Sequence
 from typing import TypeVar
+
+import numpy as np
 
 from armlab.app.commands.scan import _ids
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
@@ -156,6 +165,31 @@ def _number(text: str, name: str) -> float:
     return v
 
 
+#: what ``--wall`` takes
+WALL_FORMAT = ("X,Y,Z@NX,NY,NZ (a point of the plane in cm and its normal towards the "
+               "free side, base frame), e.g. --wall=-11.3,15.7,0@0,-1,0")
+
+
+def parse_wall(text: str) -> tuple[list[float], list[float]]:
+    """``--wall X,Y,Z@NX,NY,NZ`` -> (origin (3,) m, unit normal (3,)), base frame.
+
+    Raises:
+        ValueError: one line naming the option, the value, what is wrong and the format.
+    """
+    try:
+        point, sep, normal = text.partition("@")
+        xyz = [_number(v, "a coordinate") / 100.0 for v in point.split(",")]
+        n = [_number(v, "a normal's component") for v in normal.split(",")]
+        if not sep or len(xyz) != 3 or len(n) != 3:
+            raise ValueError(f"not {WALL_FORMAT.split(' ')[0]}")
+        length = math.sqrt(sum(c * c for c in n))
+        if length < 1e-9:
+            raise ValueError("the normal must not be zero")
+    except ValueError as exc:
+        raise ValueError(f"--wall {text[:60]!r}: {exc}; expected {WALL_FORMAT}") from None
+    return xyz, [c / length for c in n]
+
+
 def parse_pose(text: str, names: Sequence[str]) -> dict[int, float]:
     """``--pose JOINT=DEG,...`` -> {joint index: angle rad}.
 
@@ -237,6 +271,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control", metavar="FIFO",
                         help="a serial arm: read 'hold JOINT DEG' and 'release JOINT' lines "
                         "from this named pipe (made if missing), a hand moving the arm")
+    parser.add_argument("--wall", metavar="X,Y,Z@NX,NY,NZ",
+                        help="a wall the emulated arm's hand presses into: "
+                        + WALL_FORMAT.replace("%", "%%"))
+    parser.add_argument("--wall-stiffness", type=float, default=2e4, metavar="N_PER_M",
+                        help="the wall's stiffness, N/m of penetration (default 2e4)")
+    parser.add_argument("--wall-damping", type=float, default=50.0, metavar="NS_PER_M",
+                        help="the wall's damping, N·s/m (default 50)")
     parser.add_argument("--pose", type=str, metavar="JOINT=DEG,...",
                         help="start these joints at these angles (joint name or index, "
                         "degrees), each resting there until its servo's torque comes on, "
@@ -247,8 +288,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _arm_plant(network: object) -> Plant:
-    """The plant of a serial arm's emulated servos (any family's), for ``--disturb`` and
-    ``--fault``."""
+    """The plant of a serial arm's emulated servos (any family's), for ``--disturb``,
+    ``--fault`` and ``--wall``."""
     physics = network.physics  # type: ignore[attr-defined]  # every family's network has a physics
     return physics.plant if hasattr(physics, "plant") else physics.plants[0]
 
@@ -357,6 +398,17 @@ def run(args: argparse.Namespace) -> int:
         plant = _arm_plant(network)
         for joint, torque, start in disturbances:
             plant.apply_joint_torque(joint, torque, start=start)
+    wall = None
+    if args.wall:
+        if not isinstance(model, SerialChain):
+            raise ValueError(f"--wall: a serial arm's hand touches it, not the {model.name}'s")
+        wall = parse_wall(args.wall)
+        for name, value, lo, hi in (("--wall-stiffness", args.wall_stiffness, 100.0, 1e6),
+                                    ("--wall-damping", args.wall_damping, 0.0, 1e4)):
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"{name} must be in {lo:g}..{hi:g}, got {value:g}")
+        _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
+                                     stiffness=args.wall_stiffness, damping=args.wall_damping)
     if args.fault and jmap.protocol not in FAULT_FLAGS:
         raise ValueError(f"--fault: the flags are an X-series servo's Hardware Error Status "
                          f"or a Feetech STS's status error bits; the {jmap.servo} has none "
@@ -400,6 +452,8 @@ def run(args: argparse.Namespace) -> int:
               + "".join(f"; {flag_names[flag]} on {model.joint_names[j]} after {t:g} s "
                         "of torque on" for j, flag, t in alerts)
               + (f"; resting at {args.pose} until torque on" if args.pose else "")
+              + (f"; a wall through {args.wall} cm, {args.wall_stiffness:g} N/m"
+                 if wall is not None else "")
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])
     except ArithmeticError as exc:  # the simulated plant diverged: say so in one line
