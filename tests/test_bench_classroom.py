@@ -12,9 +12,10 @@ import pytest
 from armlab.app.benches.classroom import loops_ms_cost
 
 
+@pytest.mark.parametrize("walls", (False, True), ids=("free", "walls"))
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_plants"))
-def test_the_class_of_loops_runs_without_a_fault(batched: bool) -> None:
-    cost = loops_ms_cost(12, seconds=0.2, batched=batched)  # raises if an arm faulted
+def test_the_class_of_loops_runs_without_a_fault(batched: bool, walls: bool) -> None:
+    cost = loops_ms_cost(12, seconds=0.2, batched=batched, walls=walls)  # raises on a fault
     assert math.isfinite(cost) and cost > 0.0
 
 

@@ -12,6 +12,9 @@ Figures:
         N · 1e-3 s / (wall time per simulated ms) for the largest N of (50, 100); a tenth
         of the arms play a step trajectory, a tenth are pushed.
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
+    sandboxes_walls_realtime_per_core: the same for the largest class with a wall per arm
+        (the contact lesson's, 2·10⁴ N/m, 3 mm from each hand: its force at every plant
+        step); ``sandboxes_walls_over_free``: its cost over the wall-free class's, same run.
     sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
         the design the batched plant replaced: 50 such loops, each over a plant of its own
         stepped in Python (:class:`~armlab.hardware.backends.sim.SimBackend`);
@@ -92,12 +95,14 @@ REPEATS = 3
 
 
 def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
-                  batched: bool = True) -> float:
+                  batched: bool = True, walls: bool = False) -> float:
     """Wall seconds per simulated ms of ``n_arms`` ControlLoops (compliance, 16 ms, gains
     of their own) on one SharedClock, run headless for ``seconds`` of class time after
     0.1 s of warm-up: over one BatchedPlant at 1 ms (``batched``, as "My arm" runs them),
     or each over a plant of its own (:class:`~armlab.hardware.backends.sim.SimBackend`, stepped
-    per arm in Python at its loop's periods: the design the batched plant replaced)."""
+    per arm in Python at its loop's periods: the design the batched plant replaced).
+    ``walls``: each arm has a wall of its own, 3 mm from its hand across gravity's axis
+    (the contact lesson's; its force computed at every plant step, touched or not)."""
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
     dt = 1e-3
@@ -109,8 +114,16 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     loops = []
     for _ in range(n_arms):
         q = q0 + rng.uniform(-0.2, 0.2, 3)
-        backend: Backend = (BatchedArmBackend(plant, add_sim_arm(plant, q0=q), lock=lock)
+        arm = add_sim_arm(plant, q0=q) if plant is not None else -1
+        backend: Backend = (BatchedArmBackend(plant, arm, lock=lock)
                             if plant is not None else SimBackend(model, specs=RX24F, dt=dt, q0=q))
+        if walls:
+            normal = np.array([1.0, 0.0, 0.0])  # (the base frame's x is gravity's)
+            origin = model.fk(q)[:3, 3] - 0.003 * normal
+            if plant is not None:
+                plant.set_wall(arm, origin, normal, stiffness=2e4, damping=50.0)
+            else:
+                backend.set_wall(origin, normal, stiffness=2e4, damping=50.0)  # type: ignore[attr-defined]  # a SimBackend is Touchable
         params = Params(kp=float(rng.uniform(10.0, 25.0)), kv=float(rng.uniform(3.0, 7.0)),
                         k_env=float(rng.uniform(8.0, 30.0)), period=0.016)
         loop = ControlLoop(model, backend, params, realtime=False, clock=clock)
@@ -364,6 +377,10 @@ def run(quick: bool) -> dict[str, float]:
                                 for k in range(repeats)]))
         out[f"class_loops_step_us_n{n}"] = cost * 1e6
     out["sandboxes_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / cost
+    walled = float(np.median([loops_ms_cost(LOOP_SIZES[-1], seconds=seconds, seed=k,
+                                            walls=True) for k in range(repeats)]))
+    out["sandboxes_walls_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / walled
+    out["sandboxes_walls_over_free"] = walled / cost  # the cost of contact, same run
     n = LOOP_SIZES[0]
     single = float(np.median([loops_ms_cost(n, seconds=seconds, seed=k, batched=False)
                               for k in range(repeats)]))
