@@ -289,6 +289,38 @@ def test_directions_and_servo_params_per_joint_as_single_plants() -> None:
 
 
 @pytest.mark.slow
+def test_walls_far_from_a_hand_are_left_out_without_changing_a_number() -> None:
+    """Each arm's wall across its hand's way, halfway along where its servos take it in
+    0.3 s (centimetres off at the start: beyond the margin, so the plant leaves it out of
+    its steps until the joints' speeds could have brought the hand close): the batched
+    plant's arms stay within 1e-9 of single plants' that evaluate the wall at every
+    stage, and the hands meet their walls."""
+    free, _ = _pair()
+    start = [MODEL.fk(p.q)[:3, 3] for p in free]
+    for _ in range(300):
+        for p in free:
+            p.step()
+    way = [MODEL.fk(p.q)[:3, 3] - a for p, a in zip(free, start, strict=True)]
+    singles, batch = _pair()
+    for i, (a, d) in enumerate(zip(start, way, strict=True)):
+        normal = -d / np.linalg.norm(d)
+        singles[i].set_wall(a + 0.5 * d, normal)
+        batch.set_wall(i, a + 0.5 * d, normal)
+    assert min(0.5 * float(np.linalg.norm(d)) for d in way) > 0.005  # all off the margin
+    assert batch._near_fields(batch._s["q"], batch._s["qd"]).size == 0  # so left out at first
+    worst, touched = 0.0, set()
+    for _ in range(300):
+        for i, p in enumerate(singles):
+            p.step()
+            if p.wall_force() > 0.0:
+                touched.add(i)
+        batch.step()
+        worst = max(worst, float(np.max(np.abs(batch.q - np.array([p.q for p in singles])))),
+                    float(np.max(np.abs(batch.qd - np.array([p.qd for p in singles])))))
+    assert worst <= 1e-9
+    assert touched == set(range(N)), touched
+
+
 def test_spring_and_wall_per_arm_as_single_plants() -> None:
     """Arm 0 dragged by a spring (damped), arm 1 pressing a wall, arm 3 both, the rest free;
     the spring moved, the wall removed and put back mid-run, as Plant.set_spring/set_wall."""

@@ -74,8 +74,14 @@ _FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "wall_on": ((), np.bool_), "wall_origin": ((3,), np.float64),
     "wall_normal": ((3,), np.float64), "wall_k": ((), np.float64),
     "wall_c": ((), np.float64), "wall_link": ((), np.int64), "wall_point": ((3,), np.float64),
+    # m the wall's contact point is at least off its plane now (its depth when last
+    # computed, less what the joints' speeds may have moved it since; 0: compute it)
+    "wall_gap": ((), np.float64),
 }
 
+#: m from its plane a wall's contact point must be, beyond what the joints' speeds move it
+#: in a step, for the wall to be left out of that step (:meth:`BatchedPlant._near_fields`)
+WALL_MARGIN_M = 0.005
 #: Firmware state per (joint, arm): name -> dtype (see ServoModel's private fields).
 _STATE: dict[str, type] = {
     "q": np.float64, "qd": np.float64, "present": np.int64, "setpoint": np.float64,
@@ -178,6 +184,10 @@ class BatchedPlant:
         if not all(self._dyn.revolute):
             raise ValueError("model: BatchedPlant supports revolute joints only")
         self._axes = self._dyn.axes
+        #: m no point of a link reaches further from any joint's axis (plus its own point's
+        #: offset): the bound of how far a contact point moves per rad of the joints
+        self._reach = float(sum(np.linalg.norm(j.origin[:3, 3]) for j in model.joints)
+                            + np.linalg.norm(model.tip[:3, 3]))
         self._k = 0
         self._next_id = 0
         self._ids = np.zeros(0, dtype=np.int64)
@@ -322,6 +332,7 @@ class BatchedPlant:
         r = self.row(arm)
         self._s["q"][:, r] = vector("q", q, self.n)
         self._s["qd"][:, r] = 0.0 if qd is None else vector("qd", qd, self.n)
+        self._f["wall_gap"][r] = -np.inf  # (moved: its wall's distance computed again)
 
     # -- registers (what a WRITE packet does) -----------------------------------------
 
@@ -493,6 +504,7 @@ class BatchedPlant:
         f["wall_normal"][:, r] = normal
         f["wall_k"][r], f["wall_c"][r], f["wall_link"][r] = k, c, li
         f["wall_point"][:, r] = pt
+        f["wall_gap"][r] = -np.inf  # (where the point is: computed at the next step)
         f["wall_on"][r] = True
 
     def clear_forces(self, arm: int | None = None) -> None:
@@ -568,7 +580,7 @@ class BatchedPlant:
             if near.any():
                 stops = np.any(near, axis=0)
         fd, g, arm = self._dyn.fd, self._gravity, self._armature
-        f_rows = np.flatnonzero(self._f["spring_on"] | self._f["wall_on"])
+        f_rows = self._near_fields(q0, s["qd"])
 
         def deriv(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             tau = drive - damp * qd
@@ -583,6 +595,35 @@ class BatchedPlant:
             return fd(q, qd, tau, g, arm)
 
         return deriv
+
+    def _near_fields(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """The arm rows whose spring or wall can act this step, from the state (q, qd)
+        (n, N) at its start: every spring; a wall only while its contact point may be
+        within :data:`WALL_MARGIN_M` of the plane plus what the joints' speeds can move it
+        in the step (2 dt · reach · Σ|θ̇|). A wall farther off pushes nothing at any of the
+        step's RK4 stages, so leaving it out changes no number (Plant evaluates it and gets
+        0). How far off it is, is worked out by forward kinematics only when what the
+        joints may have moved the point since it was last worked out (``wall_gap``) could
+        have brought it that close: an arm far from its wall costs a few multiplications
+        a step."""
+        f = self._f
+        springs = f["spring_on"]
+        w_rows = np.flatnonzero(f["wall_on"] & ~springs)
+        if not w_rows.size:
+            return np.flatnonzero(springs)
+        reach = self._reach + np.linalg.norm(f["wall_point"][:, w_rows], axis=0)
+        travel = 2.0 * self.dt * reach * np.sum(np.abs(qd[:, w_rows]), axis=0)
+        gap = f["wall_gap"][w_rows]
+        ask = gap < WALL_MARGIN_M + travel  # may be close: where is it?
+        if ask.any():
+            rows = w_rows[ask]
+            fr = self._dyn.frames(q[:, rows]).reshape(self.n, 12, rows.size)
+            p, _ = self._points(fr, f["wall_link"][rows], f["wall_point"][:, rows])
+            gap[ask] = np.sum((p - f["wall_origin"][:, rows]) * f["wall_normal"][:, rows],
+                              axis=0)
+        near = gap < WALL_MARGIN_M + travel
+        f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
+        return np.union1d(np.flatnonzero(springs), w_rows[near])
 
     def _stop_torques(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """(n, N) joint-stop torques: spring beyond a limit, damping going further."""
