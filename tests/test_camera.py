@@ -202,9 +202,15 @@ def test_every_lesson_frames_its_robot_in_the_page_view(lesson):
             if aspect > 1.0:  # a projector's view: the robot is the picture
                 span = (y.max() - y.min()) / 2.0
                 assert span >= 0.4, (lesson, width, height, span)
-            for name, box in _label_boxes(lab.server.scene, page, view.up, width, height):
+            boxes = _label_boxes(lab.server.scene, page, view.up, width, height)
+            for name, box in boxes:
                 assert box[0] >= 0 and box[1] >= 0 and box[2] <= width and \
                     box[3] <= height, (lesson, name, (width, height), box)
+            for i, (a, box_a) in enumerate(boxes):  # and no two over each other
+                for b, box_b in boxes[i + 1:]:
+                    apart = (box_a[2] <= box_b[0] or box_b[2] <= box_a[0]
+                             or box_a[3] <= box_b[1] or box_b[3] <= box_a[1])
+                    assert apart, (lesson, a, b, (width, height), box_a, box_b)
 
 
 #: px tall a screen-sized label's text is per unit of ``font_screen_scale`` (viser draws
