@@ -70,7 +70,7 @@ def test_the_plant_runs_each_family_s_firmware_model():
 
     arm = load_robot("receptionist_arm")
     plant = Plant(arm, XM430_W350)
-    assert type(plant.servos[0]) is XSERIES.load("servo_model")
+    assert type(plant.servos[0]) is XSERIES.servo_model
 
 
 def test_a_joint_map_of_sts3215s_speaks_sts():
@@ -116,19 +116,20 @@ def test_a_bus_speaks_sts_through_a_real_pty():
 
 
 def test_every_family_names_its_serial_and_simulated_backends():
+    from armlab.hardware import family_parts
     from armlab.hardware.backends.servo_bus import ServoBusBackend
     from armlab.hardware.backends.sim import SimBackend
     from armlab.hardware.families import FAMILIES
 
     for f in FAMILIES:
-        assert issubclass(f.load("real_backend"), ServoBusBackend)
-        assert f.load("real_backend").PROTOCOL == f.protocol
-        if f.has("sim_backend"):
-            assert issubclass(f.load("sim_backend"), SimBackend)
-        assert f.has("emulator") and f.has("servo_model")
-    assert not FAMILIES[0].has("sim_backend")  # protocol 1.0: the plain SimBackend
+        assert issubclass(family_parts.load(f, "real_backend"), ServoBusBackend)
+        assert family_parts.load(f, "real_backend").PROTOCOL == f.protocol
+        if family_parts.has(f, "sim_backend"):
+            assert issubclass(family_parts.load(f, "sim_backend"), SimBackend)
+        assert family_parts.has(f, "emulator") and callable(family_parts.load(f, "emulator"))
+    assert not family_parts.has(FAMILIES[0], "sim_backend")  # 1.0: the plain SimBackend
     with pytest.raises(ValueError, match="has no sim backend"):
-        FAMILIES[0].load("sim_backend")
+        family_parts.load(FAMILIES[0], "sim_backend")
 
 
 def test_every_familys_packet_module_is_its_codec():

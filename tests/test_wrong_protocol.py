@@ -15,7 +15,7 @@ from _emulator import emulator
 
 from armlab.control.backend import BackendError
 from armlab.hardware.backends.joint_map import default_joint_map
-from armlab.hardware.backends.xseries import open_servo_backend
+from armlab.hardware.family_parts import open_servo_backend
 from armlab.hardware.wire.bus import Bus
 from armlab.kinematics.catalog import load_robot
 

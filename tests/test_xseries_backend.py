@@ -29,7 +29,8 @@ from _helpers import client_of, confirm_clear, wait_for
 from armlab.app.backends import make_backend
 from armlab.app.server import Lab, ServeOptions
 from armlab.hardware.backends.joint_map import default_joint_map
-from armlab.hardware.backends.xseries import XSeriesBackend, open_servo_backend
+from armlab.hardware.backends.xseries import XSeriesBackend
+from armlab.hardware.family_parts import open_servo_backend
 from armlab.hardware.servos.xseries import (
     CENTRE,
     CURRENT_POSITION_D_GAIN,

@@ -39,17 +39,18 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
         from armlab.hardware.backends.joint_map import default_joint_map, default_servo
         from armlab.hardware.backends.sim import SimBackend
         from armlab.hardware.families import family_of_model
+        from armlab.hardware.family_parts import has, load
 
         fam = family_of_model(default_servo(model.name))  # the servos the arm ships with
-        if fam.has("sim_backend") and "specs" not in kw:  # their family's simulation
+        if has(fam, "sim_backend") and "specs" not in kw:  # their family's simulation
             jmap = default_joint_map(model)
             kw.setdefault("gripper", jmap.gripper)  # its own servo
-            return fam.load("sim_backend")(model, spec=jmap.spec, **kw)
+            return load(fam, "sim_backend")(model, spec=jmap.spec, **kw)
         return SimBackend(model, **kw)
     if kind == "serial":
         if port is None:
             raise ValueError("the serial backend needs a port (e.g. /dev/ttyUSB0)")
-        from armlab.hardware.backends.xseries import open_servo_backend  # pyserial only when asked
+        from armlab.hardware.family_parts import open_servo_backend  # pyserial only when asked
 
         if baud is not None:
             kw["baud"] = baud
@@ -64,8 +65,9 @@ def has_firmware_sim(model: SerialChain) -> bool:
     protocol-1.0 RX-24F servos, as the thesis arm (what a classroom's batched plant models)."""
     from armlab.hardware.backends.joint_map import default_servo
     from armlab.hardware.families import family_of_model
+    from armlab.hardware.family_parts import has
 
-    return family_of_model(default_servo(model.name)).has("sim_backend")
+    return has(family_of_model(default_servo(model.name)), "sim_backend")
 
 
 def loop_over(backend: Backend, model: SerialChain, params: Params, **loop_kw: Any

@@ -8,10 +8,9 @@ testing a protocol number, so adding a family is its own modules plus one entry 
 :data:`FAMILIES`.
 
 A family's packet module is typed by :class:`Codec` (each of ``wire/protocol1.py``,
-``wire/protocol2.py`` and ``wire/feetech.py`` is one, checked by mypy). The heavy parts
-(backends, emulator, firmware models) are imported when first asked for, by a function of
-the family's own (:class:`Parts`): this module sits below them (``armlab.hardware.wire``
-imports it).
+``wire/protocol2.py`` and ``wire/feetech.py`` is one, checked by mypy) and its firmware
+model is a class here. Its backends and emulator stand above the bus that imports this
+module: :mod:`armlab.hardware.family_parts` names them per family.
 """
 
 from __future__ import annotations
@@ -23,6 +22,9 @@ from typing import Any, Protocol
 from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
 from armlab.hardware.servos.sts import STS3215_TABLE, STS_TABLES, sts_table_for
 from armlab.hardware.servos.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
+from armlab.hardware.sim.dynamixel_servo import ServoModel
+from armlab.hardware.sim.sts_servo import StsServoModel
+from armlab.hardware.sim.xseries_servo import XServoModel
 from armlab.hardware.wire import feetech as ft
 from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire import protocol2 as p2
@@ -87,26 +89,6 @@ class Codec(Protocol):
 
 
 @dataclass(frozen=True)
-class Parts:
-    """A family's heavy parts, each imported by a function when first asked for (None:
-    the family has none yet; asking for it is a ValueError naming the family).
-
-    Attributes:
-        servo_model: the firmware model the plant runs (a class).
-        real_backend: the backend on a serial port (a ``ServoBusBackend`` class).
-        sim_backend: the simulated backend with this family's servos (None: the plain
-            ``SimBackend``).
-        emulator: the emulated network's factory ``(model, joint_map, *, baud, dt) ->
-            network``.
-    """
-
-    servo_model: Callable[[], type] | None = None
-    real_backend: Callable[[], type] | None = None
-    sim_backend: Callable[[], type] | None = None
-    emulator: Callable[[], Callable[..., Any]] | None = None
-
-
-@dataclass(frozen=True)
 class ServoFamily:
     """One servo family.
 
@@ -130,7 +112,7 @@ class ServoFamily:
         replies_all_level: the status return level at which a servo answers every
             instruction (Dynamixel 2; Feetech's Response Status Level 1), below which it
             answers PING and READ only.
-        parts: its firmware model, backends and emulator (:class:`Parts`, :meth:`load`).
+        servo_model: the firmware model the plant runs (a class of ``armlab.hardware.sim``).
     """
 
     key: str
@@ -149,7 +131,7 @@ class ServoFamily:
     spec_type: type
     firmware_item: str
     limit_items: tuple[str, str]
-    parts: Parts
+    servo_model: type
     replies_all_level: int = 2
     aliases: tuple[str, ...] = field(default=())
 
@@ -166,18 +148,6 @@ class ServoFamily:
         """The ID an encoded packet is sent to (or comes from)."""
         return packet[self.id_offset]
 
-    def load(self, part: str) -> Any:
-        """One of the lazily imported parts: "servo_model", "real_backend",
-        "sim_backend" or "emulator"."""
-        loader = getattr(self.parts, part)
-        if loader is None:
-            raise ValueError(f"the {self.title} family has no {part.replace('_', ' ')}")
-        return loader()
-
-    def has(self, part: str) -> bool:
-        """Whether the family has the part :meth:`load` would import."""
-        return getattr(self.parts, part) is not None
-
     def knows(self, model: int | str) -> bool:
         """Whether ``model`` (number or name) is one of this family's."""
         try:
@@ -191,42 +161,13 @@ def _spec_type(table: ControlTable) -> type:
     return type(table.spec)
 
 
-# Each family's heavy parts, imported when first asked for (they import this module).
-
-def _dxl_parts() -> tuple[type, type, Callable[..., Any]]:
-    from armlab.hardware.backends.dynamixel import DynamixelBackend
-    from armlab.hardware.emulator.bus import network_for_map
-    from armlab.hardware.sim.dynamixel_servo import ServoModel
-
-    return ServoModel, DynamixelBackend, network_for_map
-
-
-def _x_parts() -> tuple[type, type, type, Callable[..., Any]]:
-    from armlab.hardware.backends.xseries import XSeriesBackend
-    from armlab.hardware.backends.xseries_sim import XSimBackend
-    from armlab.hardware.emulator.xseries import x_network_for_map
-    from armlab.hardware.sim.xseries_servo import XServoModel
-
-    return XServoModel, XSeriesBackend, XSimBackend, x_network_for_map
-
-
-def _sts_parts() -> tuple[type, type, type, Callable[..., Any]]:
-    from armlab.hardware.backends.sts import StsBackend
-    from armlab.hardware.backends.sts_sim import StsSimBackend
-    from armlab.hardware.emulator.sts import sts_network_for_map
-    from armlab.hardware.sim.sts_servo import StsServoModel
-
-    return StsServoModel, StsBackend, StsSimBackend, sts_network_for_map
-
-
 DYNAMIXEL1 = ServoFamily(
     key="dynamixel1", title="Dynamixel protocol 1.0", protocol=1, codec=p1, tables=TABLES,
     default_table=RX24F_TABLE, table_for=table_for, model_address=0, ping_data=0,
     status_overhead=p1.OVERHEAD, id_offset=2, group_read=False, broadcast_ping=False,
     spec_type=_spec_type(RX24F_TABLE), firmware_item="firmware_version",
     limit_items=("cw_angle_limit", "ccw_angle_limit"),
-    parts=Parts(servo_model=lambda: _dxl_parts()[0], real_backend=lambda: _dxl_parts()[1],
-                emulator=lambda: _dxl_parts()[2]),
+    servo_model=ServoModel,
     aliases=("1", "1.0", "protocol1"),
 )
 XSERIES = ServoFamily(
@@ -235,8 +176,7 @@ XSERIES = ServoFamily(
     ping_data=3, status_overhead=p2.status_length(0), id_offset=4, group_read=True,
     broadcast_ping=True, spec_type=_spec_type(XM430_W350_TABLE),
     firmware_item="firmware_version", limit_items=("min_position_limit", "max_position_limit"),
-    parts=Parts(servo_model=lambda: _x_parts()[0], real_backend=lambda: _x_parts()[1],
-                sim_backend=lambda: _x_parts()[2], emulator=lambda: _x_parts()[3]),
+    servo_model=XServoModel,
     aliases=("2", "2.0", "protocol2", "dynamixel2"),
 )
 STS = ServoFamily(
@@ -245,8 +185,7 @@ STS = ServoFamily(
     status_overhead=ft.OVERHEAD, id_offset=2, group_read=True, broadcast_ping=False,
     spec_type=_spec_type(STS3215_TABLE), firmware_item="firmware_major",
     limit_items=("min_position_limit", "max_position_limit"),
-    parts=Parts(servo_model=lambda: _sts_parts()[0], real_backend=lambda: _sts_parts()[1],
-                sim_backend=lambda: _sts_parts()[2], emulator=lambda: _sts_parts()[3]),
+    servo_model=StsServoModel,
     replies_all_level=1,
     aliases=("feetech", "scs", "sms_sts"),
 )

@@ -62,6 +62,7 @@ from typing import TypeVar
 import numpy as np
 
 from armlab.app.commands.scan import _ids
+from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.bus import Faults, PtyEmulator
 from armlab.hardware.families import FAMILIES
@@ -232,7 +233,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "1..5 for so101, else 1..n); the gripper's servo (open_manipulator_x, "
                         "so101) takes the ID after "
                         "the highest (15 by default)")
-    parser.add_argument("--servo", choices=tuple(t.name for f in FAMILIES if f.has("emulator")
+    emulated = [f for f in FAMILIES if family_parts.has(f, "emulator")]
+    parser.add_argument("--servo", choices=tuple(t.name for f in emulated
                                                  for t in f.tables.values()),
                         help="servo model (default RX-24F for the thesis arm, XM430-W350 for "
                         "open_manipulator_x, STS3215 for so101, else AX-12A); X-series servos "
@@ -377,7 +379,7 @@ def run(args: argparse.Namespace) -> int:
                              ids=tuple(args.ids) if args.ids is not None else None)
     # the servo family's own emulator (armlab.hardware.families); ValueError for a baud
     # its servos cannot take
-    network = jmap.family.load("emulator")(model, jmap, baud=args.baud, dt=args.dt)
+    network = family_parts.load(jmap.family, "emulator")(model, jmap, baud=args.baud, dt=args.dt)
     if args.pose:
         names = [j.name for j in robot_joints(model)]
         pose = dict.fromkeys(range(len(names)), 0.0) | parse_pose(args.pose, names)

@@ -108,7 +108,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         if self.map.protocol != self.PROTOCOL:
             raise ValueError(
                 f"the {self.map.servo} speaks protocol {self.map.family.label}: open it with "
-                "armlab.hardware.backends.xseries.open_servo_backend(), which picks the backend")
+                "armlab.hardware.family_parts.open_servo_backend(), which picks the backend")
         self.table: ControlTable = servo_table(self.map.servo)
         self.spec = self.table.spec
         self._baud_value(baud)  # ValueError for a rate the servos cannot take

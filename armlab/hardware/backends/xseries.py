@@ -34,19 +34,16 @@ from __future__ import annotations
 
 import logging
 import time
-from pathlib import Path
-from typing import Any, cast
+from typing import cast
 
 import numpy as np
 
-from armlab.control.backend import BackendError, GripperState, JointState
-from armlab.hardware.backends.dynamixel import DynamixelBackend
+from armlab.control.backend import GripperState, JointState
 from armlab.hardware.backends.gripper import (
     GRIPPER_PROFILE_VELOCITY,
     decode_gripper,
     gripper_settings,
 )
-from armlab.hardware.backends.joint_map import JointMap, default_joint_map, load_joint_map
 from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.servos.xseries import (
     VELOCITY_UNIT,
@@ -58,7 +55,6 @@ from armlab.hardware.servos.xseries import (
     lab_settings,
 )
 from armlab.hardware.wire import protocol2 as p2
-from armlab.kinematics.model import Quadruped, SerialChain
 
 log = logging.getLogger("armlab.xseries")
 
@@ -228,25 +224,4 @@ class XSeriesBackend(ServoBusBackend):
         #: a profile velocity above Velocity Limit would be refused (Data Limit)
         self._vmax = [x["velocity_limit"] for x in limits]
         return self._narrowed(self._cw, self._ccw)
-
-
-def open_servo_backend(model: SerialChain | Quadruped, port: str, *,
-                       joint_map: JointMap | str | Path | None = None,
-                       **kw: Any) -> ServoBusBackend:
-    """The backend for ``model``'s servos on ``port``: the real backend of the servo family
-    the joint map names (:mod:`armlab.hardware.families`: :class:`DynamixelBackend` on
-    protocol 1.0, :class:`XSeriesBackend` on the X-series,
-    :class:`~armlab.hardware.backends.sts.StsBackend` on Feetech STS)."""
-    if isinstance(joint_map, str | Path):
-        joint_map = load_joint_map(joint_map, model)
-    jmap = joint_map or default_joint_map(model)
-    try:
-        backend = jmap.family.load("real_backend")
-    except ValueError as exc:
-        raise BackendError(f"the {jmap.servo} cannot be driven on a serial port yet: {exc}"
-                           ) from None
-    if isinstance(model, Quadruped) and backend is not DynamixelBackend:
-        raise BackendError(f"the {jmap.family.title} backend drives a serial arm, not the "
-                           "quadruped")
-    return backend(model, port, joint_map=jmap, **kw)
 

@@ -188,7 +188,7 @@ class Plant:
         if len(spec_list) != n:
             raise ValueError(f"specs must name {n} servos, got {len(spec_list)}")
         # each servo's firmware model is its family's (:mod:`armlab.hardware.families`)
-        firmware = [family_of_spec(s).load("servo_model") for s in spec_list]
+        firmware = [family_of_spec(s).servo_model for s in spec_list]
         if params is None:  # a servo with a rated supply reports it (5 V: XL330)
             param_list = [ServoParams(voltage=s.voltage) if hasattr(s, "voltage")
                           else ServoParams() for s in spec_list]
