@@ -62,6 +62,7 @@ from typing import TypeVar
 import numpy as np
 
 from armlab.app.commands.scan import _ids
+from armlab.control.experiments.contact import check_wall_numbers
 from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.bus import Faults, PtyEmulator
@@ -405,10 +406,8 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(model, SerialChain):
             raise ValueError(f"--wall: a serial arm's hand touches it, not the {model.name}'s")
         wall = parse_wall(args.wall)
-        for name, value, lo, hi in (("--wall-stiffness", args.wall_stiffness, 100.0, 1e6),
-                                    ("--wall-damping", args.wall_damping, 0.0, 1e4)):
-            if not (math.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"{name} must be in {lo:g}..{hi:g}, got {value:g}")
+        check_wall_numbers(stiffness=args.wall_stiffness, damping=args.wall_damping,
+                           names=("--wall-stiffness", "--wall-damping"))
         _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
                                      stiffness=args.wall_stiffness, damping=args.wall_damping)
     if args.fault and jmap.protocol not in FAULT_FLAGS:

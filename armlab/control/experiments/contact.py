@@ -51,6 +51,21 @@ PD_NOTE = ("PD (eq. 2.20) has no finite stiffness: blocked, its reference integr
            "error twice and winds up until the servo's torque or the lab's lag check stops it")
 
 
+#: N/m and N·s/m a wall's stiffness and damping may be (this experiment's, and the
+#: emulator's ``--wall``): soft foam to steel under a servo arm's hand
+STIFFNESS_RANGE = (100.0, 1e6)
+DAMPING_RANGE = (0.0, 1e4)
+
+
+def check_wall_numbers(*, stiffness: float, damping: float, names: tuple[str, str]) -> None:
+    """ValueError naming the option (``names``: the stiffness's, the damping's) whose value
+    is not finite or outside :data:`STIFFNESS_RANGE` / :data:`DAMPING_RANGE`."""
+    for name, value, (lo, hi) in ((names[0], stiffness, STIFFNESS_RANGE),
+                                  (names[1], damping, DAMPING_RANGE)):
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise ValueError(f"{name} must be in {lo:g}..{hi:g}, got {value:g}")
+
+
 def joint_stiffness(params: Params, controller: str) -> float | None:
     """N·m/rad of every joint's static stiffness under ``controller`` with ``params``: the
     compliance law holds a steady external torque τ with θ − θ_cmd = K_f τ / K_env (eq. 2.6,
@@ -167,13 +182,12 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
             there, rendered by the controller), or options out of range.
     """
     for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.2),
-                                ("--depth-cm", depth, 0.0, 0.1),
-                                ("--stiffness", stiffness, 100.0, 1e6),
-                                ("--damping", damping, 0.0, 1e4)):
+                                ("--depth-cm", depth, 0.0, 0.1)):
         if not (math.isfinite(value) and lo <= value <= hi):
-            scale = 100.0 if name.endswith("-cm") else 1.0
-            raise ValueError(f"{name} must be in {lo * scale:g}..{hi * scale:g}, got "
-                             f"{value * scale:g}")
+            raise ValueError(f"{name} must be in {lo * 100:g}..{hi * 100:g}, got "
+                             f"{value * 100:g}")
+    check_wall_numbers(stiffness=stiffness, damping=damping,
+                       names=("--stiffness", "--damping"))
     line = thesis_line(model)
     q0 = line.q[0]
     x0, u, origin, normal = wall_across_line(model, q0, line.q[-1], wall)
