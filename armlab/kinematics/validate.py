@@ -103,8 +103,9 @@ def joint_index(value: object, names: Sequence[str]) -> int:
         k = -1
     if 0 <= k < len(names) and not isinstance(value, bool):
         return k
+    shown = repr(value) if len(text) <= 40 else repr(text[:40]) + "…"  # not a page of it
     raise ValueError(f"joint must be an index 0..{len(names) - 1} or one of "
-                     f"{', '.join(names)}; got {value!r}")
+                     f"{', '.join(names)}; got {shown}")
 
 
 def check_number(value: object, *, name: str, lo: float, hi: float) -> float:

@@ -153,17 +153,27 @@ def _joint_event(option: str, text: str, names: Sequence[str], fmt: str,
         if at < 0:
             raise ValueError(f"{when} must be >= 0 s, got {at:g}")
     except ValueError as exc:
-        raise ValueError(f"{option} {text!r}: {exc}; expected {fmt}") from None
+        raise ValueError(f"{option} {_quoted(text, 60)}: {exc}; expected {fmt}") from None
     return joint, value, at
 
 
+def _quoted(text: str, limit: int = 40) -> str:
+    """``text`` quoted for a message, at most ``limit`` characters of it (a pasted page is
+    not echoed whole)."""
+    text = text.strip()
+    return repr(text[:limit]) + ("…" if len(text) > limit else "")
+
+
 def _number(text: str, name: str) -> float:
+    """``text`` as a finite float; ValueError naming ``name`` and quoting it
+    (:func:`_quoted`)."""
+    shown = _quoted(text)
     try:
         v = float(text)
     except ValueError:
-        raise ValueError(f"{name} is not a number: {text.strip()!r}") from None
+        raise ValueError(f"{name} is not a number: {shown}") from None
     if v != v or v in (float("inf"), float("-inf")):
-        raise ValueError(f"{name} must be finite, got {text.strip()!r}")
+        raise ValueError(f"{name} must be finite, got {shown}")
     return v
 
 
@@ -188,7 +198,7 @@ def parse_wall(text: str) -> tuple[list[float], list[float]]:
         if length < 1e-9:
             raise ValueError("the normal must not be zero")
     except ValueError as exc:
-        raise ValueError(f"--wall {text[:60]!r}: {exc}; expected {WALL_FORMAT}") from None
+        raise ValueError(f"--wall {_quoted(text, 60)}: {exc}; expected {WALL_FORMAT}") from None
     return xyz, [c / length for c in n]
 
 
@@ -210,7 +220,7 @@ def parse_pose(text: str, names: Sequence[str]) -> dict[int, float]:
                 raise ValueError(f"joint {names[k]} named twice")
             pose[k] = math.radians(_number(deg, f"the angle of {names[k]}"))
         except ValueError as exc:
-            raise ValueError(f"--pose {text!r}: {exc}; expected {fmt}") from None
+            raise ValueError(f"--pose {_quoted(text, 60)}: {exc}; expected {fmt}") from None
     return pose
 
 
