@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.families.xseries import packets as p2
 
 ROOT = Path(__file__).resolve().parents[1]
 START_TIMEOUT = 30.0  # s for the emulator to print its port (a loaded 2-core machine)

@@ -10,15 +10,11 @@ import pytest
 
 from armlab.control.params import Params
 from armlab.hardware.backends.sim import thesis_registers
+from armlab.hardware.families.dynamixel1.firmware import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.sim.batched_plant import BatchedPlant
-from armlab.hardware.sim.dynamixel_servo import (
-    ERROR_ANGLE_LIMIT,
-    ERROR_OVERLOAD,
-    IDEAL,
-    ServoParams,
-)
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.servo_motor import IDEAL, ServoParams
 from armlab.kinematics import load_robot
 from armlab.kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
 from armlab.kinematics.dynamics import dynamics_model

@@ -10,10 +10,10 @@ import pytest
 from _emulator import emulator
 
 from armlab.control.backend import Backend, BackendError
-from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.backends.joint_map import JointMap, JointServo, load_joint_map
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire.bus import Bus, NoReply, WrongModel
 from armlab.kinematics.catalog import load_robot
 

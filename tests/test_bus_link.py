@@ -15,8 +15,8 @@ import serial
 from _emulator import ROOT, emulator
 from _helpers import wait_for
 
-from armlab.hardware.servos.control_table import AX12A_TABLE, RX24F_TABLE
-from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.table import AX12A_TABLE, RX24F_TABLE
 from armlab.hardware.wire.bus import Bus, NoReply, PortError, ftdi_latency_check
 from armlab.hardware.wire.scan import scan
 

@@ -22,8 +22,8 @@ import pytest
 from _emulator import emulator
 
 from armlab.control.experiments.observers import servo_observers
-from armlab.hardware.backends.xseries import XSeriesBackend
-from armlab.hardware.servos.xseries import XM430_W350
+from armlab.hardware.families.xseries.backend import XSeriesBackend
+from armlab.hardware.families.xseries.table import XM430_W350
 from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal

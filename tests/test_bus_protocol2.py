@@ -18,8 +18,8 @@ import pytest
 from _emulator import emulator
 from _helpers import wait_for
 
-from armlab.hardware.servos.xseries import CENTRE, XM430_W350_TABLE
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.table import CENTRE, XM430_W350_TABLE
 from armlab.hardware.wire.bus import Bus, NoReply
 from armlab.kinematics import load_robot
 

@@ -21,12 +21,12 @@ from _emulator import emulator
 
 from armlab.control.experiments.thesis import line_plan, run_line
 from armlab.control.params import preset
-from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.backends.sim import SimBackend
-from armlab.hardware.backends.xseries import XSeriesBackend
-from armlab.hardware.backends.xseries_sim import XSimBackend
+from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
+from armlab.hardware.families.xseries.backend import XSeriesBackend
+from armlab.hardware.families.xseries.sim_backend import XSimBackend
+from armlab.hardware.families.xseries.table import XM430_W350
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.servos.xseries import XM430_W350
 from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal

@@ -532,8 +532,8 @@ def test_a_private_open_manipulator_x_has_its_x_series_servos():
     from armlab.app.classroom.sandboxes import Sandboxes
     from armlab.control.commands import RunTrajectory
     from armlab.control.trajectory import minimum_jerk
-    from armlab.hardware.backends.xseries_sim import XSimBackend
-    from armlab.hardware.servos.xseries import XM430_W350
+    from armlab.hardware.families.xseries.sim_backend import XSimBackend
+    from armlab.hardware.families.xseries.table import XM430_W350
     from armlab.kinematics import load_robot
 
     model = load_robot("open_manipulator_x")

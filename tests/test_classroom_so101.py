@@ -1,5 +1,6 @@
 """A classroom's SO-101 simulates its Feetech STS3215 servos (the firmware model
-``armlab.hardware.sim.sts_servo`` the single-user sim runs), not the thesis arm's RX-24F:
+``armlab.hardware.families.feetech.firmware`` the single-user sim runs), not the thesis arm's
+RX-24F:
 a student's private arm (the class's clock) and the shared arm of ``serve --classroom``,
 whose Servos panel names the model it simulates.
 """
@@ -12,9 +13,9 @@ from _helpers import wait_for
 
 from armlab.app.lessons.compliance_servos import read_health
 from armlab.control.params import DEFAULT
-from armlab.hardware.backends.sts_sim import StsSimBackend
-from armlab.hardware.servos.sts import STS3215
-from armlab.hardware.sim.sts_servo import StsServoModel
+from armlab.hardware.families.feetech.firmware import StsServoModel
+from armlab.hardware.families.feetech.sim_backend import StsSimBackend
+from armlab.hardware.families.feetech.table import STS3215
 from armlab.kinematics import load_robot
 
 pytestmark = pytest.mark.slow  # a class served and its arms driven

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from armlab.hardware.backends.dynamixel import DynamixelBackend
-from armlab.hardware.emulator.bus import emulated_network
-from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
+from armlab.hardware.families.dynamixel1.emulator import emulated_network
 from armlab.hardware.wire.scan import scan
 from armlab.kinematics.catalog import load_robot
 

@@ -22,9 +22,9 @@ from armlab.hardware.families import (
     family_of_model,
     family_of_spec,
 )
-from armlab.hardware.servos.sts import STS3215, STS3215_TABLE
-from armlab.hardware.servos.xseries import XM430_W350
-from armlab.hardware.wire import feetech as ft
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.table import STS3215, STS3215_TABLE
+from armlab.hardware.families.xseries.table import XM430_W350
 from armlab.hardware.wire.bus import Bus
 from armlab.kinematics.catalog import load_robot
 
@@ -135,8 +135,9 @@ def test_every_family_names_its_serial_and_simulated_backends():
 def test_every_familys_packet_module_is_its_codec():
     """Each family's codec offers what the bus, the scan and the emulator call, its
     parser counts what it dropped, and a family without SYNC_READ says so."""
-    from armlab.hardware.families import FAMILIES, Codec
-    from armlab.hardware.wire import protocol1 as p1
+    from armlab.hardware.families import FAMILIES
+    from armlab.hardware.families.base import Codec
+    from armlab.hardware.families.dynamixel1 import packets as p1
 
     for f in FAMILIES:
         codec: Codec = f.codec  # (mypy checks each module against Codec where they are made)

@@ -12,14 +12,14 @@ import math
 
 import pytest
 
-from armlab.hardware.servos.sts import (
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.table import (
     BAUDS,
     STS3215,
     STS3215_TABLE,
     StsControlTable,
     sts_table_for,
 )
-from armlab.hardware.wire import feetech as ft
 
 
 def h(text: str) -> bytes:

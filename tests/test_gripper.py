@@ -31,8 +31,8 @@ from armlab.hardware.backends.gripper import (
     open_manipulator_gripper,
 )
 from armlab.hardware.backends.joint_map import default_joint_map, draft_joint_map, load_joint_map
-from armlab.hardware.backends.xseries import XSeriesBackend
-from armlab.hardware.servos.xseries import XM430_W350, OperatingMode
+from armlab.hardware.families.xseries.backend import XSeriesBackend
+from armlab.hardware.families.xseries.table import XM430_W350, OperatingMode
 from armlab.hardware.wire.scan import Found
 from armlab.kinematics.catalog import load_robot
 

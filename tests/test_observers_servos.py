@@ -18,10 +18,10 @@ from armlab.control.experiments.observers import (
     step_index,
 )
 from armlab.hardware.backends.sim import SimBackend
-from armlab.hardware.backends.xseries_sim import XSimBackend
-from armlab.hardware.servos.xseries import XL430_W250, XM430_W350
-from armlab.hardware.sim.dynamixel_servo import IDEAL
+from armlab.hardware.families.xseries.sim_backend import XSimBackend
+from armlab.hardware.families.xseries.table import XL430_W250, XM430_W350
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.servo_motor import IDEAL
 from armlab.kinematics import load_robot
 
 OMX = load_robot("open_manipulator_x")

@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from armlab.hardware.backends.sim import thesis_registers
+from armlab.hardware.families.dynamixel1.firmware import ServoRegisters
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.dynamixel_servo import IDEAL, ServoRegisters
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.servo_motor import IDEAL
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import potential_energy
 from armlab.kinematics.points import point_force_torques, point_position

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from armlab.hardware.servos.control_table import AX12A_TABLE, RX24F_TABLE, table_for
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.table import AX12A_TABLE, RX24F_TABLE, table_for
 from armlab.hardware.servos.servo_spec import load_fraction
-from armlab.hardware.wire import protocol1 as p1
 
 
 def test_thesis_goal_position_packet_and_status_byte_for_byte():

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.families.xseries import packets as p2
 
 
 def h(text: str) -> bytes:

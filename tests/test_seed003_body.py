@@ -204,7 +204,7 @@ def test_the_emulators_legs_carry_the_weight_once_however_often_the_bus_ticks():
     alike (a load renewed per tick, not per step, once carried the weight several times
     over in the steps a burst of packets fell in)."""
     from armlab.hardware.backends.sim import goal_positions
-    from armlab.hardware.emulator.bus import emulated_network
+    from armlab.hardware.families.dynamixel1.emulator import emulated_network
 
     model = load_robot("quadruped")
     q0 = Walker(plan_gait(GaitSpec())).state().q

@@ -5,17 +5,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from armlab.hardware.servos.servo_spec import AX12A, DIRECTION_BIT, RX24F
-from armlab.hardware.sim.dynamixel_servo import (
+from armlab.hardware.families.dynamixel1.firmware import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
     ServoModel,
-    ServoParams,
     ServoRegisters,
     compliance_duty,
     effective_slope,
 )
+from armlab.hardware.servos.servo_spec import AX12A, DIRECTION_BIT, RX24F
 from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.urdf_read import chain_from_urdf
 
 NO_FRICTION = ServoParams(coulomb_friction=0.0, viscous_friction=0.0)

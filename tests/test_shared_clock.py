@@ -26,9 +26,9 @@ from armlab.hardware.backends.batched import (
     word_tables,
 )
 from armlab.hardware.backends.sim import SimBackend, decode_reports
+from armlab.hardware.families.dynamixel1.firmware import ServoReport
 from armlab.hardware.servos.servo_spec import AX12A, RX24F
 from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
-from armlab.hardware.sim.dynamixel_servo import ServoReport
 from armlab.kinematics import load_robot
 
 MODEL = load_robot("receptionist_arm")

@@ -6,8 +6,8 @@ import pytest
 from armlab.app.backends import make_backend
 from armlab.control.backend import Backend, BackendError, Pushable
 from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.firmware import ERROR_OVERLOAD
 from armlab.hardware.servos.servo_spec import AX12A, RX24F
-from armlab.hardware.sim.dynamixel_servo import ERROR_OVERLOAD
 from armlab.kinematics import load_robot
 
 

@@ -37,10 +37,10 @@ from armlab.control.commands import Reset, RunTrajectory
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold
 from armlab.hardware.backends.gripper import so101_gripper
-from armlab.hardware.backends.sts import GOAL_AT, StsBackend
-from armlab.hardware.backends.sts_sim import StsSimBackend
-from armlab.hardware.servos.sts import CENTRE, STS3215, STS3215_TABLE
-from armlab.hardware.wire import feetech as ft
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.backend import GOAL_AT, StsBackend
+from armlab.hardware.families.feetech.sim_backend import StsSimBackend
+from armlab.hardware.families.feetech.table import CENTRE, STS3215, STS3215_TABLE
 from armlab.hardware.wire.bus import Bus
 from armlab.kinematics.catalog import load_robot
 
@@ -355,7 +355,7 @@ def test_a_servo_that_stops_answering_is_named_with_its_joint_and_torque_off_is_
 
 def test_emulate_fault_takes_the_sts_status_bits_and_silent():
     from armlab.app.commands.emulate import parse_fault
-    from armlab.hardware.sim.sts_servo import SILENT
+    from armlab.hardware.families.feetech.firmware import SILENT
 
     names = SO101.joint_names
     assert parse_fault("elbow_flex:overheat@2", names, protocol="sts") == \

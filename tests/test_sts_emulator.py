@@ -16,8 +16,8 @@ from _helpers import wait_for
 
 from armlab.hardware.backends.joint_map import load_joint_map
 from armlab.hardware.backends.lerobot_calibration import joint_map_from_lerobot
-from armlab.hardware.servos.sts import CENTRE, STS3215_TABLE
-from armlab.hardware.wire import feetech as ft
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.table import CENTRE, STS3215_TABLE
 from armlab.hardware.wire.bus import Bus
 from armlab.hardware.wire.scan import scan
 from armlab.kinematics.catalog import load_robot

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from armlab.hardware.servos.sts import CENTRE, CURRENT_UNIT, STS3215, STS3215_TABLE
-from armlab.hardware.sim.dynamixel_servo import ServoParams
+from armlab.hardware.families.feetech.firmware import KP_UNIT, StsRegisters, StsServoModel
+from armlab.hardware.families.feetech.packets import ErrorBits
+from armlab.hardware.families.feetech.table import CENTRE, CURRENT_UNIT, STS3215, STS3215_TABLE
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.sts_servo import KP_UNIT, StsRegisters, StsServoModel
-from armlab.hardware.wire.feetech import ErrorBits
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.catalog import load_robot
 
 
@@ -96,20 +96,20 @@ def test_sts3215s_hold_an_arm_in_the_plant():
 # -- the emulated STS servos' instruction semantics (no pty: the network itself) -------
 
 def _send(net, packet: bytes, baud: float = 1_000_000):
-    from armlab.hardware.wire import feetech as ft
+    from armlab.hardware.families.feetech import packets as ft
 
     return [ft.decode_status(r) for _, r in net.handle(ft.decode_instruction(packet),
                                                        baud=baud)]
 
 
 def _so101_network():
-    from armlab.hardware.emulator.sts import emulated_sts_network
+    from armlab.hardware.families.feetech.emulator import emulated_sts_network
 
     return emulated_sts_network(load_robot("so101"), [1, 2, 3, 4, 5])
 
 
 def test_eeprom_writes_need_the_lock_open_as_lerobot_opens_it():
-    from armlab.hardware.wire import feetech as ft
+    from armlab.hardware.families.feetech import packets as ft
 
     net = _so101_network()
     s = net.servos[0]
@@ -124,7 +124,7 @@ def test_eeprom_writes_need_the_lock_open_as_lerobot_opens_it():
 
 
 def test_reg_write_waits_for_action_and_reset_restores_the_factory_table():
-    from armlab.hardware.wire import feetech as ft
+    from armlab.hardware.families.feetech import packets as ft
 
     net = _so101_network()
     s = net.servos[2]
@@ -141,7 +141,7 @@ def test_reg_write_waits_for_action_and_reset_restores_the_factory_table():
 
 
 def test_sync_read_answers_in_the_order_named_and_read_only_items_stay():
-    from armlab.hardware.wire import feetech as ft
+    from armlab.hardware.families.feetech import packets as ft
 
     net = _so101_network()
     answers = _send(net, ft.sync_read(3, 2, [5, 2, 4]))

@@ -25,7 +25,7 @@ from armlab.control import metrics
 from armlab.control.metrics import omega_from_peak, zeta_from_overshoot
 from armlab.control.params import PRESETS, Params
 from armlab.control.response import Measured, measure_response
-from armlab.hardware.wire.protocol1 import error_names
+from armlab.hardware.families.dynamixel1.packets import error_names
 
 
 def test_decimate_keeps_the_window_and_a_few_hundred_points():

@@ -19,7 +19,7 @@ import pytest
 from _emulator import emulator
 from _helpers import wait_for
 
-from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.families.dynamixel1 import packets as p1
 
 pytestmark = pytest.mark.realtime  # `armlab serve` processes on the wall clock
 

@@ -7,7 +7,8 @@ import math
 
 import pytest
 
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.table import (
     X_TABLES,
     XL330_M288_TABLE,
     XL430_W250_TABLE,
@@ -15,7 +16,6 @@ from armlab.hardware.servos.xseries import (
     OperatingMode,
     x_table_for,
 )
-from armlab.hardware.wire import protocol2 as p2
 
 #: e-manual control table: (name, address, bytes), the same on the three models
 SHARED = [("model_number", 0, 2), ("firmware_version", 6, 1), ("id", 7, 1), ("baud_rate", 8, 1),

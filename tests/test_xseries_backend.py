@@ -29,15 +29,15 @@ from _helpers import client_of, confirm_clear, wait_for
 from armlab.app.backends import make_backend
 from armlab.app.server import Lab, ServeOptions
 from armlab.hardware.backends.joint_map import default_joint_map
-from armlab.hardware.backends.xseries import XSeriesBackend
-from armlab.hardware.family_parts import open_servo_backend
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.backend import XSeriesBackend
+from armlab.hardware.families.xseries.table import (
     CENTRE,
     CURRENT_POSITION_D_GAIN,
     OperatingMode,
     x_table_for,
 )
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.family_parts import open_servo_backend
 from armlab.hardware.wire.bus import Bus
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.dynamics import gravity_torques

@@ -17,8 +17,12 @@ from armlab.app.backends import make_backend
 from armlab.control.experiments.thesis import line_plan, run_line
 from armlab.control.params import preset
 from armlab.hardware.backends.sim import SimBackend
-from armlab.hardware.backends.xseries_sim import XSimBackend
-from armlab.hardware.servos.xseries import CURRENT_POSITION_D_GAIN, XM430_W350, OperatingMode
+from armlab.hardware.families.xseries.sim_backend import XSimBackend
+from armlab.hardware.families.xseries.table import (
+    CURRENT_POSITION_D_GAIN,
+    XM430_W350,
+    OperatingMode,
+)
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import rnea
 

@@ -1,4 +1,4 @@
-"""The simulated X-series firmware (armlab/hardware/sim/xseries_servo.py) on the
+"""The simulated X-series firmware (armlab/hardware/families/xseries/firmware.py) on the
 OpenManipulator-X's chain:
 the numbers of the e-manual's control tables and block diagrams, checked in motion.
 
@@ -24,23 +24,23 @@ import numpy as np
 import pytest
 
 from armlab.app.commands.emulate import parse_fault
-from armlab.hardware.servos.xseries import (
-    CENTRE,
-    XL430_W250,
-    XM430_W350,
-    XM430_W350_TABLE,
-    OperatingMode,
-)
-from armlab.hardware.sim.dynamixel_servo import ServoParams
-from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.xseries_servo import (
+from armlab.hardware.families.xseries.firmware import (
     HW_OVERLOAD,
     PROFILE_VELOCITY_UNIT,
     PWM_FULL,
     XRegisters,
     XServoModel,
 )
-from armlab.hardware.wire.protocol2 import HardwareError
+from armlab.hardware.families.xseries.packets import HardwareError
+from armlab.hardware.families.xseries.table import (
+    CENTRE,
+    XL430_W250,
+    XM430_W350,
+    XM430_W350_TABLE,
+    OperatingMode,
+)
+from armlab.hardware.sim.plant import Plant
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics import load_robot
 
 OMX = load_robot("open_manipulator_x")

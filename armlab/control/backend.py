@@ -5,7 +5,7 @@ its servos; ``XSimBackend``, ``StsSimBackend`` for the X-series and Feetech mode
 gripper), ``BatchedArmBackend`` (one arm of a class's batched plant),
 ``QuadrupedSimBackend`` and ``BatchedQuadrupedBackend``. On a serial port (real or
 emulated servos), one per servo family over ``ServoBusBackend``:
-``armlab.hardware.backends.dynamixel.DynamixelBackend`` (protocol 1.0), ``XSeriesBackend``
+``armlab.hardware.families.dynamixel1.backend.DynamixelBackend`` (protocol 1.0), ``XSeriesBackend``
 (protocol 2.0) and ``StsBackend`` (Feetech). The server holds a class worker's arms
 through ``RemoteBackend``. The control loop works on any of them and never imports viser
 or pyserial.

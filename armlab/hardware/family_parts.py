@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from armlab.control.backend import BackendError
-from armlab.hardware.families import ServoFamily
+from armlab.hardware.families.base import ServoFamily
 from armlab.kinematics.model import Quadruped, SerialChain
 
 if TYPE_CHECKING:
@@ -41,42 +41,42 @@ class Parts:
 
 
 def _dxl_backend() -> type[ServoBusBackend]:
-    from armlab.hardware.backends.dynamixel import DynamixelBackend
+    from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
     return DynamixelBackend
 
 
 def _dxl_emulator() -> Callable[..., Any]:
-    from armlab.hardware.emulator.bus import network_for_map
+    from armlab.hardware.families.dynamixel1.emulator import network_for_map
     return network_for_map
 
 
 def _x_backend() -> type[ServoBusBackend]:
-    from armlab.hardware.backends.xseries import XSeriesBackend
+    from armlab.hardware.families.xseries.backend import XSeriesBackend
     return XSeriesBackend
 
 
 def _x_sim() -> type:
-    from armlab.hardware.backends.xseries_sim import XSimBackend
+    from armlab.hardware.families.xseries.sim_backend import XSimBackend
     return XSimBackend
 
 
 def _x_emulator() -> Callable[..., Any]:
-    from armlab.hardware.emulator.xseries import x_network_for_map
+    from armlab.hardware.families.xseries.emulator import x_network_for_map
     return x_network_for_map
 
 
 def _sts_backend() -> type[ServoBusBackend]:
-    from armlab.hardware.backends.sts import StsBackend
+    from armlab.hardware.families.feetech.backend import StsBackend
     return StsBackend
 
 
 def _sts_sim() -> type:
-    from armlab.hardware.backends.sts_sim import StsSimBackend
+    from armlab.hardware.families.feetech.sim_backend import StsSimBackend
     return StsSimBackend
 
 
 def _sts_emulator() -> Callable[..., Any]:
-    from armlab.hardware.emulator.sts import sts_network_for_map
+    from armlab.hardware.families.feetech.emulator import sts_network_for_map
     return sts_network_for_map
 
 
@@ -107,8 +107,8 @@ def open_servo_backend(model: SerialChain | Quadruped, port: str, *,
     """The backend for ``model``'s servos on ``port``: the real backend of the servo family
     the joint map names (``DynamixelBackend`` on protocol 1.0, ``XSeriesBackend`` on the
     X-series, ``StsBackend`` on Feetech STS)."""
-    from armlab.hardware.backends.dynamixel import DynamixelBackend
     from armlab.hardware.backends.joint_map import default_joint_map, load_joint_map
+    from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
 
     if isinstance(joint_map, str | Path):
         joint_map = load_joint_map(joint_map, model)

@@ -35,20 +35,20 @@ from collections.abc import Iterator
 import numpy as np
 
 from armlab.control.walking import GaitSpec, Walker, plan_gait
-from armlab.hardware.backends import sts
-from armlab.hardware.backends.dynamixel import DynamixelBackend
 from armlab.hardware.backends.servo_bus import ServoBusBackend
-from armlab.hardware.backends.xseries import (
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
+from armlab.hardware.families.dynamixel1.packets import wire_time
+from armlab.hardware.families.feetech import backend as sts
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.backend import (
     GOAL_AT,
     GOAL_LEN,
     PRESENT_AT,
     PRESENT_LEN,
     XSeriesBackend,
 )
-from armlab.hardware.wire import feetech as ft
-from armlab.hardware.wire import protocol1 as p1
-from armlab.hardware.wire import protocol2 as p2
-from armlab.hardware.wire.protocol1 import wire_time
 from armlab.kinematics.catalog import load_robot
 
 BAUD = 1_000_000

@@ -187,7 +187,7 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     import dynamixel_sdk as sdk
 
     from armlab.app.benches.bus import BAUD, OMX_IDS, paced_emulator
-    from armlab.hardware.backends.xseries import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
+    from armlab.hardware.families.xseries.backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
     from armlab.hardware.wire.bus import Bus
 
     ids = list(OMX_IDS)  # the arm's and the gripper's, as the X-series backend's

@@ -10,8 +10,9 @@ pushes, drags, recording, faults) over a
 one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
 lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
 with servos of a family with its own firmware model (X-series: the OpenManipulator-X,
-:class:`armlab.hardware.backends.xseries_sim.XSimBackend`; Feetech STS: the SO-101,
-:class:`armlab.hardware.backends.sts_sim.StsSimBackend`) is simulated with it as its shared
+:class:`armlab.hardware.families.xseries.sim_backend.XSimBackend`; Feetech STS: the SO-101,
+:class:`armlab.hardware.families.feetech.sim_backend.StsSimBackend`) is simulated with it as its
+shared
 arm is (``make_backend("sim", ...)``, without the gripper: a plant of its own that its loop
 steps, on the same clock): the batched plant models protocol-1.0 servos only.
 

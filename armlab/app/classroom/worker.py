@@ -33,7 +33,7 @@ from armlab.control.loop import LoopStatus
 from armlab.control.params import GainCheck, Params
 from armlab.control.restart import RestartableArm
 from armlab.control.walking import GaitSpec
-from armlab.hardware.sim.dynamixel_servo import ServoReport
+from armlab.hardware.families.dynamixel1.firmware import ServoReport
 from armlab.hardware.sim.hand import GraspObject
 from armlab.kinematics.model import SerialChain
 

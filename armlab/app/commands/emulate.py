@@ -65,12 +65,12 @@ from armlab.app.commands.scan import _ids
 from armlab.control.experiments.contact import check_wall_numbers
 from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
-from armlab.hardware.emulator.bus import Faults, PtyEmulator
+from armlab.hardware.emulator.pty import Faults, PtyEmulator
 from armlab.hardware.families import FAMILIES
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.firmware import SILENT
+from armlab.hardware.families.xseries.packets import HardwareError
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.sts_servo import SILENT
-from armlab.hardware.wire import feetech as ft
-from armlab.hardware.wire.protocol2 import HardwareError
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.validate import joint_index

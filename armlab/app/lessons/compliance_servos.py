@@ -13,7 +13,7 @@ import html
 from dataclasses import dataclass
 
 from armlab.control.backend import Backend, BackendError
-from armlab.hardware.wire.protocol1 import ErrorBits, error_names
+from armlab.hardware.families.dynamixel1.packets import ErrorBits, error_names
 
 #: What to do about each protocol 1.0 error bit (their names: ``protocol1.error_names``).
 ERROR_ADVICE: dict[ErrorBits, str] = {

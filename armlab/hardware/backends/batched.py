@@ -37,10 +37,10 @@ import numpy as np
 
 from armlab.control.backend import BackendError, GoalLimits, JointState
 from armlab.hardware.backends.sim import raw_goals, servo_limits, sim_registers
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.firmware import ServoRegisters, ServoReport
 from armlab.hardware.servos.servo_spec import ServoSpec
 from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
-from armlab.hardware.sim.dynamixel_servo import ServoRegisters, ServoReport
-from armlab.hardware.wire import protocol1 as p1
 from armlab.kinematics.validate import scalar, vector
 
 if TYPE_CHECKING:

@@ -48,18 +48,18 @@ from typing import Any
 import numpy as np
 
 from armlab.control.backend import GripperState
-from armlab.hardware.servos.sts import StsSpec
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.feetech.firmware import StsRegisters
+from armlab.hardware.families.feetech.table import StsSpec
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.firmware import XRegisters
+from armlab.hardware.families.xseries.table import (
     CURRENT_POSITION_D_GAIN,
     VELOCITY_UNIT,
     XSpec,
     x_table_for,
 )
-from armlab.hardware.sim.dynamixel_servo import ServoParams
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.sts_servo import StsRegisters
-from armlab.hardware.sim.xseries_servo import XRegisters
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import Joint, Link, SerialChain
 from armlab.kinematics.urdf_read import joint_kind, joint_limits
 

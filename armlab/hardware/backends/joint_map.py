@@ -50,12 +50,13 @@ from armlab.hardware.backends.gripper import (
     open_manipulator_gripper,
     so101_gripper,
 )
-from armlab.hardware.families import FAMILIES, ServoFamily, family, family_of_model
+from armlab.hardware.families import FAMILIES, family, family_of_model
 from armlab.hardware.families import servo_table as _family_table
+from armlab.hardware.families.base import ServoFamily
+from armlab.hardware.families.feetech.table import StsSpec
+from armlab.hardware.families.xseries.table import OperatingMode, XSpec
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import ServoSpec
-from armlab.hardware.servos.sts import StsSpec
-from armlab.hardware.servos.xseries import OperatingMode, XSpec
 from armlab.kinematics.catalog import ROBOT_FILES
 from armlab.kinematics.model import Joint, Quadruped, SerialChain, URDFError
 from armlab.kinematics.urdf_read import joint_limits

@@ -10,9 +10,9 @@ clamped into the gripper's range), goals clamped into the servos' own limits and
 one SYNC_WRITE, and torque on without a jump (each servo without torque first gets its
 present position as goal). Each family's backend adds how it reads, lays out its goals,
 brings its servos back at torque on and configures them:
-:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend` (protocol 1.0),
-:class:`~armlab.hardware.backends.xseries.XSeriesBackend` (X-series, protocol 2.0) and
-:class:`~armlab.hardware.backends.sts.StsBackend` (Feetech STS, the SO-101's).
+:class:`~armlab.hardware.families.dynamixel1.backend.DynamixelBackend` (protocol 1.0),
+:class:`~armlab.hardware.families.xseries.backend.XSeriesBackend` (X-series, protocol 2.0) and
+:class:`~armlab.hardware.families.feetech.backend.StsBackend` (Feetech STS, the SO-101's).
 """
 
 from __future__ import annotations

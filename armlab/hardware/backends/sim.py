@@ -18,13 +18,17 @@ import numpy as np
 
 from armlab.control.backend import BackendError, GoalLimits, GripperState, JointState
 from armlab.hardware.backends.gripper import GripperHolder, GripperServo
-from armlab.hardware.servos.control_table import THESIS_COMPLIANCE_MARGIN, THESIS_COMPLIANCE_SLOPE
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.firmware import ServoRegisters, ServoReport
+from armlab.hardware.families.dynamixel1.table import (
+    THESIS_COMPLIANCE_MARGIN,
+    THESIS_COMPLIANCE_SLOPE,
+)
+from armlab.hardware.families.feetech.table import StsSpec
+from armlab.hardware.families.xseries.table import XSpec
 from armlab.hardware.servos.servo_spec import COUNTS, RX24F, ServoSpec, TurnEncoder
-from armlab.hardware.servos.sts import StsSpec
-from armlab.hardware.servos.xseries import XSpec
-from armlab.hardware.sim.dynamixel_servo import ServoParams, ServoRegisters, ServoReport
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.wire import protocol1 as p1
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.validate import scalar, vector
 

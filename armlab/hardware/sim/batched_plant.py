@@ -9,7 +9,8 @@ objects (tests/test_batched_plant.py checks q, qd to 1e-9 and every raw report w
 exactly, at every step):
 
 1. every servo's firmware ticks (:meth:`BatchedPlant._tick`, the vectorised
-   :meth:`armlab.hardware.sim.dynamixel_servo.ServoModel.update`, thesis §2.3): the 10-bit Present
+   :meth:`armlab.hardware.families.dynamixel1.firmware.ServoModel.update`, thesis §2.3): the 10-bit
+   Present
    Position,
    the set-point moved towards Goal Position at Moving Speed, the compliance curve
    (margin, punch, slope, Torque Limit; thesis Table 2.4 / Gambar 2.20) giving the
@@ -46,16 +47,16 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
-from armlab.hardware.sim.dynamixel_servo import (
+from armlab.hardware.families.dynamixel1.firmware import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
-    ServoParams,
     ServoRegisters,
     ServoReport,
     effective_slope,
 )
+from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
 from armlab.hardware.sim.plant import JointStops, checked_wall
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import batched_dynamics
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import clamp
@@ -745,7 +746,7 @@ class BatchedPlant:
         moved = np.where(sp < target, np.minimum(up, target), np.maximum(down, target))
         moved = np.where(sp == target, sp, moved)
         sp = np.where(~enabled, present_f, np.where(raw_speed == 0, target, moved))
-        # the compliance curve (armlab.hardware.sim.dynamixel_servo.compliance_duty)
+        # the compliance curve (armlab.hardware.families.dynamixel1.firmware.compliance_duty)
         rsp = np.rint(sp).astype(np.int64)
         error = rsp - present
         pos = error > 0

@@ -3,7 +3,7 @@
 Each step of ``dt`` (1 ms default):
 
 1. every servo's firmware ticks once
-(:meth:`armlab.hardware.sim.dynamixel_servo.ServoModel.update`): it
+(:meth:`armlab.hardware.families.dynamixel1.firmware.ServoModel.update`): it
    senses its horn, moves its set-point, fixes its PWM duty for the step;
 2. the state (q, qd) is integrated by classical Runge–Kutta 4 with
    ``qdd = forward_dynamics(q, qd, tau)`` (thesis eq. 2.41–2.50 inverted), where tau =
@@ -30,13 +30,14 @@ from typing import cast
 import numpy as np
 
 from armlab.hardware.families import FAMILIES, family_of_spec
+from armlab.hardware.families.dynamixel1.firmware import ServoModel, ServoRegisters, ServoReport
+from armlab.hardware.families.feetech.firmware import StsRegisters
+from armlab.hardware.families.feetech.table import StsSpec
+from armlab.hardware.families.xseries.firmware import XRegisters, XReport, XServoModel
+from armlab.hardware.families.xseries.table import XSpec
 from armlab.hardware.servos.servo_spec import ServoSpec
-from armlab.hardware.servos.sts import StsSpec
-from armlab.hardware.servos.xseries import XSpec
-from armlab.hardware.sim.dynamixel_servo import ServoModel, ServoParams, ServoRegisters, ServoReport
 from armlab.hardware.sim.plant_step import rk4_step
-from armlab.hardware.sim.sts_servo import StsRegisters
-from armlab.hardware.sim.xseries_servo import XRegisters, XReport, XServoModel
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import finite
@@ -156,7 +157,7 @@ class Plant:
     Args:
         model: the serial chain.
         specs: one :class:`ServoSpec` (protocol 1.0) or
-        :class:`~armlab.hardware.servos.xseries.XSpec`
+        :class:`~armlab.hardware.families.xseries.table.XSpec`
             (X-series) per joint, or one for all.
         dt: integration step and servo firmware tick, s (1e-3 default).
         q0, qd0: (n,) initial joint state (default: neutral, at rest).

@@ -2,7 +2,7 @@
 
 Each leg is a 3-joint serial chain whose base is its hip mount, held still (as the
 emulator does for ``armlab emulate --robot quadruped``); its servos are AX-12A
-firmware models (``armlab.hardware.sim.dynamixel_servo``) on a simulated plant.
+firmware models (``armlab.hardware.families.dynamixel1.firmware``) on a simulated plant.
 :class:`QuadrupedSimBackend`
 stacks the four legs into one :class:`armlab.control.backend.Backend` of 12 joints in the
 order of ``armlab.hardware.backends.joint_map.default_joint_map`` (RF, LF, RH, LH; hip yaw, hip
@@ -13,7 +13,8 @@ floor plane the body rests on is found from where the feet really are (the servo
 deflected angles), the robot's weight is shared among the feet that touch it by
 force and moment balance, and each contact foot is pushed by its share along the
 floor's normal. Through J^T f that load turns each stance leg's servos, which give
-way by their compliance (margin, slope, punch: ``armlab.hardware.sim.dynamixel_servo``), and the
+way by their compliance (margin, slope, punch: ``armlab.hardware.families.dynamixel1.firmware``),
+and the
 plane through the deflected contact feet is the body's pose: :attr:`BodyOnLegs.tilt_deg`.
 The emulator loads its legs with the same class (``armlab emulate --robot quadruped``).
 """

@@ -39,13 +39,14 @@ from types import ModuleType
 
 import serial
 
-from armlab.hardware.families import FAMILIES, ServoFamily, Status, family
+from armlab.hardware.families import FAMILIES, family
+from armlab.hardware.families.base import ServoFamily, Status
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.packets import wire_time
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.xseries import packets as p2
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
-from armlab.hardware.wire import feetech as ft
-from armlab.hardware.wire import protocol1 as p1
-from armlab.hardware.wire import protocol2 as p2
-from armlab.hardware.wire.protocol1 import wire_time
 
 log = logging.getLogger("armlab.bus")
 
@@ -61,7 +62,7 @@ class BusError(OSError):
     """The bus cannot do what was asked; the message says what to check.
 
     An OSError (an I/O failure), which a command line prints as one line; the
-    backend over the bus (:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend`)
+    backend over the bus (:class:`~armlab.hardware.families.dynamixel1.backend.DynamixelBackend`)
     hands it to the control loop as a :class:`~armlab.control.backend.BackendError`.
     """
 
@@ -206,7 +207,7 @@ class Bus:
         stats: :class:`BusStats` counters.
         notes: one-line remarks from opening (latency timer, RS-485 not applicable).
         errors: last error reported by each servo ID (protocol 1.0 and STS: its error
-            bits; 2.0: its :class:`~armlab.hardware.wire.protocol2.StatusError`).
+            bits; 2.0: its :class:`~armlab.hardware.families.xseries.packets.StatusError`).
         family: the :class:`~armlab.hardware.families.ServoFamily` it speaks.
         late_ids: IDs whose status packet came while the bus waited for another servo's
             (a late reply: the scan pings them again).
@@ -588,9 +589,11 @@ class Bus:
 
     def write_bytes(self, servo_id: int, address: int, data: bytes
                     ) -> Status | None:
-        """WRITE ``data`` at ``address``; raise :class:`~armlab.hardware.wire.protocol1.ServoError`
+        """WRITE ``data`` at ``address``; raise
+        :class:`~armlab.hardware.families.dynamixel1.packets.ServoError`
         (protocol 1.0: range, instruction, checksum, or an angle-limit error on a goal)
-        or :class:`~armlab.hardware.wire.protocol2.ServoError` (2.0: any error number) when the
+        or :class:`~armlab.hardware.families.xseries.packets.ServoError` (2.0: any error number)
+        when the
         servo
         refuses it. A protocol-2.0 hardware alert alone is not a refusal: the write was
         carried out, and the alert stays in :attr:`errors`. An STS servo's status bits

@@ -21,12 +21,13 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from armlab.hardware.families import FAMILIES, ServoFamily, family
+from armlab.hardware.families import FAMILIES, family
+from armlab.hardware.families.base import ServoFamily
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.packets import wire_time
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
-from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
-from armlab.hardware.wire.protocol1 import wire_time
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
 COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)

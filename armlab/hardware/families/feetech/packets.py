@@ -2,7 +2,8 @@
 
 The frame is Dynamixel protocol 1.0's: ``FF FF ID LEN INST P1..Pn CHK`` with LEN = n + 2
 and CHK = ~(ID + LEN + INST + ΣP) & 0xFF; a status packet carries the error byte in
-place of INST. This module builds the frames with :mod:`armlab.hardware.wire.protocol1`'s
+place of INST. This module builds the frames with
+:mod:`armlab.hardware.families.dynamixel1.packets`'s
 encoder and parser (one implementation of the frame) and adds what differs:
 
 - the instruction set: PING 0x01, READ 0x02, WRITE 0x03, REG_WRITE 0x04, ACTION 0x05,
@@ -37,17 +38,17 @@ import enum
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from armlab.hardware.wire import protocol1 as _frame
+from armlab.hardware.families.dynamixel1 import packets as _frame
 
 # the frame is protocol 1.0's, and so are these parts of the family's codec (re-exported)
-from armlab.hardware.wire.protocol1 import OVERHEAD as OVERHEAD
-from armlab.hardware.wire.protocol1 import InstructionPacket as InstructionPacket
-from armlab.hardware.wire.protocol1 import PacketParser as PacketParser
-from armlab.hardware.wire.protocol1 import ParserStats as ParserStats
-from armlab.hardware.wire.protocol1 import ProtocolError as ProtocolError
-from armlab.hardware.wire.protocol1 import checksum as checksum
-from armlab.hardware.wire.protocol1 import decode_instruction as decode_instruction
-from armlab.hardware.wire.protocol1 import encode_packet
+from armlab.hardware.families.dynamixel1.packets import OVERHEAD as OVERHEAD
+from armlab.hardware.families.dynamixel1.packets import InstructionPacket as InstructionPacket
+from armlab.hardware.families.dynamixel1.packets import PacketParser as PacketParser
+from armlab.hardware.families.dynamixel1.packets import ParserStats as ParserStats
+from armlab.hardware.families.dynamixel1.packets import ProtocolError as ProtocolError
+from armlab.hardware.families.dynamixel1.packets import checksum as checksum
+from armlab.hardware.families.dynamixel1.packets import decode_instruction as decode_instruction
+from armlab.hardware.families.dynamixel1.packets import encode_packet
 
 BROADCAST_ID = 0xFE
 MAX_ID = 0xFC  #: 252, the highest ID (FTServo SDK, ``scservo_def.py``)

@@ -3,7 +3,8 @@
 The same ``armlab.control.backend.Backend`` as the Dynamixel backends, on the same base
 (:class:`~armlab.hardware.backends.servo_bus.ServoBusBackend`: finding the servos, the
 joint map, limits, E-STOP, reconnect, the gripper's servo), with what the STS series
-does its own way (:mod:`armlab.hardware.servos.sts`, :mod:`armlab.hardware.wire.feetech`):
+does its own way (:mod:`armlab.hardware.families.feetech.table`,
+:mod:`armlab.hardware.families.feetech.packets`):
 
 - :meth:`StsBackend.configure`: torque off; EEPROM unlocked (Lock 0: an STS ignores
   EEPROM writes while locked); return delay 0, Response Status Level 0 (the thesis's
@@ -23,7 +24,7 @@ does its own way (:mod:`armlab.hardware.servos.sts`, :mod:`armlab.hardware.wire.
   Position Limit, so a goal outside either never leaves the process;
 - a status byte with error bits (overload, overheating, voltage, angle sensor,
   over-current) is named with the joint's servo in its alarm
-  (:func:`~armlab.hardware.servos.sts.sts_alarm`); the loop then stops with torque off.
+  (:func:`~armlab.hardware.families.feetech.table.sts_alarm`); the loop then stops with torque off.
   Torque on again clears an overload (the firmware holds its output back until then);
 - the gripper's servo (the SO-101's ID 6, :func:`armlab.hardware.backends.gripper.
   so101_gripper`) is read in the same SYNC_READ and written in the same SYNC_WRITE as the
@@ -44,7 +45,7 @@ from armlab.hardware.backends.gripper import (
     gripper_state,
 )
 from armlab.hardware.backends.servo_bus import ServoBusBackend
-from armlab.hardware.servos.sts import (
+from armlab.hardware.families.feetech.table import (
     COUNTS,
     StsControlTable,
     StsSpec,

@@ -1,6 +1,6 @@
 """A Dynamixel X-series servo (XL430-W250, XM430-W350, XL330-M288) as its firmware behaves,
 driven by raw register values: the X-series counterpart of
-:mod:`armlab.hardware.sim.dynamixel_servo`.
+:mod:`armlab.hardware.families.dynamixel1.firmware`.
 
 What the servo's microcontroller does once per firmware tick (ROBOTIS e-manual, the
 models' pages: "Operating Mode", "Profile Velocity", "Position PID Gain"; docs/serial.md):
@@ -47,7 +47,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.xseries.packets import HARDWARE_ERROR_BITS, HardwareError
+from armlab.hardware.families.xseries.table import (
     CENTRE,
     COUNTS,
     FACTORY,
@@ -59,8 +60,7 @@ from armlab.hardware.servos.xseries import (
     XSpec,
     x_table_for,
 )
-from armlab.hardware.sim.dynamixel_servo import GearedMotor, ServoParams
-from armlab.hardware.wire.protocol2 import HARDWARE_ERROR_BITS, HardwareError
+from armlab.hardware.sim.servo_motor import GearedMotor, ServoParams
 
 #: s: the firmware's control period the e-manual's gain conversions assume (interpretation)
 FIRMWARE_PERIOD = 1e-3
@@ -155,12 +155,13 @@ class XReport:
 
 class XServoModel(GearedMotor):
     """One X-series servo's firmware and motor (the plant's interface of
-    :class:`armlab.hardware.sim.dynamixel_servo.ServoModel`: :meth:`update`, ``drive``/``damping``
+    :class:`armlab.hardware.families.dynamixel1.firmware.ServoModel`: :meth:`update`,
+    ``drive``/``damping``
     and the
-    torques of :class:`~armlab.hardware.sim.dynamixel_servo.GearedMotor`, :meth:`report`).
+    torques of :class:`~armlab.hardware.families.dynamixel1.firmware.GearedMotor`, :meth:`report`).
 
     Args:
-        spec: the datasheet (``armlab.hardware.servos.xseries.XM430_W350`` etc.).
+        spec: the datasheet (``armlab.hardware.families.xseries.table.XM430_W350`` etc.).
         regs: its registers (the model's power-on values when omitted). Shared, not
             copied: writes take effect at the next :meth:`update`.
         params: physical constants (rotor inertia, gear friction, overload time).

@@ -25,12 +25,12 @@ import numpy as np
 
 from armlab.control.backend import BackendError, JointState
 from armlab.hardware.backends.servo_bus import ServoBusBackend
-from armlab.hardware.servos.control_table import (
+from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.table import (
     THESIS_COMPLIANCE_MARGIN,
     THESIS_COMPLIANCE_SLOPE,
 )
 from armlab.hardware.servos.servo_spec import value_from_baud
-from armlab.hardware.wire import protocol1 as p1
 from armlab.hardware.wire.bus import sync_data
 
 log = logging.getLogger("armlab.dynamixel")

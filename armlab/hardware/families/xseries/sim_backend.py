@@ -1,8 +1,9 @@
 """``XSimBackend``: a simulated arm of X-series servos behind the ``Backend`` protocol.
 
-The simulated counterpart of :class:`armlab.hardware.backends.xseries.XSeriesBackend`, as
+The simulated counterpart of :class:`armlab.hardware.families.xseries.backend.XSeriesBackend`, as
 :class:`armlab.hardware.backends.sim.SimBackend` is of the protocol-1.0 backend: the servos are
-:class:`armlab.hardware.sim.xseries_servo.XServoModel` firmware in the plant, configured as the
+:class:`armlab.hardware.families.xseries.firmware.XServoModel` firmware in the plant, configured as
+the
 X-series backend configures real ones (current-based position control where the servo senses its
 current, with Goal Current as the torque bound and a Position D Gain, else Goal PWM; no
 profile limits, Min/Max Position Limit at the joint limits); goals go in as Goal
@@ -30,7 +31,8 @@ from armlab.hardware.backends.gripper import (
     gripper_settings,
 )
 from armlab.hardware.backends.sim import GrippedSimBackend
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.xseries.firmware import XRegisters, XReport
+from armlab.hardware.families.xseries.table import (
     VELOCITY_UNIT,
     OperatingMode,
     XSpec,
@@ -39,16 +41,16 @@ from armlab.hardware.servos.xseries import (
     lab_settings,
     x_table_for,
 )
-from armlab.hardware.sim.dynamixel_servo import ServoParams
-from armlab.hardware.sim.xseries_servo import XRegisters, XReport
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import SerialChain
 
 
 def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
                       torque_limit: float = 1.0, torque_on: bool = True) -> XRegisters:
-    """Registers as :class:`~armlab.hardware.backends.xseries.XSeriesBackend` configures a servo:
-    the lab's mode and its settings (:func:`armlab.hardware.servos.xseries.lab_mode`,
-    :func:`~armlab.hardware.servos.xseries.lab_settings`), no profile limits."""
+    """Registers as :class:`~armlab.hardware.families.xseries.backend.XSeriesBackend` configures a
+    servo:
+    the lab's mode and its settings (:func:`armlab.hardware.families.xseries.table.lab_mode`,
+    :func:`~armlab.hardware.families.xseries.table.lab_settings`), no profile limits."""
     regs = XRegisters.factory(x_table_for(spec.model_number), goal_position=goal)
     regs.operating_mode = lab_mode(spec)
     for item, value, _ in lab_settings(spec, torque_limit=torque_limit):
@@ -59,7 +61,8 @@ def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
 
 
 def gripper_registers(spec: XSpec, *, torque_on: bool = True) -> XRegisters:
-    """Registers as :class:`~armlab.hardware.backends.xseries.XSeriesBackend` configures a gripper's
+    """Registers as :class:`~armlab.hardware.families.xseries.backend.XSeriesBackend` configures a
+    gripper's
     servo: current-based position control with
     :func:`armlab.hardware.backends.gripper.gripper_settings`,
     the gripper's profile velocity, the goal at the horn's centre."""
@@ -92,7 +95,7 @@ class XSimBackend(GrippedSimBackend):
 
     Args:
         model: the serial chain.
-        spec: the servos' datasheet (``armlab.hardware.servos.xseries.XM430_W350`` etc.).
+        spec: the servos' datasheet (``armlab.hardware.families.xseries.table.XM430_W350`` etc.).
         dt, q0, directions, params, torque_on: as :class:`~armlab.hardware.backends.sim.SimBackend`.
         gripper: the gripper's servo (same model, current-based position control), or None.
     """

@@ -1,7 +1,7 @@
 """``XSeriesBackend``: the controller's servos are X-series Dynamixels (protocol 2.0).
 
 The same ``armlab.control.backend.Backend`` as the protocol-1.0
-:class:`~armlab.hardware.backends.dynamixel.DynamixelBackend`, on the same base
+:class:`~armlab.hardware.families.dynamixel1.backend.DynamixelBackend`, on the same base
 (:class:`~armlab.hardware.backends.servo_bus.ServoBusBackend`: finding the servos, the
 joint map, limits, E-STOP, reconnect), with what protocol 2.0 and the X-series do
 their own way:
@@ -45,7 +45,8 @@ from armlab.hardware.backends.gripper import (
     gripper_settings,
 )
 from armlab.hardware.backends.servo_bus import ServoBusBackend
-from armlab.hardware.servos.xseries import (
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.table import (
     VELOCITY_UNIT,
     OperatingMode,
     XControlTable,
@@ -54,7 +55,6 @@ from armlab.hardware.servos.xseries import (
     lab_mode,
     lab_settings,
 )
-from armlab.hardware.wire import protocol2 as p2
 
 log = logging.getLogger("armlab.xseries")
 
@@ -198,7 +198,8 @@ class XSeriesBackend(ServoBusBackend):
 
     def _ram_settings(self, servo_id: int, lines: list[str], *, name: str = "") -> None:
         """The RAM items (lost at a REBOOT): status return level, no profile limit, then
-        the mode's own (:func:`armlab.hardware.servos.xseries.lab_settings`: the torque bound, the D
+        the mode's own (:func:`armlab.hardware.families.xseries.table.lab_settings`: the torque
+        bound, the D
         gain; the gripper's :func:`armlab.hardware.backends.gripper.gripper_settings`)."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
         gripper = self.gripper is not None and servo_id == self.gripper.servo_id

@@ -1,5 +1,5 @@
 """Emulated X-series servos speaking protocol 2.0, behind the same pseudo-terminal as the
-protocol-1.0 ones (:class:`armlab.hardware.emulator.bus.PtyEmulator` serves either network).
+protocol-1.0 ones (:class:`armlab.hardware.emulator.pty.PtyEmulator` serves either network).
 
 Each :class:`XVirtualServo` keeps its 147-byte control-table image and answers as the
 e-manual's "Protocol 2.0" page describes: PING (a broadcast PING is answered by every
@@ -9,7 +9,8 @@ error numbers (Access for a read-only item, an EEPROM item while torque is on, o
 address past the table; Data Length, Data Range; Instruction for an ACTION with nothing
 registered); the alert bit while Hardware Error Status is set; silence at a baud that
 is not the servo's. The servos move because :class:`XPlantPhysics` hands their RAM to
-the simulated X-series firmware (:class:`armlab.hardware.sim.xseries_servo.XServoModel`) of the same
+the simulated X-series firmware (:class:`armlab.hardware.families.xseries.firmware.XServoModel`) of
+the same
 plant the simulator uses; an arm's gripper servo (the OpenManipulator-X's ID 15) moves
 the fingers' load of :func:`armlab.hardware.backends.gripper.gripper_plant`.
 
@@ -27,13 +28,19 @@ from typing import TYPE_CHECKING, ClassVar
 
 from armlab.hardware.backends.gripper import GripperServo, gripper_plant
 from armlab.hardware.backends.joint_map import JointMap
-from armlab.hardware.emulator.bus import ArmPhysics, ServoBus, TableImage
-from armlab.hardware.servos.xseries import TABLE_SIZE, OperatingMode, XControlTable, x_table_for
+from armlab.hardware.emulator.network import ServoBus, TableImage
+from armlab.hardware.emulator.physics import ArmPhysics
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.firmware import XRegisters
+from armlab.hardware.families.xseries.packets import ErrorNumber as E
+from armlab.hardware.families.xseries.packets import Instruction as I
+from armlab.hardware.families.xseries.table import (
+    TABLE_SIZE,
+    OperatingMode,
+    XControlTable,
+    x_table_for,
+)
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.xseries_servo import XRegisters
-from armlab.hardware.wire import protocol2 as p2
-from armlab.hardware.wire.protocol2 import ErrorNumber as E
-from armlab.hardware.wire.protocol2 import Instruction as I
 from armlab.kinematics.model import Quadruped, SerialChain
 
 #: The firmware version the emulated servos report (address 6).
@@ -48,7 +55,7 @@ _GOAL_LIMITS = (("goal_current", "current_limit"), ("goal_pwm", "pwm_limit"),
 @dataclass
 class XVirtualServo(TableImage):
     """One emulated X-series servo: its 147-byte table image (``table`` an
-    :class:`~armlab.hardware.servos.xseries.XControlTable`) and its firmware's state.
+    :class:`~armlab.hardware.families.xseries.table.XControlTable`) and its firmware's state.
 
     Attributes:
         hardware_error: Hardware Error Status the simulated firmware reports.
@@ -148,8 +155,8 @@ class XVirtualServo(TableImage):
 
 class XPlantPhysics(ArmPhysics):
     """Emulated X-series servos moved by the simulated plant (:class:`~armlab.hardware.
-    emulator.bus.ArmPhysics`: the arm's, the gripper's): each servo's RAM goes into its
-    :class:`~armlab.hardware.sim.xseries_servo.XServoModel`'s registers, its report comes
+    emulator.physics.ArmPhysics`: the arm's, the gripper's): each servo's RAM goes into its
+    :class:`~armlab.hardware.families.xseries.firmware.XServoModel`'s registers, its report comes
     back.
 
     Args:
@@ -189,7 +196,7 @@ class XPlantPhysics(ArmPhysics):
 @dataclass
 class XServoNetwork(ServoBus):
     """X-series servos (:class:`XVirtualServo`) on one bus and how they answer protocol-2.0
-    instruction packets (the interface :class:`armlab.hardware.emulator.bus.PtyEmulator` serves)."""
+    instruction packets (the interface :class:`armlab.hardware.emulator.pty.PtyEmulator` serves)."""
 
     servos: list[XVirtualServo]
     physics: XPlantPhysics

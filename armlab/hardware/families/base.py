@@ -1,16 +1,7 @@
-"""Servo families: everything the lab knows about one kind of servo, in one entry.
-
-A family is a packet codec (the module that builds and parses its packets), its control
-tables by model number, its firmware model for the simulation, its backends (real and
-simulated) and its emulator. The bus, the scan, the joint map, the plant, the backend
-factories and the emulator ask :func:`family` (by protocol, name or model) instead of
-testing a protocol number, so adding a family is its own modules plus one entry in
-:data:`FAMILIES`.
-
-A family's packet module is typed by :class:`Codec` (each of ``wire/protocol1.py``,
-``wire/protocol2.py`` and ``wire/feetech.py`` is one, checked by mypy) and its firmware
-model is a class here. Its backends and emulator stand above the bus that imports this
-module: :mod:`armlab.hardware.family_parts` names them per family.
+"""What a servo family is (:class:`ServoFamily`) and the packet module each one has
+(:class:`Codec`, its parser, status and instruction packets): the types every family's
+entry and every part that speaks to servos share. The registry of the families the lab
+drives is :mod:`armlab.hardware.families`.
 """
 
 from __future__ import annotations
@@ -19,15 +10,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from armlab.hardware.servos.control_table import RX24F_TABLE, TABLES, ControlTable, table_for
-from armlab.hardware.servos.sts import STS3215_TABLE, STS_TABLES, sts_table_for
-from armlab.hardware.servos.xseries import X_TABLES, XM430_W350_TABLE, x_table_for
-from armlab.hardware.sim.dynamixel_servo import ServoModel
-from armlab.hardware.sim.sts_servo import StsServoModel
-from armlab.hardware.sim.xseries_servo import XServoModel
-from armlab.hardware.wire import feetech as ft
-from armlab.hardware.wire import protocol1 as p1
-from armlab.hardware.wire import protocol2 as p2
+from armlab.hardware.servos.control_table import ControlTable
 
 
 class Parser(Protocol):
@@ -157,78 +140,3 @@ class ServoFamily:
         return True
 
 
-def _spec_type(table: ControlTable) -> type:
-    return type(table.spec)
-
-
-DYNAMIXEL1 = ServoFamily(
-    key="dynamixel1", title="Dynamixel protocol 1.0", protocol=1, codec=p1, tables=TABLES,
-    default_table=RX24F_TABLE, table_for=table_for, model_address=0, ping_data=0,
-    status_overhead=p1.OVERHEAD, id_offset=2, group_read=False, broadcast_ping=False,
-    spec_type=_spec_type(RX24F_TABLE), firmware_item="firmware_version",
-    limit_items=("cw_angle_limit", "ccw_angle_limit"),
-    servo_model=ServoModel,
-    aliases=("1", "1.0", "protocol1"),
-)
-XSERIES = ServoFamily(
-    key="xseries", title="Dynamixel X-series (protocol 2.0)", protocol=2, codec=p2,
-    tables=X_TABLES, default_table=XM430_W350_TABLE, table_for=x_table_for, model_address=0,
-    ping_data=3, status_overhead=p2.status_length(0), id_offset=4, group_read=True,
-    broadcast_ping=True, spec_type=_spec_type(XM430_W350_TABLE),
-    firmware_item="firmware_version", limit_items=("min_position_limit", "max_position_limit"),
-    servo_model=XServoModel,
-    aliases=("2", "2.0", "protocol2", "dynamixel2"),
-)
-STS = ServoFamily(
-    key="sts", title="Feetech STS", protocol="sts", codec=ft, tables=STS_TABLES,
-    default_table=STS3215_TABLE, table_for=sts_table_for, model_address=3, ping_data=0,
-    status_overhead=ft.OVERHEAD, id_offset=2, group_read=True, broadcast_ping=False,
-    spec_type=_spec_type(STS3215_TABLE), firmware_item="firmware_major",
-    limit_items=("min_position_limit", "max_position_limit"),
-    servo_model=StsServoModel,
-    replies_all_level=1,
-    aliases=("feetech", "scs", "sms_sts"),
-)
-#: Every family the lab drives, in the order a scan tries them.
-FAMILIES: tuple[ServoFamily, ...] = (DYNAMIXEL1, XSERIES, STS)
-
-
-def family(which: int | float | str | ServoFamily) -> ServoFamily:
-    """The family named by a protocol tag (1, 2.0, "sts"), a key or alias, or a family
-    itself; ValueError listing the known ones otherwise."""
-    if isinstance(which, ServoFamily):
-        return which
-    if isinstance(which, float) and which.is_integer():
-        which = int(which)
-    for f in FAMILIES:
-        if which == f.protocol or (isinstance(which, str) and
-                                   which.lower() in (f.key, str(f.protocol), *f.aliases)):
-            return f
-    raise ValueError(f"unknown servo family or protocol {which!r}; known: "
-                     + ", ".join(f"{f.protocol!r} ({f.title})" for f in FAMILIES))
-
-
-def family_of_model(model: int | str) -> ServoFamily:
-    """The family one model (number or name) belongs to; ValueError listing every model."""
-    for f in FAMILIES:
-        if f.knows(model):
-            return f
-    tables = [t for f in FAMILIES for t in f.tables.values()]
-    if isinstance(model, str):
-        raise ValueError(f"unknown servo model {model!r}; known: "
-                         f"{', '.join(t.name for t in tables)}")
-    raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
-        f"{t.spec.model_number} ({t.name})" for t in tables))
-
-
-def family_of_spec(spec: object) -> ServoFamily:
-    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``)."""
-    for f in FAMILIES:
-        if isinstance(spec, f.spec_type):
-            return f
-    raise ValueError(f"{spec!r} is no servo datasheet the lab knows")
-
-
-def servo_table(model: int | str) -> ControlTable:
-    """The control table of any model the lab knows (number or name)."""
-    return family_of_model(model).table_for(model)

@@ -1,11 +1,12 @@
 """``StsSimBackend``: a simulated arm of Feetech STS servos (the SO-101) behind the
 ``Backend`` protocol.
 
-The simulated counterpart of :class:`armlab.hardware.backends.sts.StsBackend`, as
-:class:`armlab.hardware.backends.xseries_sim.XSimBackend` is of the X-series backend: the
-servos are :class:`armlab.hardware.sim.sts_servo.StsServoModel` firmware in the plant, at
+The simulated counterpart of :class:`armlab.hardware.families.feetech.backend.StsBackend`, as
+:class:`armlab.hardware.families.xseries.sim_backend.XSimBackend` is of the X-series backend: the
+servos are :class:`armlab.hardware.families.feetech.firmware.StsServoModel` firmware in the plant,
+at
 the robot's supply (the SO-101's 5 V), configured as the STS backend configures real ones
-(:func:`armlab.hardware.servos.sts.lab_settings`: position mode, P 16, no acceleration
+(:func:`armlab.hardware.families.feetech.table.lab_settings`: position mode, P 16, no acceleration
 limit, the torque limit; Min/Max Position Limit at the joint limits). Goals go in as Goal
 Position and Goal Speed counts, readings come back as the servos report them (4096
 counts a turn, counts/s, Present Current signed as Present Load) and are decoded with the
@@ -30,16 +31,17 @@ from armlab.hardware.backends.gripper import (
 )
 from armlab.hardware.backends.joint_map import ROBOT_SUPPLY
 from armlab.hardware.backends.sim import GrippedSimBackend
-from armlab.hardware.servos.sts import StsSpec, lab_settings, sts_alarm, sts_table_for
-from armlab.hardware.sim.dynamixel_servo import ServoParams
-from armlab.hardware.sim.sts_servo import StsRegisters, StsReport
+from armlab.hardware.families.feetech.firmware import StsRegisters, StsReport
+from armlab.hardware.families.feetech.table import StsSpec, lab_settings, sts_alarm, sts_table_for
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import SerialChain
 
 
 def sts_registers(spec: StsSpec, *, goal: int, min_limit: int = 0, max_limit: int = 4095,
                   torque_limit: float = 1.0, torque_on: bool = True) -> StsRegisters:
-    """Registers as :class:`~armlab.hardware.backends.sts.StsBackend` configures a servo
-    (:func:`~armlab.hardware.servos.sts.lab_settings`), its Min/Max Position Limit and its
+    """Registers as :class:`~armlab.hardware.families.feetech.backend.StsBackend` configures a servo
+    (:func:`~armlab.hardware.families.feetech.table.lab_settings`), its Min/Max Position Limit and
+    its
     goal."""
     table = sts_table_for(spec.model_number)
     regs = StsRegisters.factory(table, goal_position=goal)
@@ -55,7 +57,7 @@ class StsSimBackend(GrippedSimBackend):
 
     Args:
         model: the serial chain.
-        spec: the servos' datasheet (``armlab.hardware.servos.sts.STS3215``).
+        spec: the servos' datasheet (``armlab.hardware.families.feetech.table.STS3215``).
         dt, q0, directions, torque_on: as :class:`~armlab.hardware.backends.sim.SimBackend`.
         params: the servos' physical constants (default: at the robot's supply,
             :data:`~armlab.hardware.backends.joint_map.ROBOT_SUPPLY`, else the datasheet's).

@@ -1,10 +1,10 @@
 """A Feetech STS3215 as its firmware behaves, driven by raw register values: the STS
-counterpart of :mod:`armlab.hardware.sim.dynamixel_servo` and
-:mod:`armlab.hardware.sim.xseries_servo`, with the same plant interface (:meth:`update`,
+counterpart of :mod:`armlab.hardware.families.dynamixel1.firmware` and
+:mod:`armlab.hardware.families.xseries.firmware`, with the same plant interface (:meth:`update`,
 ``drive``/``damping``, :meth:`report`).
 
 What the model's firmware does each tick (the registers of
-:mod:`armlab.hardware.servos.sts`):
+:mod:`armlab.hardware.families.feetech.table`):
 
 1. sense the horn angle through the 12-bit magnetic encoder (4096 counts a turn);
 2. Position mode (Operating Mode 0): clamp Goal Position into the Min/Max Position Limit
@@ -27,7 +27,7 @@ What the model's firmware does each tick (the registers of
 Between ticks the horn torque follows the DC-motor line at the supply voltage ``V``
 (``ServoParams.voltage``): tau = stall(V) · (duty − omega / no_load(V)) minus gear
 friction, with stall(V) and no_load(V) the datasheet's figures at
-:attr:`~armlab.hardware.servos.sts.StsSpec.voltage` scaled by V / that voltage (a DC
+:attr:`~armlab.hardware.families.feetech.table.StsSpec.voltage` scaled by V / that voltage (a DC
 motor's stall torque and no-load speed are both proportional to its supply).
 
 *Interpretations* (Feetech publishes neither the loop's form nor its scaling, nor the
@@ -44,7 +44,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from armlab.hardware.servos.sts import (
+from armlab.hardware.families.feetech.packets import ErrorBits
+from armlab.hardware.families.feetech.table import (
     CENTRE,
     COUNTS,
     CURRENT_UNIT,
@@ -54,8 +55,7 @@ from armlab.hardware.servos.sts import (
     StsControlTable,
     StsSpec,
 )
-from armlab.hardware.sim.dynamixel_servo import GearedMotor, ServoParams
-from armlab.hardware.wire.feetech import ErrorBits
+from armlab.hardware.sim.servo_motor import GearedMotor, ServoParams
 
 FIRMWARE_PERIOD = 1e-3  #: s per firmware tick (interpretation)
 KP_UNIT = 1.0 / 1000.0  #: duty per count of error per P unit (interpretation)
@@ -134,7 +134,7 @@ class StsServoModel(GearedMotor):
     """One STS servo's firmware and motor.
 
     Args:
-        spec: the datasheet (``armlab.hardware.servos.sts.STS3215``).
+        spec: the datasheet (``armlab.hardware.families.feetech.table.STS3215``).
         regs: its registers (the model's power-on values when omitted). Shared, not
             copied: writes take effect at the next :meth:`update`.
         params: physical constants; ``params.voltage`` is the supply (the SO-101 runs

@@ -34,6 +34,12 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from armlab.hardware.families.feetech.packets import (
+    ErrorBits,
+    decode_sign_magnitude,
+    describe_errors,
+    encode_sign_magnitude,
+)
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
 from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
     CENTRE,
@@ -42,12 +48,6 @@ from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one
     RETURN_DELAY_UNIT,
     RPM,
     TurnEncoder,
-)
-from armlab.hardware.wire.feetech import (
-    ErrorBits,
-    decode_sign_magnitude,
-    describe_errors,
-    encode_sign_magnitude,
 )
 
 SPEED_UNIT = POSITION_UNIT  #: rad/s per Goal/Present Speed count (counts per second)

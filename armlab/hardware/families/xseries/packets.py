@@ -8,7 +8,7 @@ and an ERROR byte before its data. The CRC is CRC-16 with polynomial 0x8005 (ini
 reflection: "CRC-16/BUYPASS") over every byte from the first FF to the last parameter.
 Inside INST..parameters the header pattern ``FF FF FD`` is sent as ``FF FF FD FD`` (byte
 stuffing); LEN and CRC count the stuffed bytes. Pure functions on bytes, no I/O, like
-:mod:`armlab.hardware.wire.protocol1`.
+:mod:`armlab.hardware.families.dynamixel1.packets`.
 
 The e-manual's PING example and its answer from a model-1030 servo (firmware 0x26)::
 

@@ -23,14 +23,16 @@ plant maps joints to servos (direction sign).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from armlab.hardware.families.dynamixel1.packets import ErrorBits
 from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
-from armlab.hardware.wire.protocol1 import ErrorBits
+from armlab.hardware.sim.servo_motor import GearedMotor, ServoParams
 
 #: Error-byte bits the firmware sets (plain ints: this runs every tick).
 ERROR_ANGLE_LIMIT = int(ErrorBits.ANGLE_LIMIT)
+
+
 ERROR_OVERLOAD = int(ErrorBits.OVERLOAD)
 
 
@@ -62,35 +64,6 @@ class ServoRegisters:
     alarm_led: int = 36  # overload | overheating
     alarm_shutdown: int = 36
     lock: int = 0
-
-
-@dataclass(frozen=True)
-class ServoParams:
-    """Physical constants the datasheet does not give (estimates; docs/servo-model.md).
-
-    Attributes:
-        rotor_inertia: motor rotor inertia seen at the horn (J_rotor · gear²), kg m².
-        coulomb_friction: gear-train dry friction at the horn, N·m.
-        viscous_friction: gear-train viscous friction at the horn, N·m·s/rad.
-        friction_speed: speed below which dry friction is smoothed (tanh), rad/s.
-        overload_time: seconds at full duty without moving before the overload error.
-        stall_speed: horn speed under which the servo counts as stalled, rad/s.
-        voltage: supply voltage reported as Present Voltage, V.
-        temperature: reported Present Temperature, °C.
-    """
-
-    rotor_inertia: float = 3.0e-3
-    coulomb_friction: float = 0.03
-    viscous_friction: float = 0.005
-    friction_speed: float = 0.02
-    overload_time: float = 2.0
-    stall_speed: float = 0.05
-    voltage: float = 12.0
-    temperature: float = 35.0
-
-
-#: No friction, no rotor: the bare rigid body (for energy checks and teaching).
-IDEAL = ServoParams(rotor_inertia=0.0, coulomb_friction=0.0, viscous_friction=0.0)
 
 
 @dataclass(frozen=True)
@@ -145,33 +118,6 @@ def compliance_duty(error: float, *, margin: int, slope: int, punch: int,
         return 0.0
     p = min(punch, torque_limit)
     return min(float(torque_limit), p + (e - margin) * (torque_limit - p) / effective_slope(slope))
-
-
-class GearedMotor:
-    """The horn torque between firmware ticks, the same for every servo model: the
-    DC-motor line at the duty the firmware holds over the tick (``drive − damping · ω``,
-    set by each tick) minus gear friction (:attr:`params`)."""
-
-    params: ServoParams
-    #: Horn torque coefficients for the current tick: tau = drive - damping * omega.
-    drive: float = 0.0
-    damping: float = 0.0
-
-    def torque(self, velocity: float) -> float:
-        """Horn torque N·m at horn ``velocity`` rad/s: motor line minus gear friction."""
-        return self.drive - self.damping * velocity - self.friction(velocity)
-
-    def motor_torque(self, velocity: float) -> float:
-        """Motor torque at the horn (the torque–speed line at the present duty), N·m."""
-        return self.drive - self.damping * velocity
-
-    def friction(self, velocity: float) -> float:
-        """Gear-train friction torque opposing ``velocity`` (positive = resisting CCW), N·m."""
-        p = self.params
-        f = p.viscous_friction * velocity
-        if p.coulomb_friction:
-            f += p.coulomb_friction * math.tanh(velocity / p.friction_speed)
-        return f
 
 
 class ServoModel(GearedMotor):

@@ -1,13 +1,13 @@
 """Emulated Feetech STS servos behind the same pseudo-terminal as the Dynamixel ones
-(:class:`armlab.hardware.emulator.bus.PtyEmulator` serves any family's network).
+(:class:`armlab.hardware.emulator.pty.PtyEmulator` serves any family's network).
 
 Each :class:`StsVirtualServo` keeps its 71-byte control-table image
-(:mod:`armlab.hardware.servos.sts`) and answers the instructions of
-:mod:`armlab.hardware.wire.feetech`: PING, READ, WRITE, REG_WRITE/ACTION, SYNC_WRITE,
+(:mod:`armlab.hardware.families.feetech.table`) and answers the instructions of
+:mod:`armlab.hardware.families.feetech.packets`: PING, READ, WRITE, REG_WRITE/ACTION, SYNC_WRITE,
 SYNC_READ (each named servo answers in turn) and RESET; Response Status Level (address 8:
 0 = PING and READ only, 1 = everything); silence at a baud that is not the servo's. The
 servos move because :class:`StsPlantPhysics` hands their registers to the simulated STS
-firmware (:class:`armlab.hardware.sim.sts_servo.StsServoModel`) of the same plant the
+firmware (:class:`armlab.hardware.families.feetech.firmware.StsServoModel`) of the same plant the
 simulator uses; its report comes back into the table, its error bits into every status
 packet. The SO-101's gripper servo (ID 6) moves the jaw's load.
 
@@ -27,13 +27,14 @@ from typing import ClassVar
 
 from armlab.hardware.backends.gripper import GripperServo, gripper_plant
 from armlab.hardware.backends.joint_map import ROBOT_SUPPLY, JointMap
-from armlab.hardware.emulator.bus import ArmPhysics, ServoBus, TableImage
-from armlab.hardware.servos.sts import TABLE_SIZE, StsControlTable, sts_table_for
-from armlab.hardware.sim.dynamixel_servo import ServoParams
+from armlab.hardware.emulator.network import ServoBus, TableImage
+from armlab.hardware.emulator.physics import ArmPhysics
+from armlab.hardware.families.feetech import packets as ft
+from armlab.hardware.families.feetech.firmware import StsRegisters, StsServoModel
+from armlab.hardware.families.feetech.packets import Instruction as I
+from armlab.hardware.families.feetech.table import TABLE_SIZE, StsControlTable, sts_table_for
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.sts_servo import StsRegisters, StsServoModel
-from armlab.hardware.wire import feetech as ft
-from armlab.hardware.wire.feetech import Instruction as I
+from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import Quadruped, SerialChain
 
 #: The firmware version the emulated servos report (major.minor at addresses 0, 1).
@@ -47,7 +48,7 @@ _REGISTERS = tuple(f.name for f in fields(StsRegisters))
 @dataclass
 class StsVirtualServo(TableImage):
     """One emulated STS servo: its table image (``table`` an
-    :class:`~armlab.hardware.servos.sts.StsControlTable`) and its firmware's error bits.
+    :class:`~armlab.hardware.families.feetech.table.StsControlTable`) and its firmware's error bits.
 
     Attributes:
         model_error: the status error bits the simulated firmware reports.
@@ -105,7 +106,7 @@ class StsVirtualServo(TableImage):
 class StsPlantPhysics(ArmPhysics):
     """Emulated STS servos moved by the simulated plant (:class:`~armlab.hardware.emulator.
     bus.ArmPhysics`: the arm's, the gripper's): each servo's registers go into its
-    :class:`~armlab.hardware.sim.sts_servo.StsServoModel`, its report comes back."""
+    :class:`~armlab.hardware.families.feetech.firmware.StsServoModel`, its report comes back."""
 
     def _model(self, s: StsVirtualServo) -> StsServoModel:  # type: ignore[override]  # an STS network's servos are StsVirtualServos
         return super()._model(s)
@@ -132,7 +133,7 @@ class StsPlantPhysics(ArmPhysics):
 @dataclass
 class StsServoNetwork(ServoBus):
     """STS servos (:class:`StsVirtualServo`) on one bus and how they answer Feetech
-    instruction packets (what :class:`armlab.hardware.emulator.bus.PtyEmulator` serves)."""
+    instruction packets (what :class:`armlab.hardware.emulator.pty.PtyEmulator` serves)."""
 
     servos: list[StsVirtualServo]
     physics: StsPlantPhysics

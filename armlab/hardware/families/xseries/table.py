@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from armlab.hardware.families.xseries.packets import describe_hardware_error
 from armlab.hardware.servos.control_table import EEPROM, RAM, ControlTable, Item
 from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one home
     CENTRE,
@@ -26,7 +27,6 @@ from armlab.hardware.servos.servo_spec import (  # the 4096-count encoder's, one
     RPM,
     TurnEncoder,
 )
-from armlab.hardware.wire.protocol2 import describe_hardware_error
 
 VELOCITY_UNIT = 0.229 * RPM  #: rad/s per Goal/Present Velocity count
 LOAD_UNIT = 0.001  #: fraction of maximum torque per Present Load count (0.1 %)
@@ -153,7 +153,7 @@ FACTORY = {
 #: in (PWM) Position Control, and with the factory D gain 0 an arm under the compliance
 #: loop rings: the thesis gains on the simulated OpenManipulator-X swing its shoulder by
 #: 20° peak to peak while holding, and by about 1.2° with this gain (the X firmware model
-#: in ``armlab.hardware.sim.xseries_servo``; 200 is too little, 2000 no better).
+#: in ``armlab.hardware.families.xseries.firmware``; 200 is too little, 2000 no better).
 CURRENT_POSITION_D_GAIN = 800
 #: Largest Velocity Limit (address 44) each model takes.
 VELOCITY_LIMIT_MAX = {"XL430-W250": 1023, "XM430-W350": 1023, "XL330-M288": 2047}

@@ -1,0 +1,74 @@
+"""The servo families the lab drives, one folder each, and how to find one.
+
+A family (:class:`~armlab.hardware.families.base.ServoFamily`) is everything the lab
+knows about one kind of servo, all in its own folder ``families/<family>/``:
+
+- ``packets.py``: its packet codec (typed by :class:`~armlab.hardware.families.base.Codec`);
+- ``table.py``: its control tables by model number;
+- ``firmware.py``: its firmware model for the simulation;
+- ``backend.py``: the backend on a serial port (and ``sim_backend.py``, the simulated arm
+  with its servos, where the plain ``SimBackend`` is not enough);
+- ``emulator.py``: its emulated servos behind a pseudo-terminal;
+- ``__init__.py``: its entry, ``FAMILY``, naming the first three.
+
+The bus, the scan, the joint map, the plant and the emulator ask :func:`family` (by
+protocol, name or model) and call the family's methods instead of testing a protocol.
+The backends and the emulator stand above the bus, so the entry does not import them:
+:mod:`armlab.hardware.family_parts` does, when first asked for.
+"""
+
+from __future__ import annotations
+
+from armlab.hardware.families.base import Codec as Codec
+from armlab.hardware.families.base import Instruction as Instruction
+from armlab.hardware.families.base import Parser as Parser
+from armlab.hardware.families.base import ServoFamily as ServoFamily
+from armlab.hardware.families.base import Status as Status
+from armlab.hardware.families.dynamixel1 import FAMILY as DYNAMIXEL1
+from armlab.hardware.families.feetech import FAMILY as STS
+from armlab.hardware.families.xseries import FAMILY as XSERIES
+from armlab.hardware.servos.control_table import ControlTable
+
+#: Every family the lab drives, in the order a scan tries them.
+FAMILIES: tuple[ServoFamily, ...] = (DYNAMIXEL1, XSERIES, STS)
+
+
+def family(which: int | float | str | ServoFamily) -> ServoFamily:
+    """The family named by a protocol tag (1, 2.0, "sts"), a key or alias, or a family
+    itself; ValueError listing the known ones otherwise."""
+    if isinstance(which, ServoFamily):
+        return which
+    if isinstance(which, float) and which.is_integer():
+        which = int(which)
+    for f in FAMILIES:
+        if which == f.protocol or (isinstance(which, str) and
+                                   which.lower() in (f.key, str(f.protocol), *f.aliases)):
+            return f
+    raise ValueError(f"unknown servo family or protocol {which!r}; known: "
+                     + ", ".join(f"{f.protocol!r} ({f.title})" for f in FAMILIES))
+
+
+def family_of_model(model: int | str) -> ServoFamily:
+    """The family one model (number or name) belongs to; ValueError listing every model."""
+    for f in FAMILIES:
+        if f.knows(model):
+            return f
+    tables = [t for f in FAMILIES for t in f.tables.values()]
+    if isinstance(model, str):
+        raise ValueError(f"unknown servo model {model!r}; known: "
+                         f"{', '.join(t.name for t in tables)}")
+    raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
+        f"{t.spec.model_number} ({t.name})" for t in tables))
+
+
+def family_of_spec(spec: object) -> ServoFamily:
+    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``)."""
+    for f in FAMILIES:
+        if isinstance(spec, f.spec_type):
+            return f
+    raise ValueError(f"{spec!r} is no servo datasheet the lab knows")
+
+
+def servo_table(model: int | str) -> ControlTable:
+    """The control table of any model the lab knows (number or name)."""
+    return family_of_model(model).table_for(model)
