@@ -74,7 +74,7 @@ def test_the_bus2_cycles_alternate_on_one_paced_emulator_and_report_their_figure
     pytest.importorskip("dynamixel_sdk")
     from armlab.app.benches.bus import OMX_SERVOS, protocol2_cycle_bytes
     from armlab.app.benches.peers import bus2_cycles
-    from armlab.hardware.families.dynamixel1.packets import wire_time
+    from armlab.hardware.servos.servo_spec import wire_time
 
     out = bus2_cycles(True)
     assert set(out) == {"armlab_bus2_cycle_ms", "peer_bus2_cycle_ms", "ratio_bus2"}

@@ -38,7 +38,6 @@ from armlab.control.walking import GaitSpec, Walker, plan_gait
 from armlab.hardware.backends.servo_bus import ServoBusBackend
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
-from armlab.hardware.families.dynamixel1.packets import wire_time
 from armlab.hardware.families.feetech import backend as sts
 from armlab.hardware.families.feetech import packets as ft
 from armlab.hardware.families.xseries import packets as p2
@@ -49,6 +48,7 @@ from armlab.hardware.families.xseries.backend import (
     PRESENT_LEN,
     XSeriesBackend,
 )
+from armlab.hardware.servos.servo_spec import wire_time
 from armlab.kinematics.catalog import load_robot
 
 BAUD = 1_000_000

@@ -66,10 +66,7 @@ from armlab.control.experiments.contact import check_wall_numbers
 from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.pty import Faults, PtyEmulator
-from armlab.hardware.families import FAMILIES
-from armlab.hardware.families.feetech import packets as ft
-from armlab.hardware.families.feetech.firmware import SILENT
-from armlab.hardware.families.xseries.packets import HardwareError
+from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
@@ -106,32 +103,24 @@ def parse_disturbance(text: str, names: Sequence[str]) -> tuple[int, float, floa
                         lambda middle: _number(middle, "the torque"), "the start")
 
 
-#: the flags ``--fault`` takes by name, per protocol of the servos: the X-series's
-#: Hardware Error Status bits, the Feetech STS's status error bits
-FAULT_FLAGS: dict[int | str, dict[str, int]] = {
-    2: {flag.name.lower(): flag for flag in HardwareError},  # type: ignore[union-attr]  # an enum member's name is never None
-    "sts": {**{flag.name.lower(): flag for flag in ft.ErrorBits},  # type: ignore[union-attr]  # an enum member's name is never None
-            "silent": SILENT},  # not a status bit: the servo stops answering
-}
-
-
-def fault_format(protocol: int | str = 2) -> str:
-    """What ``--fault`` takes for servos of ``protocol``."""
+def fault_format(which: int | str = 2) -> str:
+    """What ``--fault`` takes for servos of the family ``which`` names (its protocol)."""
     return (f"JOINT:FLAG@S (joint index or name; FLAG one of "
-            f"{', '.join(FAULT_FLAGS[protocol])}; S seconds of torque on before it), "
+            f"{', '.join(family(which).fault_flags)}; S seconds of torque on before it), "
             "e.g. 1:overload@3")
 
 
 def parse_fault(text: str, names: Sequence[str], *, protocol: int | str = 2
                 ) -> tuple[int, int, float]:
-    """``--fault JOINT:FLAG@S`` -> (joint index, the flag: a Hardware Error Status bit on
-    the X-series, a status error bit on an STS, s of torque on).
+    """``--fault JOINT:FLAG@S`` -> (joint index, the flag: one of the ``fault_flags`` of
+    the family of ``protocol``, a Hardware Error Status bit on the X-series, a status
+    error bit on an STS; s of torque on).
 
     Raises:
         ValueError: one line naming the option, the value, what is wrong and the format.
     """
     def flag(middle: str) -> int:
-        found = FAULT_FLAGS[protocol].get(middle.strip().lower())
+        found = family(protocol).fault_flags.get(middle.strip().lower())
         if found is None:
             raise ValueError(f"no flag {middle.strip()!r}")
         return found
@@ -276,11 +265,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="apply a known torque to a joint of the simulated arm: "
                         + DISTURB_FORMAT.replace("%", "%%") + " (repeatable)")
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:FLAG@S",
-                        help="X-series servos: the joint's servo raises a Hardware Error "
-                        "Status flag after S s of torque on: " + fault_format(2) + "; "
-                        "Feetech STS: a status error bit ("
-                        + ", ".join(f for f in FAULT_FLAGS["sts"] if f != "silent")
-                        + ") or silent (it stops answering) (repeatable)")
+                        help="the joint's servo raises an alarm after S s of torque on: "
+                        "JOINT:FLAG@S (joint index or name), FLAG one of "
+                        + "; ".join(f"{f.title}'s {', '.join(f.fault_flags)}"
+                                    for f in FAMILIES if f.fault_flags)
+                        + " (silent: it stops answering; repeatable)")
     parser.add_argument("--control", metavar="FIFO",
                         help="a serial arm: read 'hold JOINT DEG' and 'release JOINT' lines "
                         "from this named pipe (made if missing), a hand moving the arm")
@@ -420,7 +409,7 @@ def run(args: argparse.Namespace) -> int:
                            names=("--wall-stiffness", "--wall-damping"))
         _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
                                      stiffness=args.wall_stiffness, damping=args.wall_damping)
-    if args.fault and jmap.protocol not in FAULT_FLAGS:
+    if args.fault and not jmap.family.fault_flags:
         raise ValueError(f"--fault: the flags are an X-series servo's Hardware Error Status "
                          f"or a Feetech STS's status error bits; the {jmap.servo} has none "
                          "(emulate --servo XM430-W350)")
@@ -452,7 +441,7 @@ def run(args: argparse.Namespace) -> int:
             make_link(args.link, emu.path)
         print(f"port: {emu.path}", flush=True)
         s = network.servos
-        flag_names = {v: k for k, v in FAULT_FLAGS.get(jmap.protocol, {}).items()}
+        flag_names = {v: k for k, v in jmap.family.fault_flags.items()}
         gripper = f" and the gripper's {jmap.gripper.servo_id}" if jmap.gripper else ""
         print(f"emulating {len(s)} {s[0].table.name} servos (IDs "
               f"{', '.join(str(i) for i in jmap.ids)}{gripper}, protocol "

@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar
 
+from armlab.hardware.families import family
+from armlab.hardware.families.base import Codec, Parser
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
 
@@ -127,6 +129,16 @@ class ServoBus:
 
         def checksum_error(self, raw: bytes, *, baud: float | None = None
                            ) -> list[tuple[Any, bytes]]: ...
+
+    @property
+    def codec(self) -> Codec:
+        """The packet module of the family its servos are (by ``protocol``)."""
+        return family(self.protocol).codec
+
+    def parser(self) -> Parser:
+        """A parser of the requests its servos hear (a family whose servos answer a packet
+        with a broken checksum keeps those: its network overrides this)."""
+        return self.codec.PacketParser()
 
     def tick(self, t: float) -> None:
         """Advance the plant to ``t`` s and refresh every servo's present values."""

@@ -20,9 +20,7 @@ from dataclasses import dataclass, field
 from typing import TextIO
 
 from armlab.hardware.emulator.network import ServoBus
-from armlab.hardware.families import family
-from armlab.hardware.families.dynamixel1 import packets as p1
-from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.servos.servo_spec import wire_time
 from armlab.kinematics.validate import scalar
 
 TCGETS2 = 0x802C542A  #: _IOR('T', 0x2A, struct termios2) on Linux
@@ -91,10 +89,9 @@ class EmulatorStats:
 
 @dataclass
 class PtyEmulator:
-    """Serves the emulated network of any servo family (:class:`ServoNetwork`, protocol
-    1.0; :class:`~armlab.hardware.families.xseries.emulator.XServoNetwork`, 2.0; the family's
-    ``emulator`` in :mod:`armlab.hardware.families`) on a new pseudo-terminal; the
-    network's ``protocol`` tag picks the packet codec.
+    """Serves the emulated network of any servo family (a :class:`ServoBus`: the
+    ``emulator.py`` of each ``armlab/hardware/families/<family>/``) on a new
+    pseudo-terminal, in the network's packets (its ``codec`` and ``parser()``).
 
     Args:
         network: the servos.
@@ -121,10 +118,8 @@ class PtyEmulator:
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self._rng = random.Random(self.faults.seed)
-        self._p = family(self.network.protocol).codec
-        # a frame with a checksum (1.0, STS) keeps broken packets: a servo answers those
-        self._parser = (self._p.PacketParser(collect_bad=True) if self._p is not p2
-                        else p2.PacketParser())
+        self._p = self.network.codec
+        self._parser = self.network.parser()
         self._queue: list[tuple[float, bytes]] = []  # (due time, bytes), sorted
         self._wire_free = 0.0
         self._last_byte = 0.0
@@ -201,12 +196,12 @@ class PtyEmulator:
                 continue
             try:
                 packet = self._p.decode_instruction(raw)
-            except (self._p.ProtocolError, p1.ProtocolError):  # a status packet: not ours
+            except self._p.ProtocolError:  # a status packet: not ours
                 continue
             self._tick(now)
             replies = self.network.handle(packet, baud=baud)
             self._schedule(raw, replies, now, wire_baud)
-        bad = getattr(self._parser, "bad", [])  # protocol 1.0: broken checksums
+        bad = getattr(self._parser, "bad", [])  # broken checksums its servos answer
         for raw in bad:
             self._schedule(raw, self.network.checksum_error(raw, baud=baud), now, wire_baud)
         bad.clear()
@@ -215,12 +210,12 @@ class PtyEmulator:
                   now: float, baud: float) -> None:
         t = now
         if self.pace:
-            t = max(self._wire_free, now) + p1.wire_time(len(request), baud)
+            t = max(self._wire_free, now) + wire_time(len(request), baud)
             self._wire_free = t
         for servo, reply in replies:
             due = t + servo.return_delay
             if self.pace:
-                due = max(due, self._wire_free) + p1.wire_time(len(reply), baud)
+                due = max(due, self._wire_free) + wire_time(len(reply), baud)
                 self._wire_free = due
             t = due  # the next servo answers after this one (a protocol-2.0 group read)
             reply = self._inject(reply)

@@ -69,6 +69,10 @@ class Codec(Protocol):
     def status(self, servo_id: int, error: int = ..., params: bytes = ...) -> bytes: ...
     def decode_status(self, packet: bytes, *, checked: bool = ...) -> Status: ...
     def decode_instruction(self, packet: bytes) -> Instruction: ...
+    def factory_reset(self, servo_id: int, level: Any = ..., *, confirm: bool = ...
+                      ) -> bytes: ...
+    def write_refusal(self, servo_id: int, status: Any, *, address: int, length: int
+                      ) -> Exception | None: ...
 
 
 @dataclass(frozen=True)
@@ -95,7 +99,13 @@ class ServoFamily:
         replies_all_level: the status return level at which a servo answers every
             instruction (Dynamixel 2; Feetech's Response Status Level 1), below which it
             answers PING and READ only.
-        servo_model: the firmware model the plant runs (a class of ``armlab.hardware.sim``).
+        servo_model: the firmware model the plant runs (its ``firmware.py``).
+        reboot_packet: ``servo ID -> packet`` of its REBOOT (None: it has none).
+        bulk_read_packet: ``[(servo ID, address, length), ...] -> packet`` of its BULK_READ
+            (None: it has none).
+        fault_flags: the alarms one of its emulated servos can be told to raise, by name
+            (``armlab emulate --fault JOINT:FLAG@S``): the value its firmware model's
+            ``inject_error`` takes (empty: none).
     """
 
     key: str
@@ -117,6 +127,9 @@ class ServoFamily:
     servo_model: type
     replies_all_level: int = 2
     aliases: tuple[str, ...] = field(default=())
+    reboot_packet: Callable[[int], bytes] | None = None
+    bulk_read_packet: Callable[[Sequence[tuple[int, int, int]]], bytes] | None = None
+    fault_flags: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def label(self) -> str:

@@ -35,26 +35,18 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
+from typing import Any
 
 import serial
 
 from armlab.hardware.families import FAMILIES, family
-from armlab.hardware.families.base import ServoFamily, Status
-from armlab.hardware.families.dynamixel1 import packets as p1
-from armlab.hardware.families.dynamixel1.packets import wire_time
-from armlab.hardware.families.feetech import packets as ft
-from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.base import Codec, ServoFamily, Status
 from armlab.hardware.servos.control_table import ControlTable
-from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
+from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
 
 log = logging.getLogger("armlab.bus")
 
 TIOCGRS485 = 0x542E
-#: The protocols a bus speaks (one at a time): one per servo family.
-PROTOCOLS = tuple(f.protocol for f in FAMILIES)
-#: Error bits that mean "this write was refused" (the others describe the servo's state).
-REFUSED = p1.ErrorBits.RANGE | p1.ErrorBits.INSTRUCTION | p1.ErrorBits.CHECKSUM
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 
 
@@ -246,7 +238,7 @@ class Bus:
         self.table = table
         self.stats = BusStats()
         self.notes: list[str] = []
-        self.errors: dict[int, p1.ErrorBits | p2.StatusError | ft.ErrorBits] = {}
+        self.errors: dict[int, Any] = {}  # each family's own flags (Status.error)
         self.late_ids: set[int] = set()
         self.tables: dict[int, ControlTable] = {}
         self.status_return_level: dict[int, int] = {}
@@ -407,7 +399,7 @@ class Bus:
         )
 
     def _receive(self, request: bytes, want: dict[int, int], *, timeout: float,
-                 echo_only: bool = False, protocol: ModuleType | None = None
+                 echo_only: bool = False, protocol: Codec | None = None
                  ) -> dict[int, Status]:
         """The status packets of the servos in ``want`` (ID -> bytes of data each answers
         with) that arrive within ``timeout`` s; all of them, or those that came when the
@@ -440,7 +432,7 @@ class Bus:
                     continue
                 try:
                     status = p.decode_status(raw, checked=True)
-                except (p.ProtocolError, p1.ProtocolError):  # an instruction: not ours
+                except p.ProtocolError:  # an instruction: not ours
                     self.stats.corrupt += 1
                     continue
                 if want.get(status.servo_id) != len(status.params) or status.servo_id in got:
@@ -514,8 +506,9 @@ class Bus:
         return status
 
     def broadcast_ping(self, ids: list[int] | range | None = None, *,
-                       margin: float | None = None) -> dict[int, p2.StatusPacket]:
-        """PING to broadcast (protocol 2.0): every servo answers, one after the other.
+                       margin: float | None = None) -> dict[int, Status]:
+        """PING to broadcast (a family whose servos answer it one after the other:
+        protocol 2.0's): every servo answers.
 
         Waits as long as answers from all of ``ids`` (default every ID, 0..252) would
         take, plus ``margin`` (default the bus's); returns the ones that came, by ID."""
@@ -523,38 +516,50 @@ class Bus:
             raise ValueError(f"a broadcast PING is answered on protocol 2.0 only (on "
                              f"{self.family.label} every servo would answer at once): "
                              "ping each ID")
-        ids = list(range(p2.MAX_ID + 1) if ids is None else ids)
-        packet = p2.ping(p2.BROADCAST_ID)
-        each = wire_time(self.status_length(3), self._baud) + RETURN_DELAY_UNIT * 254
+        p, data = self._p, self.family.ping_data
+        ids = list(range(p.MAX_ID + 1) if ids is None else ids)
+        packet = p.ping(p.BROADCAST_ID)
+        each = wire_time(self.status_length(data), self._baud) + RETURN_DELAY_UNIT * 254
         with self._lock:
             backlog = self._send(packet)
             timeout = backlog + wire_time(len(packet), self._baud) + len(ids) * each + \
                 (self.timeout_margin if margin is None else margin)
-            answers = self._receive(packet, {i: 3 for i in ids}, timeout=timeout)
-        return answers  # type: ignore[return-value]  # 2.0 answers: protocol 2's status packets
+            return self._receive(packet, {i: data for i in ids}, timeout=timeout)
 
     def ping_other_protocol(self, ids: Sequence[int]) -> tuple[int | str, list[int]]:
-        """Which servos answer a PING in the protocol this bus does *not* speak, at its baud.
+        """Which servos answer a PING in a protocol this bus does *not* speak, at its baud.
 
-        How a backend tells "nothing answers here" from "servos of the other family answer
-        here" (a joint map naming the wrong servo model): protocol 2.0 is asked with one
-        broadcast PING, which every servo on the bus answers whatever its ID; protocol 1.0
-        has no such PING (every servo would answer at once), so each of ``ids`` gets its
-        own. Only PINGs are sent: nothing is written to any servo. On a pseudo-terminal the
-        PINGs go twice (the machine may hold answers back). A lost link answers nothing.
+        How a backend tells "nothing answers here" from "servos of another family answer
+        here" (a joint map naming the wrong servo model). Each other family whose PING is
+        another packet than this bus's is asked in turn (one whose PING is the same bytes,
+        Feetech's beside protocol 1.0, cannot be told apart): with one broadcast PING
+        where every servo answers it one after the other (protocol 2.0), else a PING to
+        each of ``ids``. Only PINGs are sent: nothing is written to any servo. On a
+        pseudo-terminal the PINGs go twice (the machine may hold answers back). A lost
+        link answers nothing.
 
         Returns:
-            (the other protocol, 1 or 2; the IDs that answered in it, sorted; empty when
-            none did).
+            (the first other family's protocol whose servos answered, or the last asked;
+            the IDs that answered in it, sorted; empty when none did).
         """
-        if self.protocol not in (1, 2):
-            return self.protocol, []  # the Dynamixel pair only: STS shares 1.0's PING
-        other, p = (2, p2) if self.protocol == 1 else (1, p1)
-        tries = 2 if is_pty(self.port) else 1
-        if other == 2:
-            asks = [(p2.ping(p2.BROADCAST_ID), {i: 3 for i in range(p2.MAX_ID + 1)})]
+        mine = self._p.ping(1)
+        others = [f for f in FAMILIES if f is not self.family and f.codec.ping(1) != mine]
+        found: tuple[int | str, list[int]] = (self.protocol, [])
+        for other in others:
+            heard = self._pings_heard(other, ids)
+            found = (other.protocol, heard)
+            if heard:
+                break
+        return found
+
+    def _pings_heard(self, other: ServoFamily, ids: Sequence[int]) -> list[int]:
+        """The IDs that answer ``other``'s PING (see :meth:`ping_other_protocol`)."""
+        p, data = other.codec, other.ping_data
+        if other.broadcast_ping:
+            asks = [(p.ping(p.BROADCAST_ID), {i: data for i in range(p.MAX_ID + 1)})]
         else:
-            asks = [(p1.ping(i), {i: 0}) for i in ids if 0 <= i <= p1.MAX_ID]
+            asks = [(p.ping(i), {i: data}) for i in ids if 0 <= i <= p.MAX_ID]
+        tries = 2 if is_pty(self.port) else 1
         heard: set[int] = set()
         try:
             with self._lock:
@@ -564,14 +569,13 @@ class Bus:
                             continue
                         backlog = self._send(packet)
                         # every servo that answers a broadcast waits for the one before it
-                        replies = len(want) * (p2.status_length(3) if other == 2
-                                               else p1.OVERHEAD)
+                        replies = len(want) * other.status_length(data)
                         timeout = backlog + reply_timeout(len(packet), replies, self._baud,
                                                           254 * len(want), self.timeout_margin)
                         heard |= set(self._receive(packet, want, timeout=timeout, protocol=p))
         except BusError:
             pass
-        return other, sorted(heard)
+        return sorted(heard)
 
     def read_bytes(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes at ``address`` of one servo (its error kept in ``errors``)."""
@@ -589,15 +593,11 @@ class Bus:
 
     def write_bytes(self, servo_id: int, address: int, data: bytes
                     ) -> Status | None:
-        """WRITE ``data`` at ``address``; raise
-        :class:`~armlab.hardware.families.dynamixel1.packets.ServoError`
-        (protocol 1.0: range, instruction, checksum, or an angle-limit error on a goal)
-        or :class:`~armlab.hardware.families.xseries.packets.ServoError` (2.0: any error number)
-        when the
-        servo
-        refuses it. A protocol-2.0 hardware alert alone is not a refusal: the write was
-        carried out, and the alert stays in :attr:`errors`. An STS servo's status bits
-        describe its state, never a refusal (they stay in :attr:`errors`)."""
+        """WRITE ``data`` at ``address``; raise the family's ServoError when the servo
+        refuses it (its codec's ``write_refusal``: protocol 1.0's range, instruction or
+        checksum bits, or the angle limit on a goal; 2.0's error number, where a hardware
+        alert alone is no refusal; never an STS servo's bits, which describe its state).
+        What a servo reports stays in :attr:`errors` either way."""
         status = self.transact(self._p.write(servo_id, address, data),
                                reply=self._answers_writes(servo_id))
         self._check_refused(servo_id, address, data, status)
@@ -605,19 +605,13 @@ class Bus:
 
     def _check_refused(self, servo_id: int, address: int, data: bytes,
                        status: Status | None) -> None:
-        """Raise the protocol's ServoError when ``status``, the answer to a write of
-        ``data`` at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
-        if status is None or isinstance(status, ft.StatusPacket):
-            return
-        if isinstance(status, p2.StatusPacket):
-            if status.error.number:
-                raise p2.ServoError(servo_id, p2.StatusError(status.error.number))
-        else:
-            refused = status.error & REFUSED
-            if address <= 31 and address + len(data) > 30:
-                refused |= status.error & p1.ErrorBits.ANGLE_LIMIT
-            if refused:
-                raise p1.ServoError(servo_id, refused)
+        """Raise the family's ServoError when ``status``, the answer to a write of ``data``
+        at ``address``, says the servo refused it (see :meth:`write_bytes`)."""
+        if status is not None:
+            refused = self._p.write_refusal(servo_id, status, address=address,
+                                            length=len(data))
+            if refused is not None:
+                raise refused
 
     def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
         """SYNC_WRITE to several servos in one packet (no reply)."""
@@ -643,14 +637,15 @@ class Bus:
                                lambda missing: codec.sync_read(address, length, missing))
 
     def bulk_read(self, requests: list[tuple[int, int, int]]) -> dict[int, bytes]:
-        """BULK_READ (protocol 2.0): ``(servo ID, address, length)`` for each servo, each its
-        own item, in one request; retries and errors as :meth:`sync_read`."""
-        if self.protocol != 2:
-            raise ValueError("BULK_READ is a protocol 2.0 instruction: open the bus with "
-                             "protocol=2")
+        """BULK_READ (protocol 2.0's): ``(servo ID, address, length)`` for each servo, each
+        its own item, in one request; retries and errors as :meth:`sync_read`."""
+        bulk = self.family.bulk_read_packet
+        if bulk is None:
+            raise ValueError(f"BULK_READ is a protocol 2.0 instruction, not "
+                             f"{self.family.title}'s: open the bus with protocol=2")
         by_id = {servo_id: (address, length) for servo_id, address, length in requests}
-        return self._read_many(p2.bulk_read(requests), {i: n for i, (_, n) in by_id.items()},
-                               lambda missing: p2.bulk_read([(i, *by_id[i]) for i in missing]))
+        return self._read_many(bulk(requests), {i: n for i, (_, n) in by_id.items()},
+                               lambda missing: bulk([(i, *by_id[i]) for i in missing]))
 
     def _read_many(self, packet: bytes, want: dict[int, int], again) -> dict[int, bytes]:
         """Send a SYNC_READ or BULK_READ ``packet`` and gather its answers (``want``: ID ->
@@ -677,26 +672,23 @@ class Bus:
         raise self._no_reply([i for i in want if i not in got], tries, " to a group read")
 
     def reboot(self, servo_id: int) -> None:
-        """REBOOT (protocol 2.0): the servo restarts, clearing a hardware error (its torque
-        is off afterwards)."""
-        if self.protocol != 2:
-            raise ValueError("REBOOT is a protocol 2.0 instruction: power-cycle a "
-                             "protocol 1.0 servo instead")
-        self.transact(p2.reboot(servo_id), reply=self._answers_writes(servo_id))
+        """REBOOT (protocol 2.0's): the servo restarts, clearing a hardware error (its
+        torque is off afterwards)."""
+        if self.family.reboot_packet is None:
+            raise ValueError(f"REBOOT is a protocol 2.0 instruction, not "
+                             f"{self.family.title}'s: power-cycle the servo instead")
+        self.transact(self.family.reboot_packet(servo_id),
+                      reply=self._answers_writes(servo_id))
 
     def factory_reset(self, servo_id: int, *, confirm: bool = False,
-                      level: p2.ResetLevel = p2.ResetLevel.ALL) -> None:
+                      level: int | None = None) -> None:
         """FACTORY_RESET one servo: its ID becomes 1 and its baud the model's default
-        (protocol 2.0's ``level`` may keep the ID, or the ID and the baud).
+        (protocol 2.0's ``level``, a ``ResetLevel``, may keep the ID, or the ID and the
+        baud; None resets everything).
 
         Refused (ValueError, nothing sent) unless ``confirm=True``.
         """
-        if self.protocol == 1:
-            packet = p1.factory_reset(servo_id, confirm=confirm)
-        elif self.protocol == "sts":
-            packet = ft.reset(servo_id, confirm=confirm)
-        else:
-            packet = p2.factory_reset(servo_id, level, confirm=confirm)
+        packet = self._p.factory_reset(servo_id, level, confirm=confirm)
         self.transact(packet, reply=self._answers_writes(servo_id))
         self.status_return_level.pop(servo_id, None)
         self.return_delay.pop(servo_id, None)

@@ -23,10 +23,8 @@ from typing import Any
 
 from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.families.base import ServoFamily
-from armlab.hardware.families.dynamixel1 import packets as p1
-from armlab.hardware.families.dynamixel1.packets import wire_time
 from armlab.hardware.servos.control_table import ControlTable
-from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
+from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
 from armlab.hardware.wire.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
@@ -34,7 +32,7 @@ COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 
 DEFAULT_BAUDS = (1_000_000, 57_600)
 #: Every family's protocol tag: what a scan tries by default.
 DEFAULT_PROTOCOLS = tuple(f.protocol for f in FAMILIES)
-ALL_IDS = range(0, p1.MAX_ID + 1)
+ALL_IDS = range(0, max(f.codec.MAX_ID for f in FAMILIES) + 1)  #: every ID any family has
 #: s beyond wire time a ping waits on a serial adapter (a servo answers within its
 #: return delay, 0.5 ms at the thesis's setting).
 WIRE_SCAN_MARGIN = 0.010

@@ -85,7 +85,7 @@ class DynamixelBackend(ServoBusBackend):
             pos[k] = s.raw_to_position(raw_pos)
             vel[k] = s.raw_to_present_speed(raw_speed)
             load[k] = s.raw_to_load(raw_load)
-            err = int(self.bus.errors.get(j.servo_id, 0))  # type: ignore[arg-type]  # a 1.0-frame bus: its errors are ErrorBits
+            err = int(self.bus.errors.get(j.servo_id, 0))
             errors.append(err)
             if err & SHUTDOWN_BITS and not self._shutdown[k]:
                 self._shutdown[k] = True

@@ -27,6 +27,7 @@ from dataclasses import dataclass, fields
 from armlab.hardware.backends.joint_map import JointMap, default_joint_map
 from armlab.hardware.emulator.network import Physics, ServoBus, TableImage
 from armlab.hardware.emulator.physics import RestingPose
+from armlab.hardware.families.base import Parser
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters
 from armlab.hardware.families.dynamixel1.table import (
@@ -133,6 +134,11 @@ class ServoNetwork(ServoBus):
     servos: list[VirtualServo]
     physics: Physics[VirtualServo]
     protocol = 1  #: the protocol its servos speak (the X-series' network: 2)
+
+    def parser(self) -> Parser:
+        """A parser that keeps packets whose checksum fails (``bad``): its servos answer
+        those with the checksum error."""
+        return self.codec.PacketParser(collect_bad=True)
 
     def handle(self, packet: p1.InstructionPacket, *, baud: float | None = None
                ) -> list[tuple[VirtualServo, bytes]]:

@@ -86,6 +86,13 @@ class ProtocolError(ValueError):
     """Bytes that are not a valid protocol 1.0 packet (bad header, length or checksum)."""
 
 
+#: Error bits that mean "this write was refused" (the others describe the servo's state).
+REFUSED = ErrorBits.RANGE | ErrorBits.INSTRUCTION | ErrorBits.CHECKSUM
+#: The goal position's addresses (30, 31): a write reaching them is refused by the
+#: angle-limit bit too (a goal outside the CW/CCW limits)
+GOAL_ADDRESSES = range(30, 32)
+
+
 class ServoError(RuntimeError):
     """A servo answered with error bits set.
 
@@ -176,11 +183,15 @@ def action(servo_id: int = BROADCAST_ID) -> bytes:
     return encode_packet(servo_id, Instruction.ACTION)
 
 
-def factory_reset(servo_id: int, *, confirm: bool = False) -> bytes:
+def factory_reset(servo_id: int, level: int | None = None, *, confirm: bool = False) -> bytes:
     """FACTORY_RESET (0x06): the servo forgets ID, baud and limits (ID becomes 1).
 
     Refused unless ``confirm=True``: a reset arm may no longer answer at its ID or baud.
+    Protocol 1.0 resets everything: ``level`` (protocol 2.0's) must be None.
     """
+    if level is not None:
+        raise ValueError("level: protocol 1.0's FACTORY_RESET resets everything (a level "
+                         "is protocol 2.0's)")
     if confirm is not True:
         raise ValueError(
             "confirm: FACTORY_RESET erases the servo's ID, baud and angle limits; "
@@ -240,9 +251,15 @@ def decode_instruction(packet: bytes) -> InstructionPacket:
     return InstructionPacket(servo_id, code, params)
 
 
-def wire_time(n_bytes: int, baud: float) -> float:
-    """Seconds ``n_bytes`` take on an 8N1 line (10 bits a byte): 10 µs a byte at 1 Mbps."""
-    return n_bytes * 10.0 / baud
+def write_refusal(servo_id: int, status: StatusPacket, *, address: int, length: int
+                  ) -> ServoError | None:
+    """The error the answer ``status`` to a WRITE of ``length`` bytes at ``address`` says
+    the servo refused it with (range, instruction, checksum; the angle limit on a goal),
+    or None: it was carried out (its other bits describe the servo's state)."""
+    refused = status.error & REFUSED
+    if address < GOAL_ADDRESSES.stop and address + length > GOAL_ADDRESSES.start:
+        refused |= status.error & ErrorBits.ANGLE_LIMIT
+    return ServoError(servo_id, refused) if refused else None
 
 
 def word(value: int) -> bytes:

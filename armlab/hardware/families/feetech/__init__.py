@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from armlab.hardware.families.base import ServoFamily
 from armlab.hardware.families.feetech import packets
-from armlab.hardware.families.feetech.firmware import StsServoModel
+from armlab.hardware.families.feetech.firmware import SILENT, StsServoModel
 from armlab.hardware.families.feetech.table import STS3215_TABLE, STS_TABLES, sts_table_for
 
 FAMILY = ServoFamily(
@@ -22,4 +22,7 @@ FAMILY = ServoFamily(
     servo_model=StsServoModel,
     replies_all_level=1,
     aliases=("feetech", "scs", "sms_sts"),
+    # its status error bits, and one that is none: the servo stops answering
+    fault_flags={**{flag.name.lower(): int(flag) for flag in packets.ErrorBits if flag.name},
+                 "silent": SILENT},
 )

@@ -106,7 +106,7 @@ class StsBackend(ServoBusBackend):
             pos.append(a)
             vel.append(v)
             load.append(tau)
-            err = int(self.bus.errors.get(j.servo_id, 0))  # type: ignore[arg-type]  # a 1.0-frame bus: its errors are ErrorBits
+            err = int(self.bus.errors.get(j.servo_id, 0))
             errors.append(err)
             alarms.append(sts_alarm(err, servo_id=j.servo_id))
             if err and not self._shutdown[k]:  # told once, until the torque comes on again
@@ -124,7 +124,7 @@ class StsBackend(ServoBusBackend):
         are told once and logged."""
         g = self.gripper
         assert g is not None
-        err = int(self.bus.errors.get(g.servo_id, 0))  # type: ignore[arg-type]  # a 1.0-frame bus: its errors are ErrorBits
+        err = int(self.bus.errors.get(g.servo_id, 0))
         if err and not self._gripper_alarm:  # told once
             self._gripper_alarm = sts_alarm(err, servo_id=g.servo_id)
             log.warning("gripper: %s", self._gripper_alarm)

@@ -171,6 +171,22 @@ def reset(servo_id: int, *, confirm: bool = False) -> bytes:
     return encode_packet(servo_id, Instruction.RESET)
 
 
+def factory_reset(servo_id: int, level: int | None = None, *, confirm: bool = False) -> bytes:
+    """:func:`reset` by the name every family's codec has; ``level`` (protocol 2.0's) must
+    be None: RESET restores everything."""
+    if level is not None:
+        raise ValueError("level: Feetech's RESET restores everything (a level is protocol "
+                         "2.0's)")
+    return reset(servo_id, confirm=confirm)
+
+
+def write_refusal(servo_id: int, status: StatusPacket, *, address: int, length: int
+                  ) -> ServoError | None:
+    """None: a Feetech servo's status bits describe its state, never a refused write
+    (they stay in the bus's ``errors``)."""
+    return None
+
+
 def sync_write(address: int, length: int, data: Mapping[int, bytes]) -> bytes:
     """SYNC_WRITE (0x83) to broadcast: ``length`` bytes at ``address`` for each servo
     (``data``: ID -> its bytes, in wire order). LEN = (L + 1)·N + 4."""

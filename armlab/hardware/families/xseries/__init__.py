@@ -20,4 +20,7 @@ FAMILY = ServoFamily(
     firmware_item="firmware_version", limit_items=("min_position_limit", "max_position_limit"),
     servo_model=XServoModel,
     aliases=("2", "2.0", "protocol2", "dynamixel2"),
+    reboot_packet=packets.reboot, bulk_read_packet=packets.bulk_read,
+    # its Hardware Error Status bits
+    fault_flags={flag.name.lower(): int(flag) for flag in packets.HardwareError if flag.name},
 )

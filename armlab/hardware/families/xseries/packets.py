@@ -177,6 +177,16 @@ class ServoError(RuntimeError):
         super().__init__(f"servo {self.servo_id} reports {error.describe()}")
 
 
+def write_refusal(servo_id: int, status: StatusPacket, *, address: int, length: int
+                  ) -> ServoError | None:
+    """The error the answer ``status`` to a WRITE says the servo refused it with (any error
+    number), or None. A hardware alert alone is no refusal: the write was carried out.
+    ``address`` and ``length`` are the write's (protocol 2.0 does not need them)."""
+    if status.error.number:
+        return ServoError(servo_id, StatusError(status.error.number))
+    return None
+
+
 @dataclass(frozen=True)
 class InstructionPacket:
     """A decoded instruction packet (what the emulator receives); ``params`` unstuffed."""
@@ -318,10 +328,10 @@ class ResetLevel(enum.IntEnum):
     KEEP_ID_AND_BAUD = 0x02  #: everything but the ID and the baud rate
 
 
-def factory_reset(servo_id: int, level: ResetLevel = ResetLevel.ALL, *,
+def factory_reset(servo_id: int, level: int | None = ResetLevel.ALL, *,
                   confirm: bool = False) -> bytes:
     """FACTORY_RESET (0x06): the servo forgets its settings (limits, modes, gains; the ID
-    and baud rate too at :attr:`ResetLevel.ALL`).
+    and baud rate too at :attr:`ResetLevel.ALL`, which None means too).
 
     Refused unless ``confirm=True``: a reset arm may no longer answer at its ID or baud,
     and its limits no longer keep it off its own body.
@@ -330,7 +340,8 @@ def factory_reset(servo_id: int, level: ResetLevel = ResetLevel.ALL, *,
         raise ValueError(
             "confirm: FACTORY_RESET erases the servo's limits and settings (at level ALL "
             "its ID and baud too); pass confirm=True to send it")
-    return encode_packet(servo_id, Instruction.FACTORY_RESET, bytes((ResetLevel(level),)))
+    level = ResetLevel.ALL if level is None else ResetLevel(level)
+    return encode_packet(servo_id, Instruction.FACTORY_RESET, bytes((level,)))
 
 
 def sync_read(address: int, length: int, ids: Sequence[int]) -> bytes:
