@@ -152,9 +152,9 @@ def test_every_familys_packet_module_is_its_codec():
 
 
 def test_one_ping_per_id_serves_both_families_that_share_the_frame():
-    from armlab.hardware.wire.scan import DEFAULT_PROTOCOLS, scan_time_bound
+    from armlab.hardware.wire.scan import default_protocols, scan_time_bound
 
-    assert DEFAULT_PROTOCOLS == (1, 2, "sts")
+    assert default_protocols() == (1, 2, "sts")
     bound = scan_time_bound("/dev/ttyUSB0", (1_000_000,), range(10), 0.01,
                             protocols=(1, "sts"))
     assert bound == scan_time_bound("/dev/ttyUSB0", (1_000_000,), range(10), 0.01,

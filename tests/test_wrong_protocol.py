@@ -28,6 +28,9 @@ MARGIN = 0.1  # s of reply timeout: generous, the test machine is shared
     ("receptionist_arm", "XM430-W350", (), "protocol 1.0 (IDs 1, 3, 5)", "(protocol 2.0)"),
     ("open_manipulator_x", "RX-24F", ("--robot", "open_manipulator_x"),
      "protocol 2.0 (IDs 11, 12, 13, 14, 15)", "(protocol 1.0)"),
+    # a Feetech bus asks protocol 2.0 (1.0's PING is its own bytes: no telling them apart)
+    ("so101", "STS3215", ("--robot", "open_manipulator_x"),
+     "protocol 2.0 (IDs 11, 12, 13, 14, 15)", "(Feetech STS)"),
 ])
 def test_a_map_naming_the_other_protocol_s_servos_is_named(robot, servo, emulate, answers,
                                                            named):
@@ -42,7 +45,7 @@ def test_a_map_naming_the_other_protocol_s_servos_is_named(robot, servo, emulate
                         f"(armlab scan --port {emu.port} shows what answers)")
         assert "\n" not in text
         # the port was let go, and every servo's torque is still off
-        theirs = 2 if servo == "RX-24F" else 1
+        theirs = 1 if robot == "receptionist_arm" else 2
         with Bus(emu.port, protocol=theirs, timeout_margin=MARGIN) as bus:
             for i in (11, 12, 13, 14) if theirs == 2 else (1, 3, 5):
                 assert bus.read(i, "torque_enable") == 0

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from armlab.control.backend import BackendError
+from armlab.hardware import families
 from armlab.hardware.families.base import ServoFamily
 from armlab.kinematics.model import Quadruped, SerialChain
 
@@ -86,6 +87,21 @@ PARTS: dict[str, Parts] = {
     "xseries": Parts(real_backend=_x_backend, sim_backend=_x_sim, emulator=_x_emulator),
     "sts": Parts(real_backend=_sts_backend, sim_backend=_sts_sim, emulator=_sts_emulator),
 }
+
+
+def register(family: ServoFamily, parts: Parts) -> None:
+    """Add a servo family the lab does not ship: the family to the registry
+    (:func:`armlab.hardware.families.register`) and its parts here. Its folder holds the
+    rest (``families/<family>/`` for the lab's own: codec, tables, firmware model,
+    backends, emulator); nothing else changes.
+
+    Raises:
+        ValueError: the family's key, protocol, an alias or a model is another family's.
+    """
+    if family.key in PARTS:
+        raise ValueError(f"a family {family.key!r} is registered already")
+    families.register(family)
+    PARTS[family.key] = parts
 
 
 def has(family: ServoFamily, part: str) -> bool:

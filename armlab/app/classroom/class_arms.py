@@ -12,8 +12,7 @@ lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm tha
 with servos of a family with its own firmware model (X-series: the OpenManipulator-X,
 :class:`armlab.hardware.families.xseries.sim_backend.XSimBackend`; Feetech STS: the SO-101,
 :class:`armlab.hardware.families.feetech.sim_backend.StsSimBackend`) is simulated with it as its
-shared
-arm is (``make_backend("sim", ...)``, without the gripper: a plant of its own that its loop
+shared arm is (``make_backend("sim", ...)``, without the gripper: a plant of its own that its loop
 steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a

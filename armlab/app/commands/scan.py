@@ -12,9 +12,9 @@ from typing import Any
 from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.wire.bus import BusError
 from armlab.hardware.wire.scan import (
-    ALL_IDS,
     COMMON_BAUDS,
     DEFAULT_BAUDS,
+    all_ids,
     scan,
     scan_time_bound,
 )
@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f"{', '.join(map(str, DEFAULT_BAUDS))})")
     parser.add_argument("--all-bauds", action="store_true",
                         help=f"try every usual rate ({', '.join(map(str, COMMON_BAUDS))})")
-    parser.add_argument("--ids", type=_ids, default=list(ALL_IDS),
+    parser.add_argument("--ids", type=_ids, default=list(all_ids()),
                         help="IDs to ping, e.g. 1,3,5 or 0-20 (default 0-253)")
     parser.add_argument("--timeout", type=float, default=None, metavar="S",
                         help="s to wait beyond wire time for each ping (default 0.010; on a "

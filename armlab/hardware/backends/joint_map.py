@@ -64,10 +64,12 @@ from armlab.kinematics.urdf_read import joint_limits
 if TYPE_CHECKING:
     from armlab.hardware.wire.scan import Found
 
-#: Protocol tags a joint map may name (one per servo family the lab drives: 1.0, 2.0,
-#: "sts").
-PROTOCOLS = tuple(float(f.protocol) if isinstance(f.protocol, int) else f.protocol
-                  for f in FAMILIES)
+
+def protocols() -> tuple[float | str, ...]:
+    """The protocol tags a joint map file may name, one per family (1.0, 2.0, "sts")."""
+    return tuple(float(f.protocol) if isinstance(f.protocol, int) else f.protocol
+                 for f in FAMILIES)
+
 
 THESIS_LEFT_ARM_IDS = (1, 3, 5)
 THESIS_RIGHT_ARM_IDS = (2, 4, 6)
@@ -290,9 +292,9 @@ def load_joint_map(path: str | Path, model: SerialChain | Quadruped) -> JointMap
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"joint map {path}: {exc}") from None
     protocol = data.get("protocol", 1.0)
-    if protocol not in PROTOCOLS:
+    if protocol not in protocols():
         raise ValueError(f"joint map {path}: protocol {protocol!r} is not one this lab drives; "
-                         f"known: {', '.join(map(str, PROTOCOLS))}")
+                         f"known: {', '.join(map(str, protocols()))}")
     joints = robot_joints(model)
     try:
         base = default_joint_map(model, servo=data.get("servo"))

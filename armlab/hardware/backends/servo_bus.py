@@ -37,6 +37,7 @@ from armlab.hardware.backends.joint_map import (
     load_joint_map,
     servo_table,
 )
+from armlab.hardware.families import family
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.wire.bus import Bus, BusError, BusStats, NoReply
 from armlab.kinematics.catalog import ROBOT_FILES
@@ -392,17 +393,16 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
         self.bus.status_return_level[servo_id] = self.bus.read(servo_id, "status_return_level")
 
     def _wrong_protocol(self) -> str | None:
-        """The message for servos that answer the other protocol at this baud (None when
-        nothing does): the joint map names a servo model of the wrong family
-        (:meth:`~armlab.hardware.wire.bus.Bus.ping_other_protocol`: a broadcast PING in protocol
-        2.0,
-        the map's IDs in 1.0)."""
+        """The message for servos that answer another family's protocol at this baud (None
+        when nothing does): the joint map names a servo model of the wrong family
+        (:meth:`~armlab.hardware.wire.bus.Bus.ping_other_protocol`: a broadcast PING in
+        protocol 2.0, the map's IDs in 1.0)."""
         other, ids = self.bus.ping_other_protocol(self.map.ids)
         if not ids:
             return None
-        return (f"the servos on {self.bus.port} answer protocol {other}.0 "
+        return (f"the servos on {self.bus.port} answer {family(other).protocol_name} "
                 f"(ID{'s' if len(ids) > 1 else ''} {', '.join(map(str, ids))}), but the joint "
-                f"map names {self.map.servo} (protocol {self.PROTOCOL}.0): fix the map's "
+                f"map names {self.map.servo} ({self.map.family.protocol_name}): fix the map's "
                 f"servo model (armlab scan --port {self.bus.port} shows what answers)")
 
     def _narrowed(self, cw: list[int], ccw: list[int]) -> tuple[np.ndarray, np.ndarray]:

@@ -29,8 +29,26 @@ from armlab.hardware.families.feetech import FAMILY as STS
 from armlab.hardware.families.xseries import FAMILY as XSERIES
 from armlab.hardware.servos.control_table import ControlTable
 
-#: Every family the lab drives, in the order a scan tries them.
-FAMILIES: tuple[ServoFamily, ...] = (DYNAMIXEL1, XSERIES, STS)
+#: Every family the lab drives, in the order a scan tries them (:func:`register` adds one).
+FAMILIES: list[ServoFamily] = [DYNAMIXEL1, XSERIES, STS]
+
+
+def register(new: ServoFamily) -> None:
+    """Add a family to :data:`FAMILIES` (what a family outside this package does once,
+    before anything asks for it; its backends and emulator are named beside it by
+    :func:`armlab.hardware.family_parts.register`).
+
+    Raises:
+        ValueError: its key, protocol tag, an alias or a model number is another family's.
+    """
+    for f in FAMILIES:
+        names = {f.key, str(f.protocol), *f.aliases}
+        clash = ({new.key, str(new.protocol), *new.aliases} & names
+                 or set(new.tables) & set(f.tables))
+        if clash:
+            raise ValueError(f"the {new.title} family's {sorted(map(str, clash))} are the "
+                             f"{f.title} family's")
+    FAMILIES.append(new)
 
 
 def family(which: int | float | str | ServoFamily) -> ServoFamily:
@@ -62,7 +80,12 @@ def family_of_model(model: int | str) -> ServoFamily:
 
 
 def family_of_spec(spec: object) -> ServoFamily:
-    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``)."""
+    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``): the
+    one whose datasheet class it is, else the first it is a kind of (a family's datasheet
+    may extend another's)."""
+    for f in FAMILIES:
+        if type(spec) is f.spec_type:
+            return f
     for f in FAMILIES:
         if isinstance(spec, f.spec_type):
             return f

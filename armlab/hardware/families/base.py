@@ -136,6 +136,11 @@ class ServoFamily:
         """The protocol as a person reads it ("1.0", "2.0", "Feetech STS")."""
         return f"{self.protocol}.0" if isinstance(self.protocol, int) else self.title
 
+    @property
+    def protocol_name(self) -> str:
+        """The protocol as a sentence names it ("protocol 1.0", "Feetech STS")."""
+        return f"protocol {self.label}" if isinstance(self.protocol, int) else self.title
+
     def status_length(self, data_bytes: int = 0) -> int:
         """Bytes of a status packet carrying ``data_bytes`` of data (before any stuffing)."""
         return self.status_overhead + data_bytes

@@ -99,7 +99,6 @@ class ServoSpec:
     temperature_limit: int
     max_voltage: float
     position_range: float = math.radians(300.0)  # a Python float: numpy scalars are slow
-    protocol = 1  #: the Dynamixel protocol it speaks
     speed_unit: float = 0.111 * RPM
 
     @property

@@ -10,8 +10,7 @@ exactly, at every step):
 
 1. every servo's firmware ticks (:meth:`BatchedPlant._tick`, the vectorised
    :meth:`armlab.hardware.families.dynamixel1.firmware.ServoModel.update`, thesis §2.3): the 10-bit
-   Present
-   Position,
+   Present Position,
    the set-point moved towards Goal Position at Moving Speed, the compliance curve
    (margin, punch, slope, Torque Limit; thesis Table 2.4 / Gambar 2.20) giving the
    PWM duty held over the step, wheel mode, the overload alarm with Alarm Shutdown;

@@ -14,8 +14,7 @@ deflected angles), the robot's weight is shared among the feet that touch it by
 force and moment balance, and each contact foot is pushed by its share along the
 floor's normal. Through J^T f that load turns each stance leg's servos, which give
 way by their compliance (margin, slope, punch: ``armlab.hardware.families.dynamixel1.firmware``),
-and the
-plane through the deflected contact feet is the body's pose: :attr:`BodyOnLegs.tilt_deg`.
+and the plane through the deflected contact feet is the body's pose: :attr:`BodyOnLegs.tilt_deg`.
 The emulator loads its legs with the same class (``armlab emulate --robot quadruped``).
 """
 

@@ -30,9 +30,16 @@ from armlab.hardware.wire.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty,
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
 COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)
 DEFAULT_BAUDS = (1_000_000, 57_600)
-#: Every family's protocol tag: what a scan tries by default.
-DEFAULT_PROTOCOLS = tuple(f.protocol for f in FAMILIES)
-ALL_IDS = range(0, max(f.codec.MAX_ID for f in FAMILIES) + 1)  #: every ID any family has
+
+
+def default_protocols() -> tuple[int | str, ...]:
+    """Every family's protocol tag: what a scan tries by default."""
+    return tuple(f.protocol for f in FAMILIES)
+
+
+def all_ids() -> range:
+    """Every ID any family's servo may have: what a scan pings by default (0..253)."""
+    return range(0, max(f.codec.MAX_ID for f in FAMILIES) + 1)
 #: s beyond wire time a ping waits on a serial adapter (a servo answers within its
 #: return delay, 0.5 ms at the thesis's setting).
 WIRE_SCAN_MARGIN = 0.010
@@ -118,13 +125,13 @@ def broadcast_time(baud: float, n_ids: int, margin: float) -> float:
 
 def scan_time_bound(port: str, bauds: Sequence[float], ids: Iterable[int],
                     margin: float | None = None,
-                    protocols: Sequence[int | str] = DEFAULT_PROTOCOLS) -> float:
+                    protocols: Sequence[int | str] | None = None) -> float:
     """Upper bound of a scan's time in s on ``port``, if no servo answers (a PING is 6 + 6
     bytes; one PING per ID serves every family pinged that way; ``margin`` as
-    :func:`scan` takes it)."""
+    :func:`scan` takes it; ``protocols`` None: every family's)."""
     n = len(list(ids))
     policy = scan_policy(port, margin)
-    fams = [family(p) for p in protocols]
+    fams = [family(p) for p in (default_protocols() if protocols is None else protocols)]
     t = 0.0
     if any(not f.broadcast_ping for f in fams):
         t += sum(n * reply_timeout(6, 6, b, 254, policy.ping_margin) + policy.late_s
@@ -135,8 +142,8 @@ def scan_time_bound(port: str, bauds: Sequence[float], ids: Iterable[int],
     return t
 
 
-def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] = ALL_IDS,
-         margin: float | None = None, protocols: Sequence[int | str] = DEFAULT_PROTOCOLS,
+def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int] | None = None,
+         margin: float | None = None, protocols: Sequence[int | str] | None = None,
          progress: Callable[[float, int, int], None] | None = None) -> list[Found]:
     """PING ``ids`` at each baud on ``port`` in each protocol; describe every servo that
     answers (servos found by a PING per ID first, then by a broadcast PING, each by baud
@@ -149,16 +156,17 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     Args:
         port: serial device.
         bauds: bit/s to try, in order.
-        ids: IDs to ping (default 0..253).
+        ids: IDs to ping (None: :func:`all_ids`, 0..253).
         margin: s of timeout beyond wire time for each ping (None: :func:`scan_policy`'s).
         protocols: which families to try, by protocol tag (1 and "sts": a PING per ID;
-            2: one broadcast PING).
+            2: one broadcast PING; None: every family's, :func:`default_protocols`).
         progress: called as ``progress(baud, servo_id, n_found)`` before each ping.
 
     Raises:
         BusError: the port cannot be opened or is lost.
     """
-    ids = list(ids)
+    ids = list(all_ids() if ids is None else ids)
+    protocols = default_protocols() if protocols is None else protocols
     found: list[Found] = []
     if not bauds:
         raise ValueError("bauds: give at least one baud rate")
@@ -167,7 +175,7 @@ def scan(port: str, bauds: Sequence[float] = DEFAULT_BAUDS, *, ids: Iterable[int
     except ValueError:
         fams = []
     if not fams:
-        raise ValueError(f"protocols: some of {', '.join(map(repr, DEFAULT_PROTOCOLS))}, "
+        raise ValueError(f"protocols: some of {', '.join(map(repr, default_protocols()))}, "
                          f"got {list(protocols)}")
     policy = scan_policy(port, margin)
     each_id = [f for f in fams if not f.broadcast_ping]

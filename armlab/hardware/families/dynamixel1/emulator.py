@@ -14,9 +14,8 @@ Readings of the manual that are *interpretations* (the manual is silent): a
 write to a read-only item, out of an item's range or (locked) outside 24..35
 is refused whole with the range bit; writes to reserved bytes are ignored; a
 goal outside the CW/CCW limits is stored, answered with the angle-limit bit,
-and the servo stops at the limit (``armlab.hardware.families.dynamixel1.firmware``); overload and
-its alarm
-shutdown come from the simulated firmware (``armlab.hardware.families.dynamixel1.firmware``).
+and the servo stops at the limit; overload and its alarm shutdown come from the simulated
+firmware (``firmware.py`` in this folder).
 """
 
 from __future__ import annotations
@@ -232,8 +231,7 @@ class PlantPhysics(RestingPose):
     mount held fixed). ``slots[k]`` = (plant index, joint index) of the servo
     whose :attr:`VirtualServo.joint` is ``k``. The servo's RAM registers go into
     the simulated firmware's :class:`~armlab.hardware.families.dynamixel1.firmware.ServoRegisters`;
-    present
-    values, the torque registers (an alarm shutdown clears them) and the
+    present values, the torque registers (an alarm shutdown clears them) and the
     overload bit come back from its report.
     """
 

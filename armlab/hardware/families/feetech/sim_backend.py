@@ -4,8 +4,7 @@
 The simulated counterpart of :class:`armlab.hardware.families.feetech.backend.StsBackend`, as
 :class:`armlab.hardware.families.xseries.sim_backend.XSimBackend` is of the X-series backend: the
 servos are :class:`armlab.hardware.families.feetech.firmware.StsServoModel` firmware in the plant,
-at
-the robot's supply (the SO-101's 5 V), configured as the STS backend configures real ones
+at the robot's supply (the SO-101's 5 V), configured as the STS backend configures real ones
 (:func:`armlab.hardware.families.feetech.table.lab_settings`: position mode, P 16, no acceleration
 limit, the torque limit; Min/Max Position Limit at the joint limits). Goals go in as Goal
 Position and Goal Speed counts, readings come back as the servos report them (4096
@@ -41,8 +40,7 @@ def sts_registers(spec: StsSpec, *, goal: int, min_limit: int = 0, max_limit: in
                   torque_limit: float = 1.0, torque_on: bool = True) -> StsRegisters:
     """Registers as :class:`~armlab.hardware.families.feetech.backend.StsBackend` configures a servo
     (:func:`~armlab.hardware.families.feetech.table.lab_settings`), its Min/Max Position Limit and
-    its
-    goal."""
+    its goal."""
     table = sts_table_for(spec.model_number)
     regs = StsRegisters.factory(table, goal_position=goal)
     for item, value, _ in lab_settings(table, torque_limit=torque_limit):

@@ -93,7 +93,6 @@ class StsSpec(TurnEncoder):
     voltage: float
     gear_ratio: float
 
-    protocol = "sts"
     current_unit = CURRENT_UNIT
     has_current = True
 

@@ -199,8 +199,8 @@ class XSeriesBackend(ServoBusBackend):
     def _ram_settings(self, servo_id: int, lines: list[str], *, name: str = "") -> None:
         """The RAM items (lost at a REBOOT): status return level, no profile limit, then
         the mode's own (:func:`armlab.hardware.families.xseries.table.lab_settings`: the torque
-        bound, the D
-        gain; the gripper's :func:`armlab.hardware.backends.gripper.gripper_settings`)."""
+        bound, the D gain; the gripper's
+        :func:`armlab.hardware.backends.gripper.gripper_settings`)."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
         gripper = self.gripper is not None and servo_id == self.gripper.servo_id
         settings = (("status_return_level", self.status_return_level_setting,

@@ -10,8 +10,7 @@ address past the table; Data Length, Data Range; Instruction for an ACTION with 
 registered); the alert bit while Hardware Error Status is set; silence at a baud that
 is not the servo's. The servos move because :class:`XPlantPhysics` hands their RAM to
 the simulated X-series firmware (:class:`armlab.hardware.families.xseries.firmware.XServoModel`) of
-the same
-plant the simulator uses; an arm's gripper servo (the OpenManipulator-X's ID 15) moves
+the same plant the simulator uses; an arm's gripper servo (the OpenManipulator-X's ID 15) moves
 the fingers' load of :func:`armlab.hardware.backends.gripper.gripper_plant`.
 
 *Interpretation* (the e-manual says a goal "should be configured within" its limit):

@@ -156,9 +156,8 @@ class XReport:
 class XServoModel(GearedMotor):
     """One X-series servo's firmware and motor (the plant's interface of
     :class:`armlab.hardware.families.dynamixel1.firmware.ServoModel`: :meth:`update`,
-    ``drive``/``damping``
-    and the
-    torques of :class:`~armlab.hardware.families.dynamixel1.firmware.GearedMotor`, :meth:`report`).
+    ``drive``/``damping`` and the torques of
+    :class:`~armlab.hardware.sim.servo_motor.GearedMotor`, :meth:`report`).
 
     Args:
         spec: the datasheet (``armlab.hardware.families.xseries.table.XM430_W350`` etc.).

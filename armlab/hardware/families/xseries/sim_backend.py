@@ -3,8 +3,7 @@
 The simulated counterpart of :class:`armlab.hardware.families.xseries.backend.XSeriesBackend`, as
 :class:`armlab.hardware.backends.sim.SimBackend` is of the protocol-1.0 backend: the servos are
 :class:`armlab.hardware.families.xseries.firmware.XServoModel` firmware in the plant, configured as
-the
-X-series backend configures real ones (current-based position control where the servo senses its
+the X-series backend configures real ones (current-based position control where the servo senses its
 current, with Goal Current as the torque bound and a Position D Gain, else Goal PWM; no
 profile limits, Min/Max Position Limit at the joint limits); goals go in as Goal
 Position and Profile Velocity counts, readings come back as the servos report them (4096
@@ -62,8 +61,7 @@ def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
 
 def gripper_registers(spec: XSpec, *, torque_on: bool = True) -> XRegisters:
     """Registers as :class:`~armlab.hardware.families.xseries.backend.XSeriesBackend` configures a
-    gripper's
-    servo: current-based position control with
+    gripper's servo: current-based position control with
     :func:`armlab.hardware.backends.gripper.gripper_settings`,
     the gripper's profile velocity, the goal at the horn's centre."""
     regs = XRegisters.factory(x_table_for(spec.model_number))

@@ -76,8 +76,6 @@ class XSpec(TurnEncoder):
     min_voltage_limit: int
     max_voltage_limit: int
 
-    protocol = 2
-
     @property
     def has_current(self) -> bool:
         """The servo measures its motor current (Present Current at address 126)."""
