@@ -82,3 +82,22 @@ def test_the_bus2_cycles_alternate_on_one_paced_emulator_and_report_their_figure
     for name in ("armlab_bus2_cycle_ms", "peer_bus2_cycle_ms"):
         assert math.isfinite(out[name]) and out[name] > 0.95 * bound_ms, out
     assert math.isfinite(out["ratio_bus2"]) and out["ratio_bus2"] > 0, out
+
+
+@pytest.mark.slow
+def test_the_feetech_cycles_alternate_with_feetech_s_own_sdk_and_report_their_figures():
+    """armlab's bus and Feetech's SDK (scservo_sdk) take turns on one paced emulator of the
+    SO-101's six STS3215; neither beats the paced wire, and the wire bound is the bytes of
+    one STS backend cycle (190 bytes, 1.90 ms at 1 Mbps)."""
+    pytest.importorskip("scservo_sdk")
+    from armlab.app.benches.peers import bus_sts_cycles
+
+    out = bus_sts_cycles(True)
+    assert set(out) == {"armlab_bus_sts_cycle_ms", "peer_bus_sts_cycle_ms", "ratio_bus_sts",
+                        "bus_sts_wire_bound_ms", "ratio_bus_sts_wire"}
+    assert out["bus_sts_wire_bound_ms"] == pytest.approx(1.90)
+    for name in ("armlab_bus_sts_cycle_ms", "peer_bus_sts_cycle_ms"):
+        assert math.isfinite(out[name]) and out[name] > 0.95 * out["bus_sts_wire_bound_ms"], out
+    assert math.isfinite(out["ratio_bus_sts"]) and out["ratio_bus_sts"] > 0, out
+    assert out["ratio_bus_sts_wire"] == pytest.approx(
+        out["armlab_bus_sts_cycle_ms"] / out["bus_sts_wire_bound_ms"], rel=1e-9)

@@ -1,5 +1,5 @@
 """armlab beside its peers (``armlab bench --peers``): MuJoCo and Pinocchio on the same URDF,
-the official Dynamixel SDK on the same emulated servos.
+the official Dynamixel SDK and Feetech's on the same emulated servos.
 
 Everything runs in this process, on ``armlab/kinematics/robots/receptionist_arm.urdf`` (the
 thesis arm, three joints), armlab's figure measured in the same run as the peer's:
@@ -28,19 +28,27 @@ thesis arm, three joints), armlab's figure measured in the same run as the peer'
   it): the SDK's ``GroupSyncRead.txRxPacket`` + ``GroupSyncWrite.txPacket`` against
   ``armlab.hardware.wire.bus.Bus.sync_read`` + ``sync_write``; medians over cycles, taken in
   alternating blocks (200 of armlab's, 200 of the SDK's, ten rounds) on the one port.
+- ``peer_bus_sts_cycle_ms`` / ``armlab_bus_sts_cycle_ms``: the same for the SO-101's six
+  STS3215 (IDs 1..6, ``armlab emulate --pace --robot so101``): one SYNC_READ of present
+  position to temperature (56..70) and one SYNC_WRITE of goal position, time and speed
+  (42..47), Feetech's SDK (``scservo_sdk``, as LeRobot drives it) against armlab's bus;
+  ``ratio_bus_sts_wire`` is armlab's cycle over the bytes' wire time
+  (``bus_sts_wire_bound_ms``).
 - ``ratio_*``: armlab's time over the peer's (below 1: armlab is faster); ``ratio_bus2``
-  is the median of the rounds' ratios.
+  and ``ratio_bus_sts`` are the medians of the rounds' ratios.
 
-The peers are an optional extra (``pip install -e '.[bench]'``: ``mujoco``, ``pin`` and
-``dynamixel-sdk``), never a dependency of the lab.
+The peers are an optional extra (``pip install -e '.[bench]'``: ``mujoco``, ``pin``,
+``dynamixel-sdk`` and ``feetech-servo-sdk``), never a dependency of the lab.
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import re
 import sys
 import time
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -53,8 +61,8 @@ from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import rnea
 from armlab.kinematics.ik import rmrc
 
-INSTALL = ("pip install -e '.[bench]'  (MuJoCo, Pinocchio and the Dynamixel SDK, for "
-           "armlab bench --peers)")
+INSTALL = ("pip install -e '.[bench]'  (MuJoCo, Pinocchio, the Dynamixel SDK and Feetech's, "
+           "for armlab bench --peers)")
 TOL = 1e-4  #: m, the IK tolerance of both solvers
 
 
@@ -62,7 +70,8 @@ def missing() -> list[str]:
     """The peer packages that cannot be imported here."""
     out = []
     for module, package in (("mujoco", "mujoco"), ("pinocchio", "pin"),
-                            ("dynamixel_sdk", "dynamixel-sdk")):
+                            ("dynamixel_sdk", "dynamixel-sdk"),
+                            ("scservo_sdk", "feetech-servo-sdk")):
         try:
             __import__(module)
         except ImportError:
@@ -167,6 +176,7 @@ def run(quick: bool) -> dict[str, float]:
     out["armlab_plant_steps_per_s"] = _cpu_rate(backend.plant.step, steps, batches)
 
     out.update(bus2_cycles(quick))
+    out.update(bus_sts_cycles(quick))
     out["ratio_rnea"] = out["armlab_rnea_us"] / out["peer_rnea_us"]
     out["ratio_ik"] = out["armlab_rmrc_us"] / out["peer_ik_us"]
     out["ratio_ik_set"] = out["armlab_rmrc_set_us"] / out["peer_ik_set_us"]
@@ -174,11 +184,67 @@ def run(quick: bool) -> dict[str, float]:
     return out
 
 
+def _alternating(ours_cycle: Callable[[], None], peer_cycle: Callable[[], None], quick: bool
+                 ) -> tuple[list[float], list[float], list[float]]:
+    """Both cycles timed on one port in alternating blocks (each cycle's times in s, and
+    each round's ratio of armlab's median over the peer's): a minute of load on the
+    shared machine falls on both rather than on whichever ran then."""
+    rounds, block = (4, 75) if quick else (10, 200)
+
+    def block_s(cycle: Callable[[], None]) -> list[float]:
+        for _ in range(10):  # back on the port: settle before timing
+            cycle()
+        samples = []
+        for _ in range(block):
+            t0 = time.perf_counter()
+            cycle()
+            samples.append(time.perf_counter() - t0)
+        return samples
+
+    for _ in range(50):  # warm-up of both
+        ours_cycle()
+        peer_cycle()
+    ours: list[float] = []
+    theirs: list[float] = []
+    ratios = []
+    for _ in range(rounds):
+        a, b = block_s(ours_cycle), block_s(peer_cycle)
+        ours += a
+        theirs += b
+        ratios.append(float(np.median(a) / np.median(b)))
+    return ours, theirs, ratios
+
+
+@contextlib.contextmanager
+def _sdk_timeout(handler: Any) -> Iterator[None]:
+    """An SDK's port handler waiting 2 × LATENCY_TIMER + 2 ms past the wire time (34 ms
+    for the Dynamixel SDK's 16), which a busy machine's emulator overruns several times
+    running: armlab's 0.1 s margin for the time it is open, its own afterwards."""
+    ports: Any = sys.modules[type(handler).__module__]  # the SDK's port module
+    latency_ms = ports.LATENCY_TIMER
+    ports.LATENCY_TIMER = 49.0
+    try:
+        yield
+    finally:
+        ports.LATENCY_TIMER = latency_ms
+
+
+def _sdk_cycle(reader: Any, writer: Any, success: int) -> Callable[[], None]:
+    """An SDK's group read + write, up to 5 retries of the read, as armlab's bus here."""
+    def cycle() -> None:
+        for _ in range(6):
+            if reader.txRxPacket() == success:
+                break
+        else:
+            raise RuntimeError("the SDK's SYNC_READ failed 6 times")
+        writer.txPacket()
+    return cycle
+
+
 def bus2_cycles(quick: bool) -> dict[str, float]:
-    """The protocol-2.0 group read + write cycle, armlab's bus and the SDK's, on one paced
-    emulator (see the module's docstring), in alternating blocks: both keep the port open
-    and take turns (each empties the input before it sends), so a minute of load on the
-    shared machine falls on both rather than on whichever ran then.
+    """The protocol-2.0 group read + write cycle, armlab's bus and the Dynamixel SDK's, on
+    one paced emulator (see the module's docstring), in alternating blocks: both keep the
+    port open and take turns (each empties the input before it sends).
 
     Returns:
         ``armlab_bus2_cycle_ms`` and ``peer_bus2_cycle_ms`` (medians over every cycle)
@@ -191,19 +257,7 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     from armlab.hardware.wire.bus import Bus
 
     ids = list(OMX_IDS)  # the arm's and the gripper's, as the X-series backend's
-    rounds, block = (4, 75) if quick else (10, 200)
     goal = {i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}
-
-    def block_s(cycle) -> list[float]:  # noqa: ANN001
-        for _ in range(10):  # back on the port: settle before timing
-            cycle()
-        samples = []
-        for _ in range(block):
-            t0 = time.perf_counter()
-            cycle()
-            samples.append(time.perf_counter() - t0)
-        return samples
-
     with paced_emulator("--robot", "open_manipulator_x", "--baud", str(BAUD)) as port, \
             Bus(port, BAUD, protocol=2, timeout_margin=0.1, retries=5, exclusive=False) as bus:
         for i in ids:  # as a configured arm: no 500 µs factory return delay
@@ -216,41 +270,75 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
         handler = sdk.PortHandler(port)
         if not handler.openPort() or not handler.setBaudRate(BAUD):
             raise RuntimeError(f"the Dynamixel SDK could not open {port}")
-        # the SDK waits 2 * LATENCY_TIMER + 2 ms past the wire time (34 ms), which a busy
-        # machine's emulator overruns six times running; give it armlab's 0.1 s margin
-        sdk_ports = sys.modules[type(handler).__module__]
-        latency_ms = sdk_ports.LATENCY_TIMER
-        sdk_ports.LATENCY_TIMER = 49.0  # type: ignore[attr-defined]  # the SDK's port module, found at run time
         try:
-            packets = sdk.PacketHandler(2.0)
-            reader = sdk.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
-            writer = sdk.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
-            for i in ids:
-                reader.addParam(i)
-                writer.addParam(i, list(goal[i]))
-
-            def sdk_cycle() -> None:  # up to 5 retries, as armlab's bus here
-                for _ in range(6):
-                    if reader.txRxPacket() == sdk.COMM_SUCCESS:
-                        break
-                else:
-                    raise RuntimeError("the SDK's SYNC_READ failed 6 times")
-                writer.txPacket()
-
-            for _ in range(50):  # warm-up of both
-                armlab_cycle()
-                sdk_cycle()
-            ours: list[float] = []
-            theirs: list[float] = []
-            ratios = []
-            for _ in range(rounds):
-                a, b = block_s(armlab_cycle), block_s(sdk_cycle)
-                ours += a
-                theirs += b
-                ratios.append(float(np.median(a) / np.median(b)))
+            with _sdk_timeout(handler):
+                packets = sdk.PacketHandler(2.0)
+                reader = sdk.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
+                writer = sdk.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
+                for i in ids:
+                    reader.addParam(i)
+                    writer.addParam(i, list(goal[i]))
+                ours, theirs, ratios = _alternating(
+                    armlab_cycle, _sdk_cycle(reader, writer, sdk.COMM_SUCCESS), quick)
         finally:
-            sdk_ports.LATENCY_TIMER = latency_ms  # type: ignore[attr-defined]  # the SDK's port module, found at run time
             handler.closePort()
     return {"armlab_bus2_cycle_ms": float(np.median(ours) * 1e3),
             "peer_bus2_cycle_ms": float(np.median(theirs) * 1e3),
             "ratio_bus2": float(np.median(ratios))}
+
+
+def bus_sts_cycles(quick: bool) -> dict[str, float]:
+    """The Feetech STS group read + write cycle, armlab's bus and Feetech's own SDK's
+    (``scservo_sdk``, the FTServo SDK LeRobot drives its SO-101 with), on one paced
+    emulator (``armlab emulate --pace --robot so101``), in alternating blocks as
+    :func:`bus2_cycles`: one SYNC_READ of present position, speed, load, voltage,
+    temperature (56..70, 15 bytes) of the SO-101's six STS3215 (IDs 1..6) plus one
+    SYNC_WRITE of goal position, time and speed (42..47), the packets of one cycle of
+    the STS backend.
+
+    Returns:
+        ``armlab_bus_sts_cycle_ms`` and ``peer_bus_sts_cycle_ms`` (medians over every
+        cycle), ``ratio_bus_sts`` (the median over rounds of armlab's median over the
+        SDK's), ``bus_sts_wire_bound_ms`` (the cycle's bytes at 10 bits a byte) and
+        ``ratio_bus_sts_wire`` (armlab's median over that bound).
+    """
+    import scservo_sdk as scs
+
+    from armlab.app.benches.bus import BAUD, SO101_SERVOS, paced_emulator, sts_cycle_bytes
+    from armlab.hardware.families.feetech.backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
+    from armlab.hardware.servos.servo_spec import wire_time
+    from armlab.hardware.wire.bus import Bus
+
+    ids = list(range(1, SO101_SERVOS + 1))
+    goal = {i: (2048).to_bytes(2, "little") + bytes(GOAL_LEN - 2) for i in ids}
+    with paced_emulator("--robot", "so101", "--baud", str(BAUD)) as port, \
+            Bus(port, BAUD, protocol="sts", timeout_margin=0.1, retries=5,
+                exclusive=False) as bus:
+        for i in ids:  # as the STS backend configures them
+            bus.write(i, "return_delay_time", 0)
+
+        def armlab_cycle() -> None:
+            bus.sync_read(PRESENT_AT, PRESENT_LEN, ids)
+            bus.sync_write(GOAL_AT, GOAL_LEN, goal)
+
+        handler = scs.PortHandler(port)
+        if not handler.openPort() or not handler.setBaudRate(BAUD):
+            raise RuntimeError(f"Feetech's SDK could not open {port}")
+        try:
+            with _sdk_timeout(handler):
+                packets = scs.PacketHandler(0)  # STS/SMS: little-endian words
+                reader = scs.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
+                writer = scs.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
+                for i in ids:
+                    reader.addParam(i)
+                    writer.addParam(i, list(goal[i]))
+                ours, theirs, ratios = _alternating(
+                    armlab_cycle, _sdk_cycle(reader, writer, scs.COMM_SUCCESS), quick)
+        finally:
+            handler.closePort()
+    bound = wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD)
+    return {"armlab_bus_sts_cycle_ms": float(np.median(ours) * 1e3),
+            "peer_bus_sts_cycle_ms": float(np.median(theirs) * 1e3),
+            "ratio_bus_sts": float(np.median(ratios)),
+            "bus_sts_wire_bound_ms": bound * 1e3,
+            "ratio_bus_sts_wire": float(np.median(ours)) / bound}
