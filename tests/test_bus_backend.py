@@ -14,7 +14,8 @@ from armlab.hardware.backends.joint_map import JointMap, JointServo, load_joint_
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.wire.bus import Bus, NoReply, WrongModel
+from armlab.hardware.wire.bus import Bus
+from armlab.hardware.wire.errors import NoReply, WrongModel
 from armlab.kinematics.catalog import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal

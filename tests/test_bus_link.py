@@ -17,7 +17,9 @@ from _helpers import wait_for
 
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.table import AX12A_TABLE, RX24F_TABLE
-from armlab.hardware.wire.bus import Bus, NoReply, PortError, ftdi_latency_check
+from armlab.hardware.wire.bus import Bus
+from armlab.hardware.wire.errors import NoReply, PortError
+from armlab.hardware.wire.port import ftdi_latency_check
 from armlab.hardware.wire.scan import scan
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal
@@ -69,7 +71,7 @@ def test_sync_write_is_one_23_byte_packet_and_moves_every_goal(emu):
 
 
 def test_scan_finds_exactly_the_emulated_ids_and_models_and_names_a_wrong_model():
-    from armlab.hardware.wire.bus import WrongModel
+    from armlab.hardware.wire.errors import WrongModel
 
     with emulator("--ids", "4,9,200", "--servo", "AX-12A", "--robot", "receptionist_arm") as emu:
         found = scan(emu.port, (1_000_000,))  # a pty's policy: the emulator is a process

@@ -20,7 +20,8 @@ from _helpers import wait_for
 
 from armlab.hardware.families.xseries import packets as p2
 from armlab.hardware.families.xseries.table import CENTRE, XM430_W350_TABLE
-from armlab.hardware.wire.bus import Bus, NoReply
+from armlab.hardware.wire.bus import Bus
+from armlab.hardware.wire.errors import NoReply
 from armlab.kinematics import load_robot
 
 pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pseudo-terminal

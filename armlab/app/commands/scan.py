@@ -10,7 +10,7 @@ from dataclasses import asdict, replace
 from typing import Any
 
 from armlab.hardware.families import FAMILIES, family
-from armlab.hardware.wire.bus import BusError
+from armlab.hardware.wire.errors import BusError
 from armlab.hardware.wire.scan import (
     COMMON_BAUDS,
     DEFAULT_BAUDS,

@@ -52,7 +52,7 @@ def calibrate(bus: Bus, model: SerialChain, *, ask: Callable[[str], None],
 
     Raises:
         ValueError: a range past the URDF's limits, naming the joint and its servo.
-        armlab.hardware.wire.bus.BusError: a servo that does not answer.
+        armlab.hardware.wire.errors.BusError: a servo that does not answer.
     """
     jmap = jmap or default_joint_map(model)
     spec = jmap.spec

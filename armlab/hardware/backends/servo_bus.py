@@ -39,7 +39,8 @@ from armlab.hardware.backends.joint_map import (
 )
 from armlab.hardware.families import family
 from armlab.hardware.servos.control_table import ControlTable
-from armlab.hardware.wire.bus import Bus, BusError, BusStats, NoReply
+from armlab.hardware.wire.bus import Bus, BusStats
+from armlab.hardware.wire.errors import BusError, NoReply
 from armlab.kinematics.catalog import ROBOT_FILES
 from armlab.kinematics.model import Quadruped, SerialChain
 
@@ -83,7 +84,8 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
 
     Raises:
         BackendError: port missing/busy/forbidden, a servo silent or of the wrong model
-            (the bus's :class:`~armlab.hardware.wire.bus.BusError` translated, kept as its cause).
+            (the bus's :class:`~armlab.hardware.wire.errors.BusError` translated, kept as
+            its cause).
     """
 
     #: the protocol of the servos this backend drives (its family's tag)
@@ -458,7 +460,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
 
     def _guard(self, fn, *args, **kwargs):
         """Run a bus call; on a link failure try torque off, then raise one BackendError
-        (the control layer's error; the bus's :class:`~armlab.hardware.wire.bus.BusError` is its
+        (the control layer's error; the bus's :class:`~armlab.hardware.wire.errors.BusError` is its
         cause)."""
         try:
             return fn(*args, **kwargs)
@@ -471,7 +473,7 @@ class ServoBusBackend(GoalLimits, GripperHolder, ABC):
 
     def _joints_of(self, exc: BusError) -> str:
         """"joint NAME: " (or "joint A, joint B: ", "the gripper JOINT: ") for the servos
-        a :class:`~armlab.hardware.wire.bus.NoReply` names, so the message says which joint
+        a :class:`~armlab.hardware.wire.errors.NoReply` names, so the message says which joint
         stopped answering; "" for any other error."""
         ids = exc.ids if isinstance(exc, NoReply) else ()
         names = [f"joint {j.name}" for j in self.map.joints if j.servo_id in ids]

@@ -19,6 +19,12 @@ servos, ``protocol="sts"`` for Feetech's; :mod:`armlab.hardware.families` says w
 family's packets and tables are): the packets differ, the timing and the named access
 through the servo's control table do not. Protocol 2.0 and STS add reads of many servos
 in one request (:meth:`Bus.sync_read`); protocol 2.0 BULK_READ and REBOOT.
+
+Its parts: the port it opens and how long to wait on it (:mod:`~armlab.hardware.wire.port`),
+what it raises (:mod:`~armlab.hardware.wire.errors`), its group reads
+(:mod:`~armlab.hardware.wire.group_reads`) and its items by name
+(:mod:`~armlab.hardware.wire.named_items`); this module holds the transactions and the
+instructions.
 """
 
 from __future__ import annotations
@@ -28,13 +34,11 @@ import fcntl
 import logging
 import os
 import select
-import struct
 import termios
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import serial
@@ -43,38 +47,24 @@ from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.families.base import Codec, ServoFamily, Status
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
+from armlab.hardware.wire.errors import BusError, LinkLost, NoReply, PortError
+from armlab.hardware.wire.group_reads import GroupReads
+from armlab.hardware.wire.named_items import NamedItems
+from armlab.hardware.wire.port import (
+    LAST_REPLY_POLL_S,
+    PTY_MARGIN,
+    PTY_RETRIES,
+    TIOCGRS485,
+    WIRE_MARGIN,
+    WIRE_RETRIES,
+    ftdi_latency_check,
+    ftdi_latency_ms,
+    is_pty,
+    open_port,
+    reply_timeout,
+)
 
 log = logging.getLogger("armlab.bus")
-
-TIOCGRS485 = 0x542E
-SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
-
-
-class BusError(OSError):
-    """The bus cannot do what was asked; the message says what to check.
-
-    An OSError (an I/O failure), which a command line prints as one line; the
-    backend over the bus (:class:`~armlab.hardware.families.dynamixel1.backend.DynamixelBackend`)
-    hands it to the control loop as a :class:`~armlab.control.backend.BackendError`.
-    """
-
-
-class PortError(BusError):
-    """The serial port cannot be opened (missing, permission, busy)."""
-
-
-class NoReply(BusError):
-    """A servo did not answer after every retry (``ids``: the ones that did not)."""
-
-    ids: tuple[int, ...] = ()
-
-
-class WrongModel(BusError):
-    """A servo answered with another model number than expected."""
-
-
-class LinkLost(BusError):
-    """The serial device went away in the middle of a transaction."""
 
 
 @dataclass
@@ -101,78 +91,7 @@ class BusStats:
     bytes_in: int = 0
 
 
-def reply_timeout(request: int, reply: int, baud: float, return_delay: int, margin: float) -> float:
-    """Seconds to wait for a status packet: wire time of request + reply, the servo's
-    return delay (2 µs a unit, thesis §2.3) and a margin for the adapter and the OS."""
-    return wire_time(request + reply, baud) + RETURN_DELAY_UNIT * return_delay + margin
-
-
-def ftdi_latency_ms(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:
-    """The FTDI latency timer of ``port`` in ms, or None when it is not a usb-serial device."""
-    dev = Path(os.path.realpath(port)).name
-    try:
-        return int((sysfs / dev / "latency_timer").read_text().strip())
-    except (OSError, ValueError):
-        return None
-
-
-def ftdi_latency_check(port: str, *, sysfs: Path = SYSFS_USB_SERIAL) -> str | None:
-    """Warn when an FTDI adapter's latency timer will cost ~16 ms per transaction.
-
-    Returns None when the port is not a usb-serial device or the timer is 1 ms,
-    otherwise a one-line message naming the fix.
-    """
-    value = ftdi_latency_ms(port, sysfs=sysfs)
-    if value is None or value <= 1:
-        return None
-    timer = sysfs / Path(os.path.realpath(port)).name / "latency_timer"
-    return (
-        f"{port}: FTDI latency timer is {value} ms, so every servo reply waits up to {value} ms; "
-        f"fix: echo 1 | sudo tee {timer}  (or a udev rule ATTR{{latency_timer}}=\"1\")"
-    )
-
-
-WIRE_MARGIN = 0.020  #: s of reply timeout beyond the wire time on a serial adapter
-PTY_MARGIN = 0.100  #: s on a pseudo-terminal (the emulator: a process, not a wire)
-#: s at most spent polling (not sleeping) for the last reply a transaction waits for: a
-#: woken thread comes back some 40 µs after the bytes, a polling one at once (the
-#: official SDK polls the whole wait; this keeps the CPU for the servos' turn-around)
-LAST_REPLY_POLL_S = 0.0003
-WIRE_RETRIES = 2  #: extra attempts after a lost or broken reply on a serial adapter
-PTY_RETRIES = 8  #: on a pseudo-terminal: a busy CPU can hold the emulator ~0.5 s or more
-
-
-def is_pty(port: str) -> bool:
-    """``port`` is (a link to) a pseudo-terminal, e.g. ``armlab emulate``'s /dev/pts/N."""
-    return os.path.realpath(port).startswith("/dev/pts/")
-
-
-def open_port(port: str, baud: float, *, exclusive: bool = True) -> serial.Serial:
-    """Open ``port`` 8N1 at ``baud``; :class:`PortError` with the fix for the usual failures."""
-    try:
-        return serial.Serial(port, int(round(baud)), timeout=0, write_timeout=1.0,
-                             exclusive=exclusive)
-    except serial.SerialException as exc:
-        code = exc.errno
-        if code == errno.ENOENT or not os.path.exists(port):
-            raise PortError(
-                f"serial port {port} not found: is the adapter plugged in? "
-                "(ls /dev/ttyUSB* /dev/ttyACM* /dev/serial/by-id/)"
-            ) from None
-        if code == errno.EACCES:
-            raise PortError(
-                f"permission denied on {port}: add yourself to the dialout group "
-                "(sudo usermod -aG dialout $USER, then log out and in)"
-            ) from None
-        if code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK):
-            raise PortError(
-                f"serial port {port} is busy: another program (another armlab, "
-                "Dynamixel Wizard, ModemManager) has it open"
-            ) from None
-        raise PortError(f"cannot open serial port {port}: {exc}") from None
-
-
-class Bus:
+class Bus(GroupReads, NamedItems):
     """Protocol 1.0 or 2.0 on one serial port.
 
     Args:
@@ -613,63 +532,23 @@ class Bus:
             if refused is not None:
                 raise refused
 
+    def write_unanswered(self, servo_id: int, address: int, data: bytes) -> None:
+        """WRITE ``data`` at ``address`` without waiting for a reply, then drop whatever the
+        servo may have answered (a write of the status return level: whether the servo
+        answers that very write depends on the level it is changing)."""
+        packet = self._p.write(servo_id, address, data)
+        self.transact(packet, reply=False)
+        time.sleep(reply_timeout(len(packet), self.status_length(), self._baud,
+                                 self.return_delay.get(servo_id, 254), 0.002))
+        with self._lock:
+            try:
+                self._ser.reset_input_buffer()
+            except (serial.SerialException, OSError, termios.error) as exc:
+                raise self._lost(exc) from None
+
     def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
         """SYNC_WRITE to several servos in one packet (no reply)."""
         self.transact(self._p.sync_write(address, length, data), reply=False)
-
-    def sync_read(self, address: int, length: int, ids: list[int] | tuple[int, ...]
-                  ) -> dict[int, bytes]:
-        """SYNC_READ (protocol 2.0, STS): ``length`` bytes at ``address`` from each of
-        ``ids`` in one request; each servo answers in turn, after the one before it.
-
-        Servos whose answer was lost are asked again (a SYNC_READ of those alone), up to
-        the bus's retries; :class:`NoReply` names the ones that never answered.
-
-        Returns:
-            servo ID -> its bytes, in the order of ``ids``.
-        """
-        ids = list(ids)
-        if not self.family.group_read:
-            raise ValueError(f"SYNC_READ is a protocol 2.0 and STS instruction, not "
-                             f"{self.family.title}'s: read each servo")
-        codec = self._p
-        return self._read_many(codec.sync_read(address, length, ids), {i: length for i in ids},
-                               lambda missing: codec.sync_read(address, length, missing))
-
-    def bulk_read(self, requests: list[tuple[int, int, int]]) -> dict[int, bytes]:
-        """BULK_READ (protocol 2.0's): ``(servo ID, address, length)`` for each servo, each
-        its own item, in one request; retries and errors as :meth:`sync_read`."""
-        bulk = self.family.bulk_read_packet
-        if bulk is None:
-            raise ValueError(f"BULK_READ is a protocol 2.0 instruction, not "
-                             f"{self.family.title}'s: open the bus with protocol=2")
-        by_id = {servo_id: (address, length) for servo_id, address, length in requests}
-        return self._read_many(bulk(requests), {i: n for i, (_, n) in by_id.items()},
-                               lambda missing: bulk([(i, *by_id[i]) for i in missing]))
-
-    def _read_many(self, packet: bytes, want: dict[int, int], again) -> dict[int, bytes]:
-        """Send a SYNC_READ or BULK_READ ``packet`` and gather its answers (``want``: ID ->
-        data bytes); ``again(missing IDs)`` is the packet that asks those once more."""
-        got: dict[int, bytes] = {}
-        tries = self.retries + 1
-        with self._lock:
-            for attempt in range(tries):
-                missing = [i for i in want if i not in got]
-                if attempt:
-                    self.stats.retries += 1
-                    packet = again(missing)
-                backlog = self._send(packet)
-                # every servo waits for the answer before its own, then its return delay
-                replies = sum(self.status_length(want[i]) for i in missing)
-                delays = sum(self.return_delay.get(i, 254) for i in missing)
-                timeout = backlog + reply_timeout(len(packet), replies, self._baud, delays,
-                                                  self.timeout_margin)
-                answers = self._receive(packet, {i: want[i] for i in missing}, timeout=timeout)
-                got.update({i: st.params for i, st in answers.items()})
-                if len(got) == len(want):
-                    return {i: got[i] for i in want}
-            self.stats.failures += 1
-        raise self._no_reply([i for i in want if i not in got], tries, " to a group read")
 
     def reboot(self, servo_id: int) -> None:
         """REBOOT (protocol 2.0's): the servo restarts, clearing a hardware error (its
@@ -708,94 +587,3 @@ class Bus:
     def action(self) -> None:
         """Broadcast ACTION: apply every servo's registered REG_WRITE."""
         self.transact(self._p.action(), reply=False)
-
-    # -- named access -------------------------------------------------------
-
-    def table_of(self, servo_id: int) -> ControlTable:
-        """The control table of an identified servo, else the bus's default table."""
-        return self.tables.get(servo_id, self.table)
-
-    def read(self, servo_id: int, name: str) -> int:
-        """Raw value of a control-table item, e.g. ``bus.read(1, "present_position")``."""
-        table = self.table_of(servo_id)
-        item = table.item(name)
-        return table.decode(name, self.read_bytes(servo_id, item.address, item.size))
-
-    def read_items(self, servo_id: int, names: Sequence[str]) -> dict[str, int]:
-        """Raw values of control-table items ``names`` (in address order) in one READ of the
-        span from the first to the last: a reply of the span's own length, which a late
-        answer to an earlier, shorter request cannot pass for (limits read one by one
-        could take another servo's word for a limit)."""
-        table = self.table_of(servo_id)
-        first, last = table.item(names[0]), table.item(names[-1])
-        raw = self.read_bytes(servo_id, first.address,
-                              last.address + last.size - first.address)
-        return {n: table.decode(n, raw[table.item(n).address - first.address:]) for n in names}
-
-    def read_si(self, servo_id: int, name: str) -> float:
-        """An item converted to SI (rad, rad/s, N·m, V, °C, s, bit/s)."""
-        return self.table_of(servo_id).to_si(name, self.read(servo_id, name))
-
-    def write(self, servo_id: int, name: str, value: int) -> None:
-        """Write a raw value to an item; ValueError (nothing sent) if read-only or out of range.
-
-        The status return level is written without waiting for a reply (whether
-        the servo answers that very write depends on the level it is changing).
-        """
-        table = self.table_of(servo_id)
-        address, data = table.encode(name, value)
-        if name == "status_return_level":
-            packet = self._p.write(servo_id, address, data)
-            self.transact(packet, reply=False)
-            time.sleep(reply_timeout(len(packet), self.status_length(), self._baud,
-                                     self.return_delay.get(servo_id, 254), 0.002))
-            with self._lock:
-                try:
-                    self._ser.reset_input_buffer()
-                except (serial.SerialException, OSError, termios.error) as exc:
-                    raise self._lost(exc) from None
-            self.status_return_level[servo_id] = int(value)
-            return
-        self.write_bytes(servo_id, address, data)
-        if name == "return_delay_time":
-            self.return_delay[servo_id] = int(value)
-
-    def write_si(self, servo_id: int, name: str, value: float) -> None:
-        """Write an SI value (converted by the servo's ServoSpec) to an item."""
-        self.write(servo_id, name, self.table_of(servo_id).from_si(name, value))
-
-    def identify(self, servo_id: int, *, expect: int | str | None = None) -> ControlTable:
-        """Read the model number of ``servo_id`` and remember its table.
-
-        Raises :class:`WrongModel` when ``expect`` (model number or name) differs.
-        """
-        model = self.read(servo_id, "model_number")  # same address across a family
-        known = self.family.tables
-        if expect is not None:
-            want = self.family.table_for(expect)
-            if model != want.spec.model_number:
-                found = known[model].name if model in known else "unknown model"
-                raise WrongModel(
-                    f"servo {servo_id} is a {found} (model number {model}), expected a "
-                    f"{want.name} ({want.spec.model_number}): fix the joint map or --servo"
-                )
-        if model not in known:
-            names = " or ".join(f"{t.name} ({k})" for k, t in known.items())
-            raise WrongModel(
-                f"servo {servo_id} has model number {model}, not a "
-                f"{self.family.title} servo the lab knows: {names}"
-            )
-        table = known[model]
-        self.tables[servo_id] = table
-        return table
-
-
-
-
-def sync_data(values: dict[int, tuple[int, ...]], sizes: tuple[int, ...]) -> dict[int, bytes]:
-    """Pack raw item values per servo into SYNC_WRITE chunks (little-endian, given sizes)."""
-    out = {}
-    for servo_id, vals in values.items():
-        out[servo_id] = b"".join(struct.pack("<H" if s == 2 else "<B", v)
-                                 for v, s in zip(vals, sizes, strict=True))
-    return out

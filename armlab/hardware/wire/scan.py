@@ -25,7 +25,9 @@ from armlab.hardware.families import FAMILIES, family
 from armlab.hardware.families.base import ServoFamily
 from armlab.hardware.servos.control_table import ControlTable
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
-from armlab.hardware.wire.bus import PTY_MARGIN, Bus, BusError, NoReply, is_pty, reply_timeout
+from armlab.hardware.wire.bus import Bus
+from armlab.hardware.wire.errors import BusError, NoReply
+from armlab.hardware.wire.port import PTY_MARGIN, is_pty, reply_timeout
 
 #: The usual Dynamixel rates (2 000 000 / (n + 1) for n = 1, 3, 4, 7, 9, 16, 34, 103, 207).
 COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_600, 19_200, 9_600)
@@ -107,7 +109,7 @@ def scan_policy(port: str, margin: float | None = None) -> ScanPolicy:
     :data:`WIRE_SCAN_MARGIN`) for every ping and answer, a listen of that and
     :data:`WIRE_LATE_S` more, one broadcast. On a pseudo-terminal: at least
     :data:`PTY_SCAN_MARGIN` a ping, a listen of :data:`PTY_LATE_S`, at least the bus's
-    own margin (:data:`~armlab.hardware.wire.bus.PTY_MARGIN`) for answers, and a second
+    own margin (:data:`~armlab.hardware.wire.port.PTY_MARGIN`) for answers, and a second
     broadcast for answers the machine held back."""
     if is_pty(port):
         ping = max(margin or 0.0, PTY_SCAN_MARGIN)

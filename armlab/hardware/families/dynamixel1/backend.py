@@ -31,7 +31,7 @@ from armlab.hardware.families.dynamixel1.table import (
     THESIS_COMPLIANCE_SLOPE,
 )
 from armlab.hardware.servos.servo_spec import value_from_baud
-from armlab.hardware.wire.bus import sync_data
+from armlab.hardware.wire.named_items import sync_data
 
 log = logging.getLogger("armlab.dynamixel")
 
