@@ -66,7 +66,7 @@ def test_a_private_hand_and_quadruped_are_mirrored_from_their_first_period():
     from armlab.app.classroom.class_quadrupeds import PERIOD
     from armlab.control.grip import GripParams
     from armlab.control.walking import GaitSpec
-    from armlab.hardware.sim.hand import GraspObject
+    from armlab.hardware.sim.hand_plant import GraspObject
 
     boxes = Sandboxes(realtime=True)
     try:

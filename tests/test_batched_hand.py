@@ -10,11 +10,11 @@ from _helpers import wait_for
 
 from armlab.app.classroom.class_hands import ClassHands
 from armlab.control.batched_grip import BatchedGrip
-from armlab.control.experiments.hand import GripOptions, run_grip
+from armlab.control.experiments.hand_grip import GripOptions, run_grip
 from armlab.control.grip import GripController, GripModel, GripParams
 from armlab.control.grip_loop import MotorsOff, SetGripParams, SetObject
 from armlab.hardware.sim.batched_hand import STATE, BatchedHand
-from armlab.hardware.sim.hand import GraspObject, HandParams, HandSim, make_hand
+from armlab.hardware.sim.hand_plant import GraspObject, HandParams, HandSim, make_hand
 
 #: a class of five: objects of every kind (none, soft, hard, the slider's stiffest)
 OBJECTS = (GraspObject(0.06, 1000.0, 1.0), None, GraspObject(0.04, 5000.0, 2.0),

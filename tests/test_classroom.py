@@ -493,7 +493,7 @@ def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle()
     from armlab.app.classroom.sandboxes import Sandboxes
     from armlab.control.grip import GripParams
     from armlab.control.walking import GaitSpec, plan_gait
-    from armlab.hardware.sim.hand import GraspObject
+    from armlab.hardware.sim.hand_plant import GraspObject
 
     now = [0.0]
     boxes = Sandboxes(realtime=False, idle_s=600.0, clock=lambda: now[0])

@@ -9,7 +9,7 @@ from armlab.control.observers import (
     gravity_torque,
     simulate_observers,
 )
-from armlab.kinematics.hand import (
+from armlab.kinematics.hand_statics import (
     GRIPPER_KT,
     OZ_IN,
     FingerGeometry,

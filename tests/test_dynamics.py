@@ -236,7 +236,8 @@ def test_compiled_model_is_built_once_and_readable():
 
 def shipped_chains() -> list[tuple[str, object]]:
     """Every serial chain the lab ships: each URDF in armlab/kinematics/robots (a quadruped's four
-    legs). The hand's fingers are planar tendon linkages (armlab/kinematics/hand.py), not chains."""
+    legs). The hand's fingers are planar tendon linkages (armlab/kinematics/hand_statics.py),
+    not chains."""
     from armlab.kinematics.catalog import ROBOTS_DIR
     from armlab.kinematics.model import Quadruped
 

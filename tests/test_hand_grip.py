@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from armlab.app.cli import main
-from armlab.control.experiments.hand import GripOptions, run_grip
+from armlab.control.experiments.hand_grip import GripOptions, run_grip
 from armlab.control.grip import (
     GripController,
     GripModel,
@@ -17,8 +17,8 @@ from armlab.control.grip import (
     grasp_figures,
     simulate_grasp,
 )
-from armlab.hardware.sim.hand import DCMotor, GraspObject, HandParams, HandSim, make_hand
-from armlab.kinematics.hand import OZ_IN, FingerGeometry, motor_torque
+from armlab.hardware.sim.hand_plant import DCMotor, GraspObject, HandParams, HandSim, make_hand
+from armlab.kinematics.hand_statics import OZ_IN, FingerGeometry, motor_torque
 
 #: Documented "never crushes" margin: the peak fingertip force stays within 2 % of
 #: the limit for objects up to 5000 N/m (the controller's docstring explains why).

@@ -11,8 +11,8 @@ from _helpers import client_of, served_lesson, wait_for
 from armlab.app.lessons import LessonContext, all_lessons
 from armlab.app.lessons.hand import build
 from armlab.app.page.inputs import LIMIT_TITLE
-from armlab.control.experiments.hand import GripOptions, run_grip
-from armlab.hardware.sim.hand import make_hand
+from armlab.control.experiments.hand_grip import GripOptions, run_grip
+from armlab.hardware.sim.hand_plant import make_hand
 
 
 @pytest.fixture

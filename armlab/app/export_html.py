@@ -49,7 +49,7 @@ from armlab.app.page.plots import ANGLE_SPAN_DEG, COLORS, TORQUE_SPAN_NM
 from armlab.control.runs import check_drawable, save_file, writable_path
 from armlab.kinematics.catalog import RECEPTIONIST_PRESETS, ROBOT_FILES
 from armlab.kinematics.catalog import load_robot as _load_robot
-from armlab.kinematics.hand import FingerGeometry, tip_positions
+from armlab.kinematics.hand_statics import FingerGeometry, tip_positions
 from armlab.kinematics.model import Joint, Quadruped, SerialChain
 from armlab.kinematics.urdf_read import LEG_NAMES
 

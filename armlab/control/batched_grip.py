@@ -31,7 +31,7 @@ from armlab.control.grip import (
     back_emf_speed,
     unfilter_current,
 )
-from armlab.kinematics.hand import contact_lever, motor_torque
+from armlab.kinematics.hand_statics import contact_lever, motor_torque
 
 IDLE, OPENING, CLOSING, SQUEEZING, HOLDING, EMPTY = range(len(MODES))
 #: GripParams fields held per hand as an (N, 1) column

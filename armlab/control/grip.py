@@ -4,7 +4,7 @@ The hand's only sensors are the motor current sensors (thesis §2.4: "with a
 current sensor ... the motor torque can be obtained"). From a measured current
 the controller knows the motor torque (tau = K_t·I, eq. 2.29), hence the tendon
 tension, and with the finger's geometry and spring the fingertip force
-(:func:`armlab.kinematics.hand.grip_force_from_tension`). A grasp then closes the
+(:func:`armlab.kinematics.hand_statics.grip_force_from_tension`). A grasp then closes the
 fingers until each one holds the object with the chosen grip force F and no
 more: a compliant grasp, whatever the object's size or stiffness.
 
@@ -39,7 +39,7 @@ the tendon goes slack at the open stop; the spring opens the finger.
 
 The controller never sees the plant: it takes measured currents (3,) A and
 returns motor voltages (3,) V. :func:`simulate_grasp` wires it to anything that
-satisfies :class:`HandPlant` (the simulator in ``armlab.hardware.sim.hand``).
+satisfies :class:`HandPlant` (the simulator in ``armlab.hardware.sim.hand_plant``).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from armlab.kinematics.hand import (
+from armlab.kinematics.hand_statics import (
     FingerGeometry,
     contact_lever,
     grip_force_from_tension,
@@ -83,7 +83,7 @@ class MotorConstants(Protocol):
 
 
 class HandPlant(Protocol):
-    """A hand the controller can drive (``armlab.hardware.sim.hand.HandSim`` is one)."""
+    """A hand the controller can drive (``armlab.hardware.sim.hand_plant.HandSim`` is one)."""
 
     @property
     def motor(self) -> MotorConstants: ...

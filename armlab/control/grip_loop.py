@@ -198,7 +198,7 @@ class GripLoop(GripRecord):
     """Runs ``controller`` on ``plant`` every ``controller.dt`` s.
 
     Args:
-        plant: the hand (e.g. ``armlab.hardware.sim.hand.HandSim``).
+        plant: the hand (e.g. ``armlab.hardware.sim.hand_plant.HandSim``).
         controller: the grasp controller.
         realtime: pace the loop by the wall clock (False: as fast as possible).
         history_s: seconds of record kept.

@@ -14,7 +14,7 @@ alone (reaction-torque observer, eq. 2.37).
 
 Defaults are the thesis's gripper gearmotor (§2.4: 6 V, 5:1, 2 oz·in and 1.6 A
 at stall, both at the gearbox output -> K_t = 2 oz·in / 1.6 A = 8.83e-3 N·m/A
-at the output, :data:`armlab.kinematics.hand.GRIPPER_KT`; the 5:1 ratio is already in
+at the output, :data:`armlab.kinematics.hand_statics.GRIPPER_KT`; the 5:1 ratio is already in
 the stall torque and is not applied again); the finger inertia is an
 assumption (not in the thesis).
 """
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from armlab.control.compliance import lpf
-from armlab.kinematics.hand import GRIPPER_KT
+from armlab.kinematics.hand_statics import GRIPPER_KT
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from armlab.control.trajectory import thesis_line
 from armlab.exercises.core import Exercise, Mistake, RunCase, ValueCase
 from armlab.exercises.student import CheckedLaw
 from armlab.kinematics import SerialChain, load_robot
-from armlab.kinematics.hand import GRIPPER_KT
+from armlab.kinematics.hand_statics import GRIPPER_KT
 from armlab.kinematics.stiffness import cartesian_compliance, cartesian_stiffness
 
 #: Closed-loop runs: the student's joint angles may differ from the lab's by this much, rad

@@ -24,7 +24,7 @@ from armlab.app.benches import median_us
 from armlab.control.batched_grip import BatchedGrip
 from armlab.control.grip import GripController, GripModel, GripParams, simulate_grasp
 from armlab.hardware.sim.batched_hand import BatchedHand
-from armlab.hardware.sim.hand import GraspObject, make_hand
+from armlab.hardware.sim.hand_plant import GraspObject, make_hand
 
 CLASS_SIZES = (1, 30, 100)
 

@@ -1,7 +1,7 @@
 """Private hands on one loop: every student's copy of the thesis's three-finger hand.
 
 The hand lesson's own hand runs on a :class:`armlab.control.grip_loop.GripLoop` (a
-:class:`armlab.hardware.sim.hand.HandSim` and a :class:`armlab.control.grip.GripController`, 1
+:class:`armlab.hardware.sim.hand_plant.HandSim` and a :class:`armlab.control.grip.GripController`, 1
 kHz). A
 class of them would cost a quarter of a core each, so the private hands of a class live
 in one :class:`armlab.hardware.sim.batched_hand.BatchedHand` and one
@@ -42,7 +42,7 @@ from armlab.control.grip_loop import (
 from armlab.control.periodic import SharedClock
 from armlab.control.restart import Schedule
 from armlab.hardware.sim.batched_hand import BatchedHand
-from armlab.hardware.sim.hand import GraspObject, HandParams, HandSim
+from armlab.hardware.sim.hand_plant import GraspObject, HandParams, HandSim
 
 #: s, the control period (as GripLoop's)
 DT = 1.0e-3

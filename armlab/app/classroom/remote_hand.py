@@ -29,7 +29,7 @@ from armlab.app.classroom.worker_link import RemoteMember, WorkerLink
 from armlab.control.grip import GripModel, GripParams
 from armlab.control.grip_loop import COLUMNS, GripRecord, GripStatus
 from armlab.control.ring_buffer import RingBuffer
-from armlab.hardware.sim.hand import N_FINGERS, GraspObject
+from armlab.hardware.sim.hand_plant import N_FINGERS, GraspObject
 
 
 class RemoteHand(RemoteMember, GripRecord):

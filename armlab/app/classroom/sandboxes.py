@@ -41,7 +41,7 @@ from armlab.control.grip import GripParams
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.walking import GaitSpec
-from armlab.hardware.sim.hand import GraspObject
+from armlab.hardware.sim.hand_plant import GraspObject
 from armlab.kinematics.model import SerialChain
 
 #: private arms one lab holds at most (the issue's default)

@@ -34,7 +34,7 @@ from armlab.control.params import GainCheck, Params
 from armlab.control.restart import RestartableArm
 from armlab.control.walking import GaitSpec
 from armlab.hardware.families.dynamixel1.firmware import ServoReport
-from armlab.hardware.sim.hand import GraspObject
+from armlab.hardware.sim.hand_plant import GraspObject
 from armlab.kinematics.model import SerialChain
 
 #: real-time priority (SCHED_FIFO) a real-time "own" worker (the shared arm) asks for, where

@@ -80,7 +80,7 @@ from armlab.control.params import GainCheck, Params
 from armlab.control.recorder import Recorder
 from armlab.control.walking import GaitSpec
 from armlab.hardware.families.dynamixel1.firmware import ServoReport
-from armlab.hardware.sim.hand import GraspObject
+from armlab.hardware.sim.hand_plant import GraspObject
 from armlab.kinematics.model import SerialChain
 
 #: s between two mirror messages (every arm's new rows and status)

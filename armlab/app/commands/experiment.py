@@ -104,8 +104,8 @@ def _backend_factory(options: BackendOptions) -> Any:
 
 
 def _hand_plant(options: Any) -> Any:
-    """``armlab.hardware.sim.hand.make_hand``: the simulated three-finger hand."""
-    from armlab.hardware.sim.hand import make_hand
+    """``armlab.hardware.sim.hand_plant.make_hand``: the simulated three-finger hand."""
+    from armlab.hardware.sim.hand_plant import make_hand
 
     return make_hand
 

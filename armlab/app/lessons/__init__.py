@@ -56,7 +56,7 @@ if TYPE_CHECKING:
     from armlab.control.loop import ControlLoop
     from armlab.control.params import Params
     from armlab.control.walking import GaitSpec
-    from armlab.hardware.sim.hand import GraspObject
+    from armlab.hardware.sim.hand_plant import GraspObject
     from armlab.kinematics.model import SerialChain
 
 #: The lesson modules of this package (adding a lesson: add its module name here).

@@ -7,7 +7,7 @@ stiffness with a grip-force limit F and watches the currents and finger forces:
 the hand stops closing when the current says it holds the object with F.
 
 Data flow (one writer per piece of state): a :class:`armlab.control.grip_loop.GripLoop`
-thread steps the simulated hand (:mod:`armlab.hardware.sim.hand`) and the controller
+thread steps the simulated hand (:mod:`armlab.hardware.sim.hand_plant`) and the controller
 (:mod:`armlab.control.grip`) every millisecond; buttons and sliders post commands the
 loop runs at its next period; a :class:`armlab.app.page.publisher.Publisher` reads the
 loop's record and updates the scene (30 Hz) and charts (10 Hz). The Files folder
@@ -59,7 +59,7 @@ from armlab.control.grip_loop import (
     SetGripParams,
     SetObject,
 )
-from armlab.hardware.sim.hand import MAX_STIFFNESS, GraspObject, check_object, make_hand
+from armlab.hardware.sim.hand_plant import MAX_STIFFNESS, GraspObject, check_object, make_hand
 
 if TYPE_CHECKING:
     from armlab.app.classroom.remote_hand import RemoteHand

@@ -1,6 +1,6 @@
 """The hand lesson's 3D scene: palm, three fingers, their motors, the object, force arrows.
 
-Everything hangs from one root frame (palm frame of :mod:`armlab.kinematics.hand`: z
+Everything hangs from one root frame (palm frame of :mod:`armlab.kinematics.hand_statics`: z
 along the fingers, the object on the z axis). Each finger is a frame at its
 hinge, turned to its azimuth and tilted by its angle; a box is the finger, a
 sphere its fingertip pad, coloured from grey (no force) to red (at the limit).
@@ -17,7 +17,7 @@ import viser.transforms as vtf
 from armlab.app.page import theme
 from armlab.app.page.camera import View, show
 from armlab.app.page.surface import Surface
-from armlab.kinematics.hand import FingerGeometry, tip_positions
+from armlab.kinematics.hand_statics import FingerGeometry, tip_positions
 
 OBJECT_HEIGHT = 0.09  #: m, height of the drawn cylinder
 ARROW_M_PER_N = 0.03  #: arrow length per newton of fingertip force

@@ -8,7 +8,7 @@ its charts go on meanwhile. Play moves the slider at the run's own pace from whe
 The ghost is made for the model the lesson drives (:func:`make_ghost`): a see-through
 orange arm (a serial chain, its torso left out), a see-through quadruped standing at the
 run's body height, or an orange hand beside the live one (the hand lesson's
-:class:`armlab.kinematics.hand.FingerGeometry`, joints finger1..3).
+:class:`armlab.kinematics.hand_statics.FingerGeometry`, joints finger1..3).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from armlab.app.page.plots import COLORS, SeriesSpec, add_chart, dash, fixed_x, 
 from armlab.app.page.surface import Surface
 from armlab.control.experiments.seed003 import joint_names as gait_joint_names
 from armlab.control.runs import Run, check_drawable
-from armlab.kinematics.hand import FingerGeometry
+from armlab.kinematics.hand_statics import FingerGeometry
 from armlab.kinematics.model import Quadruped, SerialChain
 
 #: The replay ghost's colour: see-through orange, apart from the blue command ghost and

@@ -27,7 +27,7 @@ from armlab.control.runs import Run
 Keep = Callable[[Run], None]
 
 #: The modules of this package that define experiments (adding one: add its name here).
-MODULES: tuple[str, ...] = ("contact", "hand", "observers", "seed002", "seed003", "seed004",
+MODULES: tuple[str, ...] = ("contact", "hand_grip", "observers", "seed002", "seed003", "seed004",
                             "thesis",
                             "thesis_readings")
 
@@ -73,7 +73,7 @@ class Experiment:
             human-readable table (None: print the dict's top-level items).
         needs: names of factories the caller passes to ``run`` as keyword arguments
             (armlab/control/ never imports armlab/hardware/), e.g. "hand_plant" =
-            ``armlab.hardware.sim.hand.make_hand``, "backend_factory" (with
+            ``armlab.hardware.sim.hand_plant.make_hand``, "backend_factory" (with
             :class:`BackendOptions`).
     """
 

@@ -1,4 +1,5 @@
-"""N simulated hands stepped together: :class:`armlab.hardware.sim.hand.HandSim`, numpy over hands.
+"""N simulated hands stepped together: :class:`armlab.hardware.sim.hand_plant.HandSim`, numpy
+over hands.
 
 A classroom gives every student a private copy of the thesis's three-finger hand (§2.4).
 Instead of N ``HandSim`` objects, each looping over its three fingers in Python ten
@@ -12,8 +13,9 @@ N hands against N ``HandSim`` to 1e-9 at every period).
 
 Hands are named by a stable integer id (:meth:`BatchedHand.add`); rows are the hands in
 the order they joined (:attr:`BatchedHand.ids`); a removed hand's row is deleted and the
-rows after it move up. All hands share the :class:`armlab.hardware.sim.hand.HandParams` (motor,
-finger geometry, plant step, sensor filter) and one clock; each holds its own object.
+rows after it move up. All hands share the
+:class:`armlab.hardware.sim.hand_plant.HandParams` (motor, finger geometry, plant step,
+sensor filter) and one clock; each holds its own object.
 """
 
 from __future__ import annotations
@@ -23,13 +25,19 @@ import math
 import numpy as np
 
 from armlab.control.batch_rows import BatchRows
-from armlab.hardware.sim.hand import N_FINGERS, GraspObject, HandParams, check_object, rc_alpha
+from armlab.hardware.sim.hand_plant import (
+    N_FINGERS,
+    GraspObject,
+    HandParams,
+    check_object,
+    rc_alpha,
+)
 from armlab.kinematics.smallarrays import clamp
 from armlab.kinematics.validate import scalar
 
 #: m, the "radius" of no object: far inside any fingertip's reach, so never touched
 NO_OBJECT_RADIUS = -1.0e3
-#: the state arrays, each (N, 3), in :class:`armlab.hardware.sim.hand.HandState`'s order
+#: the state arrays, each (N, 3), in :class:`armlab.hardware.sim.hand_plant.HandState`'s order
 STATE = ("current", "measured", "motor_angle", "motor_speed", "finger_angle",
          "finger_speed", "tension", "contact_force")
 
@@ -109,7 +117,8 @@ class BatchedHand:
 
     def set_object(self, hand: int, obj: GraspObject | None) -> None:
         """Put ``obj`` between hand ``hand``'s fingers (None: take it away); a size the
-        fingers cannot hold raises ValueError (:func:`armlab.hardware.sim.hand.check_object`)."""
+        fingers cannot hold raises ValueError
+        (:func:`armlab.hardware.sim.hand_plant.check_object`)."""
         r = self.row(hand)
         obj = self._checked(obj)
         self._obj[:, r:r + 1] = self._columns(obj)

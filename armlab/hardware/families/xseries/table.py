@@ -84,7 +84,8 @@ class XSpec(TurnEncoder):
     @property
     def torque_constant(self) -> float:
         """N·m per A at the horn, from the datasheet's stall point (stall torque / stall
-        current): the slope the observers need, as ``armlab.kinematics.hand.GRIPPER_KT`` is."""
+        current): the slope the observers need, as
+        ``armlab.kinematics.hand_statics.GRIPPER_KT`` is."""
         return self.stall_torque / self.stall_current
 
     def velocity_to_raw(self, velocity: float) -> int:

@@ -13,7 +13,7 @@ Fixed step: :meth:`HandSim.step` advances by whole plant steps (0.1 ms by
 default, ten per 1 ms control period; the contact with a hard object and the
 tendon are too stiff for a 1 ms explicit step) with the voltage held constant.
 
-The geometry of the fingers lives in :mod:`armlab.kinematics.hand`; the controller that
+The geometry of the fingers lives in :mod:`armlab.kinematics.hand_statics`; the controller that
 closes the hand with a force limit lives in :mod:`armlab.control.grip`.
 """
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from armlab.kinematics.hand import (
+from armlab.kinematics.hand_statics import (
     GEARMOTOR_GEAR_RATIO,
     GEARMOTOR_STALL_CURRENT,
     GEARMOTOR_STALL_TORQUE,
@@ -203,7 +203,7 @@ class HandState:
         motor_angle: rad at the gearbox output, 0 where the tendon goes taut
             with the finger on its open stop.
         motor_speed: rad/s at the output.
-        finger_angle: rad, see :mod:`armlab.kinematics.hand`.
+        finger_angle: rad, see :mod:`armlab.kinematics.hand_statics`.
         finger_speed: rad/s.
         tension: N in each tendon (>= 0).
         contact_force: N, the object's normal force on each fingertip (>= 0).
@@ -343,7 +343,7 @@ class HandSim:
         and the sensor filter (:func:`rc_alpha`). The current solves
         L dI/dt = V − R·I − K_e·omega exactly over the step (omega held), so it
         is stable although L/R = 0.13 ms.
-        The geometry is :mod:`armlab.kinematics.hand`'s (tip radius R_b − L sin phi,
+        The geometry is :mod:`armlab.kinematics.hand_statics`'s (tip radius R_b − L sin phi,
         lever L cos phi, spring preload + rate·(phi − open)), written out on
         floats because this loop runs 10 000 times per simulated second.
         """

@@ -8,7 +8,7 @@ and stiffness: steady grip force (≈ F), peak force (never much above F), time
 to grasp, final motor current.
 
 The simulated hand comes from the CLI as the factory ``hand_plant``
-(``armlab.hardware.sim.hand.make_hand``): armlab/control/ never imports hardware/.
+(``armlab.hardware.sim.hand_plant.make_hand``): armlab/control/ never imports hardware/.
 """
 
 from __future__ import annotations
