@@ -39,6 +39,51 @@ def test_ideal_joint_static_gain_of_each_law(law, gain):
     assert ideal_joint_offset(p, 0.5) == pytest.approx(gain(p) * 0.5, rel=1e-3)
 
 
+@pytest.mark.parametrize("law", ["2.6", "2.26"])
+def test_each_registered_law_states_the_stiffness_its_controller_settles_at(law):
+    """The registry's joint stiffness (what the contact experiment predicts with) is what
+    the controller running that very law holds: τ / offset, on an ideal joint."""
+    from armlab.control.laws import LAWS
+
+    p = Params(law=law, k_f=0.3, k_env=12.0, d_env=5.0, m_env=1.0)
+    assert LAWS[law].key == law
+    assert 0.5 / ideal_joint_offset(p, 0.5) == pytest.approx(LAWS[law].joint_stiffness(p),
+                                                             rel=1e-3)
+
+
+def test_a_student_s_law_takes_eq_2_6_s_place_and_the_literal_law_stays_the_lab_s():
+    """``with_student``: the controller calls the student's function where eq. 2.6 runs
+    (their numbers, here the lab's own halved), and eq. 2.26 is still the lab's."""
+    from armlab.control.compliance import Laws
+    from armlab.control.laws import EQ_2_26, LAWS, compliance_accel, with_student
+
+    calls = []
+
+    def halved(*args):
+        calls.append(len(args))
+        return 0.5 * compliance_accel(*args)
+
+    laws = Laws(compliance=with_student(halved))
+    assert laws.compliance["2.26"] is EQ_2_26
+    assert laws.compliance["2.6"].title == "Compliance, your law 2.6"
+    assert laws.compliance["2.6"].label == LAWS["2.6"].label  # the same choice on the page
+    p = Params()
+    ctl_theirs = ComplianceController(np.array([-3.0]), np.array([3.0]), 10.0, laws=laws)
+    ctl_ours = ComplianceController(np.array([-3.0]), np.array([3.0]), 10.0)
+    meas = JointState(0.0, np.zeros(1), np.zeros(1), np.zeros(1), (0,), (True,))
+    q_cmd = np.array([0.2])
+    ours = ctl_ours.step(p, ControllerState.at_rest(np.zeros(1)), q_cmd, np.zeros(1),
+                         np.zeros(1), meas, np.zeros(1))
+    theirs = ctl_theirs.step(p, ControllerState.at_rest(np.zeros(1)), q_cmd, np.zeros(1),
+                             np.zeros(1), meas, np.zeros(1))
+    assert calls == [9]  # kp, kv and the seven arrays of the exercise's signature
+    np.testing.assert_allclose(theirs[1], 0.5 * ours[1])  # θ̇_ref = T θ̈_ref from rest
+    calls.clear()
+    ctl_theirs.step(Params(law="2.26"), ControllerState.at_rest(np.zeros(1)), q_cmd,
+                    np.zeros(1), np.zeros(1), meas, np.zeros(1))
+    assert calls == []
+
+
 def test_environment_step_settles_on_kf_tau_over_kenv():
     q = qd = 0.0
     for _ in range(5000):

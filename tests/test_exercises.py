@@ -80,6 +80,25 @@ def test_at_least_eight_exercises_each_with_three_mistakes_and_a_starter():
         assert len(cases) >= 5, ex.name
 
 
+def test_every_exercise_defined_is_in_the_one_list_once_and_each_starter_is_an_exercise():
+    """The catalog's EXERCISES is the one list: an Exercise written in a set but not named
+    there, or a starter without its exercise, fails here."""
+    from importlib import resources
+
+    from armlab.exercises import control_set, kinematics_set
+    from armlab.exercises.core import Exercise
+
+    defined = {id(v) for mod in (kinematics_set, control_set) for v in vars(mod).values()
+               if isinstance(v, Exercise)}
+    listed = [id(ex) for ex in EXERCISES]
+    assert len(set(listed)) == len(listed)
+    assert defined == set(listed)
+    starters = {f.name.removesuffix(".py") for f in
+                resources.files("armlab.exercises").joinpath("starters").iterdir()
+                if f.name.endswith(".py") and f.name != "__init__.py"}
+    assert starters == {ex.name for ex in EXERCISES}
+
+
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.slow
 def test_lab_implementation_as_a_student_file_passes_every_case(tmp_path, name):

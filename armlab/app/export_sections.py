@@ -14,6 +14,7 @@ from html import escape
 from itertools import islice
 from typing import TYPE_CHECKING, Any, TypeGuard
 
+from armlab.control.laws import LAWS
 from armlab.control.params import PARAM_SPECS
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ FIGURE_LABELS: dict[str, tuple[str, str, str]] = {
 }
 #: The gains that are not numbers, as the live page's Gains tab shows them.
 SWITCH_LABELS = {"compliance": "Compliance", "feedforward": "Feed-forward θ̈_cmd"}
-LAW_NAMES = {"2.6": "eq. 2.6 (consistent, default)", "2.26": "eq. 2.26 (thesis literal)"}
+LAW_NAMES = {key: f"eq. {law.label}" for key, law in LAWS.items()}
 #: How a figure's key names its unit, for figures the table above does not know.
 FIGURE_UNITS = {"_pct": "%", "_deg": "°", "_s": "s", "_nm": "N·m", "_n": "N", "_mm": "mm",
                 "_cm": "cm", "_m": "m", "_rad": "rad", "_hz": "Hz"}

@@ -38,12 +38,8 @@ import numpy as np
 
 from armlab.control.backend import Backend
 from armlab.control.commands import Command, Stop
-from armlab.control.compliance import (
-    Laws,
-    compliance_accel,
-    environment_step,
-    pd_reference_accel,
-)
+from armlab.control.compliance import Laws, environment_step, pd_reference_accel
+from armlab.control.laws import compliance_accel, with_student
 from armlab.control.loop import ControlLoop
 from armlab.control.params import GainCheck, Params
 from armlab.control.restart import RestartableArm
@@ -306,7 +302,7 @@ class LawGuard:
         self.period = 0.016
         self._hold_q: np.ndarray | None = None
         self.held = False
-        self.laws = Laws(pd=self._pd, compliance=self._compliance,
+        self.laws = Laws(pd=self._pd, compliance=with_student(self._compliance),
                          environment=self._environment)
 
     def _student(self, *args: Any) -> Any:

@@ -17,13 +17,14 @@ forward with the hand (eq. 2.4: x_real = x_virtual − x_env).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal, TypeVar
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
 
 import numpy as np
 
 from armlab.control.backend import JointState
+from armlab.control.laws import LAWS, ArrayT, ComplianceLaw, with_student
 from armlab.control.params import Params
 from armlab.kinematics.smallarrays import clamp
 
@@ -31,8 +32,6 @@ Mode = Literal["none", "pd", "compliance"]
 MODES: tuple[str, ...] = ("none", "pd", "compliance")
 
 Array = np.ndarray | float
-#: one law's arrays and floats: all (n,) arrays (the loop) or all floats (a single joint)
-ArrayT = TypeVar("ArrayT", np.ndarray, float)
 
 
 def pd_reference_accel(kp: float, kv: float, q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT,
@@ -47,32 +46,6 @@ def pd_reference_accel(kp: float, kv: float, q_cmd: ArrayT, qd_cmd: ArrayT, q: A
         θ̈_ref, rad/s², same shape.
     """
     return kp * (q_cmd - q) + kv * (qd_cmd - qd)
-
-
-def compliance_accel(kp: float, kv: float, q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT, qd: ArrayT,
-                     q_env: ArrayT, qd_env: ArrayT, qdd_env: ArrayT) -> ArrayT:
-    """Thesis eq. 2.6 in joint space (the consistent form, default law):
-
-    θ̈_ref = Kp (θ_cmd − θ − θ_env) + Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env.
-
-    The reference model (2.3) is then applied to θ_cmd − θ_env, so a steady
-    external torque τ_ext moves the arm by −θ_env = −K_f τ_ext / K_env.
-    """
-    return kp * (q_cmd - q - q_env) + kv * (qd_cmd - qd - qd_env) - qdd_env
-
-
-def compliance_accel_literal(kp: float, kv: float, m_env: float, d_env: float, k_env: float,
-                             q_cmd: ArrayT, qd_cmd: ArrayT, q: ArrayT, qd: ArrayT, q_env: ArrayT,
-                             qd_env: ArrayT, qdd_env: ArrayT) -> ArrayT:
-    """Thesis eq. 2.26 as printed (thesis-literal variant):
-
-    θ̈_ref = Kp (θ_cmd − θ − K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env.
-
-    Dimensionally inconsistent with 2.6/2.7 (the offsets are multiplied by the
-    environment's parameters again); a steady τ_ext moves the arm by −K_f τ_ext.
-    """
-    return (kp * (q_cmd - q - k_env * q_env) + kv * (qd_cmd - qd - d_env * qd_env)
-            - m_env * qdd_env)
 
 
 def environment_accel(m_env: float, d_env: float, k_env: float, k_f: float, tau_ext: ArrayT,
@@ -132,14 +105,33 @@ class Laws:
     """The equations :meth:`ComplianceController.step` calls: the lab's own by default.
 
     Coursework (:mod:`armlab.exercises`) puts a student's function in place of one, to run
-    it on the arm; each takes the arguments and returns what the lab's own function does.
+    it on the arm; each takes the arguments and returns what the lab's own function does
+    (the compliance law: the registry of :mod:`armlab.control.laws` with the student's in
+    eq. 2.6's place, :func:`~armlab.control.laws.with_student`).
     """
 
     # the loop's: (n,) arrays in, (n,) arrays out
     pd: Callable[..., np.ndarray] = pd_reference_accel  #: eq. 2.20
-    compliance: Callable[..., np.ndarray] = compliance_accel  #: eq. 2.6
+    #: eq. 2.6 / 2.26, by ``Params.law``
+    compliance: Mapping[str, ComplianceLaw] = field(default_factory=lambda: LAWS)
     environment: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]] = (
         environment_step)  #: eq. 2.7
+
+    @classmethod
+    def with_student(cls, name: str, fn: Callable[..., Any]) -> Laws:
+        """The lab's own equations with a student's function for the one ``name``d ("pd",
+        "compliance": eq. 2.6's place in the law registry, "environment")."""
+        if name == "compliance":
+            return cls(compliance=with_student(fn))
+        if name == "pd":
+            return cls(pd=fn)
+        if name == "environment":
+            return cls(environment=fn)
+        raise ValueError(f"no equation {name!r}: pd, compliance or environment")
+
+    def law(self, params: Params) -> ComplianceLaw:
+        """The compliance law ``params`` picks (its ``law``), as this controller runs it."""
+        return self.compliance[params.law]
 
 
 @dataclass
@@ -231,13 +223,8 @@ class ComplianceController:
         else:
             state.q_env, state.qd_env, state.qdd_env = self.laws.environment(
                 p.m_env, p.d_env, p.k_env, p.k_f, state.tau_ext, state.q_env, state.qd_env, T)
-            if p.law == "2.26":
-                qdd = compliance_accel_literal(p.kp, p.kv, p.m_env, p.d_env, p.k_env, q_cmd,
-                                               qd_cmd, q, qd, state.q_env, state.qd_env,
-                                               state.qdd_env)
-            else:
-                qdd = self.laws.compliance(p.kp, p.kv, q_cmd, qd_cmd, q, qd, state.q_env,
-                                       state.qd_env, state.qdd_env)
+            qdd = self.laws.law(p).accel(p, q_cmd, qd_cmd, q, qd, state.q_env, state.qd_env,
+                                         state.qdd_env)
         if p.feedforward:
             qdd = qdd + qdd_cmd
         state.qdd_ref = np.asarray(qdd, dtype=float)

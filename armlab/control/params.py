@@ -27,11 +27,12 @@ from typing import Literal
 
 import numpy as np
 
+from armlab.control.laws import LAWS as _REGISTRY
 from armlab.control.metrics import overshoot_pct, pd_damping
 from armlab.kinematics.validate import scalar
 
 Law = Literal["2.6", "2.26"]
-LAWS: tuple[str, ...] = ("2.6", "2.26")
+LAWS: tuple[str, ...] = tuple(_REGISTRY)  #: the keys of the laws (armlab.control.laws)
 
 
 @dataclass(frozen=True)

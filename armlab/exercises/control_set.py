@@ -18,14 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.compliance import (
-    Laws,
-    compliance_accel,
-    environment_step,
-    pd_reference_accel,
-)
+from armlab.control.compliance import Laws, environment_step, pd_reference_accel
 from armlab.control.experiments.contact import joint_stiffness, predicted_force, wall_across_line
 from armlab.control.experiments.thesis import LineRun, max_angle_error, run_line
+from armlab.control.laws import compliance_accel
 from armlab.control.observers import (
     ObserverState,
     TorqueJoint,
@@ -105,7 +101,7 @@ def _line_case(name: str, params: Params, controller: str, push_n: float, law_na
     def run(fn: Callable[..., Any]) -> str:
         law = CheckedLaw(fn, law_name, shape)
         p = replace(params, law="2.6")
-        return _compare_lines(law, Laws(**{field: law}), p, controller, push_n)
+        return _compare_lines(law, Laws.with_student(field, law), p, controller, push_n)
     return RunCase(name, run)
 
 
@@ -586,5 +582,3 @@ STIFFNESS = Exercise(
             "a command behind a wall presses with.",
     lesson="compliance (Contact tab; `armlab experiment contact`)",
 )
-
-EXERCISES = (PD, ENVIRONMENT, COMPLIANCE, OBSERVER, STIFFNESS)

@@ -568,5 +568,3 @@ NULL_SPACE = Exercise(
     lesson="redundancy (simulation 3, the manipulability gradient; `armlab experiment "
            "seed002-circle --mode 3`)",
 )
-
-EXERCISES = (FK, JACOBIAN, RMRC_STEP, PLANAR_IK, LEG_IK, NULL_SPACE)

@@ -27,13 +27,14 @@ import viser
 
 from armlab.app.lessons._common import warning_html
 from armlab.app.page.inputs import GuardedNumber, notify
+from armlab.control.laws import LAWS as LAW_REGISTRY
 from armlab.control.loop import ControlLoop
 from armlab.control.params import LAWS, PARAM_SPECS, PRESETS, GainCheck, Params
 
 #: Slider value shown = SI value × scale (the period is shown in ms).
 DISPLAY_SCALE = {"period": 1000.0}
 DISPLAY_UNIT = {"period": "ms"}
-LAW_LABELS = {"2.6": "2.6 (consistent, default)", "2.26": "2.26 (thesis literal)"}
+LAW_LABELS = {key: law.label for key, law in LAW_REGISTRY.items()}
 CUSTOM = "(custom)"
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from armlab.control import metrics
+from armlab.control.laws import LAWS
 from armlab.control.params import PRESETS, Params
 from armlab.control.response import Measured
 from armlab.kinematics.units import KGF_CM_PER_NM
@@ -211,21 +212,17 @@ def equations_markdown(params: Params, live: LiveValues | None, *, torque_unit: 
             out.append(f"{live.joint}: Kp (θ_cmd − θ) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
                        f"{after_minus(f'{live.q * DEG:.2f}°')}) = {p.kp * e:.3g} °/s²")
     else:
-        if p.law == "2.26":
-            out.append("**Compliance, law 2.26 (thesis literal)**  \nθ̈_ref = Kp (θ_cmd − θ − "
-                       "K_env θ_env) + Kv (θ̇_cmd − θ̇ − D_env θ̇_env) − M_env θ̈_env" + _ff(p))
-        else:
-            out.append("**Compliance, law 2.6**  \nθ̈_ref = Kp (θ_cmd − θ − θ_env) + "
-                       "Kv (θ̇_cmd − θ̇ − θ̇_env) − θ̈_env" + _ff(p))
+        law = LAWS[p.law]
+        out.append(f"**{law.title}**  \n{law.formula}" + _ff(p))
         out.append("**Environment (2.7)**  \nM_env θ̈_env + D_env θ̇_env + K_env θ_env = "
                    f"K_f τ_ext  with M_env {p.m_env:.3g}, D_env {p.d_env:.3g}, "
                    f"K_env {p.k_env:.3g}, K_f {p.k_f:.3g}")
         if live is not None:
-            k_env = p.k_env if p.law == "2.26" else 1.0
-            pos = (live.q_cmd - live.q - k_env * live.q_env) * DEG
-            env_term = (f"{p.k_env:.3g}·{after_minus(f'{live.q_env * DEG:.2f}°')}"
-                        if p.law == "2.26" else after_minus(f"{live.q_env * DEG:.2f}°"))
-            out.append(f"{live.joint} now: Kp (θ_cmd − θ − {'K_env ' if p.law == '2.26' else ''}"
+            gain = law.env_gain(p)
+            pos = (live.q_cmd - live.q - gain * live.q_env) * DEG
+            env_term = (f"{gain:.3g}·{after_minus(f'{live.q_env * DEG:.2f}°')}"
+                        if law.env_symbol else after_minus(f"{live.q_env * DEG:.2f}°"))
+            out.append(f"{live.joint} now: Kp (θ_cmd − θ − {law.env_symbol}"
                        f"θ_env) = {p.kp:.3g} × ({live.q_cmd * DEG:.2f}° − "
                        f"{after_minus(f'{live.q * DEG:.2f}°')} − {env_term}) = "
                        f"{p.kp * pos:.3g} °/s²  \n"

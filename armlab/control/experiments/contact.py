@@ -31,6 +31,7 @@ import numpy as np
 from armlab.control.backend import Backend, Touchable
 from armlab.control.commands import RunTrajectory
 from armlab.control.experiments import BackendOptions, Experiment, Keep, option
+from armlab.control.laws import LAWS
 from armlab.control.loop import TARGET_SPEED, ControlLoop
 from armlab.control.params import DEFAULT, Params
 from armlab.control.runs import run_from_snapshot
@@ -73,9 +74,7 @@ def joint_stiffness(params: Params, controller: str) -> float | None:
     controller (no finite stiffness: the reference integrates the error)."""
     if controller != "compliance" or not params.compliance:
         return None
-    if params.law == "2.26":
-        return 1.0 / params.k_f
-    return params.k_env / params.k_f
+    return LAWS[params.law].joint_stiffness(params)
 
 
 def predicted_force(model: SerialChain, q: np.ndarray, normal: np.ndarray, depth: float, *,
