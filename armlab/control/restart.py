@@ -25,7 +25,9 @@ With ``period`` the backend in use is brought to whole numbers of periods from i
 (k · period, the same numbers for every run) rather than to the loop time less the
 restart's (whose last bits depend on when the run was made).
 
-Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed).
+Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed). A
+wall (:class:`armlab.control.backend.Touchable`) is the world's, not the arm's: the fresh
+arm meets the wall the one it replaces had.
 
 :class:`Schedule` is the plan's part alone (commands timed in periods from an instant
 the loop marks), for a loop that starts its own plant again (the hand's
@@ -43,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import Backend, JointState
+from armlab.control.backend import Backend, JointState, Touchable
 
 
 class Schedule:
@@ -150,6 +152,7 @@ class RestartableArm:
             self._t = float(t)
             if self._armed is not None:
                 old, self.inner = self.inner, self._make(self._armed[0])
+                _carry_wall(old, self.inner)
                 self._drop(old)
                 self._offset, self._fresh, self._syncs = self._t, True, 0
                 if self._torque_asked:  # the Reset came before this sync (sync_first False)
@@ -242,3 +245,13 @@ class RestartableArm:
         if name.startswith("__") or name == "inner":
             raise AttributeError(name)
         return getattr(self.inner, name)
+
+
+def _carry_wall(old: Backend, new: Backend) -> None:
+    """The wall of ``old``'s world (if any) put into ``new``'s: an arm started again meets
+    the same wall (a contact challenge's run, the Contact tab's wall across a restart)."""
+    if not isinstance(old, Touchable) or not isinstance(new, Touchable):
+        return
+    wall = old.wall_setting()
+    if wall is not None:
+        new.set_wall(wall.origin, wall.normal, stiffness=wall.stiffness, damping=wall.damping)

@@ -7,9 +7,10 @@ Run tab's command) through it, so the command ends behind the surface. The 3D vi
 the wall (a translucent slab) and its force on the hand (an arrow, scaled as the lesson's
 other force arrows); the figures of the run (peak and steady force, bounces, time to
 settle, the steady force the law's joint stiffness predicts) are those of
-``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions,
-from the wall's force sampled at each of the publisher's ticks and its peak kept at every
-plant step between them); one chart shows the wall's force beside the lab's estimate of
+``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions, of
+the wall's force the control loop records every period, ``f_contact`` and its peak at
+every plant step between periods, ``f_contact_peak``: :mod:`armlab.control.recorder`);
+one chart shows the wall's force beside the lab's estimate of
 the hand's force from τ_ext (eq. 2.23) along the wall's normal.
 
 Real servos touch no simulated wall: there the controls are disabled and the tab says the
@@ -98,6 +99,8 @@ class ContactRun:
     normal: np.ndarray
     depth: float  #: m of command behind the surface at the line's end
     line_end: float | None = None  #: loop time the line ended, s
+    #: the loop's record of the run, once over: loop times s, the wall's force N and its
+    #: peak at the plant's steps N, one a period
     t: list[float] = field(default_factory=list)
     force: list[float] = field(default_factory=list)
     peak: list[float] = field(default_factory=list)
@@ -291,7 +294,6 @@ class ContactTab:
             lesson.runs.post(rig.loop, RunTrajectory(rig.line), run=RUN_LABEL)
             lesson.run_start, lesson.run_label = st.t, RUN_LABEL
             lesson.experiment = None  # (the lesson's own runs measure nothing of this)
-            rig.backend.wall_peak()  # the peak from here on
             self._run = ContactRun(st.t, rig.loop.params, wall, st.controller, normal,
                                    depth=length - wall.distance_cm / 100.0)
             self._shown_stale = None
@@ -311,7 +313,7 @@ class ContactTab:
                     self._mark_stale(rig)
                 return
             st = rig.loop.status
-            force, peak = rig.backend.wall_force(), rig.backend.wall_peak()
+            force = self._recorded_force(rig)
             self._force_now = force
             self._samples.append((st.t, force, self._estimate(rig, self._placed[1])))
             run = self._run
@@ -322,14 +324,20 @@ class ContactTab:
                 self._run = None
                 set_content(self.result, "**Into the wall**: cut short by another run")
                 return
-            run.t.append(st.t)
-            run.force.append(force)
-            run.peak.append(peak)
             if run.line_end is None and st.t > run.t0 + 0.1 and st.trajectory is None:
                 run.line_end = st.t
             if st.fault is None and (run.line_end is None or st.t < run.line_end + HOLD_S):
                 return
             self._finish(rig, run, st.fault)
+
+    @staticmethod
+    def _recorded_force(rig: Rig) -> float:
+        """N, the wall's force on the hand in the loop's newest record row (0: no wall)."""
+        snap = rig.loop.recorder.snapshot(0.05)
+        if not len(snap["t"]):
+            return 0.0
+        f = float(snap["f_contact"][-1])
+        return f if math.isfinite(f) else 0.0
 
     def _estimate(self, rig: Rig, normal: np.ndarray) -> float:
         """N of the hand's force estimated from τ_ext (eq. 2.23) along the wall's normal
@@ -342,6 +350,12 @@ class ContactTab:
         return math.nan if f is None else float(f @ normal)
 
     def _finish(self, rig: Rig, run: ContactRun, fault: str | None) -> None:
+        """The run's figures, of the loop's record from the run's start (every period)."""
+        snap = rig.loop.recorder.snapshot(rig.loop.status.t - run.t0 + 1.0)
+        rows = snap["t"] >= run.t0
+        run.t = snap["t"][rows].tolist()
+        run.force = np.nan_to_num(snap["f_contact"][rows]).tolist()
+        run.peak = np.nan_to_num(snap["f_contact_peak"][rows]).tolist()
         figures = contact_figures(np.array(run.t), np.array(run.force), np.array(run.peak))
         k_q = joint_stiffness(run.params, run.controller)
         figures["predicted_force_n"] = None if k_q is None or run.depth <= 0 else \
