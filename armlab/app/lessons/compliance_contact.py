@@ -13,6 +13,10 @@ every plant step between periods, ``f_contact_peak``: :mod:`armlab.control.recor
 one chart shows the wall's force beside the lab's estimate of
 the hand's force from τ_ext (eq. 2.23) along the wall's normal.
 
+A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
+wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
+setting comes back once it is over; its figures are shown here too.
+
 Real servos touch no simulated wall: there the controls are disabled and the tab says the
 wall is virtual only in simulation for now (a wall the law renders on servos is issue 54's
 item 3).
@@ -23,7 +27,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -166,6 +170,11 @@ class ContactTab:
         self._run: ContactRun | None = None
         self._shown_stale: bool | None = None
         self._samples: deque[tuple[float, float, float]] = deque(maxlen=SAMPLES)
+        #: a contact challenge's wall is in place (not the controls')
+        self._challenge_wall = False
+        #: the figures of the last run into a wall, the tab's or a challenge's (the
+        #: lesson's ``run_figures``)
+        self.last_figures: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ the wall
 
@@ -183,6 +192,9 @@ class ContactTab:
             rig = self._lesson.rig
             if rig is None:
                 raise ValueError("the arm is being rebuilt; try again")
+            if self._challenge_wall:  # the person's wall replaces the challenge's
+                self._lesson.challenges.cancel("a change of the wall")
+                self._challenge_wall = False
             try:
                 self._place(rig, self.setting(**override))
             except ValueError:
@@ -251,6 +263,56 @@ class ContactTab:
                 node.remove()
         self._wall_node = self._arrow = None
 
+    def challenge_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray, *,
+                       stiffness: float, damping: float) -> None:
+        """A contact challenge's wall (``origin`` (3,) m, unit ``normal`` (3,), base frame;
+        N/m, N·s/m) in the arm's world and drawn, in place of the controls' until
+        :meth:`end_challenge_wall`."""
+        backend = rig.backend
+        if not isinstance(backend, Touchable):
+            raise ValueError("the wall is virtual only in simulation for now")
+        with self._lock:
+            self._rig, self._run = rig, None
+            backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+            self._placed = (np.asarray(origin, dtype=float), np.asarray(normal, dtype=float))
+            self._challenge_wall = True
+            self._draw_wall(rig, *self._placed)
+            set_content(self.result, "**Challenge run**: the hand into the challenge's "
+                                     "wall…")
+
+    def end_challenge_wall(self) -> None:
+        """The contact challenge is over: the wall the controls set back (or none)."""
+        with self._lock:
+            rig = self._lesson.rig
+            if not self._challenge_wall:
+                return
+            self._challenge_wall = False
+            if rig is None:
+                return
+            try:
+                self._place(rig, self.setting())
+            except ValueError as exc:  # (the hand behind the controls' wall)
+                self._wall_off()
+                self._place(rig, replace(self.setting(), on=False))
+                set_content(self.result, f"The wall is off: {esc(str(exc))}")
+
+    def take_challenge(self, figures: dict[str, Any], *, predicted: float | None,
+                       label: str) -> None:
+        """A contact challenge's run, measured (``figures`` of
+        :func:`~armlab.control.experiments.contact.contact_figures`): the lesson's contact
+        figures and the tab's line."""
+        figures = {**figures, "predicted_force_n": predicted}
+        with self._lock:
+            self.last_figures = figures
+            text = (f"**Challenge run** ({esc(label)}): peak "
+                    f"**{_newtons(figures['peak_force_n'])}**, steady "
+                    f"**{_newtons(figures['steady_force_n'])}**, the law predicts "
+                    f"{_newtons(predicted)}")
+            if figures.get("fault"):
+                text += f"; stopped: {esc(str(figures['fault']))}"
+            set_content(self.result, text)
+            self._lesson.last_run_text = text
+
     def nodes(self) -> tuple[viser.BoxHandle | None, viser.ArrowsHandle | None]:
         """The wall's and the arrow's scene nodes (None: not in the scene)."""
         return self._wall_node, self._arrow
@@ -286,6 +348,7 @@ class ContactTab:
             check_running(rig.loop.status)
             lesson._law_works("Run into the wall")
             lesson.challenges.busy()
+            lesson.challenges.untag("contact")  # (not a challenge's run)
             st = rig.loop.status
             wall = self.setting()
             origin, normal = self._placed
@@ -365,6 +428,7 @@ class ContactTab:
         if fault is not None:
             figures["steady_force_n"] = None
         run.figures = figures
+        self.last_figures = figures
         self._shown_stale = None
         self._mark_stale(rig)
         self._lesson.runs.finish_run(
@@ -445,3 +509,8 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     if stale:
         text += f"\n\n{STALE} measured with other gains or another wall: run again"
     return text
+
+
+def _newtons(x: float | None) -> str:
+    """A force as the tab shows it ("2.14 N"; "—": none)."""
+    return "—" if x is None else f"{people(x)} N"

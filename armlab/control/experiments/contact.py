@@ -50,6 +50,10 @@ from armlab.kinematics.model import SerialChain
 from armlab.kinematics.stiffness import cartesian_compliance
 
 SETTLE_S = 0.5  #: s held at the start before the move
+#: periods the arm holds at the start before the command is applied: a challenge's
+#: restart applies its plan in the third period after it (armlab.control.restart), so the
+#: experiment and the contact challenge's run are the same periods from the same state
+LEAD = 2
 HOLD_S = 4.0  #: s held at the command behind the wall after it
 STEADY_S = 1.0  #: s at the end the steady force is the mean of
 SETTLE_BAND = 0.10  #: the force has settled once it stays within 10 % of its steady value
@@ -226,12 +230,22 @@ def contact_plan(model: SerialChain, period: float, *, wall: float,
                        int(math.ceil(plan.duration / period - 1e-9)))
 
 
-def recorded_contact(rows: Mapping[str, np.ndarray]) -> dict[str, Any]:
+def recorded_contact(rows: Mapping[str, np.ndarray], *, start: int = 0) -> dict[str, Any]:
     """:func:`contact_figures` of a loop's record ``rows`` (a ``Recorder.snapshot`` or a
-    window of one: ``t`` s, ``f_contact`` N and ``f_contact_peak`` N, one each a period)."""
-    return contact_figures(np.asarray(rows["t"], dtype=float),
-                           np.asarray(rows["f_contact"], dtype=float),
-                           np.asarray(rows["f_contact_peak"], dtype=float))
+    window of one: ``t`` s, ``f_contact`` N and ``f_contact_peak`` N, one each a period)
+    from row ``start`` on (the period the command is applied: :data:`LEAD`), its times
+    counted from there. A run the loop stopped (a row recorded with the controller off,
+    its ``error`` NaN: the lag check under PD) has no steady force, and ``fault`` says
+    so (None otherwise)."""
+    t = np.asarray(rows["t"], dtype=float)[start:]
+    figures = contact_figures(t - t[0], np.asarray(rows["f_contact"], dtype=float)[start:],
+                              np.asarray(rows["f_contact_peak"], dtype=float)[start:])
+    error = np.asarray(rows["error"], dtype=float)[start:]
+    stopped = bool((~np.isfinite(error)).any())
+    figures["fault"] = "the arm stopped (torque off) during the run" if stopped else None
+    if stopped:
+        figures["steady_force_n"] = None
+    return figures
 
 
 def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
@@ -258,6 +272,8 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
                            realtime=False, history_s=plan.duration + 5.0)
+        for _ in range(LEAD):  # holding, as a challenge's restarted arm does
+            loop.step()
         loop.post(RunTrajectory(plan, approach=False))
         for _ in range(run.periods):
             loop.step()
@@ -269,7 +285,7 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         if loop is not None:
             loop.shutdown()
         backend.close()
-    figures = recorded_contact(snap)
+    figures = recorded_contact(snap, start=LEAD)
     # the wall's torque on the joints beside the lab's estimate of it, period by period
     figures.update(estimate_figures(snap["t"], wall_torque(model, snap["q"], normal,
                                                            np.nan_to_num(snap["f_contact"])),
