@@ -10,8 +10,9 @@ settle, the steady force the law's joint stiffness predicts) are those of
 ``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions, of
 the wall's force the control loop records every period, ``f_contact`` and its peak at
 every plant step between periods, ``f_contact_peak``: :mod:`armlab.control.recorder`);
-one chart shows the wall's force beside the lab's estimate of
-the hand's force from τ_ext (eq. 2.23) along the wall's normal.
+one chart shows that recorded force beside the lab's sensorless estimate of the hand's
+force along the wall's normal, period by period: n · F, F = (J_vᵀ)⁺(−τ_ext) (the statics
+of τ_ext = LPF(τ_dist) − τ_dyn, eq. 2.21–2.23, at each period's measured pose).
 
 A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
 wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
@@ -26,7 +27,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -56,6 +56,7 @@ from armlab.control.experiments.contact import (
 from armlab.control.params import Params
 from armlab.control.trajectory import THESIS_LINE_END
 from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
 
 if TYPE_CHECKING:
@@ -79,7 +80,7 @@ WALL_OPACITY = 0.35
 WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (along n)
 CONTACT_RGB = (230, 120, 0)
 CHART_WINDOW_S = 10.0
-SAMPLES = 2000  #: samples kept for the chart (about 60 s at the publisher's 30 Hz)
+CHART_POINTS = 100  #: the loop's record thinned to about this many periods for the chart
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,6 @@ class ContactTab:
         self._force_now = 0.0
         self._run: ContactRun | None = None
         self._shown_stale: bool | None = None
-        self._samples: deque[tuple[float, float, float]] = deque(maxlen=SAMPLES)
         #: a contact challenge's wall is in place (not the controls')
         self._challenge_wall = False
         #: the figures of the last run into a wall, the tab's or a challenge's (the
@@ -378,7 +378,6 @@ class ContactTab:
             st = rig.loop.status
             force = self._recorded_force(rig)
             self._force_now = force
-            self._samples.append((st.t, force, self._estimate(rig, self._placed[1])))
             run = self._run
             if run is None or run.figures is not None:
                 self._mark_stale(rig)
@@ -402,15 +401,6 @@ class ContactTab:
         f = float(snap["f_contact"][-1])
         return f if math.isfinite(f) else 0.0
 
-    def _estimate(self, rig: Rig, normal: np.ndarray) -> float:
-        """N of the hand's force estimated from τ_ext (eq. 2.23) along the wall's normal
-        (NaN while τ_ext is not estimated: PD)."""
-        snap = rig.loop.recorder.snapshot(0.05)
-        if not len(snap["t"]) or not all_finite(snap["q"][-1]):
-            return math.nan
-        _, J = fk_and_jacobian(rig.model, snap["q"][-1])
-        f = estimated_hand_force(J, snap["tau_ext"][-1])
-        return math.nan if f is None else float(f @ normal)
 
     def _finish(self, rig: Rig, run: ContactRun, fault: str | None) -> None:
         """The run's figures, of the loop's record from the run's start (every period)."""
@@ -474,12 +464,19 @@ class ContactTab:
             arrow.visible = True
 
     def plot(self, force: bool) -> None:
-        """The chart's newest window (the plot frames)."""
+        """The chart's newest window of the loop's record (the plot frames): the wall's
+        recorded force and the estimate of it from τ_ext, while a wall is placed."""
         with self._lock:
-            if len(self._samples) < 2:
-                return
-            rows = np.array(self._samples, dtype=float)
-        self.chart.update(rows[:, 0], (rows[:, 1], rows[:, 2]), force=force)
+            rig, placed = self._lesson.rig, self._placed
+        if rig is None or placed is None:
+            return
+        snap = rig.loop.recorder.snapshot(CHART_WINDOW_S, max_points=CHART_POINTS)
+        if len(snap["t"]) < 2:
+            return
+        wall = np.nan_to_num(snap["f_contact"])  # (NaN: rows before the wall was placed)
+        self.chart.update(snap["t"], (wall, estimated_normal_force(rig.model, snap["q"],
+                                                                   snap["tau_ext"],
+                                                                   placed[1])), force=force)
 
 
 def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
@@ -509,6 +506,25 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     if stale:
         text += f"\n\n{STALE} measured with other gains or another wall: run again"
     return text
+
+
+def estimated_normal_force(model: SerialChain, q: np.ndarray, tau_ext: np.ndarray,
+                           normal: np.ndarray) -> np.ndarray:
+    """(m,) N the hand presses the wall with by the lab's sensorless estimate, at each of
+    ``q`` (m, n) rad with ``tau_ext`` (m, n) N·m (eq. 2.21–2.23): n · F, F = (J_vᵀ)⁺(−τ_ext)
+    the world's force on the hand and n the wall's unit ``normal`` (3,) towards the free
+    side, so a press reads positive as the wall's own force does; NaN where τ_ext is not
+    estimated (PD) or the pose is unknown."""
+    out = np.full(len(q), math.nan)
+    n = np.asarray(normal, dtype=float)
+    for i, (qi, ti) in enumerate(zip(q, tau_ext, strict=True)):
+        if not all_finite(qi):
+            continue
+        _, J = fk_and_jacobian(model, qi)
+        f = estimated_hand_force(J, ti)
+        if f is not None:
+            out[i] = float(f @ n)
+    return out
 
 
 def _newtons(x: float | None) -> str:
