@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from _helpers import wait_for
 
@@ -20,6 +21,7 @@ from armlab.app.server import Lab, ServeOptions
 from armlab.control.challenges import PRESETS, judge
 from armlab.control.experiments.contact import run_contact
 from armlab.control.params import DEFAULT
+from armlab.control.runs import read_run
 from armlab.kinematics.catalog import load_robot
 
 CONTACT = PRESETS["contact"]
@@ -63,6 +65,16 @@ def test_the_same_gains_score_the_same_as_the_experiment_and_are_judged_on_the_s
             assert runs[0][figure] is not None
             assert runs[0][figure] == pytest.approx(ref[key], rel=1e-9), figure
         assert lesson.run_tags()["contact_peak_n"] == "contact"
+        # Save run keeps the challenge's run with the wall's force (version 3), its
+        # figures those judged; the page's export draws it, the CSV has its columns
+        saved = read_run(lesson.runs.save_file()[1], robot="receptionist_arm")
+        assert saved.version == 3 and saved.signals["f_contact"].shape == (len(saved.t), 1)
+        assert saved.figures["contact_peak_n"] == runs[1]["contact_peak_n"]
+        assert float(np.nanmax(saved.signals["f_contact_peak"])) == pytest.approx(
+            runs[1]["contact_peak_n"], rel=1e-12)
+        assert lesson.runs.export_file()[1].lower().startswith(b"<!doctype html")
+        header = lesson.runs.run_csv()[1].splitlines()
+        assert any(line.endswith("f_contact_N,f_contact_peak_N") for line in header[:4])
         desk.read()
         best = desk.log.best(CONTACT)
         assert best is not None and best[1] == judge(CONTACT, runs[1])

@@ -167,3 +167,32 @@ def test_a_contact_column_named_per_joint_or_a_lesson_signal_of_its_name_is_refu
     with pytest.raises(RunFileError, match="cannot name a lesson signal"):
         run_bytes(Run(**{**contact_sample().__dict__, "lesson_signals": {"f_contact": "N"}}))
     assert not set(CONTACT_SIGNALS) & set(SIGNALS)
+
+
+def test_a_restart_can_name_the_wall_its_fresh_arm_meets_leaving_the_old_arm_free():
+    """A contact challenge's wall is put into the restarted arm's world only: the arm in
+    use, whose hand may be behind that wall, never meets it (no impossible force in the
+    record before the restart)."""
+    from armlab.control.backend import WallSetting
+
+    run = contact_plan(ARM, PERIOD, wall=0.04, depth=0.02)
+    q0 = run.plan.q[0]
+    arm = RestartableArm(lambda q: make_backend("sim", ARM, q0=q), q0, period=PERIOD)
+    loop = ControlLoop(ARM, arm, DEFAULT, realtime=False, history_s=30.0)
+    loop.run_for(0.1)
+    arm.meet_wall(WallSetting(run.origin, run.normal, 2e4, 50.0))
+    assert arm.wall_setting() is None  # not yet: the old arm goes on without it
+    number = arm.restart(q0, [(0, RunTrajectory(run.plan, approach=False))], loop.post)
+    loop.post(Reset())
+    while arm.restarts < number:
+        loop.step()
+    wall = arm.wall_setting()
+    assert wall is not None and wall.stiffness == 2e4
+    assert np.allclose(wall.origin, run.origin) and np.allclose(wall.normal, run.normal)
+    snap = loop.recorder.snapshot()
+    before = snap["t"] < arm.restarted_at
+    assert np.all(np.isnan(snap["f_contact"][before]))
+    for _ in range(run.periods + 2):
+        loop.step()
+    snap = loop.recorder.snapshot()
+    assert np.nanmax(snap["f_contact_peak"]) > 1.0

@@ -27,7 +27,9 @@ restart's (whose last bits depend on when the run was made).
 
 Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed). A
 wall (:class:`armlab.control.backend.Touchable`) is the world's, not the arm's: the fresh
-arm meets the wall the one it replaces had.
+arm meets the wall the one it replaces had, or the one :meth:`RestartableArm.meet_wall`
+names for the restart (a contact challenge's: never put in front of the old arm, whose
+hand may be behind it).
 
 :class:`Schedule` is the plan's part alone (commands timed in periods from an instant
 the loop marks), for a loop that starts its own plant again (the hand's
@@ -45,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import Backend, JointState, Touchable
+from armlab.control.backend import Backend, JointState, Touchable, WallSetting
 
 
 class Schedule:
@@ -123,6 +125,8 @@ class RestartableArm:
         self._torque_asked = False  #: (sync_first False) a Reset's torque-on while armed
         self.restarts = 0  #: restarts done
         self.restarted_at: float | None = None  #: loop time of the last restart's period
+        #: the wall the armed restart's fresh arm meets ((None,): none), or None: the old's
+        self._wall_next: tuple[WallSetting | None] | None = None
 
     # -- restarting -------------------------------------------------------------------
 
@@ -140,6 +144,12 @@ class RestartableArm:
             self._torque_asked = False
             return self.restarts + 1
 
+    def meet_wall(self, wall: WallSetting | None) -> None:
+        """The next restart's fresh arm meets ``wall`` (None: no wall) instead of the wall
+        of the arm it replaces; the arm in use keeps its own until then."""
+        with self._lock:
+            self._wall_next = (wall,)
+
     @property
     def armed(self) -> bool:
         """A restart is asked for and not done yet."""
@@ -152,7 +162,7 @@ class RestartableArm:
             self._t = float(t)
             if self._armed is not None:
                 old, self.inner = self.inner, self._make(self._armed[0])
-                _carry_wall(old, self.inner)
+                _carry_wall(old, self.inner, self._wall_next)
                 self._drop(old)
                 self._offset, self._fresh, self._syncs = self._t, True, 0
                 if self._torque_asked:  # the Reset came before this sync (sync_first False)
@@ -181,6 +191,7 @@ class RestartableArm:
         assert self._armed is not None
         _, plan, post = self._armed
         self._armed, self._fresh, self._torque_asked = None, False, False
+        self._wall_next = None
         self._schedule.begin(plan, post)
         self.restarted_at = self._t
         self.restarts += 1
@@ -247,11 +258,13 @@ class RestartableArm:
         return getattr(self.inner, name)
 
 
-def _carry_wall(old: Backend, new: Backend) -> None:
-    """The wall of ``old``'s world (if any) put into ``new``'s: an arm started again meets
-    the same wall (a contact challenge's run, the Contact tab's wall across a restart)."""
+def _carry_wall(old: Backend, new: Backend,
+                named: tuple[WallSetting | None] | None = None) -> None:
+    """The wall of ``old``'s world (if any), or the one ``named`` ((wall,) of
+    :meth:`RestartableArm.meet_wall`), put into ``new``'s: an arm started again meets the
+    same wall (the Contact tab's across any challenge's restart) or the challenge's."""
     if not isinstance(old, Touchable) or not isinstance(new, Touchable):
         return
-    wall = old.wall_setting()
+    wall = old.wall_setting() if named is None else named[0]
     if wall is not None:
         new.set_wall(wall.origin, wall.normal, stiffness=wall.stiffness, damping=wall.damping)

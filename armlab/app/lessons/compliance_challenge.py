@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import Touchable
+from armlab.control.backend import Touchable, WallSetting
 from armlab.control.challenges import Challenge
 from armlab.control.commands import Command, Push, Reset, RunTrajectory
 from armlab.control.experiments.contact import (
@@ -274,14 +274,14 @@ class ChallengeRuns:
 
     def _contact_run(self, challenge: Challenge, rig: Any, period: float,
                      fresh: bool) -> tuple[list[tuple[int, Command]], PendingRun]:
-        """The contact challenge's plan and pending run: its wall put into the simulated
-        arm's world (the Contact tab draws it; the restarted arm keeps it), the
-        experiment's command from the restart's third period (when the loop applies it)."""
+        """The contact challenge's plan and pending run: its wall in the restarted arm's
+        world (the Contact tab draws it), the experiment's command from the restart's third
+        period (when the loop applies it)."""
         spec = challenge.run
         if not fresh:
             raise ValueError("real servos: the wall is virtual only in simulation for now "
                              "(open the lab on the simulated arm)")
-        if not isinstance(rig.backend, Touchable):
+        if not (isinstance(rig.backend, RestartableArm) and isinstance(rig.backend, Touchable)):
             raise ValueError("this simulated arm has no wall to touch (a class's private "
                              "arms run without one for now): run it on the lab's own arm")
         check_wall_numbers(stiffness=spec.stiffness, damping=spec.damping,
@@ -292,8 +292,9 @@ class ChallengeRuns:
         k_q = joint_stiffness(params, "compliance" if params.compliance else "pd")
         predicted = None if k_q is None else predicted_force(
             rig.model, cp.q_end, cp.normal, cp.depth, k_joint=k_q, k_wall=spec.stiffness)
-        self.lesson.contact.challenge_wall(rig, cp.origin, cp.normal,
-                                           stiffness=spec.stiffness, damping=spec.damping)
+        # the wall in the restarted arm's world only: the arm in use may be behind it
+        rig.backend.meet_wall(WallSetting(cp.origin, cp.normal, spec.stiffness, spec.damping))
+        self.lesson.contact.challenge_wall(rig, cp.origin, cp.normal)
         label = (f"into a wall {spec.wall_cm:g} cm ahead, {spec.stiffness:g} N/m, the "
                  f"command {spec.depth_cm:g} cm behind it")
         return ([(0, RunTrajectory(cp.plan, approach=False))],

@@ -263,17 +263,12 @@ class ContactTab:
                 node.remove()
         self._wall_node = self._arrow = None
 
-    def challenge_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray, *,
-                       stiffness: float, damping: float) -> None:
-        """A contact challenge's wall (``origin`` (3,) m, unit ``normal`` (3,), base frame;
-        N/m, N·s/m) in the arm's world and drawn, in place of the controls' until
+    def challenge_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray) -> None:
+        """A contact challenge's wall (``origin`` (3,) m, unit ``normal`` (3,), base frame),
+        which its restarted arm meets, drawn in place of the controls' until
         :meth:`end_challenge_wall`."""
-        backend = rig.backend
-        if not isinstance(backend, Touchable):
-            raise ValueError("the wall is virtual only in simulation for now")
         with self._lock:
             self._rig, self._run = rig, None
-            backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
             self._placed = (np.asarray(origin, dtype=float), np.asarray(normal, dtype=float))
             self._challenge_wall = True
             self._draw_wall(rig, *self._placed)
