@@ -197,9 +197,12 @@ class RestartableArm:
         self.restarts += 1
 
     def cancel(self) -> None:
-        """Post nothing more of the last restart's plan (the run was cut short)."""
+        """Post nothing more of the last restart's plan (the run was cut short); a restart
+        still armed gives its fresh arm the old arm's wall, not one :meth:`meet_wall`
+        named."""
         with self._lock:
             self._schedule.cancel()
+            self._wall_next = None
 
     # -- the Backend protocol, to the backend in use ------------------------------------
 
