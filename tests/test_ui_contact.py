@@ -213,3 +213,25 @@ def test_a_wall_behind_the_hand_is_refused_and_left_off(lesson):
     with pytest.raises(ValueError, match="press Home"):
         tab._place(lesson.rig, replace(tab.setting(), on=True))
     tab.distance.set(DISTANCE_CM)
+
+
+def test_a_change_of_the_wall_cuts_a_contact_challenge_short_and_the_tabs_wall_comes_back(
+        lesson):
+    """The contact challenge's run puts its own wall in (drawn by the tab); moving the
+    tab's wall meanwhile cuts the run short (it counts for nothing), and the tab's own
+    wall is the one in the arm's world."""
+    from armlab.control.challenges import PRESETS
+
+    tab = lesson.contact
+    home(lesson)
+    started = lesson.run_challenge(PRESETS["contact"])
+    assert "into a wall 4 cm ahead" in started
+    wait_for(lambda: lesson.rig.backend.wall_setting() is not None, 30,
+             "the challenge's wall in the restarted arm's world")
+    assert tab.nodes()[0] is not None  # drawn by the tab
+    tab.wall_on.value = True  # the person's wall (18 cm ahead) replaces it
+    wait_for(lambda: lesson.challenges.pending is None, 30, "the challenge cut short")
+    assert "cut short by a change of the wall" in lesson.last_run_text
+    wall = lesson.rig.backend.wall_setting()
+    assert wall is not None and wall.stiffness == tab.setting().stiffness
+    assert np.allclose(wall.origin, tab._placed[0])
