@@ -196,3 +196,16 @@ def test_a_restart_can_name_the_wall_its_fresh_arm_meets_leaving_the_old_arm_fre
         loop.step()
     snap = loop.recorder.snapshot()
     assert np.nanmax(snap["f_contact_peak"]) > 1.0
+
+
+def test_a_contact_column_in_a_file_of_an_older_version_is_refused():
+    data = run_bytes(contact_sample())
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        meta, csv = json.loads(zf.read("run.json")), zf.read("signals.csv")
+    meta["version"] = 2
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("run.json", json.dumps(meta))
+        zf.writestr("signals.csv", csv)
+    with pytest.raises(RunFileError, match="only version 3 holds"):
+        read_run(buf.getvalue())

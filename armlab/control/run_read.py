@@ -115,6 +115,11 @@ def read_run(source: str | Path | bytes, *, robot: str | None = None,
     meta = _meta(read_member(data, members[JSON_MEMBER], label, limit=MAX_JSON_BYTES),
                  label, robot)
     t, signals = _signals(data, members[CSV_MEMBER], meta, label)
+    contact = [name for name in CONTACT_SIGNALS if name in signals]
+    if contact and meta["version"] < 3:
+        raise RunFileError(f"{label}: a version-{meta['version']} file with the contact "
+                           f"signal {contact[0]!r}, which only version 3 holds; the file "
+                           "was edited or not written by armlab")
     run = Run(robot=meta["robot"], joint_names=tuple(meta["joint_names"]),
               source=meta["source"], lab_version=meta["lab_version"], created=meta["created"],
               params=meta["params"], commands=tuple(meta["commands"]),
