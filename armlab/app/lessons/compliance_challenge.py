@@ -10,7 +10,8 @@ measured on loop time over a fixed window of periods from the restart, never up 
 "now", so two runs with the same gains give the same figures for every student, on a
 loaded machine, after any earlier runs. The contact challenge's run is ``armlab experiment
 contact``'s (:func:`armlab.control.experiments.contact.contact_plan`: the hand into a
-wall across the thesis line, which the restarted arm keeps), judged by the same
+wall across the thesis line, in the restarted arm's world only:
+:meth:`armlab.control.restart.RestartableArm.meet_wall`), judged by the same
 :func:`~armlab.control.experiments.contact.contact_figures` on the wall's force the loop
 records every period (``f_contact``, ``f_contact_peak``): the experiment's figures for
 the same wall and gains. A real (serial) arm cannot be put back: its
@@ -368,4 +369,3 @@ class ChallengeRuns:
             t = snap["t"]
             err = line_errors(snap, t0=t[run.delay]) * (180.0 / math.pi)
             lesson.take_pushed_line(err, snap["q"][run.delay:], run.force_n)
-
