@@ -36,6 +36,7 @@ PASSING = {
     "stiffness": {"push_n": 4.0, "stiffness_nm_per_rad": 7.97},
     "grasp": {"grasp_held": 1.0, "grasp_force_n": 1.0, "grasp_peak_n": 1.002},
     "walk": {"eq41_error_pct": 1.12},
+    "contact": {"contact_peak_n": 8.78, "contact_steady_n": 4.83},
 }
 #: per preset and figure: a value that breaks that threshold alone
 BREAKING = {
@@ -44,6 +45,7 @@ BREAKING = {
     "stiffness": {"push_n": 1.0, "stiffness_nm_per_rad": 4.04},
     "grasp": {"grasp_held": 0.0, "grasp_force_n": 0.8, "grasp_peak_n": 2.0},
     "walk": {"eq41_error_pct": 1.38},
+    "contact": {"contact_peak_n": 9.24, "contact_steady_n": 2.01},
 }
 
 

@@ -106,8 +106,8 @@ def test_pd_winds_up_against_the_wall_and_the_compliance_law_presses_without_a_f
 def test_the_sensorless_estimate_reads_the_walls_torque_with_its_sign_and_stated_error():
     """Eq. 2.21-2.23 against the ground truth: pressed on the wall by the compliance law,
     the estimate τ_ext reads the torque the joints hold against the wall (−Jᵀ f n) with
-    its sign on both loaded joints, within 40 % at rest (measured: 71-76 % of it on θ1
-    and θ2 at 2e3 and 2e4 N/m; docs/control.md says why it under-reads)."""
+    its sign on both loaded joints, within 40 % at rest (measured: 67-72 % of it on θ1
+    and θ2 at 2e3 and 2e4 N/m; docs/compliance.md says why it under-reads)."""
     from armlab.control.experiments.contact import run_contact, wall_torque
 
     for stiffness in (2e3, 2e4):

@@ -62,6 +62,8 @@ def test_the_emulated_arm_stops_at_the_wall_over_the_serial_path():
     # the servos' loads read the press: the estimate at the end, against the wall
     tail = snap["tau_ext"][-30:]
     assert np.max(np.abs(np.nanmean(tail, axis=0))) > 0.05, np.nanmean(tail, axis=0)
+    # servos measure no wall: the loop records no contact force for them, even pressing
+    assert np.all(np.isnan(snap["f_contact"])) and np.all(np.isnan(snap["f_contact_peak"]))
     # the same run without the wall goes the whole line, 2 cm past where the wall stood
     _, _, free = _run()
     assert _depth(free, origin, normal).min() < -0.015

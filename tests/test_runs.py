@@ -18,7 +18,7 @@ import pytest
 
 from armlab.app.cli import main
 from armlab.control import runs
-from armlab.control.recorder import SIGNALS, Recorder
+from armlab.control.recorder import CONTACT_SIGNALS, SIGNALS, Recorder
 from armlab.control.runs import (
     MAX_FILE_BYTES,
     Run,
@@ -413,7 +413,8 @@ EXPERIMENT_RUNS = {
                                                    "estimate"}),
     "observers": ([], "torque_joint", {"q", "tau_ext"}),
     "thesis-readings": (["--reading", "SI"], "receptionist_arm", set(SIGNALS)),
-    "contact": (["--controller", "compliance"], "receptionist_arm", set(SIGNALS)),
+    "contact": (["--controller", "compliance"], "receptionist_arm",
+                set(SIGNALS) | set(CONTACT_SIGNALS)),
 }
 
 

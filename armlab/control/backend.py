@@ -175,6 +175,17 @@ class Pushable(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class WallSetting:
+    """A wall as :meth:`Touchable.set_wall` placed it: ``origin`` (3,) m and unit ``normal``
+    (3,) towards the free side, base frame; ``stiffness`` N/m, ``damping`` N·s/m."""
+
+    origin: np.ndarray
+    normal: np.ndarray
+    stiffness: float
+    damping: float
+
+
 @runtime_checkable
 class Touchable(Protocol):
     """A backend whose world holds a wall the hand can touch (the simulator), and which
@@ -190,6 +201,12 @@ class Touchable(Protocol):
 
     def wall_force(self) -> float:
         """N, the wall's normal force on the hand now."""
+        ...
+
+    def wall_setting(self) -> WallSetting | None:
+        """The wall in the world now (as :meth:`set_wall` placed it), or None: what the
+        control loop records a contact force for (armlab.control.recorder's
+        ``f_contact``), and what an arm started again keeps (armlab.control.restart)."""
         ...
 
     def wall_peak(self) -> float:

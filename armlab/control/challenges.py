@@ -20,8 +20,8 @@ Pure (no server, no page): what the lab's Challenge panel and a classroom's grad
 The figures are the names of :class:`armlab.app.lessons.RunFigures`' fields (SI, or the unit
 in the name: ``overshoot_pct``, ``settling_s``, ``pushed_error_deg``, ``push_n``,
 ``line_push_n``, ``stiffness_nm_per_rad``, ``grasp_force_n``, ``grasp_held``, ``eq41_error_pct``,
-``step_joint``). They are measured by the server on the arm that ran; nothing here takes
-a page's word for a figure.
+``step_joint``, ``contact_peak_n``, ``contact_steady_n``). They are measured by the server
+on the arm that ran; nothing here takes a page's word for a figure.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from armlab.kinematics.validate import check_number
 #: how a figure is compared with its limit
 Kind = Literal["max", "min", "equal", "near"]
 #: what the challenge's run is (what the page's "Run the challenge" starts)
-RunKind = Literal["step", "line_push", "push", "grasp", "walk"]
+RunKind = Literal["step", "line_push", "push", "grasp", "walk", "contact"]
 #: runs a :class:`RunLog` keeps (the oldest go first)
 MAX_RUNS = 500
 
@@ -139,13 +139,20 @@ class RunSpec:
             ``line_push_n`` threshold's force along −y for ``push_s``), "push" (a push of that
             force for ``push_s`` with the arm holding), "grasp" (the hand closes with the
             student's force limit), "walk" (the quadruped walks forward ``walk_s`` and
-            stops).
+            stops), "contact" (``armlab experiment contact``'s run: the hand along the
+            thesis line into a wall ``wall_cm`` ahead of the line's start, ``stiffness``
+            N/m and ``damping`` N·s/m, to ``depth_cm`` behind its surface, held there;
+            judged on the wall's force the loop records every period).
     """
 
     kind: RunKind
     step_deg: float = -20.0
     push_s: float = 2.0
     walk_s: float = 10.0
+    wall_cm: float = 4.0
+    depth_cm: float = 2.0
+    stiffness: float = 2e4
+    damping: float = 50.0
 
 
 @dataclass(frozen=True)
@@ -582,6 +589,31 @@ def _walk() -> Challenge:
                "robot: 1.38 % at the lesson's 0.5 cycles/s, 1.12 % at 0.25.")
 
 
+def _contact() -> Challenge:
+    return Challenge(
+        key="contact", title="Touch the wall",
+        measures="The hand runs along the thesis line into a wall 4 cm ahead (2·10⁴ N/m: "
+                 "a wooden table), the command 2 cm behind its surface, and holds 4 s: the "
+                 "impact's peak force must stay at most P, and the steady force (the mean "
+                 "of the last second) within a tolerance of F; measured from the wall's "
+                 "force the loop records every period (the plant's ground truth).",
+        lesson="compliance", robot="receptionist_arm", run=RunSpec("contact"),
+        thresholds=(
+            Threshold("contact_peak_n", "peak force", "N", "max", 9.0, lo=0.1, hi=100.0),
+            Threshold("contact_steady_n", "steady force", "N", "near", 4.0,
+                      tolerance_pct=25.0, lo=0.05, hi=100.0),
+        ),
+        source="`armlab experiment contact` (its defaults: wall 4 cm ahead, 2 cm of "
+               "command behind it, 2·10⁴ N/m, 50 N·s/m), whose figures the challenge's run "
+               "gives to the last digit: the lab's default gains (K_q = K_env/K_f = 4 "
+               "N·m/rad) press 2.01 N after a 6.81 N peak and fail on the steady force; "
+               "K_env 32, D_env 20 press 4.83 N after 8.78 N and pass (K_env 32 alone: "
+               "1.44 N after 8.98 N; K_env 32, K_f 2: 8.78 N after 10.6 N). The hand does "
+               "not settle into a steady press at these gains (docs/compliance.md, "
+               "\"Contact\"): the steady force is a mean over its bounces, about twice "
+               "what the law predicts.")
+
+
 #: The challenges a teacher picks from, by key.
 PRESETS: dict[str, Challenge] = {c.key: c for c in (
-    _step(), _line_push(), _stiffness(), _grasp(), _walk())}
+    _step(), _line_push(), _stiffness(), _grasp(), _walk(), _contact())}

@@ -47,6 +47,7 @@ from armlab.control.backend import (
     JointState,
     Pushable,
     Reconnectable,
+    Touchable,
 )
 from armlab.control.commands import (
     COMMANDS,
@@ -239,6 +240,8 @@ class ControlLoop:
         self._held_off = hold_off
         self._message = hold_off or ""
         self._gripper: GripperState | None = None  # the newest gripper reading
+        #: the backend whose world may hold a wall: its contact force is recorded
+        self._touch: Touchable | None = backend if isinstance(backend, Touchable) else None
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime,
                   spin_s=SPIN_S)  # a period's start within microseconds
@@ -386,13 +389,14 @@ class ControlLoop:
         meas = self.backend.read()
         if meas.gripper is not None:
             self._gripper = meas.gripper
+        contact = self._contact()
         q, qd, load = (np.asarray(meas.position, dtype=float),
                        np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
         reset = bool(cmds) and any(isinstance(c, Reset) for c in cmds)
         started = self._state is None or reset
         if self._state is None:
             if self._await_reset and not reset:  # watch the arm, command nothing
-                self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
+                self._record(t, q=q, load=load, error=np.full_like(q, np.nan), **contact)
                 return
             self._await_reset = False
             with self._lock:
@@ -401,7 +405,7 @@ class ControlLoop:
         for cmd in cmds:
             self._apply(cmd, meas)
         if not self._active:  # faulted or e-stopped: keep watching, write nothing
-            self._record(t, q=q, load=load, error=np.full_like(q, np.nan))
+            self._record(t, q=q, load=load, error=np.full_like(q, np.nan), **contact)
             return
         if not all_finite(q, qd, load):
             for name, arr in (("position", q), ("velocity", qd), ("load", load)):
@@ -453,7 +457,7 @@ class ControlLoop:
         self.backend.write(goal, speed)
         self._record(t, q_cmd=q_cmd, q_ref=goal, q=q, error=q_cmd - q, qd_ref=qd_ref,
                      load=load, tau_load=st.tau_lpf, tau_dyn=tau_dyn, tau_ext=st.tau_ext,
-                     q_env=st.q_env)
+                     q_env=st.q_env, **contact)
 
     def _link_back(self, t: float, cmds: list[Command]) -> bool:
         """With the link failed: try to get it back (a :class:`Reconnectable` backend once a
@@ -490,8 +494,18 @@ class ControlLoop:
             return True
         return False
 
-    def _record(self, t: float, **signals: np.ndarray) -> None:
+    def _record(self, t: float, **signals: np.ndarray | float) -> None:
         self.recorder.append(t, signals, wall=time.time() if self._pacer.alive else math.nan)
+
+    def _contact(self) -> dict[str, float]:
+        """This period's contact signals (armlab.control.recorder's ``f_contact``, N, and
+        ``f_contact_peak``, N, the largest at any plant step since the period before): the
+        ground truth of a wall in a simulated arm's world, read after the backend's
+        ``sync``; none (NaN in the record) without a wall, and on real servos."""
+        touch = self._touch
+        if touch is None or touch.wall_setting() is None:
+            return {}
+        return {"f_contact": touch.wall_force(), "f_contact_peak": touch.wall_peak()}
 
     def _swap_params(self) -> None:
         with self._lock:

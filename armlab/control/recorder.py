@@ -21,6 +21,17 @@ tau_dyn    τ_dyn, Newton–Euler torque of the measured motion, N·m
 tau_ext    τ_ext = LPF(τ_dist) − τ_dyn (eq. 2.23), N·m
 q_env      θ_env, the environment state of eq. 2.7, rad
 =========  ==================================================================
+
+The contact signals (:data:`CONTACT_SIGNALS`) are one value a period, not one a joint,
+each (m,) as ``t`` is: the ground truth of a simulated wall the hand touches
+(:class:`armlab.control.backend.Touchable`), which no servo measures. They are NaN when
+the backend has no wall in its world (real servos never report one):
+
+==============  ============================================================
+f_contact       N, the wall's normal force on the hand at the period (≥ 0)
+f_contact_peak  N, the largest wall force at any plant step since the period
+                before (an impact between two periods is kept)
+==============  ============================================================
 """
 
 from __future__ import annotations
@@ -37,7 +48,10 @@ from armlab.control.ring_buffer import RingBuffer
 SIGNALS: tuple[str, ...] = ("q_cmd", "q_ref", "q", "error", "qd_ref", "load", "tau_load",
                             "tau_dyn", "tau_ext", "q_env")
 UNITS = {"q_cmd": "rad", "q_ref": "rad", "q": "rad", "error": "rad", "qd_ref": "rad/s",
-         "load": "N·m", "tau_load": "N·m", "tau_dyn": "N·m", "tau_ext": "N·m", "q_env": "rad"}
+         "load": "N·m", "tau_load": "N·m", "tau_dyn": "N·m", "tau_ext": "N·m", "q_env": "rad",
+         "f_contact": "N", "f_contact_peak": "N"}
+#: The signals of one value a period (not one a joint): the hand's contact with a wall
+CONTACT_SIGNALS: tuple[str, ...] = ("f_contact", "f_contact_peak")
 
 
 class Recorder:
@@ -59,6 +73,9 @@ class Recorder:
         for name in SIGNALS:
             self._cols[name] = slice(c, c + n)
             c += n
+        for name in CONTACT_SIGNALS:  # after the joints' (one column each)
+            self._cols[name] = slice(c, c + 1)
+            c += 1
         self._ring = RingBuffer(c, capacity)
 
     @property
@@ -68,10 +85,10 @@ class Recorder:
     def __len__(self) -> int:
         return len(self._ring)
 
-    def append(self, t: float, signals: Mapping[str, np.ndarray], *,
+    def append(self, t: float, signals: Mapping[str, np.ndarray | float], *,
                wall: float = math.nan) -> None:
         """Add one row: loop time ``t`` s, the wall clock ``wall`` s (epoch) and each signal
-        (n,) (missing ones are NaN)."""
+        (n,), or a float for a contact signal (missing ones are NaN)."""
         cols = self._cols
 
         def fill(row: np.ndarray) -> None:
@@ -86,13 +103,14 @@ class Recorder:
         self._ring.clear()
 
     def since(self, written: int) -> tuple[np.ndarray, int]:
-        """The raw rows (t, wall, then each signal's n columns in :data:`SIGNALS` order)
+        """The raw rows (t, wall, each signal's n columns in :data:`SIGNALS` order, then one
+        column per :data:`CONTACT_SIGNALS`)
         appended after the first ``written`` ever appended, and the count now: what a
         mirror of this recorder in another process is sent (:meth:`extend`)."""
         return self._ring.since(written)
 
     def extend(self, rows: np.ndarray) -> None:
-        """Append raw rows (m, 2 + len(SIGNALS)·n) as :meth:`since` gave them."""
+        """Append raw rows (m, :attr:`width`) as :meth:`since` gave them."""
         self._ring.extend(rows)
 
     def resize(self, capacity: int) -> None:
@@ -108,8 +126,8 @@ class Recorder:
             max_points: keep at most about this many rows (evenly thinned, newest kept).
 
         Returns:
-            {"t": (m,), "wall": (m,), signal: (m, n), ...}, oldest first; safe to keep
-            and modify.
+            {"t": (m,), "wall": (m,), signal: (m, n), ..., contact signal: (m,)}, oldest
+            first; safe to keep and modify.
         """
         return self.unpack(self._ring.rows(window_s, max_points=max_points))
 
@@ -120,15 +138,18 @@ class Recorder:
 
     @property
     def width(self) -> int:
-        """Floats in a raw row (:meth:`since`): t, wall, then n per signal."""
+        """Floats in a raw row (:meth:`since`): t, wall, n per signal, one per contact
+        signal."""
         return self._ring.width
 
     def unpack(self, data: np.ndarray) -> dict[str, np.ndarray]:
         """Raw rows (m, :attr:`width`) as :meth:`snapshot` gives them: {"t": (m,), "wall":
-        (m,), signal: (m, n)} (views of ``data``)."""
+        (m,), signal: (m, n), contact signal: (m,)} (views of ``data``)."""
         out = {"t": data[:, 0], "wall": data[:, 1]}
         for name in SIGNALS:
             out[name] = data[:, self._cols[name]]
+        for name in CONTACT_SIGNALS:
+            out[name] = data[:, self._cols[name].start]
         return out
 
     def to_csv(self, params: Params | None = None, window_s: float | None = None) -> str:
@@ -142,17 +163,22 @@ def snapshot_csv(snap: Mapping[str, np.ndarray], joint_names: Sequence[str],
                  params: Mapping[str, object] | None = None) -> str:
     """Rows in :meth:`Recorder.snapshot`'s layout (a window, or a run's rows kept apart:
     :class:`armlab.control.run_track.RunTrack`) as CSV text: parameters in a ``#`` header
-    line, SI units in the column names (one column per joint and signal); times to 10
-    significant digits (a period of 1 ms stays apart for 10⁶ s of loop time)."""
+    line, SI units in the column names (one column per joint and signal, then one per
+    contact signal the rows hold: ``f_contact_N``, ``f_contact_peak_N``, empty cells where
+    NaN); times to 10 significant digits (a period of 1 ms stays apart for 10⁶ s of loop
+    time)."""
     buf = io.StringIO()
     buf.write("# armlab recording (SI units)\n")
     if params is not None:
         buf.write("# " + ", ".join(f"{k}={v}" for k, v in params.items()) + "\n")
+    contact = [s for s in CONTACT_SIGNALS if s in snap]
     cols = ["t_s", "wall_time_s"] + [f"{s}_{j}_{UNITS[s].replace('·', '')}"
-                                     for s in SIGNALS for j in joint_names]
+                                     for s in SIGNALS for j in joint_names] + [
+                                         f"{s}_{UNITS[s]}" for s in contact]
     buf.write(",".join(cols) + "\n")
-    signals: np.ndarray | list[np.ndarray] = (np.column_stack([snap[s] for s in SIGNALS])
-                                              if len(snap["t"]) else [])
+    signals: np.ndarray | list[np.ndarray] = (
+        np.column_stack([snap[s] for s in SIGNALS] + [snap[s] for s in contact])
+        if len(snap["t"]) else [])
     for t, wall, row in zip(snap["t"], snap["wall"], signals, strict=True):
         buf.write(",".join([f"{t:.10g}", "" if np.isnan(wall) else f"{wall:.4f}"]
                            + ["" if np.isnan(v) else f"{v:.6g}" for v in row]) + "\n")

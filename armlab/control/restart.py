@@ -25,7 +25,11 @@ With ``period`` the backend in use is brought to whole numbers of periods from i
 (k · period, the same numbers for every run) rather than to the loop time less the
 restart's (whose last bits depend on when the run was made).
 
-Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed).
+Pushes and springs asked for while armed are dropped (the fresh arm starts unpushed). A
+wall (:class:`armlab.control.backend.Touchable`) is the world's, not the arm's: the fresh
+arm meets the wall the one it replaces had, or the one :meth:`RestartableArm.meet_wall`
+names for the restart (a contact challenge's: never put in front of the old arm, whose
+hand may be behind it).
 
 :class:`Schedule` is the plan's part alone (commands timed in periods from an instant
 the loop marks), for a loop that starts its own plant again (the hand's
@@ -43,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import Backend, JointState
+from armlab.control.backend import Backend, JointState, Touchable, WallSetting
 
 
 class Schedule:
@@ -121,6 +125,8 @@ class RestartableArm:
         self._torque_asked = False  #: (sync_first False) a Reset's torque-on while armed
         self.restarts = 0  #: restarts done
         self.restarted_at: float | None = None  #: loop time of the last restart's period
+        #: the wall the armed restart's fresh arm meets ((None,): none), or None: the old's
+        self._wall_next: tuple[WallSetting | None] | None = None
 
     # -- restarting -------------------------------------------------------------------
 
@@ -138,6 +144,12 @@ class RestartableArm:
             self._torque_asked = False
             return self.restarts + 1
 
+    def meet_wall(self, wall: WallSetting | None) -> None:
+        """The next restart's fresh arm meets ``wall`` (None: no wall) instead of the wall
+        of the arm it replaces; the arm in use keeps its own until then."""
+        with self._lock:
+            self._wall_next = (wall,)
+
     @property
     def armed(self) -> bool:
         """A restart is asked for and not done yet."""
@@ -150,6 +162,7 @@ class RestartableArm:
             self._t = float(t)
             if self._armed is not None:
                 old, self.inner = self.inner, self._make(self._armed[0])
+                _carry_wall(old, self.inner, self._wall_next)
                 self._drop(old)
                 self._offset, self._fresh, self._syncs = self._t, True, 0
                 if self._torque_asked:  # the Reset came before this sync (sync_first False)
@@ -178,14 +191,18 @@ class RestartableArm:
         assert self._armed is not None
         _, plan, post = self._armed
         self._armed, self._fresh, self._torque_asked = None, False, False
+        self._wall_next = None
         self._schedule.begin(plan, post)
         self.restarted_at = self._t
         self.restarts += 1
 
     def cancel(self) -> None:
-        """Post nothing more of the last restart's plan (the run was cut short)."""
+        """Post nothing more of the last restart's plan (the run was cut short); a restart
+        still armed gives its fresh arm the old arm's wall, not one :meth:`meet_wall`
+        named."""
         with self._lock:
             self._schedule.cancel()
+            self._wall_next = None
 
     # -- the Backend protocol, to the backend in use ------------------------------------
 
@@ -242,3 +259,15 @@ class RestartableArm:
         if name.startswith("__") or name == "inner":
             raise AttributeError(name)
         return getattr(self.inner, name)
+
+
+def _carry_wall(old: Backend, new: Backend,
+                named: tuple[WallSetting | None] | None = None) -> None:
+    """The wall of ``old``'s world (if any), or the one ``named`` ((wall,) of
+    :meth:`RestartableArm.meet_wall`), put into ``new``'s: an arm started again meets the
+    same wall (the Contact tab's across any challenge's restart) or the challenge's."""
+    if not isinstance(old, Touchable) or not isinstance(new, Touchable):
+        return
+    wall = old.wall_setting() if named is None else named[0]
+    if wall is not None:
+        new.set_wall(wall.origin, wall.normal, stiffness=wall.stiffness, damping=wall.damping)

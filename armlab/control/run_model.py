@@ -16,14 +16,16 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.recorder import SIGNALS, UNITS
+from armlab.control.recorder import CONTACT_SIGNALS, SIGNALS, UNITS
 from armlab.control.run_errors import RunFileError, quote
 
 FORMAT = "armlab-run"
 #: The newest version this lab reads. A run is written as version 1 (every reader reads it)
-#: unless it holds a lesson's own signals (:attr:`Run.lesson_signals`): then 2, so that a
-#: version-1 reader says "written by a newer armlab" rather than refusing a column.
-VERSION = 2
+#: unless it holds a lesson's own signals (:attr:`Run.lesson_signals`): then 2; or the
+#: hand's contact force (:data:`armlab.control.recorder.CONTACT_SIGNALS`, one column each):
+#: then 3. So an older reader says "written by a newer armlab" rather than refusing a
+#: column, and a file of any older version still reads.
+VERSION = 3
 #: A lesson signal's name: lower-case letters, digits and ``_``, a letter first, at most 32.
 LESSON_SIGNAL_NAME = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
 #: The most lesson signals a run may hold, and the longest unit text.
@@ -50,7 +52,7 @@ __all__ = ["CSV_MEMBER", "FORMAT", "JSON_MEMBER", "LESSON_SIGNAL_NAME", "MAX_LES
            "MAX_DRAWN_VALUE", "MAX_JOINTS", "MAX_NAME_CHARS", "MAX_TIME_S", "MAX_UNIT_CHARS",
            "MIN_STEP_S", "SUFFIX", "VERSION", "Run", "RunFileError", "check_drawable",
            "check_lesson_signals", "check_run", "lab_version", "ordered_signals",
-           "run_from_snapshot", "utc_now"]
+           "run_from_snapshot", "signal_columns", "utc_now"]
 
 @dataclass(frozen=True)
 class Run:
@@ -70,7 +72,9 @@ class Run:
         t: (m,) loop time, s, strictly increasing.
         signals: name -> (m, n) array, SI, names from
             :data:`armlab.control.recorder.SIGNALS` or :attr:`lesson_signals`; "q" (measured
-            angles, rad) required.
+            angles, rad) required; or name -> (m, 1) for a contact signal
+            (:data:`armlab.control.recorder.CONTACT_SIGNALS`: the wall's force on the hand,
+            N, one column whatever the joints).
         extra: free JSON kept verbatim (e.g. {"challenge": {...}}).
         lesson_signals: a lesson's own per-joint signals, name -> unit, in the file's
             column order (after the recorder's), e.g. {"current": "A", "force": "N"}: the
@@ -95,7 +99,7 @@ class Run:
         object.__setattr__(self, "commands", tuple(self.commands))
         object.__setattr__(self, "t", np.asarray(self.t, dtype=np.float64))
         object.__setattr__(self, "lesson_signals", dict(self.lesson_signals))
-        known = [*SIGNALS, *self.lesson_signals]
+        known = [*SIGNALS, *CONTACT_SIGNALS, *self.lesson_signals]
         order = sorted(self.signals, key=lambda k: (known.index(k) if k in known
                                                     else len(known)))
         object.__setattr__(self, "signals", {  # in the file's order: SIGNALS, then the lesson's
@@ -103,7 +107,10 @@ class Run:
 
     @property
     def version(self) -> int:
-        """The run format version this run is written as: 1, or 2 with lesson signals."""
+        """The run format version this run is written as: 1; 2 with lesson signals; 3 with
+        a contact signal."""
+        if any(name in self.signals for name in CONTACT_SIGNALS):
+            return 3
         return 2 if self.lesson_signals else 1
 
     def unit(self, signal: str) -> str:
@@ -136,8 +143,10 @@ def run_from_snapshot(snap: Mapping[str, np.ndarray], *, robot: str,
 
     Rows at the start where ``q`` is not yet recorded (NaN) are dropped; signals that
     are NaN throughout are left out ("q" and every one of ``lesson_signals``, name ->
-    unit, the snapshot's keys of a lesson's own signals, are always kept); "wall" is not
-    kept. The arrays are copied. Stamped with this lab's version and the time now.
+    unit, the snapshot's keys of a lesson's own signals, are always kept; a contact
+    signal, (m,) in the snapshot, is kept as one column, (m, 1), when it holds a value: a
+    run into a wall); "wall" is not kept. The arrays are copied. Stamped with this lab's
+    version and the time now.
     """
     t = np.asarray(snap["t"], dtype=np.float64)
     q = np.asarray(snap["q"], dtype=np.float64).reshape(len(t), -1)
@@ -150,6 +159,11 @@ def run_from_snapshot(snap: Mapping[str, np.ndarray], *, robot: str,
         values = np.array(snap[name], dtype=np.float64).reshape(len(t), -1)[start:]
         if name == "q" or not np.isnan(values).all():
             signals[name] = values
+    for name in CONTACT_SIGNALS:
+        if name in snap:
+            values = np.array(snap[name], dtype=np.float64).reshape(len(t), 1)[start:]
+            if not np.isnan(values).all():
+                signals[name] = values
     own = dict(lesson_signals or {})
     for name in own:
         signals[name] = np.array(snap[name], dtype=np.float64).reshape(len(t), -1)[start:]
@@ -161,16 +175,27 @@ def run_from_snapshot(snap: Mapping[str, np.ndarray], *, robot: str,
 
 
 def ordered_signals(run: Run) -> list[str]:
-    """The run's signal names in the file's order: :data:`SIGNALS`, then its lesson's."""
-    return [name for name in (*SIGNALS, *run.lesson_signals) if name in run.signals]
+    """The run's signal names in the file's order: :data:`SIGNALS`, the contact signals,
+    then its lesson's."""
+    return [name for name in (*SIGNALS, *CONTACT_SIGNALS, *run.lesson_signals)
+            if name in run.signals]
+
+
+def signal_columns(name: str, joints: Sequence[str]) -> list[str]:
+    """The run file's column names of signal ``name``: ``name.<joint>`` for each of
+    ``joints``, or ``name`` alone for a contact signal (one column)."""
+    if name in CONTACT_SIGNALS:
+        return [name]
+    return [f"{name}.{j}" for j in joints]
 
 
 def check_run(run: Run, label: str) -> None:
     """Everything a run must be, whether about to be written or just read: named joints
     (at most :data:`MAX_JOINTS`, names of at most :data:`MAX_NAME_CHARS`), times finite,
     within :data:`MAX_TIME_S` and each at least :data:`MIN_STEP_S` after the last, every
-    signal one column per joint, ``q`` finite, params, commands and figures of their
-    types. Messages quote at most ~200 characters of any text (:func:`quote`)."""
+    signal one column per joint (a contact signal one column), ``q`` finite, params,
+    commands and figures of their types. Messages quote at most ~200 characters of any
+    text (:func:`quote`)."""
     for key in ("robot", "source", "lab_version", "created"):
         if not isinstance(getattr(run, key), str):
             raise RunFileError(f"{label}: {key} must be text, got {quote(getattr(run, key))}")
@@ -198,9 +223,16 @@ def check_run(run: Run, label: str) -> None:
             raise RunFileError(f"{label}: the lesson signal {quote(name)} is declared but "
                                "has no columns")
     for name, values in run.signals.items():
+        if name in CONTACT_SIGNALS:
+            if values.shape != (len(t), 1):
+                raise RunFileError(f"{label}: the contact signal {quote(name)} has shape "
+                                   f"{values.shape}, but the run has {len(t)} samples of "
+                                   "one column")
+            continue
         if name not in SIGNALS and name not in run.lesson_signals:
             raise RunFileError(f"{label}: {quote(name)} is no signal this lab knows "
-                               f"({', '.join(SIGNALS)}) nor a declared lesson signal")
+                               f"({', '.join((*SIGNALS, *CONTACT_SIGNALS))}) nor a declared "
+                               "lesson signal")
         if values.shape != (len(t), n):
             raise RunFileError(f"{label}: signal {quote(name)} has shape {values.shape}, but "
                                f"the run has {len(t)} samples of {n} joints")
@@ -271,9 +303,10 @@ def check_drawable(run: Run, label: str) -> None:
             far = np.argwhere(np.isfinite(values) & (np.abs(values) > MAX_DRAWN_VALUE))
         if len(far):
             i, j = far[0]
+            where = "" if name in CONTACT_SIGNALS else f", joint {quote(run.joint_names[j])}"
             raise RunFileError(
                 f"{label}: {quote(name)} is {values[i, j]:.6g} {_unit(run, name)} at sample "
-                f"{i}, joint {quote(run.joint_names[j])}, beyond the {MAX_DRAWN_VALUE:g} a "
+                f"{i}{where}, beyond the {MAX_DRAWN_VALUE:g} a "
                 "run may hold to be drawn; it was not recorded by a lab")
 
 
@@ -293,10 +326,10 @@ def check_lesson_signals(own: Mapping[Any, Any], label: str) -> None:
                            f"{MAX_LESSON_SIGNALS}")
     for name, unit in own.items():
         if (not isinstance(name, str) or LESSON_SIGNAL_NAME.match(name) is None
-                or name in SIGNALS or name == "t"):
+                or name in SIGNALS or name in CONTACT_SIGNALS or name == "t"):
             raise RunFileError(f"{label}: {quote(name)} cannot name a lesson signal (lower-case "
                                "letters, digits and _, a letter first, at most 32, none of "
-                               f"t, {', '.join(SIGNALS)})")
+                               f"t, {', '.join((*SIGNALS, *CONTACT_SIGNALS))})")
         if not (isinstance(unit, str) and len(unit) <= MAX_UNIT_CHARS and unit.isprintable()):
             raise RunFileError(f"{label}: the lesson signal {quote(name)} has no valid "
                                f"unit ({quote(unit)}): printable text of at most {MAX_UNIT_CHARS} "

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.recorder import SIGNALS
+from armlab.control.recorder import CONTACT_SIGNALS, SIGNALS
 from armlab.control.run_errors import RunFileError, clip, quote
 from armlab.control.run_model import (
     CSV_MEMBER,
@@ -76,7 +76,7 @@ MAX_JSON_VALUES = 250_000
 #: ``repr`` is at most 24.
 MAX_NUMBER_CHARS = 32
 #: The most columns signals.csv may have: t, then every signal of every joint.
-MAX_COLUMNS = 1 + (len(SIGNALS) + MAX_LESSON_SIGNALS) * MAX_JOINTS
+MAX_COLUMNS = 1 + (len(SIGNALS) + MAX_LESSON_SIGNALS) * MAX_JOINTS + len(CONTACT_SIGNALS)
 #: The longest header line (characters), and the longest data line per column.
 MAX_HEADER_CHARS = MAX_COLUMNS * (MAX_NAME_CHARS + 40)
 MAX_CELL_CHARS = MAX_NUMBER_CHARS + 8
@@ -115,6 +115,11 @@ def read_run(source: str | Path | bytes, *, robot: str | None = None,
     meta = _meta(read_member(data, members[JSON_MEMBER], label, limit=MAX_JSON_BYTES),
                  label, robot)
     t, signals = _signals(data, members[CSV_MEMBER], meta, label)
+    contact = [name for name in CONTACT_SIGNALS if name in signals]
+    if contact and meta["version"] < 3:
+        raise RunFileError(f"{label}: a version-{meta['version']} file with the contact "
+                           f"signal {contact[0]!r}, which only version 3 holds; the file "
+                           "was edited or not written by armlab")
     run = Run(robot=meta["robot"], joint_names=tuple(meta["joint_names"]),
               source=meta["source"], lab_version=meta["lab_version"], created=meta["created"],
               params=meta["params"], commands=tuple(meta["commands"]),
@@ -308,7 +313,7 @@ def _signals(data: bytes, member: Member, meta: Mapping[str, Any],
             raise RunFileError(f"{label}: {CSV_MEMBER}'s header disagrees with the columns "
                                f"{JSON_MEMBER} lists; the file was edited or damaged")
         layout = _layout(header, [str(j) for j in meta["joint_names"]], label,
-                         known=(*SIGNALS, *meta.get("lesson_signals", {})))
+                         known=(*SIGNALS, *CONTACT_SIGNALS, *meta.get("lesson_signals", {})))
         width = len(header)
         lines.limit = width * MAX_CELL_CHARS
         t, signals = _table(rows, header, layout, label)
@@ -359,7 +364,8 @@ def _table(rows: Iterator[list[str]], header: list[str], layout: Mapping[str, li
 def _layout(header: list[str], joints: list[str], label: str, *,
             known: Sequence[str] = SIGNALS) -> dict[str, list[int]]:
     """signal -> its column indices, checking the header is t then each signal's joints
-    (``known``: the recorder's signals and the lesson signals run.json declares)."""
+    (``known``: the recorder's signals and the lesson signals run.json declares), or a
+    contact signal's one column (named without a joint)."""
     if not header or header[0] != "t":
         raise RunFileError(f"{label}: {CSV_MEMBER}'s first column is not 't' (loop time, s)")
     if not joints:
@@ -369,8 +375,16 @@ def _layout(header: list[str], joints: list[str], label: str, *,
         signal, _, joint = col.partition(".")
         if signal not in known:
             raise RunFileError(f"{label}: column {quote(col)} is no signal this lab knows "
-                               f"({', '.join(SIGNALS)}) nor one run.json's lesson_signals "
-                               "declares; the file is from another program or a newer armlab")
+                               f"({', '.join((*SIGNALS, *CONTACT_SIGNALS))}) nor one "
+                               "run.json's lesson_signals declares; the file is from another "
+                               "program or a newer armlab")
+        if signal in CONTACT_SIGNALS:
+            if col != signal or signal in layout:
+                raise RunFileError(f"{label}: column {quote(col)}: the contact signal "
+                                   f"{signal!r} is one column named {signal!r}; the file "
+                                   "was edited or damaged")
+            layout[signal] = [i]
+            continue
         layout.setdefault(signal, []).append(i)
         cols = layout[signal]
         if len(cols) > len(joints) or joint != joints[len(cols) - 1]:
@@ -379,6 +393,8 @@ def _layout(header: list[str], joints: list[str], label: str, *,
                 f"({clip(', '.join(joints))}); each signal needs one column "
                 "per joint, in order")
     for signal, cols in layout.items():
+        if signal in CONTACT_SIGNALS:
+            continue
         if len(cols) != len(joints) or cols != list(range(cols[0], cols[0] + len(cols))):
             raise RunFileError(
                 f"{label}: signal {quote(signal)} has {len(cols)} columns for "

@@ -25,6 +25,7 @@ from armlab.control.run_model import (
     Run,
     check_run,
     ordered_signals,
+    signal_columns,
 )
 
 
@@ -35,7 +36,8 @@ def run_bytes(run: Run) -> bytes:
         RunFileError: the run itself is not valid (see :func:`read_run`'s checks).
     """
     check_run(run, "the run to save")
-    columns = ["t"] + [f"{name}.{j}" for name in ordered_signals(run) for j in run.joint_names]
+    columns = ["t"] + [col for name in ordered_signals(run)
+                       for col in signal_columns(name, run.joint_names)]
     meta = {
         "format": FORMAT, "version": run.version, "robot": run.robot,
         "joint_names": list(run.joint_names), "source": run.source,

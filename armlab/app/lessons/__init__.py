@@ -160,6 +160,9 @@ class RunFigures:
         grasp_force_n, grasp_peak_n: the last grasp's steady and peak fingertip force, N.
         grasp_held: 1.0 when every finger of the last grasp held at 90 % of its limit, else 0.
         eq41_error_pct: seed 003's eq. 4.1 error over the last walk, % (servo feedback).
+        contact_peak_n, contact_steady_n: the last run into a wall (the Contact tab's or
+            the contact challenge's): the largest wall force at any plant step and the
+            mean of its last second, N, from the loop's record (``f_contact``).
     """
 
     max_error_deg: float | None = None
@@ -175,6 +178,8 @@ class RunFigures:
     grasp_peak_n: float | None = None
     grasp_held: float | None = None
     eq41_error_pct: float | None = None
+    contact_peak_n: float | None = None
+    contact_steady_n: float | None = None
 
 
 class Gains(Protocol):

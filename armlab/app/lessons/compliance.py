@@ -591,7 +591,8 @@ class ComplianceLesson(LessonBase):
         return (*self.runs.page_only_buttons(), self.download)
 
     def run_figures(self) -> RunFigures:
-        """Chapter 4's figures of the last line runs, and the last step test's."""
+        """Chapter 4's figures of the last line runs, the last step test's, and the last
+        run into a wall's."""
         ch4, step, env = self.chapter4, self.measured_pd, self.measured_env
         gain = None if env is None else env.static_gain
         return RunFigures(max_error_deg=_largest(ch4.free), yield_deg=_largest(ch4.yield_deg),
@@ -602,7 +603,15 @@ class ComplianceLesson(LessonBase):
                           line_push_n=None if ch4.pushed is None else self._line_push_n,
                           push_n=None if env is None else self._push_n,
                           stiffness_nm_per_rad=(None if gain is None or not gain > 0
-                                                else 1.0 / gain))
+                                                else 1.0 / gain),
+                          **self._contact_figures())
+
+    def _contact_figures(self) -> dict[str, float | None]:
+        """The last run into a wall's peak and steady force, N (the Contact tab's or the
+        contact challenge's; None before one)."""
+        fig = self.contact.last_figures or {}
+        return {"contact_peak_n": fig.get("peak_force_n") if fig.get("touched") else None,
+                "contact_steady_n": fig.get("steady_force_n")}
 
     # ------------------------------------------------------------------ challenges
 

@@ -8,7 +8,13 @@ thesis line's first pose, at rest, its controller reset
 and the run's commands follow at fixed numbers of periods from that instant. It is
 measured on loop time over a fixed window of periods from the restart, never up to
 "now", so two runs with the same gains give the same figures for every student, on a
-loaded machine, after any earlier runs. A real (serial) arm cannot be put back: its
+loaded machine, after any earlier runs. The contact challenge's run is ``armlab experiment
+contact``'s (:func:`armlab.control.experiments.contact.contact_plan`: the hand into a
+wall across the thesis line, in the restarted arm's world only:
+:meth:`armlab.control.restart.RestartableArm.meet_wall`), judged by the same
+:func:`~armlab.control.experiments.contact.contact_figures` on the wall's force the loop
+records every period (``f_contact``, ``f_contact_peak``): the experiment's figures for
+the same wall and gains. A real (serial) arm cannot be put back: its
 challenge run starts from where the arm is, is judged from the run's own start, and the
 page says so.
 
@@ -29,8 +35,17 @@ from typing import Any
 
 import numpy as np
 
+from armlab.control.backend import Touchable, WallSetting
 from armlab.control.challenges import Challenge
 from armlab.control.commands import Command, Push, Reset, RunTrajectory
+from armlab.control.experiments.contact import (
+    LEAD,
+    check_wall_numbers,
+    contact_plan,
+    joint_stiffness,
+    predicted_force,
+    recorded_contact,
+)
 from armlab.control.response import line_errors, measure_push, measure_step, plan_step
 from armlab.control.restart import RestartableArm
 from armlab.control.trajectory import JointTrajectory, hold
@@ -44,6 +59,7 @@ FIGURES = {
     "step": ("overshoot_pct", "settling_s", "step_joint"),
     "line_push": ("pushed_error_deg", "yield_deg", "line_push_n"),
     "push": ("push_n", "stiffness_nm_per_rad"),
+    "contact": ("contact_peak_n", "contact_steady_n"),
 }
 #: challenge runs a lesson keeps for its readers
 KEEP = 50
@@ -65,6 +81,7 @@ class PendingRun:
         length: periods it is measured over, from the restart's.
         force_n: the push's force (line_push, push). joint, q0, q1: the step's.
         label: what the page calls it.
+        predicted_n: contact: the steady force the law's stiffness predicts (None: PD).
     """
 
     challenge: Challenge
@@ -78,6 +95,7 @@ class PendingRun:
     joint: int = -1
     q0: float = 0.0
     q1: float = 0.0
+    predicted_n: float | None = None
 
 
 def restart_arm(backend: Any, loop: Any, q: np.ndarray,
@@ -183,6 +201,8 @@ class ChallengeRuns:
                 twin.cancel()
         if run.t0 is not None and rig is not None:  # its file ends here, unmeasured
             self.lesson.runs.finish_run(None, t=rig.loop.status.t)
+        if run.kind == "contact":
+            self.lesson.contact.end_challenge_wall()
         self.lesson.last_run_text = f"**Challenge run** ({run.label}): cut short by {why}"
 
     # -- starting ----------------------------------------------------------------------
@@ -237,6 +257,8 @@ class ChallengeRuns:
             n = int(round(span / period)) + 1
             run = PendingRun(challenge, spec.kind, None, None, delay + 2, delay + 2 + n,
                              label, force_n=force)
+        elif spec.kind == "contact":
+            plan, run = self._contact_run(challenge, rig, period, fresh)
         else:
             raise ValueError(f"the {spec.kind} challenge runs in another lesson")
         run.number = restart_arm(rig.backend, loop, q0, plan) if fresh else None
@@ -250,6 +272,35 @@ class ChallengeRuns:
         self.untag(run.kind)  # (tagged again once measured)
         lesson.run_label = f"challenge {challenge.key}"
         return run.label
+
+    def _contact_run(self, challenge: Challenge, rig: Any, period: float,
+                     fresh: bool) -> tuple[list[tuple[int, Command]], PendingRun]:
+        """The contact challenge's plan and pending run: its wall in the restarted arm's
+        world (the Contact tab draws it), the experiment's command from the restart's third
+        period (when the loop applies it)."""
+        spec = challenge.run
+        if not fresh:
+            raise ValueError("real servos: the wall is virtual only in simulation for now "
+                             "(open the lab on the simulated arm)")
+        if not (isinstance(rig.backend, RestartableArm) and isinstance(rig.backend, Touchable)):
+            raise ValueError("this simulated arm has no wall to touch (a class's private "
+                             "arms run without one for now): run it on the lab's own arm")
+        check_wall_numbers(stiffness=spec.stiffness, damping=spec.damping,
+                           names=("wall stiffness", "wall damping"))
+        cp = contact_plan(rig.model, period, wall=spec.wall_cm / 100.0,
+                          depth=spec.depth_cm / 100.0)
+        params = rig.loop.params
+        k_q = joint_stiffness(params, "compliance" if params.compliance else "pd")
+        predicted = None if k_q is None else predicted_force(
+            rig.model, cp.q_end, cp.normal, cp.depth, k_joint=k_q, k_wall=spec.stiffness)
+        # the wall in the restarted arm's world only: the arm in use may be behind it
+        rig.backend.meet_wall(WallSetting(cp.origin, cp.normal, spec.stiffness, spec.damping))
+        self.lesson.contact.challenge_wall(rig, cp.origin, cp.normal)
+        label = (f"into a wall {spec.wall_cm:g} cm ahead, {spec.stiffness:g} N/m, the "
+                 f"command {spec.depth_cm:g} cm behind it")
+        return ([(0, RunTrajectory(cp.plan, approach=False))],
+                PendingRun(challenge, "contact", None, None, LEAD, LEAD + cp.periods, label,
+                           predicted_n=predicted))
 
     # -- measuring ---------------------------------------------------------------------
 
@@ -278,6 +329,8 @@ class ChallengeRuns:
                 self.cancel("a record that lost its rows")
             return
         self.pending = None
+        if run.kind == "contact":  # (its figures are of the record: the wall may go)
+            self.lesson.contact.end_challenge_wall()
         try:
             self._take(run, snap)
         except ValueError as exc:
@@ -309,6 +362,9 @@ class ChallengeRuns:
             lesson.take_push(measure_push(snap, t0=t[run.delay], t1=t[-1], what=run.label,
                                           joint_labels=lesson.joint_labels, params=params),
                              run.force_n)
+        elif run.kind == "contact":
+            lesson.contact.take_challenge(recorded_contact(snap, start=run.delay),
+                                          predicted=run.predicted_n, label=run.label)
         else:
             t = snap["t"]
             err = line_errors(snap, t0=t[run.delay]) * (180.0 / math.pi)

@@ -7,10 +7,16 @@ Run tab's command) through it, so the command ends behind the surface. The 3D vi
 the wall (a translucent slab) and its force on the hand (an arrow, scaled as the lesson's
 other force arrows); the figures of the run (peak and steady force, bounces, time to
 settle, the steady force the law's joint stiffness predicts) are those of
-``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions,
-from the wall's force sampled at each of the publisher's ticks and its peak kept at every
-plant step between them); one chart shows the wall's force beside the lab's estimate of
-the hand's force from τ_ext (eq. 2.23) along the wall's normal.
+``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions, of
+the wall's force the control loop records every period, ``f_contact`` and its peak at
+every plant step between periods, ``f_contact_peak``: :mod:`armlab.control.recorder`);
+one chart shows that recorded force beside the lab's sensorless estimate of the hand's
+force along the wall's normal, period by period: n · F, F = (J_vᵀ)⁺(−τ_ext) (the statics
+of τ_ext = LPF(τ_dist) − τ_dyn, eq. 2.21–2.23, at each period's measured pose).
+
+A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
+wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
+setting comes back once it is over; its figures are shown here too.
 
 Real servos touch no simulated wall: there the controls are disabled and the tab says the
 wall is virtual only in simulation for now (a wall the law renders on servos is issue 54's
@@ -21,8 +27,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -51,6 +56,7 @@ from armlab.control.experiments.contact import (
 from armlab.control.params import Params
 from armlab.control.trajectory import THESIS_LINE_END
 from armlab.kinematics.fk import fk_and_jacobian
+from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
 
 if TYPE_CHECKING:
@@ -74,7 +80,7 @@ WALL_OPACITY = 0.35
 WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (along n)
 CONTACT_RGB = (230, 120, 0)
 CHART_WINDOW_S = 10.0
-SAMPLES = 2000  #: samples kept for the chart (about 60 s at the publisher's 30 Hz)
+CHART_POINTS = 100  #: the loop's record thinned to about this many periods for the chart
 
 
 @dataclass(frozen=True)
@@ -98,6 +104,8 @@ class ContactRun:
     normal: np.ndarray
     depth: float  #: m of command behind the surface at the line's end
     line_end: float | None = None  #: loop time the line ended, s
+    #: the loop's record of the run, once over: loop times s, the wall's force N and its
+    #: peak at the plant's steps N, one a period
     t: list[float] = field(default_factory=list)
     force: list[float] = field(default_factory=list)
     peak: list[float] = field(default_factory=list)
@@ -162,7 +170,11 @@ class ContactTab:
         self._force_now = 0.0
         self._run: ContactRun | None = None
         self._shown_stale: bool | None = None
-        self._samples: deque[tuple[float, float, float]] = deque(maxlen=SAMPLES)
+        #: a contact challenge's wall is in place (not the controls')
+        self._challenge_wall = False
+        #: the figures of the last run into a wall, the tab's or a challenge's (the
+        #: lesson's ``run_figures``)
+        self.last_figures: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ the wall
 
@@ -180,6 +192,9 @@ class ContactTab:
             rig = self._lesson.rig
             if rig is None:
                 raise ValueError("the arm is being rebuilt; try again")
+            if self._challenge_wall:  # the person's wall replaces the challenge's
+                self._lesson.challenges.cancel("a change of the wall")
+                self._challenge_wall = False
             try:
                 self._place(rig, self.setting(**override))
             except ValueError:
@@ -248,6 +263,51 @@ class ContactTab:
                 node.remove()
         self._wall_node = self._arrow = None
 
+    def challenge_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray) -> None:
+        """A contact challenge's wall (``origin`` (3,) m, unit ``normal`` (3,), base frame),
+        which its restarted arm meets, drawn in place of the controls' until
+        :meth:`end_challenge_wall`."""
+        with self._lock:
+            self._rig, self._run = rig, None
+            self._placed = (np.asarray(origin, dtype=float), np.asarray(normal, dtype=float))
+            self._challenge_wall = True
+            self._draw_wall(rig, *self._placed)
+            set_content(self.result, "**Challenge run**: the hand into the challenge's "
+                                     "wall…")
+
+    def end_challenge_wall(self) -> None:
+        """The contact challenge is over: the wall the controls set back (or none)."""
+        with self._lock:
+            rig = self._lesson.rig
+            if not self._challenge_wall:
+                return
+            self._challenge_wall = False
+            if rig is None:
+                return
+            try:
+                self._place(rig, self.setting())
+            except ValueError as exc:  # (the hand behind the controls' wall)
+                self._wall_off()
+                self._place(rig, replace(self.setting(), on=False))
+                set_content(self.result, f"The wall is off: {esc(str(exc))}")
+
+    def take_challenge(self, figures: dict[str, Any], *, predicted: float | None,
+                       label: str) -> None:
+        """A contact challenge's run, measured (``figures`` of
+        :func:`~armlab.control.experiments.contact.contact_figures`): the lesson's contact
+        figures and the tab's line."""
+        figures = {**figures, "predicted_force_n": predicted}
+        with self._lock:
+            self.last_figures = figures
+            text = (f"**Challenge run** ({esc(label)}): peak "
+                    f"**{_newtons(figures['peak_force_n'])}**, steady "
+                    f"**{_newtons(figures['steady_force_n'])}**, the law predicts "
+                    f"{_newtons(predicted)}")
+            if figures.get("fault"):
+                text += f"; stopped: {esc(str(figures['fault']))}"
+            set_content(self.result, text)
+            self._lesson.last_run_text = text
+
     def nodes(self) -> tuple[viser.BoxHandle | None, viser.ArrowsHandle | None]:
         """The wall's and the arrow's scene nodes (None: not in the scene)."""
         return self._wall_node, self._arrow
@@ -283,6 +343,7 @@ class ContactTab:
             check_running(rig.loop.status)
             lesson._law_works("Run into the wall")
             lesson.challenges.busy()
+            lesson.challenges.untag("contact")  # (not a challenge's run)
             st = rig.loop.status
             wall = self.setting()
             origin, normal = self._placed
@@ -291,7 +352,6 @@ class ContactTab:
             lesson.runs.post(rig.loop, RunTrajectory(rig.line), run=RUN_LABEL)
             lesson.run_start, lesson.run_label = st.t, RUN_LABEL
             lesson.experiment = None  # (the lesson's own runs measure nothing of this)
-            rig.backend.wall_peak()  # the peak from here on
             self._run = ContactRun(st.t, rig.loop.params, wall, st.controller, normal,
                                    depth=length - wall.distance_cm / 100.0)
             self._shown_stale = None
@@ -311,9 +371,8 @@ class ContactTab:
                     self._mark_stale(rig)
                 return
             st = rig.loop.status
-            force, peak = rig.backend.wall_force(), rig.backend.wall_peak()
+            force = self._recorded_force(rig)
             self._force_now = force
-            self._samples.append((st.t, force, self._estimate(rig, self._placed[1])))
             run = self._run
             if run is None or run.figures is not None:
                 self._mark_stale(rig)
@@ -322,26 +381,29 @@ class ContactTab:
                 self._run = None
                 set_content(self.result, "**Into the wall**: cut short by another run")
                 return
-            run.t.append(st.t)
-            run.force.append(force)
-            run.peak.append(peak)
             if run.line_end is None and st.t > run.t0 + 0.1 and st.trajectory is None:
                 run.line_end = st.t
             if st.fault is None and (run.line_end is None or st.t < run.line_end + HOLD_S):
                 return
             self._finish(rig, run, st.fault)
 
-    def _estimate(self, rig: Rig, normal: np.ndarray) -> float:
-        """N of the hand's force estimated from τ_ext (eq. 2.23) along the wall's normal
-        (NaN while τ_ext is not estimated: PD)."""
+    @staticmethod
+    def _recorded_force(rig: Rig) -> float:
+        """N, the wall's force on the hand in the loop's newest record row (0: no wall)."""
         snap = rig.loop.recorder.snapshot(0.05)
-        if not len(snap["t"]) or not all_finite(snap["q"][-1]):
-            return math.nan
-        _, J = fk_and_jacobian(rig.model, snap["q"][-1])
-        f = estimated_hand_force(J, snap["tau_ext"][-1])
-        return math.nan if f is None else float(f @ normal)
+        if not len(snap["t"]):
+            return 0.0
+        f = float(snap["f_contact"][-1])
+        return f if math.isfinite(f) else 0.0
+
 
     def _finish(self, rig: Rig, run: ContactRun, fault: str | None) -> None:
+        """The run's figures, of the loop's record from the run's start (every period)."""
+        snap = rig.loop.recorder.snapshot(rig.loop.status.t - run.t0 + 1.0)
+        rows = snap["t"] >= run.t0
+        run.t = snap["t"][rows].tolist()
+        run.force = np.nan_to_num(snap["f_contact"][rows]).tolist()
+        run.peak = np.nan_to_num(snap["f_contact_peak"][rows]).tolist()
         figures = contact_figures(np.array(run.t), np.array(run.force), np.array(run.peak))
         k_q = joint_stiffness(run.params, run.controller)
         figures["predicted_force_n"] = None if k_q is None or run.depth <= 0 else \
@@ -351,6 +413,7 @@ class ContactTab:
         if fault is not None:
             figures["steady_force_n"] = None
         run.figures = figures
+        self.last_figures = figures
         self._shown_stale = None
         self._mark_stale(rig)
         self._lesson.runs.finish_run(
@@ -396,12 +459,19 @@ class ContactTab:
             arrow.visible = True
 
     def plot(self, force: bool) -> None:
-        """The chart's newest window (the plot frames)."""
+        """The chart's newest window of the loop's record (the plot frames): the wall's
+        recorded force and the estimate of it from τ_ext, while a wall is placed."""
         with self._lock:
-            if len(self._samples) < 2:
-                return
-            rows = np.array(self._samples, dtype=float)
-        self.chart.update(rows[:, 0], (rows[:, 1], rows[:, 2]), force=force)
+            rig, placed = self._lesson.rig, self._placed
+        if rig is None or placed is None:
+            return
+        snap = rig.loop.recorder.snapshot(CHART_WINDOW_S, max_points=CHART_POINTS)
+        if len(snap["t"]) < 2:
+            return
+        wall = np.nan_to_num(snap["f_contact"])  # (NaN: rows before the wall was placed)
+        self.chart.update(snap["t"], (wall, estimated_normal_force(rig.model, snap["q"],
+                                                                   snap["tau_ext"],
+                                                                   placed[1])), force=force)
 
 
 def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
@@ -431,3 +501,27 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     if stale:
         text += f"\n\n{STALE} measured with other gains or another wall: run again"
     return text
+
+
+def estimated_normal_force(model: SerialChain, q: np.ndarray, tau_ext: np.ndarray,
+                           normal: np.ndarray) -> np.ndarray:
+    """(m,) N the hand presses the wall with by the lab's sensorless estimate, at each of
+    ``q`` (m, n) rad with ``tau_ext`` (m, n) N·m (eq. 2.21–2.23): n · F, F = (J_vᵀ)⁺(−τ_ext)
+    the world's force on the hand and n the wall's unit ``normal`` (3,) towards the free
+    side, so a press reads positive as the wall's own force does; NaN where τ_ext is not
+    estimated (PD) or the pose is unknown."""
+    out = np.full(len(q), math.nan)
+    n = np.asarray(normal, dtype=float)
+    for i, (qi, ti) in enumerate(zip(q, tau_ext, strict=True)):
+        if not all_finite(qi):
+            continue
+        _, J = fk_and_jacobian(model, qi)
+        f = estimated_hand_force(J, ti)
+        if f is not None:
+            out[i] = float(f @ n)
+    return out
+
+
+def _newtons(x: float | None) -> str:
+    """A force as the tab shows it ("2.14 N"; "—": none)."""
+    return "—" if x is None else f"{people(x)} N"

@@ -6,10 +6,13 @@ along the line at the thesis's hand speed (2.5 mm per 16 ms) to ``--depth-cm`` b
 wall's surface, then holds there. The wall pushes back ``--stiffness`` N/m of
 penetration and ``--damping`` N·s/m (the plant's contact, never pulling).
 
-What it measures, from the plant's ground truth (a force sensor the arm does not have):
-the peak force of the impact (the largest at any plant step), the steady force (the mean
-over the last second), how often the hand bounced off (contact lost and made again), and
-how long the force took to settle within 10 % of its steady value (None: it never did).
+What it measures, from the plant's ground truth (a force sensor the arm does not have) as
+the control loop records it every period (``f_contact`` and ``f_contact_peak`` of
+:mod:`armlab.control.recorder`; a contact challenge judges the same record with the same
+:func:`contact_figures`): the peak force of the impact (the largest at any plant step),
+the steady force (the mean over the last second), how often the hand bounced off
+(contact lost and made again), and how long the force took to settle within 10 % of its
+steady value (None: it never did).
 Beside them, the steady force the law's static stiffness predicts: the compliance law
 (eq. 2.6 with 2.7) holds a steady external torque with θ − θ_cmd = K_f τ / K_env, a joint stiffness
 K_q = K_env / K_f on every joint (1 / K_f for the literal eq. 2.26); through the
@@ -23,6 +26,7 @@ the servo's torque or the lab's lag check stops it (:data:`PD_NOTE`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Literal
 
@@ -35,12 +39,22 @@ from armlab.control.laws import LAWS
 from armlab.control.loop import TARGET_SPEED, ControlLoop
 from armlab.control.params import DEFAULT, Params
 from armlab.control.runs import run_from_snapshot
-from armlab.control.trajectory import cartesian_to_joint, hold, line_points, thesis_line
+from armlab.control.trajectory import (
+    JointTrajectory,
+    cartesian_to_joint,
+    hold,
+    line_points,
+    thesis_line,
+)
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.stiffness import cartesian_compliance
 
 SETTLE_S = 0.5  #: s held at the start before the move
+#: periods the arm holds at the start before the command is applied: a challenge's
+#: restart applies its plan in the third period after it (armlab.control.restart), so the
+#: experiment and the contact challenge's run are the same periods from the same state
+LEAD = 2
 HOLD_S = 4.0  #: s held at the command behind the wall after it
 STEADY_S = 1.0  #: s at the end the steady force is the mean of
 SETTLE_BAND = 0.10  #: the force has settled once it stays within 10 % of its steady value
@@ -132,6 +146,7 @@ def estimate_figures(t: np.ndarray, tau_wall: np.ndarray, tau_ext: np.ndarray
 def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[str, Any]:
     """The figures of one contact run: ``force`` (N) and ``peak`` (N, the largest at any
     plant step of each period) sampled at loop times ``t`` (s)."""
+    force, peak = np.nan_to_num(force), np.nan_to_num(peak)  # (no wall: no force)
     touching = force > TOUCH_N
     if not touching.any():
         return {"touched": False, "peak_force_n": 0.0, "steady_force_n": None,
@@ -169,6 +184,69 @@ class ContactOptions(BackendOptions):
     k_f: float | None = option(None, "K_f (default: the lab's)")
 
 
+@dataclass(frozen=True)
+class ContactPlan:
+    """The command of a run into a wall and the wall it meets (:func:`contact_plan`).
+
+    Attributes:
+        plan: held :data:`SETTLE_S` at the thesis line's start, along the line into the
+            wall to ``depth`` behind its surface, held :data:`HOLD_S` there.
+        origin, normal: the wall's point (3,) m and unit normal (3,), base frame.
+        q_end: (n,) rad, the command behind the wall (where the prediction is worked out).
+        depth: m of command behind the surface.
+        periods: the loop periods the run is recorded for.
+    """
+
+    plan: JointTrajectory
+    origin: np.ndarray
+    normal: np.ndarray
+    q_end: np.ndarray
+    depth: float
+    periods: int
+
+
+def contact_plan(model: SerialChain, period: float, *, wall: float,
+                 depth: float) -> ContactPlan:
+    """The run of ``armlab experiment contact`` (module docstring) for ``model`` at loop
+    ``period`` s: the wall ``wall`` m ahead of the thesis line's start, the command
+    ``depth`` m behind it.
+
+    Raises:
+        ValueError: ``wall`` outside 0.5..20 cm or ``depth`` outside 0..10 cm.
+    """
+    for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.2),
+                                ("--depth-cm", depth, 0.0, 0.1)):
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise ValueError(f"{name} must be in {lo * 100:g}..{hi * 100:g}, got "
+                             f"{value * 100:g}")
+    line = thesis_line(model)
+    q0 = line.q[0]
+    x0, u, origin, normal = wall_across_line(model, q0, line.q[-1], wall)
+    points = line_points(x0, x0 + (wall + depth) * u, TARGET_SPEED * period)
+    move = cartesian_to_joint(model, points, q0, dt=period, name="into the wall")
+    plan = hold(q0, SETTLE_S).then(move).then(hold(move.q[-1], HOLD_S), name="contact")
+    return ContactPlan(plan, origin, normal, move.q[-1].copy(), depth,
+                       int(math.ceil(plan.duration / period - 1e-9)))
+
+
+def recorded_contact(rows: Mapping[str, np.ndarray], *, start: int = 0) -> dict[str, Any]:
+    """:func:`contact_figures` of a loop's record ``rows`` (a ``Recorder.snapshot`` or a
+    window of one: ``t`` s, ``f_contact`` N and ``f_contact_peak`` N, one each a period)
+    from row ``start`` on (the period the command is applied: :data:`LEAD`), its times
+    counted from there. A run the loop stopped (a row recorded with the controller off,
+    its ``error`` NaN: the lag check under PD) has no steady force, and ``fault`` says
+    so (None otherwise)."""
+    t = np.asarray(rows["t"], dtype=float)[start:]
+    figures = contact_figures(t - t[0], np.asarray(rows["f_contact"], dtype=float)[start:],
+                              np.asarray(rows["f_contact_peak"], dtype=float)[start:])
+    error = np.asarray(rows["error"], dtype=float)[start:]
+    stopped = bool((~np.isfinite(error)).any())
+    figures["fault"] = "the arm stopped (torque off) during the run" if stopped else None
+    if stopped:
+        figures["steady_force_n"] = None
+    return figures
+
+
 def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
                 controller: str, wall: float, depth: float, stiffness: float,
                 damping: float, keep: Keep | None = None) -> dict[str, Any]:
@@ -180,20 +258,10 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         ValueError: a backend without a wall to touch (real servos: the wall is virtual
             there, rendered by the controller), or options out of range.
     """
-    for name, value, lo, hi in (("--wall-cm", wall, 0.005, 0.2),
-                                ("--depth-cm", depth, 0.0, 0.1)):
-        if not (math.isfinite(value) and lo <= value <= hi):
-            raise ValueError(f"{name} must be in {lo * 100:g}..{hi * 100:g}, got "
-                             f"{value * 100:g}")
+    run = contact_plan(model, params.period, wall=wall, depth=depth)
     check_wall_numbers(stiffness=stiffness, damping=damping,
                        names=("--stiffness", "--damping"))
-    line = thesis_line(model)
-    q0 = line.q[0]
-    x0, u, origin, normal = wall_across_line(model, q0, line.q[-1], wall)
-    period = params.period
-    points = line_points(x0, x0 + (wall + depth) * u, TARGET_SPEED * period)
-    move = cartesian_to_joint(model, points, q0, dt=period, name="into the wall")
-    plan = hold(q0, SETTLE_S).then(move).then(hold(move.q[-1], HOLD_S), name="contact")
+    plan, origin, normal, q0 = run.plan, run.origin, run.normal, run.plan.q[0]
     backend: Backend = backend_factory(model, q0=q0)
     loop: ControlLoop | None = None
     try:
@@ -203,30 +271,29 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
                            realtime=False, history_s=plan.duration + 5.0)
-        loop.post(RunTrajectory(plan, approach=False))
-        t, force, peak = [], [], []
-        while loop.status.t < plan.duration and loop.status.fault is None:
+        for _ in range(LEAD):  # holding, as a challenge's restarted arm does
             loop.step()
-            t.append(loop.status.t)
-            force.append(backend.wall_force())
-            peak.append(backend.wall_peak())
+        loop.post(RunTrajectory(plan, approach=False))
+        for _ in range(run.periods):
+            loop.step()
+            if loop.status.fault is not None:
+                break
         fault = loop.status.fault
         snap = loop.recorder.snapshot()
     finally:
         if loop is not None:
             loop.shutdown()
         backend.close()
-    figures = contact_figures(np.array(t), np.array(force), np.array(peak))
+    figures = recorded_contact(snap, start=LEAD)
     # the wall's torque on the joints beside the lab's estimate of it, period by period
-    t_rec = snap["t"]
-    pushed = np.interp(t_rec, np.array(t), np.array(force)) if len(t) else np.zeros(len(t_rec))
-    figures.update(estimate_figures(t_rec, wall_torque(model, snap["q"], normal, pushed),
+    figures.update(estimate_figures(snap["t"], wall_torque(model, snap["q"], normal,
+                                                           np.nan_to_num(snap["f_contact"])),
                                     snap["tau_ext"]))
     k_q = joint_stiffness(params, controller)
     figures.update({
         "controller": controller, "fault": fault,
         "predicted_force_n": None if k_q is None else predicted_force(
-            model, move.q[-1], normal, depth, k_joint=k_q, k_wall=stiffness),
+            model, run.q_end, normal, depth, k_joint=k_q, k_wall=stiffness),
         "joint_stiffness_nm_per_rad": k_q,
         "wall": {"origin_m": origin.tolist(), "normal": normal.tolist(),
                  "stiffness_n_per_m": stiffness, "damping_ns_per_m": damping,

@@ -16,7 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import BackendError, GoalLimits, GripperState, JointState
+from armlab.control.backend import (
+    BackendError,
+    GoalLimits,
+    GripperState,
+    JointState,
+    WallSetting,
+)
 from armlab.hardware.backends.gripper import GripperHolder, GripperServo
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters, ServoReport
@@ -294,6 +300,12 @@ class SimBackend(GoalLimits):
         """N, the largest wall force at any plant step since the last call."""
         with self._lock:
             return self.plant.wall_peak()
+
+    def wall_setting(self) -> WallSetting | None:
+        """The wall in the plant's world now (None: none)."""
+        with self._lock:
+            wall = self.plant.wall
+        return None if wall is None else WallSetting(*wall)
 
     def _check_open(self) -> None:
         if self._closed:

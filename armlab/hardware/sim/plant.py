@@ -302,6 +302,14 @@ class Plant:
         self._wall = _Wall(tuple(origin), tuple(normal), k, c, li,
                            cast("tuple[float, float, float]", tuple(float(x) for x in pt)))
 
+    @property
+    def wall(self) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+        """The wall :meth:`set_wall` placed: (origin (3,) m, unit normal (3,), stiffness
+        N/m, damping N·s/m), base frame; None without one."""
+        w = self._wall
+        return None if w is None else (np.array(w.origin), np.array(w.normal),
+                                       w.stiffness, w.damping)
+
     def apply_joint_torque(self, joint: int, torque: float, *, start: float = 0.0) -> None:
         """A known disturbance: a constant ``torque`` N·m on ``joint`` (positive along the
         joint's axis, as J^T F of a push is) from plant time ``start`` s on, for as long as

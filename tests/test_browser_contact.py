@@ -1,0 +1,84 @@
+"""The Contact tab in a real headless Chromium: once the hand meets the wall, the chart of
+the contact force shows the wall's force as the control loop recorded it (``f_contact``,
+the plant's ground truth) beside the lab's sensorless estimate of it from τ_ext (eq.
+2.21–2.23). Skipped, with a message, where chromium is not installed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from _helpers import expected_console, wait_for
+
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(400)]
+
+TITLE = "Contact force along the wall's normal"
+
+
+def _series(page) -> list[list[float | None]] | None:  # noqa: ANN001
+    """The contact chart's data on the page ([t, wall, estimate]); None before it is drawn."""
+    return page.evaluate(
+        """(t) => {
+            const reg = (window.__viserTestpoints || {}).uplots || {};
+            for (const {chart} of Object.values(reg)) {
+                const title = chart.root.querySelector('.u-title');
+                if (chart.root.isConnected && title && title.textContent.startsWith(t))
+                    return chart.data.map(a => Array.from(a));
+            }
+            return null;
+        }""", TITLE)
+
+
+def _finite(values: list[float | None]) -> list[float]:
+    return [v for v in values if v is not None and math.isfinite(v)]
+
+
+def test_the_contact_chart_shows_the_recorded_force_beside_the_estimate(browser, lab):
+    console: list[tuple[str, str]] = []
+    page = browser.new_page(viewport={"width": 1440, "height": 900})
+    page.on("console", lambda m: console.append((m.type, m.text)))
+    page.on("pageerror", lambda e: console.append(("pageerror", str(e))))
+    page.goto(lab.url)
+    page.get_by_role("button", name="Run thesis line").wait_for()
+    lesson = lab.lesson
+    wait_for(lambda: lesson.rig.loop.status.active, 60, "the arm holding")
+    page.get_by_role("tab", name="Contact").click()
+    page.get_by_role("checkbox", name="Wall").click()
+    wait_for(lambda: lesson.contact.nodes()[0] is not None, 60, "the wall placed")
+    page.get_by_role("button", name="Run into the wall").click()
+    wait_for(lambda: lesson.contact.figures() is not None, 180, "the run into the wall")
+    touched = lesson.contact.figures()
+    assert touched["touched"], touched
+
+    def drawn() -> bool:
+        data = _series(page)
+        return data is not None and max(_finite(data[1]), default=0.0) > 1.0 \
+            and len(_finite(data[2])) > 0
+
+    wait_for(drawn, 120, "the contact chart with the wall's force and the estimate")
+    t, wall, estimate = _series(page)
+    # the recorded force: the loop's record (every period, thinned), never negative
+    assert all(v >= 0.0 for v in _finite(wall))
+    snap = lesson.rig.loop.recorder.snapshot(10.0)
+    recorded = snap["f_contact"][snap["f_contact"] == snap["f_contact"]]
+    assert max(_finite(wall)) <= float(recorded.max()) + 1e-6
+    # the estimate reads the press with its sign (the compliance law estimates τ_ext)
+    assert max(_finite(estimate)) > 0.0
+    legend = page.evaluate(
+        """(t) => {
+            const reg = (window.__viserTestpoints || {}).uplots || {};
+            for (const {chart} of Object.values(reg)) {
+                const title = chart.root.querySelector('.u-title');
+                if (chart.root.isConnected && title && title.textContent.startsWith(t))
+                    return chart.series.slice(1).map(s => s.label);
+            }
+            return null;
+        }""", TITLE)
+    assert legend == ["wall (ground truth)", "estimate from τ_ext"]
+    errors = [(k, m) for k, m in console if k in ("error", "pageerror")
+              and not expected_console(m)]
+    assert errors == []
+    page.get_by_role("checkbox", name="Wall").click()
+    wait_for(lambda: lesson.contact.nodes()[0] is None, 60, "the wall gone")
+    page.close()
