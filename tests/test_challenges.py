@@ -363,3 +363,22 @@ def test_in_a_class_forged_messages_pass_nothing_and_the_gradebook_has_each_stud
             teacher.wait_for(lambda: "best: " in str(next(
                 (e.props.get("content") for e in teacher.gui.values()
                  if "best: " in str(e.props.get("content", ""))), "")), 30, "the column")
+
+
+def test_every_preset_judges_figures_its_own_lesson_declares():
+    """A challenge asks its lesson for its figures: each threshold's figure is one the
+    lesson's module declares (``FIGURES``), and the lesson's run_figures() reports
+    exactly those (no list of every lesson's figures)."""
+    from armlab.app.lessons import all_lessons, figures, overview_figures
+    from armlab.control.challenges import PRESETS
+
+    lessons = all_lessons()
+    for challenge in PRESETS.values():
+        declared = lessons[challenge.lesson].FIGURES
+        assert set(challenge.figures) <= set(declared), challenge.key
+    for module in lessons.values():
+        declared = tuple(getattr(module, "FIGURES", ()))
+        assert tuple(figures(module)) == declared
+        assert set(overview_figures(module)) <= set(declared)
+        with pytest.raises(ValueError, match="not among its FIGURES"):
+            figures(module, no_such_figure_deg=1.0)

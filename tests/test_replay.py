@@ -288,7 +288,7 @@ def test_a_students_private_arm_saves_and_replays_its_own_run():
             name = next(n for n in page.downloads if n.endswith(".armlab-run.zip"))
             run = read_run(page.downloads[name], robot=ROBOT)
             assert [c["kind"] for c in run.commands][:1] == ["RunTrajectory"]
-            assert run.figures["overshoot_pct"] == mine.run_figures().overshoot_pct
+            assert run.figures["overshoot_pct"] == mine.run_figures()["overshoot_pct"]
             assert run.params["kp"] == loop.params.kp
             assert run.t[0] <= run.commands[0]["t"] <= run.t[-1]
             refused, told = lab.roles.refused, len(page.notifications)

@@ -107,7 +107,7 @@ def test_a_save_while_the_run_goes_on_is_marked_unfinished(lesson):
     assert change["kv"] == kv and before <= change["t"] <= changed_at + 0.5
     assert run.params["kv"] == kv - 0.5  # the gains the run began with
     assert set(run.figures) == {"max_error_deg"}
-    assert run.figures["max_error_deg"] == lesson.run_figures().max_error_deg
+    assert run.figures["max_error_deg"] == lesson.run_figures()["max_error_deg"]
 
 
 def test_with_no_run_the_live_window_is_saved_and_labelled_so(lesson):

@@ -257,7 +257,7 @@ def test_served_correct_law_runs_the_thesis_line_as_the_labs_own(served):
     assert np.max(np.abs(mine["q"][-m:] - ref["q"][-m:])) <= SAME_RUN_TOL
     # chapter 4's metric, as the page shows it, is the lab's own law's on the same run
     ref_err = np.nanmax(np.abs(line_errors(ref, t0=t0))) * 180 / np.pi
-    assert lesson.run_figures().max_error_deg == pytest.approx(ref_err, abs=0.1)
+    assert lesson.run_figures()["max_error_deg"] == pytest.approx(ref_err, abs=0.1)
     assert lab.law.error is None and loop.status.fault is None
 
 

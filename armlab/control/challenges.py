@@ -17,11 +17,10 @@ Pure (no server, no page): what the lab's Challenge panel and a classroom's grad
 - :func:`gradebook_csv`: one row per student (name, seat, challenge, thresholds, best
   figures as the page shows them, passed, time), for a spreadsheet.
 
-The figures are the names of :class:`armlab.app.lessons.RunFigures`' fields (SI, or the unit
-in the name: ``overshoot_pct``, ``settling_s``, ``pushed_error_deg``, ``push_n``,
-``line_push_n``, ``stiffness_nm_per_rad``, ``grasp_force_n``, ``grasp_held``, ``eq41_error_pct``,
-``step_joint``, ``contact_peak_n``, ``contact_steady_n``). They are measured by the server
-on the arm that ran; nothing here takes a page's word for a figure.
+The figures are those the challenge's lesson declares (its module's ``FIGURES``: SI, or
+the unit in the name, ``overshoot_pct``, ``settling_s``, ``grasp_force_n``,
+``contact_steady_n``, ...; a test checks every challenge's against its lesson's). They are
+measured by the server on the arm that ran; nothing here takes a page's word for a figure.
 """
 
 from __future__ import annotations
@@ -51,7 +50,7 @@ class Threshold:
     """One figure of a run against one limit.
 
     Attributes:
-        figure: the figure's name (a :class:`armlab.app.lessons.RunFigures` field).
+        figure: the figure's name (one its lesson declares, in the lesson module's ``FIGURES``).
         label: what the page calls it ("%OS").
         unit: its unit as shown ("%", "s", "°", "N", "N·m/rad"; "" for none).
         kind: "max" (figure ≤ limit), "min" (figure ≥ limit), "equal" (figure == limit,
@@ -297,7 +296,7 @@ def _figure(figures: Mapping[str, object], name: str) -> tuple[float | None, str
 
 
 def judge(challenge: Challenge, figures: Mapping[str, object]) -> Verdict:
-    """``figures`` (name -> value, e.g. ``dataclasses.asdict(RunFigures)``) against
+    """``figures`` (name -> value, e.g. a lesson's ``run_figures()``) against
     ``challenge``: every threshold checked; a missing, None or non-finite figure fails
     with the reason."""
     checks = []

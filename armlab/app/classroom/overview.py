@@ -11,12 +11,13 @@ the shared lesson's own validation and gain warning.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 import viser
 
-from armlab.app.lessons import RunFigures
+from armlab.app.export_sections import figure_label
+from armlab.app.lessons import Figures
 from armlab.app.lessons._common import esc, send_download
 from armlab.control.challenges import Challenge, LoggedRun, Verdict
 from armlab.control.params import Params
@@ -46,7 +47,7 @@ class StudentRow:
     name: str
     view: str
     params: Params | None = None
-    figures: RunFigures = RunFigures()
+    figures: Figures = field(default_factory=dict)
     best: tuple[LoggedRun, Verdict] | None = None
 
     @property
@@ -71,14 +72,24 @@ def best_html(best: tuple[LoggedRun, Verdict] | None) -> str:
     return f"{mark} {esc(figs)} <span style='color:#555'>{esc(run.when[11:19])}</span>"
 
 
-def overview_html(rows: list[StudentRow], *, challenge: Challenge | None = None) -> str:
-    """The overview table (HTML), one row per student; with a ``challenge``, a column of
+def column_head(figure: str) -> str:
+    """A figure's column head: its label's first words and its unit ("%OS %",
+    "max |θ_cmd − θ| °")."""
+    label, unit, _ = figure_label(figure)
+    return f"{label.split(',')[0]} {unit}".strip()
+
+
+def overview_html(rows: list[StudentRow], *, challenge: Challenge | None = None,
+                  columns: Sequence[str] = ()) -> str:
+    """The overview table (HTML), one row per student: their gains and the ``columns``
+    of their figures (the class lesson's ``OVERVIEW``); with a ``challenge``, a column of
     each student's best run against it."""
     if not rows:
         return "<i>No students yet: they join by the url or the QR code.</i>"
     best_head = "" if challenge is None else f"<th>best: {esc(challenge.title)}</th>"
-    head = ("<tr><th>student</th><th>view</th><th>Kp</th><th>Kv</th><th>max err °</th>"
-            f"<th>%OS</th><th>Ts s</th><th>yield °</th>{best_head}</tr>")
+    heads = "".join(f"<th>{esc(column_head(c))}</th>" for c in columns)
+    head = ("<tr><th>student</th><th>view</th><th>Kp</th><th>Kv</th>"
+            f"{heads}{best_head}</tr>")
     body = []
     for r in rows:
         f = r.figures
@@ -88,9 +99,9 @@ def overview_html(rows: list[StudentRow], *, challenge: Challenge | None = None)
         body.append(
             f"<tr><td>{esc(r.label)}</td><td>{'own arm' if r.view == 'My arm' else 'follows'}"
             f"</td><td>{_fmt(kp, '.3g')}</td><td>{_fmt(kv, '.3g')}</td>"
-            f"<td>{_fmt(f.max_error_deg, '.2f')}</td><td>{_fmt(f.overshoot_pct, '.1f')}</td>"
-            f"<td>{_fmt(f.settling_s, '.2f')}</td><td>{_fmt(f.yield_deg, '.2f')}</td>"
-            f"{best}</tr>")
+            + "".join(f"<td>{_fmt(f.get(c), figure_label(c)[2] or '.3g')}</td>"
+                      for c in columns)
+            + f"{best}</tr>")
     return ("<table style='font-size:0.8em;border-collapse:collapse;width:100%'>"
             f"{head}{''.join(body)}</table>")
 
@@ -160,9 +171,11 @@ class ClassOverview:
             return
         self.client.add_notification("Gains", on_use(cid), auto_close_seconds=8.0)
 
-    def refresh(self, rows: list[StudentRow], *, challenge: Challenge | None = None) -> None:
-        """Show ``rows`` (sent to the page only when something changed)."""
-        html = overview_html(rows, challenge=challenge)
+    def refresh(self, rows: list[StudentRow], *, challenge: Challenge | None = None,
+                columns: Sequence[str] = ()) -> None:
+        """Show ``rows`` with their ``columns`` of figures (sent to the page only when
+        something changed)."""
+        html = overview_html(rows, challenge=challenge, columns=columns)
         if self.table.content != html:
             self.table.content = html
         ids = {r.label: r.client_id for r in rows}

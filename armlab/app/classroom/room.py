@@ -45,7 +45,14 @@ from armlab.app.classroom.roles import (
 )
 from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
 from armlab.app.gate import Gate
-from armlab.app.lessons import LessonContext, LessonHandle, RunFigures, is_private
+from armlab.app.lessons import (
+    Figures,
+    LessonContext,
+    LessonHandle,
+    all_lessons,
+    is_private,
+    overview_figures,
+)
 from armlab.app.lessons._common import esc, remove_quietly, warning_html
 from armlab.app.page import camera, theme
 from armlab.app.page.arm_view import ArmView
@@ -122,7 +129,7 @@ class _PageState:
     screen: UpdateScreen
     seat: str | None = None
     private: LessonHandle | None = None  #: the page's own lesson, while it shows "My arm"
-    figures: RunFigures | None = None  #: of its own lesson when it closed
+    figures: Figures | None = None  #: of its own lesson when it closed
     tags: dict[str, str | None] | None = None  #: and which challenge's run measured each
     results: list = dataclasses.field(default_factory=list)  #: and its challenge runs
     overview: ClassOverview | None = None  #: a presenter's class overview
@@ -450,7 +457,7 @@ class Room:
                 params = gains.params
             elif s.seat is not None:
                 params = self._sandboxes.kept_params(s.seat)
-            figures = lesson.run_figures() if lesson is not None else (s.figures or RunFigures())
+            figures = lesson.run_figures() if lesson is not None else (s.figures or {})
             rows.append(StudentRow(cid, self.roles.name(cid), str(s.view.value), params,
                                    figures, best=self.best_of(cid)))
         return sorted(rows, key=lambda r: r.client_id)
@@ -607,7 +614,7 @@ class Room:
             log = None
             if s.seat is not None:
                 figures = figures_of(s.private) if s.private is not None else (
-                    _plain(dataclasses.asdict(s.figures)) if s.figures is not None else {})
+                    _plain(dict(s.figures)) if s.figures is not None else {})
                 tags = tags_of(s.private) if s.private is not None else s.tags
                 results = results_of(s.private) if s.private is not None else s.results
                 with self._lock:
@@ -668,8 +675,10 @@ class Room:
         if tables and overviews:
             rows = self.rows()
             challenge = None if self.desk is None else self.desk.challenge
+            module = all_lessons().get(self.lab.lesson_name)
+            columns = () if module is None else overview_figures(module)
             for overview in overviews:
-                overview.refresh(rows, challenge=challenge)
+                overview.refresh(rows, challenge=challenge, columns=columns)
 
     def _pose_ghost(self, ghost: _Ghost) -> None:
         """Pose the ghost on each presenter's page as the student's arm is now, with their

@@ -25,6 +25,12 @@ lesson: ``close()`` stops what runs (loop shut down, hardware torque off) and re
 everything the lesson added, so another lesson can be opened in the same page;
 ``estop()`` is what the lab's always-visible E-STOP button calls; ``gui_handles()``,
 ``gain_controls()`` and ``run_figures()`` are what a classroom hides, copies and shows.
+
+A lesson that measures figures declares them in its module: ``FIGURES``, the names its
+``run_figures()`` reports (each with its unit in the name: ``_deg``, ``_pct``, ``_s``,
+``_n``), and ``OVERVIEW``, those a class overview shows (default the first four). The
+overview and the challenges ask the lesson for them; no list of every lesson's figures
+exists (:func:`figures`, :func:`overview_figures`).
 A lesson without one of these parts answers so (no gains: None), as
 :class:`armlab.app.lessons._common.LessonBase` does by default.
 
@@ -37,7 +43,7 @@ The other modules (``_common``, ``compliance_plots``, ...) are the lessons' help
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -142,44 +148,30 @@ def works_with(module: ModuleType, robot: str) -> bool:
     return robot in robots or (ANY_URDF in robots and robot.lower().endswith(".urdf"))
 
 
-@dataclass(frozen=True)
-class RunFigures:
-    """The figures of a lesson's last runs, as a class overview shows them (None: not
-    run, or not a figure of this lesson).
+#: A lesson's figures of its last runs, by name: each its module declares (``FIGURES``),
+#: None until measured. What the class overview (its module's ``OVERVIEW`` of them), the
+#: challenges (a challenge judges figures its lesson declares) and Save run read.
+Figures = Mapping[str, float | None]
 
-    Attributes:
-        max_error_deg: max |θ_cmd − θ| of the last free thesis-line run, ° (any joint).
-        yield_deg: how far the last pushed line run moved from the free one, °.
-        overshoot_pct, settling_s: of the last step test (%, s).
-        step_joint: the joint (index in the model's order) the last step test stepped.
-        pushed_error_deg: max |θ_cmd − θ| of the last thesis-line run with a push, °.
-        line_push_n: the largest push (N) during that pushed line run (a drag alone: None,
-            its force is the person's).
-        push_n, stiffness_nm_per_rad: the force (N) of the last push test and the
-            stiffness 1/C_f it measured (Δτ_ext/Δθ_env, N·m/rad).
-        grasp_force_n, grasp_peak_n: the last grasp's steady and peak fingertip force, N.
-        grasp_held: 1.0 when every finger of the last grasp held at 90 % of its limit, else 0.
-        eq41_error_pct: seed 003's eq. 4.1 error over the last walk, % (servo feedback).
-        contact_peak_n, contact_steady_n: the last run into a wall (the Contact tab's or
-            the contact challenge's): the largest wall force at any plant step and the
-            mean of its last second, N, from the loop's record (``f_contact``).
+
+def figures(module: ModuleType, **values: float | None) -> dict[str, float | None]:
+    """``module``'s figures (its ``FIGURES``, in order), each None unless given.
+
+    Raises:
+        ValueError: a figure the lesson does not declare.
     """
+    declared: tuple[str, ...] = tuple(getattr(module, "FIGURES", ()))
+    unknown = sorted(set(values) - set(declared))
+    if unknown:
+        raise ValueError(f"lesson {module.NAME}: {', '.join(unknown)} not among its FIGURES")
+    return {key: values.get(key) for key in declared}
 
-    max_error_deg: float | None = None
-    yield_deg: float | None = None
-    overshoot_pct: float | None = None
-    settling_s: float | None = None
-    step_joint: float | None = None
-    pushed_error_deg: float | None = None
-    line_push_n: float | None = None
-    push_n: float | None = None
-    stiffness_nm_per_rad: float | None = None
-    grasp_force_n: float | None = None
-    grasp_peak_n: float | None = None
-    grasp_held: float | None = None
-    eq41_error_pct: float | None = None
-    contact_peak_n: float | None = None
-    contact_steady_n: float | None = None
+
+def overview_figures(module: ModuleType) -> tuple[str, ...]:
+    """The figures a class overview shows of lesson ``module`` (its ``OVERVIEW``, else
+    its first four ``FIGURES``)."""
+    declared = tuple(getattr(module, "FIGURES", ()))
+    return tuple(getattr(module, "OVERVIEW", declared[:4]))
 
 
 class Gains(Protocol):
@@ -221,8 +213,9 @@ class LessonHandle(Protocol):
         """The gains of the lesson's arm, to read and set (None: the lesson has none)."""
         ...
 
-    def run_figures(self) -> RunFigures:
-        """The figures of the last runs (all None: the lesson measures none)."""
+    def run_figures(self) -> Figures:
+        """The figures of the last runs: each of its module's ``FIGURES`` (None: not
+        measured yet; {}: the lesson declares none)."""
         ...
 
     def page_only_buttons(self) -> tuple[Any, ...]:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import viser
 
-from armlab.app.lessons import RunFigures
+from armlab.app.lessons import Figures
 from armlab.app.page.inputs import notify
 from armlab.app.page.publisher import Publisher
 
@@ -150,9 +150,9 @@ class LessonBase:
         """None: no gains to read or set."""
         return None
 
-    def run_figures(self) -> RunFigures:
-        """No figures (all None)."""
-        return RunFigures()
+    def run_figures(self) -> Figures:
+        """No figures (the lesson declares none)."""
+        return {}
 
     def page_only_buttons(self) -> tuple[Any, ...]:
         """None: every control of the lesson is the presenter's in a classroom."""

@@ -15,6 +15,7 @@ charts at 10 Hz inside ``server.atomic()``. UI callbacks never touch the servos.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -22,7 +23,7 @@ from functools import partial
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext, RunFigures
+from armlab.app.lessons import LessonContext, figures
 from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
@@ -128,6 +129,24 @@ HISTORY_S = 30.0  #: seconds the recorder keeps (a run is kept apart from it: ru
 
 #: a student's page can hold a private copy of this lesson (``ctx.arms``)
 PRIVATE = True
+#: The figures of its last runs (:meth:`ComplianceLesson.run_figures`):
+#: - max_error_deg: max |θ_cmd − θ| of the last free thesis-line run, ° (any joint);
+#: - yield_deg: how far the last pushed line run moved from the free one, °;
+#: - overshoot_pct, settling_s: of the last step test (%, s);
+#: - step_joint: the joint (index in the model's order) the last step test stepped;
+#: - pushed_error_deg: max |θ_cmd − θ| of the last thesis-line run with a push, °;
+#: - line_push_n: the largest push (N) during that pushed line run (a drag alone: None,
+#:   its force is the person's);
+#: - push_n, stiffness_nm_per_rad: the force (N) of the last push test and the stiffness
+#:   1/C_f it measured (Δτ_ext/Δθ_env, N·m/rad);
+#: - contact_peak_n, contact_steady_n: the last run into a wall (the Contact tab's or the
+#:   contact challenge's): the largest wall force at any plant step and the mean of its
+#:   last second, N, from the loop's record (``f_contact``).
+FIGURES = ("max_error_deg", "yield_deg", "overshoot_pct", "settling_s", "step_joint",
+           "pushed_error_deg", "line_push_n", "push_n", "stiffness_nm_per_rad",
+           "contact_peak_n", "contact_steady_n")
+#: What a class overview shows of them.
+OVERVIEW = ("max_error_deg", "overshoot_pct", "settling_s", "yield_deg")
 
 
 def build(server: Surface, ctx: LessonContext) -> ComplianceLesson:
@@ -590,21 +609,22 @@ class ComplianceLesson(LessonBase):
         """Save run, Export page and the CSV download: each answers the pressing page."""
         return (*self.runs.page_only_buttons(), self.download)
 
-    def run_figures(self) -> RunFigures:
+    def run_figures(self) -> dict[str, float | None]:
         """Chapter 4's figures of the last line runs, the last step test's, and the last
-        run into a wall's."""
+        run into a wall's (:data:`FIGURES`)."""
         ch4, step, env = self.chapter4, self.measured_pd, self.measured_env
         gain = None if env is None else env.static_gain
-        return RunFigures(max_error_deg=_largest(ch4.free), yield_deg=_largest(ch4.yield_deg),
-                          overshoot_pct=None if step is None else step.overshoot_pct,
-                          settling_s=None if step is None else step.settling_time_s,
-                          step_joint=None if step is None else _index(self._step_joint),
-                          pushed_error_deg=_largest(ch4.pushed),
-                          line_push_n=None if ch4.pushed is None else self._line_push_n,
-                          push_n=None if env is None else self._push_n,
-                          stiffness_nm_per_rad=(None if gain is None or not gain > 0
-                                                else 1.0 / gain),
-                          **self._contact_figures())
+        return figures(sys.modules[__name__], max_error_deg=_largest(ch4.free),
+                       yield_deg=_largest(ch4.yield_deg),
+                       overshoot_pct=None if step is None else step.overshoot_pct,
+                       settling_s=None if step is None else step.settling_time_s,
+                       step_joint=None if step is None else _index(self._step_joint),
+                       pushed_error_deg=_largest(ch4.pushed),
+                       line_push_n=None if ch4.pushed is None else self._line_push_n,
+                       push_n=None if env is None else self._push_n,
+                       stiffness_nm_per_rad=(None if gain is None or not gain > 0
+                                             else 1.0 / gain),
+                       **self._contact_figures())
 
     def _contact_figures(self) -> dict[str, float | None]:
         """The last run into a wall's peak and steady force, N (the Contact tab's or the
@@ -849,16 +869,16 @@ class ComplianceLesson(LessonBase):
         if exp.kind == "line":
             names = (("pushed_error_deg", "yield_deg", "line_push_n") if exp.pushed
                      else ("max_error_deg",))
-            return {k: getattr(figures, k) for k in names}
+            return {k: figures[k] for k in names}
         if exp.kind == "step" and self.measured_pd is not None:
             m = self.measured_pd
             return {"overshoot_pct": m.overshoot_pct, "peak_time_s": m.peak_time_s,
                     "settling_s": m.settling_time_s, "rise_time_s": m.rise_time_s,
-                    "step_joint": figures.step_joint}
+                    "step_joint": figures["step_joint"]}
         if exp.kind == "push" and self.measured_env is not None:
-            return {"push_n": figures.push_n, "static_gain_rad_per_nm":
+            return {"push_n": figures["push_n"], "static_gain_rad_per_nm":
                     self.measured_env.static_gain,
-                    "stiffness_nm_per_rad": figures.stiffness_nm_per_rad}
+                    "stiffness_nm_per_rad": figures["stiffness_nm_per_rad"]}
         return {}
 
     def _measure_experiment(self, exp: Experiment, rig: Rig, st: LoopStatus) -> None:

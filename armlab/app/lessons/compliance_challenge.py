@@ -27,7 +27,6 @@ gains, Stop, Reset or E-STOP cut it short (not counted).
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -342,7 +341,7 @@ class ChallengeRuns:
             self._tags[name] = run.challenge.key
         self._measured = next(_NUMBERS)
         figures = {k: None if v is None else float(v)
-                   for k, v in dataclasses.asdict(self.lesson.run_figures()).items()}
+                   for k, v in self.lesson.run_figures().items()}
         self.results.append((self._measured, figures, self.tags()))
         del self.results[:-KEEP]
         self.lesson.runs.finish_run({name: figures.get(name) for name in FIGURES[run.kind]},

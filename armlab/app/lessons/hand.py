@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext, RunFigures
+from armlab.app.lessons import LessonContext, figures
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -79,6 +80,9 @@ ORDER = 30
 #: a student's page can hold a private copy: their own hand in the class
 #: (``ctx.arms.hand_for``: :mod:`armlab.app.classroom.class_hands` in the class's worker process)
 PRIVATE = True
+#: The figures of its last settled grasp: its steady and peak fingertip force (N), and
+#: 1.0 when every finger held at 90 % of its limit, else 0.
+FIGURES = ("grasp_force_n", "grasp_peak_n", "grasp_held")
 
 STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
 DEFAULT_FORCE = 0.8  #: N
@@ -422,14 +426,15 @@ class HandLesson(LessonBase):
         """The challenge runs measured: (number, figures, tags), newest last."""
         return list(self.challenge_runs.results)
 
-    def run_figures(self) -> RunFigures:
-        """The last settled grasp's steady and peak force, and whether it held."""
+    def run_figures(self) -> dict[str, float | None]:
+        """The last settled grasp's steady and peak force, and whether it held
+        (:data:`FIGURES`)."""
         settled = self._settled
         if settled is None:
-            return RunFigures()
+            return figures(sys.modules[__name__])
         _, fig, held = settled
-        return RunFigures(grasp_force_n=fig["steady_force_N"], grasp_peak_n=fig["peak_force_N"],
-                          grasp_held=1.0 if held else 0.0)
+        return figures(sys.modules[__name__], grasp_force_n=fig["steady_force_N"],
+                       grasp_peak_n=fig["peak_force_N"], grasp_held=1.0 if held else 0.0)
 
     def recording(self, rows: dict[str, np.ndarray] | None = None) -> Recording:
         """The hand's record for a run file: the finger angles as "q", the motor voltages,

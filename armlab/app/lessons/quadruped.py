@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 import threading
 from dataclasses import replace
 from functools import partial
@@ -41,7 +42,7 @@ import numpy as np
 import viser
 
 from armlab.app.backends import make_backend
-from armlab.app.lessons import LessonContext, RunFigures
+from armlab.app.lessons import LessonContext, figures
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -107,6 +108,8 @@ ORDER = 30
 #: (``ctx.arms.quadruped_for``: :mod:`armlab.app.classroom.class_quadrupeds` in the class's worker
 #: process)
 PRIVATE = True
+#: The figure of its last walk: seed 003's eq. 4.1 error, % (from the servos' feedback).
+FIGURES = ("eq41_error_pct",)
 
 #: The paper's mean commanded-vs-servo angle error (seed 003 §4.1.2), %.
 PAPER_ERROR_PCT = 1.201
@@ -518,9 +521,10 @@ class QuadrupedLesson(LessonBase):
         """The challenge runs measured: (number, figures, tags), newest last."""
         return list(self.challenge_runs.results)
 
-    def run_figures(self) -> RunFigures:
-        """Eq. 4.1 of the last walk (once it stopped), from the servos' feedback."""
-        return RunFigures(eq41_error_pct=self._walk_error)
+    def run_figures(self) -> dict[str, float | None]:
+        """Eq. 4.1 of the last walk (once it stopped), from the servos' feedback
+        (:data:`FIGURES`)."""
+        return figures(sys.modules[__name__], eq41_error_pct=self._walk_error)
 
     def _watch_walk(self, st: GaitStatus) -> None:
         """When a walk ends, work out its eq. 4.1 error (its last ``history_s`` at most)."""

@@ -61,7 +61,7 @@ import numpy as np
 import viser
 
 from armlab.app.export_html import export_html
-from armlab.app.lessons import RunFigures
+from armlab.app.lessons import Figures
 from armlab.app.lessons._common import send_download
 from armlab.app.lessons.replay_view import GhostModel, ReplayView, ghost_robot
 from armlab.app.lessons.run_facts import GainLog, backend_json, law_json
@@ -249,7 +249,7 @@ class RunControls:
                  record: Callable[..., Recording] | None = None,
                  rows: Callable[[], tuple[RowSource, float]] | None = None,
                  model: Callable[[], GhostModel] | None = None,
-                 figures: Callable[[], RunFigures],
+                 figures: Callable[[], Figures],
                  start: Callable[[], float | None] | None = None,
                  extra: Callable[[], Mapping[str, object]] | None = None,
                  ghost_root: str, ctx: Any = None,
@@ -493,7 +493,7 @@ class RunControls:
                 snap = {k: v[keep] for k, v in snap.items()}
             commands = [c for c in commands if c["t"] >= start - LEAD_S]
         t = snap["t"]
-        figures = dataclasses.asdict(self._figures()) if self._live_figures else {}
+        figures = dict(self._figures()) if self._live_figures else {}
         about = {"label": LIVE, "state": LIVE, "t0_s": float(t[0]), "t_end_s": float(t[-1])}
         params = dict(rec.params)
         return rec, snap, {"commands": commands, "figures": figures, "params": params,

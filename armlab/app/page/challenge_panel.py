@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import threading
 from collections.abc import Callable
 from typing import Any, Protocol
@@ -47,7 +46,7 @@ def figures_of(lesson: LessonHandle | None) -> dict[str, float | None]:
     if lesson is None:
         return {}
     return {k: None if v is None else float(v)
-            for k, v in dataclasses.asdict(lesson.run_figures()).items()}
+            for k, v in lesson.run_figures().items()}
 
 
 def tags_of(lesson: LessonHandle | None) -> dict[str, str | None] | None:
