@@ -380,5 +380,6 @@ def test_every_preset_judges_figures_its_own_lesson_declares():
         declared = tuple(getattr(module, "FIGURES", ()))
         assert tuple(figures(module)) == declared
         assert set(overview_figures(module)) <= set(declared)
+        assert all(overview_figures(module).values())  # each column has its head
         with pytest.raises(ValueError, match="not among its FIGURES"):
             figures(module, no_such_figure_deg=1.0)

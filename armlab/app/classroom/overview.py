@@ -11,7 +11,7 @@ the shared lesson's own validation and gain warning.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import viser
@@ -72,22 +72,16 @@ def best_html(best: tuple[LoggedRun, Verdict] | None) -> str:
     return f"{mark} {esc(figs)} <span style='color:#555'>{esc(run.when[11:19])}</span>"
 
 
-def column_head(figure: str) -> str:
-    """A figure's column head: its label's first words and its unit ("%OS %",
-    "max |θ_cmd − θ| °")."""
-    label, unit, _ = figure_label(figure)
-    return f"{label.split(',')[0]} {unit}".strip()
-
-
 def overview_html(rows: list[StudentRow], *, challenge: Challenge | None = None,
-                  columns: Sequence[str] = ()) -> str:
+                  columns: Mapping[str, str] | None = None) -> str:
     """The overview table (HTML), one row per student: their gains and the ``columns``
-    of their figures (the class lesson's ``OVERVIEW``); with a ``challenge``, a column of
-    each student's best run against it."""
+    of their figures (figure -> column head: the class lesson's ``OVERVIEW``); with a
+    ``challenge``, a column of each student's best run against it."""
+    columns = columns or {}
     if not rows:
         return "<i>No students yet: they join by the url or the QR code.</i>"
     best_head = "" if challenge is None else f"<th>best: {esc(challenge.title)}</th>"
-    heads = "".join(f"<th>{esc(column_head(c))}</th>" for c in columns)
+    heads = "".join(f"<th>{esc(head)}</th>" for head in columns.values())
     head = ("<tr><th>student</th><th>view</th><th>Kp</th><th>Kv</th>"
             f"{heads}{best_head}</tr>")
     body = []
@@ -172,7 +166,7 @@ class ClassOverview:
         self.client.add_notification("Gains", on_use(cid), auto_close_seconds=8.0)
 
     def refresh(self, rows: list[StudentRow], *, challenge: Challenge | None = None,
-                columns: Sequence[str] = ()) -> None:
+                columns: Mapping[str, str] | None = None) -> None:
         """Show ``rows`` with their ``columns`` of figures (sent to the page only when
         something changed)."""
         html = overview_html(rows, challenge=challenge, columns=columns)

@@ -676,7 +676,7 @@ class Room:
             rows = self.rows()
             challenge = None if self.desk is None else self.desk.challenge
             module = all_lessons().get(self.lab.lesson_name)
-            columns = () if module is None else overview_figures(module)
+            columns = {} if module is None else overview_figures(module)
             for overview in overviews:
                 overview.refresh(rows, challenge=challenge, columns=columns)
 

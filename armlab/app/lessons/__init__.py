@@ -28,7 +28,8 @@ everything the lesson added, so another lesson can be opened in the same page;
 
 A lesson that measures figures declares them in its module: ``FIGURES``, the names its
 ``run_figures()`` reports (each with its unit in the name: ``_deg``, ``_pct``, ``_s``,
-``_n``), and ``OVERVIEW``, those a class overview shows (default the first four). The
+``_n``), and ``OVERVIEW``, those a class overview shows and their columns' heads (default the first
+four, by name). The
 overview and the challenges ask the lesson for them; no list of every lesson's figures
 exists (:func:`figures`, :func:`overview_figures`).
 A lesson without one of these parts answers so (no gains: None), as
@@ -167,11 +168,11 @@ def figures(module: ModuleType, **values: float | None) -> dict[str, float | Non
     return {key: values.get(key) for key in declared}
 
 
-def overview_figures(module: ModuleType) -> tuple[str, ...]:
-    """The figures a class overview shows of lesson ``module`` (its ``OVERVIEW``, else
-    its first four ``FIGURES``)."""
+def overview_figures(module: ModuleType) -> dict[str, str]:
+    """The figures a class overview shows of lesson ``module``, each with its column's
+    head (its ``OVERVIEW``; else its first four ``FIGURES``, headed by their names)."""
     declared = tuple(getattr(module, "FIGURES", ()))
-    return tuple(getattr(module, "OVERVIEW", declared[:4]))
+    return dict(getattr(module, "OVERVIEW", {key: key for key in declared[:4]}))
 
 
 class Gains(Protocol):

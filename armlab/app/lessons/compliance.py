@@ -145,8 +145,9 @@ PRIVATE = True
 FIGURES = ("max_error_deg", "yield_deg", "overshoot_pct", "settling_s", "step_joint",
            "pushed_error_deg", "line_push_n", "push_n", "stiffness_nm_per_rad",
            "contact_peak_n", "contact_steady_n")
-#: What a class overview shows of them.
-OVERVIEW = ("max_error_deg", "overshoot_pct", "settling_s", "yield_deg")
+#: What a class overview shows of them, and its columns' heads.
+OVERVIEW = {"max_error_deg": "max err °", "overshoot_pct": "%OS", "settling_s": "Ts s",
+            "yield_deg": "yield °"}
 
 
 def build(server: Surface, ctx: LessonContext) -> ComplianceLesson:

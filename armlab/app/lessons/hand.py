@@ -83,6 +83,8 @@ PRIVATE = True
 #: The figures of its last settled grasp: its steady and peak fingertip force (N), and
 #: 1.0 when every finger held at 90 % of its limit, else 0.
 FIGURES = ("grasp_force_n", "grasp_peak_n", "grasp_held")
+#: What a class overview shows of them, and its columns' heads.
+OVERVIEW = {"grasp_force_n": "grip N", "grasp_peak_n": "peak N", "grasp_held": "held"}
 
 STIFFNESS_PRESETS = {"soft": 200.0, "medium": 1000.0, "hard": 5000.0}
 DEFAULT_FORCE = 0.8  #: N

@@ -110,6 +110,8 @@ ORDER = 30
 PRIVATE = True
 #: The figure of its last walk: seed 003's eq. 4.1 error, % (from the servos' feedback).
 FIGURES = ("eq41_error_pct",)
+#: What a class overview shows of it, and its column's head.
+OVERVIEW = {"eq41_error_pct": "eq. 4.1 err %"}
 
 #: The paper's mean commanded-vs-servo angle error (seed 003 §4.1.2), %.
 PAPER_ERROR_PCT = 1.201
