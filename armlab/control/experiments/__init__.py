@@ -27,9 +27,8 @@ from armlab.control.runs import Run
 Keep = Callable[[Run], None]
 
 #: The modules of this package that define experiments (adding one: add its name here).
-MODULES: tuple[str, ...] = ("contact", "hand_grip", "observers", "seed002", "seed003", "seed004",
-                            "thesis",
-                            "thesis_readings")
+MODULES: tuple[str, ...] = ("contact", "contact_sweep", "hand_grip", "observers", "seed002",
+                            "seed003", "seed004", "thesis", "thesis_readings")
 
 
 def option(default: Any, help: str, *, choices: Sequence[Any] | None = None,
