@@ -130,15 +130,16 @@ def test_the_sensorless_estimate_reads_the_walls_torque_with_its_sign_and_stated
                        -(ARM.jacobian(q[0])[:3].T @ (2.0 * n)))
 
 
-def test_a_backend_without_a_wall_is_refused_in_one_line():
+def test_pd_on_a_backend_without_a_wall_is_refused_in_one_line():
+    """On servos the wall is virtual, rendered by the compliance law: PD renders none."""
     from armlab.control.experiments.contact import run_contact
 
     def servos_like(model, **kw):  # noqa: ANN001, ANN003, ANN202 - a backend with no wall
         backend = make_backend("sim", model, **kw)
         return _NoWall(backend)
 
-    with pytest.raises(ValueError, match="on real servos the wall is virtual"):
-        run_contact(ARM, servos_like, DEFAULT, controller="compliance", wall=0.04,
+    with pytest.raises(ValueError, match="PD renders none: run --controller compliance"):
+        run_contact(ARM, servos_like, DEFAULT, controller="pd", wall=0.04,
                     depth=0.02, stiffness=2e4, damping=50.0)
 
 

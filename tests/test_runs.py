@@ -415,6 +415,8 @@ EXPERIMENT_RUNS = {
     "thesis-readings": (["--reading", "SI"], "receptionist_arm", set(SIGNALS)),
     "contact": (["--controller", "compliance"], "receptionist_arm",
                 set(SIGNALS) | set(CONTACT_SIGNALS)),
+    "contact-sweep": (["--stiffness", "2e4", "--periods-ms", "16"], "receptionist_arm",
+                      set(SIGNALS) | set(CONTACT_SIGNALS)),
 }
 
 

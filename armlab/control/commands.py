@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from armlab.control.backend import WallSetting
 from armlab.control.compliance import MODES, Mode
 from armlab.control.trajectory import JointTrajectory
 from armlab.kinematics.redundancy import AIMS
@@ -142,6 +143,16 @@ class SetController:
 
 
 @dataclass(frozen=True)
+class SetVirtualWall:
+    """Render a wall with the compliance law from the next period on
+    (:mod:`armlab.control.virtual_wall`; None: take it away). What real servos touch in
+    place of the simulator's wall; a backend whose world holds a wall of its own keeps
+    that one."""
+
+    wall: WallSetting | None
+
+
+@dataclass(frozen=True)
 class SetGripper:
     """Move the gripper's finger to ``position`` in the URDF finger joint's units (m for a
     finger that slides, rad for a jaw that turns); the backend clamps it into the
@@ -154,6 +165,6 @@ class SetGripper:
 
 
 Command = (RunTrajectory | Stop | Push | Spring | EStop | Reset | Reconnect | SetTarget
-           | UseSpareJoints | SetController | SetGripper)
+           | UseSpareJoints | SetController | SetGripper | SetVirtualWall)
 COMMANDS = (RunTrajectory, Stop, Push, Spring, EStop, Reset, Reconnect, SetTarget,
-            UseSpareJoints, SetController, SetGripper)
+            UseSpareJoints, SetController, SetGripper, SetVirtualWall)

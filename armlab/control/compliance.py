@@ -195,13 +195,16 @@ class ComplianceController:
 
     def step(self, params: Params, state: ControllerState, q_cmd: np.ndarray,
              qd_cmd: np.ndarray, qdd_cmd: np.ndarray, measured: JointState,
-             tau_dyn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+             tau_dyn: np.ndarray, tau_world: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
         """Advance one period of ``params.period`` s; updates ``state`` in place.
 
         Args:
             q_cmd, qd_cmd, qdd_cmd: (n,) the commanded trajectory (e.g. from RMRC).
             measured: what the servos report (position, velocity, load).
             tau_dyn: (n,) Newton–Euler torque of the measured motion, N·m.
+            tau_world: (n,) N·m a rendered wall adds to the external torque the
+                environment answers (:mod:`armlab.control.virtual_wall`; None: none).
 
         Returns:
             (θ_ref, θ̇_ref), each (n,): the goal position and signed speed to send.
@@ -222,7 +225,9 @@ class ComplianceController:
             qdd = self.laws.pd(p.kp, p.kv, q_cmd, qd_cmd, q, qd)
         else:
             state.q_env, state.qd_env, state.qdd_env = self.laws.environment(
-                p.m_env, p.d_env, p.k_env, p.k_f, state.tau_ext, state.q_env, state.qd_env, T)
+                p.m_env, p.d_env, p.k_env, p.k_f,
+                state.tau_ext if tau_world is None else state.tau_ext + tau_world,
+                state.q_env, state.qd_env, T)
             qdd = self.laws.law(p).accel(p, q_cmd, qd_cmd, q, qd, state.q_env, state.qd_env,
                                          state.qdd_env)
         if p.feedforward:

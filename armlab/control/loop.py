@@ -48,6 +48,7 @@ from armlab.control.backend import (
     Pushable,
     Reconnectable,
     Touchable,
+    WallSetting,
 )
 from armlab.control.commands import (
     COMMANDS,
@@ -60,6 +61,7 @@ from armlab.control.commands import (
     SetController,
     SetGripper,
     SetTarget,
+    SetVirtualWall,
     Spring,
     Stop,
     UseSpareJoints,
@@ -69,6 +71,7 @@ from armlab.control.params import DEFAULT, GainCheck, Params, check_gains
 from armlab.control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
 from armlab.control.recorder import Recorder
 from armlab.control.trajectory import JointTrajectory, approach_duration, minimum_jerk
+from armlab.control.virtual_wall import rendered_wall
 from armlab.kinematics.dynamics import dynamics_model
 from armlab.kinematics.ik import rmrc
 from armlab.kinematics.model import SerialChain
@@ -242,6 +245,8 @@ class ControlLoop:
         self._gripper: GripperState | None = None  # the newest gripper reading
         #: the backend whose world may hold a wall: its contact force is recorded
         self._touch: Touchable | None = backend if isinstance(backend, Touchable) else None
+        #: the wall the compliance law renders (SetVirtualWall), where the world has none
+        self._virtual_wall: WallSetting | None = None
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime,
                   spin_s=SPIN_S)  # a period's start within microseconds
@@ -392,6 +397,11 @@ class ControlLoop:
         contact = self._contact()
         q, qd, load = (np.asarray(meas.position, dtype=float),
                        np.asarray(meas.velocity, dtype=float), np.asarray(meas.load, dtype=float))
+        tau_world = None
+        if (self._virtual_wall is not None and not contact and all_finite(q, qd)
+                and self.controller.effective_mode(p) == "compliance"):
+            force, tau_world = rendered_wall(self.model, self._virtual_wall, q, qd)
+            contact = {"f_contact": force, "f_contact_peak": force}
         reset = bool(cmds) and any(isinstance(c, Reset) for c in cmds)
         started = self._state is None or reset
         if self._state is None:
@@ -425,7 +435,8 @@ class ControlLoop:
         # code armlab.kinematics.dynamics.rnea runs, without its checks (q, qd, θ̈_ref are finite)
         tau_dyn = np.array(self._rnea(q.tolist(), qd.tolist(), st.qdd_ref.tolist(),
                                       self._gravity))
-        q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn)
+        q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn,
+                                             tau_world)
         if not all_finite(q_ref, qd_ref, st.qdd_ref):
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "
                          "torque off")
@@ -615,6 +626,22 @@ class ControlLoop:
             return
         if isinstance(cmd, SetGripper):
             self._grip(cmd.position)
+            return
+        if isinstance(cmd, SetVirtualWall):
+            if cmd.wall is not None and meas is not None:
+                inside = -float(np.dot(cmd.wall.normal, self.model.fk(
+                    np.asarray(meas.position, dtype=float))[:3, 3] - cmd.wall.origin))
+                if inside > 0.0:  # rendered now, it would throw the arm out at once
+                    self._note(f"virtual wall not set: the hand is {inside * 100:.1f} cm "
+                               "inside it; move the hand to its free side first")
+                    return
+            self._virtual_wall = cmd.wall
+            if cmd.wall is None:
+                self._note("virtual wall taken away")
+            elif self._touch is not None and self._touch.wall_setting() is not None:
+                self._note("the simulated world's own wall is touched, not the virtual one")
+            else:
+                self._note("virtual wall: the compliance law renders it (PD renders none)")
             return
         assert self._hold is not None
         current = self._current_cmd()

@@ -175,7 +175,8 @@ class Experiment:
     q0: float = 0.0
     q1: float = 0.0
     label: str = ""
-    done: bool = False
+    over: bool = False  #: its run is over: it is being measured
+    done: bool = False  #: measured: its figures are in (the page's and the run file's)
     pushed: bool = False  #: line only: a push or drag happened while it ran
     push_n: float | None = None  #: the largest push during it, N (a drag alone: None)
 
@@ -712,7 +713,7 @@ class ComplianceLesson(LessonBase):
         """A push (of ``push_n`` N) or drag during a line run makes it a pushed run
         (chapter 4); True if so."""
         exp = self.experiment
-        if exp is None or exp.kind != "line" or exp.done:
+        if exp is None or exp.kind != "line" or exp.over:
             return False
         exp.pushed = True
         if push_n is not None:
@@ -853,14 +854,15 @@ class ComplianceLesson(LessonBase):
         self.challenges.measure()
         self.contact.tick()
         exp, rig = self.experiment, self.rig
-        if exp is None or exp.done or rig is None:
+        if exp is None or exp.over or rig is None:
             return
         st = rig.loop.status
         try:
             self._measure_experiment(exp, rig, st)
         finally:
-            if exp.done:  # the run file keeps this run's own figures, nothing older
+            if exp.over:  # the run file keeps this run's own figures, nothing older
                 self.runs.finish_run(self._figures_of(exp), t=st.t)
+                exp.done = True  # (after its figures: whoever waits for it reads them)
 
     def _figures_of(self, exp: Experiment) -> dict[str, float | None]:
         """The figures experiment ``exp`` measured (those the page showed for it)."""
@@ -883,11 +885,11 @@ class ComplianceLesson(LessonBase):
         return {}
 
     def _measure_experiment(self, exp: Experiment, rig: Rig, st: LoopStatus) -> None:
-        """Measure ``exp`` if it is over (``exp.done`` then)."""
+        """Measure ``exp`` if it is over (``exp.over`` then)."""
         if exp.kind == "line":
             if st.t < exp.t0 + 0.1 or st.trajectory is not None:
                 return
-            exp.done = True
+            exp.over = True
             snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
             if not np.any(snap["t"] >= exp.t0):  # the loop stopped before recording the run
                 self.last_run_text = "**Last run** (thesis line): no samples (the loop stopped)"
@@ -913,7 +915,7 @@ class ComplianceLesson(LessonBase):
             return
         if st.t < exp.ready_at:
             return
-        exp.done = True
+        exp.over = True
         snap = rig.loop.recorder.snapshot(st.t - exp.t0 + 0.2)
         try:
             if exp.kind == "step":

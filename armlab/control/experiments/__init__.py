@@ -16,11 +16,15 @@ figures (docs/runs.md says which series each experiment keeps).
 from __future__ import annotations
 
 import importlib
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from armlab.control.runs import Run
+
+if TYPE_CHECKING:
+    from armlab.control.loop import ControlLoop
 
 #: What an experiment's ``run`` is given as ``keep``: it calls it with every run it records
 #: (None: nobody keeps them).
@@ -82,6 +86,16 @@ class Experiment:
     run: Callable[..., dict[str, Any]]
     rows: Callable[[dict[str, Any]], list[dict[str, Any]]] | None = None
     needs: tuple[str, ...] = ()
+
+
+def advance(loop: ControlLoop, until: float) -> None:
+    """Run ``loop`` until its time reaches ``until`` s: stepped headless, or waited for
+    when its thread paces it (real servos live in real time)."""
+    if loop.status.running:
+        while loop.status.t + 1e-9 < until and loop.status.fault is None:
+            time.sleep(0.005)
+    else:
+        loop.run_for(until - loop.status.t)
 
 
 def all_experiments() -> dict[str, Experiment]:

@@ -32,18 +32,20 @@ from typing import Any, Literal
 
 import numpy as np
 
-from armlab.control.backend import Backend, Touchable
-from armlab.control.commands import RunTrajectory
-from armlab.control.experiments import BackendOptions, Experiment, Keep, option
+from armlab.control.backend import Backend, Touchable, WallSetting
+from armlab.control.commands import RunTrajectory, SetVirtualWall
+from armlab.control.experiments import BackendOptions, Experiment, Keep, advance, option
 from armlab.control.laws import LAWS
-from armlab.control.loop import TARGET_SPEED, ControlLoop
+from armlab.control.loop import APPROACH_MIN, TARGET_SPEED, ControlLoop
 from armlab.control.params import DEFAULT, Params
 from armlab.control.runs import run_from_snapshot
 from armlab.control.trajectory import (
     JointTrajectory,
+    approach_duration,
     cartesian_to_joint,
     hold,
     line_points,
+    minimum_jerk,
     thesis_line,
 )
 from armlab.kinematics.catalog import load_robot
@@ -247,6 +249,28 @@ def recorded_contact(rows: Mapping[str, np.ndarray], *, start: int = 0) -> dict[
     return figures
 
 
+def _on_servos(loop: ControlLoop, plan: JointTrajectory, wall: WallSetting) -> int:
+    """The run on servos, paced by the clock: the arm moved to the line's start from
+    wherever it stands (minimum jerk), the virtual wall set there (on the hand's free side:
+    set with the hand inside, the loop refuses it), then the plan. Returns the record's
+    row the plan starts at."""
+    loop.start()
+    advance(loop, 0.1)
+    if loop.status.fault is not None:
+        raise ValueError(f"the loop stopped: {loop.status.fault}")
+    here = loop.recorder.snapshot(0.0)["q_cmd"][-1]
+    if np.max(np.abs(here - plan.q[0])) > APPROACH_MIN:
+        approach = minimum_jerk(here, plan.q[0], approach_duration(here, plan.q[0]))
+        loop.post(RunTrajectory(approach, approach=False))
+        advance(loop, loop.status.t + approach.duration + SETTLE_S)
+    loop.post(SetVirtualWall(wall))
+    t0 = loop.status.t
+    loop.post(RunTrajectory(plan, approach=False))
+    advance(loop, t0 + plan.duration + 0.05)
+    t = loop.recorder.snapshot()["t"]
+    return int(np.searchsorted(t, t0))
+
+
 def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
                 controller: str, wall: float, depth: float, stiffness: float,
                 damping: float, keep: Keep | None = None) -> dict[str, Any]:
@@ -254,9 +278,13 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     (see the module docstring); the figures, the prediction and, when the loop stopped,
     why.
 
+    On a backend whose world holds no wall (real servos, the emulator's) the wall is
+    virtual: the compliance law renders it (:mod:`armlab.control.virtual_wall`), and the
+    force recorded is the one it renders.
+
     Raises:
-        ValueError: a backend without a wall to touch (real servos: the wall is virtual
-            there, rendered by the controller), or options out of range.
+        ValueError: PD on a backend without a wall of its own (PD renders none), servos
+            that stop the loop before the run, or options out of range.
     """
     run = contact_plan(model, params.period, wall=wall, depth=depth)
     check_wall_numbers(stiffness=stiffness, damping=damping,
@@ -265,26 +293,35 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     backend: Backend = backend_factory(model, q0=q0)
     loop: ControlLoop | None = None
     try:
-        if not isinstance(backend, Touchable):
-            raise ValueError("this backend has no wall to touch: on real servos the wall is "
-                             "virtual (the controller renders it); use --backend sim")
-        backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+        virtual = not isinstance(backend, Touchable)
+        if virtual and controller != "compliance":
+            raise ValueError("on servos the wall is virtual, rendered by the compliance law; "
+                             "PD renders none: run --controller compliance")
+        if isinstance(backend, Touchable):
+            backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
-                           realtime=False, history_s=plan.duration + 5.0)
-        for _ in range(LEAD):  # holding, as a challenge's restarted arm does
-            loop.step()
-        loop.post(RunTrajectory(plan, approach=False))
-        for _ in range(run.periods):
-            loop.step()
-            if loop.status.fault is not None:
-                break
+                           realtime=virtual, history_s=plan.duration + 30.0)
+        if virtual:
+            start = _on_servos(loop, plan, WallSetting(origin, normal, stiffness, damping))
+        else:
+            for _ in range(LEAD):  # holding, as a challenge's restarted arm does
+                loop.step()
+            start = LEAD
+            loop.post(RunTrajectory(plan, approach=False))
+            for _ in range(run.periods):
+                loop.step()
+                if loop.status.fault is not None:
+                    break
         fault = loop.status.fault
         snap = loop.recorder.snapshot()
     finally:
         if loop is not None:
             loop.shutdown()
         backend.close()
-    figures = recorded_contact(snap, start=LEAD)
+    if virtual:  # the run from the line's start on (the approach before it is not its)
+        snap = {k: v[start:] for k, v in snap.items()}
+        start = 0
+    figures = recorded_contact(snap, start=start)
     # the wall's torque on the joints beside the lab's estimate of it, period by period
     figures.update(estimate_figures(snap["t"], wall_torque(model, snap["q"], normal,
                                                            np.nan_to_num(snap["f_contact"])),
@@ -292,6 +329,7 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     k_q = joint_stiffness(params, controller)
     figures.update({
         "controller": controller, "fault": fault,
+        "wall_kind": "virtual" if virtual else "simulated",
         "predicted_force_n": None if k_q is None else predicted_force(
             model, run.q_end, normal, depth, k_joint=k_q, k_wall=stiffness),
         "joint_stiffness_nm_per_rad": k_q,

@@ -82,14 +82,17 @@ def chatter_figures(t: np.ndarray, force: np.ndarray) -> dict[str, Any]:
 
 
 def sweep_cell(model: SerialChain, backend_factory: Any, params: Params, *, controller: str,
-               wall: float, depth: float, stiffness: float, damping: float
-               ) -> dict[str, Any]:
-    """One cell: the contact run at ``params.period`` against a wall of ``stiffness``."""
+               wall: float, depth: float, stiffness: float, damping: float,
+               keep: Keep | None = None) -> dict[str, Any]:
+    """One cell: the contact run at ``params.period`` against a wall of ``stiffness``
+    (its run handed to ``keep`` too)."""
     kept: list[Run] = []
     figures = run_contact(model, backend_factory, params, controller=controller, wall=wall,
                           depth=depth, stiffness=stiffness, damping=damping,
                           keep=kept.append)
     run = kept[-1]
+    if keep is not None:
+        keep(run)
     chatter = chatter_figures(np.asarray(run.t), run.signals["f_contact"][:, 0])
     stopped = figures.get("fault") is not None
     return {"stiffness_n_per_m": stiffness, "period_ms": params.period * 1e3,
@@ -118,7 +121,8 @@ def run_sweep(options: SweepOptions, *, backend_factory: Any,
               keep: Keep | None = None) -> dict[str, Any]:
     """The grid (see the module's docstring): its cells (``rows``), stiffness by stiffness
     and period by period, and per stiffness ``[N/m, the longest period that did not
-    chatter, ms]`` (None: every period did)."""
+    chatter, ms]`` (None: every period did). Each cell's run goes to ``keep``
+    (``--save-run`` saves the last)."""
     o = options
     stiffnesses = numbers(o.stiffness, name="--stiffness", unit="N/m")
     periods = numbers(o.periods_ms, name="--periods-ms", unit="ms")
@@ -136,7 +140,7 @@ def run_sweep(options: SweepOptions, *, backend_factory: Any,
     model = load_robot("receptionist_arm")
     cells = [sweep_cell(model, backend_factory, replace(DEFAULT, period=ms / 1e3),
                         controller=o.controller, wall=o.wall_cm / 100.0,
-                        depth=o.depth_cm / 100.0, stiffness=k, damping=o.damping)
+                        depth=o.depth_cm / 100.0, stiffness=k, damping=o.damping, keep=keep)
              for k in stiffnesses for ms in sorted(periods)]
     calm = []
     for k in stiffnesses:

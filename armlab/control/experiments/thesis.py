@@ -17,7 +17,6 @@ The backend comes from ``backend_factory`` (the CLI makes it from
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any, Literal, cast
@@ -27,7 +26,7 @@ import numpy as np
 from armlab.control.backend import Backend, Pushable
 from armlab.control.commands import Push, RunTrajectory
 from armlab.control.compliance import Laws, Mode
-from armlab.control.experiments import BackendOptions, Experiment, Keep, option
+from armlab.control.experiments import BackendOptions, Experiment, Keep, advance, option
 from armlab.control.loop import APPROACH_MIN, ControlLoop
 from armlab.control.params import PRESETS, Law, Params, preset
 from armlab.control.response import simulate_ideal_joint_step, step_report
@@ -75,16 +74,6 @@ def line_plan(model: SerialChain, *, line_period: float = THESIS_PERIOD
     return plan, SETTLE_S, SETTLE_S + line.duration
 
 
-def _advance(loop: ControlLoop, until: float) -> None:
-    """Run the loop until its time reaches ``until`` s: stepped headless, or waited for when
-    its thread paces it (real servos live in real time)."""
-    if loop.status.running:
-        while loop.status.t + 1e-9 < until and loop.status.fault is None:
-            time.sleep(0.005)
-    else:
-        loop.run_for(until - loop.status.t)
-
-
 def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params, *,
              controller: str, push_n: float = 0.0, realtime: bool = False,
              line_period: float = THESIS_PERIOD, laws: Laws | None = None) -> LineRun:
@@ -110,7 +99,7 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
                            realtime=realtime, history_s=plan.duration + 15.0, laws=laws)
         if realtime:
             loop.start()
-        _advance(loop, 0.1)
+        advance(loop, 0.1)
         here = loop.recorder.snapshot(0.0)["q_cmd"][-1]
         full, lead = plan, 0.0
         if np.max(np.abs(here - plan.q[0])) > APPROACH_MIN:
@@ -123,13 +112,13 @@ def run_line(model: SerialChain, backend_factory: BackendFactory, params: Params
                      "line_end_s": start + lead + line_end}]
         t0, t1 = start + lead + settle, start + lead + line_end
         if push_n > 0:
-            _advance(loop, t0 + PUSH_DELAY_S)
+            advance(loop, t0 + PUSH_DELAY_S)
             force = np.array([0.0, -push_n, 0.0])
             loop.post(Push(force, model.n - 1, model.tip[:3, 3], PUSH_S))
             commands.append({"t": loop.status.t, "kind": "Push", "force_n": force.tolist(),
                              "link": model.n - 1, "point_m": model.tip[:3, 3].tolist(),
                              "duration_s": PUSH_S})
-        _advance(loop, start + full.duration + 0.05)
+        advance(loop, start + full.duration + 0.05)
         status = loop.status
         if status.fault:
             raise ValueError(f"the loop stopped: {status.fault}")
