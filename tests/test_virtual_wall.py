@@ -5,6 +5,7 @@ is, a wall set with the hand inside it is refused, and PD renders none."""
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -127,3 +128,42 @@ def test_armlab_experiment_contact_on_servos_runs_into_the_wall_the_law_renders(
     hand = np.array([ARM.fk(q)[:3, 3] for q in kept[-1].signals["q"]])
     inside = -(hand - origin) @ normal
     assert inside.max() < 0.008, inside.max()  # the command ends 2 cm behind the surface
+
+
+@pytest.mark.realtime
+@pytest.mark.slow
+def test_the_contact_tab_on_servos_runs_the_hand_into_the_wall_the_law_renders():
+    """The lab served on emulated RX-24Fs over the real serial path: the Contact tab's
+    wall is the virtual one, its run measures the force the law rendered, and under PD a
+    run into it is refused in one line."""
+    import math
+
+    from _emulator import emulator
+    from _helpers import wait_for
+
+    from armlab.app.server import Lab, ServeOptions
+    from armlab.control.trajectory import thesis_line
+
+    line = thesis_line(ARM)
+    pose = ",".join(f"{n}={math.degrees(a):.2f}" for n, a in zip(ARM.joint_names, line.q[0],
+                                                                 strict=True))
+    with emulator("--pose", pose) as emu, \
+            Lab(ServeOptions(backend="serial", port=emu.port, http_port=0)) as lab:
+        lesson = lab.lesson
+        loop = lesson.rig.loop
+        wait_for(lambda: loop.status.active and loop.status.torque_on, 60, "torque on")
+        tab = lesson.contact
+        tab.wall_on.value = True
+        wait_for(lambda: tab.nodes()[0] is not None, 30.0, "the wall placed")
+        wait_for(lambda: loop.status.message.startswith("virtual wall"), 30.0,
+                 "the loop rendering the wall")
+        tab.run()
+        wait_for(lambda: tab.figures() is not None, 120.0, "the run into the wall measured")
+        fig = tab.figures()
+        assert fig["fault"] is None and fig["touched"], fig
+        assert fig["peak_force_n"] > 0.0 and fig["steady_force_n"] is not None
+        snap = loop.recorder.snapshot(2.0)
+        assert np.nanmax(snap["f_contact"]) > 0.0  # the force it rendered, recorded
+        lesson.gains.set_params(replace(lesson.gains.params, compliance=False))
+        with pytest.raises(ValueError, match="PD renders none"):
+            tab.run()

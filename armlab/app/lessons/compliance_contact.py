@@ -18,9 +18,10 @@ A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts 
 wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
 setting comes back once it is over; its figures are shown here too.
 
-Real servos touch no simulated wall: there the controls are disabled and the tab says the
-wall is virtual only in simulation for now (a wall the law renders on servos is issue 54's
-item 3).
+Real servos touch no simulated wall: there the wall is virtual, the one the compliance law
+renders (:mod:`armlab.control.virtual_wall`, put in by ``SetVirtualWall``): the loop
+records the force it renders as ``f_contact``, so the tab's figures, chart and arrow are
+the same; PD renders none, and a run into the wall under it is refused.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from armlab.app.lessons.compliance_teach import STALE, people
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec
 from armlab.control.backend import Touchable
-from armlab.control.commands import RunTrajectory
+from armlab.control.backend import WallSetting as BackendWall
+from armlab.control.commands import RunTrajectory, SetVirtualWall
 from armlab.control.experiments.contact import (
     HOLD_S,
     contact_figures,
@@ -64,9 +66,12 @@ if TYPE_CHECKING:
 
 RUN_LABEL = "into the wall"  #: the run's label in the Files tab's Save run
 #: What the tab says on real servos.
-VIRTUAL_NOTE = ("The wall is **virtual only in simulation** for now: real servos touch no "
-                "simulated wall (a wall the law renders on the servos is still to come). "
-                "Open the lab with the simulated arm to run into it.")
+VIRTUAL_NOTE = ("On the servos the wall is **virtual**: the compliance law renders it. "
+                "Inside it, it pushes the hand out (k × the penetration, plus damping), "
+                "and eq. 2.7 takes that push as an external torque, so the arm backs out "
+                "of the wall as from a push, and your hand pushing the arm into it feels "
+                "it hold. The orange arrow and the chart show the force it renders; PD "
+                "renders none (Gains tab: the compliance law).")
 DISTANCE_CM = 18.0  #: default: 2 cm before the line's end, the command ends 2 cm behind it
 #: N/m, default: a wooden table top under a servo arm's hand (``armlab experiment contact``'s
 #: default, so the tab's figures and the experiment's can be compared)
@@ -119,7 +124,8 @@ class ContactTab:
     Args:
         lesson: the compliance lesson (its rig, runs, challenges and law checks).
         gui: where to add the controls.
-        servos: real servos: the controls are disabled and the tab says why.
+        servos: real servos: the wall is the one the compliance law renders, and the tab
+            says so.
     """
 
     def __init__(self, lesson: ComplianceLesson, gui: viser.GuiApi, *, servos: bool) -> None:
@@ -133,7 +139,7 @@ class ContactTab:
                              "it: the orange arrow is the wall's force on the hand, the "
                              "chart sets it beside the force the controller estimates "
                              "from τ_ext. Compare PD with the compliance law (Gains tab).")
-        self.wall_on = gui.add_checkbox("Wall", False, disabled=servos,
+        self.wall_on = gui.add_checkbox("Wall", False,
                                         hint="Put the wall across the thesis line (a "
                                              "plane facing the hand)")
         self.distance = guarded_slider(
@@ -149,7 +155,7 @@ class ContactTab:
             gui, "Wall damping (N·s/m)", name="wall damping", lo=0.0, hi=500.0, step=5.0,
             initial=DAMPING, apply=lambda v: self._changed(damping=v),
             hint="N per m/s of the penetration's rate while touching (it never pulls)")
-        self.button = gui.add_button("Run into the wall", color="green", disabled=servos,
+        self.button = gui.add_button("Run into the wall", color="green",
                                      icon=viser.Icon.WALL,
                                      hint="Play the thesis line with the wall across it, "
                                           "hold 4 s behind the surface, measure the force")
@@ -159,8 +165,6 @@ class ContactTab:
                               series=(SeriesSpec("wall (ground truth)", COLORS[3]),
                                       SeriesSpec("estimate from τ_ext", COLORS[4], (6, 4))),
                               y_span=5.0)
-        for guard in (self.distance, self.stiffness, self.damping):
-            guard.handle.disabled = servos
         self.wall_on.on_update(lambda e: guarded(e, self._changed))
         self.button.on_click(lambda e: guarded(e, self.run))
         self._rig: Rig | None = None  #: the rig the wall and the nodes were placed on
@@ -214,12 +218,11 @@ class ContactTab:
         if not wall.on:
             if isinstance(backend, Touchable):
                 backend.set_wall(None, stiffness=wall.stiffness, damping=wall.damping)
+            else:
+                rig.loop.post(SetVirtualWall(None))
             self._placed = None
             self._remove_nodes()
             return
-        if not isinstance(backend, Touchable):
-            raise ValueError("the wall is virtual only in simulation for now: this arm "
-                             "touches no simulated wall")
         model = rig.model
         _, _, origin, normal = wall_across_line(model, rig.line.q[0], rig.line.q[-1],
                                                 wall.distance_cm / 100.0)
@@ -231,7 +234,11 @@ class ContactTab:
             if inside * wall.stiffness > PLACE_MAX_N:
                 raise ValueError(f"the hand is {people(inside * 100)} cm behind that wall's "
                                  "surface: press Home (Run tab) first, then place the wall")
-        backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping)
+        if isinstance(backend, Touchable):
+            backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping)
+        else:  # servos: the law renders it (the loop refuses it with the hand inside)
+            rig.loop.post(SetVirtualWall(BackendWall(origin, normal, wall.stiffness,
+                                                     wall.damping)))
         self._placed = (origin, normal)
         self._draw_wall(rig, origin, normal)
 
@@ -334,8 +341,10 @@ class ContactTab:
         rig = lesson.rig
         if rig is None:
             raise ValueError("the arm is being rebuilt; try again")
-        if not isinstance(rig.backend, Touchable):
-            raise ValueError("the wall is virtual only in simulation for now")
+        if not isinstance(rig.backend, Touchable) and \
+                rig.loop.controller.effective_mode(rig.loop.params) != "compliance":
+            raise ValueError("on the servos the wall is the one the compliance law renders; "
+                             "PD renders none: choose the compliance law (Gains tab)")
         with self._lock:
             self._follow_rig(rig)
             if self._placed is None:
@@ -365,7 +374,7 @@ class ContactTab:
         with self._lock:
             rig = lesson.rig
             self._follow_rig(rig)
-            if rig is None or self._placed is None or not isinstance(rig.backend, Touchable):
+            if rig is None or self._placed is None:
                 self._force_now = 0.0
                 if rig is not None:
                     self._mark_stale(rig)
