@@ -78,3 +78,15 @@ def test_a_wall_given_badly_is_one_line(wall, said, capsys):
     assert main(["emulate", f"--wall={wall}"]) != 0
     err = capsys.readouterr().err
     assert said in err and "--wall" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(("option", "value", "said"), [
+    ("--wall-friction", "5", "--wall-friction must be in 0..2, got 5"),
+    ("--wall-friction", "nan", "--wall-friction must be in 0..2, got nan"),
+    ("--wall-stiffness", "1", "--wall-stiffness must be in 100..1e+06, got 1"),
+])
+def test_a_wall_s_number_out_of_range_is_one_line_naming_its_option(option, value, said,
+                                                                    capsys):
+    assert main(["emulate", "--wall=1,2,3@0,1,0", option, value]) != 0
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err and err.count("\n") == 1, err

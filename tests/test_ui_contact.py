@@ -235,3 +235,20 @@ def test_a_change_of_the_wall_cuts_a_contact_challenge_short_and_the_tabs_wall_c
     wall = lesson.rig.backend.wall_setting()
     assert wall is not None and wall.stiffness == tab.setting().stiffness
     assert np.allclose(wall.origin, tab._placed[0])
+
+
+def test_the_friction_slider_puts_its_mu_into_the_simulated_wall(lesson, client):
+    """Wall friction μ, typed on the page, is the simulated wall's (over 2: its end)."""
+    tab = lesson.contact
+    home(lesson)
+    tab.wall_on.value = True
+    wait_for(lambda: lesson.rig.backend.wall_setting() is not None, 30, "the wall placed")
+    assert lesson.rig.backend.wall_setting().friction == 0.0
+    client.set_value("Wall friction μ", 0.6)
+    wait_for(lambda: lesson.rig.backend.wall_setting().friction == pytest.approx(0.6), 30,
+             "the wall's friction")
+    client.set_value("Wall friction μ", 5.0)
+    wait_for(lambda: lesson.rig.backend.wall_setting().friction == 2.0, 30,
+             "the range's end applied")
+    client.set_value("Wall friction μ", 0.0)
+    wait_for(lambda: lesson.rig.backend.wall_setting().friction == 0.0, 30, "μ back to 0")

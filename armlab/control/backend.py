@@ -175,15 +175,22 @@ class Pushable(Protocol):
         ...
 
 
+#: μ a wall's Coulomb friction may be: none to rubber on rubber (the plants' and the
+#: options' one range)
+FRICTION_RANGE = (0.0, 2.0)
+
+
 @dataclass(frozen=True)
 class WallSetting:
     """A wall as :meth:`Touchable.set_wall` placed it: ``origin`` (3,) m and unit ``normal``
-    (3,) towards the free side, base frame; ``stiffness`` N/m, ``damping`` N·s/m."""
+    (3,) towards the free side, base frame; ``stiffness`` N/m, ``damping`` N·s/m;
+    ``friction`` μ, its Coulomb friction coefficient (0: a frictionless wall)."""
 
     origin: np.ndarray
     normal: np.ndarray
     stiffness: float
     damping: float
+    friction: float = 0.0
 
 
 @runtime_checkable
@@ -193,10 +200,10 @@ class Touchable(Protocol):
     servos' loads)."""
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float) -> None:
+                 stiffness: float, damping: float, friction: float = 0.0) -> None:
         """A plane through ``origin`` (3,) m with unit ``normal`` (3,) towards the free
         side, base frame, pushing back ``stiffness`` N/m of penetration and ``damping``
-        N·s/m; None removes it."""
+        N·s/m, with Coulomb ``friction`` μ along it; None removes it."""
         ...
 
     def wall_force(self) -> float:

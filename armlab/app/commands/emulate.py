@@ -280,6 +280,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the wall's stiffness, N/m of penetration (default 2e4)")
     parser.add_argument("--wall-damping", type=float, default=50.0, metavar="NS_PER_M",
                         help="the wall's damping, N·s/m (default 50)")
+    parser.add_argument("--wall-friction", type=float, default=0.0, metavar="MU",
+                        help="the wall's Coulomb friction coefficient (default 0)")
     parser.add_argument("--pose", type=str, metavar="JOINT=DEG,...",
                         help="start these joints at these angles (joint name or index, "
                         "degrees), each resting there until its servo's torque comes on, "
@@ -406,9 +408,11 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--wall: a serial arm's hand touches it, not the {model.name}'s")
         wall = parse_wall(args.wall)
         check_wall_numbers(stiffness=args.wall_stiffness, damping=args.wall_damping,
-                           names=("--wall-stiffness", "--wall-damping"))
+                           friction=args.wall_friction,
+                           names=("--wall-stiffness", "--wall-damping", "--wall-friction"))
         _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
-                                     stiffness=args.wall_stiffness, damping=args.wall_damping)
+                                     stiffness=args.wall_stiffness, damping=args.wall_damping,
+                                     friction=args.wall_friction)
     if args.fault and not jmap.family.fault_flags:
         raise ValueError(f"--fault: the flags are an X-series servo's Hardware Error Status "
                          f"or a Feetech STS's status error bits; the {jmap.servo} has none "

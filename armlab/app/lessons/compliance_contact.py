@@ -90,12 +90,14 @@ CHART_POINTS = 100  #: the loop's record thinned to about this many periods for 
 
 @dataclass(frozen=True)
 class WallSetting:
-    """The wall as the controls set it: on, cm ahead of the line's start, N/m, N·s/m."""
+    """The wall as the controls set it: on, cm ahead of the line's start, N/m, N·s/m, and
+    its Coulomb friction μ."""
 
     on: bool
     distance_cm: float
     stiffness: float
     damping: float
+    friction: float = 0.0
 
 
 @dataclass
@@ -155,6 +157,12 @@ class ContactTab:
             gui, "Wall damping (N·s/m)", name="wall damping", lo=0.0, hi=500.0, step=5.0,
             initial=DAMPING, apply=lambda v: self._changed(damping=v),
             hint="N per m/s of the penetration's rate while touching (it never pulls)")
+        self.friction = guarded_slider(
+            gui, "Wall friction μ", name="wall friction", lo=0.0, hi=2.0, step=0.05,
+            initial=0.0, apply=lambda v: self._changed(friction=v),
+            hint="Coulomb friction along the wall: the hand sliding on it is held back by "
+                 "up to μ × the wall's push (0: frictionless; the wall the law renders on "
+                 "servos has none)")
         self.button = gui.add_button("Run into the wall", color="green",
                                      icon=viser.Icon.WALL,
                                      hint="Play the thesis line with the wall across it, "
@@ -188,7 +196,8 @@ class ContactTab:
             on=bool(self.wall_on.value),
             distance_cm=float(override.get("distance_cm", self.distance.value)),
             stiffness=float(override.get("stiffness", self.stiffness.value)),
-            damping=float(override.get("damping", self.damping.value)))
+            damping=float(override.get("damping", self.damping.value)),
+            friction=float(override.get("friction", self.friction.value)))
 
     def _changed(self, **override: float) -> None:
         """Place (or remove) the wall as the controls say; ValueError (shown) to refuse."""
@@ -203,7 +212,8 @@ class ContactTab:
                 self._place(rig, self.setting(**override))
             except ValueError:
                 if self.wall_on.value and "distance_cm" not in override and \
-                        "stiffness" not in override and "damping" not in override:
+                        "stiffness" not in override and "damping" not in override and \
+                        "friction" not in override:
                     self._wall_off()  # (its callback removes the wall)
                 raise
 
@@ -235,7 +245,8 @@ class ContactTab:
                 raise ValueError(f"the hand is {people(inside * 100)} cm behind that wall's "
                                  "surface: press Home (Run tab) first, then place the wall")
         if isinstance(backend, Touchable):
-            backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping)
+            backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping,
+                             friction=wall.friction)
         else:  # servos: the law renders it (the loop refuses it with the hand inside)
             rig.loop.post(SetVirtualWall(BackendWall(origin, normal, wall.stiffness,
                                                      wall.damping)))
@@ -489,7 +500,8 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     w = run.wall
     law = "compliance law" if joint_stiffness(run.params, run.controller) else "PD"
     head = (f"**Into the wall** ({law}, wall {people(w.distance_cm)} cm ahead, "
-            f"{people(w.stiffness)} N/m, {people(w.damping)} N·s/m)")
+            f"{people(w.stiffness)} N/m, {people(w.damping)} N·s/m"
+            + (f", μ {people(w.friction)}" if w.friction else "") + ")")
     if not fig.get("touched"):
         text = f"{head}: the hand never touched the wall"
     else:

@@ -32,7 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from armlab.control.backend import Backend, Touchable, WallSetting
+from armlab.control.backend import FRICTION_RANGE, Backend, Touchable, WallSetting
 from armlab.control.commands import RunTrajectory, SetVirtualWall
 from armlab.control.experiments import BackendOptions, Experiment, Keep, advance, option
 from armlab.control.laws import LAWS
@@ -74,11 +74,14 @@ STIFFNESS_RANGE = (100.0, 1e6)
 DAMPING_RANGE = (0.0, 1e4)
 
 
-def check_wall_numbers(*, stiffness: float, damping: float, names: tuple[str, str]) -> None:
-    """ValueError naming the option (``names``: the stiffness's, the damping's) whose value
-    is not finite or outside :data:`STIFFNESS_RANGE` / :data:`DAMPING_RANGE`."""
+def check_wall_numbers(*, stiffness: float, damping: float, names: tuple[str, ...],
+                       friction: float = 0.0) -> None:
+    """ValueError naming the option (``names``: the stiffness's, the damping's and the
+    friction's) whose value is not finite or outside :data:`STIFFNESS_RANGE` /
+    :data:`DAMPING_RANGE` / ``FRICTION_RANGE``."""
     for name, value, (lo, hi) in ((names[0], stiffness, STIFFNESS_RANGE),
-                                  (names[1], damping, DAMPING_RANGE)):
+                                  (names[1], damping, DAMPING_RANGE),
+                                  (names[-1], friction, FRICTION_RANGE)):
         if not (math.isfinite(value) and lo <= value <= hi):
             raise ValueError(f"{name} must be in {lo:g}..{hi:g}, got {value:g}")
 
@@ -182,6 +185,8 @@ class ContactOptions(BackendOptions):
     stiffness: float = option(2e4, "N/m the wall pushes back per m of penetration "
                               "(default: a wooden table under a servo arm's hand)")
     damping: float = option(50.0, "N·s/m of the wall's damping while in contact")
+    friction: float = option(0.0, "μ of the wall's Coulomb friction (0: frictionless; on "
+                             "servos the rendered wall has none)")
     k_env: float | None = option(None, "K_env, N·m/rad (default: the lab's)")
     k_f: float | None = option(None, "K_f (default: the lab's)")
 
@@ -273,10 +278,11 @@ def _on_servos(loop: ControlLoop, plan: JointTrajectory, wall: WallSetting) -> i
 
 def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
                 controller: str, wall: float, depth: float, stiffness: float,
-                damping: float, keep: Keep | None = None) -> dict[str, Any]:
+                damping: float, friction: float = 0.0, keep: Keep | None = None
+                ) -> dict[str, Any]:
     """Drive the hand of ``model`` into a wall ``wall`` m ahead, to ``depth`` m behind it
-    (see the module docstring); the figures, the prediction and, when the loop stopped,
-    why.
+    (see the module docstring), its Coulomb ``friction`` μ along it; the figures, the
+    prediction and, when the loop stopped, why.
 
     On a backend whose world holds no wall (real servos, the emulator's) the wall is
     virtual: the compliance law renders it (:mod:`armlab.control.virtual_wall`), and the
@@ -287,8 +293,8 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
             that stop the loop before the run, or options out of range.
     """
     run = contact_plan(model, params.period, wall=wall, depth=depth)
-    check_wall_numbers(stiffness=stiffness, damping=damping,
-                       names=("--stiffness", "--damping"))
+    check_wall_numbers(stiffness=stiffness, damping=damping, friction=friction,
+                       names=("--stiffness", "--damping", "--friction"))
     plan, origin, normal, q0 = run.plan, run.origin, run.normal, run.plan.q[0]
     backend: Backend = backend_factory(model, q0=q0)
     loop: ControlLoop | None = None
@@ -298,7 +304,8 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
             raise ValueError("on servos the wall is virtual, rendered by the compliance law; "
                              "PD renders none: run --controller compliance")
         if isinstance(backend, Touchable):
-            backend.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+            backend.set_wall(origin, normal, stiffness=stiffness, damping=damping,
+                             friction=friction)
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
                            realtime=virtual, history_s=plan.duration + 30.0)
         if virtual:
@@ -364,6 +371,7 @@ def _contact_run(options: ContactOptions, *, backend_factory: Any,
     return run_contact(load_robot("receptionist_arm"), backend_factory, params,
                        controller=o.controller, wall=o.wall_cm / 100.0,
                        depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
+                       friction=o.friction,
                        keep=keep)
 
 

@@ -285,11 +285,13 @@ class SimBackend(GoalLimits):
             self.plant.set_spring(anchor, stiffness=stiffness, link=link, point=point)
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float) -> None:
+                 stiffness: float, damping: float, friction: float = 0.0) -> None:
         """A plane the hand touches (``armlab.control.backend.Touchable``): ``origin`` (3,)
-        m on it, ``normal`` (3,) towards the free side, both base frame; None removes it."""
+        m on it, ``normal`` (3,) towards the free side, both base frame, with Coulomb
+        ``friction`` μ along it; None removes it."""
         with self._lock:
-            self.plant.set_wall(origin, normal, stiffness=stiffness, damping=damping)
+            self.plant.set_wall(origin, normal, stiffness=stiffness, damping=damping,
+                                friction=friction)
 
     def wall_force(self) -> float:
         """N, the wall's normal force on the hand now (the plant's ground truth)."""

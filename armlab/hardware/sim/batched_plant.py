@@ -54,7 +54,7 @@ from armlab.hardware.families.dynamixel1.firmware import (
     effective_slope,
 )
 from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
-from armlab.hardware.sim.plant import JointStops, checked_wall
+from armlab.hardware.sim.plant import FRICTION_DAMPING, JointStops, checked_friction, checked_wall
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import batched_dynamics
 from armlab.kinematics.model import SerialChain
@@ -74,6 +74,7 @@ _FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "wall_on": ((), np.bool_), "wall_origin": ((3,), np.float64),
     "wall_normal": ((3,), np.float64), "wall_k": ((), np.float64),
     "wall_c": ((), np.float64), "wall_link": ((), np.int64), "wall_point": ((3,), np.float64),
+    "wall_mu": ((), np.float64),
     # m the wall's contact point is at least off its plane now (its depth when last
     # computed, less what the joints' speeds may have moved it since; 0: compute it)
     "wall_gap": ((), np.float64),
@@ -481,7 +482,7 @@ class BatchedPlant:
     def set_wall(self, arm: int, origin_base: np.ndarray | None,
                  normal_base: np.ndarray | None = None, *, stiffness: float = 5000.0,
                  damping: float = 30.0, link: int | None = None,
-                 point: np.ndarray | None = None) -> None:
+                 point: np.ndarray | None = None, friction: float = 0.0) -> None:
         """A plane arm ``arm`` can press on (Plant.set_wall); None removes it.
 
         Args:
@@ -491,6 +492,7 @@ class BatchedPlant:
             stiffness: N/m of penetration; damping: N·s/m in contact (never pulls).
             link, point: the contact point (3,) m on the arm (default the end effector;
                 a link without a point: its origin).
+            friction: μ of its Coulomb friction along the plane (Plant's).
         """
         r = self.row(arm)
         f = self._f
@@ -504,6 +506,7 @@ class BatchedPlant:
         f["wall_normal"][:, r] = normal
         f["wall_k"][r], f["wall_c"][r], f["wall_link"][r] = k, c, li
         f["wall_point"][:, r] = pt
+        f["wall_mu"][r] = checked_friction(friction)
         f["wall_gap"][r] = -np.inf  # (where the point is: computed at the next step)
         f["wall_on"][r] = True
 
@@ -665,7 +668,7 @@ class BatchedPlant:
     def _field_torques(self, q: np.ndarray, qd: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """(n, R) J^T F of the spring and the wall of the arm rows ``rows`` at (q, qd) (n, R)
         (Plant._field_torques per arm: spring k (anchor − p) − c v; wall max(0, −k d − c v_n)
-        along the normal when the point is d < 0 behind the plane)."""
+        along the normal when the point is d < 0 behind the plane, and its friction)."""
         f = self._f
         fr = self._dyn.frames(q).reshape(self.n, 12, rows.size)
         tau = np.zeros_like(q)
@@ -682,8 +685,15 @@ class BatchedPlant:
                 nrm = f["wall_normal"][:, rows]
                 depth = np.sum((p - f["wall_origin"][:, rows]) * nrm, axis=0)
                 vn = np.sum(v * nrm, axis=0)
-                mag = np.maximum(0.0, -f["wall_k"][rows] * depth - f["wall_c"][rows] * vn)
-                force = np.where(depth < 0.0, mag, 0.0) * nrm
+                mag = np.where(depth < 0.0, np.maximum(
+                    0.0, -f["wall_k"][rows] * depth - f["wall_c"][rows] * vn), 0.0)
+                # its friction (Plant's _wall_friction): against the sliding, the damper
+                # FRICTION_DAMPING capped at μ·push
+                slide = v - vn * nrm
+                speed = np.sqrt(np.sum(slide * slide, axis=0))
+                size = np.minimum(f["wall_mu"][rows] * mag, FRICTION_DAMPING * speed)
+                rub = np.where(speed > 0.0, -size / np.where(speed > 0.0, speed, 1.0), 0.0)
+                force = mag * nrm + rub * slide
             force = np.where(on, force, 0.0)
             tau += np.einsum("jrp,rp->jp", cols, force)
         return tau

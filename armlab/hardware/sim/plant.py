@@ -29,6 +29,7 @@ from typing import cast
 
 import numpy as np
 
+from armlab.control.backend import FRICTION_RANGE
 from armlab.hardware.families import FAMILIES, family_of_spec
 from armlab.hardware.families.dynamixel1.firmware import ServoModel, ServoRegisters, ServoReport
 from armlab.hardware.families.feetech.firmware import StsRegisters
@@ -99,6 +100,15 @@ class _Wall:
     damping: float
     link: int
     point: tuple[float, float, float]
+    friction: float = 0.0
+
+
+#: N·s/m: the slope of the wall's friction below its Coulomb limit (the regularised
+#: "stick": a damper on the sliding speed, capped at μ·f_n). Explicit RK4 at the plant's
+#: 1 ms step keeps a damper c stable on a mass m while c·dt/m stays below about 2.8; the
+#: lightest hand the lab drives (the receptionist arm's, some 0.35 kg of link and
+#: reflected rotor) takes 200 at 0.6
+FRICTION_DAMPING = 200.0
 
 
 @dataclass(frozen=True)
@@ -138,6 +148,30 @@ def checked_wall(origin_base: object, normal_base: object, stiffness: object, da
     if point is None and link is not None and li != n - 1:
         pt = np.zeros(3)
     return vector("origin_base", origin_base, 3), nrm / length, k, c, li, pt
+
+def checked_friction(friction: object) -> float:
+    """A wall's friction μ checked: finite, in :data:`FRICTION_RANGE`."""
+    mu = scalar("friction", friction, nonnegative=True)
+    if not FRICTION_RANGE[0] <= mu <= FRICTION_RANGE[1]:
+        raise ValueError(f"friction must be in {FRICTION_RANGE[0]:g}..{FRICTION_RANGE[1]:g}, "
+                         f"got {mu:g}")
+    return mu
+
+
+def _wall_friction(wall: _Wall, push: float, v: Sequence[float]) -> list[float]:
+    """(3,) N of the wall's friction on a contact point moving at ``v`` (3,) while it
+    pushes ``push`` N: opposing the sliding (the velocity along the plane), the damper
+    :data:`FRICTION_DAMPING` on its speed capped at Coulomb's μ·push. It never does work
+    on the arm (its power −|f|·|v_t| ≤ 0): it only takes energy out."""
+    nrm = wall.normal
+    vn = sum(v[r] * nrm[r] for r in range(3))
+    slide = [v[r] - vn * nrm[r] for r in range(3)]
+    speed = math.sqrt(slide[0] ** 2 + slide[1] ** 2 + slide[2] ** 2)
+    if push <= 0.0 or wall.friction <= 0.0 or speed <= 0.0:
+        return [0.0, 0.0, 0.0]
+    size = min(wall.friction * push, FRICTION_DAMPING * speed)
+    return [-size * slide[r] / speed for r in range(3)]
+
 
 def _wall_push(wall: _Wall, p: Sequence[float], v: Sequence[float]) -> float:
     """N of the wall's normal push on contact point ``p`` (3,) moving at ``v`` (3,), base
@@ -283,13 +317,14 @@ class Plant:
 
     def set_wall(self, origin_base: np.ndarray | None, normal_base: np.ndarray | None = None, *,
                  stiffness: float = 5000.0, damping: float = 30.0, link: int | None = None,
-                 point: np.ndarray | None = None) -> None:
+                 point: np.ndarray | None = None, friction: float = 0.0) -> None:
         """A rigid-ish plane the arm can press on; None removes it.
 
         Args:
             origin_base: (3,) m, a point of the plane, base frame.
             normal_base: (3,) the plane's normal pointing to the free side, base frame.
             stiffness: N/m of penetration; damping: N·s/m while in contact (never pulls).
+            friction: μ of its Coulomb friction along the plane (:func:`_wall_friction`).
             link, point: the contact point on the arm (default: the end effector, i.e. the
                 last link's tip).
         """
@@ -300,15 +335,16 @@ class Plant:
             origin_base, normal_base, stiffness, damping, link, point, n=self.n,
             tip=self.model.tip[:3, 3], link_index=self._link)
         self._wall = _Wall(tuple(origin), tuple(normal), k, c, li,
-                           cast("tuple[float, float, float]", tuple(float(x) for x in pt)))
+                           cast("tuple[float, float, float]", tuple(float(x) for x in pt)),
+                           checked_friction(friction))
 
     @property
-    def wall(self) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    def wall(self) -> tuple[np.ndarray, np.ndarray, float, float, float] | None:
         """The wall :meth:`set_wall` placed: (origin (3,) m, unit normal (3,), stiffness
-        N/m, damping N·s/m), base frame; None without one."""
+        N/m, damping N·s/m, friction μ), base frame; None without one."""
         w = self._wall
         return None if w is None else (np.array(w.origin), np.array(w.normal),
-                                       w.stiffness, w.damping)
+                                       w.stiffness, w.damping, w.friction)
 
     def apply_joint_torque(self, joint: int, torque: float, *, start: float = 0.0) -> None:
         """A known disturbance: a constant ``torque`` N·m on ``joint`` (positive along the
@@ -512,7 +548,8 @@ class Plant:
                 mag = _wall_push(src, p, v)
                 if mag == 0.0:
                     continue
-                f = [mag * src.normal[r] for r in range(3)]
+                rub = _wall_friction(src, mag, v)
+                f = [mag * src.normal[r] + rub[r] for r in range(3)]
             for j, col in enumerate(cols):
                 tau[j] += col[0] * f[0] + col[1] * f[1] + col[2] * f[2]
         return tau
