@@ -241,6 +241,44 @@ def _sdk_cycle(reader: Any, writer: Any, success: int) -> Callable[[], None]:
     return cycle
 
 
+def _versus_sdk(sdk: Any, name: str, *, robot: str, protocol: int | str, version: float,
+                ids: list[int], present: tuple[int, int], goal: tuple[int, int],
+                goal_bytes: dict[int, bytes], quick: bool
+                ) -> tuple[list[float], list[float], list[float]]:
+    """One group read (``present``: address, length) + one group write (``goal``) of the
+    servos ``ids`` of ``armlab emulate --pace --robot robot``, armlab's bus (``protocol``)
+    against an SDK's (``sdk``: the Dynamixel SDK or Feetech's, the same API;
+    ``PacketHandler(version)``), in alternating blocks on one port (:func:`_alternating`)."""
+    from armlab.app.benches.bus import BAUD, paced_emulator
+    from armlab.hardware.wire.bus import Bus
+
+    with paced_emulator("--robot", robot, "--baud", str(BAUD)) as port, \
+            Bus(port, BAUD, protocol=protocol, timeout_margin=0.1, retries=5,
+                exclusive=False) as bus:
+        for i in ids:  # as a configured arm: no factory return delay
+            bus.write(i, "return_delay_time", 0)
+
+        def armlab_cycle() -> None:
+            bus.sync_read(*present, ids)
+            bus.sync_write(*goal, goal_bytes)
+
+        handler = sdk.PortHandler(port)
+        if not handler.openPort() or not handler.setBaudRate(BAUD):
+            raise RuntimeError(f"{name} could not open {port}")
+        try:
+            with _sdk_timeout(handler):
+                packets = sdk.PacketHandler(version)
+                reader = sdk.GroupSyncRead(handler, packets, *present)
+                writer = sdk.GroupSyncWrite(handler, packets, *goal)
+                for i in ids:
+                    reader.addParam(i)
+                    writer.addParam(i, list(goal_bytes[i]))
+                return _alternating(armlab_cycle,
+                                    _sdk_cycle(reader, writer, sdk.COMM_SUCCESS), quick)
+        finally:
+            handler.closePort()
+
+
 def bus2_cycles(quick: bool) -> dict[str, float]:
     """The protocol-2.0 group read + write cycle, armlab's bus and the Dynamixel SDK's, on
     one paced emulator (see the module's docstring), in alternating blocks: both keep the
@@ -252,36 +290,14 @@ def bus2_cycles(quick: bool) -> dict[str, float]:
     """
     import dynamixel_sdk as sdk
 
-    from armlab.app.benches.bus import BAUD, OMX_IDS, paced_emulator
+    from armlab.app.benches.bus import OMX_IDS
     from armlab.hardware.families.xseries.backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
-    from armlab.hardware.wire.bus import Bus
 
     ids = list(OMX_IDS)  # the arm's and the gripper's, as the X-series backend's
-    goal = {i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}
-    with paced_emulator("--robot", "open_manipulator_x", "--baud", str(BAUD)) as port, \
-            Bus(port, BAUD, protocol=2, timeout_margin=0.1, retries=5, exclusive=False) as bus:
-        for i in ids:  # as a configured arm: no 500 µs factory return delay
-            bus.write(i, "return_delay_time", 0)
-
-        def armlab_cycle() -> None:
-            bus.sync_read(PRESENT_AT, PRESENT_LEN, ids)
-            bus.sync_write(GOAL_AT, GOAL_LEN, goal)
-
-        handler = sdk.PortHandler(port)
-        if not handler.openPort() or not handler.setBaudRate(BAUD):
-            raise RuntimeError(f"the Dynamixel SDK could not open {port}")
-        try:
-            with _sdk_timeout(handler):
-                packets = sdk.PacketHandler(2.0)
-                reader = sdk.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
-                writer = sdk.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
-                for i in ids:
-                    reader.addParam(i)
-                    writer.addParam(i, list(goal[i]))
-                ours, theirs, ratios = _alternating(
-                    armlab_cycle, _sdk_cycle(reader, writer, sdk.COMM_SUCCESS), quick)
-        finally:
-            handler.closePort()
+    ours, theirs, ratios = _versus_sdk(
+        sdk, "the Dynamixel SDK", robot="open_manipulator_x", protocol=2, version=2.0,
+        ids=ids, present=(PRESENT_AT, PRESENT_LEN), goal=(GOAL_AT, GOAL_LEN),
+        goal_bytes={i: bytes(4) + (2048).to_bytes(4, "little") for i in ids}, quick=quick)
     return {"armlab_bus2_cycle_ms": float(np.median(ours) * 1e3),
             "peer_bus2_cycle_ms": float(np.median(theirs) * 1e3),
             "ratio_bus2": float(np.median(ratios))}
@@ -304,38 +320,16 @@ def bus_sts_cycles(quick: bool) -> dict[str, float]:
     """
     import scservo_sdk as scs
 
-    from armlab.app.benches.bus import BAUD, SO101_SERVOS, paced_emulator, sts_cycle_bytes
+    from armlab.app.benches.bus import BAUD, SO101_SERVOS, sts_cycle_bytes
     from armlab.hardware.families.feetech.backend import GOAL_AT, GOAL_LEN, PRESENT_AT, PRESENT_LEN
     from armlab.hardware.servos.servo_spec import wire_time
-    from armlab.hardware.wire.bus import Bus
 
     ids = list(range(1, SO101_SERVOS + 1))
-    goal = {i: (2048).to_bytes(2, "little") + bytes(GOAL_LEN - 2) for i in ids}
-    with paced_emulator("--robot", "so101", "--baud", str(BAUD)) as port, \
-            Bus(port, BAUD, protocol="sts", timeout_margin=0.1, retries=5,
-                exclusive=False) as bus:
-        for i in ids:  # as the STS backend configures them
-            bus.write(i, "return_delay_time", 0)
-
-        def armlab_cycle() -> None:
-            bus.sync_read(PRESENT_AT, PRESENT_LEN, ids)
-            bus.sync_write(GOAL_AT, GOAL_LEN, goal)
-
-        handler = scs.PortHandler(port)
-        if not handler.openPort() or not handler.setBaudRate(BAUD):
-            raise RuntimeError(f"Feetech's SDK could not open {port}")
-        try:
-            with _sdk_timeout(handler):
-                packets = scs.PacketHandler(0)  # STS/SMS: little-endian words
-                reader = scs.GroupSyncRead(handler, packets, PRESENT_AT, PRESENT_LEN)
-                writer = scs.GroupSyncWrite(handler, packets, GOAL_AT, GOAL_LEN)
-                for i in ids:
-                    reader.addParam(i)
-                    writer.addParam(i, list(goal[i]))
-                ours, theirs, ratios = _alternating(
-                    armlab_cycle, _sdk_cycle(reader, writer, scs.COMM_SUCCESS), quick)
-        finally:
-            handler.closePort()
+    ours, theirs, ratios = _versus_sdk(
+        scs, "Feetech's SDK", robot="so101", protocol="sts", version=0,  # STS: little-endian
+        ids=ids, present=(PRESENT_AT, PRESENT_LEN), goal=(GOAL_AT, GOAL_LEN),
+        goal_bytes={i: (2048).to_bytes(2, "little") + bytes(GOAL_LEN - 2) for i in ids},
+        quick=quick)
     bound = wire_time(sts_cycle_bytes(SO101_SERVOS), BAUD)
     return {"armlab_bus_sts_cycle_ms": float(np.median(ours) * 1e3),
             "peer_bus_sts_cycle_ms": float(np.median(theirs) * 1e3),
