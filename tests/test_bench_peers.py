@@ -63,7 +63,8 @@ def test_the_peers_agree_with_armlab_on_the_same_urdf_and_report_every_figure():
     for key in ("peer_rnea_us", "armlab_rnea_us", "peer_ik_us", "armlab_rmrc_us",
                 "peer_plant_steps_per_s", "armlab_plant_steps_per_s", "ratio_rnea",
                 "ratio_ik", "ratio_plant", "peer_ik_set_us", "armlab_rmrc_set_us",
-                "ratio_ik_set"):
+                "ratio_ik_set", "peer_plant_wall_steps_per_s", "armlab_plant_wall_steps_per_s",
+                "ratio_plant_wall"):
         assert math.isfinite(figures[key]) and figures[key] > 0, key
     assert figures["peer_ik_solved"] == 1.0
 

@@ -20,6 +20,10 @@ thesis arm, three joints), armlab's figure measured in the same run as the peer'
   law (PD on the joint, clipped at the RX-24F's stall torque) written into
   ``qfrc_applied`` before each ``mj_step``, against armlab's plant (its own RK4 and the
   RX-24F servo model, ``armlab.hardware.sim.plant``).
+- ``peer_plant_wall_steps_per_s`` / ``armlab_plant_wall_steps_per_s``: the same step with
+  the hand held 1 cm into a table (a plane facing up): armlab's wall (2·10⁴ N/m,
+  50 N·s/m, its normal force worked out at every RK4 stage) against MuJoCo's box and a
+  sphere on the hand under its own soft contact; both timed in contact.
 - ``peer_bus2_cycle_ms`` / ``armlab_bus2_cycle_ms``: one SYNC_READ of present current,
   velocity and position (126..135) of the OpenManipulator-X's five XM430-W350 (IDs
   11..15, the gripper's included) plus one SYNC_WRITE of profile velocity and goal
@@ -79,20 +83,43 @@ def missing() -> list[str]:
     return out
 
 
-def mujoco_model(urdf_path: str) -> Any:
-    """The URDF as a MuJoCo model: visuals dropped, massless links (joint frames) given a
-    negligible mass (MuJoCo needs one), RK4 at 1 ms; gravity -z in the URDF's world."""
-    import mujoco
-
+def _mujoco_urdf(urdf_path: str) -> str:
+    """The URDF's text for MuJoCo: visuals and collisions dropped, massless links (joint
+    frames) given a negligible mass (MuJoCo needs one)."""
     text = open(urdf_path).read()
     text = re.sub(r"<(visual|collision)>.*?</\1>", "", text, flags=re.S)
     compiler = ('<mujoco><compiler discardvisual="true" fusestatic="false" '
                 'boundmass="1e-9" boundinertia="1e-12"/></mujoco>')
-    text = re.sub(r"(<robot[^>]*>)", r"\1" + compiler, text, count=1)
-    model = mujoco.MjModel.from_xml_string(text)
+    return re.sub(r"(<robot[^>]*>)", r"\1" + compiler, text, count=1)
+
+
+def _rk4_1ms(model: Any) -> Any:
+    import mujoco
+
     model.opt.timestep = 1e-3
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
     return model
+
+
+def mujoco_model(urdf_path: str) -> Any:
+    """The URDF as a MuJoCo model, RK4 at 1 ms; gravity -z in the URDF's world."""
+    import mujoco
+
+    return _rk4_1ms(mujoco.MjModel.from_xml_string(_mujoco_urdf(urdf_path)))
+
+
+def mujoco_table_model(urdf_path: str, hand_body: str, top: np.ndarray) -> Any:
+    """:func:`mujoco_model` with a table: a box in the world whose top face (facing +z)
+    passes through ``top`` (3,) m, world frame, and a 5 mm sphere on the body
+    ``hand_body`` (the arm's hand) that touches it (MuJoCo's own soft contact)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(_mujoco_urdf(urdf_path))
+    hand = next(b for b in spec.bodies if b.name == hand_body)
+    hand.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.005, 0.0, 0.0])
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5, 0.5, 0.05],
+                            pos=(np.asarray(top, dtype=float) - [0.0, 0.0, 0.05]).tolist())
+    return _rk4_1ms(spec.compile())
 
 
 def pinocchio_ik(model: Any, data: Any, frame: int, target: np.ndarray, q0: np.ndarray
@@ -174,6 +201,7 @@ def run(quick: bool) -> dict[str, float]:
     steps, batches = (1000, 3) if quick else (5000, 7)
     out["peer_plant_steps_per_s"] = _cpu_rate(mujoco_step, steps, batches)
     out["armlab_plant_steps_per_s"] = _cpu_rate(backend.plant.step, steps, batches)
+    out.update(_plant_on_a_table(arm, path, goal, steps, batches))
 
     out.update(bus2_cycles(quick))
     out.update(bus_sts_cycles(quick))
@@ -181,7 +209,45 @@ def run(quick: bool) -> dict[str, float]:
     out["ratio_ik"] = out["armlab_rmrc_us"] / out["peer_ik_us"]
     out["ratio_ik_set"] = out["armlab_rmrc_set_us"] / out["peer_ik_set_us"]
     out["ratio_plant"] = out["peer_plant_steps_per_s"] / out["armlab_plant_steps_per_s"]
+    out["ratio_plant_wall"] = (out["peer_plant_wall_steps_per_s"]
+                               / out["armlab_plant_wall_steps_per_s"])
     return out
+
+
+def _plant_on_a_table(arm: Any, path: str, goal: np.ndarray, steps: int, batches: int
+                      ) -> dict[str, float]:
+    """The 1 ms step of the arm holding ``goal`` with its hand pressed 1 cm into a table
+    (a plane facing up in the URDF's world): armlab's plant and its wall (2·10⁴ N/m,
+    50 N·s/m) against MuJoCo's step with a box and its own contact. Each is timed in
+    contact (checked before and after)."""
+    import mujoco
+
+    hand = arm.fk(goal)[:3, 3]
+    up = arm.base_pose[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # the world's +z, base frame
+    top = hand + 0.01 * up  # the goal holds the hand 1 cm below the table's top
+    mm = mujoco_table_model(path, "hand", (arm.base_pose @ np.append(top, 1.0))[:3])
+    md = mujoco.MjData(mm)
+    md.qpos[:] = goal
+    stall = RX24F.stall_torque
+
+    def mujoco_step() -> None:
+        md.qfrc_applied[:] = np.clip(8.0 * (goal - md.qpos) - 0.2 * md.qvel, -stall, stall)
+        mujoco.mj_step(mm, md)
+
+    backend = SimBackend(arm, q0=goal)
+    backend.set_wall(top, up, stiffness=2e4, damping=50.0)
+    backend.set_torque(True)
+    backend.write(goal, np.full(3, 1.5))
+    for _ in range(300):  # into contact, both
+        mujoco_step()
+        backend.plant.step()
+    touching = (md.ncon > 0, backend.plant.wall_force() > 0.0)
+    rates = {"peer_plant_wall_steps_per_s": _cpu_rate(mujoco_step, steps, batches),
+             "armlab_plant_wall_steps_per_s": _cpu_rate(backend.plant.step, steps, batches)}
+    if not (all(touching) and md.ncon > 0 and backend.plant.wall_force() > 0.0):
+        raise RuntimeError(f"the hand left the table while timed (MuJoCo contacts "
+                           f"{md.ncon}, armlab's wall {backend.plant.wall_force():.3g} N)")
+    return rates
 
 
 def _alternating(ours_cycle: Callable[[], None], peer_cycle: Callable[[], None], quick: bool

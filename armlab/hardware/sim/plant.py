@@ -540,7 +540,12 @@ class Plant:
             if src is None:
                 continue
             p, cols = self._point(fr, src.link, src.point)
-            v = [sum(cols[j][r] * qd[j] for j in range(len(cols))) for r in range(3)]
+            vx = vy = vz = 0.0  # the point's velocity, J q̇ (in joint order, as sum() adds)
+            for col, w in zip(cols, qd, strict=False):
+                vx += col[0] * w
+                vy += col[1] * w
+                vz += col[2] * w
+            v = [vx, vy, vz]
             if isinstance(src, _Spring):
                 f = [src.stiffness * (src.anchor[r] - p[r]) - src.damping * v[r]
                      for r in range(3)]
@@ -548,8 +553,12 @@ class Plant:
                 mag = _wall_push(src, p, v)
                 if mag == 0.0:
                     continue
-                rub = _wall_friction(src, mag, v)
-                f = [mag * src.normal[r] + rub[r] for r in range(3)]
+                nrm = src.normal
+                if src.friction > 0.0:
+                    rub = _wall_friction(src, mag, v)
+                    f = [mag * nrm[0] + rub[0], mag * nrm[1] + rub[1], mag * nrm[2] + rub[2]]
+                else:
+                    f = [mag * nrm[0], mag * nrm[1], mag * nrm[2]]
             for j, col in enumerate(cols):
                 tau[j] += col[0] * f[0] + col[1] * f[1] + col[2] * f[2]
         return tau
