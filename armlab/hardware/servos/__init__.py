@@ -1,2 +1,3 @@
-"""The servos' own facts: control tables and datasheet numbers of the AX-12A and RX-24F
-(protocol 1.0) and of the X-series (protocol 2.0)."""
+"""What every family's servo facts share: a control table's items and their encoding
+(``control_table.py``), datasheet units and wire timing (``servo_spec.py``). Each family's
+tables are its folder's ``table.py`` (:mod:`armlab.hardware.families`)."""
