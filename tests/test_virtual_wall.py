@@ -92,6 +92,13 @@ def test_a_wall_set_with_the_hand_inside_it_is_refused():
                          r"hand to its free side first", loop.status.message)
         loop.step()
         assert np.isnan(loop.recorder.snapshot()["f_contact"][-1])
+        # a soft wall the hand is just inside (1 mm, some 0.5 N at 500 N/m; the hand
+        # still settles a few mm) is set: the hand rests on it
+        here = ARM.fk(loop.recorder.snapshot()["q"][-1])[:3, 3]
+        loop.post(SetVirtualWall(WallSetting(here - np.array([0.001, 0, 0]),
+                                             np.array([-1.0, 0, 0]), 500.0, 5.0)))
+        loop.step()
+        assert loop.status.message.startswith("virtual wall: the compliance law renders it")
     finally:
         loop.shutdown()
         backend.close()

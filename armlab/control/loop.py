@@ -83,6 +83,9 @@ DEFAULT_MAX_SPEED = 10.0  #: rad/s when the model gives no velocity limit
 TARGET_SPEED = 0.156  #: m/s hand speed when following a target (thesis: 2.5 mm / 16 ms)
 SWITCH_INTERVAL = 0.001  #: s, the interpreter's thread switch interval while paced
 APPROACH_MIN = 0.01  #: rad; a trajectory starting farther than this from the command is approached
+#: N: a virtual wall is not set where it would push the hand harder than this at once
+#: (the Contact tab's own limit for placing a wall)
+VIRTUAL_WALL_SET_MAX_N = 5.0
 #: rad/s, the fastest joint of the spare joints' self-motion (``UseSpareJoints``)
 SPARE_MAX_SPEED = 0.5
 #: rad/s, the fastest joint while the hand follows a target: near a singularity or a joint
@@ -631,7 +634,8 @@ class ControlLoop:
             if cmd.wall is not None and meas is not None:
                 inside = -float(np.dot(cmd.wall.normal, self.model.fk(
                     np.asarray(meas.position, dtype=float))[:3, 3] - cmd.wall.origin))
-                if inside > 0.0:  # rendered now, it would throw the arm out at once
+                # rendered now, a wall the hand is well inside would throw the arm out
+                if inside * cmd.wall.stiffness > VIRTUAL_WALL_SET_MAX_N:
                     self._note(f"virtual wall not set: the hand is {inside * 100:.1f} cm "
                                "inside it; move the hand to its free side first")
                     return

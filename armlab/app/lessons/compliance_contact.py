@@ -55,6 +55,7 @@ from armlab.control.experiments.contact import (
     predicted_force,
     wall_across_line,
 )
+from armlab.control.loop import VIRTUAL_WALL_SET_MAX_N
 from armlab.control.params import Params
 from armlab.control.trajectory import THESIS_LINE_END
 from armlab.kinematics.fk import fk_and_jacobian
@@ -78,8 +79,8 @@ DISTANCE_CM = 18.0  #: default: 2 cm before the line's end, the command ends 2 c
 STIFFNESS = 2e4
 DAMPING = 50.0  #: N·s/m, the experiment's default
 #: N: the wall is not put where the hand already presses harder than this (it would
-#: throw the arm back); Home first
-PLACE_MAX_N = 5.0
+#: throw the arm back); Home first (the loop's own limit for a virtual wall)
+PLACE_MAX_N = VIRTUAL_WALL_SET_MAX_N
 WALL_RGB = (140, 100, 60)  #: wood
 WALL_OPACITY = 0.35
 WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (along n)
