@@ -36,7 +36,8 @@ def walk_for(lesson, cycles: float, *, timeout: float = 60.0) -> dict[str, np.nd
         return lesson.loop.status.fault
 
     wait_for(lambda: fault() or (lesson.loop.status.walking
-                                 and not lesson.loop.status.standing_up), timeout=timeout)
+                                 and not lesson.loop.status.standing_up), timeout=timeout,
+             what=lambda: f"the walk to start (loop status {lesson.loop.status})")
     assert not fault(), fault()
     start_t = lesson.loop.status.t
     start = lesson.loop.state.phase
@@ -293,7 +294,10 @@ def test_twelve_emulated_servos_walk_over_the_serial_bus():
                                                 port=emu.port, realtime=True)) as handle:
             assert handle.backend is not None and handle.backend.n == 12
             handle.walk("forward")
-            walk_for(handle, 0.4)
+            # twelve servos' physics in the emulator's process, on the wall clock: on a
+            # machine busy with other real-time tests it can slip seconds behind (CI saw
+            # 5.4 s, the stand-up taking over a minute), so the walk gets room
+            walk_for(handle, 0.4, timeout=180.0)
             err = handle.servo_error(None)
             assert err is not None and err["samples"] >= 5, err
             # Loose: the emulator's physics runs on the wall clock in another process, so a
