@@ -218,7 +218,8 @@ def hand_at_rest(lesson: Any, timeout: float = 120.0) -> np.ndarray:
 def confirm_clear(lesson: Any, timeout: float = 60.0) -> None:
     """What a technician does on an uncalibrated arm (no calibration, or a drafted map),
     which the lab opens with its torque off: confirm the arm is clear (the page's
-    "Torque on: the arm is clear", the loop's Reset). An arm held already is left alone."""
+    "Torque on: the arm is clear", the loop's Reset), then wait until the loop holds the
+    arm with its torque on. An arm held already is left alone."""
     from armlab.control.commands import Reset
 
     loop = lesson.loop
@@ -226,3 +227,7 @@ def confirm_clear(lesson: Any, timeout: float = 60.0) -> None:
              "the loop holding the arm, or waiting for a person to confirm")
     if loop.status.held_off is not None:
         loop.post(Reset())
+    # until the Reset is taken, a slider moved now is refused ("torque held off"): wait
+    # for the arm held with its torque on, as the person sees it on the status line
+    wait_for(lambda: loop.status.held_off is None and loop.status.active
+             and loop.status.torque_on, timeout, "the arm held with its torque on")
