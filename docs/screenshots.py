@@ -23,7 +23,7 @@ from _helpers import CHROMIUM, CHROMIUM_ARGS, new_page_client  # noqa: E402
 
 from armlab.app.lessons import all_lessons, lesson_order  # noqa: E402
 from armlab.app.page import camera  # noqa: E402
-from armlab.app.server import Lab, ServeOptions  # noqa: E402
+from armlab.app.lab.server import Lab, ServeOptions  # noqa: E402
 
 #: (width, height) of the lesson pictures, CSS px (a 720p projector).
 SIZE = (1280, 720)

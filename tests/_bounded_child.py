@@ -8,7 +8,7 @@ import json
 import resource
 import sys
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 
 
 def peak_kib() -> int:

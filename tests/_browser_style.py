@@ -9,7 +9,7 @@ from _helpers import client_of, wait_for
 
 def chart_props(server: Any, timeout: float = 60.0, *, token: str | None = None) -> list[dict]:
     """The props (series, axes, ...) of every uPlot chart a new page of ``server`` receives
-    (``token``: a gated lab's, armlab.app.gate)."""
+    (``token``: a gated lab's, armlab.app.classroom.gate)."""
     with client_of(server, token=token) as client:
         def charts():
             return [e for e in client.gui.values() if e.kind == "GuiUplotMessage"]

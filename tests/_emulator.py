@@ -164,7 +164,7 @@ def sync_goals(packets: list[bytes], protocol: int | str) -> dict[int, list[int]
     (1, 2 or "sts"): each family lays its goal at the start of the SYNC_WRITE's block
     (protocol 1.0 and STS: the goal position's 2 bytes first; the X-series: the Profile
     Velocity's 4 bytes, then the goal position's 4)."""
-    from armlab.hardware.families import family
+    from armlab.hardware.servos.registry import family
 
     fam = family(protocol)
     codec = fam.codec

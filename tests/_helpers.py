@@ -114,7 +114,8 @@ def served_lesson(build: Callable[[viser.ViserServer, LessonContext], Any],
 @contextmanager
 def client_of(server: viser.ViserServer, *, timeout: float = 30.0,
               token: str | None = None) -> Iterator[HeadlessClient]:
-    """A headless client of ``server`` (presenting ``token`` for a gated lab, armlab.app.gate),
+    """A headless client of ``server`` (presenting ``token`` for a gated lab,
+    armlab.app.classroom.gate),
     returned once the server has registered it."""
     before = set(server.get_clients())
     query = f"/?token={token}" if token else ""

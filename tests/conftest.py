@@ -77,7 +77,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 @pytest.fixture(scope="module", autouse=True)
 def _switch_interval():
     """Each module starts with the interpreter's thread switch interval as the run began:
-    a lab and a real-time loop lower it for their process (armlab.app.server,
+    a lab and a real-time loop lower it for their process (armlab.app.lab.server,
     armlab.control.loop), and a module's timing must not depend on which modules ran
     before it."""
     import sys
@@ -90,7 +90,7 @@ def _switch_interval():
 @pytest.fixture(scope="module")
 def lab():
     """The whole lab on a free port (one per test module)."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0)) as running:
         yield running

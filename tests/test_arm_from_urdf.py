@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons.arm import check_servo_arm
-from armlab.app.server import Lab, ServeOptions
 from armlab.hardware.backends.joint_map import draft_joint_map, load_joint_map
 from armlab.hardware.wire.scan import Found
 from armlab.kinematics import load_robot

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.page.inputs import LIMIT_TITLE
-from armlab.app.server import Lab, ServeOptions
 from armlab.control.params import DEFAULT
 from armlab.kinematics.redundancy import joint_limit_criterion
 from tests._helpers import client_of, hand_at_rest, wait_for

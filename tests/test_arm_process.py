@@ -1,5 +1,5 @@
 """The students' private arms in a worker process
-(armlab/app/classroom/worker_process.py): what a lesson
+(armlab/app/workers/worker_process.py): what a lesson
 reads of an arm is mirrored without a gap, what it asks is answered (a refusal raised
 here), and a worker that dies leaves the server healthy and the next arm working."""
 
@@ -13,7 +13,7 @@ import pytest
 from _helpers import wait_for
 
 from armlab.app.classroom.sandboxes import Sandboxes
-from armlab.app.classroom.worker_process import ArmProcess, RemoteBackend, RemoteLoop
+from armlab.app.workers.worker_process import ArmProcess, RemoteBackend, RemoteLoop
 from armlab.control.backend import BackendError, Pushable
 from armlab.control.commands import EStop, RunTrajectory
 from armlab.control.params import DEFAULT, Params
@@ -63,7 +63,7 @@ def test_a_private_hand_and_quadruped_are_mirrored_from_their_first_period():
     """The worker mirrors a new hand's or quadruped's loop from its first period on,
     which may reach the server before the add's answer: those rows are kept too (a
     command posted at once then lies inside the record, not before it)."""
-    from armlab.app.classroom.class_quadrupeds import PERIOD
+    from armlab.app.workers.class_quadrupeds import PERIOD
     from armlab.control.grip import GripParams
     from armlab.control.walking import GaitSpec
     from armlab.hardware.sim.hand_plant import GraspObject
@@ -166,8 +166,8 @@ def test_a_classroom_runs_its_shared_simulated_arm_in_a_process_of_its_own():
     of its own (not the server, not the class's): E-STOP reaches it, the lesson's Reset
     clears it, another lesson frees it, and closing the lab ends the worker. An arm with
     X-series servos and a gripper, and any arm without --classroom, stays in the server."""
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.lessons._loop_state import post_reset
-    from armlab.app.server import Lab, ServeOptions
     from armlab.control.loop import ControlLoop
 
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
@@ -197,7 +197,7 @@ def test_each_worker_is_scheduled_as_it_says():
     """The shared arm's real-time worker asks for SCHED_FIFO (taken where the OS allows
     it, said otherwise); the class's worker is niced below the server; a worker run as
     fast as possible never holds a real-time priority. Read back from the OS."""
-    from armlab.app.classroom.worker import CLASS_NICE, SHARED_RT_PRIORITY
+    from armlab.app.workers.worker import CLASS_NICE, SHARED_RT_PRIORITY
 
     own = ArmProcess(kind="own", realtime=True)
     fast = ArmProcess(kind="own", realtime=False)
@@ -227,7 +227,7 @@ def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints(
     there, the aim comes back in the mirror, and the hand reaches the target."""
     from pathlib import Path
 
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.control.commands import SetTarget, UseSpareJoints
 
     urdf = Path(__file__).parent / "data" / "five_joint_arm.urdf"

@@ -1,5 +1,5 @@
 """The class's hands: N batched hands and grasp controllers equal N single ones, and the
-loop that runs them (armlab/app/classroom/class_hands.py) gives each student's hand its
+loop that runs them (armlab/app/workers/class_hands.py) gives each student's hand its
 own grasp."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from armlab.app.classroom.class_hands import ClassHands
+from armlab.app.workers.class_hands import ClassHands
 from armlab.control.batched_grip import BatchedGrip
 from armlab.control.experiments.hand_grip import GripOptions, run_grip
 from armlab.control.grip import GripController, GripModel, GripParams

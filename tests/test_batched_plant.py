@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from armlab.control.params import Params
-from armlab.hardware.backends.sim import thesis_registers
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.families.dynamixel1.firmware import ERROR_ANGLE_LIMIT, ERROR_OVERLOAD
+from armlab.hardware.families.dynamixel1.sim_backend import thesis_registers
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.batched_plant import BatchedPlant
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.servo_motor import IDEAL, ServoParams
 from armlab.kinematics import load_robot

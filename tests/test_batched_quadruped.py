@@ -13,14 +13,14 @@ from armlab.control.backend import BackendError
 from armlab.control.gait_loop import GaitLoop
 from armlab.control.periodic import SharedClock
 from armlab.control.walking import GaitSpec, Walker, plan_gait
-from armlab.hardware.servos.servo_spec import AX12A, RX24F
-from armlab.hardware.sim.batched_quadruped import (
+from armlab.hardware.families.dynamixel1.batched_quadruped import (
     BatchedQuadrupedBackend,
     BatchedQuadrupeds,
     leg_groups,
     same_dynamics,
 )
-from armlab.hardware.sim.quadruped import G, QuadrupedSimBackend, total_mass
+from armlab.hardware.families.dynamixel1.quadruped import G, QuadrupedSimBackend, total_mass
+from armlab.hardware.servos.servo_spec import AX12A, RX24F
 from armlab.kinematics.body_statics import (
     contact_forces,
     feet_and_com,
@@ -475,7 +475,7 @@ def test_a_gait_loop_walks_one_robot_of_a_batch_as_it_walks_a_quadruped_backend(
 
 @pytest.mark.slow
 def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> None:
-    """The classroom's way (armlab/app/classroom/class_quadrupeds.py): the loop's periods
+    """The classroom's way (armlab/app/workers/class_quadrupeds.py): the loop's periods
     run on the clock
     that steps the batch (``GaitLoop(clock=)``), the backend only checks the time. The
     record equals the loop's own on a QuadrupedSimBackend, row for row."""
@@ -503,10 +503,10 @@ def test_a_gait_loop_on_the_class_clock_walks_as_on_a_quadruped_backend() -> Non
 
 @pytest.mark.slow
 def test_the_class_walks_each_students_robot_on_its_own() -> None:
-    """armlab/app/classroom/class_quadrupeds.py: robots on the class's clock (its step
+    """armlab/app/workers/class_quadrupeds.py: robots on the class's clock (its step
     CLASS_DT); one walks,
     its neighbour stands; an E-STOP sits that one down alone; a freed robot is gone."""
-    from armlab.app.classroom.class_quadrupeds import CLASS_DT, ClassQuadrupeds
+    from armlab.app.workers.class_quadrupeds import CLASS_DT, ClassQuadrupeds
 
     hands_off = ClassQuadrupeds(realtime=False)
     try:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import rnea
 
@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_without_the_extra_peers_says_how_to_install_it_in_one_line():
     """The peers are optional: where they cannot be imported, one line and exit 2."""
     hide = ("import sys; sys.modules['mujoco'] = None; sys.modules['pinocchio'] = None; "
-            "from armlab.app.cli import main; sys.exit(main(['bench', '--peers', '--quick']))")
+            "from armlab.app.commands.cli import main; "
+            "sys.exit(main(['bench', '--peers', '--quick']))")
     run = subprocess.run([sys.executable, "-c", hide], cwd=ROOT, capture_output=True,
                          text=True, timeout=120)
     assert run.returncode == 2

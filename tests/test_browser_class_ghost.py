@@ -18,8 +18,8 @@ from _helpers import ACTION_TIMEOUT_MS, new_page_client, project, view_png, wait
 from PIL import Image
 
 from armlab.app.classroom.room import GHOST_LABEL
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.page import camera
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.app.viser_ext.handles import scene_nodes
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from _helpers import ACTION_TIMEOUT_MS, wait_for
 
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.control.params import DEFAULT
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]

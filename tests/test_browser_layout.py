@@ -130,7 +130,7 @@ def test_nothing_is_clipped_or_overprinted_in_any_lesson_tab_mode_or_size(browse
 
 @pytest.fixture(scope="module")
 def ik_lab():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, robot="planar_servo_arm")) as running:
         yield running

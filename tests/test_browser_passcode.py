@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from _helpers import wait_for
 
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1800)]
 

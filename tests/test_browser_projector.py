@@ -65,7 +65,7 @@ def _smallest(pg) -> tuple[float, str, int]:
 
 @pytest.fixture(scope="module")
 def projector_lab():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, projector=True)) as running:
         yield running
@@ -178,7 +178,7 @@ def _label_height(pg, label, still: tuple = ()) -> float:
 
 @pytest.mark.parametrize("projector", [False, True])
 def test_scene_label_height(browser, projector, request):
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, projector=projector)) as lab:
         pg = _open(browser, lab)

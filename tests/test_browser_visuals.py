@@ -17,9 +17,9 @@ import re
 import pytest
 from _helpers import new_page_client, wait_for, wait_look_settled
 
+from armlab.app.lab.server import CONTROLS_PX
 from armlab.app.lessons import all_lessons
 from armlab.app.page import camera
-from armlab.app.server import CONTROLS_PX
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 

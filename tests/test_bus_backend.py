@@ -216,7 +216,7 @@ def test_a_torque_off_that_cannot_be_sent_is_never_reported_as_sent():
 
     from _helpers import wait_for
 
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
     from armlab.control.commands import EStop
 

@@ -21,8 +21,8 @@ from _emulator import emulator
 
 from armlab.control.experiments.thesis import line_plan, run_line
 from armlab.control.params import preset
-from armlab.hardware.backends.sim import SimBackend
 from armlab.hardware.families.dynamixel1.backend import DynamixelBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.families.xseries.backend import XSeriesBackend
 from armlab.hardware.families.xseries.sim_backend import XSimBackend
 from armlab.hardware.families.xseries.table import XM430_W350

@@ -22,11 +22,11 @@ from _helpers import client_of, project, settled
 from hypothesis import given
 from hypothesis import strategies as st
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons import all_lessons
 from armlab.app.lessons.compliance_scene import TRAIL_DOTS, ComplianceScene
 from armlab.app.page import camera
 from armlab.app.page.camera import FILL, View, frame_points, node_points
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.app.viser_ext.handles import scene_nodes
 from armlab.kinematics import load_robot

@@ -18,14 +18,14 @@ import pytest
 from _helpers import served_lesson, wait_for
 from test_exercises import reference_file
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
+from armlab.app.arm.student_law import StudentLaw, law_loop
 from armlab.app.lessons import LessonContext
 from armlab.app.lessons import hand as hand_lesson
 from armlab.app.lessons import quadruped as quad_lesson
+from armlab.app.lessons.challenge_panel import start_run
 from armlab.app.lessons.compliance_challenge import restart_arm, restarted
 from armlab.app.lessons.restart_challenge import STAND_S, WALK_TAIL
-from armlab.app.page.challenge_panel import start_run
-from armlab.app.student_law import StudentLaw, law_loop
 from armlab.control.challenges import PRESETS, RunLog, RunSpec, judge
 from armlab.control.commands import RunTrajectory
 from armlab.control.params import DEFAULT
@@ -264,7 +264,7 @@ def test_two_students_hands_in_one_class_score_a_grasp_alike_after_other_grasps(
     """Two students' private hands on the class's one batched loop: one closed first at
     another force, the other's run made while the first one's hand is closing; the same
     force limit gives both the same figures, every digit."""
-    from armlab.app.classroom.class_hands import ClassHands
+    from armlab.app.workers.class_hands import ClassHands
 
     hands = ClassHands(realtime=False)
     ctx = LessonContext(realtime=False, arms=_Seats(hands))

@@ -19,8 +19,8 @@ import pytest
 from _helpers import wait_for
 from test_challenges import PASSING, _present, _student
 
-from armlab.app.page.challenge_panel import figures_of
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
+from armlab.app.lessons.challenge_panel import figures_of
 from armlab.control.challenges import (
     GRADEBOOK_ENCODING,
     NOT_A_CHALLENGE_RUN,
@@ -32,7 +32,7 @@ from armlab.control.commands import Push, Reset, RunTrajectory
 from armlab.control.loop import ControlLoop
 from armlab.control.restart import RestartableArm
 from armlab.control.trajectory import minimum_jerk
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics.catalog import load_robot
 
 STEP = PRESETS["step"]

@@ -13,8 +13,8 @@ import math
 import pytest
 from _helpers import wait_for
 
-from armlab.app.page.challenge_panel import figures_of
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
+from armlab.app.lessons.challenge_panel import figures_of
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.challenges import (
     PRESETS,

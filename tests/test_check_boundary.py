@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.exercises import boundary, check_file, core, get
 
 #: thesis eq. 3.13 with one planted mistake (z's sign): right only where z = 0.

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.exercises import check_file, get
 from armlab.exercises.core import ValueCase, judge_value
 

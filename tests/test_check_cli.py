@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from test_exercises import LEG_IK
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.exercises import EXERCISES, get
 
 

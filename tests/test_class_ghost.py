@@ -18,8 +18,8 @@ import viser
 from _helpers import client_of, project, settled, wait_for
 
 from armlab.app.classroom.room import GHOST_LABEL, GHOST_ROOT
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.page import camera
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.app.viser_ext.handles import scene_nodes
 

@@ -20,7 +20,10 @@ from test_challenge_restart import WALK, _run, _sim_to
 from armlab.app.classroom.sandboxes import Sandboxes
 from armlab.app.lessons import LessonContext
 from armlab.app.lessons import quadruped as quad_lesson
-from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+from armlab.hardware.families.dynamixel1.batched_quadruped import (
+    BatchedQuadrupedBackend,
+    BatchedQuadrupeds,
+)
 
 
 @pytest.mark.slow

@@ -19,7 +19,7 @@ from armlab.app.classroom.roles import (
     normal_passcode,
     qr_svg,
 )
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.params import DEFAULT
 from armlab.control.runs import read_run
@@ -429,7 +429,7 @@ def test_a_page_with_its_own_arm_is_not_sent_the_shared_stream_and_catches_up(cl
 def test_closing_a_class_while_its_clock_steps_frees_every_arm():
     """The class closing (the lab closing, or a test ending) while its clock is stepping:
     every arm is freed after the clock stopped, never while a tick steps its plant."""
-    from armlab.app.classroom.class_arms import ClassArms
+    from armlab.app.workers.class_arms import ClassArms
     from armlab.kinematics import load_robot
 
     model = load_robot("receptionist_arm", preset="18.5/25")
@@ -527,7 +527,7 @@ def test_a_seat_keeps_its_students_hand_and_quadruped_and_frees_them_when_idle()
 @pytest.mark.slow
 def test_a_private_open_manipulator_x_has_its_x_series_servos():
     """A student's own OpenManipulator-X is simulated with its XM430-W350 firmware model,
-    as the shared one is (armlab.app.backends.make_backend), not with the thesis arm's RX-24F:
+    as the shared one is (armlab.app.arm.backends.make_backend), not with the thesis arm's RX-24F:
     it reports currents and turns to a goal; freeing it closes it."""
     from armlab.app.classroom.sandboxes import Sandboxes
     from armlab.control.commands import RunTrajectory

@@ -56,7 +56,7 @@ def test_the_classroom_s_shared_so101_simulates_sts3215_servos():
     """``serve --classroom --robot so101``: the arm lesson's shared arm is an STS3215
     firmware model with its jaw's servo, in the server (the worker process simulates
     RX-24F only), and the Servos panel's words name the model."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, classroom=True, robot="so101", lesson="arm",
                           realtime=False)) as lab:

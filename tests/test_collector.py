@@ -1,4 +1,4 @@
-"""The garbage collector kept out of the loops' way (armlab.app.collector): what a lab keeps is
+"""The garbage collector kept out of the loops' way (armlab.control.collector): what a lab keeps is
 frozen, a closed lesson's garbage is freed at the next tidy, not before; a closed lab's
 is handed back to the collector's own passes."""
 
@@ -9,7 +9,7 @@ import weakref
 
 import pytest
 
-from armlab.app import collector
+from armlab.control import collector
 
 
 class _Node:

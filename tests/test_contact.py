@@ -16,8 +16,8 @@ import json
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
-from armlab.app.cli import main
+from armlab.app.arm.backends import make_backend
+from armlab.app.commands.cli import main
 from armlab.control.experiments.contact import (
     PD_NOTE,
     contact_figures,

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from _helpers import wait_for
 
-from armlab.app.backends import make_backend
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.arm.backends import make_backend
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.control.challenges import PRESETS, judge
 from armlab.control.experiments.contact import run_contact
 from armlab.control.params import DEFAULT

@@ -17,7 +17,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.control.commands import Reset, RunTrajectory
 from armlab.control.experiments.contact import contact_plan, recorded_contact
 from armlab.control.loop import ControlLoop

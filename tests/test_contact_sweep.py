@@ -15,7 +15,7 @@ from armlab.control.experiments.contact_sweep import (
     numbers,
     run_sweep,
 )
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 
 
 def factory(model, q0):

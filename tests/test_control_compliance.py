@@ -11,7 +11,7 @@ from armlab.control.commands import Push
 from armlab.control.compliance import ComplianceController, ControllerState, environment_step, lpf
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")

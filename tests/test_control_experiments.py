@@ -13,7 +13,7 @@ from contextlib import redirect_stderr, redirect_stdout
 import numpy as np
 import pytest
 
-from armlab.app.cli import build_parser, main
+from armlab.app.commands.cli import build_parser, main
 from armlab.app.commands.experiment import options_of
 from armlab.control.experiments import all_experiments
 

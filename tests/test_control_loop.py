@@ -11,7 +11,7 @@ from armlab.control.commands import EStop, Push, Reset, RunTrajectory, SetTarget
 from armlab.control.loop import ControlLoop
 from armlab.control.params import DEFAULT, REFUSED_ON_SERVOS, Params, check_gains
 from armlab.control.trajectory import minimum_jerk, thesis_line
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")
@@ -310,7 +310,7 @@ def test_a_target_dragged_near_a_joint_limit_moves_the_hand_without_a_fault():
     caught): a target 2 cm aside and 2 cm down asks one RMRC step for some 10 rad/s of
     wrist_flex, which the loop took for unstable gains (torque off). The step is held to
     TARGET_MAX_JOINT_SPEED: no fault, the hand goes towards the target."""
-    from armlab.app.backends import loop_over, make_backend
+    from armlab.app.arm.backends import loop_over, make_backend
     from armlab.control.loop import TARGET_MAX_JOINT_SPEED
 
     model = load_robot("so101")

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control.experiments.observers import observers
 
 

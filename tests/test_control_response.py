@@ -20,7 +20,7 @@ from armlab.control.response import (
     simulate_ideal_joint_step,
 )
 from armlab.control.trajectory import thesis_line
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import load_robot
 
 ARM = load_robot("receptionist_arm")

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from _emulator import emulator
 
-from armlab.app.backends import make_backend
-from armlab.app.cli import main
+from armlab.app.arm.backends import make_backend
+from armlab.app.commands.cli import main
 from armlab.control.experiments.contact import wall_across_line
 from armlab.control.experiments.thesis import run_line
 from armlab.control.params import DEFAULT

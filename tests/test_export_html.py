@@ -1,5 +1,5 @@
 """The page to hand in (issue 36, item 4): ``armlab export RUN --html OUT`` and
-:func:`armlab.app.export_html.export_html` write one self-contained HTML file that names
+:func:`armlab.app.export.html.export_html` write one self-contained HTML file that names
 nothing outside itself, opens from disk in a real headless Chromium with every request
 blocked (and asks for nothing), draws the arm in 3D (pixels that change with the time
 slider), shows the run's figures as text and runs nothing a hostile run file holds.
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from _helpers import expected_console, wait_for
 
-from armlab.app.cli import main
-from armlab.app.export_charts import envelope_indices
-from armlab.app.export_html import MAX_FRAMES, POSITION_SCALE, export_html, write_html
+from armlab.app.commands.cli import main
+from armlab.app.export.charts import envelope_indices
+from armlab.app.export.html import MAX_FRAMES, POSITION_SCALE, export_html, write_html
 from armlab.control.runs import Run, RunFileError, lab_version, read_run, write_run
 from armlab.kinematics import load_robot
 

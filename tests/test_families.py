@@ -13,18 +13,11 @@ import tty
 import pytest
 
 from armlab.hardware.backends.joint_map import default_joint_map, servo_table
-from armlab.hardware.families import (
-    DYNAMIXEL1,
-    FAMILIES,
-    STS,
-    XSERIES,
-    family,
-    family_of_model,
-    family_of_spec,
-)
+from armlab.hardware.families import DYNAMIXEL1, STS, XSERIES
 from armlab.hardware.families.feetech import packets as ft
 from armlab.hardware.families.feetech.table import STS3215, STS3215_TABLE
 from armlab.hardware.families.xseries.table import XM430_W350
+from armlab.hardware.servos.registry import FAMILIES, family, family_of_model, family_of_spec
 from armlab.hardware.wire.bus import Bus
 from armlab.kinematics.catalog import load_robot
 
@@ -118,8 +111,8 @@ def test_a_bus_speaks_sts_through_a_real_pty():
 def test_every_family_names_its_serial_and_simulated_backends():
     from armlab.hardware import family_parts
     from armlab.hardware.backends.servo_bus import ServoBusBackend
-    from armlab.hardware.backends.sim import SimBackend
-    from armlab.hardware.families import FAMILIES
+    from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
+    from armlab.hardware.servos.registry import FAMILIES
 
     for f in FAMILIES:
         assert issubclass(family_parts.load(f, "real_backend"), ServoBusBackend)
@@ -135,9 +128,9 @@ def test_every_family_names_its_serial_and_simulated_backends():
 def test_every_familys_packet_module_is_its_codec():
     """Each family's codec offers what the bus, the scan and the emulator call, its
     parser counts what it dropped, and a family without SYNC_READ says so."""
-    from armlab.hardware.families import FAMILIES
-    from armlab.hardware.families.base import Codec
     from armlab.hardware.families.dynamixel1 import packets as p1
+    from armlab.hardware.servos.family import Codec
+    from armlab.hardware.servos.registry import FAMILIES
 
     for f in FAMILIES:
         codec: Codec = f.codec  # (mypy checks each module against Codec where they are made)

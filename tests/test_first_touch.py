@@ -24,7 +24,7 @@ import pytest
 from _emulator import ROOT, emulator, sync_goals
 from _helpers import client_of, wait_for
 
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.control.trajectory import APPROACH_SPEED, approach_duration
 from armlab.hardware.backends.joint_map import default_joint_map
 from armlab.kinematics.catalog import load_robot

@@ -18,11 +18,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from armlab.app.gate import DROPS
+from armlab.app.classroom.gate import DROPS
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons import all_lessons
 from armlab.app.lessons.compliance_controls import slider_label
 from armlab.app.page.inputs import UpdateScreen, clamp_to_range, why_bad_value
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 pytestmark = pytest.mark.timeout(600)

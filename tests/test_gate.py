@@ -1,4 +1,4 @@
-"""The gate in front of the lab's websocket (armlab/app/gate.py): token and Origin, before
+"""The gate in front of the lab's websocket (armlab/app/classroom/gate.py): token and Origin, before
 any state.
 
 Raw websocket clients and a real Chromium, against the whole lab on a free loopback port.
@@ -20,7 +20,7 @@ from _helpers import wait_for
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from armlab.app.gate import COOKIE, PRESENTER_COOKIE, Gate, check_token
+from armlab.app.classroom.gate import COOKIE, PRESENTER_COOKIE, Gate, check_token
 from armlab.app.testing.wsclient import HeadlessClient
 from armlab.control.params import DEFAULT
 

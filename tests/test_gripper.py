@@ -19,8 +19,8 @@ import pytest
 from _emulator import emulator, goal_positions
 from _helpers import client_of, wait_for
 
-from armlab.app.backends import make_backend
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.arm.backends import make_backend
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.control.backend import BackendError
 from armlab.control.commands import SetGripper
 from armlab.control.loop import ControlLoop

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control.experiments.hand_grip import GripOptions, run_grip
 from armlab.control.grip import (
     GripController,

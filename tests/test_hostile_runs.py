@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from armlab.app.export_charts import MAX_TICKS, nice_ticks
-from armlab.app.export_html import export_html
+from armlab.app.export.charts import MAX_TICKS, nice_ticks
+from armlab.app.export.html import export_html
 from armlab.control.recorder import SIGNALS
 from armlab.control.run_read import CPU_BOUND_S, MEMORY_BOUND_MIB
 from armlab.control.runs import (

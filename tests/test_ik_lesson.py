@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.app.lessons import LessonContext
 from armlab.app.lessons.ik_accuracy import BAD_RGB, OK_RGB, TARGET_LIMIT_CM, build
 from armlab.app.page.inputs import LIMIT_TITLE

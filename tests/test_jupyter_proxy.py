@@ -42,8 +42,8 @@ pytest.importorskip("jupyter_server_proxy")
 from websockets.datastructures import Headers  # noqa: E402
 from websockets.http11 import Request, Response  # noqa: E402
 
-from armlab.app.gate import COOKIE, Gate  # noqa: E402
-from armlab.app.jupyter import TOKEN_ENV, setup_armlab  # noqa: E402
+from armlab.app.classroom.gate import COOKIE, Gate  # noqa: E402
+from armlab.app.lab.jupyter import TOKEN_ENV, setup_armlab  # noqa: E402
 from armlab.app.testing.wsclient import HeadlessClient  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,7 +6,12 @@ package's layers, ``armlab/app``, ``armlab/exercises``, ``armlab/control``,
 kinematics, and only app imports viser. An import inside a function counts as one at the
 top (it runs when the function does). An import inside ``if TYPE_CHECKING:`` names a type
 for an annotation only; it counts for the layers (an annotation must not point upwards
-either) but not for circles (it never runs).
+either) but not for circles of modules (it never runs).
+
+Inside each layer its folders are layers too: no two folders (``hardware/wire``,
+``hardware/families/xseries``, ``app/lessons``, a layer's own top folder...) import each
+other, directly or round a circle, type-only imports included: a reader can take a
+folder's parts as standing on the folders below it.
 """
 
 from __future__ import annotations
@@ -165,6 +170,31 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def folder_of(path: Path) -> str:
+    """The folder a module's file is in, from the package folder: ``hardware/wire``."""
+    return path.relative_to(PACKAGE).parent.as_posix()
+
+
+def folder_graph() -> dict[str, dict[str, list[str]]]:
+    """Folder -> the other folders its modules import (type-only imports too) -> the
+    imports that do, ``file:line imports target``."""
+    found = all_imports()
+    graph: dict[str, dict[str, list[str]]] = {}
+    for name, (path, imps) in found.items():
+        edges = graph.setdefault(folder_of(path), {})
+        for imp in imps:
+            target = imp.target
+            while target and target not in found:
+                target = target.rpartition(".")[0]
+            if not target or target == name:
+                continue
+            to = folder_of(found[target][0])
+            if to != folder_of(path):
+                edges.setdefault(to, []).append(
+                    f"{path.relative_to(ROOT)}:{imp.line} imports {imp.target}")
+    return graph
+
+
 def upward_imports() -> list[str]:
     """Every import (type-only ones too) that points to a layer above its own, or to
     viser outside app: ``file:line imports target``."""
@@ -183,7 +213,7 @@ def test_graph_sees_the_packages():
     """The graph holds every module and the imports between them (a test that read no
     edges would pass whatever the code does)."""
     graph = import_graph()
-    assert "armlab.app.server" in graph and "armlab.kinematics.fk" in graph
+    assert "armlab.app.lab.server" in graph and "armlab.kinematics.fk" in graph
     # two of the imports it must see (fk -> transforms, model -> fk)
     assert "armlab.kinematics.transforms" in graph["armlab.kinematics.fk"]
     assert "armlab.kinematics.fk" in graph["armlab.kinematics.model"]
@@ -204,3 +234,21 @@ def test_imports_point_downwards():
     viser."""
     bad = upward_imports()
     assert not bad, "imports pointing upwards:\n" + "\n".join(bad)
+
+
+@pytest.mark.slow
+def test_no_two_folders_import_each_other():
+    """The folders of each layer stand on one another: no circle of folders importing
+    each other (the imports that close each circle are listed)."""
+    graph = folder_graph()
+    # the graph sees the folders and an import between two of them (hardware/wire's bus
+    # stands on hardware/servos' registry)
+    assert "hardware/families/xseries" in graph and "app/lessons" in graph
+    assert "hardware/servos" in graph["hardware/wire"]
+    found = cycles({a: set(b) for a, b in graph.items()})
+    lines = []
+    for circle in found:
+        lines.append(" <-> ".join(circle))
+        lines += [f"    {e}" for a in circle for b in circle if b in graph[a]
+                  for e in graph[a][b][:3]]
+    assert not found, "folders importing each other:\n" + "\n".join(lines)

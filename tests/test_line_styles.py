@@ -15,9 +15,9 @@ import pytest
 from _browser_style import chart_props
 from _helpers import served_lesson, settled
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
 from armlab.app.page.plots import COLORS, distinct_styles
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 #: Okabe-Ito (armlab.app.page.plots.COLORS) and the greys of zero and limit lines

@@ -18,8 +18,8 @@ pytestmark = pytest.mark.realtime  # the emulator's real-time physics over a pse
 
 
 def test_link_killed_mid_run_the_lab_says_so_and_run_says_why_nothing_happens(tmp_path):
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.lessons._loop_state import UNSENT_BANNER
-    from armlab.app.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
 
     with emulator(log_dir=tmp_path) as emu:
@@ -50,9 +50,9 @@ def test_x_series_link_killed_mid_run_the_arm_lesson_says_so_and_why_goals_do_no
     emulator is SIGKILLed while the loop holds the arm; the page's status line says, once,
     that the torque-off could not be sent (never "torque off"), and a slider or Reset says
     why nothing happened, each once; nothing on stderr is a traceback."""
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.lessons._loop_state import UNSENT_BANNER
     from armlab.app.lessons.arm import ArmLesson
-    from armlab.app.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
 
     with emulator("--robot", "open_manipulator_x") as emu:
@@ -85,7 +85,7 @@ def test_emulator_restarted_under_its_link_the_lab_reconnects_and_waits_for_rese
     """A re-plug: the device path (here ``emulate --link``, as a /dev/serial/by-id name)
     comes back with new servos behind it; the lab finds them, configures them, keeps the
     torque off and says so; Reset while the link is down says why nothing happened."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
 
     link = tmp_path / "by-id" / "usb-armlab-emulator"
@@ -133,7 +133,7 @@ def _outcome(kind: str, rate: float, *, robot: str = "receptionist_arm",
     """Serve the lab for ``robot`` on an emulator (``emulate``: more of its options) whose
     replies are ``kind`` at ``rate``; returns ("refused" | "stopped" | "hold" | "hold,
     told", the message or status line)."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.testing.wsclient import HeadlessClient
     from armlab.control.backend import BackendError
     from armlab.control.commands import Reset

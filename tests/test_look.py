@@ -7,8 +7,8 @@ from __future__ import annotations
 import pytest
 from _helpers import wait_for
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.page.look import RENDERER_KEY, is_software
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 #: WebGL renderer names as browsers report them (UNMASKED_RENDERER_WEBGL)

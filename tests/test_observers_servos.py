@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.app.commands.emulate import parse_disturbance
 from armlab.control.experiments.observers import (
     dob_series,
@@ -17,7 +17,7 @@ from armlab.control.experiments.observers import (
     step_figures,
     step_index,
 )
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.families.xseries.sim_backend import XSimBackend
 from armlab.hardware.families.xseries.table import XL430_W250, XM430_W350
 from armlab.hardware.sim.plant import Plant

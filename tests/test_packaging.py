@@ -79,7 +79,7 @@ def test_the_wheel_holds_every_module_and_robot_of_the_repository(wheel: Path):
 def test_a_clone_imports_armlab_from_its_root_without_an_install(tmp_path: Path):
     """From the checkout's root, ``import armlab`` is the checkout's package, whatever is
     installed: the folder is the package (no one-file shim shadows an install)."""
-    code = ("import armlab, armlab.control.loop, armlab.app.cli\n"
+    code = ("import armlab, armlab.control.loop, armlab.app.commands.cli\n"
             "print(armlab.__file__)\nprint(armlab.control.loop.__file__)")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     out = subprocess.run([sys.executable, "-S", "-c",
@@ -108,7 +108,7 @@ def test_the_wheel_installed_beside_python_control_leaves_both_working(
     assert packages == ["armlab"]
     assert (target / "bin" / "armlab").is_file()
     code = "\n".join([
-        "import control, armlab, armlab.control.loop, armlab.app.cli",
+        "import control, armlab, armlab.control.loop, armlab.app.commands.cli",
         f"assert armlab.__file__.startswith({str(target)!r}), armlab.__file__",
         "assert not control.__file__.startswith(" + repr(str(target)) + ")",
         "sys_ = control.tf([1.0], [1.0, 2.0, 1.0])",  # python-control's transfer function

@@ -4,8 +4,8 @@
 import numpy as np
 import pytest
 
-from armlab.hardware.backends.sim import thesis_registers
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters
+from armlab.hardware.families.dynamixel1.sim_backend import thesis_registers
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.servo_motor import IDEAL

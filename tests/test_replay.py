@@ -263,7 +263,7 @@ def test_a_students_private_arm_saves_and_replays_its_own_run():
     """In a classroom a student's "My arm" runs in the class's worker process; its page's
     Save run holds that arm's record (the server's mirror of it), and Open run replays on
     that page only, with no "only the presenter" refusal for the page's own upload."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         before = set(lab.server.get_clients())
@@ -307,7 +307,7 @@ def test_a_students_private_arm_saves_and_replays_its_own_run():
 def test_the_arm_lesson_saves_and_replays_too():
     """The any-arm lesson (the SO-101 here) has the same Files tab: the push saved as its
     run, which replays on its own ghost."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, robot="so101")) as lab, \
             HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:

@@ -182,7 +182,7 @@ def _grasp(page: HeadlessClient, lesson) -> None:  # noqa: ANN001
 
 @served
 def test_the_hand_lesson_saves_replays_and_exports_a_grasp():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, lesson="hand")) as lab, \
             HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
@@ -206,7 +206,7 @@ def test_the_hand_lesson_saves_replays_and_exports_a_grasp():
 
 @served
 def test_the_quadruped_lesson_saves_measured_angles_replays_and_exports_a_walk():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, robot="quadruped")) as lab, \
             HeadlessClient(lab.url.replace("http://", "ws://")).connect() as page:
@@ -233,7 +233,7 @@ def test_a_students_private_hand_and_quadruped_save_and_replay_their_own_runs():
     """In a classroom a student's hand and quadruped run in the class's worker process;
     their page's Save run holds that robot's record (the server's mirror of it), and Open
     run replays on that page only."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         before = set(lab.server.get_clients())

@@ -158,7 +158,7 @@ def test_a_run_keeps_only_new_rows_and_stops_at_its_bound():
 def test_the_students_law_is_in_the_file_with_its_hash(tmp_path):
     from test_serve_exercise import law_file
 
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     path = law_file(tmp_path)
     with Lab(ServeOptions(http_port=0, exercise=str(path), realtime=False)) as lab:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control import runs
 from armlab.control.recorder import CONTACT_SIGNALS, SIGNALS, Recorder
 from armlab.control.runs import (
@@ -449,7 +449,7 @@ def test_save_run_writes_what_read_run_reads_with_the_figures(tmp_path, capsys, 
 @pytest.mark.slow
 def test_thesis_line_run_holds_the_loop_record_bit_for_bit(tmp_path):
     """The file's poses are the loop's own recording, not a copy rounded on the way."""
-    from armlab.app.cli import build_parser
+    from armlab.app.commands.cli import build_parser
     from armlab.app.commands.experiment import FACTORIES, experiment_run, options_of
     from armlab.control.experiments import all_experiments
 

@@ -8,7 +8,7 @@ from contextlib import redirect_stdout
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control.experiments.seed002 import circle
 from armlab.kinematics import load_robot
 from armlab.kinematics.redundancy import (

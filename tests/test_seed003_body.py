@@ -14,11 +14,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control.experiments.seed003 import walk_on_servos
 from armlab.control.gait_loop import GaitLoop
 from armlab.control.walking import GaitSpec, Walker, plan_gait
-from armlab.hardware.sim.quadruped import G, QuadrupedSimBackend, total_mass
+from armlab.hardware.families.dynamixel1.quadruped import G, QuadrupedSimBackend, total_mass
 from armlab.kinematics.body_statics import (
     contact_forces,
     implied_tilt_deg,
@@ -203,8 +203,8 @@ def test_the_emulators_legs_carry_the_weight_once_however_often_the_bus_ticks():
     second, ticked 8 times per plant step or once, the legs sag alike and the body tilts
     alike (a load renewed per tick, not per step, once carried the weight several times
     over in the steps a burst of packets fell in)."""
-    from armlab.hardware.backends.sim import goal_positions
     from armlab.hardware.families.dynamixel1.emulator import emulated_network
+    from armlab.hardware.families.dynamixel1.sim_backend import goal_positions
 
     model = load_robot("quadruped")
     q0 = Walker(plan_gait(GaitSpec())).state().q

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 from armlab.control.experiments.seed004_data import TABLE1
 from armlab.kinematics import load_robot
 from armlab.kinematics.planar_ik import (

@@ -23,8 +23,8 @@ import pytest
 from _helpers import wait_for
 from test_exercises import reference_file
 
-from armlab.app.backends import make_backend
-from armlab.app.student_law import (
+from armlab.app.arm.backends import make_backend
+from armlab.app.arm.student_law import (
     BUDGET_FRACTION,
     LIVE_EXERCISES,
     LawLoop,
@@ -92,7 +92,7 @@ def line_of(path: Path, text: str) -> int:
 
 
 def armlab(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "armlab.app.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "armlab.app", *args], capture_output=True,
                           text=True, timeout=120)
 
 
@@ -230,7 +230,7 @@ def test_an_exercise_with_no_live_lesson_is_refused_naming_those_that_have_one(t
 def served(tmp_path):
     """The lab serving a correct law (the lab's own as the student's file), and a page
     (a headless client: the lesson's frames, and so its measurements, run for pages)."""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     path = law_file(tmp_path)
     with Lab(ServeOptions(http_port=0, exercise=str(path))) as lab, \
@@ -329,7 +329,7 @@ def test_while_the_law_fails_commands_are_refused_and_the_status_says_so_in_red(
 
 @pytest.mark.realtime
 def test_the_any_arm_lesson_runs_the_law_too_with_its_reference(tmp_path):
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     path = law_file(tmp_path)
     with Lab(ServeOptions(http_port=0, robot="open_manipulator_x",
@@ -361,7 +361,7 @@ def test_the_any_arm_lesson_runs_the_law_too_with_its_reference(tmp_path):
 
 
 def test_a_lesson_without_a_live_law_is_refused_before_serving(tmp_path):
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with pytest.raises(ValueError, match="lesson hand runs no law of yours.*compliance and arm"):
         Lab(ServeOptions(http_port=0, lesson="hand", exercise=str(law_file(tmp_path))))

@@ -17,7 +17,7 @@ from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.periodic import SharedClock
 from armlab.control.trajectory import minimum_jerk, thesis_line
-from armlab.hardware.backends.batched import (
+from armlab.hardware.families.dynamixel1.batched_backend import (
     POSITION_WORDS,
     SIGNED_WORDS,
     BatchedArmBackend,
@@ -25,10 +25,10 @@ from armlab.hardware.backends.batched import (
     decode_words,
     word_tables,
 )
-from armlab.hardware.backends.sim import SimBackend, decode_reports
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant, ReportWords
 from armlab.hardware.families.dynamixel1.firmware import ServoReport
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend, decode_reports
 from armlab.hardware.servos.servo_spec import AX12A, RX24F
-from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
 from armlab.kinematics import load_robot
 
 MODEL = load_robot("receptionist_arm")

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.control.backend import Backend, BackendError, Pushable
-from armlab.hardware.backends.sim import SimBackend
 from armlab.hardware.families.dynamixel1.firmware import ERROR_OVERLOAD
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import AX12A, RX24F
 from armlab.kinematics import load_robot
 

@@ -30,9 +30,9 @@ import pytest
 from _emulator import ROOT, emulator, pull_the_cable
 from _helpers import client_of, confirm_clear, hand_at_rest, wait_for
 
-from armlab.app.backends import loop_over, make_backend
+from armlab.app.arm.backends import loop_over, make_backend
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons.arm import ArmLesson
-from armlab.app.server import Lab, ServeOptions
 from armlab.control.commands import Reset, RunTrajectory
 from armlab.control.params import DEFAULT
 from armlab.control.trajectory import hold

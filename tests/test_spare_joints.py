@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.control.commands import MAX_NULL_SPACE_GAIN, SetTarget, UseSpareJoints
 from armlab.control.loop import SPARE_MAX_SPEED, ControlLoop
 from armlab.kinematics import load_robot

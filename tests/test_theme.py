@@ -77,7 +77,7 @@ COMPLIANCE_LABELS = 2
 
 @pytest.fixture(scope="module")
 def lab():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0)) as running:
         yield running
@@ -133,7 +133,7 @@ def test_a_reload_keeps_the_browser_choice(lab):
 
 @pytest.mark.slow
 def test_serve_projector_is_the_default_of_a_browser_without_a_choice():
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with Lab(ServeOptions(http_port=0, projector=True)) as lab:
         fresh, fresh_id = _page(lab)

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 TOY = {
     "__init__.py": '''
         """The toy servo (TOY-1): a clone speaking protocol 1.0's frames, its entry."""
-        from armlab.hardware.families.base import ServoFamily
+        from armlab.hardware.servos.family import ServoFamily
         from toyservo import packets
         from toyservo.firmware import ToyServoModel
         from toyservo.table import TABLES, TOY1_TABLE, table_for
@@ -124,7 +124,7 @@ sys.path.insert(0, sys.argv[1])
 
 import toyservo
 from armlab.hardware import family_parts
-from armlab.hardware.families import family, family_of_spec
+from armlab.hardware.servos.registry import family, family_of_spec
 
 family_parts.register(toyservo.FAMILY, family_parts.Parts(
     real_backend=lambda: __import__("toyservo.backend").backend.ToyBackend,

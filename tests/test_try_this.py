@@ -8,8 +8,8 @@ import re
 import pytest
 from _helpers import settled
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons import all_lessons
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 

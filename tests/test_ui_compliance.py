@@ -522,7 +522,7 @@ def test_unstable_gains_on_servos_are_refused_with_one_message_and_the_slider_ba
     """On (emulated) servos a change to gains whose sampled loop diverges is refused by
     the loop's rule, applied once: one notification says why, the slider goes back, the
     loop keeps its gains. (A simulated arm takes them: the lab's other tests.)"""
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with emulator(log_dir=tmp_path) as emu, \
             Lab(ServeOptions(backend="serial", port=emu.port, http_port=0)) as lab, \

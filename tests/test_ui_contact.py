@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, settled, wait_for
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.app.lessons import LessonContext
 from armlab.app.lessons import compliance as compliance_lesson
 from armlab.app.lessons.compliance_contact import (

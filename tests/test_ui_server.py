@@ -6,8 +6,8 @@ import time
 
 import pytest
 
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.lessons import all_lessons, default_lesson
-from armlab.app.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock

@@ -16,7 +16,7 @@ from armlab.control.experiments.contact import contact_plan, recorded_contact
 from armlab.control.loop import ControlLoop
 from armlab.control.params import DEFAULT
 from armlab.control.virtual_wall import rendered_wall, wall_force
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics.catalog import load_robot
 
 ARM = load_robot("receptionist_arm")
@@ -115,7 +115,7 @@ def test_armlab_experiment_contact_on_servos_runs_into_the_wall_the_law_renders(
 
     from _emulator import emulator
 
-    from armlab.app.backends import make_backend
+    from armlab.app.arm.backends import make_backend
     from armlab.control.experiments.contact import run_contact, wall_across_line
     from armlab.control.trajectory import thesis_line
 
@@ -148,7 +148,7 @@ def test_the_contact_tab_on_servos_runs_the_hand_into_the_wall_the_law_renders()
     from _emulator import emulator
     from _helpers import wait_for
 
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.control.trajectory import thesis_line
 
     line = thesis_line(ARM)

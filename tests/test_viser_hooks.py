@@ -64,7 +64,7 @@ def test_serve_refuses_to_start_when_the_gates_hook_target_is_absent():
         import sys
         from viser.infra import _infra
         del _infra._message_consumer  # as if viser had renamed its receive loop
-        from armlab.app.cli import main
+        from armlab.app.commands.cli import main
         sys.exit(main(["serve", "--http-port", "{port}"]))
     """)
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
@@ -84,8 +84,8 @@ def test_a_lab_whose_server_bypassed_the_gate_stops_it_and_raises(monkeypatch):
     it got and raises; no port is left accepting."""
     from viser.infra import _infra
 
-    from armlab.app.gate import Gate, gated, new_token
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.classroom.gate import Gate, gated, new_token
+    from armlab.app.lab.server import Lab, ServeOptions
 
     with gated(Gate(new_token())) as placed:  # the stand-in is now in viser's module
         pass

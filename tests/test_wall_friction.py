@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.batched_plant import BatchedPlant
 from armlab.hardware.sim.plant import FRICTION_DAMPING, Plant, _Wall, _wall_friction
 from armlab.kinematics.catalog import load_robot
 

@@ -26,8 +26,8 @@ import pytest
 from _emulator import ROOT, emulator, goal_positions
 from _helpers import client_of, confirm_clear, wait_for
 
-from armlab.app.backends import make_backend
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.arm.backends import make_backend
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.hardware.backends.joint_map import default_joint_map
 from armlab.hardware.families.xseries import packets as p2
 from armlab.hardware.families.xseries.backend import XSeriesBackend

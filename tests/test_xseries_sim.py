@@ -13,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.control.experiments.thesis import line_plan, run_line
 from armlab.control.params import preset
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.families.xseries.sim_backend import XSimBackend
 from armlab.hardware.families.xseries.table import (
     CURRENT_POSITION_D_GAIN,

@@ -200,7 +200,7 @@ def test_a_bad_emulate_fault_gets_one_line_naming_the_flags(text, why):
 
 
 def test_the_emulator_refuses_fault_on_protocol_1_servos_before_it_serves(capsys):
-    from armlab.app.cli import main
+    from armlab.app.commands.cli import main
 
     assert main(["emulate", "--robot", "receptionist_arm", "--fault", "1:overload@1"]) == 2
     out, err = capsys.readouterr()

@@ -2,7 +2,7 @@
 
 import sys
 
-from armlab.app.cli import main
+from armlab.app.commands.cli import main
 
 if __name__ == "__main__":  # not when a worker process imports it again
     sys.exit(main())

@@ -1,6 +1,7 @@
 """The one interface the controller sees of the servos: the ``Backend`` protocol.
 
-It is met in two ways. Simulated: ``armlab.hardware.backends.sim.SimBackend`` (an arm and
+It is met in two ways. Simulated: ``armlab.hardware.families.dynamixel1.sim_backend.SimBackend`` (an
+arm and
 its servos; ``XSimBackend``, ``StsSimBackend`` for the X-series and Feetech models, with a
 gripper), ``BatchedArmBackend`` (one arm of a class's batched plant),
 ``QuadrupedSimBackend`` and ``BatchedQuadrupedBackend``. On a serial port (real or

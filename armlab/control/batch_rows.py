@@ -1,7 +1,7 @@
 """Stable ids of the members of a batch and the rows they hold (the order they joined).
 
 A batched simulation (:mod:`armlab.hardware.sim.batched_hand`,
-:mod:`armlab.hardware.sim.batched_quadruped`)
+:mod:`armlab.hardware.families.dynamixel1.batched_quadruped`)
 and its batched controllers (:mod:`armlab.control.batched_grip`) keep their members' state in
 arrays, one row each. A
 member is named by an id that never changes; its row moves up when one before it

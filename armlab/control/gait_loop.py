@@ -13,7 +13,7 @@ Every period (20 ms by default; periods at loop times 0, P, 2P, ...) the loop's 
    with moving speeds that reach them within about a period.
 
 The body's weight is the plant's business: the simulated legs and the emulator
-carry it themselves (``armlab.hardware.sim.quadruped.BodyOnLegs``), as real legs do.
+carry it themselves (``armlab.hardware.families.dynamixel1.quadruped.BodyOnLegs``), as real legs do.
 
 Without a backend (no servos) the loop only plays the walker, so the lesson still
 shows the gait. One writer: the loop thread owns walker, backend and record; the UI

@@ -172,7 +172,8 @@ class ControlLoop:
         clock: run the periods on this :class:`SharedClock` (with other loops and the world
             it steps) instead of a thread of the loop's own; ``start``/``shutdown`` attach
             and detach the loop. The backend's ``sync`` then finds its world already at
-            the loop's time (e.g. ``armlab.hardware.backends.batched.BatchedArmBackend``).
+            the loop's time (e.g.
+            ``armlab.hardware.families.dynamixel1.batched_backend.BatchedArmBackend``).
         laws: the controller's equations (default: the lab's own; coursework runs a
             student's in their place, :class:`~armlab.control.compliance.Laws`).
         hold_off: keep the torque off from the start, watching the arm and commanding

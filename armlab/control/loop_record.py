@@ -2,7 +2,7 @@
 
 The hand's :class:`armlab.control.grip_loop.GripLoop` and the quadruped's
 :class:`armlab.control.gait_loop.GaitLoop`, and the server's proxies of such loops running in a
-worker process (``armlab.app.classroom.remote_hand``, ``armlab.app.classroom.remote_gait``), share
+worker process (``armlab.app.workers.remote_hand``, ``armlab.app.workers.remote_gait``), share
 this surface; their records are :class:`armlab.control.ring_buffer.RingBuffer` rows.
 """
 

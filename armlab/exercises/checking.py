@@ -240,7 +240,7 @@ def check_file(path: str | Path, *, exercise: str | None = None,
 def _preload() -> None:
     """Import what the cases import lazily before the student's code runs (a file that
     rewrote the lab's installed files would otherwise reach the modules loaded later)."""
-    import armlab.hardware.backends.sim  # noqa: F401  (the closed-loop runs' arm)
+    import armlab.hardware.families.dynamixel1.sim_backend  # noqa: F401  (the closed-loop runs' arm)
 
 
 def _guess(p: Path) -> Exercise | None:

@@ -56,7 +56,7 @@ def _arm() -> SerialChain:
 
 
 def _sim(model: SerialChain, **kw: Any) -> Any:
-    from armlab.hardware.backends.sim import SimBackend
+    from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 
     return SimBackend(model, **kw)
 

@@ -1,9 +1,11 @@
 """Each servo family's backends and emulator (:mod:`armlab.hardware.families` holds the
 rest of a family: codec, tables, firmware model).
 
-They stand above the bus (``armlab.hardware.wire.bus``), which imports the families, so
-they are named here, above both, and nothing below imports this module. A backend or an
-emulator is imported when first asked for (pyserial only when a serial arm is opened).
+A family's entry (its folder's ``FAMILY``) is registered when ``armlab.hardware`` is
+imported, and names only its codec, tables and firmware model; its backends and emulator
+stand on the bus and the emulated network, so they are named here, at the top of the
+hardware layer, where nothing below imports this module. A backend or an emulator is
+imported when first asked for (pyserial only when a serial arm is opened).
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from armlab.control.backend import BackendError
-from armlab.hardware import families
-from armlab.hardware.families.base import ServoFamily
+from armlab.hardware.servos import registry
+from armlab.hardware.servos.family import ServoFamily
 from armlab.kinematics.model import Quadruped, SerialChain
 
 if TYPE_CHECKING:
@@ -91,7 +93,7 @@ PARTS: dict[str, Parts] = {
 
 def register(family: ServoFamily, parts: Parts) -> None:
     """Add a servo family the lab does not ship: the family to the registry
-    (:func:`armlab.hardware.families.register`) and its parts here. Its folder holds the
+    (:func:`armlab.hardware.servos.registry.register`) and its parts here. Its folder holds the
     rest (``families/<family>/`` for the lab's own: codec, tables, firmware model,
     backends, emulator); nothing else changes.
 
@@ -100,7 +102,7 @@ def register(family: ServoFamily, parts: Parts) -> None:
     """
     if family.key in PARTS:
         raise ValueError(f"a family {family.key!r} is registered already")
-    families.register(family)
+    registry.register(family)
     PARTS[family.key] = parts
 
 

@@ -16,7 +16,7 @@ body frame (from the joint angles the servos actually hold) and the centre of ma
 
 The servos' compliance enters through the feet's positions: a loaded leg's servos
 give way (J^T f on each joint against its compliance margin, slope and punch; see
-``armlab.hardware.sim.quadruped``), the foot rises in the body frame, and the plane
+``armlab.hardware.families.dynamixel1.quadruped``), the foot rises in the body frame, and the plane
 through the deflected contact feet is the body's pose.
 
 Frames: body frame x forward, y left, z up; feet (4, 3) in ``LEGS`` order, m.

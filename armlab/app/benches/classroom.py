@@ -5,7 +5,7 @@ Figures:
         core keeps at 1 kHz in real time as "My arm" runs them: every arm its own
         :class:`~armlab.control.loop.ControlLoop` (compliance, 16 ms: commands, trajectory,
         recorder, run-time checks) over a
-        :class:`~armlab.hardware.backends.batched.BatchedArmBackend`,
+        :class:`~armlab.hardware.families.dynamixel1.batched_backend.BatchedArmBackend`,
         all on one :class:`~armlab.control.periodic.SharedClock` over one BatchedPlant at 1 ms
         (headless: ``SharedClock.run_for`` of 2 s of class time, the median of 3 classes of
         different gains; one of 0.5 s quick):
@@ -18,7 +18,7 @@ Figures:
         the wall-free class's, same run.
     sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
         the design the batched plant replaced: 50 such loops, each over a plant of its own
-        stepped in Python (:class:`~armlab.hardware.backends.sim.SimBackend`);
+        stepped in Python (:class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`);
         ``sandboxes_batched_over_single``: the batched figure over it (the machine's speed
         cancels out; the issue asks for about three times a per-arm design).
     classroom_30_pose_hz: a lab served with ``--classroom`` and 30 pages (headless
@@ -30,7 +30,7 @@ Figures:
     classroom_30_bytes_per_client_per_s: websocket bytes per page per second (mean;
         ``_max``: the most any page received).
     classroom_30_loop_jitter_p99_ms: the shared arm's loop lateness p99 meanwhile (its loop
-        runs in a worker process of its own, :mod:`armlab.app.classroom.worker_process`);
+        runs in a worker process of its own, :mod:`armlab.app.workers.worker_process`);
         ``classroom_30_shared_loop_realtime_priority``: 1 when that worker got the
         real-time priority it asks for (SCHED_FIFO: root or CAP_SYS_NICE), 0 otherwise.
     classroom_30_rss_growth_pct: the server's memory growth over the run (its process and
@@ -47,7 +47,7 @@ Figures:
         classroom each browser has a device of its own).
     (120 s of the room, 20 s with ``--quick``.)
     quadrupeds_class_s_per_s_n1 / _n30: wall seconds per simulated second of a class of N
-        private quadrupeds walking the trot (:mod:`armlab.app.classroom.class_quadrupeds`: one
+        private quadrupeds walking the trot (:mod:`armlab.app.workers.class_quadrupeds`: one
         ``BatchedQuadrupeds`` at ``CLASS_DT``, every robot's ``GaitLoop`` on its
         ``SharedClock``; headless ``run_for``, after standing up);
         ``quadrupeds_realtime_per_core``: robots one core keeps walking in real time that
@@ -56,10 +56,10 @@ Figures:
         the same run.
     classroom_30_hand_pose_hz, classroom_30_quadruped_pose_hz: the same room on the hand
         and the quadruped lessons: 30 pages each showing its own hand (one row of the
-        class's batched hands, :mod:`armlab.app.classroom.class_hands`, in the class's worker),
+        class's batched hands, :mod:`armlab.app.workers.class_hands`, in the class's worker),
         every hand
         closing and opening again and again; or its own quadruped (one robot of the
-        class's, :mod:`armlab.app.classroom.class_quadrupeds`, in a worker of their own), walking
+        class's, :mod:`armlab.app.workers.class_quadrupeds`, in a worker of their own), walking
         and
         stopping: the lowest rate of frames of its own lesson any page receives
         (``_median``: the median page's); ``..._bytes_per_client_per_s``: bytes per page
@@ -84,10 +84,10 @@ from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.periodic import SharedClock
 from armlab.control.trajectory import minimum_jerk
-from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.batched_plant import BatchedPlant
 from armlab.kinematics import load_robot
 
 LOOP_SIZES = (50, 100)
@@ -100,7 +100,8 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     """Wall seconds per simulated ms of ``n_arms`` ControlLoops (compliance, 16 ms, gains
     of their own) on one SharedClock, run headless for ``seconds`` of class time after
     0.1 s of warm-up: over one BatchedPlant at 1 ms (``batched``, as "My arm" runs them),
-    or each over a plant of its own (:class:`~armlab.hardware.backends.sim.SimBackend`, stepped
+    or each over a plant of its own
+    (:class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`, stepped
     per arm in Python at its loop's periods: the design the batched plant replaced).
     ``walls``: each arm has a wall of its own 3 mm behind its hand (the contact lesson's
     2·10⁴ N/m; within the plant's margin, so computed at every step, touched or not)."""
@@ -158,7 +159,7 @@ def _rss_bytes(pid: int | str = "self") -> int:
 
 def _server_rss(room: Any) -> int:
     """The server's resident memory, bytes: its own process and its workers
-    (:class:`armlab.app.classroom.worker_process.ArmProcess`: the private arms', the shared
+    (:class:`armlab.app.workers.worker_process.ArmProcess`: the private arms', the shared
     arm's)."""
     shared = room.lab.arm_process
     return (_rss_bytes() + _rss_bytes(room.sandboxes.process.pid)
@@ -261,14 +262,17 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
 
 def quadrupeds_cost(n: int, *, seconds: float, batched: bool = True) -> float:
     """Wall s per simulated s of ``n`` quadrupeds walking the trot at the class's step:
-    batched on one clock (as :class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`), or
+    batched on one clock (as :class:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds`), or
     (the
     reference) each a ``GaitLoop`` on a ``QuadrupedSimBackend`` of its own."""
-    from armlab.app.classroom.class_quadrupeds import CLASS_DT, PERIOD
+    from armlab.app.workers.class_quadrupeds import CLASS_DT, PERIOD
     from armlab.control.gait_loop import STAND_UP_S, GaitLoop
     from armlab.control.walking import GaitSpec, Walker, plan_gait
-    from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
-    from armlab.hardware.sim.quadruped import QuadrupedSimBackend
+    from armlab.hardware.families.dynamixel1.batched_quadruped import (
+        BatchedQuadrupedBackend,
+        BatchedQuadrupeds,
+    )
+    from armlab.hardware.families.dynamixel1.quadruped import QuadrupedSimBackend
 
     model = load_robot("quadruped")
     plan = plan_gait(GaitSpec())
@@ -326,7 +330,7 @@ def private_room(lesson: str, *, seconds: float, pages: int = 30,
     with its own copy of ``lesson`` (a key of :data:`ROOMS`), counted for ``seconds`` from
     ``settle`` s after every page drew its own robot."""
     from armlab.app.benches.ui import _clients
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     prefix, play = ROOMS[lesson]
     lab = Lab(ServeOptions(http_port=0, classroom=True, lesson=lesson))

@@ -13,7 +13,7 @@ from armlab.control.compliance import ComplianceController, ControllerState
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.trajectory import thesis_line
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import rnea
 

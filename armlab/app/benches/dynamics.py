@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from armlab.app.benches import median_us
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import newton_euler, rnea
 

@@ -18,7 +18,7 @@ import tempfile
 import threading
 import time
 
-from armlab.app.server import Lab, ServeOptions
+from armlab.app.lab.server import Lab, ServeOptions
 from armlab.app.testing.wsclient import HeadlessClient
 
 ARM_PREFIX = "/compliance/arm/"

@@ -8,7 +8,7 @@ Figures (median microseconds per call):
         under 2000 means the lesson can run in real time.
     hands_period_us_n1 / _n30 / _n100: one 1 ms period of a class of N hands, all holding
         (``BatchedGrip.update`` and ``BatchedHand.step``: what the classroom's private
-        hands cost per period, :mod:`armlab.app.classroom.class_hands`).
+        hands cost per period, :mod:`armlab.app.workers.class_hands`).
     hands_realtime_per_core: hands one core keeps at 1 kHz that way (N = 100).
     hands_batched_over_single_n30: 30 single hands' periods (plant step and update,
         measured in the same run) over the batch's period for 30.

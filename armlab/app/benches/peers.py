@@ -59,7 +59,7 @@ import numpy as np
 
 from armlab.app.benches import median_us
 from armlab.app.benches.kinematics import rmrc_targets
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.kinematics import load_robot
 from armlab.kinematics.dynamics import rnea

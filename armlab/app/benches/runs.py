@@ -10,7 +10,7 @@ Figures (median milliseconds per call, and ratios against a reference in the sam
     run_csv_reference_ms: ``numpy.loadtxt`` of the same CSV member, no checks: the
         cost of parsing the numbers alone.
     run_read_over_reference: run_read_ms / run_csv_reference_ms.
-    export_html_ms: the hand-in page (``armlab.app.export_html.export_html``).
+    export_html_ms: the hand-in page (``armlab.app.export.html.export_html``).
     run_file_kib: the file's size.
 """
 
@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 
 from armlab.app.benches import median_us
-from armlab.app.export_html import export_html
+from armlab.app.export.html import export_html
 from armlab.control.recorder import SIGNALS
 from armlab.control.runs import Run, read_run, run_bytes
 from armlab.kinematics import load_robot

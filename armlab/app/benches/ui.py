@@ -195,7 +195,7 @@ class _Instrumented:
     """The lab plus the bench's probe: sample times and a probe node in every frame."""
 
     def __init__(self, *, classroom: bool = False) -> None:
-        from armlab.app.server import Lab, ServeOptions
+        from armlab.app.lab.server import Lab, ServeOptions
 
         self.lab = Lab(ServeOptions(http_port=0, classroom=classroom))
         lesson: Any = self.lab.lesson  # the arm lesson (its rig, publisher and drag)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import viser
 
-from armlab.app.export_sections import figure_label
+from armlab.app.export.sections import figure_label
 from armlab.app.lessons import Figures
 from armlab.app.lessons._common import esc, send_download
 from armlab.control.challenges import Challenge, LoggedRun, Verdict

@@ -9,7 +9,7 @@ to the shared arm. Hiding controls would not be enough: a hand-made websocket me
 from a student must not move the arm.
 
 Where the check sits: every message a browser sends passes the gate
-(:mod:`armlab.app.gate`: token, Origin, unreadable messages dropped), then
+(:mod:`armlab.app.classroom.gate`: token, Origin, unreadable messages dropped), then
 :meth:`Roles.admits`, installed in front of viser's dispatch to the server's own
 handlers (the shared GUI and scene). A message for an element a page owns by itself
 (its Passcode and name fields) goes to that page's handlers only and is
@@ -36,7 +36,7 @@ from typing import Any
 
 import viser
 
-from armlab.app.gate import cookie_values
+from armlab.app.classroom.gate import cookie_values
 from armlab.app.page.inputs import notify
 from armlab.app.viser_ext.clients import connection_of
 from armlab.app.viser_ext.dispatch import screen_server_messages
@@ -261,7 +261,8 @@ class Roles:
 def presenter_link_code(server: viser.ViserServer, client_id: int, cookie: str
                         ) -> str | None:
     """The passcode a presenter link left in page ``client_id``'s browser (the cookie
-    ``cookie``, :attr:`armlab.app.gate.Gate.presenter_cookie`, its websocket upgrade carried),
+    ``cookie``, :attr:`armlab.app.classroom.gate.Gate.presenter_cookie`, its websocket upgrade
+    carried),
     or None."""
     headers = getattr(getattr(connection_of(server, client_id), "request", None), "headers",
                       None)

@@ -26,7 +26,7 @@ from typing import Any, Protocol
 import numpy as np
 import viser
 
-from armlab.app import collector
+from armlab.app.classroom.gate import Gate
 from armlab.app.classroom.muting import SharedStream
 from armlab.app.classroom.overview import (
     GHOST_OFFSET,
@@ -44,7 +44,6 @@ from armlab.app.classroom.roles import (
     qr_svg,
 )
 from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
-from armlab.app.gate import Gate
 from armlab.app.lessons import (
     Figures,
     LessonContext,
@@ -54,9 +53,7 @@ from armlab.app.lessons import (
     overview_figures,
 )
 from armlab.app.lessons._common import esc, remove_quietly, warning_html
-from armlab.app.page import camera, theme
-from armlab.app.page.arm_view import ArmView
-from armlab.app.page.challenge_panel import (
+from armlab.app.lessons.challenge_panel import (
     ChallengeDesk,
     MyChallenge,
     figures_of,
@@ -64,12 +61,15 @@ from armlab.app.page.challenge_panel import (
     start_run,
     tags_of,
 )
+from armlab.app.page import camera, theme
+from armlab.app.page.arm_view import ArmView
 from armlab.app.page.inputs import UpdateScreen, notify
 from armlab.app.page.publisher import FrameThread
 from armlab.app.viser_ext.clients import queue
 from armlab.app.viser_ext.handles import uuid_of
 from armlab.app.viser_ext.messages import GuiUpdateMessage
 from armlab.app.viser_ext.page_js import ask_item, mask_text_input
+from armlab.control import collector
 from armlab.control.challenges import RunLog, gradebook_bytes, utc_now
 
 #: the role line of a page that follows the teacher
@@ -137,7 +137,7 @@ class _PageState:
 
 
 class ClassLab(Protocol):
-    """What a room uses of the lab it is part of (:class:`armlab.app.server.Lab`)."""
+    """What a room uses of the lab it is part of (:class:`armlab.app.lab.server.Lab`)."""
 
     @property
     def server(self) -> viser.ViserServer:
@@ -181,7 +181,7 @@ class ClassLab(Protocol):
 
 
 class Room:
-    """The classroom side of a :class:`armlab.app.server.Lab` (see the module docstring).
+    """The classroom side of a :class:`armlab.app.lab.server.Lab` (see the module docstring).
 
     Args:
         lab: the lab (its server, shared lesson and url).

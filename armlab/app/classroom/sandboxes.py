@@ -1,23 +1,23 @@
 """Every student's private arm ("My arm"): seats that keep an arm across reloads.
 
 A class of students each gets a simulated arm of their own, the shared lesson's arm and
-loop (:mod:`armlab.app.classroom.class_arms`: batched plants, one clock, a ControlLoop per arm). The
+loop (:mod:`armlab.app.workers.class_arms`: batched plants, one clock, a ControlLoop per arm). The
 thesis arm's RX-24F arms run in a process of their own
-(:class:`armlab.app.classroom.worker_process.ArmProcess`),
+(:class:`armlab.app.workers.worker_process.ArmProcess`),
 off the server's interpreter, so a room of pages and the shared arm's loop do not wait
 for the class's 1 kHz steps; an arm whose servos have their own firmware simulation
 (X-series: the OpenManipulator-X; Feetech STS: the SO-101) runs in the server, on a
-:class:`armlab.app.classroom.class_arms.ClassArms` made when the first is asked for.
+:class:`armlab.app.workers.class_arms.ClassArms` made when the first is asked for.
 
 A seat is found again by its key (a random id the page keeps in its browser's
 localStorage): a reload within :data:`IDLE_S` returns to the same arm, gains and
 recording. A seat also keeps its student's copy of the thesis's hand (the hand lesson)
 and of the seed 003 quadruped: each one of the class's, batched on one clock
-(:mod:`armlab.app.classroom.class_hands`, :mod:`armlab.app.classroom.class_quadrupeds`), the hands
+(:mod:`armlab.app.workers.class_hands`, :mod:`armlab.app.workers.class_quadrupeds`), the hands
 in the same worker
 process as the RX-24F arms, the quadrupeds in one of their own
-(:class:`armlab.app.classroom.remote_hand.RemoteHand`,
-:class:`armlab.app.classroom.remote_gait.RemoteGait`).
+(:class:`armlab.app.workers.remote_hand.RemoteHand`,
+:class:`armlab.app.workers.remote_gait.RemoteGait`).
 A seat whose page left longer ago is freed; a class whose seats already hold
 :data:`MAX_ARMS` arms (hands, quadrupeds) refuses a new one with :class:`ClassFull`.
 """
@@ -31,11 +31,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from armlab.app.backends import has_firmware_sim
-from armlab.app.classroom.class_arms import Arm, ClassArms
-from armlab.app.classroom.remote_gait import RemoteGait
-from armlab.app.classroom.remote_hand import RemoteHand
-from armlab.app.classroom.worker_process import ArmProcess
+from armlab.app.arm.backends import has_firmware_sim
+from armlab.app.workers.class_arms import Arm, ClassArms
+from armlab.app.workers.remote_gait import RemoteGait
+from armlab.app.workers.remote_hand import RemoteHand
+from armlab.app.workers.worker_process import ArmProcess
 from armlab.control.backend import Backend
 from armlab.control.grip import GripParams
 from armlab.control.loop import ControlLoop

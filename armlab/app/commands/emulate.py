@@ -66,7 +66,7 @@ from armlab.control.experiments.contact import check_wall_numbers
 from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.pty import Faults, PtyEmulator
-from armlab.hardware.families import FAMILIES, family
+from armlab.hardware.servos.registry import FAMILIES, family
 from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
@@ -420,7 +420,7 @@ def run(args: argparse.Namespace) -> int:
     alerts = [parse_fault(f, model.joint_names, protocol=jmap.protocol) for f in args.fault]
     for joint, flag, after in alerts:
         servo = _arm_plant(network).servos[joint]
-        servo.inject_error(flag, after=after)  # type: ignore[union-attr]  # the servo is of jmap's family (X or STS): each model's own error flags
+        servo.inject_error(flag, after=after)
     _raise_priority(args.nice)
     faults = Faults(drop=args.drop, corrupt=args.corrupt, delay=args.delay,
                     delay_time=args.delay_time, seed=args.seed)

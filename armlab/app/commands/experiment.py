@@ -91,7 +91,7 @@ def _fmt(v: Any) -> str:
 def _backend_factory(options: BackendOptions) -> Any:
     """``factory(model, **sim_options)`` opening the backend chosen by --backend/--port/--baud
     (options such as ``q0`` only reach the simulator)."""
-    from armlab.app.backends import make_backend
+    from armlab.app.arm.backends import make_backend
 
     def factory(model: Any, **kw: Any) -> Any:
         if options.backend != "sim":

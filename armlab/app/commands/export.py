@@ -21,10 +21,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Exit 0: the page was written; 2 (through ``armlab.app.cli``): the run file was
+    """Exit 0: the page was written; 2 (through ``armlab.app.commands.cli``): the run file was
     refused (read_run's message, or a value no page can draw), the robot is unknown or
     the page cannot be written."""
-    from armlab.app.export_html import write_html
+    from armlab.app.export.html import write_html
     from armlab.control.runs import check_drawable, read_run
     from armlab.kinematics import load_robot
 

@@ -9,7 +9,7 @@ import time
 from dataclasses import asdict, replace
 from typing import Any
 
-from armlab.hardware.families import FAMILIES, family
+from armlab.hardware.servos.registry import FAMILIES, family
 from armlab.hardware.wire.errors import BusError
 from armlab.hardware.wire.scan import (
     COMMON_BAUDS,

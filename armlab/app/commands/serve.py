@@ -71,7 +71,7 @@ def log_to_terminal() -> None:
 
 def run(args: argparse.Namespace) -> int:
     from armlab.app.classroom.roles import loopback_warning
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
     from armlab.app.viser_ext import HooksMissing
 
     options = ServeOptions(robot=args.robot, backend=args.backend, port=args.port,

@@ -52,12 +52,12 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 if TYPE_CHECKING:
-    from armlab.app.classroom.remote_gait import RemoteGait
-    from armlab.app.classroom.remote_hand import RemoteHand
-    from armlab.app.classroom.worker_process import ArmProcess
+    from armlab.app.arm.student_law import StudentLaw
     from armlab.app.page.publisher import FrameThread
     from armlab.app.page.surface import Surface
-    from armlab.app.student_law import StudentLaw
+    from armlab.app.workers.remote_gait import RemoteGait
+    from armlab.app.workers.remote_hand import RemoteHand
+    from armlab.app.workers.worker_process import ArmProcess
     from armlab.control.backend import Backend
     from armlab.control.grip import GripParams
     from armlab.control.loop import ControlLoop
@@ -86,7 +86,7 @@ class LessonContext:
         arms: a student's private arm (:class:`ArmSource`): the lesson drives it instead
             of opening a backend and a loop of its own (None: the shared arm).
         arm_process: where the shared simulated arm runs in a classroom (a worker
-            process of its own, :class:`armlab.app.classroom.worker_process.ArmProcess`; None: in
+            process of its own, :class:`armlab.app.workers.worker_process.ArmProcess`; None: in
             the server, as outside a classroom and on real servos).
         frames: the thread that makes the lesson's frames, shared with other lessons (a
             classroom's private pages share one; None: a thread of the lesson's own).

@@ -5,11 +5,11 @@ Three places, by the lesson's context:
 
 - ``ctx.arms``: a student's own arm, run by the class and kept by their seat;
 - ``ctx.arm_process`` (a simulated classroom): the shared arm in its worker process
-  (:mod:`armlab.app.classroom.worker_process`, RX-24F servos), unless servos with a firmware
+  (:mod:`armlab.app.workers.worker_process`, RX-24F servos), unless servos with a firmware
   simulation of their own (X-series, Feetech STS) and a gripper keep it in the server;
 - otherwise the lab's backend (``--backend``) opened here, its loop not started yet.
   With ``ctx.law`` (``armlab serve --exercise``) its loop runs the student's law, beside a
-  simulated reference arm run by the lab's own (:class:`armlab.app.student_law.LawLoop`).
+  simulated reference arm run by the lab's own (:class:`armlab.app.arm.student_law.LawLoop`).
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from armlab.app.backends import has_firmware_sim, loop_over, make_backend
+from armlab.app.arm.backends import has_firmware_sim, loop_over, make_backend
+from armlab.app.arm.student_law import law_loop
 from armlab.app.lessons import LessonContext
-from armlab.app.student_law import law_loop
 from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params

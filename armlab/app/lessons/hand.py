@@ -63,7 +63,7 @@ from armlab.control.grip_loop import (
 from armlab.hardware.sim.hand_plant import MAX_STIFFNESS, GraspObject, check_object, make_hand
 
 if TYPE_CHECKING:
-    from armlab.app.classroom.remote_hand import RemoteHand
+    from armlab.app.workers.remote_hand import RemoteHand
 
 NAME = "hand"
 TITLE = "Hand grasp"
@@ -78,7 +78,7 @@ TRY = ("Press **Close (grasp)**: each finger stops when its current says it hold
 ROBOTS = ("receptionist_arm",)
 ORDER = 30
 #: a student's page can hold a private copy: their own hand in the class
-#: (``ctx.arms.hand_for``: :mod:`armlab.app.classroom.class_hands` in the class's worker process)
+#: (``ctx.arms.hand_for``: :mod:`armlab.app.workers.class_hands` in the class's worker process)
 PRIVATE = True
 #: The figures of its last settled grasp: its steady and peak fingertip force (N), and
 #: 1.0 when every finger held at 90 % of its limit, else 0.
@@ -134,7 +134,7 @@ class HandLesson(LessonBase):
     Attributes:
         loop: the control loop (read its ``status``, ``params``, ``snapshot()``,
             ``last_grasp()``): the lesson's own, or a student's hand in the class
-            (:class:`armlab.app.classroom.remote_hand.RemoteHand`, with ``ctx.arms``).
+            (:class:`armlab.app.workers.remote_hand.RemoteHand`, with ``ctx.arms``).
     """
 
     def __init__(self, server: Surface, ctx: LessonContext, *,

@@ -3,7 +3,7 @@
 reference arm, run by the lab's own law on the same commands, as a see-through ghost.
 
 A lesson makes one :class:`LawView` when its loop is a
-:class:`~armlab.app.student_law.LawLoop` (see :func:`law_loop_of`) and calls
+:class:`~armlab.app.arm.student_law.LawLoop` (see :func:`law_loop_of`) and calls
 :meth:`LawView.draw` from its pose frames and :meth:`LawView.status_extra` from its status.
 """
 
@@ -14,10 +14,10 @@ import threading
 import numpy as np
 import viser
 
+from armlab.app.arm.student_law import LawLoop, StudentLaw
 from armlab.app.lessons._common import esc, set_content
 from armlab.app.page.arm_view import ArmView
 from armlab.app.page.surface import Surface
-from armlab.app.student_law import LawLoop, StudentLaw
 from armlab.control.loop import ControlLoop
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite

@@ -10,7 +10,8 @@ over a cycle, trails on the floor, the support polygon, the centre of mass and t
 static stability margin.
 
 Behind it a :class:`armlab.control.gait_loop.GaitLoop` drives 12 AX-12A servos: simulated
-(:class:`armlab.hardware.sim.quadruped.QuadrupedSimBackend`, the legs loaded by the body's
+(:class:`armlab.hardware.families.dynamixel1.quadruped.QuadrupedSimBackend`, the legs loaded by the
+body's
 weight while they stand) or on a serial port (``DynamixelBackend``: real servos, or
 ``armlab emulate --robot quadruped``). The servo tab reports the paper's eq. 4.1,
 the commanded-vs-servo angle error in percent, from the servos' own feedback.
@@ -41,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import viser
 
-from armlab.app.backends import make_backend
+from armlab.app.arm.backends import make_backend
 from armlab.app.lessons import LessonContext, figures
 from armlab.app.lessons._common import (
     Every,
@@ -81,7 +82,7 @@ from armlab.control.walking import (
     plan_gait,
     walking_tilts_deg,
 )
-from armlab.hardware.sim.quadruped import SIM_DT, QuadrupedSimBackend
+from armlab.hardware.families.dynamixel1.quadruped import SIM_DT, QuadrupedSimBackend
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.gait import SineParams
 from armlab.kinematics.model import Quadruped, SerialChain
@@ -89,7 +90,7 @@ from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 from armlab.kinematics.units import deg
 
 if TYPE_CHECKING:
-    from armlab.app.classroom.remote_gait import RemoteGait
+    from armlab.app.workers.remote_gait import RemoteGait
 
 NAME = "quadruped"
 TITLE = "Quadruped gait"
@@ -105,7 +106,7 @@ TRY = ("Press **Forward** and watch the stability margin while two legs swing.")
 ROBOTS = ("quadruped",)
 ORDER = 30
 #: a student's page can hold a private copy: their own robot in the class
-#: (``ctx.arms.quadruped_for``: :mod:`armlab.app.classroom.class_quadrupeds` in the class's worker
+#: (``ctx.arms.quadruped_for``: :mod:`armlab.app.workers.class_quadrupeds` in the class's worker
 #: process)
 PRIVATE = True
 #: The figure of its last walk: seed 003's eq. 4.1 error, % (from the servos' feedback).

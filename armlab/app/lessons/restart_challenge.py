@@ -21,7 +21,7 @@ machine, after any earlier runs. The figures are tagged with the challenge's key
 student's private hand in a class is restarted in the class's worker, the restart a
 command of its loop; a class's quadruped, a student's private one or the shared one of
 a simulated class, is restarted there too, its row of the batch reset in place
-(:meth:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds.restart`, the worker's
+(:meth:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds.restart`, the worker's
 ``quad_restart``), its restart's count and period mirrored in its ``GaitStatus``). A
 robot that cannot be put back (real servos) walks from where it is, stopped ``walk_s``
 of loop time later, and the page says so.

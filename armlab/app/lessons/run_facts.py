@@ -19,7 +19,7 @@ MAX_GAIN_CHANGES = 1000
 
 def law_json(law: object | None, params: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Which law ran: ``{"by": "lab", "law": <params' law>}``, or the student's file
-    (``armlab serve --exercise``, an :class:`armlab.app.student_law.StudentLaw`):
+    (``armlab serve --exercise``, an :class:`armlab.app.arm.student_law.StudentLaw`):
     ``{"by": "student", "file": name, "sha256": hex, "source": its text, "exercise": ...}``
     as the file is now (read here: the law the loop runs is the file's last save)."""
     if law is None:

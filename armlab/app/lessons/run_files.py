@@ -24,7 +24,7 @@
   upload that fails, gets one notification with the reason (at most 300 characters) on
   the page that sent it; the lab goes on.
 - **Export page** sends the current run as one self-contained HTML page
-  (:func:`armlab.app.export_html.export_html`).
+  (:func:`armlab.app.export.html.export_html`).
 
 A lesson posts its commands through :meth:`RunControls.post` (or tells
 :meth:`RunControls.note` of one posted elsewhere), so that they go into the file.
@@ -60,7 +60,7 @@ from typing import Any, Protocol
 import numpy as np
 import viser
 
-from armlab.app.export_html import export_html
+from armlab.app.export.html import export_html
 from armlab.app.lessons import Figures
 from armlab.app.lessons._common import send_download
 from armlab.app.lessons.replay_view import GhostModel, ReplayView, ghost_robot

@@ -35,7 +35,7 @@ import viser
 from armlab.app.viser_ext.page_js import run_javascript
 from armlab.app.viser_ext.page_scripts import stop_first_script
 
-#: The lab's E-STOP button's label (``armlab.app.server``).
+#: The lab's E-STOP button's label (``armlab.app.lab.server``).
 ESTOP_LABEL = "E-STOP"
 #: CSS px: E-STOP's smallest height (a thumb-sized target, WCAG's 44 px).
 MIN_HEIGHT_PX = 48

@@ -123,7 +123,8 @@ class HeadlessClient:
     :class:`SharedLoop`'s).
 
     Args:
-        url: ``ws://host:port``; for the lab, ``ws://host:port/?token=T`` (``armlab.app.gate``).
+        url: ``ws://host:port``; for the lab, ``ws://host:port/?token=T``
+        (``armlab.app.classroom.gate``).
         on_message: called (in the client's thread) with each decoded message and the
             receive time (``time.perf_counter()``).
         headers: extra HTTP headers of the websocket upgrade (a browser's ``Origin`` and

@@ -1,5 +1,5 @@
 """The gate's hook: where the lab reaches into viser to put something in front of its
-websocket server (:mod:`armlab.app.gate` decides what; this module only knows where).
+websocket server (:mod:`armlab.app.classroom.gate` decides what; this module only knows where).
 
 viser builds its ``websockets`` server inside ``ViserServer``'s start-up, calling
 ``websockets.asyncio.server.serve(..., process_request=...)`` through the module name

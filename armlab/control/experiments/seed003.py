@@ -32,7 +32,8 @@ from armlab.kinematics.gait import SineParams, crawl, cycle_angles, cycle_margin
 from armlab.kinematics.model import Quadruped
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry
 
-SIM_DT = 2e-3  #: plant step of the simulated legs, s (armlab.hardware.sim.quadruped.SIM_DT)
+#: plant step of the simulated legs, s (``armlab.hardware.families.dynamixel1.quadruped.SIM_DT``)
+SIM_DT = 2e-3
 SPEED = 0.5  #: gait cycles per second on the servos (and in the planned cycle's run file)
 
 

@@ -48,16 +48,8 @@ from typing import Any
 import numpy as np
 
 from armlab.control.backend import GripperState
-from armlab.hardware.families.feetech.firmware import StsRegisters
-from armlab.hardware.families.feetech.table import StsSpec
-from armlab.hardware.families.xseries import packets as p2
-from armlab.hardware.families.xseries.firmware import XRegisters
-from armlab.hardware.families.xseries.table import (
-    CURRENT_POSITION_D_GAIN,
-    VELOCITY_UNIT,
-    XSpec,
-    x_table_for,
-)
+from armlab.hardware.servos.registry import FAMILIES, family_of_spec
+from armlab.hardware.servos.servo_spec import TurnEncoder
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.model import Joint, Link, SerialChain
@@ -71,10 +63,8 @@ OMX_CLOSED_ANGLE, OMX_OPEN_ANGLE = 0.92, -1.52
 FINGERS_MASS = 2 * 3.2218127e-02
 #: A, the gripper's Goal Current: 100 counts of the XM430-W350's 2.69 mA (see above).
 GRIPPER_CURRENT = 100 * 2.69e-3
-#: rad/s of the horn between goals: open to closed in about 1 s; and as the Profile
-#: Velocity counts (0.229 rpm) its goals are sent with.
+#: rad/s of the horn between goals: open to closed in about 1 s.
 GRIPPER_SPEED = 2.5
-GRIPPER_PROFILE_VELOCITY = round(GRIPPER_SPEED / VELOCITY_UNIT)
 #: The SO-101's jaw joint in its URDF (revolute, rad).
 SO101_JAW_JOINT = "gripper"
 #: m from the jaw's axis to where it presses (estimate, see above).
@@ -114,8 +104,9 @@ class GripperServo:
 
     def __post_init__(self) -> None:
         who = f"gripper servo ID {self.servo_id} ({self.joint})"
-        if not 0 <= self.servo_id <= p2.MAX_ID:
-            raise ValueError(f"{who}: ID outside 0..{p2.MAX_ID}")
+        top = max(f.codec.MAX_ID for f in FAMILIES)  # the highest ID any family's servo takes
+        if not 0 <= self.servo_id <= top:
+            raise ValueError(f"{who}: ID outside 0..{top}")
         values = (self.lower, self.upper, self.closed_angle, self.open_angle)
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f"{who}: its range and horn angles must be finite")
@@ -188,25 +179,6 @@ def is_revolute(urdf_path: str | Path, joint: str) -> bool:
     return joint_kind(urdf_path, joint) != "prismatic"
 
 
-def grip_note(spec: XSpec | StsSpec) -> str:
-    """How a gripper's servo of datasheet ``spec`` holds the finger and bounds its grip, in
-    a person's words (the lesson's Teach tab): an X-series servo in current-based position
-    control with a Goal Current; a Feetech STS (no current mode) in position control held
-    to a Torque Limit."""
-    if isinstance(spec, StsSpec):
-        return (f"its own servo (a Feetech {spec.name}), in position control held to a "
-                f"Torque Limit ({SO101_GRIPPER_TORQUE_LIMIT:.0%} of its maximum, as LeRobot "
-                "sets the SO-101's gripper): the STS has no current mode, so the Torque "
-                "Limit bounds the horn's torque whatever the position error, and a jaw "
-                "closing on an object presses with a bounded force (shown under the "
-                "buttons, an estimate from the jaw's lever) and never crushes it; closing "
-                "on nothing it reaches its limit.")
-    return (f"its own servo (a {spec.name}), in current-based position control (operating "
-            "mode 5): Goal Current bounds the horn's torque, so fingers closing on an "
-            "object press with a bounded force (shown under the buttons) and never crush "
-            "it; closing on nothing they reach their limit.")
-
-
 class GripperHolder:
     """What a backend with an arm's gripper servo (:attr:`gripper`, None without one) says
     of it (``armlab.control.backend.Gripping``), whether the servos are on a bus or
@@ -229,7 +201,10 @@ class GripperHolder:
     @property
     def gripper_note(self) -> str:
         """How the gripper's servo holds the finger and bounds its grip ("" without one)."""
-        return "" if self.gripper is None else grip_note(self.spec)
+        if self.gripper is None:
+            return ""
+        note = family_of_spec(self.spec).grip_note
+        return "" if note is None else note(self.spec)
 
     def _gripper_goal_raw(self, position: float) -> tuple[float, int]:
         """The finger's goal ``position`` clamped into its range (ValueError for a
@@ -260,37 +235,16 @@ def gripper_chain(gripper: GripperServo) -> SerialChain:
                        base_pose=np.eye(4), tip=np.eye(4), gravity=np.array([0.0, 0.0, -9.81]))
 
 
-def gripper_plant(gripper: GripperServo, spec: XSpec | StsSpec, *, dt: float = 1e-3,
-                  registers: XRegisters | StsRegisters | None = None,
+def gripper_plant(gripper: GripperServo, spec: TurnEncoder, *, dt: float = 1e-3,
+                  registers: Any = None,
                   params: ServoParams | None = None) -> Plant:
     """The gripper's servo firmware (its family's) moving its load (:func:`gripper_chain`),
     horn at its centre, the fingers' ends as the plant's joint stops. ``registers``: the
-    servo's (default: its power-on values, as an emulated servo starts); ``params``: its
+    servo's, its family's type (default: its power-on values, as an emulated servo
+    starts); ``params``: its
     physical constants and supply."""
     return Plant(gripper_chain(gripper), spec, dt=dt, params=params,
                  registers=None if registers is None else [registers])
-
-
-def gripper_settings(spec: XSpec) -> tuple[tuple[str, int, str], ...]:
-    """The RAM items the lab sets on a gripper's servo in current-based position control,
-    as (item, raw value, a line for the log): Goal Current :data:`GRIPPER_CURRENT` (never
-    above the model's Current Limit) and the Position D Gain the arm's servos get."""
-    limit = x_table_for(spec.model_number).item("current_limit").default
-    raw = min(spec.current_to_raw(GRIPPER_CURRENT), int(limit))  # type: ignore[arg-type]  # the X tables give current_limit a default
-    torque = spec.raw_to_torque(raw)
-    return (("goal_current", raw, f"goal current {raw} ({spec.raw_to_current(raw):.2f} A: "
-             f"at most {torque:.2f} N·m at the horn, a gentle grip)"),
-            ("position_d_gain", CURRENT_POSITION_D_GAIN,
-             f"position D gain {CURRENT_POSITION_D_GAIN}"))
-
-
-def decode_gripper(gripper: GripperServo, spec: XSpec, *, position: int, velocity: int,
-                   current: int, torque_on: bool, alarm: str = "") -> GripperState:
-    """An X-series gripper servo's raw Present Position, Velocity and Current as the
-    finger's state (:func:`gripper_state`)."""
-    return gripper_state(gripper, angle=spec.raw_to_position(position),
-                         speed=spec.raw_to_velocity(velocity),
-                         torque=spec.raw_to_torque(current), torque_on=torque_on, alarm=alarm)
 
 
 def gripper_state(gripper: GripperServo, *, angle: float, speed: float, torque: float,

@@ -50,13 +50,11 @@ from armlab.hardware.backends.gripper import (
     open_manipulator_gripper,
     so101_gripper,
 )
-from armlab.hardware.families import FAMILIES, family, family_of_model
-from armlab.hardware.families import servo_table as _family_table
-from armlab.hardware.families.base import ServoFamily
-from armlab.hardware.families.feetech.table import StsSpec
-from armlab.hardware.families.xseries.table import OperatingMode, XSpec
 from armlab.hardware.servos.control_table import ControlTable
-from armlab.hardware.servos.servo_spec import ServoSpec
+from armlab.hardware.servos.family import ServoFamily
+from armlab.hardware.servos.registry import FAMILIES, family, family_of_model, family_of_spec
+from armlab.hardware.servos.registry import servo_table as _family_table
+from armlab.hardware.servos.servo_spec import ServoSpec, TurnEncoder
 from armlab.kinematics.catalog import ROBOT_FILES
 from armlab.kinematics.model import Joint, Quadruped, SerialChain, URDFError
 from armlab.kinematics.urdf_read import joint_limits
@@ -99,8 +97,11 @@ def drives_gripper(spec: object) -> bool:
     """Whether the lab can drive a gripper with a servo of datasheet ``spec``: an X-series
     servo in current-based position control (Goal Current bounds the grip), or a Feetech
     STS held to a Torque Limit (it has no current mode)."""
-    return (OperatingMode.CURRENT_BASED_POSITION in getattr(spec, "modes", ())
-            or isinstance(spec, StsSpec))
+    try:
+        hook = family_of_spec(spec).drives_gripper
+    except ValueError:  # no datasheet the lab knows
+        return False
+    return hook is not None and hook(spec)
 
 
 def servo_table(model: str | int) -> ControlTable:
@@ -183,7 +184,7 @@ class JointMap:
         return tuple(j.servo_id for j in self.joints)
 
     @property
-    def spec(self) -> ServoSpec | XSpec | StsSpec:
+    def spec(self) -> ServoSpec | TurnEncoder:
         return servo_table(self.servo).spec
 
     @property

@@ -37,8 +37,8 @@ from armlab.hardware.backends.joint_map import (
     load_joint_map,
     servo_table,
 )
-from armlab.hardware.families import family
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.registry import family
 from armlab.hardware.wire.bus import Bus, BusStats
 from armlab.hardware.wire.errors import BusError, NoReply
 from armlab.kinematics.catalog import ROBOT_FILES

@@ -9,9 +9,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar
 
-from armlab.hardware.families import family
-from armlab.hardware.families.base import Codec, Parser
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.family import Codec, Parser
+from armlab.hardware.servos.registry import family
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT
 
 EMULATED_FIRMWARE = 24  #: the firmware version an emulated servo reports

@@ -1,97 +1,37 @@
 """The servo families the lab drives, one folder each, and how to find one.
 
-A family (:class:`~armlab.hardware.families.base.ServoFamily`) is everything the lab
+A family (:class:`~armlab.hardware.servos.family.ServoFamily`) is everything the lab
 knows about one kind of servo, all in its own folder ``families/<family>/``:
 
-- ``packets.py``: its packet codec (typed by :class:`~armlab.hardware.families.base.Codec`);
+- ``packets.py``: its packet codec (typed by :class:`~armlab.hardware.servos.family.Codec`);
 - ``table.py``: its control tables by model number;
 - ``firmware.py``: its firmware model for the simulation;
-- ``backend.py``: the backend on a serial port (and ``sim_backend.py``, the simulated arm
-  with its servos, where the plain ``SimBackend`` is not enough);
+- ``backend.py``: the backend on a serial port;
+- ``sim_backend.py``: the simulated arm with its servos (protocol 1.0's ``SimBackend``,
+  the lab's default arm; the X-series and Feetech ones extend it with a gripper);
+- ``gripper.py``: how its servo holds an arm's gripper (the families that drive one);
 - ``emulator.py``: its emulated servos behind a pseudo-terminal;
-- ``__init__.py``: its entry, ``FAMILY``, naming the first three.
+- ``__init__.py``: its entry, ``FAMILY``, naming its codec, tables and firmware model.
 
-The bus, the scan, the joint map, the plant and the emulator ask :func:`family` (by
-protocol, name or model) and call the family's methods instead of testing a protocol.
-The backends and the emulator stand above the bus, so the entry does not import them:
-:mod:`armlab.hardware.family_parts` does, when first asked for.
+Protocol 1.0's folder also holds the thesis's servos simulated many at once: a class's
+private arms (``batched_plant.py``, ``batched_backend.py``) and seed 003's quadruped on
+AX-12A servos (``quadruped.py``, N at once ``batched_quadruped.py``).
+
+Importing this package registers the three in :mod:`armlab.hardware.servos.registry`
+(``armlab.hardware`` imports it first of all), where the bus, the scan, the joint map,
+the plant and the emulator find a family (by protocol, name or model) without naming
+one: nothing outside the family folders imports them. The entry does not import the
+backends and the emulator: :mod:`armlab.hardware.family_parts` does, when first asked
+for.
 """
 
 from __future__ import annotations
 
-from armlab.hardware.families.base import Codec as Codec
-from armlab.hardware.families.base import Instruction as Instruction
-from armlab.hardware.families.base import Parser as Parser
-from armlab.hardware.families.base import ServoFamily as ServoFamily
-from armlab.hardware.families.base import Status as Status
 from armlab.hardware.families.dynamixel1 import FAMILY as DYNAMIXEL1
 from armlab.hardware.families.feetech import FAMILY as STS
 from armlab.hardware.families.xseries import FAMILY as XSERIES
-from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.registry import FAMILIES, register
 
-#: Every family the lab drives, in the order a scan tries them (:func:`register` adds one).
-FAMILIES: list[ServoFamily] = [DYNAMIXEL1, XSERIES, STS]
-
-
-def register(new: ServoFamily) -> None:
-    """Add a family to :data:`FAMILIES` (what a family outside this package does once,
-    before anything asks for it; its backends and emulator are named beside it by
-    :func:`armlab.hardware.family_parts.register`).
-
-    Raises:
-        ValueError: its key, protocol tag, an alias or a model number is another family's.
-    """
-    for f in FAMILIES:
-        names = {f.key, str(f.protocol), *f.aliases}
-        clash = ({new.key, str(new.protocol), *new.aliases} & names
-                 or set(new.tables) & set(f.tables))
-        if clash:
-            raise ValueError(f"the {new.title} family's {sorted(map(str, clash))} are the "
-                             f"{f.title} family's")
-    FAMILIES.append(new)
-
-
-def family(which: int | float | str | ServoFamily) -> ServoFamily:
-    """The family named by a protocol tag (1, 2.0, "sts"), a key or alias, or a family
-    itself; ValueError listing the known ones otherwise."""
-    if isinstance(which, ServoFamily):
-        return which
-    if isinstance(which, float) and which.is_integer():
-        which = int(which)
-    for f in FAMILIES:
-        if which == f.protocol or (isinstance(which, str) and
-                                   which.lower() in (f.key, str(f.protocol), *f.aliases)):
-            return f
-    raise ValueError(f"unknown servo family or protocol {which!r}; known: "
-                     + ", ".join(f"{f.protocol!r} ({f.title})" for f in FAMILIES))
-
-
-def family_of_model(model: int | str) -> ServoFamily:
-    """The family one model (number or name) belongs to; ValueError listing every model."""
-    for f in FAMILIES:
-        if f.knows(model):
-            return f
-    tables = [t for f in FAMILIES for t in f.tables.values()]
-    if isinstance(model, str):
-        raise ValueError(f"unknown servo model {model!r}; known: "
-                         f"{', '.join(t.name for t in tables)}")
-    raise ValueError(f"unknown servo model number {model}; known: " + ", ".join(
-        f"{t.spec.model_number} ({t.name})" for t in tables))
-
-
-def family_of_spec(spec: object) -> ServoFamily:
-    """The family of a datasheet object (a ``ServoSpec``, ``XSpec`` or ``StsSpec``): the
-    one whose datasheet class it is, else the first it is a kind of (a family's datasheet
-    may extend another's)."""
-    for f in FAMILIES:
-        if type(spec) is f.spec_type:
-            return f
-    for f in FAMILIES:
-        if isinstance(spec, f.spec_type):
-            return f
-    raise ValueError(f"{spec!r} is no servo datasheet the lab knows")
-
-
-def servo_table(model: int | str) -> ControlTable:
-    """The control table of any model the lab knows (number or name)."""
-    return family_of_model(model).table_for(model)
+for _entry in (DYNAMIXEL1, XSERIES, STS):
+    if _entry not in FAMILIES:
+        register(_entry)

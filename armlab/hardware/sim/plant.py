@@ -3,7 +3,7 @@
 Each step of ``dt`` (1 ms default):
 
 1. every servo's firmware ticks once
-(:meth:`armlab.hardware.families.dynamixel1.firmware.ServoModel.update`): it
+(each family's firmware model, ``update``): it
    senses its horn, moves its set-point, fixes its PWM duty for the step;
 2. the state (q, qd) is integrated by classical Runge–Kutta 4 with
    ``qdd = forward_dynamics(q, qd, tau)`` (thesis eq. 2.41–2.50 inverted), where tau =
@@ -25,20 +25,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
 from armlab.control.backend import FRICTION_RANGE
-from armlab.hardware.families import FAMILIES, family_of_spec
-from armlab.hardware.families.dynamixel1.firmware import ServoModel, ServoRegisters, ServoReport
-from armlab.hardware.families.feetech.firmware import StsRegisters
-from armlab.hardware.families.feetech.table import StsSpec
-from armlab.hardware.families.xseries.firmware import XRegisters, XReport, XServoModel
-from armlab.hardware.families.xseries.table import XSpec
-from armlab.hardware.servos.servo_spec import ServoSpec
+from armlab.hardware.servos.registry import FAMILIES, family_of_spec
+from armlab.hardware.servos.servo_spec import ServoSpec, TurnEncoder
 from armlab.hardware.sim.plant_step import rk4_step
-from armlab.hardware.sim.servo_motor import ServoParams
+from armlab.hardware.sim.servo_motor import GearedMotor, ServoParams
 from armlab.kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import finite
@@ -190,26 +185,27 @@ class Plant:
 
     Args:
         model: the serial chain.
-        specs: one :class:`ServoSpec` (protocol 1.0) or
-        :class:`~armlab.hardware.families.xseries.table.XSpec`
-            (X-series) per joint, or one for all.
+        specs: one datasheet per joint, or one for all: a :class:`ServoSpec` (protocol
+            1.0) or another family's (X-series, Feetech STS: a ``TurnEncoder``); each
+            joint runs its family's firmware model.
         dt: integration step and servo firmware tick, s (1e-3 default).
         q0, qd0: (n,) initial joint state (default: neutral, at rest).
         directions: (n,) +1/-1: servo angle = direction · joint angle (default +1).
         params: :class:`ServoParams` per joint or one for all (rotor, friction, overload;
             default: :class:`ServoParams`, supplied at an X-series model's rated voltage).
-        registers: per joint a :class:`ServoRegisters` (:class:`XRegisters` for an
-            X-series joint) to use (default: factory values, goal at the initial
+        registers: per joint its family's registers (``ServoRegisters`` for protocol
+            1.0, ``XRegisters`` for an X-series joint) to use (default: factory values, goal at the
+            initial
             position, torque off).
         stops: joint-limit stops, or None for none.
     """
 
     def __init__(self, model: SerialChain,
-                 specs: ServoSpec | XSpec | StsSpec | Sequence[ServoSpec | XSpec | StsSpec], *,
+                 specs: ServoSpec | TurnEncoder | Sequence[ServoSpec | TurnEncoder], *,
                  dt: float = 1e-3, q0: np.ndarray | Sequence[float] | None = None,
                  qd0: np.ndarray | None = None, directions: Sequence[float] | None = None,
                  params: ServoParams | Sequence[ServoParams] | None = None,
-                 registers: Sequence[ServoRegisters | XRegisters | StsRegisters] | None = None,
+                 registers: Sequence[Any] | None = None,
                  stops: JointStops | None = JointStops()) -> None:
         n = model.n
         self.model = model
@@ -246,7 +242,7 @@ class Plant:
         self._qd = [float(x) for x in qd]
         if registers is not None and len(registers) != n:
             raise ValueError(f"registers must have {n} entries, got {len(registers)}")
-        self.servos: tuple[ServoModel | XServoModel, ...] = tuple(
+        self.servos: tuple[GearedMotor, ...] = tuple(
             firmware[i](
                 spec_list[i], None if registers is None else registers[i],
                 params=param_list[i], angle=dirs[i] * self._q[i]) for i in range(n))
@@ -599,11 +595,11 @@ class Plant:
         return GroundTruth(self.t, np.array(q), np.array(qd), np.array(motor), np.array(fric),
                            np.array(ext), np.array(stop))
 
-    def servo_report(self, i: int) -> ServoReport | XReport:
-        """What servo ``i`` would answer to a READ (raw words)."""
+    def servo_report(self, i: int) -> Any:
+        """What servo ``i`` would answer to a READ (raw words: its family's report)."""
         return self.servos[self._link(i)].report()
 
-    def reports(self) -> tuple[ServoReport | XReport, ...]:
+    def reports(self) -> tuple[Any, ...]:
         """Every servo's report, in joint order."""
         return tuple(s.report() for s in self.servos)
 

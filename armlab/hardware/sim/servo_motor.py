@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -42,9 +43,17 @@ IDEAL = ServoParams(rotor_inertia=0.0, coulomb_friction=0.0, viscous_friction=0.
 class GearedMotor:
     """The horn torque between firmware ticks, the same for every servo model: the
     DC-motor line at the duty the firmware holds over the tick (``drive − damping · ω``,
-    set by each tick) minus gear friction (:attr:`params`)."""
+    set by each tick) minus gear friction (:attr:`params`).
+
+    It is the base of every family's firmware model (its folder's ``firmware.py``), and
+    what the plant calls of one: :meth:`update` each tick, :meth:`report` for a READ. The
+    datasheet :attr:`spec` and the control-table registers :attr:`regs` are the family's
+    own types; :meth:`inject_error` raises one of its ``fault_flags``.
+    """
 
     params: ServoParams
+    spec: Any  # the family's datasheet (ServoSpec, XSpec, StsSpec)
+    regs: Any  # the family's RAM registers (ServoRegisters, XRegisters, StsRegisters)
     #: Horn torque coefficients for the current tick: tau = drive - damping * omega.
     drive: float = 0.0
     damping: float = 0.0
@@ -56,6 +65,24 @@ class GearedMotor:
     def motor_torque(self, velocity: float) -> float:
         """Motor torque at the horn (the torque–speed line at the present duty), N·m."""
         return self.drive - self.damping * velocity
+
+    def update(self, dt: float, angle: float, velocity: float) -> None:
+        """One firmware tick of ``dt`` s at horn ``angle`` rad and ``velocity`` rad/s: sets
+        :attr:`drive` and :attr:`damping` for the tick (each family's firmware)."""
+        raise NotImplementedError
+
+    def report(self) -> Any:
+        """What the servo would answer to a READ, raw words (the family's report type)."""
+        raise NotImplementedError
+
+    def present_position(self) -> int:
+        """The raw Present Position word."""
+        raise NotImplementedError
+
+    def inject_error(self, bits: int, *, after: float = 0.0) -> None:
+        """Raise the status error or alarm ``bits`` (the family's ``fault_flags``) once the
+        torque has been on for ``after`` s (a family whose firmware flags none: refused)."""
+        raise NotImplementedError(f"{type(self).__name__} raises no faults")
 
     def friction(self, velocity: float) -> float:
         """Gear-train friction torque opposing ``velocity`` (positive = resisting CCW), N·m."""

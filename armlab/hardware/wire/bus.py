@@ -43,9 +43,9 @@ from typing import Any
 
 import serial
 
-from armlab.hardware.families import FAMILIES, family
-from armlab.hardware.families.base import Codec, ServoFamily, Status
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.family import Codec, ServoFamily, Status
+from armlab.hardware.servos.registry import FAMILIES, family
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
 from armlab.hardware.wire.errors import BusError, LinkLost, NoReply, PortError
 from armlab.hardware.wire.group_reads import GroupReads

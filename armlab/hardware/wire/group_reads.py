@@ -9,12 +9,12 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from armlab.hardware.families.base import ServoFamily, Status
+from armlab.hardware.servos.family import ServoFamily, Status
 from armlab.hardware.wire.errors import NoReply
 from armlab.hardware.wire.port import reply_timeout
 
 if TYPE_CHECKING:
-    from armlab.hardware.families.base import Codec
+    from armlab.hardware.servos.family import Codec
     from armlab.hardware.wire.bus import BusStats
 
 

@@ -9,8 +9,8 @@ import struct
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from armlab.hardware.families.base import ServoFamily, Status
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.family import ServoFamily, Status
 from armlab.hardware.wire.errors import WrongModel
 
 

@@ -21,9 +21,9 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from armlab.hardware.families import FAMILIES, family
-from armlab.hardware.families.base import ServoFamily
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.family import ServoFamily
+from armlab.hardware.servos.registry import FAMILIES, family
 from armlab.hardware.servos.servo_spec import RETURN_DELAY_UNIT, wire_time
 from armlab.hardware.wire.bus import Bus
 from armlab.hardware.wire.errors import BusError, NoReply

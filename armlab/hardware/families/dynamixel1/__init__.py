@@ -7,10 +7,10 @@ Its packets (``packets.py``, thesis §3.5), control tables (``table.py``, thesis
 
 from __future__ import annotations
 
-from armlab.hardware.families.base import ServoFamily
 from armlab.hardware.families.dynamixel1 import packets
 from armlab.hardware.families.dynamixel1.firmware import ServoModel
 from armlab.hardware.families.dynamixel1.table import RX24F_TABLE, TABLES, table_for
+from armlab.hardware.servos.family import ServoFamily
 
 FAMILY = ServoFamily(
     key="dynamixel1", title="Dynamixel protocol 1.0", protocol=1, codec=packets,

@@ -26,9 +26,9 @@ from dataclasses import dataclass, fields
 from armlab.hardware.backends.joint_map import JointMap, default_joint_map
 from armlab.hardware.emulator.network import Physics, ServoBus, TableImage
 from armlab.hardware.emulator.physics import RestingPose
-from armlab.hardware.families.base import Parser
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters
+from armlab.hardware.families.dynamixel1.quadruped import BodyOnLegs
 from armlab.hardware.families.dynamixel1.table import (
     LOCKED_WRITABLE,
     RX24F_TABLE,
@@ -36,9 +36,9 @@ from armlab.hardware.families.dynamixel1.table import (
     table_for,
 )
 from armlab.hardware.servos.control_table import ControlTable
+from armlab.hardware.servos.family import Parser
 from armlab.hardware.servos.servo_spec import value_from_baud
 from armlab.hardware.sim.plant import Plant
-from armlab.hardware.sim.quadruped import BodyOnLegs
 from armlab.kinematics.model import Quadruped, SerialChain
 
 #: (field, address, size) of every :class:`ServoRegisters` field in the control table
@@ -312,7 +312,7 @@ def emulated_network(model: SerialChain | Quadruped, *, ids: Sequence[int] | Non
     for c, chain in enumerate(chains):
         plants.append(Plant(chain, table.spec, dt=dt))
         slots += [(c, j) for j in range(chain.n)]
-    positions = [plants[p].servos[j].present_position() for p, j in slots]  # type: ignore[union-attr]  # the plant's servos are of this table's family
+    positions = [plants[p].servos[j].present_position() for p, j in slots]
     servos = make_servos([table] * len(slots), jmap.ids, baud_value=value_from_baud(baud),
                          positions=positions)
     load = None

@@ -8,10 +8,10 @@ are in this folder.
 
 from __future__ import annotations
 
-from armlab.hardware.families.base import ServoFamily
-from armlab.hardware.families.feetech import packets
+from armlab.hardware.families.feetech import gripper, packets
 from armlab.hardware.families.feetech.firmware import SILENT, StsServoModel
 from armlab.hardware.families.feetech.table import STS3215_TABLE, STS_TABLES, sts_table_for
+from armlab.hardware.servos.family import ServoFamily
 
 FAMILY = ServoFamily(
     key="sts", title="Feetech STS", protocol="sts", codec=packets, tables=STS_TABLES,
@@ -20,6 +20,7 @@ FAMILY = ServoFamily(
     spec_type=type(STS3215_TABLE.spec), firmware_item="firmware_major",
     limit_items=("min_position_limit", "max_position_limit"),
     servo_model=StsServoModel,
+    drives_gripper=gripper.drives_gripper, grip_note=gripper.grip_note,
     replies_all_level=1,
     aliases=("feetech", "scs", "sms_sts"),
     # its status error bits, and one that is none: the servo stops answering

@@ -239,7 +239,7 @@ def emulated_sts_network(model: SerialChain, ids: Sequence[int], *, servo: str =
     physics = StsPlantPhysics(plant, gripper=jaw)
     models = [*plant.servos, *(jaw.servos if jaw is not None else ())]
     servos = [StsVirtualServo.new(table, i, j, baud_value=baud_value,
-                                  present_position=m.present_position())  # type: ignore[union-attr]  # the plant's servos are of this table's family
+                                  present_position=m.present_position())
               for j, (i, m) in enumerate(zip(every, models, strict=True))]
     for s in servos:
         physics.apply(s)

@@ -29,7 +29,7 @@ from armlab.hardware.backends.gripper import (
     gripper_state,
 )
 from armlab.hardware.backends.joint_map import ROBOT_SUPPLY
-from armlab.hardware.backends.sim import GrippedSimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import GrippedSimBackend
 from armlab.hardware.families.feetech.firmware import StsRegisters, StsReport
 from armlab.hardware.families.feetech.table import StsSpec, lab_settings, sts_alarm, sts_table_for
 from armlab.hardware.sim.servo_motor import ServoParams
@@ -56,7 +56,8 @@ class StsSimBackend(GrippedSimBackend):
     Args:
         model: the serial chain.
         spec: the servos' datasheet (``armlab.hardware.families.feetech.table.STS3215``).
-        dt, q0, directions, torque_on: as :class:`~armlab.hardware.backends.sim.SimBackend`.
+        dt, q0, directions, torque_on: as
+        :class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`.
         params: the servos' physical constants (default: at the robot's supply,
             :data:`~armlab.hardware.backends.joint_map.ROBOT_SUPPLY`, else the datasheet's).
         gripper: the gripper's servo (same model, held to the gripper's torque limit), or

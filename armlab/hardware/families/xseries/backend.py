@@ -39,13 +39,13 @@ from typing import cast
 import numpy as np
 
 from armlab.control.backend import GripperState, JointState
-from armlab.hardware.backends.gripper import (
+from armlab.hardware.backends.servo_bus import ServoBusBackend
+from armlab.hardware.families.xseries import packets as p2
+from armlab.hardware.families.xseries.gripper import (
     GRIPPER_PROFILE_VELOCITY,
     decode_gripper,
     gripper_settings,
 )
-from armlab.hardware.backends.servo_bus import ServoBusBackend
-from armlab.hardware.families.xseries import packets as p2
 from armlab.hardware.families.xseries.table import (
     VELOCITY_UNIT,
     OperatingMode,
@@ -200,7 +200,7 @@ class XSeriesBackend(ServoBusBackend):
         """The RAM items (lost at a REBOOT): status return level, no profile limit, then
         the mode's own (:func:`armlab.hardware.families.xseries.table.lab_settings`: the torque
         bound, the D gain; the gripper's
-        :func:`armlab.hardware.backends.gripper.gripper_settings`)."""
+        :func:`armlab.hardware.families.xseries.gripper.gripper_settings`)."""
         who = f"servo {servo_id}" + (f" ({name})" if name else "")
         gripper = self.gripper is not None and servo_id == self.gripper.servo_id
         settings = (("status_return_level", self.status_return_level_setting,

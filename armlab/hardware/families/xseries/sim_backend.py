@@ -1,7 +1,8 @@
 """``XSimBackend``: a simulated arm of X-series servos behind the ``Backend`` protocol.
 
 The simulated counterpart of :class:`armlab.hardware.families.xseries.backend.XSeriesBackend`, as
-:class:`armlab.hardware.backends.sim.SimBackend` is of the protocol-1.0 backend: the servos are
+:class:`armlab.hardware.families.dynamixel1.sim_backend.SimBackend` is of the protocol-1.0 backend:
+the servos are
 :class:`armlab.hardware.families.xseries.firmware.XServoModel` firmware in the plant, configured as
 the X-series backend configures real ones (current-based position control where the servo senses its
 current, with Goal Current as the torque bound and a Position D Gain, else Goal PWM; no
@@ -23,14 +24,16 @@ import numpy as np
 
 from armlab.control.backend import GripperState, JointState
 from armlab.hardware.backends.gripper import (
-    GRIPPER_PROFILE_VELOCITY,
     GripperServo,
-    decode_gripper,
     gripper_plant,
+)
+from armlab.hardware.families.dynamixel1.sim_backend import GrippedSimBackend
+from armlab.hardware.families.xseries.firmware import XRegisters, XReport
+from armlab.hardware.families.xseries.gripper import (
+    GRIPPER_PROFILE_VELOCITY,
+    decode_gripper,
     gripper_settings,
 )
-from armlab.hardware.backends.sim import GrippedSimBackend
-from armlab.hardware.families.xseries.firmware import XRegisters, XReport
 from armlab.hardware.families.xseries.table import (
     VELOCITY_UNIT,
     OperatingMode,
@@ -62,7 +65,7 @@ def backend_registers(spec: XSpec, *, goal: int, min_limit: int, max_limit: int,
 def gripper_registers(spec: XSpec, *, torque_on: bool = True) -> XRegisters:
     """Registers as :class:`~armlab.hardware.families.xseries.backend.XSeriesBackend` configures a
     gripper's servo: current-based position control with
-    :func:`armlab.hardware.backends.gripper.gripper_settings`,
+    :func:`armlab.hardware.families.xseries.gripper.gripper_settings`,
     the gripper's profile velocity, the goal at the horn's centre."""
     regs = XRegisters.factory(x_table_for(spec.model_number))
     regs.operating_mode = OperatingMode.CURRENT_BASED_POSITION
@@ -94,7 +97,8 @@ class XSimBackend(GrippedSimBackend):
     Args:
         model: the serial chain.
         spec: the servos' datasheet (``armlab.hardware.families.xseries.table.XM430_W350`` etc.).
-        dt, q0, directions, params, torque_on: as :class:`~armlab.hardware.backends.sim.SimBackend`.
+        dt, q0, directions, params, torque_on: as
+        :class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`.
         gripper: the gripper's servo (same model, current-based position control), or None.
     """
 

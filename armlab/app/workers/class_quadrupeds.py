@@ -1,18 +1,21 @@
 """Private quadrupeds on one clock: every student's copy of the seed 003 quadruped.
 
 The quadruped lesson's own robot is a :class:`armlab.control.gait_loop.GaitLoop` over a
-:class:`armlab.hardware.sim.quadruped.QuadrupedSimBackend` (four simulated legs of AX-12A
+:class:`armlab.hardware.families.dynamixel1.quadruped.QuadrupedSimBackend` (four simulated legs of
+AX-12A
 servos carrying the body). A copy per student would cost a third of a core each. So the
-class's quadrupeds live in one :class:`armlab.hardware.sim.batched_quadruped.BatchedQuadrupeds`
+class's quadrupeds live in one
+:class:`armlab.hardware.families.dynamixel1.batched_quadruped.BatchedQuadrupeds`
 (one batched plant per group of alike legs, the body's load for every robot at once),
 stepped by one :class:`armlab.control.periodic.SharedClock` thread, and each student's
 ``GaitLoop`` runs on that clock (``clock=``) over a
-:class:`armlab.hardware.sim.batched_quadruped.BatchedQuadrupedBackend`: the lesson's own loop, its
+:class:`armlab.hardware.families.dynamixel1.batched_quadruped.BatchedQuadrupedBackend`: the lesson's
+own loop, its
 commands, record and eq. 4.1 figures, not a lookalike.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` keeps each robot with its student's seat; the
-robots run in the class's worker process (:mod:`armlab.app.classroom.worker`), mirrored into the
-server by :class:`armlab.app.classroom.remote_gait.RemoteGait`.
+robots run in the class's worker process (:mod:`armlab.app.workers.worker`), mirrored into the
+server by :class:`armlab.app.workers.remote_gait.RemoteGait`.
 """
 
 from __future__ import annotations
@@ -22,20 +25,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from armlab.app.classroom.remote_gait import FREED
+from armlab.app.workers.remote_gait import FREED
 from armlab.control.commands import Reset
 from armlab.control.gait_loop import Command, GaitLoop, SetPlan
 from armlab.control.periodic import SharedClock
 from armlab.control.restart import RestartableArm
 from armlab.control.walking import GaitPlan, GaitSpec, Walker, plan_gait
-from armlab.hardware.sim.batched_quadruped import BatchedQuadrupedBackend, BatchedQuadrupeds
+from armlab.hardware.families.dynamixel1.batched_quadruped import (
+    BatchedQuadrupedBackend,
+    BatchedQuadrupeds,
+)
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import Quadruped
 
 #: s, the gait loop's period (as the lesson's on simulated servos)
 PERIOD = 0.02
 #: s, the class's plant step and servo tick: the shared robot's is 2 ms
-#: (``armlab.hardware.sim.quadruped.SIM_DT``); at 5 ms a class costs 2.5 times less, and the
+#: (``armlab.hardware.families.dynamixel1.quadruped.SIM_DT``); at 5 ms a class costs 2.5 times less,
+#: and the
 #: lesson's figures agree with 1 ms within 2 % (eq. 4.1 error and body tilt: the trot at
 #: 0.5 and 1.5 cycles/s, the crawl). It divides the body's LOAD_STEP and the period.
 CLASS_DT = 5e-3

@@ -15,7 +15,7 @@ Who gets in (two locks, both needed):
   owner (or whom the hub lets in) reaches the proxy (for a browser logged in by cookie,
   Jupyter also checks a websocket's ``Origin``; for a request with a Jupyter token it
   does not, and the lab's gate below still does).
-- **armlab's gate** (:mod:`armlab.app.gate`) still stands in front of the lab's websocket,
+- **armlab's gate** (:mod:`armlab.app.classroom.gate`) still stands in front of the lab's websocket,
   because the lab's loopback port is open to every process of the machine, and on a
   shared node that means other users' processes: they do not pass through Jupyter. The
   token is random for each start of the Jupyter server (or ``ARMLAB_TOKEN`` of the
@@ -36,7 +36,7 @@ with the query and one trailing slash removed. From ``/user/NAME/armlab/`` that 
 websocket cannot follow it). From ``/user/NAME/armlab/index.html`` it is that same
 address, which the proxy forwards to the lab (viser's websocket accepts any path). A page
 asked for at ``/user/NAME/armlab/`` (a typed or bookmarked address) is sent on to
-``index.html`` by the gate (:meth:`armlab.app.gate.Gate.wrap`).
+``index.html`` by the gate (:meth:`armlab.app.classroom.gate.Gate.wrap`).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from armlab.app.gate import COOKIE, check_token, new_token
+from armlab.app.classroom.gate import COOKIE, check_token, new_token
 
 #: the environment variable holding the token (read by ``armlab serve`` as --token's default)
 TOKEN_ENV = "ARMLAB_TOKEN"

@@ -1,14 +1,14 @@
 """A student's quadruped running in the class's worker process, as the quadruped lesson
 drives it.
 
-The class's quadrupeds (:class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`: batched leg
+The class's quadrupeds (:class:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds`: batched leg
 plants and every robot's ``GaitLoop`` on one clock) run in the class's worker
-(:class:`armlab.app.classroom.worker_process.ArmProcess`), off the server's interpreter. The server
+(:class:`armlab.app.workers.worker_process.ArmProcess`), off the server's interpreter. The server
 keeps, per robot, a :class:`RemoteGait`: the ``GaitLoop`` surface a lesson uses. ``status``,
 ``state`` (what the scene draws), the walked gait's spec and the record (``snapshot``,
-``angle_error``) are mirrored every :data:`armlab.app.classroom.worker_process.MIRROR_S` s;
+``angle_error``) are mirrored every :data:`armlab.app.workers.worker_process.MIRROR_S` s;
 commands go to the worker's loop and wait for its answer. Its messages are the hand's
-(:mod:`armlab.app.classroom.remote_hand`) with ``quad`` for ``hand``; a mirror item is
+(:mod:`armlab.app.workers.remote_hand`) with ``quad`` for ``hand``; a mirror item is
 ``(robot_id, status, rows, state, spec or None)``.
 """
 
@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 
-from armlab.app.classroom.worker_link import ESTOP_TIMEOUT_S, RemoteMember, WorkerLink
+from armlab.app.workers.worker_link import ESTOP_TIMEOUT_S, RemoteMember, WorkerLink
 from armlab.control.backend import BackendError
 from armlab.control.gait_loop import COLUMNS, Command, GaitRecord, GaitStatus
 from armlab.control.ring_buffer import RingBuffer
@@ -29,7 +29,7 @@ FREED = "this quadruped was freed (a reload of the page makes a new one)"
 
 
 class RemoteGait(RemoteMember, GaitRecord):
-    """A robot of the worker's :class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`
+    """A robot of the worker's :class:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds`
     (module docstring).
 
     Attributes:
@@ -72,7 +72,7 @@ class RemoteGait(RemoteMember, GaitRecord):
         """Start the robot again in the worker standing at rest at ``q`` (12,) rad, at the
         origin, walking ``plan`` from its start, ``timed``'s (periods, command) posted
         that many periods after the restart
-        (:meth:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds.restart`); the
+        (:meth:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds.restart`); the
         restart's number (``status.restarts`` reaches it in the restart's period, whose
         loop time is ``status.restarted_at``)."""
         return int(self._owner.call("quad_restart", self.member_id,

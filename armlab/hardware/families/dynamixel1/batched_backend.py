@@ -1,10 +1,14 @@
 """``BatchedArmBackend``: the :class:`armlab.control.backend.Backend` protocol over one arm of a
-:class:`armlab.hardware.sim.batched_plant.BatchedPlant` (a student's private arm in a class).
+:class:`armlab.hardware.families.dynamixel1.batched_plant.BatchedPlant` (a student's private arm in
+a class).
 
-It is :class:`armlab.hardware.backends.sim.SimBackend` for one arm (by its id) of a plant that
+It is :class:`armlab.hardware.families.dynamixel1.sim_backend.SimBackend` for one arm (by its id) of
+a plant that
 many arms share: the same joint limits and goal clamping (:class:`GoalLimits`), the same
-raw words written and read and the same decoding (:func:`~armlab.hardware.backends.sim.raw_goals`;
-:func:`~armlab.hardware.backends.sim.decode_reports` looked up in tables of every word's decoded
+raw words written and read and the same decoding
+(:func:`~armlab.hardware.families.dynamixel1.sim_backend.raw_goals`;
+:func:`~armlab.hardware.families.dynamixel1.sim_backend.decode_reports` looked up in tables of every
+word's decoded
 value, :func:`word_tables`: a class reads hundreds of arms a second), the same torque,
 e-stop, close and push semantics. One difference: :meth:`BatchedArmBackend.sync` does not
 step the plant. A shared clock (:class:`armlab.control.periodic.SharedClock`) steps the whole
@@ -36,11 +40,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from armlab.control.backend import BackendError, GoalLimits, JointState
-from armlab.hardware.backends.sim import raw_goals, servo_limits, sim_registers
 from armlab.hardware.families.dynamixel1 import packets as p1
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant, ReportWords
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters, ServoReport
+from armlab.hardware.families.dynamixel1.sim_backend import raw_goals, servo_limits, sim_registers
 from armlab.hardware.servos.servo_spec import ServoSpec
-from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
 from armlab.kinematics.validate import scalar, vector
 
 if TYPE_CHECKING:
@@ -57,7 +61,8 @@ WordTables = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
 @functools.cache
 def word_tables(spec: ServoSpec, direction: float) -> WordTables:
     """Every Present Position, Present Speed and Present Load word of ``spec`` decoded for
-    a joint of ``direction`` as :func:`~armlab.hardware.backends.sim.decode_reports` decodes it
+    a joint of ``direction`` as
+    :func:`~armlab.hardware.families.dynamixel1.sim_backend.decode_reports` decodes it
     (``direction · spec.raw_to_position(word)`` rad, ``raw_to_present_speed`` rad/s,
     ``raw_to_load`` N·m), indexed by the word: a lookup gives the same floats as the
     conversion (computed by it), for a fraction of its cost."""
@@ -70,7 +75,7 @@ def word_tables(spec: ServoSpec, direction: float) -> WordTables:
 def decode_words(words: ReportWords, tables: Sequence[WordTables], t: float) -> JointState:
     """An arm's report words (:meth:`BatchedPlant.report_words`) as the controller sees them,
     through each joint's :func:`word_tables`: what
-    :func:`~armlab.hardware.backends.sim.decode_reports`
+    :func:`~armlab.hardware.families.dynamixel1.sim_backend.decode_reports`
     makes of the same words."""
     return JointState(
         t=t, position=np.array([tb[0][x] for tb, x in zip(tables, words.position, strict=True)]),

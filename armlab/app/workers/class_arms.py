@@ -1,12 +1,12 @@
 """Private arms on one clock: the class's simulation, without the seats that own the arms.
 
 The arms of one link-length preset live in one
-:class:`armlab.hardware.sim.batched_plant.BatchedPlant`
+:class:`armlab.hardware.families.dynamixel1.batched_plant.BatchedPlant`
 (numpy over arms); one :class:`armlab.control.periodic.SharedClock` thread steps every plant at
 1 kHz and, in the same thread, each arm's :class:`armlab.control.loop.ControlLoop` when its
 period is due. A loop is the lesson's own (commands, trajectories, the step test,
 pushes, drags, recording, faults) over a
-:class:`armlab.hardware.backends.batched.BatchedArmBackend`:
+:class:`armlab.hardware.families.dynamixel1.batched_backend.BatchedArmBackend`:
 one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
 lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
 with servos of a family with its own firmware model (X-series: the OpenManipulator-X,
@@ -16,8 +16,8 @@ shared arm is (``make_backend("sim", ...)``, without the gripper: a plant of its
 steps, on the same clock): the batched plant models protocol-1.0 servos only.
 
 :class:`armlab.app.classroom.sandboxes.Sandboxes` holds the seats; it runs the batched arms in a
-process of their own (:mod:`armlab.app.classroom.worker_process`, whose worker
-:mod:`armlab.app.classroom.worker` hosts a
+process of their own (:mod:`armlab.app.workers.worker_process`, whose worker
+:mod:`armlab.app.workers.worker` hosts a
 ``ClassArms``) and the X-series and STS ones in a ``ClassArms`` of its own.
 """
 
@@ -28,15 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from armlab.app.backends import has_firmware_sim, loop_over, make_backend
+from armlab.app.arm.backends import has_firmware_sim, loop_over, make_backend
 from armlab.control.backend import Backend
 from armlab.control.loop import ControlLoop
 from armlab.control.params import Params
 from armlab.control.periodic import SharedClock
 from armlab.control.restart import RestartableArm
-from armlab.hardware.backends.batched import BatchedArmBackend, add_sim_arm
+from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.batched_plant import BatchedPlant
 from armlab.kinematics.model import SerialChain
 
 #: plant step, s (as the shared arm's SimBackend)
@@ -142,8 +142,9 @@ def _restartable_arm(plant: BatchedPlant, q0: np.ndarray, lock: Any) -> Restarta
 
 class OwnArms:
     """Arms each on a thread of its own, as a lesson runs its arm in the server: a
-    :class:`armlab.hardware.backends.sim.SimBackend` and a paced ``ControlLoop`` per arm (the
-    shared arm of a classroom, in a process of its own: :mod:`armlab.app.classroom.worker_process`).
+    :class:`armlab.hardware.families.dynamixel1.sim_backend.SimBackend` and a paced ``ControlLoop``
+    per arm (the
+    shared arm of a classroom, in a process of its own: :mod:`armlab.app.workers.worker_process`).
 
     Args:
         realtime: pace each loop by the wall clock (False: as fast as possible).

@@ -21,7 +21,8 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
         kind: "sim" (simulated arm and servos, the default of the lab) or "serial"
             (Dynamixel servos, real or emulated, on a serial port).
         model: the robot's serial chain, or the quadruped (12 servos; "sim" gives
-            ``armlab.hardware.sim.quadruped.QuadrupedSimBackend``, its legs carrying the body).
+            ``armlab.hardware.families.dynamixel1.quadruped.QuadrupedSimBackend``, its legs carrying
+            the body).
         port, baud: serial port and bit rate (for "serial" only).
         **kw: passed to the backend's constructor (e.g. ``q0``, ``specs``, ``dt`` for "sim").
 
@@ -33,13 +34,13 @@ def make_backend(kind: str, model: SerialChain | Quadruped, *, port: str | None 
         if port is not None or baud is not None:
             raise ValueError("the sim backend takes no port or baud (those are for serial)")
         if isinstance(model, Quadruped):
-            from armlab.hardware.sim.quadruped import QuadrupedSimBackend
+            from armlab.hardware.families.dynamixel1.quadruped import QuadrupedSimBackend
 
             return QuadrupedSimBackend(model, **kw)
         from armlab.hardware.backends.joint_map import default_joint_map, default_servo
-        from armlab.hardware.backends.sim import SimBackend
-        from armlab.hardware.families import family_of_model
+        from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
         from armlab.hardware.family_parts import has, load
+        from armlab.hardware.servos.registry import family_of_model
 
         fam = family_of_model(default_servo(model.name))  # the servos the arm ships with
         if has(fam, "sim_backend") and "specs" not in kw:  # their family's simulation
@@ -64,8 +65,8 @@ def has_firmware_sim(model: SerialChain) -> bool:
     ``make_backend("sim", model)`` runs, one plant per arm; False: the arm is simulated with
     protocol-1.0 RX-24F servos, as the thesis arm (what a classroom's batched plant models)."""
     from armlab.hardware.backends.joint_map import default_servo
-    from armlab.hardware.families import family_of_model
     from armlab.hardware.family_parts import has
+    from armlab.hardware.servos.registry import family_of_model
 
     return has(family_of_model(default_servo(model.name)), "sim_backend")
 

@@ -467,7 +467,7 @@ def law_loop(law: StudentLaw, backend: Backend, model: SerialChain, params: Para
              q0: np.ndarray, **loop_kw: Any) -> LawLoop:
     """The :class:`LawLoop` of ``model`` over ``backend``, its reference a simulated arm at
     ``q0`` (n,) rad; not started. Both backends are closed when it cannot be made."""
-    from armlab.app.backends import make_backend
+    from armlab.app.arm.backends import make_backend
 
     loop_kw.setdefault("hold_off", getattr(backend, "uncalibrated", None))
     try:

@@ -1,7 +1,8 @@
 """What a servo family is (:class:`ServoFamily`) and the packet module each one has
 (:class:`Codec`, its parser, status and instruction packets): the types every family's
 entry and every part that speaks to servos share. The registry of the families the lab
-drives is :mod:`armlab.hardware.families`.
+drives is :mod:`armlab.hardware.servos.registry`; the families themselves are
+:mod:`armlab.hardware.families`.
 """
 
 from __future__ import annotations
@@ -106,6 +107,10 @@ class ServoFamily:
         fault_flags: the alarms one of its emulated servos can be told to raise, by name
             (``armlab emulate --fault JOINT:FLAG@S``): the value its firmware model's
             ``inject_error`` takes (empty: none).
+        drives_gripper: ``datasheet -> whether a servo of that model can drive an arm's
+            gripper`` with a bounded grip (None: none of its servos can).
+        grip_note: ``datasheet -> how its gripper servo holds the finger and bounds the
+            grip``, in a person's words (the lesson's Teach tab).
     """
 
     key: str
@@ -130,6 +135,8 @@ class ServoFamily:
     reboot_packet: Callable[[int], bytes] | None = None
     bulk_read_packet: Callable[[Sequence[tuple[int, int, int]]], bytes] | None = None
     fault_flags: Mapping[str, int] = field(default_factory=dict)
+    drives_gripper: Callable[[Any], bool] | None = None
+    grip_note: Callable[[Any], str] | None = None
 
     @property
     def label(self) -> str:

@@ -1,4 +1,4 @@
-"""Line charts of a run as inline SVG text, for the exported page (:mod:`armlab.app.export_html`).
+"""Line charts of a run as inline SVG text, for the exported page (:mod:`armlab.app.export.html`).
 
 Each chart is drawn here, in Python, to plain ``<svg>`` markup: it shows with no script
 at all (and prints), and needs no chart library. Long recordings are thinned per chart

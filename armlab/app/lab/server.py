@@ -9,7 +9,7 @@ so it stays at the top of the control panel whatever lesson is open.
 Security: the server binds to loopback unless told otherwise (a robot must not
 be commandable from the whole network by default), never opens the share
 tunnel (it needs the internet and would expose the robot), and its websocket is
-behind :mod:`armlab.app.gate`: only the lab's own page, opened from the URL with the
+behind :mod:`armlab.app.classroom.gate`: only the lab's own page, opened from the URL with the
 token, gets the robot's state and controls.
 """
 
@@ -30,11 +30,9 @@ from typing import TYPE_CHECKING
 
 import viser
 
-from armlab.app import collector
+from armlab.app.classroom.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
 from armlab.app.classroom.roles import Roles
 from armlab.app.classroom.room import Room
-from armlab.app.classroom.worker_process import ArmProcess
-from armlab.app.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
 from armlab.app.lessons import (
     LessonContext,
     LessonHandle,
@@ -43,8 +41,8 @@ from armlab.app.lessons import (
     lesson_order,
     works_with,
 )
+from armlab.app.lessons.challenge_panel import ChallengeDesk
 from armlab.app.page.camera import reframe, reframe_on_reshape
-from armlab.app.page.challenge_panel import ChallengeDesk
 from armlab.app.page.inputs import UpdateScreen
 from armlab.app.page.labels import install as install_labels
 from armlab.app.page.look import Looks
@@ -54,9 +52,11 @@ from armlab.app.page.stop_first import install as install_stop_first
 from armlab.app.page.theme import PageStyle
 from armlab.app.viser_ext import require_hooks
 from armlab.app.viser_ext.fixes import install as install_viser_fixes
+from armlab.app.workers.worker_process import ArmProcess
+from armlab.control import collector
 
 if TYPE_CHECKING:
-    from armlab.app.student_law import StudentLaw
+    from armlab.app.arm.student_law import StudentLaw
 
 #: Label at the top of the control panel.
 PANEL_LABEL = "armlab"
@@ -73,7 +73,7 @@ GIL_SWITCH_INTERVAL = 0.0005
 #: server too: 20 pose frames/s a page at 0.25 ms against 15 at 0.5 ms).
 CLASSROOM_SWITCH_INTERVAL = 0.00025
 #: s: in a simulated classroom, where no arm's loop runs in the server
-#: (armlab.app.classroom.worker_process),
+#: (armlab.app.workers.worker_process),
 #: fewer forced switches between the frame threads and the event loop leave more of the
 #: GIL to the pages' frames (room of 30, alternating: 18–20 pose frames/s a page at
 #: 0.25 ms, 21–22 at 2 ms and 5 ms); 2 ms keeps a lesson's loop that runs here (hand,
@@ -125,7 +125,7 @@ class ServeOptions:
         plain_on_software: a page whose browser draws WebGL on the CPU gets the plain
             look (:mod:`armlab.app.page.look`); False keeps the full look on every page.
         exercise: a student's law file (``--exercise``): the servo-arm lessons run it in
-            place of the lab's own (:mod:`armlab.app.student_law`); never in a classroom.
+            place of the lab's own (:mod:`armlab.app.arm.student_law`); never in a classroom.
         next_to_robot: the person is next to the real arm (``--i-am-next-to-the-robot``):
             what a student's law on real servos needs.
     """
@@ -198,7 +198,7 @@ class Lab:
 
     Attributes:
         server: the :class:`LabServer`.
-        token: the access token (:mod:`armlab.app.gate`).
+        token: the access token (:mod:`armlab.app.classroom.gate`).
         base_url: ``http://HOST:PORT`` (no token); HOST is this machine's network address
             when the lab listens on every interface.
         url: ``base_url/?token=TOKEN``: the page, with the token that opens it (what
@@ -224,7 +224,7 @@ class Lab:
         #: the student's own law (``--exercise``), watched for saves; None: the lab's own
         self.law: StudentLaw | None = None
         if options.exercise is not None:
-            from armlab.app.student_law import LIVE_LESSONS, StudentLaw
+            from armlab.app.arm.student_law import LIVE_LESSONS, StudentLaw
 
             if name not in LIVE_LESSONS:
                 raise ValueError(f"--exercise: lesson {name} runs no law of yours; the "
@@ -273,7 +273,7 @@ class Lab:
             self.room: Room | None = (Room(self, realtime=options.realtime)
                                       if options.classroom else None)
             #: the shared arm's own process in a simulated classroom: its loop's periods
-            #: wait for no page (armlab.app.classroom.worker_process)
+            #: wait for no page (armlab.app.workers.worker_process)
             self.arm_process: ArmProcess | None = (
                 ArmProcess(kind="own", realtime=options.realtime)
                 if options.classroom and options.backend == "sim" else None)
@@ -285,7 +285,7 @@ class Lab:
             #: lesson name -> what it kept when last closed (LessonHandle.keep)
             self._kept: dict[str, object | None] = {}
             self._open(name)
-            #: the challenge every page shows (armlab.app.page.challenge_panel)
+            #: the challenge every page shows (armlab.app.lessons.challenge_panel)
             self.challenges = ChallengeDesk(self, shared=self.room is not None)
             if self.room is not None:
                 self.room.use_challenges(self.challenges)

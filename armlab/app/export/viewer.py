@@ -1,14 +1,14 @@
 """The exported page's stylesheet and script: a 3D view of the run drawn on a 2D canvas.
 
 The script (:data:`SCRIPT`, no library) reads the page's JSON data block (written by
-:mod:`armlab.app.export_html`): per frame, the world positions of every chain's points
+:mod:`armlab.app.export.html`): per frame, the world positions of every chain's points
 (base, each joint frame, tip; integers in units of ``scale`` m), the commanded pose
 ("ghost", or null) and the tip frame's axes. It projects them in perspective and draws
 each link as a thick line and each joint as a disc, far ones first, over a ground grid
 and the path each tip takes over the whole run. Dragging (mouse or one finger) orbits,
 the wheel or two fingers zoom, a double click resets the view. The time slider and
 play/pause (at a chosen speed) pick the frame; the charts' cursors
-(:mod:`armlab.app.export_charts`) and the joint readout follow it. It writes only text
+(:mod:`armlab.app.export.charts`) and the joint readout follow it. It writes only text
 (``textContent``) and attributes of its own elements, and makes no request.
 """
 

@@ -4,7 +4,8 @@ robots.
 A classroom gives every student a private quadruped (12 AX-12A: legs RF, LF, RH, LH, each
 hip yaw, hip pitch, knee). Instead of N ``QuadrupedSimBackend`` objects (four ``Plant``
 each, stepped in Python), :class:`BatchedQuadrupeds` keeps one
-:class:`armlab.hardware.sim.batched_plant.BatchedPlant` per group of legs with the same dynamics
+:class:`armlab.hardware.families.dynamixel1.batched_plant.BatchedPlant` per group of legs with the
+same dynamics
 (:func:`leg_groups`, checked when the batch is made: every field of the leg chains but
 names and hip mounts, and the servos: :func:`same_dynamics`), every robot an arm per leg
 in its group's plant. The lab's model mirrors its left legs (axes and y reversed), so RF
@@ -12,9 +13,11 @@ and RH share a plant of 2N arms, LF and LH another; a model whose four legs were
 would get one plant of 4N arms, one whose legs all differ four of N. A robot's arms
 interleave in a shared plant by join order; each leg's rows are kept per robot row
 (:class:`BatchedLeg`), renewed as robots join and leave. The batch carries every robot's
-body as :class:`armlab.hardware.sim.quadruped.BodyOnLegs` does, for all robots at once:
+body as :class:`armlab.hardware.families.dynamixel1.quadruped.BodyOnLegs` does, for all robots at
+once:
 
-1. every :data:`~armlab.hardware.sim.quadruped.LOAD_STEP` s of a robot's own time (from the step
+1. every :data:`~armlab.hardware.families.dynamixel1.quadruped.LOAD_STEP` s of a robot's own time
+   (from the step
    it joined) the floor plane its body rests on is found from where its feet really are
    (:func:`armlab.kinematics.body_statics.rest_planes`, the vectorised ``rest_plane``), its weight
    is shared among the feet that touch it (:func:`~armlab.kinematics.body_statics.floor_forces`,
@@ -34,7 +37,7 @@ robot's time whatever its loop syncs to.
 :class:`BatchedQuadrupedBackend` is one robot of a batch behind the
 :class:`armlab.control.backend.Backend` protocol (12 joints, as ``QuadrupedSimBackend``), for a
 :class:`armlab.control.gait_loop.GaitLoop`. As
-:class:`armlab.hardware.backends.batched.BatchedArmBackend`,
+:class:`armlab.hardware.families.dynamixel1.batched_backend.BatchedArmBackend`,
 its ``sync`` does not step the batch (one clock thread steps it for every robot; ``sync``
 waits until the batch has reached the loop's time) unless it is made with ``drive=True``
 (a batch without a clock: ``sync`` steps the whole batch, every robot in it, to the time;
@@ -70,16 +73,22 @@ import numpy as np
 
 from armlab.control.backend import BackendError, GoalLimits, JointState
 from armlab.control.batch_rows import BatchRows
-from armlab.hardware.backends.batched import (
+from armlab.hardware.families.dynamixel1.batched_backend import (
     add_sim_arm,
     decode_words,
     reset_sim_arm,
     word_tables,
 )
-from armlab.hardware.backends.sim import raw_goals, servo_limits
+from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant, ReportWords
+from armlab.hardware.families.dynamixel1.quadruped import (
+    BELLY_RAMP,
+    LEG_JOINTS,
+    LOAD_STEP,
+    G,
+    total_mass,
+)
+from armlab.hardware.families.dynamixel1.sim_backend import raw_goals, servo_limits
 from armlab.hardware.servos.servo_spec import AX12A, ServoSpec
-from armlab.hardware.sim.batched_plant import BatchedPlant, ReportWords
-from armlab.hardware.sim.quadruped import BELLY_RAMP, LEG_JOINTS, LOAD_STEP, G, total_mass
 from armlab.kinematics.body_statics import feet_and_coms, floor_forces, rest_planes
 from armlab.kinematics.model import Quadruped, SerialChain
 from armlab.kinematics.quadruped import LEGS, QuadrupedGeometry, foot_in_tibia

@@ -30,8 +30,6 @@ from armlab.hardware.families.dynamixel1.table import (
     THESIS_COMPLIANCE_MARGIN,
     THESIS_COMPLIANCE_SLOPE,
 )
-from armlab.hardware.families.feetech.table import StsSpec
-from armlab.hardware.families.xseries.table import XSpec
 from armlab.hardware.servos.servo_spec import COUNTS, RX24F, ServoSpec, TurnEncoder
 from armlab.hardware.sim.plant import Plant
 from armlab.hardware.sim.servo_motor import ServoParams
@@ -208,7 +206,7 @@ class SimBackend(GoalLimits):
             self._check_open()
             reports = self.plant.reports()
             t = self.plant.t
-        return decode_reports(reports, self.specs, self.directions, t)  # type: ignore[arg-type]  # a 1.0 plant's: its servos are ServoModels
+        return decode_reports(reports, self.specs, self.directions, t)
 
     def write(self, position: np.ndarray, speed: np.ndarray) -> None:
         """Goal positions (n,) rad and moving speeds (n,) rad/s -> Goal Position/Moving Speed.
@@ -247,8 +245,8 @@ class SimBackend(GoalLimits):
         with self._lock:
             self._check_open()
             for servo, limit in zip(self.plant.servos, self._torque_limits, strict=True):
-                if on and servo.regs.torque_limit == 0:  # type: ignore[union-attr]  # a 1.0 plant's: its servos are ServoModels
-                    servo.regs.torque_limit = limit  # type: ignore[union-attr]  # a 1.0 plant's: its servos are ServoModels
+                if on and servo.regs.torque_limit == 0:
+                    servo.regs.torque_limit = limit
                 servo.regs.torque_enable = int(bool(on))
 
     def estop(self) -> bool:
@@ -326,7 +324,7 @@ class GrippedSimBackend(SimBackend, GripperHolder):
     gripper: GripperServo | None = None
     gripper_plant: Plant | None = None
 
-    def _open_arm(self, model: SerialChain, spec: XSpec | StsSpec, *,
+    def _open_arm(self, model: SerialChain, spec: TurnEncoder, *,
                   registers: Callable[..., Any], dt: float, q0: np.ndarray | None,
                   directions: Sequence[float] | None,
                   params: ServoParams | Sequence[ServoParams] | None, torque_on: bool) -> None:

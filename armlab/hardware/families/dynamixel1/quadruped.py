@@ -26,7 +26,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from armlab.control.backend import GoalLimits, JointState
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import AX12A
 from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.body_statics import contact_forces, rest_pose, tilt_deg

@@ -8,7 +8,7 @@ token per start, as Jupyter does) and this gate checks every websocket upgrade b
 viser sees it, answering HTTP 403 (no state is ever sent) unless
 
 - the request presents the token: ``?token=`` (or ``?armlab_token=``, the name used
-  behind Jupyter, whose login owns ``?token=``: :mod:`armlab.app.jupyter`) on the websocket URL
+  behind Jupyter, whose login owns ``?token=``: :mod:`armlab.app.lab.jupyter`) on the websocket URL
   (scripts, the headless client) or the ``armlab_token`` cookie, which the lab sets on
   the page it serves for a URL with the right token (``HttpOnly; SameSite=Strict``:
   another site's page never sends it; no ``Path``: the page's folder, so behind
@@ -87,7 +87,7 @@ class Gate:
 
     def presented_in_query(self, request: Request) -> bool:
         """The request's URL carries the right ``?token=`` or ``?armlab_token=`` (the name
-        used behind Jupyter, whose own login reads ``?token=``: :mod:`armlab.app.jupyter`)."""
+        used behind Jupyter, whose own login reads ``?token=``: :mod:`armlab.app.lab.jupyter`)."""
         query = parse_qs(urlsplit(request.path).query)
         values = query.get("token", []) + query.get(COOKIE, [])
         return any(self._matches(v) for v in values)
@@ -169,7 +169,7 @@ def _query_has(request: Request, key: str) -> bool:
     return key in parse_qs(urlsplit(request.path).query, keep_blank_values=True)
 
 
-#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (armlab.app.jupyter)
+#: set by jupyter-server-proxy on what it forwards: the prefix it cut off (armlab.app.lab.jupyter)
 PROXY_PREFIX_HEADER = "X-Forwarded-Context"
 
 

@@ -8,15 +8,15 @@ and the measured angle and one of the torques recorded (at least the live page's
 figures measured (with the live page's labels and units), gains and parameters as
 text, the commands summarised (their raw JSON folded away), which law ran, and the
 robot, lesson, run, student, backend, date and lab version; its title says robot,
-lesson, run, student and UTC time (:mod:`armlab.app.export_sections`). It opens from a disk or
+lesson, run, student and UTC time (:mod:`armlab.app.export.sections`). It opens from a disk or
 a course site, offline, in any current browser, and asks no server for anything.
 
 Technique: the arm is drawn by a small hand-written script on a 2D ``<canvas>``
-(:mod:`armlab.app.export_viewer`): the lab's own forward kinematics
+(:mod:`armlab.app.export.viewer`): the lab's own forward kinematics
 (:meth:`armlab.kinematics.SerialChain.link_poses`) is computed here, in Python, for at
 most :data:`MAX_FRAMES` evenly spaced samples, and the page gets the world position of
 every joint frame, projects it in perspective and draws links as thick lines and joints
-as discs. The charts are inline SVG made here (:mod:`armlab.app.export_charts`). Not
+as discs. The charts are inline SVG made here (:mod:`armlab.app.export.charts`). Not
 viser's scene serialiser and static client: that page fetches its recording file with a
 request (which a browser refuses on ``file://``) and is megabytes of three.js; this
 page is a few hundred kB, needs no WebGL (it draws on any machine, software rendering
@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from armlab.app import export_sections as sections
-from armlab.app.export_charts import Series, line_chart
-from armlab.app.export_viewer import SCRIPT, STYLE
+from armlab.app.export import sections
+from armlab.app.export.charts import Series, line_chart
+from armlab.app.export.viewer import SCRIPT, STYLE
 from armlab.app.page.plots import ANGLE_SPAN_DEG, COLORS, TORQUE_SPAN_NM
 from armlab.control.runs import check_drawable, save_file, writable_path
 from armlab.kinematics.catalog import RECEPTIONIST_PRESETS, ROBOT_FILES

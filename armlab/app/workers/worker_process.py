@@ -1,14 +1,14 @@
 """Simulated arms in a process of their own, mirrored into the server.
 
-A class of 30 private arms stepped at 1 kHz (:class:`armlab.app.classroom.class_arms.ClassArms`)
+A class of 30 private arms stepped at 1 kHz (:class:`armlab.app.workers.class_arms.ClassArms`)
 costs about a third of one interpreter's time, and a paced control loop (the classroom's shared
 arm) waits for the GIL behind every thread of the server: the pages' publishers, the
 web server's event loop. So in a classroom these run in worker processes (a fresh
-interpreter, ``python -m armlab.app.classroom.worker``, talking over a socket pair as a
+interpreter, ``python -m armlab.app.workers.worker``, talking over a socket pair as a
 ``multiprocessing`` connection), each on a core the OS gives it, and the server keeps,
 per arm, what a lesson reads of it. One worker runs the class (``kind="class"``: the
 batched plants on one clock), another the shared arm (``kind="own"``:
-:class:`armlab.app.classroom.class_arms.OwnArms`, a ``SimBackend`` and a paced loop).
+:class:`armlab.app.workers.class_arms.OwnArms`, a ``SimBackend`` and a paced loop).
 
 - :class:`RemoteLoop`: the ``ControlLoop`` surface a lesson uses. ``status``,
   ``recorder`` (a :class:`armlab.control.recorder.Recorder` the worker's rows are copied into),
@@ -19,14 +19,14 @@ batched plants on one clock), another the shared arm (``kind="own"``:
 - :class:`RemoteBackend`: E-STOP, the hand's push and drag, each a call the worker
   answers; the Servos panel's ``plant.reports()`` are mirrored too, every
   :data:`REPORTS_S` s (a page's frame never waits for the worker).
-- :class:`armlab.app.classroom.remote_hand.RemoteHand`,
-  :class:`armlab.app.classroom.remote_gait.RemoteGait`: a student's
+- :class:`armlab.app.workers.remote_hand.RemoteHand`,
+  :class:`armlab.app.workers.remote_gait.RemoteGait`: a student's
   copy of the thesis's hand and of the seed 003 quadruped, one of the class worker's
-  :class:`armlab.app.classroom.class_hands.ClassHands` or
-  :class:`armlab.app.classroom.class_quadrupeds.ClassQuadrupeds`,
+  :class:`armlab.app.workers.class_hands.ClassHands` or
+  :class:`armlab.app.workers.class_quadrupeds.ClassQuadrupeds`,
   mirrored the same way (their messages are listed there).
 
-The worker's side is :mod:`armlab.app.classroom.worker`. A call waits at most
+The worker's side is :mod:`armlab.app.workers.worker`. A call waits at most
 :data:`CALL_TIMEOUT_S` s
 (E-STOP: :data:`ESTOP_TIMEOUT_S`). When a worker ends (killed, crashed), its arms' status
 says so as a fault and calls raise ``BackendError``: the server and the other lessons go
@@ -45,7 +45,7 @@ Messages (tuples; the server's ``Connection`` end sends calls, the worker's answ
                        ("mirror", [(arm_id, status, rows, capacity, spare, gripper,
                                     reports or None)...])
                        ("hand", [...]), ("quad", [...])
-                       (armlab.app.classroom.remote_hand, remote_gait)
+                       (armlab.app.workers.remote_hand, remote_gait)
 """
 
 from __future__ import annotations
@@ -68,10 +68,10 @@ from typing import Any
 import numpy as np
 
 import armlab
-from armlab.app.classroom.class_arms import Arm
-from armlab.app.classroom.remote_gait import RemoteGait
-from armlab.app.classroom.remote_hand import RemoteHand
-from armlab.app.classroom.worker_link import CALL_TIMEOUT_S, ESTOP_TIMEOUT_S
+from armlab.app.workers.class_arms import Arm
+from armlab.app.workers.remote_gait import RemoteGait
+from armlab.app.workers.remote_hand import RemoteHand
+from armlab.app.workers.worker_link import CALL_TIMEOUT_S, ESTOP_TIMEOUT_S
 from armlab.control.backend import BackendError, GripperState, JointState
 from armlab.control.commands import Command, EStop, UseSpareJoints
 from armlab.control.grip import GripParams
@@ -290,7 +290,7 @@ class ArmProcess:
         env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
         try:  # a fresh interpreter: never fork a server's threads, never rerun its script
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "armlab.app.classroom.worker", str(fd), str(int(realtime)),
+                [sys.executable, "-m", "armlab.app.workers.worker", str(fd), str(int(realtime)),
                  repr(float(mirror_s)), kind], pass_fds=(fd,), env=env, stdin=subprocess.DEVNULL)
         finally:
             os.close(fd)
@@ -304,7 +304,7 @@ class ArmProcess:
         self._early: dict[int, list[tuple]] = {}
         self._ids = itertools.count(1)
         self._ready = threading.Event()
-        #: how the OS schedules the worker (:func:`armlab.app.classroom.worker.prioritise`), once it
+        #: how the OS schedules the worker (:func:`armlab.app.workers.worker.prioritise`), once it
         #: started
         self.scheduling: str | None = None
         self._ended: str | None = None

@@ -1,4 +1,4 @@
-"""The parts of the exported page a teacher reads (:mod:`armlab.app.export_html`): its
+"""The parts of the exported page a teacher reads (:mod:`armlab.app.export.html`): its
 title, the measured figures with the live page's labels and units, the gains, the
 commands summarised (their raw form folded away), which law ran and who ran it.
 

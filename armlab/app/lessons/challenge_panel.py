@@ -128,7 +128,7 @@ def start_run(lesson: LessonHandle | None, lesson_name: str, challenge: Challeng
 
 
 class DeskLab(Protocol):
-    """What the desk uses of the lab (:class:`armlab.app.server.Lab`)."""
+    """What the desk uses of the lab (:class:`armlab.app.lab.server.Lab`)."""
 
     @property
     def server(self) -> viser.ViserServer: ...

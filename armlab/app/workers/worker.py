@@ -1,8 +1,8 @@
-"""The worker side of :mod:`armlab.app.classroom.worker_process`: ``python -m
-armlab.app.classroom.worker FD REALTIME
+"""The worker side of :mod:`armlab.app.workers.worker_process`: ``python -m
+armlab.app.workers.worker FD REALTIME
 MIRROR_S KIND`` runs simulated arms for the server at the other end of socket FD, sends
 their mirror every MIRROR_S s and answers the server's calls (the messages are listed in
-:mod:`armlab.app.classroom.worker_process`)."""
+:mod:`armlab.app.workers.worker_process`)."""
 
 from __future__ import annotations
 
@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from armlab.app.classroom.class_arms import Arm, ClassArms, OwnArms
-from armlab.app.classroom.class_hands import FREED as HAND_FREED
-from armlab.app.classroom.class_hands import ClassHand, ClassHands
-from armlab.app.classroom.class_quadrupeds import ClassQuadruped, ClassQuadrupeds
-from armlab.app.classroom.remote_gait import FREED as QUAD_FREED
-from armlab.app.classroom.worker_process import FREED, REPORTS_S
+from armlab.app.workers.class_arms import Arm, ClassArms, OwnArms
+from armlab.app.workers.class_hands import FREED as HAND_FREED
+from armlab.app.workers.class_hands import ClassHand, ClassHands
+from armlab.app.workers.class_quadrupeds import ClassQuadruped, ClassQuadrupeds
+from armlab.app.workers.remote_gait import FREED as QUAD_FREED
+from armlab.app.workers.worker_process import FREED, REPORTS_S
 from armlab.control.backend import BackendError
 from armlab.control.commands import Reset
 from armlab.control.gait_loop import Command as GaitCommand
@@ -68,7 +68,7 @@ def reports_of(arm: Arm) -> tuple[ServoReport, ...] | None:
 
 class HandKind:
     """The class's hands (:class:`ClassHands`) as the worker hosts them: the answers and
-    mirror items :class:`armlab.app.classroom.remote_hand.RemoteHand` expects."""
+    mirror items :class:`armlab.app.workers.remote_hand.RemoteHand` expects."""
 
     name = "hand"
     freed = HAND_FREED  #: what a freed hand's calls say
@@ -109,7 +109,7 @@ class HandKind:
 
 class QuadKind:
     """The class's quadrupeds (:class:`ClassQuadrupeds`) as the worker hosts them, for
-    :class:`armlab.app.classroom.remote_gait.RemoteGait`."""
+    :class:`armlab.app.workers.remote_gait.RemoteGait`."""
 
     name = "quad"
     freed = QUAD_FREED
@@ -356,7 +356,7 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         conn.close()
 
 
-if __name__ == "__main__":  # started by armlab.app.classroom.worker_process.ArmProcess
+if __name__ == "__main__":  # started by armlab.app.workers.worker_process.ArmProcess
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's: it closes us
     serve(Connection(int(sys.argv[1])), bool(int(sys.argv[2])), float(sys.argv[3]),
           sys.argv[4])

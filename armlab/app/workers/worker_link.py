@@ -1,9 +1,9 @@
 """What the server's proxy of something running in a worker process needs of that worker.
 
-:class:`armlab.app.classroom.worker_process.ArmProcess` is the worker; its arms' proxies live
+:class:`armlab.app.workers.worker_process.ArmProcess` is the worker; its arms' proxies live
 beside it, and the class's hands and quadrupeds have theirs
-(:mod:`armlab.app.classroom.remote_hand`,
-:mod:`armlab.app.classroom.remote_gait`), which know the worker only as a :class:`WorkerLink`.
+(:mod:`armlab.app.workers.remote_hand`,
+:mod:`armlab.app.workers.remote_gait`), which know the worker only as a :class:`WorkerLink`.
 """
 
 from __future__ import annotations

@@ -1,15 +1,15 @@
 """A student's hand running in the class's worker process, as the hand lesson drives it.
 
-The class's hands (:class:`armlab.app.classroom.class_hands.ClassHands`: one batched plant and
+The class's hands (:class:`armlab.app.workers.class_hands.ClassHands`: one batched plant and
 controller, 1 kHz) cost about half a core whatever their number, too much for the server's
 interpreter, whose pages would wait behind it. So they run in the class's worker
-(:class:`armlab.app.classroom.worker_process.ArmProcess`, next to the private arms), and the server
+(:class:`armlab.app.workers.worker_process.ArmProcess`, next to the private arms), and the server
 keeps, per hand, a :class:`RemoteHand`: the ``GripLoop`` surface a lesson uses. ``status``,
 ``params``, ``obj`` and the record (``snapshot``, ``last_grasp``) are mirrored: the worker
-sends every hand's new rows and state every :data:`armlab.app.classroom.worker_process.MIRROR_S` s.
+sends every hand's new rows and state every :data:`armlab.app.workers.worker_process.MIRROR_S` s.
 ``post`` goes to the worker's hand and waits for its answer, so a refused command raises here.
 
-Messages (besides the arms', :mod:`armlab.app.classroom.worker_process`)::
+Messages (besides the arms', :mod:`armlab.app.workers.worker_process`)::
 
     server -> worker   ("hand_add", call_id, hand_id, obj, params, history_s)
                        ("hand_post", call_id, hand_id, command)
@@ -24,8 +24,8 @@ import dataclasses
 
 import numpy as np
 
-from armlab.app.classroom.class_hands import FREED
-from armlab.app.classroom.worker_link import RemoteMember, WorkerLink
+from armlab.app.workers.class_hands import FREED
+from armlab.app.workers.worker_link import RemoteMember, WorkerLink
 from armlab.control.grip import GripModel, GripParams
 from armlab.control.grip_loop import COLUMNS, GripRecord, GripStatus
 from armlab.control.ring_buffer import RingBuffer
@@ -33,7 +33,7 @@ from armlab.hardware.sim.hand_plant import N_FINGERS, GraspObject
 
 
 class RemoteHand(RemoteMember, GripRecord):
-    """A hand of the worker's :class:`armlab.app.classroom.class_hands.ClassHands` (module
+    """A hand of the worker's :class:`armlab.app.workers.class_hands.ClassHands` (module
     docstring).
 
     Attributes:
