@@ -21,9 +21,9 @@ sys.path.insert(0, str(ROOT / "tests"))  # the browser tests' Chromium (_helpers
 
 from _helpers import CHROMIUM, CHROMIUM_ARGS, new_page_client  # noqa: E402
 
-from armlab.app.lessons import all_lessons, lesson_order  # noqa: E402
-from armlab.app.page import camera  # noqa: E402
 from armlab.app.lab.server import Lab, ServeOptions  # noqa: E402
+from armlab.app.lessons.catalog import all_lessons  # noqa: E402
+from armlab.app.page import camera  # noqa: E402
 
 #: (width, height) of the lesson pictures, CSS px (a 720p projector).
 SIZE = (1280, 720)
@@ -67,7 +67,8 @@ def take(out: Path, lessons: Sequence[str] = ()) -> list[Path]:
     one on a phone into ``out``; returns the files written."""
     from playwright.sync_api import sync_playwright
 
-    names = list(lessons) or [m.NAME for m in sorted(all_lessons().values(), key=lesson_order)]
+    names = list(lessons) or [m.name for m in
+                              sorted(all_lessons().values(), key=lambda m: m.sort_key)]
     out.mkdir(parents=True, exist_ok=True)
     written = []
     # (the full look: the pictures show what a page drawing on a GPU shows, armlab.app.page.look)

@@ -161,11 +161,11 @@ def test_dragging_the_hand_target_moves_open_manipulator_x_there():
 def test_the_so101_opens_in_the_arm_lesson_and_follows_a_dragged_target():
     """The shipped SO-101 (five STS3215 joints, simulated): the arm lesson takes it by name,
     and the hand follows the IK target dragged 3 cm through the page."""
-    from armlab.app.lessons import LessonContext, works_with
+    from armlab.app.lessons import LessonContext
     from armlab.app.lessons import arm as arm_lesson
     from tests._helpers import served_lesson
 
-    assert works_with(arm_lesson, "so101")
+    assert arm_lesson.LESSON.works_with("so101")
     with served_lesson(arm_lesson.build, LessonContext(robot="so101")) as lesson:
         model = lesson.model
         assert model.n == 5

@@ -14,7 +14,7 @@ import pytest
 from _helpers import new_page_client as _client
 from _helpers import project, wait_for
 
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.page import camera
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]

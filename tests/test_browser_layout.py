@@ -14,7 +14,7 @@ from __future__ import annotations
 import pytest
 from _helpers import wait_for
 
-from armlab.app.lessons import LESSONS
+from armlab.app.lessons.catalog import LESSONS
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 
@@ -89,7 +89,7 @@ SIZES = {"1920x1080": (1920, 1080), "1280x720": (1280, 720), "390x844": (390, 84
 
 
 @pytest.mark.parametrize("size", list(SIZES))
-@pytest.mark.parametrize("lesson", LESSONS)
+@pytest.mark.parametrize("lesson", [lesson.name for lesson in LESSONS])
 def test_nothing_is_clipped_or_overprinted_in_any_lesson_tab_mode_or_size(browser, lab,
                                                                           lesson, size):
     lab.switch(lesson)

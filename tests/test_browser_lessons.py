@@ -24,7 +24,7 @@ from _helpers import (
     wait_look_settled,
 )
 
-from armlab.app.lessons import all_lessons, lesson_order
+from armlab.app.lessons.catalog import all_lessons
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]  # every lesson, drawn in software
 Image = pytest.importorskip("PIL.Image")
@@ -117,7 +117,7 @@ def try_this(page) -> str:
 def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, page):
     lessons = all_lessons()
     first = lab.lesson_name
-    names = [n for n in sorted(lessons, key=lambda n: lesson_order(lessons[n])) if n != first]
+    names = [n for n in sorted(lessons, key=lambda n: lessons[n].sort_key) if n != first]
     assert {"redundancy", "quadruped"} <= set(lessons)
     before = settled_view(page, None)
     save(before, first)
@@ -125,7 +125,7 @@ def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, pag
     wait_for(lambda: len(try_this(page)) > 30, 60, f"{first}: a Try this line")
     shown = {first: before}
     for name in names:
-        switch(page, lab, name, lessons[name].TITLE)
+        switch(page, lab, name, lessons[name].title)
         now = settled_view(page, before)
         save(now, name)
         assert drawn_fraction(now) > 0.02, f"{name}: the 3D view is blank"
@@ -135,7 +135,7 @@ def test_every_lesson_renders_and_switching_back_gives_no_console_error(lab, pag
         shown[name] = before = now
         assert after_switch(page.console_errors) == [], \
             f"after opening {name}: {page.console_errors}"
-    switch(page, lab, first, lessons[first].TITLE)
+    switch(page, lab, first, lessons[first].title)
     back = settled_view(page, before)
     save(back, f"{first}-again")
     assert drawn_fraction(back) > 0.02, f"{first}: blank after switching back"

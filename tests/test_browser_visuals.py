@@ -18,7 +18,7 @@ import pytest
 from _helpers import new_page_client, wait_for, wait_look_settled
 
 from armlab.app.lab.server import CONTROLS_PX
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.page import camera
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
@@ -203,7 +203,7 @@ class TestProjectorPage:
 
     def test_every_lesson_name_fits_the_lesson_picker_in_projector_mode(self, projector_page):
         pg = projector_page
-        titles = [m.TITLE for m in all_lessons().values()]
+        titles = [m.title for m in all_lessons().values()]
         wait_for(lambda: pg.evaluate(PICKER_JS, titles) is not None, 60.0, "the lesson picker")
         wait_for(lambda: pg.evaluate(PICKER_JS, titles)[1] == "22px", 60.0,
                  "the picker at projector size")

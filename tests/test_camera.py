@@ -23,7 +23,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.compliance_scene import TRAIL_DOTS, ComplianceScene
 from armlab.app.page import camera
 from armlab.app.page.camera import FILL, View, frame_points, node_points

@@ -367,19 +367,18 @@ def test_in_a_class_forged_messages_pass_nothing_and_the_gradebook_has_each_stud
 
 def test_every_preset_judges_figures_its_own_lesson_declares():
     """A challenge asks its lesson for its figures: each threshold's figure is one the
-    lesson's module declares (``FIGURES``), and the lesson's run_figures() reports
+    lesson declares (``figures``), and the lesson's run_figures() reports
     exactly those (no list of every lesson's figures)."""
-    from armlab.app.lessons import all_lessons, figures, overview_figures
+    from armlab.app.lessons.catalog import all_lessons
     from armlab.control.challenges import PRESETS
 
     lessons = all_lessons()
     for challenge in PRESETS.values():
-        declared = lessons[challenge.lesson].FIGURES
+        declared = lessons[challenge.lesson].figures
         assert set(challenge.figures) <= set(declared), challenge.key
-    for module in lessons.values():
-        declared = tuple(getattr(module, "FIGURES", ()))
-        assert tuple(figures(module)) == declared
-        assert set(overview_figures(module)) <= set(declared)
-        assert all(overview_figures(module).values())  # each column has its head
-        with pytest.raises(ValueError, match="not among its FIGURES"):
-            figures(module, no_such_figure_deg=1.0)
+    for lesson in lessons.values():
+        assert tuple(lesson.figures_of()) == lesson.figures
+        assert set(lesson.overview_figures()) <= set(lesson.figures)
+        assert all(lesson.overview_figures().values())  # each column has its head
+        with pytest.raises(ValueError, match="not among its figures"):
+            lesson.figures_of(no_such_figure_deg=1.0)

@@ -368,11 +368,15 @@ def test_my_arm_in_the_other_arm_lessons_is_private_too():
 
 @pytest.mark.slow
 def test_a_lesson_without_a_private_copy_keeps_the_page_following(monkeypatch):
-    """A lesson module without ``PRIVATE`` (a lesson added later) says so and keeps the
-    page following the teacher."""
-    from armlab.app.lessons import redundancy
+    """A lesson without a private copy (``private`` False: a lesson added later) says so
+    and keeps the page following the teacher."""
+    from dataclasses import replace
 
-    monkeypatch.delattr(redundancy, "PRIVATE")
+    from armlab.app.lessons import catalog
+
+    monkeypatch.setattr(catalog, "LESSONS", tuple(
+        replace(lesson, private=False) if lesson.name == "redundancy" else lesson
+        for lesson in catalog.LESSONS))
     with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
         page, cid = _joined(lab)
         with page:

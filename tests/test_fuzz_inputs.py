@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from armlab.app.classroom.gate import DROPS
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.compliance_controls import slider_label
 from armlab.app.page.inputs import UpdateScreen, clamp_to_range, why_bad_value
 from armlab.app.testing.wsclient import HeadlessClient

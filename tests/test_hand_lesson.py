@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.hand import build
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.hand_grip import GripOptions, run_grip
@@ -38,7 +39,7 @@ def force_now(lesson) -> np.ndarray:
 
 def test_lesson_is_registered():
     module = all_lessons()["hand"]
-    assert module.TITLE and module.HELP and module.ROBOTS == ("receptionist_arm",)
+    assert module.title and module.help and module.robots == ("receptionist_arm",)
 
 
 @pytest.mark.slow

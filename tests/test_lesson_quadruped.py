@@ -11,7 +11,8 @@ import viser
 from _emulator import emulator
 from _helpers import client_of, served_lesson, wait_for
 
-from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.quadruped import build
 from armlab.app.lessons.quadruped_scene import TRAIL_POINTS, FootTrail
 from armlab.app.page.inputs import LIMIT_TITLE
@@ -87,8 +88,8 @@ def test_eq_4_1_is_the_papers_percentage():
 
 def test_lesson_is_registered():
     module = all_lessons()["quadruped"]
-    assert module.TITLE and module.HELP and module.ROBOTS == ("quadruped",)
-    assert "not statically stable" in module.HELP
+    assert module.title and module.help and module.robots == ("quadruped",)
+    assert "not statically stable" in module.help
 
 
 @pytest.mark.slow

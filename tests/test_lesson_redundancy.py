@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from _helpers import client_of, served_lesson, wait_for
 
-from armlab.app.lessons import LessonContext, all_lessons
+from armlab.app.lessons import LessonContext
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.redundancy import SHOWN_MODES, build
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.experiments.seed002 import circle
@@ -24,7 +25,7 @@ def lesson():
 
 def test_lesson_is_registered():
     module = all_lessons()["redundancy"]
-    assert module.TITLE and module.HELP and module.ROBOTS == ("redundant_planar",)
+    assert module.title and module.help and module.robots == ("redundant_planar",)
 
 
 @pytest.mark.slow

@@ -16,7 +16,8 @@ from _browser_style import chart_props
 from _helpers import served_lesson, settled
 
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons import LessonContext, all_lessons, hand, quadruped, redundancy
+from armlab.app.lessons import LessonContext, hand, quadruped, redundancy
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.page.plots import COLORS, distinct_styles
 from armlab.app.testing.wsclient import HeadlessClient
 

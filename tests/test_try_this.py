@@ -9,7 +9,7 @@ import pytest
 from _helpers import settled
 
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.testing.wsclient import HeadlessClient
 
 

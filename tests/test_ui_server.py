@@ -7,21 +7,41 @@ import time
 import pytest
 
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons import all_lessons, default_lesson
+from armlab.app.lessons.catalog import all_lessons, default_lesson
 from armlab.app.testing.wsclient import HeadlessClient
 
 pytestmark = pytest.mark.realtime  # a served lab whose loop runs on the wall clock
 
 
-def test_every_lesson_module_declares_what_the_switcher_needs():
+def test_every_lesson_declares_what_the_switcher_needs():
     lessons = all_lessons()
     assert "compliance" in lessons
-    for name, module in lessons.items():
-        assert module.NAME == name
-        assert module.TITLE and module.HELP and module.ROBOTS
+    for name, lesson in lessons.items():
+        assert lesson.name == name
+        assert lesson.title and lesson.help and lesson.first_step and lesson.robots
     assert default_lesson("receptionist_arm") == "compliance"
     with pytest.raises(ValueError, match="no lesson for 'no_such_robot'"):
         default_lesson("no_such_robot")
+
+
+def test_every_lesson_module_is_in_the_one_list():
+    """A module of the lessons' folder that declares a ``LESSON`` is listed in
+    ``catalog.LESSONS`` (a lesson written but not listed would never open)."""
+    import importlib
+    import pkgutil
+
+    import armlab.app.lessons as package
+    from armlab.app.lessons import Lesson
+    from armlab.app.lessons.catalog import LESSONS
+
+    declared = []
+    for info in pkgutil.iter_modules(package.__path__):
+        lesson = getattr(importlib.import_module(f"{package.__name__}.{info.name}"),
+                         "LESSON", None)
+        if isinstance(lesson, Lesson):
+            declared.append(lesson)
+    assert len(declared) >= 6
+    assert sorted(map(id, declared)) == sorted(map(id, LESSONS))  # the modules' own values
 
 
 def test_bad_serve_options_name_the_option():
@@ -39,7 +59,7 @@ def test_a_switch_made_by_the_lab_shows_in_every_pages_switcher():
             page.wait_for(lambda: any(e.label == "Lesson" for e in page.gui.values()),
                           what="the lesson switcher")
             lab.switch("arm")
-            title = all_lessons()["arm"].TITLE
+            title = all_lessons()["arm"].title
             page.wait_for(lambda: any(e.label == "Lesson" and e.value == title
                                       for e in page.gui.values()),
                           30.0, "the page's switcher to name the arm lesson")
@@ -55,18 +75,18 @@ def test_switching_lessons_from_the_page_stops_the_old_one():
                           what="the lesson switcher")
             others = [m for n, m in all_lessons().items() if n != "compliance"]
             for module in others:
-                page.set_value("Lesson", module.TITLE)
+                page.set_value("Lesson", module.title)
                 deadline = time.monotonic() + 30
-                while lab.lesson_name != module.NAME and time.monotonic() < deadline:
+                while lab.lesson_name != module.name and time.monotonic() < deadline:
                     time.sleep(0.05)
-                assert lab.lesson_name == module.NAME
+                assert lab.lesson_name == module.name
             if others:
                 assert not loop.status.running  # the compliance loop was shut down
                 page.wait_for(lambda: not any(
                     e.label == "Run thesis line" or str(e.props.get("title", "")).startswith(
                         "Joint angle") for e in page.gui.values()), 60.0,
                     "the compliance controls and charts to go")
-            page.set_value("Lesson", all_lessons()["compliance"].TITLE)
+            page.set_value("Lesson", all_lessons()["compliance"].title)
             page.wait_for(lambda: any(e.label == "Run thesis line" for e in page.gui.values()),
                           30.0, "the compliance controls back")
             deadline = time.monotonic() + 30

@@ -10,7 +10,7 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 
-from armlab.app.lessons import all_lessons
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.page import plots, theme
 from armlab.app.page.inputs import inward_range
 
@@ -49,4 +49,4 @@ def test_folder_titles_stay_on_one_line_in_both_sheets():
 
 
 def test_lesson_names_are_short_enough_for_the_picker():
-    assert all(len(m.TITLE) <= 14 for m in all_lessons().values())
+    assert all(len(m.title) <= 14 for m in all_lessons().values())

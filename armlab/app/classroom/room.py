@@ -20,7 +20,6 @@ import secrets
 import sys
 import threading
 from dataclasses import dataclass, replace
-from types import ModuleType
 from typing import Any, Protocol
 
 import numpy as np
@@ -44,15 +43,9 @@ from armlab.app.classroom.roles import (
     qr_svg,
 )
 from armlab.app.classroom.sandboxes import ClassFull, Sandboxes
-from armlab.app.lessons import (
-    Figures,
-    LessonContext,
-    LessonHandle,
-    all_lessons,
-    is_private,
-    overview_figures,
-)
+from armlab.app.lessons import Figures, Lesson, LessonContext, LessonHandle
 from armlab.app.lessons._common import esc, remove_quietly, warning_html
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.lessons.challenge_panel import (
     ChallengeDesk,
     MyChallenge,
@@ -165,8 +158,8 @@ class ClassLab(Protocol):
         ...
 
     @property
-    def lesson_module(self) -> ModuleType:
-        """The shared lesson's module (a private copy is built from it)."""
+    def open_lesson(self) -> Lesson:
+        """The shared lesson open now (a private copy is built from it)."""
         ...
 
     @property
@@ -379,10 +372,10 @@ class Room:
             if state.private is not None:
                 return
             lab = self.lab
-            module = lab.lesson_module
-            if not is_private(module):
+            lesson = lab.open_lesson
+            if not lesson.private:
                 notify(state.client, "No private arm here",
-                       f"The lesson {module.TITLE!r} has no private arm yet; you follow "
+                       f"The lesson {lesson.title!r} has no private arm yet; you follow "
                        "the teacher.")
                 state.view.value = FOLLOW  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 return
@@ -397,7 +390,7 @@ class Room:
             self.show_shared(state.client, shown=False)
             self.stream.hold(state.client.client_id)
             try:
-                state.private = module.build(Page(state.client), ctx)
+                state.private = lesson.build(Page(state.client), ctx)
                 collector.keep()  # the page's lesson lives as long as the page
             except BaseException:
                 self.stream.release(state.client)
@@ -675,8 +668,8 @@ class Room:
         if tables and overviews:
             rows = self.rows()
             challenge = None if self.desk is None else self.desk.challenge
-            module = all_lessons().get(self.lab.lesson_name)
-            columns = {} if module is None else overview_figures(module)
+            lesson = all_lessons().get(self.lab.lesson_name)
+            columns = {} if lesson is None else lesson.overview_figures()
             for overview in overviews:
                 overview.refresh(rows, challenge=challenge, columns=columns)
 

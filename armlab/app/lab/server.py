@@ -25,7 +25,6 @@ import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, replace
-from types import ModuleType
 from typing import TYPE_CHECKING
 
 import viser
@@ -33,14 +32,8 @@ import viser
 from armlab.app.classroom.gate import PRESENTER_QUERY, Gate, check_token, gated, new_token
 from armlab.app.classroom.roles import Roles
 from armlab.app.classroom.room import Room
-from armlab.app.lessons import (
-    LessonContext,
-    LessonHandle,
-    all_lessons,
-    default_lesson,
-    lesson_order,
-    works_with,
-)
+from armlab.app.lessons import Lesson, LessonContext, LessonHandle
+from armlab.app.lessons.catalog import all_lessons, default_lesson
 from armlab.app.lessons.challenge_panel import ChallengeDesk
 from armlab.app.page.camera import reframe, reframe_on_reshape
 from armlab.app.page.inputs import UpdateScreen
@@ -316,10 +309,10 @@ class Lab:
                                    and reframe(event.client))
         if self.roles is not None:  # both only make things safe or change one page's view
             self.roles.open(self.estop_button, self.frame_button)
-        ordered = sorted(self._lessons.values(), key=lesson_order)
-        self._by_title = {m.TITLE: m.NAME for m in ordered}
+        ordered = sorted(self._lessons.values(), key=lambda lesson: lesson.sort_key)
+        self._by_title = {lesson.title: lesson.name for lesson in ordered}
         self.lesson_dropdown = gui.add_dropdown(
-            "Lesson", tuple(self._by_title), initial_value=self._lessons[name].TITLE,
+            "Lesson", tuple(self._by_title), initial_value=self._lessons[name].title,
             order=-90.0, visible=len(ordered) > 1,
             hint="Switch to another lesson (stops the current one)")
         self.lesson_dropdown.on_update(self._on_lesson_picked)
@@ -353,15 +346,15 @@ class Lab:
         return "" if room is None else room.roles.name(client_id)
 
     def _open(self, name: str) -> None:
-        module = self._lessons[name]
+        lesson = self._lessons[name]
         ctx = self._context()
-        if o_robots := getattr(module, "ROBOTS", ()):
-            if not works_with(module, ctx.robot):  # the URDF options belong to the robot
-                ctx = replace(ctx, robot=o_robots[0], tip_link=None, package_paths=(),
-                              joint_map=None)
+        if lesson.robots and not lesson.works_with(ctx.robot):
+            # the URDF options belong to the robot
+            ctx = replace(ctx, robot=lesson.robots[0], tip_link=None, package_paths=(),
+                          joint_map=None)
         ctx = replace(ctx, kept=self._kept.get(name))  # its last opening's, if any
         collector.tidy()  # what a closed lesson left, freed while no lesson runs here
-        self.lesson = module.build(self.server, ctx)
+        self.lesson = lesson.build(self.server, ctx)
         collector.keep()  # the lab and its lesson: out of the collector's full passes
         self.lesson_name = name
         self.lesson_ctx = ctx
@@ -390,10 +383,10 @@ class Lab:
                 self._open(name)  # its scene frames itself on every open page (page.camera)
             except (ValueError, OSError, RuntimeError):
                 self._open(previous)  # back to the lesson that worked
-                self.lesson_dropdown.value = self._lessons[previous].TITLE  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+                self.lesson_dropdown.value = self._lessons[previous].title  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
                 raise
             # every page's switcher names the open lesson, however it was opened
-            self.lesson_dropdown.value = self._lessons[name].TITLE  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
+            self.lesson_dropdown.value = self._lessons[name].title  # type: ignore[misc]  # viser: value's setter is apart from its getter, mypy sees none
 
     def estop(self, *, by: viser.ClientHandle | None = None) -> None:
         """Torque off now through the open lesson; never raises. In a classroom the
@@ -414,8 +407,8 @@ class Lab:
         return None if self.room is None else self.room.roles
 
     @property
-    def lesson_module(self) -> ModuleType:
-        """The module of the open lesson."""
+    def open_lesson(self) -> Lesson:
+        """The open lesson (a private copy is built from it)."""
         return self._lessons[self.lesson_name]
 
     # -- lifetime ---------------------------------------------------------------

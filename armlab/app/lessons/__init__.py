@@ -1,41 +1,39 @@
-"""Lessons of the browser lab, one module each, listed in :data:`LESSONS`.
+"""Lessons of the browser lab: one module each, whose :class:`Lesson` value (its
+``LESSON``) is listed in :data:`armlab.app.lessons.catalog.LESSONS`.
 
-A lesson is a module in this package, named in :data:`LESSONS`, that defines:
+A lesson is a value (:class:`Lesson`) saying:
 
-- ``NAME``: short id (``"compliance"``), used by ``armlab serve --lesson``;
-- ``TITLE``: what the lesson switcher shows, a word or two (at most about 14
-  characters: the switcher shows it whole on a projector page; ``HELP`` says the rest);
-- ``HELP``: one paragraph for the page and ``--help``;
-- ``TRY``: the first action, one sentence with the control's label in bold, shown
+- ``name``: short id (``"compliance"``), used by ``armlab serve --lesson``;
+- ``title``: what the lesson switcher shows, a word or two (at most about 14
+  characters: the switcher shows it whole on a projector page; ``help`` says the rest);
+- ``help``: one paragraph for the page and ``--help``;
+- ``first_step``: the first action, one sentence with the control's label in bold, shown
   under the status line ("Press **Run thesis line** ...");
-- ``ROBOTS``: robot names the lesson works with (first = its default robot);
+- ``robots``: robot names the lesson works with (first = its default robot);
   ``ANY_URDF`` in it means any ``.urdf`` file given as the robot;
-- ``ORDER`` (optional, default 100): place in the switcher; for a robot the
-  lesson with the smallest ``ORDER`` listing it opens first;
+- ``order`` (default 100): place in the switcher; for a robot the lesson with the
+  smallest ``order`` listing it opens first;
 - ``build(server: Surface, ctx: LessonContext) -> LessonHandle``: adds the lesson's GUI
   and scene to ``server`` (:class:`armlab.app.page.surface.Surface`: the lab's server, for
   every page, or one student's page) and starts whatever runs behind it (a control
   loop), returning a handle;
-- ``PRIVATE`` (optional, default False): the lesson can be built on one page
+- ``private`` (default False): the lesson can be built on one page
   (:class:`armlab.app.classroom.private_page.Page`) with ``ctx.arms``, a student's private
-  arm, hand or quadruped ("My arm").
+  arm, hand or quadruped ("My arm");
+- ``figures``: the names its handle's ``run_figures()`` reports (each with its unit in
+  the name: ``_deg``, ``_pct``, ``_s``, ``_n``), and ``overview``, those a class overview
+  shows and their columns' heads (default the first four, by name). The overview and the
+  challenges ask the lesson for them; no list of every lesson's figures exists.
 
 The handle (:class:`LessonHandle`) is all the lab and the classroom use of a built
 lesson: ``close()`` stops what runs (loop shut down, hardware torque off) and removes
 everything the lesson added, so another lesson can be opened in the same page;
 ``estop()`` is what the lab's always-visible E-STOP button calls; ``gui_handles()``,
 ``gain_controls()`` and ``run_figures()`` are what a classroom hides, copies and shows.
-
-A lesson that measures figures declares them in its module: ``FIGURES``, the names its
-``run_figures()`` reports (each with its unit in the name: ``_deg``, ``_pct``, ``_s``,
-``_n``), and ``OVERVIEW``, those a class overview shows and their columns' heads (default the first
-four, by name). The
-overview and the challenges ask the lesson for them; no list of every lesson's figures
-exists (:func:`figures`, :func:`overview_figures`).
 A lesson without one of these parts answers so (no gains: None), as
 :class:`armlab.app.lessons._common.LessonBase` does by default.
 
-Making a lesson private takes its own module only: ``PRIVATE = True``, and its build
+Making a lesson private takes its own module only: ``private=True``, and its build
 drives ``ctx.arms`` (when given) instead of opening a backend of its own.
 
 The other modules (``_common``, ``compliance_plots``, ...) are the lessons' helpers.
@@ -43,10 +41,8 @@ The other modules (``_common``, ``compliance_plots``, ...) are the lessons' help
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from types import ModuleType
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -66,8 +62,6 @@ if TYPE_CHECKING:
     from armlab.hardware.sim.hand_plant import GraspObject
     from armlab.kinematics.model import SerialChain
 
-#: The lesson modules of this package (adding a lesson: add its module name here).
-LESSONS: tuple[str, ...] = ("arm", "compliance", "hand", "ik_accuracy", "quadruped", "redundancy")
 
 
 @dataclass(frozen=True)
@@ -143,36 +137,10 @@ class ArmSource(Protocol):
 ANY_URDF = "*.urdf"
 
 
-def works_with(module: ModuleType, robot: str) -> bool:
-    """Whether lesson ``module`` lists ``robot`` (or ``ANY_URDF`` and robot is a .urdf)."""
-    robots = getattr(module, "ROBOTS", ())
-    return robot in robots or (ANY_URDF in robots and robot.lower().endswith(".urdf"))
-
-
-#: A lesson's figures of its last runs, by name: each its module declares (``FIGURES``),
-#: None until measured. What the class overview (its module's ``OVERVIEW`` of them), the
+#: A lesson's figures of its last runs, by name: each its :attr:`Lesson.figures` declares,
+#: None until measured. What the class overview (its :attr:`Lesson.overview` of them), the
 #: challenges (a challenge judges figures its lesson declares) and Save run read.
 Figures = Mapping[str, float | None]
-
-
-def figures(module: ModuleType, **values: float | None) -> dict[str, float | None]:
-    """``module``'s figures (its ``FIGURES``, in order), each None unless given.
-
-    Raises:
-        ValueError: a figure the lesson does not declare.
-    """
-    declared: tuple[str, ...] = tuple(getattr(module, "FIGURES", ()))
-    unknown = sorted(set(values) - set(declared))
-    if unknown:
-        raise ValueError(f"lesson {module.NAME}: {', '.join(unknown)} not among its FIGURES")
-    return {key: values.get(key) for key in declared}
-
-
-def overview_figures(module: ModuleType) -> dict[str, str]:
-    """The figures a class overview shows of lesson ``module``, each with its column's
-    head (its ``OVERVIEW``; else its first four ``FIGURES``, headed by their names)."""
-    declared = tuple(getattr(module, "FIGURES", ()))
-    return dict(getattr(module, "OVERVIEW", {key: key for key in declared[:4]}))
 
 
 class Gains(Protocol):
@@ -225,44 +193,46 @@ class LessonHandle(Protocol):
         ...
 
 
-class LessonModule(Protocol):
-    """The attributes a lesson module defines."""
+@dataclass(frozen=True)
+class Lesson:
+    """One lesson of the lab, as the switcher, ``--help``, the classroom and the challenges
+    ask it (the package's docstring says what each field is for)."""
 
-    NAME: str
-    TITLE: str
-    HELP: str
-    TRY: str
-    ROBOTS: tuple[str, ...]
+    name: str
+    title: str
+    help: str
+    first_step: str
+    robots: tuple[str, ...]
+    build: Callable[[Surface, LessonContext], LessonHandle]
+    order: float = 100.0
+    private: bool = False
+    figures: tuple[str, ...] = ()
+    overview: Mapping[str, str] | None = None
 
-    def build(self, server: Surface, ctx: LessonContext) -> LessonHandle: ...
+    def works_with(self, robot: str) -> bool:
+        """Whether the lesson lists ``robot`` (or ``ANY_URDF`` and robot is a .urdf)."""
+        return robot in self.robots or (ANY_URDF in self.robots
+                                        and robot.lower().endswith(".urdf"))
 
+    def figures_of(self, **values: float | None) -> dict[str, float | None]:
+        """The lesson's figures (its :attr:`figures`, in order), each None unless given.
 
-def is_private(module: ModuleType) -> bool:
-    """Whether lesson ``module`` can be built on one student's page (its ``PRIVATE``)."""
-    return bool(getattr(module, "PRIVATE", False))
+        Raises:
+            ValueError: a figure the lesson does not declare.
+        """
+        unknown = sorted(set(values) - set(self.figures))
+        if unknown:
+            raise ValueError(f"lesson {self.name}: {', '.join(unknown)} not among its figures")
+        return {key: values.get(key) for key in self.figures}
 
+    def overview_figures(self) -> dict[str, str]:
+        """The figures a class overview shows, each with its column's head (its
+        :attr:`overview`; else its first four :attr:`figures`, headed by their names)."""
+        if self.overview is not None:
+            return dict(self.overview)
+        return {key: key for key in self.figures[:4]}
 
-def all_lessons() -> dict[str, ModuleType]:
-    """Every lesson module of :data:`LESSONS`, keyed by its ``NAME``."""
-    modules = [importlib.import_module(f"{__name__}.{name}") for name in LESSONS]
-    return {module.NAME: module for module in modules}
-
-
-def lesson_order(module: ModuleType) -> tuple[float, str]:
-    """Sort key of a lesson module: its ``ORDER`` (default 100), then its title."""
-    return (float(getattr(module, "ORDER", 100.0)), str(getattr(module, "TITLE", module.NAME)))
-
-
-def default_lesson(robot: str) -> str:
-    """Name of the lesson to open for ``robot`` (lowest ``ORDER`` among those listing it).
-
-    Raises:
-        ValueError: when no lesson works with ``robot`` (the message lists the robots
-            that have one).
-    """
-    lessons = all_lessons()
-    for module in sorted(lessons.values(), key=lesson_order):
-        if works_with(module, robot):
-            return module.NAME
-    robots = sorted({r for m in lessons.values() for r in getattr(m, "ROBOTS", ())})
-    raise ValueError(f"robot: no lesson for {robot!r}; lessons exist for {', '.join(robots)}")
+    @property
+    def sort_key(self) -> tuple[float, str]:
+        """Its place in the switcher: :attr:`order`, then its title."""
+        return (self.order, self.title)

@@ -40,7 +40,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from armlab.app.lessons import ANY_URDF, LessonContext
+from armlab.app.lessons import ANY_URDF, Lesson, LessonContext
 from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
@@ -531,3 +531,8 @@ def _on_step(deg: float, lo: float, hi: float) -> float:
 
 def _wxyz(R: np.ndarray) -> np.ndarray:
     return vtf.SO3.from_matrix(R).wxyz
+
+
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE)

@@ -24,8 +24,9 @@ from typing import Any, Protocol
 
 import viser
 
-from armlab.app.lessons import LessonHandle, all_lessons
+from armlab.app.lessons import LessonHandle
 from armlab.app.lessons._common import guarded, set_content
+from armlab.app.lessons.catalog import all_lessons
 from armlab.app.page.inputs import GuardedNumber, notify
 from armlab.control.challenges import (
     PRESETS,
@@ -65,8 +66,8 @@ def results_of(lesson: LessonHandle | None) -> list:
 
 def _lesson_title(name: str) -> str:
     """The switcher's title of lesson ``name`` ("Hand grasp")."""
-    module = all_lessons().get(name)
-    return name if module is None else str(module.TITLE)
+    lesson = all_lessons().get(name)
+    return name if lesson is None else lesson.title
 
 
 def target_markdown(challenge: Challenge | None) -> str:

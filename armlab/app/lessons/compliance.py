@@ -15,7 +15,6 @@ charts at 10 Hz inside ``server.atomic()``. UI callbacks never touch the servos.
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -23,7 +22,7 @@ from functools import partial
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext, figures
+from armlab.app.lessons import Lesson, LessonContext
 from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
@@ -616,7 +615,7 @@ class ComplianceLesson(LessonBase):
         run into a wall's (:data:`FIGURES`)."""
         ch4, step, env = self.chapter4, self.measured_pd, self.measured_env
         gain = None if env is None else env.static_gain
-        return figures(sys.modules[__name__], max_error_deg=_largest(ch4.free),
+        return LESSON.figures_of(max_error_deg=_largest(ch4.free),
                        yield_deg=_largest(ch4.yield_deg),
                        overshoot_pct=None if step is None else step.overshoot_pct,
                        settling_s=None if step is None else step.settling_time_s,
@@ -951,7 +950,11 @@ class ComplianceLesson(LessonBase):
                       self._gui.remove_all)
 
 
-__all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE, figures=FIGURES, overview=OVERVIEW)
+
+__all__ = ["ComplianceLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS", "LESSON"]
 
 
 def _index(j: int | None) -> float | None:

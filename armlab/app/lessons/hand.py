@@ -26,14 +26,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext, figures
+from armlab.app.lessons import Lesson, LessonContext
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -433,9 +432,9 @@ class HandLesson(LessonBase):
         (:data:`FIGURES`)."""
         settled = self._settled
         if settled is None:
-            return figures(sys.modules[__name__])
+            return LESSON.figures_of()
         _, fig, held = settled
-        return figures(sys.modules[__name__], grasp_force_n=fig["steady_force_N"],
+        return LESSON.figures_of(grasp_force_n=fig["steady_force_N"],
                        grasp_peak_n=fig["peak_force_N"], grasp_held=1.0 if held else 0.0)
 
     def recording(self, rows: dict[str, np.ndarray] | None = None) -> Recording:
@@ -463,4 +462,8 @@ class HandLesson(LessonBase):
                           self.scene.remove, self._gui.remove_all)
 
 
-__all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE, figures=FIGURES, overview=OVERVIEW)
+
+__all__ = ["HandLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS", "LESSON"]

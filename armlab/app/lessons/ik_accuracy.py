@@ -24,7 +24,7 @@ import numpy as np
 import viser
 import viser.uplot
 
-from armlab.app.lessons import LessonContext
+from armlab.app.lessons import Lesson, LessonContext
 from armlab.app.lessons._common import (
     INSET,
     LessonBase,
@@ -550,4 +550,8 @@ def _key(labels: dict[str, str], value: object) -> str:
     raise ValueError(f"unknown choice {value!r}")
 
 
-__all__ = ["IKAccuracyLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS"]
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE)
+
+__all__ = ["IKAccuracyLesson", "build", "NAME", "TITLE", "HELP", "ROBOTS", "LESSON"]

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import functools
 import math
-import sys
 import threading
 from dataclasses import replace
 from functools import partial
@@ -43,7 +42,7 @@ import numpy as np
 import viser
 
 from armlab.app.arm.backends import make_backend
-from armlab.app.lessons import LessonContext, figures
+from armlab.app.lessons import Lesson, LessonContext
 from armlab.app.lessons._common import (
     Every,
     LessonBase,
@@ -527,7 +526,7 @@ class QuadrupedLesson(LessonBase):
     def run_figures(self) -> dict[str, float | None]:
         """Eq. 4.1 of the last walk (once it stopped), from the servos' feedback
         (:data:`FIGURES`)."""
-        return figures(sys.modules[__name__], eq41_error_pct=self._walk_error)
+        return LESSON.figures_of(eq41_error_pct=self._walk_error)
 
     def _watch_walk(self, st: GaitStatus) -> None:
         """When a walk ends, work out its eq. 4.1 error (its last ``history_s`` at most)."""
@@ -673,5 +672,9 @@ def _command_hint(command: str) -> str:
                      "seed; trot only)"}[command]
 
 
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE, figures=FIGURES, overview=OVERVIEW)
+
 __all__ = ["QuadrupedLesson", "build", "open_servos", "servo_markdown", "NAME", "TITLE",
-           "HELP", "ROBOTS"]
+           "HELP", "ROBOTS", "LESSON"]

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from armlab.app.lessons import LessonContext
+from armlab.app.lessons import Lesson, LessonContext
 from armlab.app.lessons._common import (
     LessonBase,
     close_in_turn,
@@ -443,5 +443,9 @@ def _legend_html() -> str:
     return f"<div style='font-size:0.85em'>{items}</div>"
 
 
+#: This lesson, as the lab lists it (:data:`armlab.app.lessons.catalog.LESSONS`).
+LESSON = Lesson(name=NAME, title=TITLE, help=HELP, first_step=TRY, robots=ROBOTS, build=build,
+                order=ORDER, private=PRIVATE)
+
 __all__ = ["RedundancyLesson", "RunSet", "run_modes", "build", "NAME", "TITLE", "HELP",
-           "ROBOTS"]
+           "ROBOTS", "LESSON"]
