@@ -2,7 +2,8 @@
 the contact force shows the wall's force as the control loop recorded it (``f_contact``,
 the plant's ground truth) beside the lab's sensorless estimate of it from τ_ext (eq.
 2.21–2.23) and the disturbance and reaction-torque observers' (eq. 2.36, 2.37), with a
-readable legend (a screenshot is kept in pytest's tmp dir). Skipped, with a message, where chromium is not installed.
+readable legend (a screenshot is kept in pytest's tmp dir). Skipped, with a message,
+where chromium is not installed.
 """
 
 from __future__ import annotations
