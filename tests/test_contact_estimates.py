@@ -12,8 +12,8 @@ import json
 import numpy as np
 import pytest
 
-from armlab.app.backends import make_backend
-from armlab.app.cli import main
+from armlab.app.arm.backends import make_backend
+from armlab.app.commands.cli import main
 from armlab.control.arm_observers import FollowedRecord, hand_normal_forces, observe_record
 from armlab.control.experiments.contact import ESTIMATES, run_contact
 from armlab.control.params import DEFAULT
