@@ -1,7 +1,9 @@
 """The Contact tab in a real headless Chromium: once the hand meets the wall, the chart of
 the contact force shows the wall's force as the control loop recorded it (``f_contact``,
 the plant's ground truth) beside the lab's sensorless estimate of it from τ_ext (eq.
-2.21–2.23). Skipped, with a message, where chromium is not installed.
+2.21–2.23) and the disturbance and reaction-torque observers' (eq. 2.36, 2.37), with a
+readable legend (a screenshot is kept in pytest's tmp dir). Skipped, with a message,
+where chromium is not installed.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ TITLE = "Contact force along the wall's normal"
 
 
 def _series(page) -> list[list[float | None]] | None:  # noqa: ANN001
-    """The contact chart's data on the page ([t, wall, estimate]); None before it is drawn."""
+    """The contact chart's data on the page ([t, wall, τ_ext, DOB, RTOB]); None before it
+    is drawn."""
     return page.evaluate(
         """(t) => {
             const reg = (window.__viserTestpoints || {}).uplots || {};
@@ -34,7 +37,8 @@ def _finite(values: list[float | None]) -> list[float]:
     return [v for v in values if v is not None and math.isfinite(v)]
 
 
-def test_the_contact_chart_shows_the_recorded_force_beside_the_estimate(browser, lab):
+def test_the_contact_chart_shows_the_recorded_force_beside_the_estimates(browser, lab,
+                                                                          tmp_path):
     console: list[tuple[str, str]] = []
     page = browser.new_page(viewport={"width": 1440, "height": 900})
     page.on("console", lambda m: console.append((m.type, m.text)))
@@ -54,10 +58,10 @@ def test_the_contact_chart_shows_the_recorded_force_beside_the_estimate(browser,
     def drawn() -> bool:
         data = _series(page)
         return data is not None and max(_finite(data[1]), default=0.0) > 1.0 \
-            and len(_finite(data[2])) > 0
+            and all(max(_finite(d), default=0.0) > 0.5 for d in data[2:])
 
-    wait_for(drawn, 120, "the contact chart with the wall's force and the estimate")
-    t, wall, estimate = _series(page)
+    wait_for(drawn, 120, "the contact chart with the wall's force and the three estimates")
+    t, wall, estimate, dob, rtob = _series(page)
     # the recorded force: the loop's record (every period, thinned), never negative
     assert all(v >= 0.0 for v in _finite(wall))
     snap = lesson.rig.loop.recorder.snapshot(10.0)
@@ -65,6 +69,9 @@ def test_the_contact_chart_shows_the_recorded_force_beside_the_estimate(browser,
     assert max(_finite(wall)) <= float(recorded.max()) + 1e-6
     # the estimate reads the press with its sign (the compliance law estimates τ_ext)
     assert max(_finite(estimate)) > 0.0
+    # the observers read the press too, each its own line (not the wall's, not τ_ext's)
+    for line in (dob, rtob):
+        assert max(_finite(line)) > 0.5 and line != wall and line != estimate
     legend = page.evaluate(
         """(t) => {
             const reg = (window.__viserTestpoints || {}).uplots || {};
@@ -75,7 +82,32 @@ def test_the_contact_chart_shows_the_recorded_force_beside_the_estimate(browser,
             }
             return null;
         }""", TITLE)
-    assert legend == ["wall (ground truth)", "estimate from τ_ext"]
+    assert legend == ["wall (ground truth)", "estimate from τ_ext",
+                      "DOB (eq. 2.36), change from rest", "RTOB (eq. 2.37)"]
+    # the legend's four entries sit inside the chart's box, none clipped
+    boxes = page.evaluate(
+        """(t) => {
+            const reg = (window.__viserTestpoints || {}).uplots || {};
+            for (const {chart} of Object.values(reg)) {
+                const title = chart.root.querySelector('.u-title');
+                if (!(chart.root.isConnected && title && title.textContent.startsWith(t)))
+                    continue;
+                const r = chart.root.getBoundingClientRect();
+                return {root: [r.left, r.right],
+                        items: [...chart.root.querySelectorAll('.u-legend .u-series')]
+                            .filter(e => !e.textContent.startsWith('t − now'))
+                            .map(e => { const b = e.getBoundingClientRect();
+                                        return [b.left, b.right, b.width, b.top]; })};
+            }
+            return null;
+        }""", TITLE)
+    assert len(boxes["items"]) == 4, boxes
+    for left, right, width, _ in boxes["items"]:
+        assert width > 0 and left >= boxes["root"][0] - 1 and right <= boxes["root"][1] + 1, \
+            boxes
+    page.locator(".u-title", has_text=TITLE).scroll_into_view_if_needed()
+    page.screenshot(path=str(tmp_path / "contact_chart.png"))
+    print("screenshot:", tmp_path / "contact_chart.png")
     errors = [(k, m) for k, m in console if k in ("error", "pageerror")
               and not expected_console(m)]
     assert errors == []

@@ -10,9 +10,15 @@ settle, the steady force the law's joint stiffness predicts) are those of
 ``armlab experiment contact`` (:mod:`armlab.control.experiments.contact`'s functions, of
 the wall's force the control loop records every period, ``f_contact`` and its peak at
 every plant step between periods, ``f_contact_peak``: :mod:`armlab.control.recorder`);
-one chart shows that recorded force beside the lab's sensorless estimate of the hand's
-force along the wall's normal, period by period: n · F, F = (J_vᵀ)⁺(−τ_ext) (the statics
-of τ_ext = LPF(τ_dist) − τ_dyn, eq. 2.21–2.23, at each period's measured pose).
+one chart shows that recorded force beside the arm's sensorless estimates of the hand's
+force along the wall's normal, period by period: n · F, F = (J_vᵀ)⁺(−τ) at each period's
+measured pose, τ the lab's τ_ext = LPF(τ_dist) − τ_dyn (eq. 2.21–2.23, as the loop
+recorded it), the disturbance observer's τ̂_dis (eq. 2.36, its change from its reading at
+rest in the 0.5 s before the run began, or before the wall was placed) and the
+reaction-torque observer's τ̂_reac (eq. 2.37). The loop runs no observer: they run here,
+causally, on the record's rows (the servo load and the angles) as the loop appends them,
+each row once (:class:`armlab.control.arm_observers.FollowedRecord`), as ``armlab
+experiment contact`` runs them over its record.
 
 A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
 wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
@@ -37,14 +43,11 @@ import viser.transforms as vtf
 
 from armlab.app.lessons._common import esc, guarded, set_content
 from armlab.app.lessons._loop_state import check_running
-from armlab.app.lessons.compliance_scene import (
-    ARROW_M_PER_N,
-    ARROW_MIN_N,
-    estimated_hand_force,
-)
+from armlab.app.lessons.compliance_scene import ARROW_M_PER_N, ARROW_MIN_N
 from armlab.app.lessons.compliance_teach import STALE, people
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec
+from armlab.control.arm_observers import FollowedRecord, hand_normal_forces
 from armlab.control.backend import Touchable
 from armlab.control.backend import WallSetting as BackendWall
 from armlab.control.commands import RunTrajectory, SetVirtualWall
@@ -58,8 +61,6 @@ from armlab.control.experiments.contact import (
 from armlab.control.loop import VIRTUAL_WALL_SET_MAX_N
 from armlab.control.params import Params
 from armlab.control.trajectory import THESIS_LINE_END
-from armlab.kinematics.fk import fk_and_jacobian
-from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import all_finite
 
 if TYPE_CHECKING:
@@ -87,6 +88,12 @@ WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (
 CONTACT_RGB = (230, 120, 0)
 CHART_WINDOW_S = 10.0
 CHART_POINTS = 100  #: the loop's record thinned to about this many periods for the chart
+#: The chart's lines: the wall's recorded force and the hand's force along its normal by
+#: each estimate (τ_ext, the DOB's change from rest, the RTOB), each its colour and dash
+CHART_SERIES = (SeriesSpec("wall (ground truth)", COLORS[3], width=2.5),
+                SeriesSpec("estimate from τ_ext", COLORS[4], (6, 4)),
+                SeriesSpec("DOB (eq. 2.36), change from rest", COLORS[0], (2, 3)),
+                SeriesSpec("RTOB (eq. 2.37)", COLORS[5], (12, 3, 2, 3)))
 
 
 @dataclass(frozen=True)
@@ -140,8 +147,10 @@ class ContactTab:
         else:
             gui.add_markdown("Put a **wall** across the thesis line and run the hand into "
                              "it: the orange arrow is the wall's force on the hand, the "
-                             "chart sets it beside the force the controller estimates "
-                             "from τ_ext. Compare PD with the compliance law (Gains tab).")
+                             "chart sets it beside the force the arm reads without a "
+                             "sensor: from τ_ext (eq. 2.23) and from the disturbance "
+                             "and reaction-torque observers (DOB, RTOB). Compare PD "
+                             "with the compliance law (Gains tab).")
         self.wall_on = gui.add_checkbox("Wall", False,
                                         hint="Put the wall across the thesis line (a "
                                              "plane facing the hand)")
@@ -171,8 +180,7 @@ class ContactTab:
         self.result = gui.add_markdown("")
         self.chart = LivePlot(gui, title="Contact force along the wall's normal",
                               y_label="force (N)", window_s=CHART_WINDOW_S, points=100,
-                              series=(SeriesSpec("wall (ground truth)", COLORS[3]),
-                                      SeriesSpec("estimate from τ_ext", COLORS[4], (6, 4))),
+                              series=CHART_SERIES,
                               y_span=5.0)
         self.wall_on.on_update(lambda e: guarded(e, self._changed))
         self.button.on_click(lambda e: guarded(e, self.run))
@@ -182,6 +190,11 @@ class ContactTab:
         self._arrow: viser.ArrowsHandle | None = None
         self._force_now = 0.0
         self._run: ContactRun | None = None
+        #: the observers kept up with the rig's record while a wall is placed, and the
+        #: loop time the DOB's reference reading ends at (the wall placed, a run begun)
+        self._observed: FollowedRecord | None = None
+        self._dob_rest_at = 0.0
+        self._dob_rest: np.ndarray | None = None
         self._shown_stale: bool | None = None
         #: a contact challenge's wall is in place (not the controls')
         self._challenge_wall = False
@@ -231,7 +244,7 @@ class ContactTab:
                 backend.set_wall(None, stiffness=wall.stiffness, damping=wall.damping)
             else:
                 rig.loop.post(SetVirtualWall(None))
-            self._placed = None
+            self._placed = self._observed = None  # (placed again: read from rest again)
             self._remove_nodes()
             return
         model = rig.model
@@ -375,6 +388,7 @@ class ContactTab:
             lesson.experiment = None  # (the lesson's own runs measure nothing of this)
             self._run = ContactRun(st.t, rig.loop.params, wall, st.controller, normal,
                                    depth=length - wall.distance_cm / 100.0)
+            self._dob_rest_at, self._dob_rest = st.t, None  # the DOB's change from here
             self._shown_stale = None
             rig.scene.set_target(THESIS_LINE_END)
             set_content(self.result, "**Into the wall**: running…")
@@ -486,13 +500,25 @@ class ContactTab:
             rig, placed = self._lesson.rig, self._placed
         if rig is None or placed is None:
             return
+        observed = self._observed
+        if observed is None or observed.recorder is not rig.loop.recorder:
+            observed = self._observed = FollowedRecord(
+                rig.model, rig.loop.recorder, window_s=CHART_WINDOW_S,
+                period=rig.loop.params.period)
+            self._dob_rest_at, self._dob_rest = rig.loop.status.t, None
+        observed.update()  # (the periods since the last frame only)
         snap = rig.loop.recorder.snapshot(CHART_WINDOW_S, max_points=CHART_POINTS)
         if len(snap["t"]) < 2:
             return
+        if self._dob_rest is None:
+            self._dob_rest = observed.rest_reading(self._dob_rest_at)
+        dis, reac = observed.at(snap["t"])
+        dob = dis - (np.full(dis.shape[1], math.nan) if self._dob_rest is None
+                     else self._dob_rest)
         wall = np.nan_to_num(snap["f_contact"])  # (NaN: rows before the wall was placed)
-        self.chart.update(snap["t"], (wall, estimated_normal_force(rig.model, snap["q"],
-                                                                   snap["tau_ext"],
-                                                                   placed[1])), force=force)
+        est = hand_normal_forces(rig.model, snap["q"], (snap["tau_ext"], dob, reac),
+                                 placed[1])
+        self.chart.update(snap["t"], (wall, *est), force=force)
 
 
 def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
@@ -523,25 +549,6 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     if stale:
         text += f"\n\n{STALE} measured with other gains or another wall: run again"
     return text
-
-
-def estimated_normal_force(model: SerialChain, q: np.ndarray, tau_ext: np.ndarray,
-                           normal: np.ndarray) -> np.ndarray:
-    """(m,) N the hand presses the wall with by the lab's sensorless estimate, at each of
-    ``q`` (m, n) rad with ``tau_ext`` (m, n) N·m (eq. 2.21–2.23): n · F, F = (J_vᵀ)⁺(−τ_ext)
-    the world's force on the hand and n the wall's unit ``normal`` (3,) towards the free
-    side, so a press reads positive as the wall's own force does; NaN where τ_ext is not
-    estimated (PD) or the pose is unknown."""
-    out = np.full(len(q), math.nan)
-    n = np.asarray(normal, dtype=float)
-    for i, (qi, ti) in enumerate(zip(q, tau_ext, strict=True)):
-        if not all_finite(qi):
-            continue
-        _, J = fk_and_jacobian(model, qi)
-        f = estimated_hand_force(J, ti)
-        if f is not None:
-            out[i] = float(f @ n)
-    return out
 
 
 def _newtons(x: float | None) -> str:

@@ -21,6 +21,14 @@ nᵀ J K_q⁻¹ Jᵀ n, in series with the wall's 1 / k, so a command d behind t
 presses with f = d / (nᵀ J K_q⁻¹ Jᵀ n + 1 / k). The PD law (eq. 2.20) has no finite
 stiffness: its reference integrates the error twice, so against a wall it winds up until
 the servo's torque or the lab's lag check stops it (:data:`PD_NOTE`).
+
+How well the arm reads a force it has no sensor for: beside the wall's recorded force, the
+hand's force along the normal each of the arm's torque estimates implies
+(:func:`estimated_forces`: the lab's τ_ext of eq. 2.21–2.23 as the loop recorded it, the
+disturbance observer of eq. 2.36 and the reaction-torque observer of eq. 2.37 run over
+the record's rows, :mod:`armlab.control.arm_observers`), each as its steady mean, its
+error against the recorded steady force (N and %) and its RMS error over the run
+(:func:`force_estimate_figures`).
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from armlab.control.arm_observers import CUTOFF, hand_normal_forces, observe_record
 from armlab.control.backend import FRICTION_RANGE, Backend, Touchable, WallSetting
 from armlab.control.commands import RunTrajectory, SetVirtualWall
 from armlab.control.experiments import BackendOptions, Experiment, Keep, advance, option
@@ -146,6 +155,61 @@ def estimate_figures(t: np.ndarray, tau_wall: np.ndarray, tau_ext: np.ndarray
             "estimate_steady_nm": [float(v) for v in est_mean],
             "estimate_steady_error_nm": [float(v) for v in est_mean - wall_mean],
             "estimate_rms_error_nm": float(np.sqrt(np.mean((tau_ext[ok] - tau_wall[ok]) ** 2)))}
+
+
+#: the estimates of the hand's force ``armlab experiment contact`` sets beside the wall's:
+#: the lab's (eq. 2.21–2.23), the disturbance observer's (eq. 2.36, its change since the
+#: run's start) and the reaction-torque observer's (eq. 2.37)
+ESTIMATES = ("tau_ext", "dob", "rtob")
+
+
+def estimated_forces(model: SerialChain, rows: Mapping[str, np.ndarray], normal: np.ndarray,
+                     *, rest: np.ndarray, g: float = CUTOFF) -> dict[str, np.ndarray]:
+    """The hand's force along the wall's unit ``normal`` (3,) by each of :data:`ESTIMATES`
+    at every row of the loop's record ``rows`` (``t`` s, ``q`` rad, ``load`` and
+    ``tau_ext`` N·m), each (m,) N (:func:`~armlab.control.arm_observers.hand_normal_forces`):
+    τ_ext as the loop recorded it (NaN under PD); the observers of
+    :mod:`armlab.control.arm_observers` (cut-off ``g`` rad/s) run causally over the rows
+    from the first, the DOB's torque taken as its change from its mean over the rows
+    ``rest`` marks ((m,) bool: the arm at rest off the wall, before it moves)."""
+    t = np.asarray(rows["t"], dtype=float)
+    q = np.asarray(rows["q"], dtype=float)
+    dis, reac = observe_record(model, t, q, np.asarray(rows["load"], dtype=float),
+                               g_dis=g, g_reac=g)
+    forces = hand_normal_forces(model, q, (np.asarray(rows["tau_ext"], dtype=float),
+                                           dis - dis[rest].mean(axis=0), reac), normal)
+    return dict(zip(ESTIMATES, forces, strict=True))
+
+
+def force_estimate_figures(t: np.ndarray, force: np.ndarray,
+                           estimates: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """How well each estimate of ``estimates`` (name: (m,) N, :func:`estimated_forces`) read
+    the wall's recorded ``force`` (m,) N at loop times ``t`` (m,) s: ``NAME_force_steady_n``
+    its mean over the last :data:`STEADY_S` s (the steady force's window),
+    ``NAME_force_error_n`` that minus the recorded mean, ``NAME_force_error_pct`` in % of
+    it (None while the recorded press is under :data:`TOUCH_N`), and
+    ``NAME_force_rms_error_n`` over the whole run (an impact between two estimates' rows
+    counts); None for an estimate with no finite row in the window (τ_ext under PD)."""
+    t = np.asarray(t, dtype=float)
+    force = np.nan_to_num(np.asarray(force, dtype=float))
+    steady = t >= t[-1] - STEADY_S
+    recorded = float(np.mean(force[steady]))
+    out: dict[str, Any] = {}
+    for name, est in estimates.items():
+        est = np.asarray(est, dtype=float)
+        ok = np.isfinite(est)
+        keys = [f"{name}_force_{k}" for k in ("steady_n", "error_n", "error_pct",
+                                              "rms_error_n")]
+        if not (ok & steady).any():
+            out.update(dict.fromkeys(keys, None))
+            continue
+        mean = float(np.mean(est[ok & steady]))
+        err = mean - recorded
+        out.update(zip(keys, (mean, err,
+                              100.0 * err / recorded if recorded > TOUCH_N else None,
+                              float(np.sqrt(np.mean((est[ok] - force[ok]) ** 2)))),
+                       strict=True))
+    return out
 
 
 def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[str, Any]:
@@ -333,6 +397,14 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     figures.update(estimate_figures(snap["t"], wall_torque(model, snap["q"], normal,
                                                            np.nan_to_num(snap["f_contact"])),
                                     snap["tau_ext"]))
+    # the hand's force along the normal by τ_ext and by the observers, beside the wall's;
+    # the DOB's reference: the plan's first hold, the arm at rest at the line's start
+    t_run = snap["t"] - snap["t"][start]
+    rest = (t_run >= 0.0) & (t_run < SETTLE_S - 1e-9)
+    figures.update(force_estimate_figures(
+        snap["t"][start:], snap["f_contact"][start:],
+        {k: v[start:] for k, v in estimated_forces(model, snap, normal, rest=rest).items()}))
+    figures["observer_cutoff_rad_s"] = CUTOFF
     k_q = joint_stiffness(params, controller)
     figures.update({
         "controller": controller, "fault": fault,
