@@ -24,7 +24,7 @@ from armlab.control.loop import ControlLoop
 from armlab.control.params import DEFAULT
 from armlab.control.response import measure_step, plan_step, step_report
 from armlab.control.trajectory import thesis_line
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 
 FIGURES = (("peak_time_s", "Tp, s (2.16)"), ("overshoot_pct", "%OS (2.17)"),
            ("settling_time_s", "Ts, s (2.18)"), ("rise_time_s", "Tr, s (2.19)"))

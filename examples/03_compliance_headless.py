@@ -22,7 +22,7 @@ from armlab.control.loop import ControlLoop
 from armlab.control.params import DEFAULT, Params
 from armlab.control.response import Measured, measure_push
 from armlab.control.trajectory import thesis_line
-from armlab.hardware.backends.sim import SimBackend
+from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.kinematics import SerialChain
 
 FORCE = np.array([0.0, -3.0, 0.0])  # N, base frame: against the line's direction

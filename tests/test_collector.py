@@ -68,7 +68,7 @@ def test_a_closed_lab_hands_what_it_kept_back_to_the_collector_without_a_full_pa
 
 @pytest.mark.slow  # a lab served
 def test_a_lab_keeps_what_it_built_while_it_runs_and_hands_it_back_when_it_closes() -> None:
-    from armlab.app.server import Lab, ServeOptions
+    from armlab.app.lab.server import Lab, ServeOptions
 
     try:
         with Lab(ServeOptions(http_port=0)):
