@@ -150,7 +150,9 @@ class ContactTab:
                              "chart sets it beside the force the arm reads without a "
                              "sensor: from τ_ext (eq. 2.23) and from the disturbance "
                              "and reaction-torque observers (DOB, RTOB). Compare PD "
-                             "with the compliance law (Gains tab).")
+                             "with the compliance law (Gains tab). At the thesis's "
+                             "α 0.05 the hand bounces on the wall (the filter's lag); "
+                             "at α 0.6 it rests there, pressing what the law predicts.")
         self.wall_on = gui.add_checkbox("Wall", False,
                                         hint="Put the wall across the thesis line (a "
                                              "plane facing the hand)")

@@ -253,6 +253,9 @@ class ContactOptions(BackendOptions):
                              "servos the rendered wall has none)")
     k_env: float | None = option(None, "K_env, N·m/rad (default: the lab's)")
     k_f: float | None = option(None, "K_f (default: the lab's)")
+    d_env: float | None = option(None, "D_env, N·m·s/rad (default: the lab's)")
+    alpha: float | None = option(None, "α of the LPF on the servo load (default: the "
+                                 "thesis's 0.05; 0.3 and up press the table steadily)")
 
 
 @dataclass(frozen=True)
@@ -440,6 +443,10 @@ def _contact_run(options: ContactOptions, *, backend_factory: Any,
         params = replace(params, k_env=o.k_env)
     if o.k_f is not None:
         params = replace(params, k_f=o.k_f)
+    if o.d_env is not None:
+        params = replace(params, d_env=o.d_env)
+    if o.alpha is not None:
+        params = replace(params, alpha=o.alpha)
     return run_contact(load_robot("receptionist_arm"), backend_factory, params,
                        controller=o.controller, wall=o.wall_cm / 100.0,
                        depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,

@@ -20,11 +20,12 @@ second, or the arm was stopped; for each stiffness the sweep names the longest p
 that did not chatter.
 
 What the simulated receptionist arm shows (docs/compliance.md, "Where contact
-chatters"): its hand chatters at nearly every stiffness and period. One count of an
-RX-24F's 10-bit position (0.29°) moves the hand about a millimetre, which a 2·10⁴ N/m
-wall turns into some 20 N: the servo's own resolution makes the press on-off long before
-the control period matters, which is what a servo arm without a force sensor meets on a
-hard surface.
+chatters"): at the thesis's load filter (α 0.05, a 0.3 s lag in the force loop) its hand
+chatters at nearly every stiffness and period; with a fast filter (``--alpha 0.6``) it
+rests on every wall up to 2·10⁵ N/m at every period from 4 to 50 ms, and chatters on a
+10⁶ N/m one at all of them. The boundary is the wall's stiffness against the servos' own
+position loop (the firmware's, every millisecond), which holds the contact: the law's
+period only sets how soon its admittance answers.
 """
 
 from __future__ import annotations
@@ -115,6 +116,9 @@ class SweepOptions(BackendOptions):
     damping: float = option(50.0, "N·s/m of the wall's damping while in contact")
     wall_cm: float = option(4.0, "cm from the hand to the wall along the thesis line")
     depth_cm: float = option(2.0, "cm behind the wall's surface the command ends")
+    k_env: float | None = option(None, "K_env, N·m/rad (default: the lab's)")
+    alpha: float | None = option(None, "α of the LPF on the servo load (default: the "
+                                 "thesis's 0.05, whose lag makes the hand limit-cycle)")
 
 
 def run_sweep(options: SweepOptions, *, backend_factory: Any,
@@ -138,7 +142,12 @@ def run_sweep(options: SweepOptions, *, backend_factory: Any,
             raise ValueError(f"--periods-ms must be in {spec.min * 1e3:g}..{spec.max * 1e3:g}, "
                              f"got {ms:g}")
     model = load_robot("receptionist_arm")
-    cells = [sweep_cell(model, backend_factory, replace(DEFAULT, period=ms / 1e3),
+    base = DEFAULT
+    if o.k_env is not None:
+        base = replace(base, k_env=o.k_env)
+    if o.alpha is not None:
+        base = replace(base, alpha=o.alpha)
+    cells = [sweep_cell(model, backend_factory, replace(base, period=ms / 1e3),
                         controller=o.controller, wall=o.wall_cm / 100.0,
                         depth=o.depth_cm / 100.0, stiffness=k, damping=o.damping, keep=keep)
              for k in stiffnesses for ms in sorted(periods)]
