@@ -103,6 +103,21 @@ def test_pd_winds_up_against_the_wall_and_the_compliance_law_presses_without_a_f
     assert cl["predicted_force_n"] > 0.0 and cl["joint_stiffness_nm_per_rad"] == 4.0
 
 
+def test_contact_compare_sets_the_two_laws_runs_side_by_side(capsys):
+    """``contact-compare``: PD's and the compliance law's runs into the same wall, each
+    the ``contact`` experiment's with that law, a row a figure."""
+    assert main(["experiment", "contact-compare", "--json"]) == 0
+    both = json.loads(capsys.readouterr().out)
+    assert main(["experiment", "contact", "--controller", "pd", "--json"]) == 0
+    pd = json.loads(capsys.readouterr().out)
+    assert both["pd"]["peak_force_n"] == pd["peak_force_n"] and both["pd"]["fault"]
+    assert both["compliance"]["fault"] is None
+    rows = {r["figure"]: (r["pd"], r["compliance"]) for r in both["rows"]}
+    assert rows["peak force"] == (pd["peak_force_n"], both["compliance"]["peak_force_n"])
+    assert rows["steady force"][0] is None and rows["steady force"][1] > 0.0
+    assert rows["torque off"] == ("yes", "no")
+
+
 def test_the_sensorless_estimate_reads_the_walls_torque_with_its_sign_and_stated_error():
     """Eq. 2.21-2.23 against the ground truth: pressed on the wall by the compliance law,
     the estimate τ_ext reads the torque the joints hold against the wall (−Jᵀ f n) with

@@ -26,10 +26,15 @@ from armlab.app.lessons.compliance_contact import (
     STIFFNESS,
     figures_markdown,
 )
-from armlab.app.lessons.compliance_teach import STALE
+from armlab.app.lessons.compliance_teach import STALE, people
 from armlab.app.page.inputs import LIMIT_TITLE
 from armlab.control.commands import RunTrajectory
-from armlab.control.experiments.contact import contact_figures, run_contact
+from armlab.control.experiments.contact import (
+    compare_contact,
+    contact_figures,
+    run_contact,
+    wall_across_line,
+)
 from armlab.control.params import DEFAULT, PRESETS
 from armlab.kinematics.catalog import load_robot
 
@@ -252,3 +257,56 @@ def test_the_friction_slider_puts_its_mu_into_the_simulated_wall(lesson, client)
              "the range's end applied")
     client.set_value("Wall friction μ", 0.0)
     wait_for(lambda: lesson.rig.backend.wall_setting().friction == 0.0, 30, "μ back to 0")
+
+
+def test_dragging_the_wall_along_the_line_moves_it_and_the_distance_follows(lesson, client):
+    """The wall's gizmo, dragged by the page along the line, moves the simulated wall: the
+    distance slider takes the new place (in its 0.5 cm steps, within its range) and the
+    gizmo sits on the wall as placed at the release."""
+    tab = lesson.contact
+    home(lesson)
+    tab.wall_on.value = True
+    wait_for(lambda: lesson.rig.backend.wall_setting() is not None and tab._drag is not None,
+             30, "the wall and its gizmo placed")
+    rig = lesson.rig
+    x0, u, _, _ = wall_across_line(rig.model, rig.line.q[0], rig.line.q[-1], 0.0)
+    name = tab._drag.name
+    client.move_gizmo(name, [tuple(x0 + 0.150 * u), tuple(x0 + 0.162 * u)])
+    wait_for(lambda: tab.distance.value == 16.0, 30, "the distance at 16 cm")
+    origin = lesson.rig.backend.wall_setting().origin
+    assert float((origin - x0) @ u) == pytest.approx(0.16, abs=1e-9)
+    wait_for(lambda: np.allclose(tab._drag.position, origin), 30, "the gizmo on the wall")
+    client.move_gizmo(name, [tuple(x0 + 0.40 * u)])  # past the line's end: the range's end
+    wait_for(lambda: tab.distance.value == 20.0, 30, "the distance at its end, 20 cm")
+    tab.distance.set(DISTANCE_CM)
+
+
+def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, client):
+    """"Compare PD and compliance" runs the two runs of ``armlab experiment
+    contact-compare`` for the controls' wall and the lesson's gains on an arm of its own,
+    and sets their figures side by side on the page; the lesson's arm is left alone."""
+    tab = lesson.contact
+    home(lesson)
+    wall = tab.setting()
+    assert wall.distance_cm == DISTANCE_CM and wall.stiffness == STIFFNESS
+    t0 = lesson.rig.loop.status.t
+    client.click("Compare PD and compliance")
+    wait_for(lambda: "| peak force |" in tab.comparison.content, 120,
+             lambda: f"the comparison (the page says: {tab.comparison.content!r})")
+    text = tab.comparison.content
+    rig = lesson.rig
+    x0, u, _, _ = wall_across_line(rig.model, rig.line.q[0], rig.line.q[-1], 0.0)
+    line = float((rig.model.fk(rig.line.q[-1])[:3, 3] - x0) @ u)  # the line's 20 cm
+    assert line == pytest.approx(0.20, abs=1e-3)
+    expected = compare_contact(lambda controller: run_contact(
+        load_robot("receptionist_arm"), partial_sim, rig.loop.params, controller=controller,
+        wall=DISTANCE_CM / 100.0, depth=line - DISTANCE_CM / 100.0, stiffness=STIFFNESS,
+        damping=DAMPING))
+    pd, cl = expected["pd"], expected["compliance"]
+    assert pd["fault"] and cl["fault"] is None  # PD winds up; the law presses
+    row = next(line for line in text.splitlines() if line.startswith("| peak force |"))
+    assert row == (f"| peak force | {people(pd['peak_force_n'])} N | "
+                   f"{people(cl['peak_force_n'])} N |")
+    assert f"| steady force | — | {people(cl['steady_force_n'])} N |" in text
+    assert "| torque off | yes | no |" in text
+    assert lesson.rig.loop.status.fault is None and lesson.rig.loop.status.t > t0

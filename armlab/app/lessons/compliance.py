@@ -944,6 +944,7 @@ class ComplianceLesson(LessonBase):
         self.publisher.close()
         if self.law_view is not None:
             self.law_view.remove()
+        self.contact.close()
         self.runs.remove()
         rig, self.rig = self.rig, None
         close_in_turn(partial(self._close_rig, rig) if rig is not None else None,

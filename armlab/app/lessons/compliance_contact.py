@@ -20,6 +20,11 @@ causally, on the record's rows (the servo load and the angles) as the loop appen
 each row once (:class:`armlab.control.arm_observers.FollowedRecord`), as ``armlab
 experiment contact`` runs them over its record.
 
+The wall is dragged along the line by its gizmo (the distance slider follows), and
+"Compare PD and compliance" runs ``armlab experiment contact-compare``'s two runs into the
+same wall on a simulated arm of its own (the lesson's model and gains, off the loop) and
+sets their figures side by side: the impact, the steady press, the bounces, the settling.
+
 A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
 wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
 setting comes back once it is over; its figures are shown here too.
@@ -41,10 +46,12 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
+from armlab.app.arm.backends import make_backend
 from armlab.app.lessons._common import esc, guarded, set_content
 from armlab.app.lessons._loop_state import check_running
 from armlab.app.lessons.compliance_scene import ARROW_M_PER_N, ARROW_MIN_N
 from armlab.app.lessons.compliance_teach import STALE, people
+from armlab.app.page.in_order import InOrder
 from armlab.app.page.inputs import guarded_slider
 from armlab.app.page.plots import COLORS, LivePlot, SeriesSpec
 from armlab.control.arm_observers import FollowedRecord, hand_normal_forces
@@ -53,9 +60,11 @@ from armlab.control.backend import WallSetting as BackendWall
 from armlab.control.commands import RunTrajectory, SetVirtualWall
 from armlab.control.experiments.contact import (
     HOLD_S,
+    compare_contact,
     contact_figures,
     joint_stiffness,
     predicted_force,
+    run_contact,
     wall_across_line,
 )
 from armlab.control.loop import VIRTUAL_WALL_SET_MAX_N
@@ -180,12 +189,24 @@ class ContactTab:
                                      hint="Play the thesis line with the wall across it, "
                                           "hold 4 s behind the surface, measure the force")
         self.result = gui.add_markdown("")
+        self.compare_button = gui.add_button(
+            "Compare PD and compliance", icon=viser.Icon.SCALE, visible=not servos,
+            hint="Run the hand into this wall twice on a simulated arm of its own, under "
+                 "PD and under the compliance law (these gains), and set the figures "
+                 "side by side")
+        self.comparison = gui.add_markdown("")
         self.chart = LivePlot(gui, title="Contact force along the wall's normal",
                               y_label="force (N)", window_s=CHART_WINDOW_S, points=100,
                               series=CHART_SERIES,
                               y_span=5.0)
         self.wall_on.on_update(lambda e: guarded(e, self._changed))
         self.button.on_click(lambda e: guarded(e, self.run))
+        self.compare_button.on_click(lambda e: guarded(e, self.compare))
+        self._comparing = False  #: a comparison's two runs are going on
+        self._closed = False
+        #: the wall's gizmo's events, in the order the page sent them
+        self._lane = InOrder("armlab-contact-wall")
+        self._drag: viser.TransformControlsHandle | None = None
         self._rig: Rig | None = None  #: the rig the wall and the nodes were placed on
         self._placed: tuple[np.ndarray, np.ndarray] | None = None  #: (origin, normal), base
         self._wall_node: viser.BoxHandle | None = None
@@ -285,6 +306,14 @@ class ContactTab:
                                             wxyz=wxyz, position=centre, cast_shadow=False)
         else:
             self._wall_node.wxyz, self._wall_node.position = wxyz, centre
+        if self._drag is None:  # the wall's handle: dragged along its normal only
+            self._drag = scene.add_transform_controls(
+                f"{sh}/contact_wall_drag", scale=0.06, active_axes=(False, False, True),
+                disable_rotations=True, disable_sliders=True, depth_test=False, wxyz=wxyz,
+                position=origin)
+            self._drag.on_update(self._lane(self._dragged))
+        elif self._drag_phase is None:  # (not while a person holds it)
+            self._drag.wxyz, self._drag.position = wxyz, origin
         if self._arrow is None:
             self._arrow = scene.add_arrows(f"{sh}/contact_force", points=np.zeros((1, 2, 3)),
                                            colors=CONTACT_RGB, shaft_radius=0.006,
@@ -292,10 +321,39 @@ class ContactTab:
                                            visible=False)
 
     def _remove_nodes(self) -> None:
-        for node in (self._wall_node, self._arrow):
+        for node in (self._wall_node, self._arrow, self._drag):
             if node is not None:
                 node.remove()
-        self._wall_node = self._arrow = None
+        self._wall_node = self._arrow = self._drag = None
+
+    _drag_phase: str | None = None  #: "start"/"update" while a person drags the wall
+
+    def _dragged(self, event: viser.TransformControlsEvent) -> None:
+        """The wall's gizmo moved by a page: the distance along the line follows (the
+        slider's value, applied as the slider applies it); at the release the gizmo goes
+        back onto the wall as placed (a refused place leaves the wall where it was)."""
+        if event.client is None:  # a move from Python
+            return
+        with self._lock:
+            rig, drag = self._rig, self._drag
+            if rig is None or drag is None or event.target is not drag:
+                return
+            self._drag_phase = None if event.phase == "end" else event.phase
+            x0, u, _, _ = wall_across_line(rig.model, rig.line.q[0], rig.line.q[-1], 0.0)
+            along = float((np.asarray(event.target.position, dtype=float) - x0) @ u) * 100.0
+            step = 0.5
+            cm = min(max(round(along / step) * step, self.distance.lo), self.distance.hi)
+            if math.isfinite(cm) and cm != self.distance.value:
+                self.distance.set(cm)  # (its guard applies it, or refuses and says why)
+            if event.phase == "end" and self._placed is not None:
+                drag.position = self._placed[0]
+
+    def close(self) -> None:
+        """The lesson is closing: the gizmo's events are dropped and a comparison going on
+        writes nothing."""
+        with self._lock:
+            self._closed = True
+        self._lane.close()
 
     def challenge_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray) -> None:
         """A contact challenge's wall (``origin`` (3,) m, unit ``normal`` (3,), base frame),
@@ -394,6 +452,43 @@ class ContactTab:
             self._shown_stale = None
             rig.scene.set_target(THESIS_LINE_END)
             set_content(self.result, "**Into the wall**: running…")
+
+    def compare(self) -> None:
+        """PD and the compliance law into the controls' wall, side by side, on a simulated
+        arm of its own (the lesson's model and gains; the lesson's own arm runs on)."""
+        lesson = self._lesson
+        rig = lesson.rig
+        if rig is None:
+            raise ValueError("the arm is being rebuilt; try again")
+        if self.servos:
+            raise ValueError("the comparison runs PD, which renders no wall on servos")
+        with self._lock:
+            if self._comparing:
+                raise ValueError("a comparison is running; wait for its figures")
+            self._comparing = True
+        wall, model, params = self.setting(), rig.model, rig.loop.params
+        x0, u, _, _ = wall_across_line(model, rig.line.q[0], rig.line.q[-1], 0.0)
+        length = float((model.fk(rig.line.q[-1])[:3, 3] - x0) @ u)
+        set_content(self.comparison, "**PD and compliance**: running both…")
+
+        def one(controller: str) -> dict[str, Any]:
+            return run_contact(model, lambda m, q0: make_backend("sim", m, q0=q0), params,
+                               controller=controller, wall=wall.distance_cm / 100.0,
+                               depth=length - wall.distance_cm / 100.0,
+                               stiffness=wall.stiffness, damping=wall.damping,
+                               friction=wall.friction)
+
+        def work() -> None:
+            try:
+                text = comparison_markdown(compare_contact(one), wall)
+            except Exception as exc:  # noqa: BLE001 - said on the page, the lab goes on
+                text = f"**PD and compliance**: could not run ({esc(str(exc))})"
+            with self._lock:
+                self._comparing = False
+                if not self._closed:
+                    set_content(self.comparison, text)
+
+        threading.Thread(target=work, name="armlab-contact-compare", daemon=True).start()
 
     def tick(self) -> None:
         """Sample the wall's force and measure a run once it is over (the publisher's every
@@ -551,6 +646,25 @@ def figures_markdown(run: ContactRun, *, stale: bool = False) -> str:
     if stale:
         text += f"\n\n{STALE} measured with other gains or another wall: run again"
     return text
+
+
+def comparison_markdown(result: dict[str, Any], wall: WallSetting) -> str:
+    """``contact-compare``'s figures (:func:`~armlab.control.experiments.contact.
+    compare_contact`) as the tab's table: a row a figure, PD's beside the compliance
+    law's."""
+    def cell(value: Any, unit: str) -> str:
+        if value is None:
+            return "—"
+        if isinstance(value, str):
+            return value
+        return f"{people(float(value))} {unit}".rstrip()
+
+    lines = [f"**PD and compliance** into the wall {people(wall.distance_cm)} cm ahead "
+             f"({people(wall.stiffness)} N/m):", "", "| | PD | compliance |",
+             "| --- | --- | --- |"]
+    lines += [f"| {row['figure']} | {cell(row['pd'], row['unit'])} | "
+              f"{cell(row['compliance'], row['unit'])} |" for row in result["rows"]]
+    return "\n".join(lines)
 
 
 def _newtons(x: float | None) -> str:

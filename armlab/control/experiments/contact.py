@@ -34,7 +34,7 @@ error against the recorded steady force (N and %) and its RMS error over the run
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Literal
 
@@ -239,11 +239,10 @@ def contact_figures(t: np.ndarray, force: np.ndarray, peak: np.ndarray) -> dict[
 
 
 @dataclass(frozen=True)
-class ContactOptions(BackendOptions):
-    """Options of ``contact``."""
+class WallOptions(BackendOptions):
+    """The wall and the gains of a run into it (``contact-compare``'s options; ``contact``
+    adds the law)."""
 
-    controller: Literal["pd", "compliance"] = option(
-        "compliance", "the law that drives the hand into the wall")
     wall_cm: float = option(4.0, "cm from the hand to the wall along the thesis line")
     depth_cm: float = option(2.0, "cm behind the wall's surface the command ends")
     stiffness: float = option(2e4, "N/m the wall pushes back per m of penetration "
@@ -256,6 +255,14 @@ class ContactOptions(BackendOptions):
     d_env: float | None = option(None, "D_env, N·m·s/rad (default: the lab's)")
     alpha: float | None = option(None, "α of the LPF on the servo load (default: the "
                                  "thesis's 0.05; 0.3 and up press the table steadily)")
+
+
+@dataclass(frozen=True)
+class ContactOptions(WallOptions):
+    """Options of ``contact``."""
+
+    controller: Literal["pd", "compliance"] = option(
+        "compliance", "the law that drives the hand into the wall")
 
 
 @dataclass(frozen=True)
@@ -435,23 +442,54 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
     return figures
 
 
+def _params(o: WallOptions) -> Params:
+    """The lab's gains with the options' K_env, K_f, D_env and α where given."""
+    given = {k: getattr(o, k) for k in ("k_env", "k_f", "d_env", "alpha")
+             if getattr(o, k) is not None}
+    return replace(DEFAULT, **given)
+
+
+def _run(o: WallOptions, controller: str, *, backend_factory: Any,
+         keep: Keep | None = None) -> dict[str, Any]:
+    return run_contact(load_robot("receptionist_arm"), backend_factory, _params(o),
+                       controller=controller, wall=o.wall_cm / 100.0,
+                       depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
+                       friction=o.friction, keep=keep)
+
+
 def _contact_run(options: ContactOptions, *, backend_factory: Any,
                  keep: Keep | None = None) -> dict[str, Any]:
-    o = options
-    params = DEFAULT
-    if o.k_env is not None:
-        params = replace(params, k_env=o.k_env)
-    if o.k_f is not None:
-        params = replace(params, k_f=o.k_f)
-    if o.d_env is not None:
-        params = replace(params, d_env=o.d_env)
-    if o.alpha is not None:
-        params = replace(params, alpha=o.alpha)
-    return run_contact(load_robot("receptionist_arm"), backend_factory, params,
-                       controller=o.controller, wall=o.wall_cm / 100.0,
-                       depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
-                       friction=o.friction,
-                       keep=keep)
+    return _run(options, options.controller, backend_factory=backend_factory, keep=keep)
+
+
+#: The figures ``contact-compare`` sets side by side, each with its label and unit.
+COMPARED = (("peak_force_n", "peak force", "N"), ("steady_force_n", "steady force", "N"),
+            ("predicted_force_n", "the law predicts", "N"), ("bounces", "bounces", ""),
+            ("settle_s", "settles in", "s"), ("stopped", "torque off", ""))
+
+
+def compare_contact(run: Callable[[str], dict[str, Any]]) -> dict[str, Any]:
+    """PD and the compliance law through the same wall, one run each (``run(controller)``
+    gives one's figures), side by side: ``{"pd": figures, "compliance": figures, "rows":
+    [{"figure", "unit", "pd", "compliance"}, ...]}`` of :data:`COMPARED`. The impact,
+    the steady press and the settling a teacher compares (PD has no steady press: it
+    winds up until the lag check stops it)."""
+    pd, cl = run("pd"), run("compliance")
+    for fig in (pd, cl):  # the fault's words stay in the figures; the table says whether
+        fig["stopped"] = "yes" if fig.get("fault") else "no"
+    rows = [{"figure": label, "unit": unit, "pd": pd.get(key), "compliance": cl.get(key)}
+            for key, label, unit in COMPARED]
+    return {"pd": pd, "compliance": cl, "rows": rows}
+
+
+def _compare_run(options: WallOptions, *, backend_factory: Any,
+                 keep: Keep | None = None) -> dict[str, Any]:
+    return compare_contact(lambda controller: _run(
+        options, controller, backend_factory=backend_factory, keep=keep))
+
+
+def _compare_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    return list(result["rows"])
 
 
 def _contact_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
@@ -463,4 +501,7 @@ EXPERIMENTS = (
     Experiment("contact", "the hand driven into a wall (PD or the compliance law): peak "
                "and steady force, the force the law's stiffness predicts, bounces, settling",
                ContactOptions, _contact_run, _contact_rows, needs=("backend_factory",)),
+    Experiment("contact-compare", "PD and the compliance law into the same wall, side by "
+               "side: peak and steady force, the prediction, bounces, settling",
+               WallOptions, _compare_run, _compare_rows, needs=("backend_factory",)),
 )
