@@ -8,6 +8,8 @@ import re
 import subprocess
 import sys
 import tempfile
+import threading
+import tty
 from pathlib import Path
 
 import pytest
@@ -152,6 +154,36 @@ def test_echoing_adapter_needs_and_gets_echo_cancellation():
         bus.sync_write(30, 2, {1: p1.word(500)})  # echo only
         assert bus.read(1, "goal_position") == 500
         assert bus.read(3, "goal_position") == 600
+
+
+def test_a_retry_whose_echoes_both_come_late_still_takes_the_reply_not_an_echo():
+    """A slow far end (an emulator the OS paused) answers a retried READ only after the
+    retry: both echoes of the request come back first, then the reply. The bus takes the
+    two identical echoes as its own packets (one owed per time it was sent), not the
+    second as a status, which on protocol 1.0 has the same frame (CI read 512, the
+    READ's own address and length, for a model number 24)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    request = p1.read(3, 0, 2)
+    try:
+        with Bus(path, echo=True, retries=1, timeout_margin=0.05) as bus:
+            def far_end() -> None:
+                parser = p1.PacketParser()
+                seen: list[bytes] = []
+                while len(seen) < 2:  # the first try goes unanswered: wait for the retry
+                    seen.extend(parser.feed(os.read(master, 64)))
+                reply = p1.status(3, 0, (24).to_bytes(2, "little"))
+                os.write(master, request + request + reply)
+
+            t = threading.Thread(target=far_end, daemon=True)
+            t.start()
+            assert bus.read(3, "model_number") == 24
+            t.join(timeout=10)
+            assert bus.stats.retries == 1
+    finally:
+        os.close(master)
+        os.close(slave)
 
 
 def test_port_errors_are_one_line_with_the_fix():

@@ -154,6 +154,11 @@ class Bus(GroupReads, NamedItems):
         self.retries = int(retries)
         self.timeout_margin = float(timeout_margin)
         self.echo = bool(echo)
+        #: echoes of the packet last sent still to come: one for each time it was sent
+        #: (a retry's echo may arrive after the one before's, both after the retry's
+        #: flush, when the far end is slow), until another packet is sent
+        self._echo_owed = 0
+        self._last_sent = b""
         self.table = table
         self.stats = BusStats()
         self.notes: list[str] = []
@@ -309,6 +314,9 @@ class Bus(GroupReads, NamedItems):
         self._tx_free = now + backlog + wire_time(len(packet), self._baud)
         self.stats.transactions += 1
         self.stats.bytes_out += len(packet)
+        if self.echo:
+            self._echo_owed = self._echo_owed + 1 if packet == self._last_sent else 1
+            self._last_sent = packet
         return backlog
 
     def _lost(self, exc: BaseException | str) -> LinkLost:
@@ -331,22 +339,21 @@ class Bus(GroupReads, NamedItems):
         p = self._p if protocol is None else protocol
         parser = p.PacketParser()
         deadline = time.monotonic() + timeout
-        echo_pending = self.echo
-        if echo_pending:
+        if self.echo:
             deadline += wire_time(len(request), self._baud)
         got: dict[int, Status] = {}
         while True:
             # past the deadline still look once (timeout 0): a client the OS paused
             # must not miss a reply that came in time
-            last = len(want) - len(got) == 1 and not echo_pending
+            last = len(want) - len(got) == 1 and not self._echo_owed
             chunk = self._read_chunk(max(0.0, deadline - time.monotonic()),
                                      poll=LAST_REPLY_POLL_S if last else 0.0)
             if chunk is None:
                 break
             for raw in parser.feed(chunk):
-                if echo_pending and raw == request:
-                    echo_pending = False
-                    if echo_only:
+                if self._echo_owed and raw == request:  # our own packet, come back
+                    self._echo_owed -= 1
+                    if echo_only and not self._echo_owed:
                         return got
                     continue
                 try:
