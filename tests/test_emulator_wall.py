@@ -90,3 +90,29 @@ def test_a_wall_s_number_out_of_range_is_one_line_naming_its_option(option, valu
     assert main(["emulate", "--wall=1,2,3@0,1,0", option, value]) != 0
     err = capsys.readouterr().err
     assert said in err and "Traceback" not in err and err.count("\n") == 1, err
+
+
+@pytest.mark.realtime
+@pytest.mark.slow
+def test_a_block_across_the_line_stops_the_emulated_arm_as_the_wall_does():
+    """``--wall-size``: a 20 × 20 cm block, 5 cm thick, its face where the wall stood:
+    the hand stops at its face over the serial path."""
+    line = thesis_line(ARM)
+    _, _, origin, normal = wall_across_line(ARM, line.q[0], line.q[-1], WALL_M)
+    wall = (",".join(f"{100 * c:.4f}" for c in origin) + "@"
+            + ",".join(f"{c:.6f}" for c in normal))
+    origin, normal, snap = _run(f"--wall={wall}", "--wall-size=20,20,5")
+    depth = _depth(snap, origin, normal)
+    assert -0.005 < depth.min() < 0.003, depth.min()
+
+
+@pytest.mark.parametrize(("size", "said"), [
+    ("20,0,5", "three sizes above 0 and at most 1000 cm"),
+    ("20,x,5", "not numbers"),
+    ("20,20", "three sizes above 0 and at most 1000 cm"),
+])
+def test_a_box_given_badly_is_one_line(size, said, capsys):
+    assert main(["emulate", "--wall=1,2,3@0,1,0", f"--wall-size={size}"]) != 0
+    err = capsys.readouterr().err
+    assert said in err and "--wall-size" in err and "Traceback" not in err
+    assert err.count("\n") == 1, err

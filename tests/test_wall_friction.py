@@ -11,22 +11,24 @@ import pytest
 
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.hardware.sim.plant import FRICTION_DAMPING, Plant, _Wall, _wall_friction
+from armlab.hardware.sim.contact import FRICTION_DAMPING, Obstacle, rub
+from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.catalog import load_robot
 
 ARM = load_robot("receptionist_arm")
 UP = np.array([0.0, 0.0, 1.0])
+UP_T = (0.0, 0.0, 1.0)
 
 
 def test_friction_opposes_the_sliding_is_capped_and_needs_a_push():
-    wall = _Wall((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2e4, 0.0, 2, (0.0, 0.0, 0.0), 0.5)
-    slow = _wall_friction(wall, 10.0, [0.001, 0.0, -0.3])  # 1 mm/s along, pressing in
+    wall = Obstacle((0.0, 0.0, 0.0), UP_T, 2e4, 0.0, (), 0.5)
+    slow = rub(wall, 10.0, UP_T, [0.001, 0.0, -0.3])  # 1 mm/s along, pressing in
     assert slow == pytest.approx([-FRICTION_DAMPING * 0.001, 0.0, 0.0])  # below the cap
-    fast = _wall_friction(wall, 10.0, [0.0, 2.0, 0.0])
+    fast = rub(wall, 10.0, UP_T, [0.0, 2.0, 0.0])
     assert fast == pytest.approx([0.0, -5.0, 0.0])  # Coulomb's μ·push = 5 N
-    assert _wall_friction(wall, 0.0, [0.0, 2.0, 0.0]) == [0.0, 0.0, 0.0]  # no push
-    smooth = _Wall((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2e4, 0.0, 2, (0.0, 0.0, 0.0), 0.0)
-    assert _wall_friction(smooth, 10.0, [0.0, 2.0, 0.0]) == [0.0, 0.0, 0.0]
+    assert rub(wall, 0.0, UP_T, [0.0, 2.0, 0.0]) == [0.0, 0.0, 0.0]  # no push
+    smooth = Obstacle((0.0, 0.0, 0.0), UP_T, 2e4, 0.0, (), 0.0)
+    assert rub(smooth, 10.0, UP_T, [0.0, 2.0, 0.0]) == [0.0, 0.0, 0.0]
 
 
 @pytest.mark.parametrize("friction", [-0.1, 2.5, float("nan")])

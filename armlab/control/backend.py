@@ -185,13 +185,16 @@ FRICTION_RANGE = (0.0, 2.0)
 class WallSetting:
     """A wall as :meth:`Touchable.set_wall` placed it: ``origin`` (3,) m and unit ``normal``
     (3,) towards the free side, base frame; ``stiffness`` N/m, ``damping`` N·s/m;
-    ``friction`` μ, its Coulomb friction coefficient (0: a frictionless wall)."""
+    ``friction`` μ, its Coulomb friction coefficient (0: a frictionless wall); ``size``
+    None (a plane) or a box's (width, height, thickness) m, its face on that plane (a
+    table top, a block)."""
 
     origin: np.ndarray
     normal: np.ndarray
     stiffness: float
     damping: float
     friction: float = 0.0
+    size: tuple[float, float, float] | None = None
 
 
 @runtime_checkable
@@ -201,10 +204,12 @@ class Touchable(Protocol):
     servos' loads)."""
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float, friction: float = 0.0) -> None:
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
         """A plane through ``origin`` (3,) m with unit ``normal`` (3,) towards the free
         side, base frame, pushing back ``stiffness`` N/m of penetration and ``damping``
-        N·s/m, with Coulomb ``friction`` μ along it; None removes it."""
+        N·s/m, with Coulomb ``friction`` μ along it (``size``: a box of (width, height,
+        thickness) m with its face there instead); None removes it."""
         ...
 
     def wall_force(self) -> float:

@@ -271,4 +271,4 @@ def _carry_wall(old: Backend, new: Backend,
     wall = old.wall_setting() if named is None else named[0]
     if wall is not None:
         new.set_wall(wall.origin, wall.normal, stiffness=wall.stiffness, damping=wall.damping,
-                     friction=wall.friction)
+                     friction=wall.friction, size=wall.size)

@@ -45,13 +45,27 @@ class Joint:
 
 
 @dataclass(frozen=True)
+class Capsule:
+    """One collision shape of a link: the segment ``a``–``b`` (3,) m in the link's frame,
+    swept by a ball of ``radius`` m (a sphere where ``a`` is ``b``). A URDF's
+    ``<collision>`` sphere is one; its cylinder and box are read as one
+    (:mod:`armlab.kinematics.urdf_read`)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    radius: float
+
+
+@dataclass(frozen=True)
 class Link:
-    """Inertia of the body moved by one joint, in that joint's child-link frame."""
+    """Inertia of the body moved by one joint, in that joint's child-link frame, and the
+    shapes it touches the world with (``collision``: none when the file gives none)."""
 
     name: str
     mass: float  # kg
     com: np.ndarray  # (3,) m
     inertia: np.ndarray  # (3, 3) kg m^2 about the centre of mass
+    collision: tuple[Capsule, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -11,12 +11,12 @@ links on fixed joints are lumped into the moving link they ride on.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from armlab.kinematics.model import Joint, Link, Quadruped, SerialChain, URDFError
+from armlab.kinematics.model import Capsule, Joint, Link, Quadruped, SerialChain, URDFError
 from armlab.kinematics.transforms import homogeneous, rpy_matrix
 
 #: Gravity in the URDF's root frame (the viewer's world: z up).
@@ -65,11 +65,43 @@ def _origin(el: ET.Element | None, where: str) -> np.ndarray:
     return homogeneous(rpy_matrix(*rpy), xyz)
 
 
+def _capsule(el: ET.Element, where: str) -> Capsule | None:
+    """One ``<collision>`` as a :class:`Capsule` in its link's frame: a sphere as itself; a
+    cylinder (its axis the origin's z) as the capsule inside it, its ends rounded within
+    its length; a box as the capsule along its longest edge whose radius is half its
+    next-longest (covering its widest section). None for a mesh or no geometry: the lab
+    takes no contact from a mesh."""
+    geometry = el.find("geometry")
+    shape = None if geometry is None else next(iter(geometry), None)
+    if shape is None or shape.tag not in ("sphere", "cylinder", "box"):
+        return None
+    T = _origin(el.find("origin"), where)
+    R, p = T[:3, :3], T[:3, 3]
+    if shape.tag == "sphere":
+        r = float(_floats(shape.get("radius"), 1, 0.0, where + " sphere radius")[0])
+        half, axis = 0.0, np.array([0.0, 0.0, 1.0])
+    elif shape.tag == "cylinder":
+        r = float(_floats(shape.get("radius"), 1, 0.0, where + " cylinder radius")[0])
+        length = float(_floats(shape.get("length"), 1, 0.0, where + " cylinder length")[0])
+        half, axis = max(0.0, length / 2 - r), np.array([0.0, 0.0, 1.0])
+    else:
+        size = _floats(shape.get("size"), 3, 0.0, where + " box size")
+        order = np.argsort(size)[::-1]
+        r = float(size[order[1]]) / 2
+        half = max(0.0, float(size[order[0]]) / 2 - r)
+        axis = np.eye(3)[order[0]]
+    if not r >= 0.0:
+        raise URDFError(f"{where}: a collision shape's size must not be negative")
+    return Capsule(p - half * (R @ axis), p + half * (R @ axis), r)
+
+
 def _parse_link(el: ET.Element, where: str) -> Link:
     name = el.get("name", "")
+    shapes = tuple(c for c in (_capsule(c_el, f"{where} link {name!r} collision")
+                               for c_el in el.findall("collision")) if c is not None)
     inertial = el.find("inertial")
     if inertial is None:
-        return Link(name, 0.0, np.zeros(3), np.zeros((3, 3)))
+        return Link(name, 0.0, np.zeros(3), np.zeros((3, 3)), shapes)
     T = _origin(inertial.find("origin"), f"{where} link {name!r} inertial")
     mass_el = inertial.find("mass")
     mass = float(_floats(mass_el.get("value") if mass_el is not None else None, 1, 0.0,
@@ -85,7 +117,7 @@ def _parse_link(el: ET.Element, where: str) -> Link:
                       [g["ixy"], g["iyy"], g["iyz"]],
                       [g["ixz"], g["iyz"], g["izz"]]])
     R = T[:3, :3]
-    return Link(name, mass, T[:3, 3].copy(), R @ I @ R.T)
+    return Link(name, mass, T[:3, 3].copy(), R @ I @ R.T, shapes)
 
 
 def _limit_value(lim: ET.Element, key: str, where: str) -> float | None:
@@ -148,10 +180,13 @@ def _parse_joint(el: ET.Element, where: str) -> _UJoint:
 
 
 def _lump(a: Link, b: Link, T_ab: np.ndarray) -> Link:
-    """Inertia of body a plus body b rigidly attached at a <- b = T_ab, in a's frame."""
-    if b.mass == 0.0:
-        return a
+    """Inertia of body a plus body b rigidly attached at a <- b = T_ab, in a's frame, and
+    the shapes of both."""
     R, p = T_ab[:3, :3], T_ab[:3, 3]
+    shapes = a.collision + tuple(Capsule(R @ c.a + p, R @ c.b + p, c.radius)
+                                 for c in b.collision)
+    if b.mass == 0.0:
+        return replace(a, collision=shapes)
     cb = R @ b.com + p
     m = a.mass + b.mass
     com = (a.mass * a.com + b.mass * cb) / m
@@ -161,7 +196,7 @@ def _lump(a: Link, b: Link, T_ab: np.ndarray) -> Link:
         return I + mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
 
     I = shifted(a.inertia, a.mass, a.com) + shifted(R @ b.inertia @ R.T, b.mass, cb)
-    return Link(a.name, m, com, I)
+    return Link(a.name, m, com, I, shapes)
 
 
 @dataclass

@@ -29,7 +29,9 @@ point (X, Y, Z) cm, base frame, facing the free side along (NX, NY, NZ), that th
 presses into with ``--wall-stiffness`` N/m (default 2·10⁴, a wooden table top) and
 ``--wall-damping`` N·s/m (default 50), as the simulated arm's (``armlab experiment
 contact``): the lab over the real serial path feels it in its servos' loads only, as an
-arm touching a real table does.
+arm touching a real table does. ``--wall-size W,H,T`` makes it a box instead (a table top,
+a block: W × H cm across its face, T cm thick behind it, centred on the point), which the
+arm's links meet with their collision shapes too.
 
 ``--control FIFO`` makes FIFO a named pipe the emulator reads lines from, as a person's
 hand on an arm whose torque is off: ``hold JOINT DEG`` holds a joint (name or index, or
@@ -67,6 +69,7 @@ from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.pty import Faults, PtyEmulator
 from armlab.hardware.servos.registry import FAMILIES, family
+from armlab.hardware.sim.contact import checked_size
 from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
@@ -169,6 +172,21 @@ def _number(text: str, name: str) -> float:
 #: what ``--wall`` takes
 WALL_FORMAT = ("X,Y,Z@NX,NY,NZ (a point of the plane in cm and its normal towards the "
                "free side, base frame), e.g. --wall=-11.3,15.7,0@0,-1,0")
+
+
+def parse_size(text: str) -> tuple[float, float, float]:
+    """``--wall-size W,H,T`` (cm) -> (width, height, thickness) m, each in (0, 10 m]."""
+    expected = "expected W,H,T in cm, e.g. --wall-size 60,40,3"
+    try:
+        cm = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--wall-size {_quoted(text, 40)}: not numbers; {expected}") from None
+    if len(cm) != 3 or not all(0.0 < v <= 1000.0 for v in cm):
+        raise ValueError(f"--wall-size {_quoted(text, 40)}: three sizes above 0 and at most "
+                         f"1000 cm; {expected}")
+    size = checked_size([v / 100.0 for v in cm])
+    assert size is not None
+    return size
 
 
 def parse_wall(text: str) -> tuple[list[float], list[float]]:
@@ -282,6 +300,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the wall's damping, N·s/m (default 50)")
     parser.add_argument("--wall-friction", type=float, default=0.0, metavar="MU",
                         help="the wall's Coulomb friction coefficient (default 0)")
+    parser.add_argument("--wall-size", metavar="W,H,T",
+                        help="make the wall a box: W x H cm across its face, T cm thick "
+                             "(a table top, a block), met by the arm's links too")
     parser.add_argument("--pose", type=str, metavar="JOINT=DEG,...",
                         help="start these joints at these angles (joint name or index, "
                         "degrees), each resting there until its servo's torque comes on, "
@@ -403,6 +424,9 @@ def run(args: argparse.Namespace) -> int:
         for joint, torque, start in disturbances:
             plant.apply_joint_torque(joint, torque, start=start)
     wall = None
+    if args.wall_size and not args.wall:
+        raise ValueError("--wall-size: place the box with --wall X,Y,Z@NX,NY,NZ (the centre "
+                         "of its face, and the face's normal)")
     if args.wall:
         if not isinstance(model, SerialChain):
             raise ValueError(f"--wall: a serial arm's hand touches it, not the {model.name}'s")
@@ -410,9 +434,10 @@ def run(args: argparse.Namespace) -> int:
         check_wall_numbers(stiffness=args.wall_stiffness, damping=args.wall_damping,
                            friction=args.wall_friction,
                            names=("--wall-stiffness", "--wall-damping", "--wall-friction"))
+        size = None if args.wall_size is None else parse_size(args.wall_size)
         _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
                                      stiffness=args.wall_stiffness, damping=args.wall_damping,
-                                     friction=args.wall_friction)
+                                     friction=args.wall_friction, size=size)
     if args.fault and not jmap.family.fault_flags:
         raise ValueError(f"--fault: the flags are an X-series servo's Hardware Error Status "
                          f"or a Feetech STS's status error bits; the {jmap.servo} has none "
@@ -456,7 +481,8 @@ def run(args: argparse.Namespace) -> int:
               + "".join(f"; {flag_names[flag]} on {model.joint_names[j]} after {t:g} s "
                         "of torque on" for j, flag, t in alerts)
               + (f"; resting at {args.pose} until torque on" if args.pose else "")
-              + (f"; a wall through {args.wall} cm, {args.wall_stiffness:g} N/m"
+              + (f"; a {'box ' + args.wall_size + ' cm' if args.wall_size else 'wall'} "
+                 f"through {args.wall} cm, {args.wall_stiffness:g} N/m"
                  if wall is not None else "")
               + "; Ctrl-C to stop", file=sys.stderr, flush=True)
         emu.serve(lambda: stop["now"])

@@ -29,11 +29,23 @@ from typing import Any, cast
 
 import numpy as np
 
-from armlab.control.backend import FRICTION_RANGE
 from armlab.hardware.servos.registry import FAMILIES, family_of_spec
 from armlab.hardware.servos.servo_spec import ServoSpec, TurnEncoder
+from armlab.hardware.sim.contact import (
+    Obstacle,
+    Touch,
+    checked_friction,
+    checked_size,
+    checked_wall,
+    clear,
+    face_axes,
+    push,
+    rub,
+    touch_groups,
+)
 from armlab.hardware.sim.plant_step import rk4_step
 from armlab.hardware.sim.servo_motor import GearedMotor, ServoParams
+from armlab.kinematics.collision import contact_balls
 from armlab.kinematics.dynamics import dynamics_model, kinetic_energy, potential_energy
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import finite
@@ -88,25 +100,6 @@ class _Spring:
 
 
 @dataclass(frozen=True)
-class _Wall:
-    origin: tuple[float, float, float]
-    normal: tuple[float, float, float]
-    stiffness: float
-    damping: float
-    link: int
-    point: tuple[float, float, float]
-    friction: float = 0.0
-
-
-#: N·s/m: the slope of the wall's friction below its Coulomb limit (the regularised
-#: "stick": a damper on the sliding speed, capped at μ·f_n). Explicit RK4 at the plant's
-#: 1 ms step keeps a damper c stable on a mass m while c·dt/m stays below about 2.8; the
-#: lightest hand the lab drives (the receptionist arm's, some 0.35 kg of link and
-#: reflected rotor) takes 200 at 0.6
-FRICTION_DAMPING = 200.0
-
-
-@dataclass(frozen=True)
 class JointStops:
     """Soft mechanical stops at the model's joint limits (the arm hitting its own body).
 
@@ -117,67 +110,6 @@ class JointStops:
     stiffness: float = 50.0
     damping: float = 0.5
 
-
-
-def checked_wall(origin_base: object, normal_base: object, stiffness: object, damping: object,
-                 link: int | None, point: object, *, n: int, tip: np.ndarray,
-                 link_index: Callable[[int], int],
-                 ) -> tuple[np.ndarray, np.ndarray, float, float, int, np.ndarray]:
-    """A wall's arguments checked (``Plant.set_wall``, ``BatchedPlant.set_wall``): origin
-    (3,), unit normal (3,), stiffness, damping, the contact link's index and the contact
-    point (3,) in its frame (the tip on the last link, else the link's origin).
-
-    Raises:
-        ValueError: naming the argument that is missing, zero, non-finite or out of range.
-    """
-    if normal_base is None:
-        raise ValueError("normal_base is needed with a wall origin")
-    nrm = vector("normal_base", normal_base, 3)
-    length = float(np.linalg.norm(nrm))
-    if length < 1e-9:
-        raise ValueError("normal_base must not be zero")
-    k = scalar("stiffness", stiffness, positive=True)
-    c = scalar("damping", damping, nonnegative=True)
-    li = n - 1 if link is None else link_index(link)
-    pt = np.array(tip) if point is None else vector("point", point, 3)
-    if point is None and link is not None and li != n - 1:
-        pt = np.zeros(3)
-    return vector("origin_base", origin_base, 3), nrm / length, k, c, li, pt
-
-def checked_friction(friction: object) -> float:
-    """A wall's friction μ checked: finite, in :data:`FRICTION_RANGE`."""
-    mu = scalar("friction", friction, nonnegative=True)
-    if not FRICTION_RANGE[0] <= mu <= FRICTION_RANGE[1]:
-        raise ValueError(f"friction must be in {FRICTION_RANGE[0]:g}..{FRICTION_RANGE[1]:g}, "
-                         f"got {mu:g}")
-    return mu
-
-
-def _wall_friction(wall: _Wall, push: float, v: Sequence[float]) -> list[float]:
-    """(3,) N of the wall's friction on a contact point moving at ``v`` (3,) while it
-    pushes ``push`` N: opposing the sliding (the velocity along the plane), the damper
-    :data:`FRICTION_DAMPING` on its speed capped at Coulomb's μ·push. It never does work
-    on the arm (its power −|f|·|v_t| ≤ 0): it only takes energy out."""
-    nrm = wall.normal
-    vn = sum(v[r] * nrm[r] for r in range(3))
-    slide = [v[r] - vn * nrm[r] for r in range(3)]
-    speed = math.sqrt(slide[0] ** 2 + slide[1] ** 2 + slide[2] ** 2)
-    if push <= 0.0 or wall.friction <= 0.0 or speed <= 0.0:
-        return [0.0, 0.0, 0.0]
-    size = min(wall.friction * push, FRICTION_DAMPING * speed)
-    return [-size * slide[r] / speed for r in range(3)]
-
-
-def _wall_push(wall: _Wall, p: Sequence[float], v: Sequence[float]) -> float:
-    """N of the wall's normal push on contact point ``p`` (3,) moving at ``v`` (3,), base
-    frame: a spring on the penetration and a damper on its rate, never pulling (0 off the
-    wall)."""
-    nrm = wall.normal
-    depth = sum((p[r] - wall.origin[r]) * nrm[r] for r in range(3))
-    if depth >= 0.0:
-        return 0.0
-    vn = sum(v[r] * nrm[r] for r in range(3))
-    return max(0.0, -wall.stiffness * depth - wall.damping * vn)
 
 
 class Plant:
@@ -259,7 +191,7 @@ class Plant:
         self._k = 0  # steps taken; t = k dt
         self._pushes: list[_Push] = []
         self._spring: _Spring | None = None
-        self._wall: _Wall | None = None
+        self._wall: Obstacle | None = None
         #: N, the largest wall force since :meth:`wall_peak` was read (None: never asked)
         self._wall_peak: float | None = None
         self._push_tau = [0.0] * n
@@ -313,16 +245,26 @@ class Plant:
 
     def set_wall(self, origin_base: np.ndarray | None, normal_base: np.ndarray | None = None, *,
                  stiffness: float = 5000.0, damping: float = 30.0, link: int | None = None,
-                 point: np.ndarray | None = None, friction: float = 0.0) -> None:
-        """A rigid-ish plane the arm can press on; None removes it.
+                 point: np.ndarray | None = None, friction: float = 0.0,
+                 size: Sequence[float] | None = None) -> None:
+        """A rigid-ish obstacle the arm can press on (:mod:`armlab.hardware.sim.contact`):
+        a plane, or a box with one face on it; None removes it.
 
         Args:
             origin_base: (3,) m, a point of the plane, base frame.
             normal_base: (3,) the plane's normal pointing to the free side, base frame.
             stiffness: N/m of penetration; damping: N·s/m while in contact (never pulls).
-            friction: μ of its Coulomb friction along the plane (:func:`_wall_friction`).
-            link, point: the contact point on the arm (default: the end effector, i.e. the
-                last link's tip).
+            friction: μ of its Coulomb friction along the surface.
+            size: None: the plane (a wall); (width, height, thickness) m: a box (a table
+                top, a block) with its face on the plane, centred at ``origin_base``,
+                its width across (horizontal in the base frame), the thickness behind.
+            link, point: one contact point on the arm (default: the end effector's tip;
+                a box is met by every ball of the model's collision shapes too, each
+                link's ``<collision>`` of its URDF,
+                :func:`armlab.kinematics.collision.contact_balls`. A plane is met by the
+                one point: unbounded, it would cut through the arm's own links wherever
+                they reach past it, as the receptionist arm's elbow does past a wall
+                across the thesis line).
         """
         if origin_base is None:
             self._wall = None
@@ -330,9 +272,16 @@ class Plant:
         origin, normal, k, c, li, pt = checked_wall(
             origin_base, normal_base, stiffness, damping, link, point, n=self.n,
             tip=self.model.tip[:3, 3], link_index=self._link)
-        self._wall = _Wall(tuple(origin), tuple(normal), k, c, li,
-                           cast("tuple[float, float, float]", tuple(float(x) for x in pt)),
-                           checked_friction(friction))
+        touches = [Touch(li, cast("tuple[float, float, float]", tuple(float(x) for x in pt)))]
+        if link is None and point is None and size is not None:
+            touches += [Touch(b.link, b.centre, b.radius) for b in contact_balls(self.model)]
+        across, up = face_axes(normal)
+        self._wall = Obstacle(
+            cast("tuple[float, float, float]", tuple(origin)),
+            cast("tuple[float, float, float]", tuple(normal)), k, c, touch_groups(touches),
+            checked_friction(friction), checked_size(size),
+            cast("tuple[float, float, float]", tuple(across)),
+            cast("tuple[float, float, float]", tuple(up)))
 
     @property
     def wall(self) -> tuple[np.ndarray, np.ndarray, float, float, float] | None:
@@ -341,6 +290,12 @@ class Plant:
         w = self._wall
         return None if w is None else (np.array(w.origin), np.array(w.normal),
                                        w.stiffness, w.damping, w.friction)
+
+    @property
+    def wall_size(self) -> tuple[float, float, float] | None:
+        """The box's (width, height, thickness) m :meth:`set_wall` placed, or None (a
+        plane, or no wall)."""
+        return None if self._wall is None else self._wall.size
 
     def apply_joint_torque(self, joint: int, torque: float, *, start: float = 0.0) -> None:
         """A known disturbance: a constant ``torque`` N·m on ``joint`` (positive along the
@@ -532,32 +487,49 @@ class Plant:
         """J^T F of the spring and the wall at (q, qd)."""
         fr = self._dyn.frames(q)
         tau = [0.0] * self.n
-        for src in (self._spring, self._wall):
-            if src is None:
+        s = self._spring
+        if s is not None:
+            p, cols = self._point(fr, s.link, s.point)
+            v = _velocity(cols, qd)
+            f = [s.stiffness * (s.anchor[r] - p[r]) - s.damping * v[r] for r in range(3)]
+            _add_torque(tau, cols, f)
+        if self._wall is not None:
+            for _, f, cols in self._wall_contacts(fr, qd):
+                _add_torque(tau, cols, f)
+        return tau
+
+    def _wall_contacts(self, fr: tuple[float, ...], qd: Sequence[float]
+                       ) -> list[tuple[float, list[float], list[tuple[float, float, float]]]]:
+        """Every touch of the arm pressing on the wall at frames ``fr`` and speeds ``qd``:
+        (normal push N, its force with friction (3,) N, the touch's Jacobian columns). A
+        link's touches are looked at only where the ball bounding them reaches the wall."""
+        w = self._wall
+        out: list[tuple[float, list[float], list[tuple[float, float, float]]]] = []
+        if w is None:
+            return out
+        for g in w.groups:
+            if len(g.touches) > 1 and clear(w, self._at(fr, g.link, g.centre), g.reach):
                 continue
-            p, cols = self._point(fr, src.link, src.point)
-            vx = vy = vz = 0.0  # the point's velocity, J q̇ (in joint order, as sum() adds)
-            for col, w in zip(cols, qd, strict=False):
-                vx += col[0] * w
-                vy += col[1] * w
-                vz += col[2] * w
-            v = [vx, vy, vz]
-            if isinstance(src, _Spring):
-                f = [src.stiffness * (src.anchor[r] - p[r]) - src.damping * v[r]
-                     for r in range(3)]
-            else:
-                mag = _wall_push(src, p, v)
+            for touch in g.touches:
+                p, cols = self._point(fr, touch.link, touch.point)
+                v = _velocity(cols, qd)
+                mag, nrm = push(w, p, v, touch.radius)
                 if mag == 0.0:
                     continue
-                nrm = src.normal
-                if src.friction > 0.0:
-                    rub = _wall_friction(src, mag, v)
-                    f = [mag * nrm[0] + rub[0], mag * nrm[1] + rub[1], mag * nrm[2] + rub[2]]
-                else:
-                    f = [mag * nrm[0], mag * nrm[1], mag * nrm[2]]
-            for j, col in enumerate(cols):
-                tau[j] += col[0] * f[0] + col[1] * f[1] + col[2] * f[2]
-        return tau
+                f = [mag * nrm[0], mag * nrm[1], mag * nrm[2]]
+                if w.friction > 0.0:
+                    f = [a + b for a, b in zip(f, rub(w, mag, nrm, v), strict=True)]
+                out.append((mag, f, cols))
+        return out
+
+    @staticmethod
+    def _at(fr: tuple[float, ...], link: int, point: Sequence[float]) -> list[float]:
+        """Base-frame position of a point (3,) of link ``link`` at frames ``fr``."""
+        o = 12 * link
+        px, py, pz = point
+        return [fr[o] * px + fr[o + 1] * py + fr[o + 2] * pz + fr[o + 9],
+                fr[o + 3] * px + fr[o + 4] * py + fr[o + 5] * pz + fr[o + 10],
+                fr[o + 6] * px + fr[o + 7] * py + fr[o + 8] * pz + fr[o + 11]]
 
     def wall_peak(self) -> float:
         """N, the largest wall force at the end of any step since the last call (then
@@ -567,14 +539,13 @@ class Plant:
         return self.wall_force() if peak is None else max(peak, self.wall_force())
 
     def wall_force(self) -> float:
-        """N, the wall's normal force on the arm now (ground truth: 0 off the wall, or
-        without one): what a force sensor at the contact would read."""
-        w = self._wall
-        if w is None:
+        """N, the wall's normal force on the arm now, summed over every touch pressing on
+        it (ground truth: 0 off the wall, or without one): what a force plate under the
+        wall would read."""
+        if self._wall is None:
             return 0.0
-        p, cols = self._point(self._dyn.frames(self._q), w.link, w.point)
-        v = [sum(cols[j][r] * self._qd[j] for j in range(len(cols))) for r in range(3)]
-        return _wall_push(w, p, v)
+        return sum(mag for mag, _, _ in self._wall_contacts(self._dyn.frames(self._q),
+                                                             self._qd))
 
     # -- ground truth and reports -------------------------------------------------
 
@@ -607,3 +578,20 @@ class Plant:
         """(kinetic incl. rotors, gravitational potential) J of the true state."""
         return (kinetic_energy(self.model, self._q, self._qd, armature=self._armature),
                 potential_energy(self.model, self._q))
+
+
+def _velocity(cols: Sequence[Sequence[float]], qd: Sequence[float]) -> list[float]:
+    """(3,) m/s of a point whose Jacobian columns are ``cols`` at joint speeds ``qd`` (in
+    joint order, as sum() adds)."""
+    vx = vy = vz = 0.0
+    for col, w in zip(cols, qd, strict=False):
+        vx += col[0] * w
+        vy += col[1] * w
+        vz += col[2] * w
+    return [vx, vy, vz]
+
+
+def _add_torque(tau: list[float], cols: Sequence[Sequence[float]], f: Sequence[float]) -> None:
+    """``tau`` += Jᵀ f of a force ``f`` (3,) N at a point of Jacobian columns ``cols``."""
+    for j, col in enumerate(cols):
+        tau[j] += col[0] * f[0] + col[1] * f[1] + col[2] * f[2]

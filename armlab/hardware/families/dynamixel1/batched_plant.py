@@ -54,7 +54,8 @@ from armlab.hardware.families.dynamixel1.firmware import (
     effective_slope,
 )
 from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
-from armlab.hardware.sim.plant import FRICTION_DAMPING, JointStops, checked_friction, checked_wall
+from armlab.hardware.sim.contact import FRICTION_DAMPING, checked_friction, checked_wall
+from armlab.hardware.sim.plant import JointStops
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import batched_dynamics
 from armlab.kinematics.model import SerialChain
@@ -482,8 +483,11 @@ class BatchedPlant:
     def set_wall(self, arm: int, origin_base: np.ndarray | None,
                  normal_base: np.ndarray | None = None, *, stiffness: float = 5000.0,
                  damping: float = 30.0, link: int | None = None,
-                 point: np.ndarray | None = None, friction: float = 0.0) -> None:
-        """A plane arm ``arm`` can press on (Plant.set_wall); None removes it.
+                 point: np.ndarray | None = None, friction: float = 0.0,
+                 size: object = None) -> None:
+        """A plane arm ``arm`` can press on (Plant.set_wall); None removes it. The batch's
+        arms touch it with one point (the end effector's tip by default), not with their
+        links' collision shapes, and take no box (``size``: ValueError).
 
         Args:
             arm: the arm id.
@@ -493,7 +497,11 @@ class BatchedPlant:
             link, point: the contact point (3,) m on the arm (default the end effector;
                 a link without a point: its origin).
             friction: μ of its Coulomb friction along the plane (Plant's).
+            size: must be None (a plane).
         """
+        if size is not None:
+            raise ValueError("a class's private arms touch a wall (a plane) with the "
+                             "hand only, no box: a table or a block runs on one arm")
         r = self.row(arm)
         f = self._f
         if origin_base is None:

@@ -283,13 +283,16 @@ class SimBackend(GoalLimits):
             self.plant.set_spring(anchor, stiffness=stiffness, link=link, point=point)
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float, friction: float = 0.0) -> None:
-        """A plane the hand touches (``armlab.control.backend.Touchable``): ``origin`` (3,)
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
+        """A plane the arm touches (``armlab.control.backend.Touchable``): ``origin`` (3,)
         m on it, ``normal`` (3,) towards the free side, both base frame, with Coulomb
-        ``friction`` μ along it; None removes it."""
+        ``friction`` μ along it, or a box of ``size`` (width, height, thickness) m with
+        its face there; the hand's tip and the links' collision shapes touch it; None
+        removes it."""
         with self._lock:
             self.plant.set_wall(origin, normal, stiffness=stiffness, damping=damping,
-                                friction=friction)
+                                friction=friction, size=size)
 
     def wall_force(self) -> float:
         """N, the wall's normal force on the hand now (the plant's ground truth)."""
@@ -304,8 +307,8 @@ class SimBackend(GoalLimits):
     def wall_setting(self) -> WallSetting | None:
         """The wall in the plant's world now (None: none)."""
         with self._lock:
-            wall = self.plant.wall
-        return None if wall is None else WallSetting(*wall)
+            wall, size = self.plant.wall, self.plant.wall_size
+        return None if wall is None else WallSetting(*wall, size=size)
 
     def _check_open(self) -> None:
         if self._closed:

@@ -1,0 +1,186 @@
+"""The arm's collision shapes and the boxes they meet: a URDF's ``<collision>`` read into
+capsules (fixed children folded in), the capsules as contact balls, a box's distance and
+normal (face, edge, inside), and the arm falling onto a table top with its forearm.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from armlab.hardware.servos.servo_spec import RX24F
+from armlab.hardware.sim.contact import Obstacle, checked_size, face_axes, surface
+from armlab.hardware.sim.plant import Plant
+from armlab.kinematics.catalog import load_robot
+from armlab.kinematics.collision import SPACING, contact_balls
+from armlab.kinematics.urdf_read import chain_from_urdf
+
+ARM = load_robot("receptionist_arm")
+
+URDF = """<?xml version="1.0"?>
+<robot name="shapes">
+  <link name="base"/>
+  <link name="a">
+    <inertial><mass value="0.1"/>
+      <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
+    <collision><origin xyz="0.1 0 0" rpy="0 1.5707963267948966 0"/>
+      <geometry><cylinder radius="0.02" length="0.2"/></geometry></collision>
+    <collision><geometry><mesh filename="package://x/a.stl"/></geometry></collision>
+  </link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="b"><collision><origin xyz="0 0 0.01"/>
+    <geometry><box size="0.02 0.1 0.04"/></geometry></collision>
+    <collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <joint name="fix" type="fixed"><parent link="a"/><child link="b"/><origin xyz="0.2 0 0"/></joint>
+</robot>
+"""
+
+
+def test_a_urdfs_collision_shapes_are_read_as_capsules_with_fixed_children_folded_in(
+        tmp_path: Path):
+    path = tmp_path / "shapes.urdf"
+    path.write_text(URDF)
+    chain = chain_from_urdf(path)
+    shapes = chain.links[0].collision
+    assert len(shapes) == 3  # the cylinder, the box and the sphere: no mesh
+    cyl, box, ball = shapes
+    # the cylinder along its origin's z (the link's x): its ends rounded within its length
+    assert cyl.radius == pytest.approx(0.02)
+    assert np.allclose(cyl.a, [0.02, 0, 0], atol=1e-12)
+    assert np.allclose(cyl.b, [0.18, 0, 0], atol=1e-12)
+    # the box along its longest edge (y, 0.1 m), radius half its next (z, 0.04 m), moved
+    # by the fixed joint's 0.2 m and its own 1 cm up
+    assert box.radius == pytest.approx(0.02)
+    assert np.allclose(box.a, [0.2, -0.03, 0.01]) and np.allclose(box.b, [0.2, 0.03, 0.01])
+    assert ball.radius == pytest.approx(0.03)
+    assert np.allclose(ball.a, [0.2, 0, 0]) and np.allclose(ball.b, ball.a)
+    balls = contact_balls(chain)
+    along = [b for b in balls if b.radius == pytest.approx(0.02) and b.centre[1] == 0.0]
+    gaps = np.diff(sorted(b.centre[0] for b in along))
+    assert len(along) >= 2 and gaps.max() <= SPACING * 0.02 + 1e-12
+    assert balls[0].centre == pytest.approx((0.02, 0.0, 0.0))
+
+
+def test_the_receptionist_arms_tubes_are_its_upper_arms_and_its_forearms():
+    upper, fore = ARM.links[1].collision, ARM.links[2].collision
+    assert len(upper) == 1 and upper[0].radius == pytest.approx(0.018)
+    assert len(fore) == 1 and fore[0].radius == pytest.approx(0.016)
+    # the forearm's tube stops where the hand's sphere begins (0.25 − 0.022 m): the hand
+    # touches with its tip
+    assert float(fore[0].b[0]) == pytest.approx(0.25 - 0.022 - 0.016)
+    assert ARM.links[0].collision == ()
+
+
+def _box(size: tuple[float, float, float]) -> Obstacle:
+    n = np.array([0.0, 0.0, 1.0])
+    across, up = face_axes(n)
+    return Obstacle((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 1e4, 0.0, (), 0.0, size,
+                    tuple(across), tuple(up))  # type: ignore[arg-type]
+
+
+def test_a_box_is_a_face_an_edge_and_a_corner_outside_and_its_nearest_face_inside():
+    box = _box((0.4, 0.2, 0.1))  # 40 × 20 cm across, 10 cm thick under the face z = 0
+    d, n = surface(box, (0.05, 0.02, 0.03))  # above the face
+    assert d == pytest.approx(0.03) and n == pytest.approx((0.0, 0.0, 1.0))
+    d, n = surface(box, (0.23, 0.0, 0.04))  # past the edge at x = 0.2, above the face
+    assert d == pytest.approx(math.hypot(0.03, 0.04))
+    assert n == pytest.approx((0.6, 0.0, 0.8))
+    d, n = surface(box, (0.0, 0.0, -0.02))  # 2 cm in under the face
+    assert d == pytest.approx(-0.02) and n == pytest.approx((0.0, 0.0, 1.0))
+    d, n = surface(box, (0.0, 0.0, -0.09))  # nearer its underside
+    assert d == pytest.approx(-0.01) and n == pytest.approx((0.0, 0.0, -1.0))
+    d, n = surface(box, (0.0, -0.25, -0.05))  # beside it
+    assert d == pytest.approx(0.15) and n[1] == pytest.approx(-1.0)
+    with pytest.raises(ValueError, match="size"):
+        checked_size((0.4, 0.0, 0.1))
+    with pytest.raises(ValueError, match="size"):
+        checked_size((0.4, float("nan"), 0.1))
+
+
+def _table_under_the_forearm(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A table top's face (a point (3,) m, its unit normal (3,) against gravity), 1 cm
+    below the lowest point of the forearm's tube at ``q``, under the tube's elbow end."""
+    g = np.asarray(ARM.gravity, dtype=float)
+    up = -g / np.linalg.norm(g)
+    balls = [b for b in contact_balls(ARM) if b.link == 2]
+    T = _link_pose(q, 2)
+    centres = np.array([T[:3, :3] @ np.array(b.centre) + T[:3, 3] for b in balls])
+    low = min(float(c @ up) - b.radius for c, b in zip(centres, balls, strict=True))
+    elbow = centres[0]
+    top = elbow - (float(elbow @ up) - low + 0.01) * up
+    return top, up
+
+
+def _link_pose(q: np.ndarray, link: int) -> np.ndarray:
+    """(4, 4) base <- frame of moving link ``link`` at ``q`` (the plant's own frames)."""
+    plant = Plant(ARM, RX24F, q0=q)
+    fr = plant._dyn.frames(list(q))
+    o = 12 * link
+    T = np.eye(4)
+    T[:3, :3] = np.array(fr[o:o + 9]).reshape(3, 3)
+    T[:3, 3] = fr[o + 9:o + 12]
+    return T
+
+
+def test_a_torque_off_arm_falls_onto_a_table_top_with_its_forearm_and_comes_to_rest():
+    """A table top (a box) under the forearm, well clear of the hand's tip: torque off,
+    the arm falls onto it, the forearm's tube takes the weight (the tip never reaches the
+    table), the energy never rises above where it started, and the arm ends at rest on it."""
+    q0 = np.radians([0.0, 30.0, -100.0])
+    plant = Plant(ARM, RX24F, q0=q0)
+    top, up = _table_under_the_forearm(q0)
+    plant.set_wall(top, up, stiffness=2e4, damping=20.0, friction=0.5, size=(0.6, 0.6, 0.03))
+    assert plant.wall_size == (0.6, 0.6, 0.03)
+    e0 = sum(plant.energy())
+    energies, touched, tip_heights = [], 0.0, []
+    for _ in range(3000):  # 3 s
+        plant.step()
+        energies.append(sum(plant.energy()))
+        touched = max(touched, plant.wall_force())
+        tip_heights.append(float((ARM.fk(plant.q)[:3, 3] - top) @ up))
+    assert touched > 0.0, "the forearm never reached the table"
+    assert min(tip_heights) > 0.0, "the tip reached the table: not the forearm's contact"
+    assert max(energies) <= e0 + 1e-6, (max(energies), e0)
+    assert np.abs(plant.qd).max() < 0.05, plant.qd
+    assert plant.wall_force() > 0.1  # resting on it: the table holds part of its weight
+
+
+def test_a_plane_is_met_by_the_tip_alone_and_a_box_by_the_shapes_too():
+    """The same arm, a plane and a box through the same face: the plane pushes on the tip
+    only (the arm's links may reach past an unbounded plane), the box on the shapes it
+    holds too."""
+    q = np.radians([0.0, 30.0, -100.0])
+    plant = Plant(ARM, RX24F, q0=q)
+    top, up = _table_under_the_forearm(q)
+    sunk = top + 0.02 * up  # the face 2 cm up: the forearm's tube 1 cm into it
+    plant.set_wall(sunk, up, stiffness=2e4, damping=0.0)
+    tip_in = -float((ARM.fk(q)[:3, 3] - sunk) @ up)
+    assert plant.wall_force() == pytest.approx(max(0.0, 2e4 * tip_in), abs=1e-9)
+    plant.set_wall(sunk, up, stiffness=2e4, damping=0.0, size=(0.6, 0.6, 0.03))
+    assert plant.wall_force() > 2e4 * 0.005  # the tube's balls, a centimetre in
+
+
+def test_the_simulated_arm_keeps_its_box_and_a_class_arm_refuses_one():
+    """The simulated arm's backend says the box it holds (what a restarted arm meets
+    again); a class's batched arms touch a plane with the hand only, and say so."""
+    from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+    from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
+
+    backend = SimBackend(ARM)
+    try:
+        backend.set_wall(np.zeros(3), np.array([1.0, 0.0, 0.0]), stiffness=2e4, damping=50.0,
+                         size=(0.3, 0.2, 0.05))
+        setting = backend.wall_setting()
+        assert setting is not None and setting.size == (0.3, 0.2, 0.05)
+        backend.set_wall(np.zeros(3), np.array([1.0, 0.0, 0.0]), stiffness=2e4, damping=50.0)
+        assert backend.wall_setting().size is None
+    finally:
+        backend.close()
+    batch = BatchedPlant(ARM, RX24F)
+    arm = batch.add_arm()
+    with pytest.raises(ValueError, match="hand only, no box"):
+        batch.set_wall(arm, np.zeros(3), np.array([1.0, 0.0, 0.0]), size=(0.3, 0.2, 0.05))
