@@ -184,3 +184,30 @@ def test_the_simulated_arm_keeps_its_box_and_a_class_arm_refuses_one():
     arm = batch.add_arm()
     with pytest.raises(ValueError, match="hand only, no box"):
         batch.set_wall(arm, np.zeros(3), np.array([1.0, 0.0, 0.0]), size=(0.3, 0.2, 0.05))
+
+
+def test_a_block_across_the_line_meets_the_forearm_too(capsys):
+    """``armlab experiment contact --block-cm``: a 6 × 4 cm block in the wall's place. The
+    hand presses its face as it pressed the plane, and the forearm, which reaches past the
+    face's plane beside the hand, meets the block's side: the arm is held harder than the
+    law's prediction for the hand alone (which the plane, met by the tip, gives)."""
+    from dataclasses import replace
+
+    from armlab.app.commands.cli import main
+    from armlab.control.experiments.contact import run_contact
+    from armlab.control.params import DEFAULT
+    from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
+
+    params = replace(DEFAULT, alpha=0.6, k_env=64.0)
+    runs = {size: run_contact(ARM, lambda model, q0: SimBackend(model, q0=q0), params,
+                              controller="compliance", wall=0.04, depth=0.02,
+                              stiffness=2e4, damping=50.0, size=size)
+            for size in (None, (0.06, 0.04, 0.05))}
+    plane, block = runs[None], runs[(0.06, 0.04, 0.05)]
+    assert plane["fault"] is None and block["fault"] is None
+    assert plane["steady_force_n"] == pytest.approx(plane["predicted_force_n"], rel=0.08)
+    assert block["steady_force_n"] > 2.0 * plane["steady_force_n"]
+    assert block["wall"]["size_m"] == [0.06, 0.04, 0.05]
+    assert main(["experiment", "contact", "--block-cm", "6,0,5"]) != 0
+    err = capsys.readouterr().err
+    assert "--block-cm" in err and "three sizes" in err and "Traceback" not in err

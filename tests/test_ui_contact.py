@@ -20,9 +20,11 @@ from armlab.app.arm.backends import make_backend
 from armlab.app.lessons import LessonContext
 from armlab.app.lessons import compliance as compliance_lesson
 from armlab.app.lessons.compliance_contact import (
+    BLOCK_SIZE_M,
     DAMPING,
     DISTANCE_CM,
     RUN_LABEL,
+    SHAPES,
     STIFFNESS,
     figures_markdown,
 )
@@ -287,8 +289,7 @@ def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, cli
     and sets their figures side by side on the page; the lesson's arm is left alone."""
     tab = lesson.contact
     home(lesson)
-    wall = tab.setting()
-    assert wall.distance_cm == DISTANCE_CM and wall.stiffness == STIFFNESS
+    wall = tab.setting()  # (the module's lesson: as the tests before left its controls)
     t0 = lesson.rig.loop.status.t
     client.click("Compare PD and compliance")
     wait_for(lambda: "| peak force |" in tab.comparison.content, 120,
@@ -300,8 +301,9 @@ def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, cli
     assert line == pytest.approx(0.20, abs=1e-3)
     expected = compare_contact(lambda controller: run_contact(
         load_robot("receptionist_arm"), partial_sim, rig.loop.params, controller=controller,
-        wall=DISTANCE_CM / 100.0, depth=line - DISTANCE_CM / 100.0, stiffness=STIFFNESS,
-        damping=DAMPING))
+        wall=wall.distance_cm / 100.0, depth=line - wall.distance_cm / 100.0,
+        stiffness=wall.stiffness, damping=wall.damping, friction=wall.friction,
+        size=wall.size))
     pd, cl = expected["pd"], expected["compliance"]
     assert pd["fault"] and cl["fault"] is None  # PD winds up; the law presses
     row = next(line for line in text.splitlines() if line.startswith("| peak force |"))
@@ -310,3 +312,20 @@ def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, cli
     assert f"| steady force | — | {people(cl['steady_force_n'])} N |" in text
     assert "| torque off | yes | no |" in text
     assert lesson.rig.loop.status.fault is None and lesson.rig.loop.status.t > t0
+
+
+def test_the_shape_choice_puts_a_block_in_the_walls_place_and_draws_it(lesson, client):
+    """Shape: the block goes into the simulated arm's world in the wall's place (its face
+    there, its size the tab's) and is drawn at that size; back to the wall, a plane."""
+    tab = lesson.contact
+    home(lesson)
+    tab.wall_on.value = True
+    wait_for(lambda: lesson.rig.backend.wall_setting() is not None, 30, "the wall placed")
+    assert lesson.rig.backend.wall_setting().size is None
+    client.set_value("Shape", SHAPES[1])
+    wait_for(lambda: lesson.rig.backend.wall_setting().size == BLOCK_SIZE_M, 30,
+             "the block in the world")
+    wait_for(lambda: tab.nodes()[0] is not None
+             and tuple(tab.nodes()[0].dimensions) == BLOCK_SIZE_M, 30, "the block drawn")
+    client.set_value("Shape", SHAPES[0])
+    wait_for(lambda: lesson.rig.backend.wall_setting().size is None, 30, "the plane again")

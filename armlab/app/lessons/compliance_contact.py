@@ -94,6 +94,12 @@ PLACE_MAX_N = VIRTUAL_WALL_SET_MAX_N
 WALL_RGB = (140, 100, 60)  #: wood
 WALL_OPACITY = 0.35
 WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (along n)
+#: m: the block the Shape choice puts in the wall's place (width, height, thickness): the
+#: hand presses its face, and the forearm, reaching past the face's plane beside the
+#: hand, meets its side
+BLOCK_SIZE_M = (0.06, 0.04, 0.05)
+#: The Shape choice: the wall's plane (the hand's tip meets it) or the block (the links too)
+SHAPES = ("a wall (a plane)", "a block, 6 × 4 × 5 cm")
 CONTACT_RGB = (230, 120, 0)
 CHART_WINDOW_S = 10.0
 CHART_POINTS = 100  #: the loop's record thinned to about this many periods for the chart
@@ -115,6 +121,12 @@ class WallSetting:
     stiffness: float
     damping: float
     friction: float = 0.0
+    block: bool = False  #: a block (:data:`BLOCK_SIZE_M`) in the wall's place
+
+    @property
+    def size(self) -> tuple[float, float, float] | None:
+        """The obstacle's box (width, height, thickness) m, or None: the plane."""
+        return BLOCK_SIZE_M if self.block else None
 
 
 @dataclass
@@ -178,6 +190,11 @@ class ContactTab:
             gui, "Wall damping (N·s/m)", name="wall damping", lo=0.0, hi=500.0, step=5.0,
             initial=DAMPING, apply=lambda v: self._changed(damping=v),
             hint="N per m/s of the penetration's rate while touching (it never pulls)")
+        self.shape = gui.add_dropdown(
+            "Shape", SHAPES, initial_value=SHAPES[0],
+            hint="The wall's plane, which the hand's tip meets, or a block in its place, "
+                 "which the arm's links meet too (the simulated arm only)",
+            visible=not servos)
         self.friction = guarded_slider(
             gui, "Wall friction μ", name="wall friction", lo=0.0, hi=2.0, step=0.05,
             initial=0.0, apply=lambda v: self._changed(friction=v),
@@ -200,6 +217,7 @@ class ContactTab:
                               series=CHART_SERIES,
                               y_span=5.0)
         self.wall_on.on_update(lambda e: guarded(e, self._changed))
+        self.shape.on_update(lambda e: guarded(e, self._changed))
         self.button.on_click(lambda e: guarded(e, self.run))
         self.compare_button.on_click(lambda e: guarded(e, self.compare))
         self._comparing = False  #: a comparison's two runs are going on
@@ -234,7 +252,8 @@ class ContactTab:
             distance_cm=float(override.get("distance_cm", self.distance.value)),
             stiffness=float(override.get("stiffness", self.stiffness.value)),
             damping=float(override.get("damping", self.damping.value)),
-            friction=float(override.get("friction", self.friction.value)))
+            friction=float(override.get("friction", self.friction.value)),
+            block=not self.servos and self.shape.value == SHAPES[1])
 
     def _changed(self, **override: float) -> None:
         """Place (or remove) the wall as the controls say; ValueError (shown) to refuse."""
@@ -283,15 +302,17 @@ class ContactTab:
                                  "surface: press Home (Run tab) first, then place the wall")
         if isinstance(backend, Touchable):
             backend.set_wall(origin, normal, stiffness=wall.stiffness, damping=wall.damping,
-                             friction=wall.friction)
+                             friction=wall.friction, size=wall.size)
         else:  # servos: the law renders it (the loop refuses it with the hand inside)
             rig.loop.post(SetVirtualWall(BackendWall(origin, normal, wall.stiffness,
                                                      wall.damping)))
         self._placed = (origin, normal)
-        self._draw_wall(rig, origin, normal)
+        self._draw_wall(rig, origin, normal, size=wall.size)
 
-    def _draw_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray) -> None:
-        """The slab and the arrow's node under the arm's base frame, at ``origin``."""
+    def _draw_wall(self, rig: Rig, origin: np.ndarray, normal: np.ndarray, *,
+                   size: tuple[float, float, float] | None = None) -> None:
+        """The slab (or the block of ``size``) and the arrow's node under the arm's base
+        frame, the face at ``origin``."""
         scene = self._lesson.server.scene
         sh = rig.scene.shoulder.name
         z = normal / np.linalg.norm(normal)
@@ -299,10 +320,14 @@ class ContactTab:
         x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-6 else np.array([1.0, 0.0, 0.0])
         R = np.column_stack([x, np.cross(z, x), z])
         wxyz = vtf.SO3.from_matrix(R).wxyz
-        centre = origin - z * WALL_SIZE_M[2] / 2  # its face on the plane, the slab behind
+        dims = WALL_SIZE_M if size is None else size
+        centre = origin - z * dims[2] / 2  # its face on the plane, the slab behind
+        if self._wall_node is not None and tuple(self._wall_node.dimensions) != dims:
+            self._wall_node.remove()  # another shape: drawn anew
+            self._wall_node = None
         if self._wall_node is None:
             self._wall_node = scene.add_box(f"{sh}/contact_wall", color=WALL_RGB,
-                                            dimensions=WALL_SIZE_M, opacity=WALL_OPACITY,
+                                            dimensions=dims, opacity=WALL_OPACITY,
                                             wxyz=wxyz, position=centre, cast_shadow=False)
         else:
             self._wall_node.wxyz, self._wall_node.position = wxyz, centre
@@ -476,7 +501,7 @@ class ContactTab:
                                controller=controller, wall=wall.distance_cm / 100.0,
                                depth=length - wall.distance_cm / 100.0,
                                stiffness=wall.stiffness, damping=wall.damping,
-                               friction=wall.friction)
+                               friction=wall.friction, size=wall.size)
 
         def work() -> None:
             try:
@@ -659,7 +684,8 @@ def comparison_markdown(result: dict[str, Any], wall: WallSetting) -> str:
             return value
         return f"{people(float(value))} {unit}".rstrip()
 
-    lines = [f"**PD and compliance** into the wall {people(wall.distance_cm)} cm ahead "
+    what = "the block" if wall.block else "the wall"
+    lines = [f"**PD and compliance** into {what} {people(wall.distance_cm)} cm ahead "
              f"({people(wall.stiffness)} N/m):", "", "| | PD | compliance |",
              "| --- | --- | --- |"]
     lines += [f"| {row['figure']} | {cell(row['pd'], row['unit'])} | "

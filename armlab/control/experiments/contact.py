@@ -255,6 +255,27 @@ class WallOptions(BackendOptions):
     d_env: float | None = option(None, "D_env, N·m·s/rad (default: the lab's)")
     alpha: float | None = option(None, "α of the LPF on the servo load (default: the "
                                  "thesis's 0.05; 0.3 and up press the table steadily)")
+    block_cm: str | None = option(None, "W,H,T: a block W × H cm across its face and T cm "
+                                  "thick in place of the plane (the arm's links meet it "
+                                  "too), e.g. 22,22,5")
+
+
+def block_size(text: str | None) -> tuple[float, float, float] | None:
+    """``--block-cm W,H,T`` -> (width, height, thickness) m (None: a plane).
+
+    Raises:
+        ValueError: not three sizes above 0 and at most 1000 cm.
+    """
+    if text is None:
+        return None
+    try:
+        cm = [float(v) for v in text.split(",")]
+    except ValueError:
+        cm = []
+    if len(cm) != 3 or not all(0.0 < v <= 1000.0 for v in cm):
+        raise ValueError(f"--block-cm {text[:40]!r}: three sizes W,H,T above 0 and at most "
+                         "1000 cm, e.g. 22,22,5")
+    return cm[0] / 100.0, cm[1] / 100.0, cm[2] / 100.0
 
 
 @dataclass(frozen=True)
@@ -352,10 +373,11 @@ def _on_servos(loop: ControlLoop, plan: JointTrajectory, wall: WallSetting) -> i
 
 def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
                 controller: str, wall: float, depth: float, stiffness: float,
-                damping: float, friction: float = 0.0, keep: Keep | None = None
-                ) -> dict[str, Any]:
+                damping: float, friction: float = 0.0, keep: Keep | None = None,
+                size: tuple[float, float, float] | None = None) -> dict[str, Any]:
     """Drive the hand of ``model`` into a wall ``wall`` m ahead, to ``depth`` m behind it
-    (see the module docstring), its Coulomb ``friction`` μ along it; the figures, the
+    (see the module docstring), its Coulomb ``friction`` μ along it (``size``: a block of
+    (width, height, thickness) m, its face there, instead of a plane); the figures, the
     prediction and, when the loop stopped, why.
 
     On a backend whose world holds no wall (real servos, the emulator's) the wall is
@@ -377,9 +399,12 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         if virtual and controller != "compliance":
             raise ValueError("on servos the wall is virtual, rendered by the compliance law; "
                              "PD renders none: run --controller compliance")
+        if virtual and size is not None:
+            raise ValueError("on servos the wall the compliance law renders is a plane: "
+                             "a block needs the simulated arm")
         if isinstance(backend, Touchable):
             backend.set_wall(origin, normal, stiffness=stiffness, damping=damping,
-                             friction=friction)
+                             friction=friction, size=size)
         loop = ControlLoop(model, backend, params, controller=controller,  # type: ignore[arg-type]  # a Touchable backend is a Backend too (the factory's)
                            realtime=virtual, history_s=plan.duration + 30.0)
         if virtual:
@@ -424,7 +449,8 @@ def run_contact(model: SerialChain, backend_factory: Any, params: Params, *,
         "joint_stiffness_nm_per_rad": k_q,
         "wall": {"origin_m": origin.tolist(), "normal": normal.tolist(),
                  "stiffness_n_per_m": stiffness, "damping_ns_per_m": damping,
-                 "distance_m": wall, "depth_m": depth},
+                 "distance_m": wall, "depth_m": depth,
+                 "size_m": None if size is None else list(size)},
     })
     if fault is not None:
         figures["steady_force_n"] = None
@@ -454,7 +480,7 @@ def _run(o: WallOptions, controller: str, *, backend_factory: Any,
     return run_contact(load_robot("receptionist_arm"), backend_factory, _params(o),
                        controller=controller, wall=o.wall_cm / 100.0,
                        depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
-                       friction=o.friction, keep=keep)
+                       friction=o.friction, keep=keep, size=block_size(o.block_cm))
 
 
 def _contact_run(options: ContactOptions, *, backend_factory: Any,
