@@ -417,6 +417,7 @@ EXPERIMENT_RUNS = {
                 set(SIGNALS) | set(CONTACT_SIGNALS)),
     "contact-sweep": (["--stiffness", "2e4", "--periods-ms", "16"], "receptionist_arm",
                       set(SIGNALS) | set(CONTACT_SIGNALS)),
+    "contact-compare": ([], "receptionist_arm", set(SIGNALS) | set(CONTACT_SIGNALS)),
 }
 
 

@@ -138,11 +138,21 @@ def checked_size(size: object) -> Vec | None:
     return float(s[0]), float(s[1]), float(s[2])
 
 
+#: touches a group holds at most: four neighbouring balls along a capsule, so an arm
+#: resting on a table near its elbow looks at the few balls there, not its whole forearm
+GROUP_SIZE = 4
+
+
 def touch_groups(touches: Sequence[Touch]) -> tuple[TouchGroup, ...]:
-    """``touches`` grouped by link, each group with its bounding ball."""
+    """``touches`` grouped by link in runs of :data:`GROUP_SIZE` (in their order: a
+    capsule's balls are neighbours), each group with its bounding ball."""
     groups = []
+    chunks = []
     for link in sorted({t.link for t in touches}):
-        mine = tuple(t for t in touches if t.link == link)
+        mine = [t for t in touches if t.link == link]
+        chunks += [tuple(mine[i:i + GROUP_SIZE]) for i in range(0, len(mine), GROUP_SIZE)]
+    for mine in chunks:
+        link = mine[0].link
         pts = np.array([t.point for t in mine])
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         centre = (lo + hi) / 2
@@ -155,7 +165,8 @@ def touch_groups(touches: Sequence[Touch]) -> tuple[TouchGroup, ...]:
 def surface(ob: Obstacle, p: Sequence[float]) -> tuple[float, Vec]:
     """(signed distance m, outward unit normal (3,)) of point ``p`` (3,) from the
     obstacle's surface: positive outside, negative inside; for a box, towards its nearest
-    point outside (a face, an edge, a corner) or out of its nearest face inside."""
+    point outside (a face, an edge, a corner) or out of its nearest face inside. (Plain
+    floats: the plant asks it for every touch at every RK4 stage.)"""
     o, nrm = ob.origin, ob.normal
     d0, d1, d2 = p[0] - o[0], p[1] - o[1], p[2] - o[2]
     h = d0 * nrm[0] + d1 * nrm[1] + d2 * nrm[2]
@@ -166,32 +177,29 @@ def surface(ob: Obstacle, p: Sequence[float]) -> tuple[float, Vec]:
     y = d0 * up[0] + d1 * up[1] + d2 * up[2]
     w, ht, th = ob.size
     z = h + th / 2  # from the box's middle along the normal
-    q = (abs(x) - w / 2, abs(y) - ht / 2, abs(z) - th / 2)
-    signs = (1.0 if x >= 0 else -1.0, 1.0 if y >= 0 else -1.0, 1.0 if z >= 0 else -1.0)
-    if max(q) > 0.0:
-        out = [max(c, 0.0) * s for c, s in zip(q, signs, strict=True)]
-        dist = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
-        local = [c / dist for c in out]
+    sx, sy, sz = (1.0 if x >= 0 else -1.0), (1.0 if y >= 0 else -1.0), (1.0 if z >= 0 else -1.0)
+    qx, qy, qz = abs(x) - w / 2, abs(y) - ht / 2, abs(z) - th / 2
+    if qx > 0.0 or qy > 0.0 or qz > 0.0:  # outside: away from the nearest point
+        ox, oy, oz = max(qx, 0.0) * sx, max(qy, 0.0) * sy, max(qz, 0.0) * sz
+        dist = math.sqrt(ox * ox + oy * oy + oz * oz)
+        lx, ly, lz = ox / dist, oy / dist, oz / dist
+    elif qx >= qy and qx >= qz:  # inside: out of the nearest face
+        dist, lx, ly, lz = qx, sx, 0.0, 0.0
+    elif qy >= qz:
+        dist, lx, ly, lz = qy, 0.0, sy, 0.0
     else:
-        axis = int(np.argmax(q))
-        dist = q[axis]
-        local = [0.0, 0.0, 0.0]
-        local[axis] = signs[axis]
-    n_world = tuple(local[0] * ac[r] + local[1] * up[r] + local[2] * nrm[r] for r in range(3))
-    return dist, (n_world[0], n_world[1], n_world[2])
+        dist, lx, ly, lz = qz, 0.0, 0.0, sz
+    return dist, (lx * ac[0] + ly * up[0] + lz * nrm[0], lx * ac[1] + ly * up[1] + lz * nrm[1],
+                  lx * ac[2] + ly * up[2] + lz * nrm[2])
 
 
-def push(ob: Obstacle, p: Sequence[float], v: Sequence[float], radius: float
-         ) -> tuple[float, Vec]:
-    """(N of the normal push, its unit direction (3,)) on a ball of ``radius`` m centred at
-    ``p`` (3,) moving at ``v`` (3,), base frame: a spring on the penetration and a damper
-    on its rate, never pulling (0 clear of the obstacle)."""
-    dist, nrm = surface(ob, p)
-    depth = radius - dist
-    if depth <= 0.0:
-        return 0.0, nrm
+def normal_push(ob: Obstacle, depth: float, nrm: Sequence[float], v: Sequence[float]
+                ) -> float:
+    """N of the normal push on a touch ``depth`` m inside the obstacle (> 0) moving at
+    ``v`` (3,) m/s, ``nrm`` the outward normal there: a spring on the penetration and a
+    damper on its rate, never pulling."""
     vn = v[0] * nrm[0] + v[1] * nrm[1] + v[2] * nrm[2]
-    return max(0.0, ob.stiffness * depth - ob.damping * vn), nrm
+    return max(0.0, ob.stiffness * depth - ob.damping * vn)
 
 
 def rub(ob: Obstacle, push_n: float, nrm: Sequence[float], v: Sequence[float]) -> list[float]:

@@ -39,8 +39,9 @@ from armlab.hardware.sim.contact import (
     checked_wall,
     clear,
     face_axes,
-    push,
+    normal_push,
     rub,
+    surface,
     touch_groups,
 )
 from armlab.hardware.sim.plant_step import rk4_step
@@ -511,9 +512,13 @@ class Plant:
             if len(g.touches) > 1 and clear(w, self._at(fr, g.link, g.centre), g.reach):
                 continue
             for touch in g.touches:
-                p, cols = self._point(fr, touch.link, touch.point)
+                dist, nrm = surface(w, self._at(fr, touch.link, touch.point))
+                depth = touch.radius - dist
+                if depth <= 0.0:  # clear: no Jacobian worked out
+                    continue
+                _, cols = self._point(fr, touch.link, touch.point)
                 v = _velocity(cols, qd)
-                mag, nrm = push(w, p, v, touch.radius)
+                mag = normal_push(w, depth, nrm, v)
                 if mag == 0.0:
                     continue
                 f = [mag * nrm[0], mag * nrm[1], mag * nrm[2]]
