@@ -114,3 +114,37 @@ def test_the_contact_chart_shows_the_recorded_force_beside_the_estimates(browser
     page.get_by_role("checkbox", name="Wall").click()
     wait_for(lambda: lesson.contact.nodes()[0] is None, 60, "the wall gone")
     page.close()
+
+
+def test_pd_and_compliance_side_by_side_is_a_table_inside_the_panel(browser, lab, tmp_path):
+    """Compare PD and compliance, pressed in Chromium at a 720p projector's size: the
+    table of the two runs appears with its figures, each row whole inside the panel
+    (nothing clipped), PD's steady force a dash (it has none)."""
+    page = browser.new_page(viewport={"width": 1280, "height": 720})
+    try:
+        page.goto(lab.url)
+        page.get_by_role("button", name="Run thesis line").wait_for()
+        page.get_by_role("tab", name="Contact").click()
+        page.get_by_role("button", name="Compare PD and compliance").click()
+        table = page.locator("table", has_text="peak force")
+        table.wait_for(timeout=240_000)
+        table.scroll_into_view_if_needed()
+        rows = table.locator("tr")
+        texts = [rows.nth(i).inner_text() for i in range(rows.count())]
+        assert any(t.startswith("peak force") and t.count("N") == 2 for t in texts), texts
+        assert any(t.startswith("steady force") and "—" in t for t in texts), texts
+        assert any(t.startswith("torque off") and "yes" in t for t in texts), texts
+        # the markdown's own box (what overflowed it would be cut off), within the page
+        panel = page.evaluate("""(el) => {
+            const b = el.parentElement.getBoundingClientRect();
+            return [Math.max(b.left, 0), Math.min(b.right, window.innerWidth)]; }""",
+                              table.element_handle())
+        for i in range(rows.count()):
+            box = rows.nth(i).bounding_box()
+            assert box is not None and box["width"] > 0
+            assert box["x"] >= panel[0] - 1 and box["x"] + box["width"] <= panel[1] + 1, \
+                (texts[i], box, panel)
+        page.screenshot(path=str(tmp_path / "contact_compare.png"))
+        print("screenshot:", tmp_path / "contact_compare.png")
+    finally:
+        page.close()
