@@ -147,18 +147,16 @@ def touch_groups(touches: Sequence[Touch]) -> tuple[TouchGroup, ...]:
     """``touches`` grouped by link in runs of :data:`GROUP_SIZE` (in their order: a
     capsule's balls are neighbours), each group with its bounding ball."""
     groups = []
-    chunks = []
+    chunks: list[tuple[Touch, ...]] = []
     for link in sorted({t.link for t in touches}):
-        mine = [t for t in touches if t.link == link]
-        chunks += [tuple(mine[i:i + GROUP_SIZE]) for i in range(0, len(mine), GROUP_SIZE)]
-    for mine in chunks:
-        link = mine[0].link
-        pts = np.array([t.point for t in mine])
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        centre = (lo + hi) / 2
-        reach = max(float(np.linalg.norm(np.array(t.point) - centre)) + t.radius for t in mine)
+        on_link = [t for t in touches if t.link == link]
+        chunks += [tuple(on_link[i:i + GROUP_SIZE]) for i in range(0, len(on_link), GROUP_SIZE)]
+    for chunk in chunks:
+        pts = np.array([t.point for t in chunk])
+        centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+        reach = max(float(np.linalg.norm(np.array(t.point) - centre)) + t.radius for t in chunk)
         x, y, z = centre.tolist()
-        groups.append(TouchGroup(link, (x, y, z), reach, mine))
+        groups.append(TouchGroup(chunk[0].link, (x, y, z), reach, chunk))
     return tuple(groups)
 
 
