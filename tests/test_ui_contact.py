@@ -279,8 +279,13 @@ def test_dragging_the_wall_along_the_line_moves_it_and_the_distance_follows(less
     assert float((origin - x0) @ u) == pytest.approx(0.16, abs=1e-9)
     wait_for(lambda: np.allclose(tab._drag.position, origin), 30, "the gizmo on the wall")
     client.move_gizmo(name, [tuple(x0 + 0.40 * u)])  # past the line's end: the range's end
-    wait_for(lambda: tab.distance.value == 20.0, 30, "the distance at its end, 20 cm")
+    end = x0 + 0.20 * u
+    # (the release comes last: the gizmo back on the wall, the distance taken from it)
+    wait_for(lambda: tab.distance.value == 20.0 and np.allclose(tab._drag.position, end,
+                                                                atol=1e-3),
+             30, "the distance at its end, 20 cm, and the gizmo on the wall there")
     tab.distance.set(DISTANCE_CM)
+    wait_for(lambda: tab.distance.value == DISTANCE_CM, 30, "the distance back")
 
 
 def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, client):
@@ -301,7 +306,7 @@ def test_pd_and_compliance_side_by_side_are_the_experiments_two_runs(lesson, cli
     assert line == pytest.approx(0.20, abs=1e-3)
     expected = compare_contact(lambda controller: run_contact(
         load_robot("receptionist_arm"), partial_sim, rig.loop.params, controller=controller,
-        wall=wall.distance_cm / 100.0, depth=line - wall.distance_cm / 100.0,
+        wall=wall.distance_cm / 100.0, depth=max(0.0, line - wall.distance_cm / 100.0),
         stiffness=wall.stiffness, damping=wall.damping, friction=wall.friction,
         size=wall.size))
     pd, cl = expected["pd"], expected["compliance"]

@@ -496,10 +496,12 @@ class ContactTab:
         length = float((model.fk(rig.line.q[-1])[:3, 3] - x0) @ u)
         set_content(self.comparison, "**PD and compliance**: running both…")
 
+        depth = max(0.0, length - wall.distance_cm / 100.0)  # (a wall at the line's end: 0)
+
         def one(controller: str) -> dict[str, Any]:
             return run_contact(model, lambda m, q0: make_backend("sim", m, q0=q0), params,
                                controller=controller, wall=wall.distance_cm / 100.0,
-                               depth=length - wall.distance_cm / 100.0,
+                               depth=depth,
                                stiffness=wall.stiffness, damping=wall.damping,
                                friction=wall.friction, size=wall.size)
 
