@@ -15,7 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _helpers import wait_for
+from test_challenges import _present, _student
+from test_contact_challenge import CONTACT, FIGURES, experiment
 
+from armlab.app.lab.server import Lab, ServeOptions
+from armlab.control.params import DEFAULT
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
@@ -110,3 +115,89 @@ class _NoLock:
 
     def __exit__(self, *exc: object) -> None:
         return None
+
+
+def _my_arm(lab: Lab, page, cid):  # noqa: ANN001, ANN202
+    page.set_value("View", "My arm")
+    wait_for(lambda: lab.room.private_lesson(cid) is not None, 90, "the student's own lesson")
+    lesson = lab.room.private_lesson(cid)
+    wait_for(lambda: lesson.rig.loop.status.t > 0.3, 60, "the private arm running")
+    return lesson
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_a_private_arm_runs_into_its_own_wall_and_no_other_arm_meets_it():
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        teacher = _present(lab)
+        ana, ana_id = _student(lab, "Ana")
+        bo, bo_id = _student(lab, "Bo")
+        with teacher, ana, bo:
+            mine, theirs = _my_arm(lab, ana, ana_id), _my_arm(lab, bo, bo_id)
+            # Ana ticks Wall on her page: the wall in her arm's world, in the worker
+            ana.set_value(mine.contact.wall_on, True)
+            wait_for(lambda: mine.rig.backend.wall_setting() is not None, 30, "Ana's wall")
+            setting = mine.rig.backend.wall_setting()
+            assert theirs.rig.backend.wall_setting() is None
+            # both run the thesis line at once: hers into the wall, his through its place
+            ana.click(mine.contact.button)
+            theirs.run_line()
+            wait_for(lambda: mine.contact.figures() is not None, 90,
+                     lambda: f"Ana's run measured ({mine.contact.result.content!r})")
+            wait_for(lambda: theirs.experiment is not None and theirs.experiment.done, 90,
+                     "Bo's line")
+            figures = mine.contact.figures()
+            assert figures["fault"] is None
+            assert figures["peak_force_n"] > 1.0 and figures["steady_force_n"] > 0.5
+            snap = mine.rig.loop.recorder.snapshot()
+            assert np.nanmax(snap["f_contact"]) > 0.5
+            assert np.nanmax(snap["f_contact_peak"]) == pytest.approx(
+                figures["peak_force_n"], rel=1e-12)
+            # the server's view of her wall's force is the worker's record
+            assert mine.rig.backend.wall_force() == pytest.approx(
+                float(snap["f_contact"][-1]), abs=1e-12)
+            # Bo's hand went through where her wall is; his record has no contact
+            hand = lambda q: float((MODEL.fk(q)[:3, 3] - setting.origin) @ setting.normal)  # noqa: E731
+            his = theirs.rig.loop.recorder.snapshot()
+            assert np.all(np.isnan(his["f_contact"]))
+            behind = 0.20 - float(mine.contact.distance.value) / 100.0  # the line's end, m
+            assert behind > 0.01
+            assert min(hand(q) for q in his["q"][-50:]) < -0.8 * behind  # through its place
+            assert min(hand(q) for q in snap["q"][-50:]) > -0.25 * behind  # hers held at it
+            assert theirs.rig.backend.wall_setting() is None
+            # she takes it away: her arm's world has no wall again
+            ana.set_value(mine.contact.wall_on, False)
+            wait_for(lambda: mine.rig.backend.wall_setting() is None, 30, "her wall away")
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_the_contact_challenge_on_a_private_arm_scores_the_same_twice():
+    with Lab(ServeOptions(http_port=0, classroom=True)) as lab:
+        teacher = _present(lab)
+        ana, ana_id = _student(lab, "Ana")
+        with teacher, ana:
+            mine = _my_arm(lab, ana, ana_id)
+            lab.challenges.set_challenge(CONTACT)
+            ana.wait_for(lambda: ana.shows("Run the challenge on my arm"), 30, "her button")
+            runs = []
+            for k in range(2):
+                if k:  # something else in between: a step of her own
+                    mine.run_step(joint=1, step_deg=10.0)
+                    wait_for(lambda: mine.experiment.done, 60, "a step of her own")
+                done = len(mine.challenge_results())
+                ana.click("Run the challenge on my arm")
+                wait_for(lambda d=done: len(mine.challenge_results()) > d, 120,
+                         lambda: f"the contact challenge measured ({mine.last_run_text!r})")
+                runs.append(mine.challenge_results()[-1][1])
+            assert {f: runs[0][f] for f in FIGURES} == {f: runs[1][f] for f in FIGURES}
+            assert mine.run_tags()["contact_peak_n"] == "contact"
+            wait_for(lambda: lab.room.best_of(ana_id) is not None, 30, "judged on the server")
+            # the single plant's experiment: the batched plant's arm may differ from it in
+            # the last bits (numpy's tanh in its Coulomb friction); its figures are the
+            # experiment's to 1e-9 (in practice every digit: 6.808688127683704 N peak,
+            # 2.005627086863716 N steady at the lab's default gains), as the shared arm's
+            ref = experiment(DEFAULT)
+            for figure, key in FIGURES.items():
+                assert runs[0][figure] is not None
+                assert runs[0][figure] == pytest.approx(ref[key], rel=1e-9), figure
