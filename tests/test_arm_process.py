@@ -14,7 +14,7 @@ from _helpers import wait_for
 
 from armlab.app.classroom.sandboxes import Sandboxes
 from armlab.app.workers.worker_process import ArmProcess, RemoteBackend, RemoteLoop
-from armlab.control.backend import BackendError, Pushable
+from armlab.control.backend import BackendError, Pushable, Touchable
 from armlab.control.commands import EStop, RunTrajectory
 from armlab.control.params import DEFAULT, Params
 from armlab.control.trajectory import minimum_jerk
@@ -102,6 +102,24 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         assert gains.unstable and gains.warning.startswith("the PD loop diverges")
         assert loop.params == unstable and loop.gains == gains
         assert loop.status.fault is None
+        # the arm's wall: a bad one refused there, raised here, the world as it was
+        backend = arm.backend
+        assert isinstance(backend, Touchable) and backend.wall_setting() is None
+        with pytest.raises(ValueError, match="normal_base must not be zero"):
+            backend.set_wall(np.zeros(3), np.zeros(3), stiffness=2e4, damping=50.0)
+        with pytest.raises(ValueError, match="friction"):
+            backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
+                             damping=50.0, friction=9.0)
+        assert backend.wall_setting() is None
+        with pytest.raises(ValueError, match="a wall must be a WallSetting"):
+            backend.meet_wall("a wall")  # type: ignore[arg-type]
+        backend.set_wall(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 2.0]),
+                         stiffness=2e4, damping=50.0, friction=0.3)
+        wall = backend.wall_setting()
+        assert wall is not None and np.array_equal(wall.normal, [0.0, 0.0, 1.0])
+        assert (wall.stiffness, wall.damping, wall.friction) == (2e4, 50.0, 0.3)
+        backend.set_wall(None, stiffness=2e4, damping=50.0)
+        assert backend.wall_setting() is None
     finally:
         proc.close()
 

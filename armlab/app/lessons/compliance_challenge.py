@@ -290,8 +290,8 @@ class ChallengeRuns:
         # a RestartableArm here, or in a worker (RemoteBackend): the restarted arm's wall
         meet_wall = getattr(rig.backend, "meet_wall", None)
         if not (isinstance(rig.backend, Touchable) and callable(meet_wall)):
-            raise ValueError("this simulated arm has no wall to touch (its servos' own "
-                             "simulation, not the lab's): run it on the lab's own arm")
+            raise ValueError("this simulated arm's world holds no wall to start it again "
+                             "against: run the challenge on the lab's simulated arm")
         check_wall_numbers(stiffness=spec.stiffness, damping=spec.damping,
                            names=("wall stiffness", "wall damping"))
         cp = contact_plan(rig.model, period, wall=spec.wall_cm / 100.0,
