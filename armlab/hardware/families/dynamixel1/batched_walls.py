@@ -15,7 +15,7 @@ peak is being read.
 
 The force is Plant's: at the hand (the last link's tip), n · p − n · o = d < 0 behind the
 plane, F = max(0, −k d − c vₙ), worked out with the float code of the arm's generated
-kinematics (:func:`armlab.kinematics._rnea_codegen.dynamics_model`), one arm at a time,
+kinematics (:func:`armlab.kinematics.dynamics.dynamics_model`), one arm at a time,
 in Plant's order of operations. Most steps most hands are far from their wall: each
 tracked arm keeps a lower bound of its hand's distance to the plane, lowered every step
 by how far the joints' speeds can move the hand (2 dt · reach · Σ|θ̇|, the larger of the
@@ -35,7 +35,7 @@ import numpy as np
 
 from armlab.control.backend import WallSetting
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
-from armlab.kinematics._rnea_codegen import dynamics_model
+from armlab.kinematics.dynamics import dynamics_model
 
 #: m: a hand whose distance to its wall may be under this is worked out at the step's end
 MARGIN_M = 0.001
