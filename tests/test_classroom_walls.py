@@ -99,6 +99,9 @@ def test_each_arms_wall_is_its_own_and_reads_as_a_single_plants():
     # a wall is refused as the plant refuses it, and leaves the arm's wall as it was
     with pytest.raises(ValueError, match="normal"):
         backends[3].set_wall(np.zeros(3), np.zeros(3), stiffness=1e3, damping=0.0)
+    with pytest.raises(ValueError, match="no box"):  # a table top: on one arm of its own
+        backends[3].set_wall(np.zeros(3), np.ones(3), stiffness=1e3, damping=0.0,
+                             size=(0.3, 0.3, 0.02))
     assert backends[3].wall_setting() is setting
     # an arm that leaves takes its wall with it
     walls.forget(3)

@@ -165,13 +165,14 @@ def restart(arm: Arm, q: np.ndarray, plan: list) -> int:
 
 
 def set_wall(arm: Arm, origin: np.ndarray | None, normal: np.ndarray | None,
-             stiffness: float, damping: float, friction: float) -> None:
+             stiffness: float, damping: float, friction: float,
+             size: tuple[float, float, float] | None = None) -> None:
     """``arm``'s wall (``Touchable.set_wall``: its own world's, no other arm's)."""
     backend = arm.backend
     if not isinstance(backend, Touchable):
         raise ValueError("this simulated arm takes no wall")
     backend.set_wall(origin, normal, stiffness=float(stiffness), damping=float(damping),
-                     friction=float(friction))
+                     friction=float(friction), size=size)
 
 
 def wall_setting(arm: Arm) -> WallSetting | None:
@@ -339,8 +340,8 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
         "restart": lambda i, q, plan: restart(arm_of(i), q, plan),
         "restarted": lambda i: restarted(arm_of(i)),
         "cancel": lambda i: cancel(arm_of(i)),
-        "wall": lambda i, origin, normal, k, c, mu: set_wall(arm_of(i), origin, normal, k, c,
-                                                              mu),
+        "wall": lambda i, origin, normal, k, c, mu, size=None: set_wall(
+            arm_of(i), origin, normal, k, c, mu, size),
         "wall_setting": lambda i: wall_setting(arm_of(i)),
         "meet_wall": lambda i, wall: meet_wall(arm_of(i), wall),
         **member_ops("hand"),

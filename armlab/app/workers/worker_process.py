@@ -257,13 +257,16 @@ class RemoteBackend:
         self._owner.call("spring", self.arm_id, anchor, stiffness, link, point)
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float, friction: float = 0.0) -> None:
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
         """``Touchable.set_wall`` in the worker (this arm's world only); a refused wall
-        raises here (ValueError), as in process."""
+        raises here (ValueError), as in process (a box on a class's batched arm: they
+        touch a plane with the hand only)."""
         self._owner.call("wall", self.arm_id,
                          None if origin is None else np.asarray(origin, dtype=float),
                          None if normal is None else np.asarray(normal, dtype=float),
-                         float(stiffness), float(damping), float(friction))
+                         float(stiffness), float(damping), float(friction),
+                         None if size is None else tuple(float(x) for x in size))
 
     def wall_setting(self) -> WallSetting | None:
         """The wall in the arm's world now (the worker's answer; None: none)."""

@@ -294,15 +294,17 @@ class BatchedArmBackend(GoalLimits):
     # -- Touchable ----------------------------------------------------------------
 
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-                 stiffness: float, damping: float, friction: float = 0.0) -> None:
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
         """A plane this arm's hand touches (``armlab.control.backend.Touchable``):
         ``origin`` (3,) m on it, ``normal`` (3,) towards the free side, both base frame,
         with Coulomb ``friction`` μ along it; None removes it. The other arms of the
         plant never meet it.
 
         Raises:
-            ValueError: a bad argument (the wall as it was), or a backend made without
-                ``walls``.
+            ValueError: a bad argument (the wall as it was), a box (``size``: the batched
+                plant's arms touch a plane with the hand only, and say so), or a backend
+                made without ``walls``.
         """
         if self.walls is None:
             raise ValueError("this simulated arm takes no wall (its plant's walls were not "
@@ -310,7 +312,7 @@ class BatchedArmBackend(GoalLimits):
         with self._lock:
             self._check_open()
             self.walls.set(self.arm, origin, normal, stiffness=stiffness, damping=damping,
-                           friction=friction)
+                           friction=friction, size=size)
 
     def wall_force(self) -> float:
         """N, the wall's normal force on this arm's hand now (0: off it, or no wall)."""

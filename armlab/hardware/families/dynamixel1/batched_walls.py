@@ -86,17 +86,19 @@ class BatchedWalls:
     # -- the walls -------------------------------------------------------------------
 
     def set(self, arm: int, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
-            stiffness: float, damping: float, friction: float = 0.0) -> None:
+            stiffness: float, damping: float, friction: float = 0.0,
+            size: tuple[float, float, float] | None = None) -> None:
         """Arm ``arm``'s wall (:meth:`BatchedPlant.set_wall`, the hand its contact point;
         the arguments as ``Touchable.set_wall``'s); None removes it.
 
         Raises:
-            ValueError: as ``BatchedPlant.set_wall`` (no such arm, a bad argument): the
-                arm's wall as it was.
+            ValueError: as ``BatchedPlant.set_wall`` (no such arm, a bad argument, a box:
+                ``size`` given, which the batched plant takes none of): the arm's wall as
+                it was.
         """
         arm = int(arm)
         self.plant.set_wall(arm, origin, normal, stiffness=stiffness, damping=damping,
-                            friction=friction)
+                            friction=friction, size=size)
         old = self._walls.pop(arm, None)
         self._stale = True
         if old is not None and old.peak is not None:  # (read once: Plant keeps its peak
