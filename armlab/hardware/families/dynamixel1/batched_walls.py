@@ -21,7 +21,9 @@ tracked arm keeps a lower bound of its hand's distance to the plane, lowered eve
 by how far the joints' speeds can move the hand (2 dt · reach · Σ|θ̇|, the larger of the
 step's two ends: the plant's own bound, ``_near_fields``); only a hand whose bound falls
 under :data:`MARGIN_M` is worked out (forward kinematics), so an arm away from its wall
-costs a few numpy operations shared by all arms a step, not its kinematics.
+costs a few numpy operations shared by all arms a step, not its kinematics. The force
+worked out at a step's end is kept, so the loop's reads of it and of the peak in its
+period (:meth:`force`, :meth:`peak`) cost no kinematics of their own.
 
 Each wall is its own arm's: :meth:`set` names the arm, and one arm's wall never enters
 another's force, peak or dynamics (the plant's rows are per arm).
@@ -81,6 +83,8 @@ class BatchedWalls:
         self._index: dict[int, int] = {}  #: arm id -> its place in ``_ids``
         self._gap: np.ndarray = np.zeros(0)
         self._speed: np.ndarray = np.zeros(0)  #: Σ|θ̇| at the last step's end
+        self._force: np.ndarray = np.zeros(0)  #: N, each one's force at the last step's end
+        self._at_step = -1  #: the plant's step count :meth:`after_step` last saw
         self._stale = True
 
     # -- the walls -------------------------------------------------------------------
@@ -135,9 +139,9 @@ class BatchedWalls:
         row = self.plant.row(int(arm))
         if tracked is None:
             return 0.0
-        i = None if self._stale else self._index.get(int(arm))
-        if i is not None and self._gap[i] > 0.0:  # (the state the bound is of: off it)
-            return 0.0
+        i = self._fresh_index(arm)
+        if i is not None:  # (worked out at this state by the step's end)
+            return float(self._force[i])
         q, qd = self.plant.q[row], self.plant.qd[row]
         return self._push(tracked, [float(x) for x in q], [float(x) for x in qd])[1]
 
@@ -145,8 +149,12 @@ class BatchedWalls:
         """N, the largest wall force on arm ``arm``'s hand at the end of any step since the
         last call (then forgotten), and at least the force now; from the first call on the
         steps keep it (``Plant.wall_peak``)."""
-        now = self.force(arm)
         tracked = self._walls.get(int(arm))
+        if tracked is not None and tracked.peak is not None and \
+                self._fresh_index(arm) is not None:  # the step's end, this state: in it
+            kept, tracked.peak = tracked.peak, 0.0
+            return kept
+        now = self.force(arm)
         if tracked is None:
             self._read.add(int(arm))
             return now
@@ -155,6 +163,13 @@ class BatchedWalls:
             self._stale = True  # (tracked from now on)
             return now
         return max(peak, now)
+
+    def _fresh_index(self, arm: int) -> int | None:
+        """Arm ``arm``'s place among the tracked arms when :meth:`after_step` worked out
+        its force at the plant's state now (None: not tracked, or not since)."""
+        if self._stale or self._at_step != self.plant.steps:
+            return None
+        return self._index.get(int(arm))
 
     # -- stepping --------------------------------------------------------------------
 
@@ -173,11 +188,13 @@ class BatchedWalls:
             self._rebuild(plant_ids)
         if not self._ids.size:
             return
+        self._at_step = self.plant.steps
         qd_all = self.plant.qd
         speed = np.abs(qd_all[self._rows]).sum(axis=1)
         self._gap -= self._travel * np.maximum(speed, self._speed)
         self._speed = speed
         near = np.flatnonzero(self._gap < MARGIN_M)
+        self._force.fill(0.0)  # (off their walls: none)
         if not near.size:
             return
         q_all = self.plant.q
@@ -187,6 +204,7 @@ class BatchedWalls:
             depth, force = self._push(tracked, [float(x) for x in q_all[r]],
                                       [float(x) for x in qd_all[r]])
             self._gap[i] = depth
+            self._force[i] = force
             if tracked.peak is not None and force > tracked.peak:
                 tracked.peak = force
 
@@ -202,6 +220,7 @@ class BatchedWalls:
         self._rows = np.array([row_of[a] for a in ids], dtype=np.int64)
         self._gap = np.full(len(ids), -np.inf)  # (worked out at this step)
         self._speed = np.zeros(len(ids))
+        self._force = np.zeros(len(ids))
         self._plant_ids = plant_ids
         self._stale = False
 
