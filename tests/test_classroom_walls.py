@@ -20,6 +20,7 @@ from test_challenges import _present, _student
 from test_contact_challenge import CONTACT, FIGURES, experiment
 
 from armlab.app.lab.server import Lab, ServeOptions
+from armlab.app.lessons.compliance_contact import SHAPES
 from armlab.control.params import DEFAULT
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
@@ -168,9 +169,12 @@ def test_a_private_arm_runs_into_its_own_wall_and_no_other_arm_meets_it():
             assert min(hand(q) for q in his["q"][-50:]) < -0.8 * behind  # through its place
             assert min(hand(q) for q in snap["q"][-50:]) > -0.25 * behind  # hers held at it
             assert theirs.rig.backend.wall_setting() is None
-            # she takes it away: her arm's world has no wall again
-            ana.set_value(mine.contact.wall_on, False)
-            wait_for(lambda: mine.rig.backend.wall_setting() is None, 30, "her wall away")
+            # a block in the wall's place is what a private arm cannot take (its hand alone
+            # touches a plane): refused on her page in one line, her wall then off
+            ana.set_value(mine.contact.shape, SHAPES[1])
+            assert "no box" in ana.wait_notification("Not done")
+            wait_for(lambda: mine.rig.backend.wall_setting() is None, 30, "her wall off")
+            assert mine.rig.loop.status.fault is None and theirs.rig.loop.status.fault is None
 
 
 @pytest.mark.slow
