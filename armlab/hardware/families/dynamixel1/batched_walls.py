@@ -142,8 +142,7 @@ class BatchedWalls:
         i = self._fresh_index(arm)
         if i is not None:  # (worked out at this state by the step's end)
             return float(self._force[i])
-        q, qd = self.plant.q[row], self.plant.qd[row]
-        return self._push(tracked, [float(x) for x in q], [float(x) for x in qd])[1]
+        return self._push(tracked, self.plant.q[row].tolist(), self.plant.qd[row].tolist())[1]
 
     def peak(self, arm: int) -> float:
         """N, the largest wall force on arm ``arm``'s hand at the end of any step since the
@@ -198,11 +197,11 @@ class BatchedWalls:
         if not near.size:
             return
         q_all = self.plant.q
+        rows, ids, walls = self._rows, self._ids, self._walls
         for i in near.tolist():
-            tracked = self._walls[int(self._ids[i])]
-            r = int(self._rows[i])
-            depth, force = self._push(tracked, [float(x) for x in q_all[r]],
-                                      [float(x) for x in qd_all[r]])
+            tracked = walls[int(ids[i])]
+            r = int(rows[i])
+            depth, force = self._push(tracked, q_all[r].tolist(), qd_all[r].tolist())
             self._gap[i] = depth
             self._force[i] = force
             if tracked.peak is not None and force > tracked.peak:
@@ -234,20 +233,21 @@ class BatchedWalls:
              fr[o + 3] * px + fr[o + 4] * py + fr[o + 5] * pz + fr[o + 10],
              fr[o + 6] * px + fr[o + 7] * py + fr[o + 8] * pz + fr[o + 11])
         origin, nrm, wall = tracked.origin, tracked.normal, tracked.setting
-        depth = sum((p[r] - origin[r]) * nrm[r] for r in range(3))
+        # (sums written out left to right: the bits of Plant's sum(), which starts at 0)
+        depth = ((p[0] - origin[0]) * nrm[0] + (p[1] - origin[1]) * nrm[1]
+                 + (p[2] - origin[2]) * nrm[2])
         if depth >= 0.0:
             return depth, 0.0
-        v = [0.0, 0.0, 0.0]  # the hand's velocity J q̇, Plant's sum over joints in order
-        cols = []
-        for j in range(len(q)):
+        vx = vy = vz = 0.0  # the hand's velocity J q̇, Plant's sum over joints in order
+        for j, w in enumerate(qd):
             a = self._dyn.axes[j]
             b = 12 * j
-            z = (fr[b] * a[0] + fr[b + 1] * a[1] + fr[b + 2] * a[2],
-                 fr[b + 3] * a[0] + fr[b + 4] * a[1] + fr[b + 5] * a[2],
-                 fr[b + 6] * a[0] + fr[b + 7] * a[1] + fr[b + 8] * a[2])
+            z0 = fr[b] * a[0] + fr[b + 1] * a[1] + fr[b + 2] * a[2]
+            z1 = fr[b + 3] * a[0] + fr[b + 4] * a[1] + fr[b + 5] * a[2]
+            z2 = fr[b + 6] * a[0] + fr[b + 7] * a[1] + fr[b + 8] * a[2]
             rx, ry, rz = p[0] - fr[b + 9], p[1] - fr[b + 10], p[2] - fr[b + 11]
-            cols.append((z[1] * rz - z[2] * ry, z[2] * rx - z[0] * rz, z[0] * ry - z[1] * rx))
-        for r in range(3):
-            v[r] = sum(cols[j][r] * qd[j] for j in range(len(cols)))
-        vn = sum(v[r] * nrm[r] for r in range(3))
+            vx += (z1 * rz - z2 * ry) * w
+            vy += (z2 * rx - z0 * rz) * w
+            vz += (z0 * ry - z1 * rx) * w
+        vn = vx * nrm[0] + vy * nrm[1] + vz * nrm[2]
         return depth, max(0.0, -wall.stiffness * depth - wall.damping * vn)
