@@ -14,7 +14,7 @@ from _helpers import wait_for
 
 from armlab.app.classroom.sandboxes import Sandboxes
 from armlab.app.workers.worker_process import ArmProcess, RemoteBackend, RemoteLoop
-from armlab.control.backend import BackendError, Pushable
+from armlab.control.backend import BackendError, Pushable, Touchable, WallSetting
 from armlab.control.commands import EStop, RunTrajectory
 from armlab.control.params import DEFAULT, Params
 from armlab.control.trajectory import minimum_jerk
@@ -102,6 +102,59 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         assert gains.unstable and gains.warning.startswith("the PD loop diverges")
         assert loop.params == unstable and loop.gains == gains
         assert loop.status.fault is None
+        # the arm's wall: a bad one refused there, raised here, the world as it was
+        backend = arm.backend
+        assert isinstance(backend, Touchable) and backend.wall_setting() is None
+        with pytest.raises(ValueError, match="normal_base must not be zero"):
+            backend.set_wall(np.zeros(3), np.zeros(3), stiffness=2e4, damping=50.0)
+        with pytest.raises(ValueError, match="friction"):
+            backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
+                             damping=50.0, friction=9.0)
+        with pytest.raises(ValueError, match="no box"):  # (the hand touches a plane only)
+            backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
+                             damping=50.0, size=(0.3, 0.3, 0.02))
+        assert backend.wall_setting() is None
+        with pytest.raises(ValueError, match="a wall must be a WallSetting"):
+            backend.meet_wall("a wall")  # type: ignore[arg-type]
+        backend.set_wall(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 2.0]),
+                         stiffness=2e4, damping=50.0, friction=0.3)
+        wall = backend.wall_setting()
+        assert wall is not None and np.array_equal(wall.normal, [0.0, 0.0, 1.0])
+        assert (wall.stiffness, wall.damping, wall.friction) == (2e4, 50.0, 0.3)
+        backend.set_wall(None, stiffness=2e4, damping=50.0)
+        assert backend.wall_setting() is None
+    finally:
+        proc.close()
+
+
+@pytest.mark.slow
+def test_a_restart_in_the_worker_meets_the_wall_named_and_a_cancel_drops_its_plan(model):
+    """A challenge's restart of a private arm: the fresh arm meets the wall ``meet_wall``
+    named (the arm's own until then kept none), and ``cancel`` right after the restart
+    drops the plan's command due 100 periods later, which then never plays."""
+    proc = ArmProcess(realtime=True)
+    try:
+        arm = proc.add(model, DEFAULT, preset="18.5/25", q0=Q0, history_s=10.0)
+        backend, loop = arm.backend, arm.loop
+        wait_for(lambda: loop.status.t > 0.2, 60, "the arm running")
+        hand = model.fk(Q0)[:3, 3]
+        wall = WallSetting(hand + np.array([0.0, 0.0, -0.05]), np.array([0.0, 0.0, 1.0]),
+                           2e4, 50.0)
+        backend.meet_wall(wall)
+        assert backend.wall_setting() is None  # (the arm in use keeps its own: none)
+        goal = Q0 + np.array([0.3, -0.2, 0.25])
+        number = backend.restart(Q0, [(100, RunTrajectory(minimum_jerk(Q0, goal, 0.5)))])
+        wait_for(lambda: backend.restarted()[0] >= number, 30, "the restart")
+        backend.cancel()
+        at = backend.restarted()[1]
+        met = backend.wall_setting()
+        assert met is not None and np.array_equal(met.origin, wall.origin)
+        assert met.stiffness == 2e4 and met.damping == 50.0
+        wait_for(lambda: loop.status.t > at + 130 * DEFAULT.period, 60, "130 periods on")
+        snap = loop.recorder.snapshot()
+        after = snap["t"] >= at
+        assert np.ptp(snap["q_cmd"][after], axis=0).max() < 1e-9  # nothing played
+        assert np.all(snap["f_contact"][after] == 0.0)  # its wall 5 cm below the hand
     finally:
         proc.close()
 

@@ -14,7 +14,9 @@ Figures:
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
     sandboxes_walls_realtime_per_core: the same for the largest class with a wall per arm
         (the contact lesson's, 2·10⁴ N/m, 3 mm behind each hand: within the plant's margin,
-        its force computed at every step); ``sandboxes_walls_over_free``: its cost over
+        its force computed at every step), set through each arm's backend so that its loop
+        records the force and its peak (:class:`BatchedWalls`, stepped in the plant's
+        place); ``sandboxes_walls_over_free``: its cost over
         the wall-free class's, same run.
     sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
         the design the batched plant replaced: 50 such loops, each over a plant of its own
@@ -86,6 +88,7 @@ from armlab.control.periodic import SharedClock
 from armlab.control.trajectory import minimum_jerk
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.kinematics import load_robot
@@ -104,12 +107,15 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     (:class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`, stepped
     per arm in Python at its loop's periods: the design the batched plant replaced).
     ``walls``: each arm has a wall of its own 3 mm behind its hand (the contact lesson's
-    2·10⁴ N/m; within the plant's margin, so computed at every step, touched or not)."""
+    2·10⁴ N/m; within the plant's margin, so computed at every step, touched or not), set
+    through its backend as the Contact tab sets it, so its loop records the wall's force
+    and its peak at every plant step (``f_contact``, ``f_contact_peak``)."""
     model = load_robot("receptionist_arm")
     rng = np.random.default_rng(seed)
     dt = 1e-3
     plant = BatchedPlant(model, RX24F, dt=dt) if batched else None
-    clock = SharedClock(plant.step if plant is not None else (lambda: None), dt=dt,
+    walled = BatchedWalls(plant) if plant is not None else None  # (as ClassArms steps it)
+    clock = SharedClock(walled.step if walled is not None else (lambda: None), dt=dt,
                         realtime=False)
     lock = clock.lock
     q0 = np.array([0.0, 0.3, 0.3])
@@ -117,17 +123,14 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     for _ in range(n_arms):
         q = q0 + rng.uniform(-0.2, 0.2, 3)
         arm = add_sim_arm(plant, q0=q) if plant is not None else -1
-        backend: Backend = (BatchedArmBackend(plant, arm, lock=lock)
+        backend: Backend = (BatchedArmBackend(plant, arm, lock=lock, walls=walled)
                             if plant is not None else SimBackend(model, specs=RX24F, dt=dt, q0=q))
         if walls:  # 3 mm behind the hand, facing the way its step would take it (pressed
             # by its weight and the pushes, never blocking a move: a blocked arm faults)
             way = model.fk(q + 0.3)[:3, 3] - model.fk(q)[:3, 3]
             normal = way / np.linalg.norm(way)
             origin = model.fk(q)[:3, 3] - 0.003 * normal
-            if plant is not None:
-                plant.set_wall(arm, origin, normal, stiffness=2e4, damping=50.0)
-            else:
-                backend.set_wall(origin, normal, stiffness=2e4, damping=50.0)  # type: ignore[attr-defined]  # a SimBackend is Touchable
+            backend.set_wall(origin, normal, stiffness=2e4, damping=50.0)  # type: ignore[attr-defined]  # both are Touchable
         params = Params(kp=float(rng.uniform(10.0, 25.0)), kv=float(rng.uniform(3.0, 7.0)),
                         k_env=float(rng.uniform(8.0, 30.0)), period=0.016)
         loop = ControlLoop(model, backend, params, realtime=False, clock=clock)

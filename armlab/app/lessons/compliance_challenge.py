@@ -11,7 +11,8 @@ measured on loop time over a fixed window of periods from the restart, never up 
 loaded machine, after any earlier runs. The contact challenge's run is ``armlab experiment
 contact``'s (:func:`armlab.control.experiments.contact.contact_plan`: the hand into a
 wall across the thesis line, in the restarted arm's world only:
-:meth:`armlab.control.restart.RestartableArm.meet_wall`), judged by the same
+:meth:`armlab.control.restart.RestartableArm.meet_wall`; a private arm's, or a classroom's
+shared arm's, in its worker: ``RemoteBackend.meet_wall``), judged by the same
 :func:`~armlab.control.experiments.contact.contact_figures` on the wall's force the loop
 records every period (``f_contact``, ``f_contact_peak``): the experiment's figures for
 the same wall and gains. A real (serial) arm cannot be put back: its
@@ -34,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from armlab.control.backend import Touchable, WallSetting
+from armlab.control.backend import BackendError, Touchable, WallSetting
 from armlab.control.challenges import Challenge
 from armlab.control.commands import Command, Push, Reset, RunTrajectory
 from armlab.control.experiments.contact import (
@@ -198,6 +199,11 @@ class ChallengeRuns:
             twin = getattr(getattr(rig.loop, "reference", None), "backend", None)
             if isinstance(twin, RestartableArm):  # serve --exercise: the ghost's plan too
                 twin.cancel()
+        elif rig is not None and callable(getattr(rig.backend, "cancel", None)):
+            try:  # a private arm in the class's worker: its plan stopped there
+                rig.backend.cancel()
+            except BackendError:  # (the worker ended: nothing is posted any more)
+                pass
         if run.t0 is not None and rig is not None:  # its file ends here, unmeasured
             self.lesson.runs.finish_run(None, t=rig.loop.status.t)
         if run.kind == "contact":
@@ -281,9 +287,11 @@ class ChallengeRuns:
         if not fresh:
             raise ValueError("real servos: the wall is virtual only in simulation for now "
                              "(open the lab on the simulated arm)")
-        if not (isinstance(rig.backend, RestartableArm) and isinstance(rig.backend, Touchable)):
-            raise ValueError("this simulated arm has no wall to touch (a class's private "
-                             "arms run without one for now): run it on the lab's own arm")
+        # a RestartableArm here, or in a worker (RemoteBackend): the restarted arm's wall
+        meet_wall = getattr(rig.backend, "meet_wall", None)
+        if not (isinstance(rig.backend, Touchable) and callable(meet_wall)):
+            raise ValueError("this simulated arm's world holds no wall to start it again "
+                             "against: run the challenge on the lab's simulated arm")
         check_wall_numbers(stiffness=spec.stiffness, damping=spec.damping,
                            names=("wall stiffness", "wall damping"))
         cp = contact_plan(rig.model, period, wall=spec.wall_cm / 100.0,
@@ -293,7 +301,7 @@ class ChallengeRuns:
         predicted = None if k_q is None else predicted_force(
             rig.model, cp.q_end, cp.normal, cp.depth, k_joint=k_q, k_wall=spec.stiffness)
         # the wall in the restarted arm's world only: the arm in use may be behind it
-        rig.backend.meet_wall(WallSetting(cp.origin, cp.normal, spec.stiffness, spec.damping))
+        meet_wall(WallSetting(cp.origin, cp.normal, spec.stiffness, spec.damping))
         self.lesson.contact.challenge_wall(rig, cp.origin, cp.normal)
         label = (f"into a wall {spec.wall_cm:g} cm ahead, {spec.stiffness:g} N/m, the "
                  f"command {spec.depth_cm:g} cm behind it")

@@ -7,8 +7,12 @@ The arms of one link-length preset live in one
 period is due. A loop is the lesson's own (commands, trajectories, the step test,
 pushes, drags, recording, faults) over a
 :class:`armlab.hardware.families.dynamixel1.batched_backend.BatchedArmBackend`:
-one arm of the plant behind the ``Backend`` protocol. So a private arm is the shared
-lesson's arm, not a lookalike, and a hundred of them cost one thread. An arm that ships
+one arm of the plant behind the ``Backend`` protocol, with a wall of its own (``Touchable``:
+the Contact tab's, the contact challenge's; each plant's
+:class:`armlab.hardware.families.dynamixel1.batched_walls.BatchedWalls`, which the clock
+steps in the plant's place, keeps each wall's force and its peak at every step). So a
+private arm is the shared lesson's arm, not a lookalike, and a hundred of them cost one
+thread. An arm that ships
 with servos of a family with its own firmware model (X-series: the OpenManipulator-X,
 :class:`armlab.hardware.families.xseries.sim_backend.XSimBackend`; Feetech STS: the SO-101,
 :class:`armlab.hardware.families.feetech.sim_backend.StsSimBackend`) is simulated with it as its
@@ -36,6 +40,7 @@ from armlab.control.periodic import SharedClock
 from armlab.control.restart import RestartableArm
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.kinematics.model import SerialChain
 
@@ -73,13 +78,16 @@ class ClassArms:
 
     def __init__(self, *, realtime: bool = True) -> None:
         self._plants: dict[str, BatchedPlant] = {}
+        #: each plant's walls (one per arm: the Contact tab's, a challenge's), stepped in
+        #: its place so that each wall's peak force is kept at every step
+        self._walls: dict[str, BatchedWalls] = {}
         self.clock = SharedClock(self._step, dt=DT, realtime=realtime, name="armlab-class")
         self.lock = self.clock.lock  # a HandOverLock: a waiting thread gets in between ticks
         self.clock.start()
 
     def _step(self) -> None:
-        for plant in self._plants.values():
-            plant.step()
+        for walls in self._walls.values():
+            walls.step()
 
     def add(self, model: SerialChain, params: Params, *, preset: str, q0: np.ndarray,
             history_s: float) -> Arm:
@@ -94,12 +102,14 @@ class ClassArms:
                 plant = self._plants.get(preset)
                 if plant is None:
                     plant = self._plants[preset] = BatchedPlant(model, RX24F, dt=DT)
-                backend = _restartable_arm(plant, q0, self.lock)
+                    self._walls[preset] = BatchedWalls(plant)
+                backend = _restartable_arm(self._walls[preset], q0, self.lock)
                 row = backend.arm
             try:
                 loop = loop_over(backend, model, params, history_s=history_s, clock=self.clock)
             except BaseException:  # (the backend is closed)
                 if plant is not None and row is not None:
+                    self._walls[preset].forget(backend.arm)  # type: ignore[attr-defined]  # row set: the batched plant's backend
                     plant.remove_arm(backend.arm)  # type: ignore[attr-defined]  # row set: the batched plant's backend
                 raise
             loop.start()
@@ -111,7 +121,9 @@ class ClassArms:
             arm.loop.shutdown(torque_off=True)
             arm.backend.close()
             if arm.row is not None:  # (the arm's id now: a restart makes a new one)
-                self._plants[arm.preset].remove_arm(getattr(arm.backend, "arm", arm.row))
+                row = getattr(arm.backend, "arm", arm.row)
+                self._walls[arm.preset].forget(row)
+                self._plants[arm.preset].remove_arm(row)
 
     def close(self, arms: list[Arm] | tuple[Arm, ...] = ()) -> None:
         """Stop the clock, then free ``arms`` (the ones still held).
@@ -125,16 +137,21 @@ class ClassArms:
                 self.free(arm)
 
 
-def _restartable_arm(plant: BatchedPlant, q0: np.ndarray, lock: Any) -> RestartableArm:
-    """A new arm of ``plant`` at ``q0`` that a challenge's run can start again at a pose
-    (:class:`RestartableArm`: a fresh arm of the plant in its place, the old one taken
-    out; ``lock`` is the clock's, held while it ticks)."""
+def _restartable_arm(walls: BatchedWalls, q0: np.ndarray, lock: Any) -> RestartableArm:
+    """A new arm of ``walls``' plant at ``q0`` that a challenge's run can start again at a
+    pose (:class:`RestartableArm`: a fresh arm of the plant in its place, the old one and
+    its wall taken out, the fresh one meeting the wall it names; ``lock`` is the clock's,
+    held while it ticks)."""
+    plant = walls.plant
+
     def make(q: np.ndarray) -> BatchedArmBackend:
-        return BatchedArmBackend(plant, add_sim_arm(plant, q0=q, lock=lock), lock=lock)
+        return BatchedArmBackend(plant, add_sim_arm(plant, q0=q, lock=lock), lock=lock,
+                                 walls=walls)
 
     def drop(old: Any) -> None:
         old.close()
         with lock:
+            walls.forget(old.arm)
             plant.remove_arm(old.arm)
 
     return RestartableArm(make, q0, drop=drop)

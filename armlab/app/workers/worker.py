@@ -24,7 +24,7 @@ from armlab.app.workers.class_hands import ClassHand, ClassHands
 from armlab.app.workers.class_quadrupeds import ClassQuadruped, ClassQuadrupeds
 from armlab.app.workers.remote_gait import FREED as QUAD_FREED
 from armlab.app.workers.worker_process import FREED, REPORTS_S
-from armlab.control.backend import BackendError
+from armlab.control.backend import BackendError, Touchable, WallSetting
 from armlab.control.commands import Reset
 from armlab.control.gait_loop import Command as GaitCommand
 from armlab.control.grip import GripParams
@@ -162,6 +162,39 @@ def restart(arm: Arm, q: np.ndarray, plan: list) -> int:
     number = backend.restart(q, plan, arm.loop.post)
     arm.loop.post(Reset())
     return number
+
+
+def set_wall(arm: Arm, origin: np.ndarray | None, normal: np.ndarray | None,
+             stiffness: float, damping: float, friction: float,
+             size: tuple[float, float, float] | None = None) -> None:
+    """``arm``'s wall (``Touchable.set_wall``: its own world's, no other arm's)."""
+    backend = arm.backend
+    if not isinstance(backend, Touchable):
+        raise ValueError("this simulated arm takes no wall")
+    backend.set_wall(origin, normal, stiffness=float(stiffness), damping=float(damping),
+                     friction=float(friction), size=size)
+
+
+def wall_setting(arm: Arm) -> WallSetting | None:
+    """``arm``'s wall now (None: none, or an arm that takes none)."""
+    backend = arm.backend
+    return backend.wall_setting() if isinstance(backend, Touchable) else None
+
+
+def meet_wall(arm: Arm, wall: WallSetting | None) -> None:
+    """The next restart's fresh arm meets ``wall`` (:meth:`RestartableArm.meet_wall`)."""
+    backend = arm.backend
+    if not isinstance(backend, RestartableArm) or not isinstance(backend, Touchable):
+        raise ValueError("this arm cannot be started again against a wall")
+    if wall is not None and not isinstance(wall, WallSetting):
+        raise ValueError(f"a wall must be a WallSetting, got {type(wall).__name__}")
+    backend.meet_wall(wall)
+
+
+def cancel(arm: Arm) -> None:
+    """Post nothing more of ``arm``'s last restart's plan (:meth:`RestartableArm.cancel`)."""
+    if isinstance(arm.backend, RestartableArm):
+        arm.backend.cancel()
 
 
 def restarted(arm: Arm) -> tuple[int, float | None]:
@@ -306,6 +339,11 @@ def serve(conn: Connection, realtime: bool, mirror_s: float, kind: str = "class"
             anchor, stiffness=k, link=link, point=point),
         "restart": lambda i, q, plan: restart(arm_of(i), q, plan),
         "restarted": lambda i: restarted(arm_of(i)),
+        "cancel": lambda i: cancel(arm_of(i)),
+        "wall": lambda i, origin, normal, k, c, mu, size=None: set_wall(
+            arm_of(i), origin, normal, k, c, mu, size),
+        "wall_setting": lambda i: wall_setting(arm_of(i)),
+        "meet_wall": lambda i, wall: meet_wall(arm_of(i), wall),
         **member_ops("hand"),
         **member_ops("quad"),
         "quad_estop": lambda i: member_of("quad", i).loop.estop(),

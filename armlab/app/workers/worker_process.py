@@ -16,9 +16,11 @@ batched plants on one clock), another the shared arm (``kind="own"``:
   new rows every :data:`MIRROR_S` s in one message. ``post``, ``set_params`` go to the
   worker's loop and wait for its answer, so a refused command raises here as it would in
   process.
-- :class:`RemoteBackend`: E-STOP, the hand's push and drag, each a call the worker
-  answers; the Servos panel's ``plant.reports()`` are mirrored too, every
-  :data:`REPORTS_S` s (a page's frame never waits for the worker).
+- :class:`RemoteBackend`: E-STOP, the hand's push and drag, the arm's wall
+  (``Touchable``: set and read as calls, its force from the mirrored record), a
+  challenge's restart, each a call the worker answers; the Servos panel's
+  ``plant.reports()`` are mirrored too, every :data:`REPORTS_S` s (a page's frame never
+  waits for the worker).
 - :class:`armlab.app.workers.remote_hand.RemoteHand`,
   :class:`armlab.app.workers.remote_gait.RemoteGait`: a student's
   copy of the thesis's hand and of the seed 003 quadruped, one of the class worker's
@@ -35,7 +37,9 @@ on.
 Messages (tuples; the server's ``Connection`` end sends calls, the worker's answers)::
 
     server -> worker   (op, call_id, arm_id, *args)      op: add, post, set_params,
-                                                         estop, push, spring, read, free;
+                                                         estop, push, spring, read, free,
+                                                         restart, restarted, cancel, wall,
+                                                         wall_setting, meet_wall;
                                                          hand_add, hand_post, hand_free,
                                                          quad_add, quad_post, quad_estop,
                                                          quad_restart, quad_cancel, quad_free
@@ -72,7 +76,7 @@ from armlab.app.workers.class_arms import Arm
 from armlab.app.workers.remote_gait import RemoteGait
 from armlab.app.workers.remote_hand import RemoteHand
 from armlab.app.workers.worker_link import CALL_TIMEOUT_S, ESTOP_TIMEOUT_S
-from armlab.control.backend import BackendError, GripperState, JointState
+from armlab.control.backend import BackendError, GripperState, JointState, WallSetting
 from armlab.control.commands import Command, EStop, UseSpareJoints
 from armlab.control.grip import GripParams
 from armlab.control.loop import LoopStatus
@@ -214,14 +218,17 @@ class RemotePlant:
 class RemoteBackend:
     """An arm's backend in a worker process: what a lesson calls on it.
 
-    Implements ``armlab.control.backend.Pushable``; ``plant.reports()`` as a simulated backend's.
+    Implements ``armlab.control.backend.Pushable`` and ``Touchable`` (the wall in the
+    worker's world, the arm's own); ``plant.reports()`` as a simulated backend's.
     """
 
     def __init__(self, owner: ArmProcess, loop: RemoteLoop) -> None:
         self._owner = owner
+        self._loop = loop
         self.arm_id = loop.arm_id
         self.n = loop.model.n
         self.plant = RemotePlant(loop)
+        self._peak_read = -np.inf  #: loop time of the newest row :meth:`wall_peak` read
 
     def read(self) -> JointState:
         """Every joint as its servo reports it (the worker's ``read()``)."""
@@ -248,6 +255,55 @@ class RemoteBackend:
                    point: np.ndarray) -> None:
         """``Pushable.set_spring`` in the worker."""
         self._owner.call("spring", self.arm_id, anchor, stiffness, link, point)
+
+    def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
+        """``Touchable.set_wall`` in the worker (this arm's world only); a refused wall
+        raises here (ValueError), as in process (a box on a class's batched arm: they
+        touch a plane with the hand only)."""
+        self._owner.call("wall", self.arm_id,
+                         None if origin is None else np.asarray(origin, dtype=float),
+                         None if normal is None else np.asarray(normal, dtype=float),
+                         float(stiffness), float(damping), float(friction),
+                         None if size is None else tuple(float(x) for x in size))
+
+    def wall_setting(self) -> WallSetting | None:
+        """The wall in the arm's world now (the worker's answer; None: none)."""
+        wall = self._owner.call("wall_setting", self.arm_id)
+        return wall if isinstance(wall, WallSetting) else None
+
+    def wall_force(self) -> float:
+        """N, the wall's force on the hand in the newest mirrored period (0: none). The
+        worker's loop records it every period; this reads that record."""
+        f = self._newest("f_contact", 0.05)
+        return float(f[-1]) if f.size and np.isfinite(f[-1]) else 0.0
+
+    def wall_peak(self) -> float:
+        """N, the largest wall force at any plant step in the periods mirrored since the
+        last call (the worker's record, ``f_contact_peak``; then the newest period's)."""
+        snap = self._loop.recorder.snapshot(1.0)
+        t, peak = snap["t"], snap["f_contact_peak"]
+        if not t.size:
+            return 0.0
+        new = t > self._peak_read
+        rows = peak[new] if new.any() else peak[-1:]
+        self._peak_read = float(t[-1])
+        rows = rows[np.isfinite(rows)]
+        return float(rows.max()) if rows.size else 0.0
+
+    def _newest(self, name: str, seconds: float) -> np.ndarray:
+        return np.asarray(self._loop.recorder.snapshot(seconds)[name], dtype=float)
+
+    def meet_wall(self, wall: WallSetting | None) -> None:
+        """The next restart's fresh arm meets ``wall`` (None: none) in the worker
+        (:meth:`armlab.control.restart.RestartableArm.meet_wall`)."""
+        self._owner.call("meet_wall", self.arm_id, wall)
+
+    def cancel(self) -> None:
+        """Post nothing more of the last restart's plan (the run was cut short), in the
+        worker (:meth:`armlab.control.restart.RestartableArm.cancel`)."""
+        self._owner.call("cancel", self.arm_id)
 
     def restart(self, q: np.ndarray, plan: list[tuple[int, Command]]) -> int:
         """Start the arm again at ``q`` (n,) rad, at rest, its controller reset, then post

@@ -10,10 +10,13 @@ raw words written and read and the same decoding
 :func:`~armlab.hardware.families.dynamixel1.sim_backend.decode_reports` looked up in tables of every
 word's decoded
 value, :func:`word_tables`: a class reads hundreds of arms a second), the same torque,
-e-stop, close and push semantics. One difference: :meth:`BatchedArmBackend.sync` does not
-step the plant. A shared clock (:class:`armlab.control.periodic.SharedClock`) steps the whole
-plant once per ``dt`` and runs each arm's control period when it is due, so the plant is
-already at the loop's time; ``sync`` only records it.
+e-stop, close and push semantics, and a wall of its own
+(:class:`armlab.control.backend.Touchable`, kept by the plant's
+:class:`~armlab.hardware.families.dynamixel1.batched_walls.BatchedWalls`). One
+difference: :meth:`BatchedArmBackend.sync` does not step the plant. A shared clock
+(:class:`armlab.control.periodic.SharedClock`) steps the whole plant once per ``dt``
+and runs each arm's control period when it is due, so the plant is already at the loop's
+time; ``sync`` only records it.
 
 Every method that touches the plant holds the ``lock`` given (the one the clock's
 thread holds while it steps), so a UI thread may e-stop or push an arm at any time.
@@ -21,12 +24,15 @@ thread holds while it steps), so a UI thread may e-stop or push an arm at any ti
 An arm's life (the owner's part)::
 
     arm = add_sim_arm(plant, q0=q0, lock=lock)
-    loop = ControlLoop(model, BatchedArmBackend(plant, arm, lock=lock), params, clock=clock)
+    walls = BatchedWalls(plant)  # once per plant: the clock steps walls.step
+    loop = ControlLoop(model, BatchedArmBackend(plant, arm, lock=lock, walls=walls),
+                       params, clock=clock)
     loop.start()                 # attached: its periods run on the clock
     ...
     loop.shutdown()              # detached after the clock's current tick
     loop.backend.close()
     with lock:
+        walls.forget(arm)
         plant.remove_arm(arm)
 """
 
@@ -39,9 +45,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from armlab.control.backend import BackendError, GoalLimits, JointState
+from armlab.control.backend import BackendError, GoalLimits, JointState, WallSetting
 from armlab.hardware.families.dynamixel1 import packets as p1
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant, ReportWords
+from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.families.dynamixel1.firmware import ServoRegisters, ServoReport
 from armlab.hardware.families.dynamixel1.sim_backend import raw_goals, servo_limits, sim_registers
 from armlab.hardware.servos.servo_spec import ServoSpec
@@ -158,7 +165,8 @@ class ArmOfPlant:
 
 
 class BatchedArmBackend(GoalLimits):
-    """Arm id ``arm`` of ``plant`` behind the ``Backend`` and ``Pushable`` protocols.
+    """Arm id ``arm`` of ``plant`` behind the ``Backend``, ``Pushable`` and ``Touchable``
+    protocols.
 
     Args:
         plant: the shared plant (the caller adds the arm first, e.g. :func:`add_sim_arm`,
@@ -166,6 +174,9 @@ class BatchedArmBackend(GoalLimits):
         arm: the arm's id in ``plant``.
         lock: held around every use of the plant (the shared clock holds it while it
             steps).
+        walls: the plant's walls (:class:`BatchedWalls`, stepped by the clock in the
+            plant's place): this arm's wall is set and its force read there, the arm's
+            own and no other's (None: the arm takes no wall, ``set_wall`` refuses one).
 
     Attributes:
         batch: the shared :class:`BatchedPlant`.
@@ -178,8 +189,12 @@ class BatchedArmBackend(GoalLimits):
     """
 
     def __init__(self, plant: BatchedPlant, arm: int, *,
-                 lock: threading.RLock | HandOverLock) -> None:
+                 lock: threading.RLock | HandOverLock,
+                 walls: BatchedWalls | None = None) -> None:
+        if walls is not None and walls.plant is not plant:
+            raise ValueError("walls: the walls of another plant")
         self.batch = plant
+        self.walls = walls
         self.plant = ArmOfPlant(plant, int(arm), lock)
         self.arm = int(arm)
         self.specs = plant.specs
@@ -275,6 +290,51 @@ class BatchedArmBackend(GoalLimits):
         with self._lock:
             self.batch.set_spring(self.arm, anchor, stiffness=stiffness, link=link,
                                   point=point)
+
+    # -- Touchable ----------------------------------------------------------------
+
+    def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
+                 stiffness: float, damping: float, friction: float = 0.0,
+                 size: tuple[float, float, float] | None = None) -> None:
+        """A plane this arm's hand touches (``armlab.control.backend.Touchable``):
+        ``origin`` (3,) m on it, ``normal`` (3,) towards the free side, both base frame,
+        with Coulomb ``friction`` μ along it; None removes it. The other arms of the
+        plant never meet it.
+
+        Raises:
+            ValueError: a bad argument (the wall as it was), a box (``size``: the batched
+                plant's arms touch a plane with the hand only, and say so), or a backend
+                made without ``walls``.
+        """
+        if self.walls is None:
+            raise ValueError("this simulated arm takes no wall (its plant's walls were not "
+                             "given: BatchedArmBackend(walls=...))")
+        with self._lock:
+            self._check_open()
+            self.walls.set(self.arm, origin, normal, stiffness=stiffness, damping=damping,
+                           friction=friction, size=size)
+
+    def wall_force(self) -> float:
+        """N, the wall's normal force on this arm's hand now (0: off it, or no wall)."""
+        if self.walls is None:
+            return 0.0
+        with self._lock:
+            return self.walls.force(self.arm)
+
+    def wall_peak(self) -> float:
+        """N, the largest wall force on this arm's hand at any plant step since the last
+        call."""
+        if self.walls is None:
+            return 0.0
+        with self._lock:
+            return self.walls.peak(self.arm)
+
+    def wall_setting(self) -> WallSetting | None:
+        """This arm's wall now (None: none)."""
+        if self.walls is None:
+            return None
+        with self._lock:
+            return self.walls.setting(self.arm)
 
     def _check_open(self) -> None:
         if self._closed:
