@@ -170,10 +170,13 @@ def test_a_private_arm_runs_into_its_own_wall_and_no_other_arm_meets_it():
             assert min(hand(q) for q in snap["q"][-50:]) > -0.25 * behind  # hers held at it
             assert theirs.rig.backend.wall_setting() is None
             # a block in the wall's place is what a private arm cannot take (its hand alone
-            # touches a plane): refused on her page in one line, her wall then off
+            # touches a plane): her page offers no Shape, and a block sent for it anyway
+            # (a page of her own making) leaves her wall the plane it was
+            assert not mine.contact.shape.visible
             ana.set_value(mine.contact.shape, SHAPES[1])
-            assert "no box" in ana.wait_notification("Not done")
-            wait_for(lambda: mine.rig.backend.wall_setting() is None, 30, "her wall off")
+            wait_for(lambda: mine.contact.shape.value == SHAPES[1], 30, "the value taken")
+            kept = mine.rig.backend.wall_setting()
+            assert kept is not None and kept.size is None
             assert mine.rig.loop.status.fault is None and theirs.rig.loop.status.fault is None
 
 
