@@ -127,9 +127,8 @@ class Plant:
         params: :class:`ServoParams` per joint or one for all (rotor, friction, overload;
             default: :class:`ServoParams`, supplied at an X-series model's rated voltage).
         registers: per joint its family's registers (``ServoRegisters`` for protocol
-            1.0, ``XRegisters`` for an X-series joint) to use (default: factory values, goal at the
-            initial
-            position, torque off).
+            1.0, ``XRegisters`` for an X-series joint) to use (default: factory values,
+            goal at the initial position, torque off).
         stops: joint-limit stops, or None for none.
     """
 
