@@ -64,12 +64,11 @@ from typing import TypeVar
 import numpy as np
 
 from armlab.app.commands.scan import _ids
-from armlab.control.experiments.contact import check_wall_numbers
+from armlab.control.experiments.contact import box_size_cm, check_wall_numbers
 from armlab.hardware import family_parts
 from armlab.hardware.backends.joint_map import default_joint_map, robot_joints
 from armlab.hardware.emulator.pty import Faults, PtyEmulator
 from armlab.hardware.servos.registry import FAMILIES, family
-from armlab.hardware.sim.contact import checked_size
 from armlab.hardware.sim.plant import Plant
 from armlab.kinematics.catalog import load_robot
 from armlab.kinematics.model import SerialChain
@@ -172,21 +171,6 @@ def _number(text: str, name: str) -> float:
 #: what ``--wall`` takes
 WALL_FORMAT = ("X,Y,Z@NX,NY,NZ (a point of the plane in cm and its normal towards the "
                "free side, base frame), e.g. --wall=-11.3,15.7,0@0,-1,0")
-
-
-def parse_size(text: str) -> tuple[float, float, float]:
-    """``--wall-size W,H,T`` (cm) -> (width, height, thickness) m, each in (0, 10 m]."""
-    expected = "expected W,H,T in cm, e.g. --wall-size 60,40,3"
-    try:
-        cm = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise ValueError(f"--wall-size {_quoted(text, 40)}: not numbers; {expected}") from None
-    if len(cm) != 3 or not all(0.0 < v <= 1000.0 for v in cm):
-        raise ValueError(f"--wall-size {_quoted(text, 40)}: three sizes above 0 and at most "
-                         f"1000 cm; {expected}")
-    size = checked_size([v / 100.0 for v in cm])
-    assert size is not None
-    return size
 
 
 def parse_wall(text: str) -> tuple[list[float], list[float]]:
@@ -434,7 +418,8 @@ def run(args: argparse.Namespace) -> int:
         check_wall_numbers(stiffness=args.wall_stiffness, damping=args.wall_damping,
                            friction=args.wall_friction,
                            names=("--wall-stiffness", "--wall-damping", "--wall-friction"))
-        size = None if args.wall_size is None else parse_size(args.wall_size)
+        size = None if args.wall_size is None else box_size_cm(
+            args.wall_size, option="--wall-size", example="60,40,3")
         _arm_plant(network).set_wall(np.array(wall[0]), np.array(wall[1]),
                                      stiffness=args.wall_stiffness, damping=args.wall_damping,
                                      friction=args.wall_friction, size=size)

@@ -260,21 +260,23 @@ class WallOptions(BackendOptions):
                                   "too), e.g. 22,22,5")
 
 
-def block_size(text: str | None) -> tuple[float, float, float] | None:
-    """``--block-cm W,H,T`` -> (width, height, thickness) m (None: a plane).
+def box_size_cm(text: str, *, option: str, example: str) -> tuple[float, float, float]:
+    """A box's ``W,H,T`` in cm, as ``option`` takes it (``--block-cm``, emulate's
+    ``--wall-size``) -> (width, height, thickness) m.
 
     Raises:
-        ValueError: not three sizes above 0 and at most 1000 cm.
+        ValueError: one line naming ``option``: not numbers, or not three sizes above 0
+            and at most 1000 cm.
     """
-    if text is None:
-        return None
+    expected = f"expected W,H,T in cm, e.g. {option} {example}"
+    shown = repr(text[:40]) + ("…" if len(text) > 40 else "")
     try:
-        cm = [float(v) for v in text.split(",")]
+        cm = [float(v) for v in text.split(",", 3)]
     except ValueError:
-        cm = []
+        raise ValueError(f"{option} {shown}: not numbers; {expected}") from None
     if len(cm) != 3 or not all(0.0 < v <= 1000.0 for v in cm):
-        raise ValueError(f"--block-cm {text[:40]!r}: three sizes W,H,T above 0 and at most "
-                         "1000 cm, e.g. 22,22,5")
+        raise ValueError(f"{option} {shown}: three sizes above 0 and at most 1000 cm; "
+                         f"{expected}")
     return cm[0] / 100.0, cm[1] / 100.0, cm[2] / 100.0
 
 
@@ -480,7 +482,9 @@ def _run(o: WallOptions, controller: str, *, backend_factory: Any,
     return run_contact(load_robot("receptionist_arm"), backend_factory, _params(o),
                        controller=controller, wall=o.wall_cm / 100.0,
                        depth=o.depth_cm / 100.0, stiffness=o.stiffness, damping=o.damping,
-                       friction=o.friction, keep=keep, size=block_size(o.block_cm))
+                       friction=o.friction, keep=keep,
+                       size=None if o.block_cm is None else box_size_cm(
+                           o.block_cm, option="--block-cm", example="22,22,5"))
 
 
 def _contact_run(options: ContactOptions, *, backend_factory: Any,
