@@ -83,6 +83,7 @@ VIRTUAL_NOTE = ("On the servos the wall is **virtual**: the compliance law rende
                 "of the wall as from a push, and your hand pushing the arm into it feels "
                 "it hold. The orange arrow and the chart show the force it renders; PD "
                 "renders none (Gains tab: the compliance law).")
+DISTANCE_STEP_CM = 0.5  #: the wall's distance moves in these steps (slider and drag)
 DISTANCE_CM = 18.0  #: default: 2 cm before the line's end, the command ends 2 cm behind it
 #: N/m, default: a wooden table top under a servo arm's hand (``armlab experiment contact``'s
 #: default, so the tab's figures and the experiment's can be compared)
@@ -182,7 +183,8 @@ class ContactTab:
                                              "plane facing the hand)")
         self.distance = guarded_slider(
             gui, "Wall ahead of the hand (cm)", name="wall distance", lo=5.0, hi=20.0,
-            step=0.5, initial=DISTANCE_CM, apply=lambda v: self._changed(distance_cm=v),
+            step=DISTANCE_STEP_CM, initial=DISTANCE_CM,
+            apply=lambda v: self._changed(distance_cm=v),
             hint="Along the thesis line from its start; the line is 20 cm, so the command "
                  "ends (20 − this) cm behind the wall's surface")
         self.stiffness = guarded_slider(
@@ -369,9 +371,11 @@ class ContactTab:
             self._drag_phase = None if event.phase == "end" else event.phase
             x0, u, _, _ = wall_across_line(rig.model, rig.line.q[0], rig.line.q[-1], 0.0)
             along = float((np.asarray(event.target.position, dtype=float) - x0) @ u) * 100.0
-            step = 0.5
+            if not math.isfinite(along):  # (a page's NaN or inf: nothing moves)
+                return
+            step = DISTANCE_STEP_CM
             cm = min(max(round(along / step) * step, self.distance.lo), self.distance.hi)
-            if math.isfinite(cm) and cm != self.distance.value:
+            if cm != self.distance.value:
                 self.distance.set(cm)  # (its guard applies it, or refuses and says why)
             if event.phase == "end" and self._placed is not None:
                 drag.position = self._placed[0]
