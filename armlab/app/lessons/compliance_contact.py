@@ -695,7 +695,7 @@ def comparison_markdown(result: dict[str, Any], wall: WallSetting) -> str:
 
     what = "the block" if wall.block else "the wall"
     lines = [f"**PD and compliance** into {what} {people(wall.distance_cm)} cm ahead "
-             f"({people(wall.stiffness)} N/m):", "", "| | PD | compliance |",
+             f"({people(wall.stiffness)} N/m):", "", "| | PD | compli\u00adance |",
              "| --- | --- | --- |"]
     lines += [f"| {row['figure']} | {cell(row['pd'], row['unit'])} | "
               f"{cell(row['compliance'], row['unit'])} |" for row in result["rows"]]
