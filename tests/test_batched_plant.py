@@ -289,8 +289,8 @@ def test_walls_far_from_a_hand_are_left_out_without_changing_a_number() -> None:
     """Each arm's wall across its hand's way, halfway along where its servos take it in
     0.3 s (centimetres off at the start: beyond the margin, so the plant leaves it out of
     its steps until the joints' speeds could have brought the hand close): the batched
-    plant's arms stay within 1e-9 of single plants' that evaluate the wall at every
-    stage, and the hands meet their walls."""
+    plant's arms stay within 1e-9 of single plants' that hold every wall near enough to
+    touch, and the hands meet their walls."""
     free, _ = _pair()
     start = [MODEL.fk(p.q)[:3, 3] for p in free]
     for _ in range(300):
@@ -303,7 +303,7 @@ def test_walls_far_from_a_hand_are_left_out_without_changing_a_number() -> None:
         singles[i].set_wall(a + 0.5 * d, normal)
         batch.set_wall(i, a + 0.5 * d, normal)
     assert min(0.5 * float(np.linalg.norm(d)) for d in way) > 0.005  # all off the margin
-    assert batch._near_fields(batch._s["q"], batch._s["qd"]).size == 0  # so left out at first
+    assert batch._near_walls().rows.size == 0  # so left out at first
     worst, touched = 0.0, set()
     for _ in range(300):
         for i, p in enumerate(singles):

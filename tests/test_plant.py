@@ -163,7 +163,7 @@ def _readable(plant: Plant) -> None:
     Plant.step takes it when no stop, spring or wall acts."""
     if plant._pushes:
         plant._update_pushes(plant._q)
-    plant._readable_step(plant._q, plant._qd, plant._held_torques(), stops=False)
+    plant._readable_step(plant._q, plant._qd, plant._held_torques(), [], stops=False)
     plant._k += 1
 
 

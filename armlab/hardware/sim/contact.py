@@ -6,8 +6,20 @@ never pulling: f_n = max(0, k·p − c·ṗ_n), p the depth of the ball's surfac
 obstacle (a point: a ball of radius 0), along the obstacle's outward normal there. Along
 the surface, Coulomb friction μ·f_n against the sliding, regularised as a damper
 :data:`FRICTION_DAMPING` on the sliding speed capped at μ·f_n (a "stick" that never does
-work on the arm: its power −|f_t|·|v_t| ≤ 0). The plant integrates them at each RK4 stage
+work on the arm: its power −|f_t|·|v_t| ≤ 0). The plant evaluates them at each RK4 stage
 (:meth:`armlab.hardware.sim.plant.Plant.set_wall`).
+
+How a step evaluates them: at the step's start, each touch that the joints' speeds can
+bring within :data:`HOLD_MARGIN_M` of the obstacle in the step is *held*
+(:class:`HeldTouch`): its Jacobian columns J (thesis eq. 3.17), its depth and the
+obstacle's normal at its nearest point there. At each RK4 stage the touch's depth is
+then depth − n · J (q − q₀) and its velocity J q̇ (:func:`held_push`): the first-order
+expansion of where the touch is, exact at the step's start, off by under
+½ |∂²p/∂q²| |Δq|² within a 1 ms step (some 10⁻⁷ m at 1 rad/s). One forward kinematics a
+step instead of one a stage: the force at the step's end, which the loop records, is the
+next step's start, so it costs none of its own. The spring and damper act on that depth
+at every stage, so the contact's own dynamics keep RK4's accuracy (an arm dropped on a
+table comes to rest, never bouncing higher: tests/test_contact_shapes.py).
 
 A box (``size``: width and height across its face, thickness behind it) has one face on
 the plane through ``origin`` with outward ``normal``; its other faces bound it. A ball
@@ -138,6 +150,70 @@ def checked_size(size: object) -> Vec | None:
     return float(s[0]), float(s[1]), float(s[2])
 
 
+#: m: a touch farther than this from the obstacle, beyond what the joints' speeds can
+#: move it in a step (2 dt · reach · Σ|θ̇|), is left out of that step: it can push nothing
+HOLD_MARGIN_M = 0.005
+
+
+@dataclass(frozen=True)
+class HeldTouch:
+    """A touch near the obstacle as one step holds it, from the step's start (q₀): its
+    Jacobian columns ``cols`` (3,) for joints 0..its link (thesis eq. 3.17), ``along``
+    those columns along the normal (nᵀJ: the depth's rate per joint), its ``depth`` m
+    inside the obstacle (negative: outside) and the obstacle's outward ``normal`` (3,) at
+    its nearest point (module docstring)."""
+
+    cols: tuple[Vec, ...]
+    along: tuple[float, ...]
+    depth: float
+    normal: Vec
+
+
+_NO_FORCE = (0.0, 0.0, 0.0)
+
+
+def held_touch(cols: Sequence[Vec], depth: float, normal: Vec) -> HeldTouch:
+    """The :class:`HeldTouch` of a touch ``depth`` m inside the obstacle, of Jacobian
+    columns ``cols`` and outward ``normal`` there."""
+    n0, n1, n2 = normal
+    return HeldTouch(tuple(cols), tuple(c[0] * n0 + c[1] * n1 + c[2] * n2 for c in cols),
+                     depth, normal)
+
+
+def held_push(ob: Obstacle, held: HeldTouch, dq: Sequence[float], qd: Sequence[float],
+              tau: list[float]) -> float:
+    """N of the obstacle's normal push on ``held`` at joint offsets ``dq`` = q − q₀ (n,)
+    from the step's start and speeds ``qd`` (n,) (0 clear of it), its Jᵀf with friction
+    added to ``tau`` (n,) N·m: depth − nᵀJ dq inside, its normal speed nᵀJ q̇, the push
+    max(0, k·depth − c·vₙ); the friction against the sliding J q̇ − vₙ n, the damper
+    :data:`FRICTION_DAMPING` on its speed capped at μ·push (sums in joint order)."""
+    along = held.along
+    dn = vn = 0.0
+    for a, x, w in zip(along, dq, qd, strict=False):  # (joints past its link: none)
+        dn += a * x
+        vn += a * w
+    depth = held.depth - dn
+    if depth <= 0.0:
+        return 0.0
+    mag = max(0.0, ob.stiffness * depth - ob.damping * vn)
+    if mag == 0.0:
+        return 0.0
+    if ob.friction <= 0.0:
+        for j, a in enumerate(along):
+            tau[j] += mag * a
+        return mag
+    nrm, cols = held.normal, held.cols
+    vx = vy = vz = 0.0
+    for col, w in zip(cols, qd, strict=False):
+        vx += col[0] * w
+        vy += col[1] * w
+        vz += col[2] * w
+    rx, ry, rz = rub(ob, mag, (vx - vn * nrm[0], vy - vn * nrm[1], vz - vn * nrm[2]))
+    for j, (a, col) in enumerate(zip(along, cols, strict=True)):
+        tau[j] += mag * a + (col[0] * rx + col[1] * ry + col[2] * rz)
+    return mag
+
+
 #: touches a group holds at most: four neighbouring balls along a capsule, so an arm
 #: resting on a table near its elbow looks at the few balls there, not its whole forearm
 GROUP_SIZE = 4
@@ -164,7 +240,7 @@ def surface(ob: Obstacle, p: Sequence[float]) -> tuple[float, Vec]:
     """(signed distance m, outward unit normal (3,)) of point ``p`` (3,) from the
     obstacle's surface: positive outside, negative inside; for a box, towards its nearest
     point outside (a face, an edge, a corner) or out of its nearest face inside. (Plain
-    floats: the plant asks it for every touch at every RK4 stage.)"""
+    floats: the plant asks it for every touch near the obstacle at every step.)"""
     o, nrm = ob.origin, ob.normal
     d0, d1, d2 = p[0] - o[0], p[1] - o[1], p[2] - o[2]
     h = d0 * nrm[0] + d1 * nrm[1] + d2 * nrm[2]
@@ -191,27 +267,17 @@ def surface(ob: Obstacle, p: Sequence[float]) -> tuple[float, Vec]:
                   lx * ac[2] + ly * up[2] + lz * nrm[2])
 
 
-def normal_push(ob: Obstacle, depth: float, nrm: Sequence[float], v: Sequence[float]
-                ) -> float:
-    """N of the normal push on a touch ``depth`` m inside the obstacle (> 0) moving at
-    ``v`` (3,) m/s, ``nrm`` the outward normal there: a spring on the penetration and a
-    damper on its rate, never pulling."""
-    vn = v[0] * nrm[0] + v[1] * nrm[1] + v[2] * nrm[2]
-    return max(0.0, ob.stiffness * depth - ob.damping * vn)
-
-
-def rub(ob: Obstacle, push_n: float, nrm: Sequence[float], v: Sequence[float]) -> list[float]:
-    """(3,) N of the obstacle's friction on a touch moving at ``v`` (3,) while it pushes
-    ``push_n`` N along ``nrm``: opposing the sliding (the velocity along the surface), the
-    damper :data:`FRICTION_DAMPING` on its speed capped at Coulomb's μ·push. It never does
-    work on the arm: it only takes energy out."""
-    vn = v[0] * nrm[0] + v[1] * nrm[1] + v[2] * nrm[2]
-    slide = [v[r] - vn * nrm[r] for r in range(3)]
-    speed = math.sqrt(slide[0] ** 2 + slide[1] ** 2 + slide[2] ** 2)
+def rub(ob: Obstacle, push_n: float, slide: Sequence[float]) -> tuple[float, float, float]:
+    """(3,) N of the obstacle's friction on a touch sliding at ``slide`` (3,) m/s along
+    its surface while it pushes ``push_n`` N: opposing the sliding, the damper
+    :data:`FRICTION_DAMPING` on its speed capped at Coulomb's μ·push. It never does work on
+    the arm: it only takes energy out."""
+    sx, sy, sz = slide
+    speed = math.sqrt(sx * sx + sy * sy + sz * sz)
     if push_n <= 0.0 or ob.friction <= 0.0 or speed <= 0.0:
-        return [0.0, 0.0, 0.0]
-    size = min(ob.friction * push_n, FRICTION_DAMPING * speed)
-    return [-size * slide[r] / speed for r in range(3)]
+        return _NO_FORCE
+    scale = -min(ob.friction * push_n, FRICTION_DAMPING * speed) / speed
+    return scale * sx, scale * sy, scale * sz
 
 
 def clear(ob: Obstacle, centre: Sequence[float], reach: float) -> bool:

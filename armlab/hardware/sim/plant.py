@@ -9,8 +9,10 @@ Each step of ``dt`` (1 ms default):
    ``qdd = forward_dynamics(q, qd, tau)`` (thesis eq. 2.41–2.50 inverted), where tau =
    servo torques (motor line at the held duty, gear friction) + joint stops + external
    forces (push, spring, wall) + applied joint torques (a known disturbance), all
-   re-evaluated at each RK stage except the push, the applied torques and the duty. The
-   rotor inertias enter as armature (diagonal extra inertia).
+   re-evaluated at each RK stage except the push, the applied torques and the duty (the
+   wall's touches at each stage from their Jacobian held at the step's start:
+   :mod:`armlab.hardware.sim.contact`). The rotor inertias enter as armature (diagonal
+   extra inertia).
 
 Frames: every external force and point here is in the model's **base frame** (for
 ``receptionist_arm`` the thesis frame: x along gravity), not the 3D viewer's world;
@@ -32,6 +34,8 @@ import numpy as np
 from armlab.hardware.servos.registry import FAMILIES, family_of_spec
 from armlab.hardware.servos.servo_spec import ServoSpec, TurnEncoder
 from armlab.hardware.sim.contact import (
+    HOLD_MARGIN_M,
+    HeldTouch,
     Obstacle,
     Touch,
     checked_friction,
@@ -39,8 +43,8 @@ from armlab.hardware.sim.contact import (
     checked_wall,
     clear,
     face_axes,
-    normal_push,
-    rub,
+    held_push,
+    held_touch,
     surface,
     touch_groups,
 )
@@ -192,6 +196,9 @@ class Plant:
         self._pushes: list[_Push] = []
         self._spring: _Spring | None = None
         self._wall: Obstacle | None = None
+        self._wall_reach = 1.0  #: m a touch moves at most per rad of the joints
+        #: (step count, the touches held there): :meth:`_near_touches`' last answer
+        self._near: tuple[int, list[HeldTouch]] | None = None
         #: N, the largest wall force since :meth:`wall_peak` was read (None: never asked)
         self._wall_peak: float | None = None
         self._push_tau = [0.0] * n
@@ -218,6 +225,7 @@ class Plant:
         """Put the arm at ``q`` (n,) with velocity ``qd`` (default rest); time goes on."""
         self._q = [float(x) for x in vector("q", q, self.n)]
         self._qd = [0.0] * self.n if qd is None else [float(x) for x in vector("qd", qd, self.n)]
+        self._near = None
 
     # -- external forces (base frame) ------------------------------------------
 
@@ -266,6 +274,7 @@ class Plant:
                 they reach past it, as the receptionist arm's elbow does past a wall
                 across the thesis line).
         """
+        self._near = None
         if origin_base is None:
             self._wall = None
             return
@@ -282,6 +291,11 @@ class Plant:
             checked_friction(friction), checked_size(size),
             cast("tuple[float, float, float]", tuple(across)),
             cast("tuple[float, float, float]", tuple(up)))
+        # (a point p of link L moves |Σ_j ω_j × (p − o_j)| <= Σ|θ̇| · max |p − o_j|; a
+        # prismatic joint moves it |θ̇| itself: at least 1 m per unit)
+        self._wall_reach = max(1.0, float(
+            sum(np.linalg.norm(j.origin[:3, 3]) for j in self.model.joints)
+            + max(math.hypot(*t.point) + t.radius for t in touches)))
 
     @property
     def wall(self) -> tuple[np.ndarray, np.ndarray, float, float, float] | None:
@@ -349,7 +363,7 @@ class Plant:
             for x, lo, hi in zip(q, self._lower, self._upper, strict=True))
         held = self._held_torques()
         if stops or self._spring is not None or self._wall is not None:
-            self._readable_step(q, qd, held, stops=stops)
+            self._readable_step(q, qd, held, self._near_touches(), stops=stops)
         else:
             self._q, self._qd = rk4_step(self.n, self._coulomb_joints, len(held))(
                 q, qd, self.servos, self.directions, self._viscous, self._coulomb_pairs, held,
@@ -372,17 +386,17 @@ class Plant:
         return tuple(held)
 
     def _readable_step(self, q: list[float], qd: list[float], held: tuple[list[float], ...],
-                       *, stops: bool) -> None:
+                       near: list[HeldTouch], *, stops: bool) -> None:
         """One step as the equations read: tick the servos, then classical RK4 with the
         duties and ``held`` torques fixed and the stops (when ``stops``), spring and wall
-        re-evaluated at each stage."""
+        re-evaluated at each stage (the wall's touches ``near`` held from q)."""
         dt = self.dt
         dirs = self.directions
         servos = self.servos
         for i in range(self.n):
             d = dirs[i]
             servos[i].update(dt, d * q[i], d * qd[i])
-        deriv = self._derivative(held, stops=stops)
+        deriv = self._derivative(held, near, q, stops=stops)
         k1 = deriv(q, qd)
         h = 0.5 * dt
         q2 = [a + h * b for a, b in zip(q, qd, strict=True)]
@@ -409,10 +423,12 @@ class Plant:
             steps += 1
         return steps
 
-    def _derivative(self, held: tuple[list[float], ...], *, stops: bool
+    def _derivative(self, held: tuple[list[float], ...], near: list[HeldTouch],
+                    q0: list[float], *, stops: bool
                     ) -> Callable[[list[float], list[float]], tuple[float, ...]]:
         """qdd(q, qd) for this step: servo duties and ``held`` torques fixed, the stops (when
-        ``stops``), spring and wall re-evaluated."""
+        ``stops``), spring and wall re-evaluated (the wall's touches ``near`` held at the
+        step's start ``q0``)."""
         drive = [d * s.drive for d, s in zip(self.directions, self.servos, strict=True)]
         damp = [s.damping + b for s, b in zip(self.servos, self._viscous, strict=True)]
         coulomb = self._coulomb
@@ -429,7 +445,8 @@ class Plant:
             for extra in held:
                 tau = [a + b for a, b in zip(tau, extra, strict=True)]
             if fields:
-                tau = [a + b for a, b in zip(tau, self._field_torques(q, qd), strict=True)]
+                tau = [a + b for a, b in zip(tau, self._field_torques(q, qd, near, q0),
+                                             strict=True)]
             return fd(q, qd, tau, g, arm)
 
         return deriv
@@ -483,47 +500,51 @@ class Plant:
                 cols.append(z)
         return p, cols
 
-    def _field_torques(self, q: list[float], qd: list[float]) -> list[float]:
-        """J^T F of the spring and the wall at (q, qd)."""
-        fr = self._dyn.frames(q)
+    def _field_torques(self, q: list[float], qd: list[float], near: list[HeldTouch],
+                       q0: list[float]) -> list[float]:
+        """J^T F of the spring and the wall at (q, qd): the spring's at q itself, the
+        wall's on its touches ``near`` held at ``q0`` (:func:`held_push`)."""
         tau = [0.0] * self.n
         s = self._spring
         if s is not None:
-            p, cols = self._point(fr, s.link, s.point)
+            p, cols = self._point(self._dyn.frames(q), s.link, s.point)
             v = _velocity(cols, qd)
             f = [s.stiffness * (s.anchor[r] - p[r]) - s.damping * v[r] for r in range(3)]
             _add_torque(tau, cols, f)
-        if self._wall is not None:
-            for _, f, cols in self._wall_contacts(fr, qd):
-                _add_torque(tau, cols, f)
+        w = self._wall
+        if w is not None and near:
+            dq = [a - b for a, b in zip(q, q0, strict=True)]
+            for touch in near:
+                held_push(w, touch, dq, qd, tau)
         return tau
 
-    def _wall_contacts(self, fr: tuple[float, ...], qd: Sequence[float]
-                       ) -> list[tuple[float, list[float], list[tuple[float, float, float]]]]:
-        """Every touch of the arm pressing on the wall at frames ``fr`` and speeds ``qd``:
-        (normal push N, its force with friction (3,) N, the touch's Jacobian columns). A
-        link's touches are looked at only where the ball bounding them reaches the wall."""
+    def _near_touches(self) -> list[HeldTouch]:
+        """The wall's touches held at the state now (:class:`HeldTouch`): those the
+        joints' speeds can bring within :data:`HOLD_MARGIN_M` of it in a step (a link's
+        touches only where the ball bounding them can). Worked out once a state: the
+        force the loop reads at a step's end is the next step's start."""
         w = self._wall
-        out: list[tuple[float, list[float], list[tuple[float, float, float]]]] = []
         if w is None:
-            return out
+            return []
+        near = self._near
+        if near is not None and near[0] == self._k:
+            return near[1]
+        q, qd = self._q, self._qd
+        fr = self._dyn.frames(q)
+        reach = HOLD_MARGIN_M + 2.0 * self.dt * self._wall_reach * sum(abs(x) for x in qd)
+        out: list[HeldTouch] = []
         for g in w.groups:
-            if len(g.touches) > 1 and clear(w, self._at(fr, g.link, g.centre), g.reach):
+            if len(g.touches) > 1 and clear(w, self._at(fr, g.link, g.centre),
+                                            g.reach + reach):
                 continue
             for touch in g.touches:
                 dist, nrm = surface(w, self._at(fr, touch.link, touch.point))
                 depth = touch.radius - dist
-                if depth <= 0.0:  # clear: no Jacobian worked out
+                if depth <= -reach:
                     continue
                 _, cols = self._point(fr, touch.link, touch.point)
-                v = _velocity(cols, qd)
-                mag = normal_push(w, depth, nrm, v)
-                if mag == 0.0:
-                    continue
-                f = [mag * nrm[0], mag * nrm[1], mag * nrm[2]]
-                if w.friction > 0.0:
-                    f = [a + b for a, b in zip(f, rub(w, mag, nrm, v), strict=True)]
-                out.append((mag, f, cols))
+                out.append(held_touch(cols, depth, nrm))
+        self._near = (self._k, out)
         return out
 
     @staticmethod
@@ -546,10 +567,12 @@ class Plant:
         """N, the wall's normal force on the arm now, summed over every touch pressing on
         it (ground truth: 0 off the wall, or without one): what a force plate under the
         wall would read."""
-        if self._wall is None:
+        w = self._wall
+        if w is None:
             return 0.0
-        return sum(mag for mag, _, _ in self._wall_contacts(self._dyn.frames(self._q),
-                                                             self._qd))
+        still, scratch = [0.0] * self.n, [0.0] * self.n
+        return sum(held_push(w, touch, still, self._qd, scratch)
+                   for touch in self._near_touches())
 
     # -- ground truth and reports -------------------------------------------------
 
@@ -565,7 +588,8 @@ class Plant:
         if self._joint_torques:
             ext = [a + b for a, b in zip(ext, self.joint_torques(), strict=True)]
         if self._spring is not None or self._wall is not None:
-            ext = [a + b for a, b in zip(ext, self._field_torques(q, qd), strict=True)]
+            ext = [a + b for a, b in zip(ext, self._field_torques(q, qd, self._near_touches(),
+                                                                  q), strict=True)]
         stop = self._stop_torques(q, qd)
         return GroundTruth(self.t, np.array(q), np.array(qd), np.array(motor), np.array(fric),
                            np.array(ext), np.array(stop))

@@ -31,8 +31,9 @@ added later starts at the current t. Forces and points are in the model's base f
 as in ``Plant``.
 
 Per arm, as ``Plant``: pushes (held over a step), a spring (a hand dragging) and a wall
-(a plane to press on), both re-evaluated at each RK stage. Left out of ``Plant`` (say
-so where it matters): :meth:`Plant.truth` / energies; the servo params
+(a plane to press on), both re-evaluated at each RK stage (the wall's contact point from
+its Jacobian held at the step's start, :mod:`armlab.hardware.sim.contact`). Left out of
+``Plant`` (say so where it matters): :meth:`Plant.truth` / energies; the servo params
 (rotor, friction, overload time), directions and stops are one set for all arms;
 Coulomb friction uses ``numpy.tanh``, which may differ from ``math.tanh`` in the last
 bit (hence "to 1e-9", not bit-equal, in the test).
@@ -54,7 +55,12 @@ from armlab.hardware.families.dynamixel1.firmware import (
     effective_slope,
 )
 from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_word
-from armlab.hardware.sim.contact import FRICTION_DAMPING, checked_friction, checked_wall
+from armlab.hardware.sim.contact import (
+    FRICTION_DAMPING,
+    HOLD_MARGIN_M,
+    checked_friction,
+    checked_wall,
+)
 from armlab.hardware.sim.plant import JointStops
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import batched_dynamics
@@ -81,9 +87,6 @@ _FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "wall_gap": ((), np.float64),
 }
 
-#: m from its plane a wall's contact point must be, beyond what the joints' speeds move it
-#: in a step, for the wall to be left out of that step (:meth:`BatchedPlant._near_fields`)
-WALL_MARGIN_M = 0.005
 #: Firmware state per (joint, arm): name -> dtype (see ServoModel's private fields).
 _STATE: dict[str, type] = {
     "q": np.float64, "qd": np.float64, "present": np.int64, "setpoint": np.float64,
@@ -91,6 +94,27 @@ _STATE: dict[str, type] = {
     "overload": np.bool_, "shutdown": np.bool_, "angle_error": np.bool_, "moving": np.bool_,
     "drive": np.float64, "damping": np.float64, "push_tau": np.float64,
 }
+
+
+class _WallHold(NamedTuple):
+    """The walls near their arms' contact points at one state, as the step from it holds
+    them (Plant's :class:`~armlab.hardware.sim.contact.HeldTouch`, over the R arm rows
+    ``rows``): the state's step count, q₀ (n, R), the point's Jacobian columns (n, 3, R)
+    there and them along the normal (n, R), its depth behind the plane (R,) m (negative:
+    in front), the wall's normal (3, R), stiffness, damping and friction (R,), and
+    whether any of them has friction."""
+
+    step: int
+    rows: np.ndarray
+    q0: np.ndarray
+    cols: np.ndarray
+    along: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    mu: np.ndarray
+    rubs: bool
 
 
 class ReportWords(NamedTuple):
@@ -191,6 +215,9 @@ class BatchedPlant:
         self._reach = float(sum(np.linalg.norm(j.origin[:3, 3]) for j in model.joints)
                             + np.linalg.norm(model.tip[:3, 3]))
         self._k = 0
+        self._hold: _WallHold | None = None  #: :meth:`_near_walls`' last answer
+        #: (the hold, its arms' ids, their forces N): :meth:`wall_forces`' last answer
+        self._forces: tuple[_WallHold, np.ndarray, np.ndarray] | None = None
         self._next_id = 0
         self._ids = np.zeros(0, dtype=np.int64)
         self._row_of: dict[int, int] = {}  # id -> row, rebuilt when an arm joins or leaves
@@ -246,6 +273,7 @@ class BatchedPlant:
         self._next_id += 1
         self._ids = np.append(self._ids, arm)
         self._row_of[arm] = self._ids.size - 1
+        self._hold = None
         return arm
 
     def reset_arm(self, arm: int, *, q0: np.ndarray | None = None,
@@ -263,6 +291,7 @@ class BatchedPlant:
         for k in self._f:
             self._f[k][..., r] = 0
         self._drop_pushes(self._p_row != r)
+        self._hold = None
 
     def _fresh(self, q0: np.ndarray | None, qd0: np.ndarray | None,
                registers: Sequence[ServoRegisters] | None
@@ -299,6 +328,7 @@ class BatchedPlant:
         keep = self._p_row != r
         self._drop_pushes(keep)
         self._p_row = np.where(self._p_row > r, self._p_row - 1, self._p_row)
+        self._hold = None
 
     # -- state ----------------------------------------------------------------------
 
@@ -335,6 +365,7 @@ class BatchedPlant:
         self._s["q"][:, r] = vector("q", q, self.n)
         self._s["qd"][:, r] = 0.0 if qd is None else vector("qd", qd, self.n)
         self._f["wall_gap"][r] = -np.inf  # (moved: its wall's distance computed again)
+        self._hold = None
 
     # -- registers (what a WRITE packet does) -----------------------------------------
 
@@ -504,6 +535,7 @@ class BatchedPlant:
                              "hand only, no box: a table or a block runs on one arm")
         r = self.row(arm)
         f = self._f
+        self._hold = None
         if origin_base is None:
             f["wall_on"][r] = False
             return
@@ -520,6 +552,7 @@ class BatchedPlant:
 
     def clear_forces(self, arm: int | None = None) -> None:
         """Remove the pushes, spring and wall of arm ``arm`` (every arm's when None)."""
+        self._hold = None
         if arm is None:
             self._drop_pushes(np.zeros(self._p_row.size, dtype=bool))
             self._f["spring_on"][:] = False
@@ -591,7 +624,8 @@ class BatchedPlant:
             if near.any():
                 stops = np.any(near, axis=0)
         fd, g, arm = self._dyn.fd, self._gravity, self._armature
-        f_rows = self._near_fields(q0, s["qd"])
+        springs = np.flatnonzero(self._f["spring_on"])
+        walls = self._near_walls()
 
         def deriv(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             tau = drive - damp * qd
@@ -601,40 +635,94 @@ class BatchedPlant:
                 tau = tau + np.where(stops, self._stop_torques(q, qd), 0.0)
             if push is not None:
                 tau = tau + push
-            if f_rows.size:
-                tau[:, f_rows] += self._field_torques(q[:, f_rows], qd[:, f_rows], f_rows)
+            if springs.size:
+                tau[:, springs] += self._spring_torques(q[:, springs], qd[:, springs],
+                                                        springs)
+            if walls.rows.size:
+                tau[:, walls.rows] += self._wall_torques(walls, q, qd)[0]
             return fd(q, qd, tau, g, arm)
 
         return deriv
 
-    def _near_fields(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """The arm rows whose spring or wall can act this step, from the state (q, qd)
-        (n, N) at its start: every spring; a wall only while its contact point may be
-        within :data:`WALL_MARGIN_M` of the plane plus what the joints' speeds can move it
-        in the step (2 dt · reach · Σ|θ̇|). A wall farther off pushes nothing at any of the
-        step's RK4 stages, so leaving it out changes no number (Plant evaluates it and gets
-        0). How far off it is, is worked out by forward kinematics only when what the
-        joints may have moved the point since it was last worked out (``wall_gap``) could
-        have brought it that close: an arm far from its wall costs a few multiplications
-        a step."""
-        f = self._f
-        springs = f["spring_on"]
-        w_rows = np.flatnonzero(f["wall_on"] & ~springs)
-        if not w_rows.size:
-            return np.flatnonzero(springs)
-        reach = self._reach + np.linalg.norm(f["wall_point"][:, w_rows], axis=0)
-        travel = 2.0 * self.dt * reach * np.sum(np.abs(qd[:, w_rows]), axis=0)
-        gap = f["wall_gap"][w_rows]
-        ask = gap < WALL_MARGIN_M + travel  # may be close: where is it?
-        if ask.any():
-            rows = w_rows[ask]
-            fr = self._dyn.frames(q[:, rows]).reshape(self.n, 12, rows.size)
-            p, _ = self._points(fr, f["wall_link"][rows], f["wall_point"][:, rows])
-            gap[ask] = np.sum((p - f["wall_origin"][:, rows]) * f["wall_normal"][:, rows],
-                              axis=0)
-        near = gap < WALL_MARGIN_M + travel
-        f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
-        return np.union1d(np.flatnonzero(springs), w_rows[near])
+    def _near_walls(self) -> _WallHold:
+        """The walls held at the state now (:class:`_WallHold`): every arm's whose contact
+        point may be within :data:`~armlab.hardware.sim.contact.HOLD_MARGIN_M` of the
+        plane plus what the joints' speeds can move it in a step (2 dt · reach · Σ|θ̇|).
+        A wall farther off pushes nothing at any of the step's RK4 stages, so leaving it
+        out changes no number. Where the point is, is worked out by forward kinematics
+        only when what the joints may have moved it since it was last worked out
+        (``wall_gap``) could have brought it that close: an arm far from its wall costs a
+        few multiplications a step. Worked out once a state: the forces read at a step's
+        end (:meth:`wall_forces`) are the next step's start."""
+        hold = self._hold
+        if hold is not None and hold.step == self._k:
+            return hold
+        f, q, qd = self._f, self._s["q"], self._s["qd"]
+        w_rows = np.flatnonzero(f["wall_on"])
+        n = self.n
+        rows = np.zeros(0, dtype=np.int64)
+        cols, depth = np.zeros((n, 3, 0)), np.zeros(0)
+        if w_rows.size:
+            reach = self._reach + np.linalg.norm(f["wall_point"][:, w_rows], axis=0)
+            travel = 2.0 * self.dt * reach * np.sum(np.abs(qd[:, w_rows]), axis=0)
+            gap = f["wall_gap"][w_rows]
+            ask = gap < HOLD_MARGIN_M + travel  # may be close: where is it?
+            if ask.any():
+                asked = w_rows[ask]
+                fr = self._dyn.frames(q[:, asked]).reshape(n, 12, asked.size)
+                p, cols = self._points(fr, f["wall_link"][asked], f["wall_point"][:, asked])
+                nrm = f["wall_normal"][:, asked]
+                dist = (p[0] - f["wall_origin"][0, asked]) * nrm[0] + \
+                    (p[1] - f["wall_origin"][1, asked]) * nrm[1] + \
+                    (p[2] - f["wall_origin"][2, asked]) * nrm[2]
+                gap[ask] = dist
+                near = dist < HOLD_MARGIN_M + travel[ask]
+                rows, cols, depth = asked[near], cols[..., near], 0.0 - dist[near]
+            f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
+        nrm = f["wall_normal"][:, rows]
+        along = cols[:, 0] * nrm[0] + cols[:, 1] * nrm[1] + cols[:, 2] * nrm[2]
+        mu = f["wall_mu"][rows]
+        hold = _WallHold(self._k, rows, q[:, rows].copy(), cols, along, depth, nrm,
+                         f["wall_k"][rows], f["wall_c"][rows], mu, bool(np.any(mu > 0.0)))
+        self._hold = hold
+        return hold
+
+    def _wall_torques(self, hold: _WallHold, q: np.ndarray, qd: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """((n, R) J^T F, (R,) N the normal push) of the walls ``hold`` holds, at (q, qd)
+        (n, N) (Plant's :func:`~armlab.hardware.sim.contact.held_push` per arm, its sums
+        in its order: the point depth − nᵀJ (q − q₀) behind the plane, at the normal
+        speed nᵀJ q̇; the push max(0, k·depth − c·vₙ), and its friction against the
+        sliding J q̇ − vₙ n, the damper FRICTION_DAMPING capped at μ·push)."""
+        rows, along = hold.rows, hold.along
+        w = qd[:, rows]
+        depth = hold.depth - (along * (q[:, rows] - hold.q0)).sum(axis=0)
+        vn = (along * w).sum(axis=0)
+        mag = np.where(depth > 0.0, np.maximum(0.0, hold.k * depth - hold.c * vn), 0.0)
+        tau = along * mag
+        if hold.rubs:
+            cols, nrm = hold.cols, hold.normal
+            slide = (cols * w[:, None, :]).sum(axis=0) - vn * nrm  # (3, R)
+            speed = np.sqrt(slide[0] * slide[0] + slide[1] * slide[1] + slide[2] * slide[2])
+            cap = np.minimum(hold.mu * mag, FRICTION_DAMPING * speed)
+            scale = np.where(speed > 0.0, -cap / np.where(speed > 0.0, speed, 1.0), 0.0)
+            r = scale * slide
+            tau = tau + (cols[:, 0] * r[0] + cols[:, 1] * r[1] + cols[:, 2] * r[2])
+        return tau, mag
+
+    def wall_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(arm ids (R,), N (R,)): the normal force of each wall near its arm's contact
+        point at the state now (Plant.wall_force per arm; an arm not listed: 0). Worked out
+        with the next step's hold of its walls, so reading it after every step costs no
+        forward kinematics of its own, and reading it again at the same state nothing:
+        the same arrays (do not write to them)."""
+        hold = self._near_walls()
+        kept = self._forces
+        if kept is None or kept[0] is not hold:
+            mags = (self._wall_torques(hold, self._s["q"], self._s["qd"])[1]
+                    if hold.rows.size else np.zeros(0))
+            kept = self._forces = (hold, self._ids[hold.rows], mags)
+        return kept[1], kept[2]
 
     def _stop_torques(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """(n, N) joint-stop torques: spring beyond a limit, damping going further."""
@@ -654,57 +742,35 @@ class BatchedPlant:
         the link of each point, ``points`` (3, P) in its frame. Column j of point k is
         z_j × (p − o_j) (thesis eq. 3.17) for j <= links[k], zero beyond."""
         P = links.size
-        lf = fr[links, :, np.arange(P)].T  # (12, P): each point's link frame
+        one = int(links[0]) if P and bool(np.all(links == links[0])) else None
+        lf = fr[one] if one is not None else fr[links, :, np.arange(P)].T  # (12, P)
         px, py, pz = points
         p = np.array([lf[0] * px + lf[1] * py + lf[2] * pz + lf[9],
                       lf[3] * px + lf[4] * py + lf[5] * pz + lf[10],
                       lf[6] * px + lf[7] * py + lf[8] * pz + lf[11]])
-        cols = np.empty((self.n, 3, P))
-        for j in range(self.n):
+        cols = np.zeros((self.n, 3, P))
+        for j in range(self.n if one is None else one + 1):  # (one link: no joint past it)
             a0, a1, a2 = self._axes[j]
             b = fr[j]
             z0 = b[0] * a0 + b[1] * a1 + b[2] * a2
             z1 = b[3] * a0 + b[4] * a1 + b[5] * a2
             z2 = b[6] * a0 + b[7] * a1 + b[8] * a2
             rx, ry, rz = p[0] - b[9], p[1] - b[10], p[2] - b[11]
-            on = j <= links
-            cols[j, 0] = np.where(on, z1 * rz - z2 * ry, 0.0)
-            cols[j, 1] = np.where(on, z2 * rx - z0 * rz, 0.0)
-            cols[j, 2] = np.where(on, z0 * ry - z1 * rx, 0.0)
+            c = cols[j]
+            c[0], c[1], c[2] = z1 * rz - z2 * ry, z2 * rx - z0 * rz, z0 * ry - z1 * rx
+            if one is None:
+                c[:, links < j] = 0.0
         return p, cols
 
-    def _field_torques(self, q: np.ndarray, qd: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """(n, R) J^T F of the spring and the wall of the arm rows ``rows`` at (q, qd) (n, R)
-        (Plant._field_torques per arm: spring k (anchor − p) − c v; wall max(0, −k d − c v_n)
-        along the normal when the point is d < 0 behind the plane, and its friction)."""
+    def _spring_torques(self, q: np.ndarray, qd: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(n, R) J^T F of the springs of the arm rows ``rows`` at (q, qd) (n, R)
+        (Plant._field_torques' spring per arm: k (anchor − p) − c v)."""
         f = self._f
         fr = self._dyn.frames(q).reshape(self.n, 12, rows.size)
-        tau = np.zeros_like(q)
-        for kind in ("spring", "wall"):
-            on = f[f"{kind}_on"][rows]
-            if not on.any():
-                continue
-            p, cols = self._points(fr, f[f"{kind}_link"][rows], f[f"{kind}_point"][:, rows])
-            v = np.einsum("jrp,jp->rp", cols, qd)  # (3, R) the point's velocity
-            if kind == "spring":
-                force = (f["spring_k"][rows] * (f["spring_anchor"][:, rows] - p)
-                         - f["spring_c"][rows] * v)
-            else:
-                nrm = f["wall_normal"][:, rows]
-                depth = np.sum((p - f["wall_origin"][:, rows]) * nrm, axis=0)
-                vn = np.sum(v * nrm, axis=0)
-                mag = np.where(depth < 0.0, np.maximum(
-                    0.0, -f["wall_k"][rows] * depth - f["wall_c"][rows] * vn), 0.0)
-                # its friction (Plant's _wall_friction): against the sliding, the damper
-                # FRICTION_DAMPING capped at μ·push
-                slide = v - vn * nrm
-                speed = np.sqrt(np.sum(slide * slide, axis=0))
-                size = np.minimum(f["wall_mu"][rows] * mag, FRICTION_DAMPING * speed)
-                rub = np.where(speed > 0.0, -size / np.where(speed > 0.0, speed, 1.0), 0.0)
-                force = mag * nrm + rub * slide
-            force = np.where(on, force, 0.0)
-            tau += np.einsum("jrp,rp->jp", cols, force)
-        return tau
+        p, cols = self._points(fr, f["spring_link"][rows], f["spring_point"][:, rows])
+        v = np.einsum("jrp,jp->rp", cols, qd)  # (3, R) the point's velocity
+        force = f["spring_k"][rows] * (f["spring_anchor"][:, rows] - p) - f["spring_c"][rows] * v
+        return np.einsum("jrp,rp->jp", cols, force)
 
     def _update_pushes(self, q: np.ndarray) -> None:
         """Drop expired pushes; J^T F of the rest at the step's start (held over the step).
