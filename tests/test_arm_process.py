@@ -110,9 +110,15 @@ def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
         with pytest.raises(ValueError, match="friction"):
             backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
                              damping=50.0, friction=9.0)
-        with pytest.raises(ValueError, match="no box"):  # (the hand touches a plane only)
+        with pytest.raises(ValueError, match="size"):
             backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
-                             damping=50.0, size=(0.3, 0.3, 0.02))
+                             damping=50.0, size=(0.3, float("nan"), 0.02))
+        assert backend.wall_setting() is None
+        backend.set_wall(np.zeros(3), np.array([0.0, 0.0, 1.0]), stiffness=2e4,
+                         damping=50.0, size=(0.3, 0.3, 0.02))  # a table top: taken
+        kept = backend.wall_setting()
+        assert kept is not None and kept.size == (0.3, 0.3, 0.02)
+        backend.set_wall(None, stiffness=2e4, damping=50.0)
         assert backend.wall_setting() is None
         with pytest.raises(ValueError, match="a wall must be a WallSetting"):
             backend.meet_wall("a wall")  # type: ignore[arg-type]

@@ -20,7 +20,7 @@ from test_challenges import _present, _student
 from test_contact_challenge import CONTACT, FIGURES, experiment
 
 from armlab.app.lab.server import Lab, ServeOptions
-from armlab.app.lessons.compliance_contact import SHAPES
+from armlab.app.lessons.compliance_contact import BLOCK_SIZE_M, SHAPES
 from armlab.control.params import DEFAULT
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
@@ -100,9 +100,9 @@ def test_each_arms_wall_is_its_own_and_reads_as_a_single_plants():
     # a wall is refused as the plant refuses it, and leaves the arm's wall as it was
     with pytest.raises(ValueError, match="normal"):
         backends[3].set_wall(np.zeros(3), np.zeros(3), stiffness=1e3, damping=0.0)
-    with pytest.raises(ValueError, match="no box"):  # a table top: on one arm of its own
+    with pytest.raises(ValueError, match="size"):  # a box of no width
         backends[3].set_wall(np.zeros(3), np.ones(3), stiffness=1e3, damping=0.0,
-                             size=(0.3, 0.3, 0.02))
+                             size=(0.0, 0.3, 0.02))
     assert backends[3].wall_setting() is setting
     # an arm that leaves takes its wall with it
     walls.forget(3)
@@ -169,14 +169,12 @@ def test_a_private_arm_runs_into_its_own_wall_and_no_other_arm_meets_it():
             assert min(hand(q) for q in his["q"][-50:]) < -0.8 * behind  # through its place
             assert min(hand(q) for q in snap["q"][-50:]) > -0.25 * behind  # hers held at it
             assert theirs.rig.backend.wall_setting() is None
-            # a block in the wall's place is what a private arm cannot take (its hand alone
-            # touches a plane): her page offers no Shape, and a block sent for it anyway
-            # (a page of her own making) leaves her wall the plane it was
-            assert not mine.contact.shape.visible
+            # her page offers the block in the wall's place too, and her arm meets it
+            assert mine.contact.shape.visible
             ana.set_value(mine.contact.shape, SHAPES[1])
-            wait_for(lambda: mine.contact.shape.value == SHAPES[1], 30, "the value taken")
-            kept = mine.rig.backend.wall_setting()
-            assert kept is not None and kept.size is None
+            wait_for(lambda: (s := mine.rig.backend.wall_setting()) is not None
+                     and s.size == BLOCK_SIZE_M, 30, "her wall a block")
+            assert theirs.rig.backend.wall_setting() is None
             assert mine.rig.loop.status.fault is None and theirs.rig.loop.status.fault is None
 
 

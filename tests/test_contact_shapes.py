@@ -164,10 +164,9 @@ def test_a_plane_is_met_by_the_tip_alone_and_a_box_by_the_shapes_too():
     assert plant.wall_force() > 2e4 * 0.005  # the tube's balls, a centimetre in
 
 
-def test_the_simulated_arm_keeps_its_box_and_a_class_arm_refuses_one():
+def test_the_simulated_arm_keeps_its_box():
     """The simulated arm's backend says the box it holds (what a restarted arm meets
-    again); a class's batched arms touch a plane with the hand only, and say so."""
-    from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+    again), and a plane after it holds none."""
     from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 
     backend = SimBackend(ARM)
@@ -180,10 +179,51 @@ def test_the_simulated_arm_keeps_its_box_and_a_class_arm_refuses_one():
         assert backend.wall_setting().size is None
     finally:
         backend.close()
+
+
+def test_a_class_of_arms_falling_on_tables_and_blocks_moves_as_single_plants():
+    """Torque off, four arms of one batched plant and four single plants fall 1.5 s: onto a
+    table top under the forearm (its tube's balls), the same with friction, onto a small
+    block under the hand (its tip, its edges and corners), and onto the table's plane (the
+    tip alone): every step's q and q̇ within 1e-9 of the single plants', and each wall's
+    force as theirs."""
+    from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+
+    starts = [np.radians(a) for a in ([0.0, 30.0, -100.0], [10.0, 35.0, -95.0],
+                                       [0.0, 20.0, -60.0], [0.0, 30.0, -100.0])]
+    singles = [Plant(ARM, RX24F, q0=q) for q in starts]
     batch = BatchedPlant(ARM, RX24F)
-    arm = batch.add_arm()
-    with pytest.raises(ValueError, match="hand only, no box"):
-        batch.set_wall(arm, np.zeros(3), np.array([1.0, 0.0, 0.0]), size=(0.3, 0.2, 0.05))
+    arms = [batch.add_arm(q0=q) for q in starts]
+    walls = []
+    for i, q in enumerate(starts):
+        top, up = _table_under_the_forearm(q)
+        if i == 2:  # a 4 cm block 1 cm under the hand, its corner near the tip
+            tip = ARM.fk(q)[:3, 3]
+            walls.append(dict(origin_base=tip - 0.01 * up + np.array([0.0, 0.015, 0.0]),
+                              normal_base=up, stiffness=5e4, damping=30.0,
+                              size=(0.04, 0.04, 0.04)))
+        else:
+            walls.append(dict(origin_base=top, normal_base=up, stiffness=2e4, damping=20.0,
+                              friction=0.5 if i == 1 else 0.0,
+                              size=None if i == 3 else (0.6, 0.6, 0.03)))
+    for i, wall in enumerate(walls):
+        singles[i].set_wall(**wall)
+        batch.set_wall(arms[i], **wall)
+    worst, touched = 0.0, set()
+    for _ in range(1500):
+        for p in singles:
+            p.step()
+        batch.step()
+        worst = max(worst, float(np.max(np.abs(batch.q - np.array([p.q for p in singles])))),
+                    float(np.max(np.abs(batch.qd - np.array([p.qd for p in singles])))))
+        ids, forces = batch.wall_forces()
+        by_arm = dict(zip(ids.tolist(), forces.tolist(), strict=True))
+        for i, p in enumerate(singles):
+            assert by_arm.get(arms[i], 0.0) == pytest.approx(p.wall_force(), abs=1e-6)
+            if p.wall_force() > 0.0:
+                touched.add(i)
+    assert worst <= 1e-9, worst
+    assert touched == {0, 1, 2, 3}, touched
 
 
 def test_a_block_across_the_line_meets_the_forearm_too(capsys):

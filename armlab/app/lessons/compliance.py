@@ -366,10 +366,7 @@ class ComplianceLesson(LessonBase):
         with tabs.add_tab("Push", viser.Icon.HAND_FINGER):
             self._build_push_tab(gui)
         with tabs.add_tab("Contact", viser.Icon.WALL):  # the hand run into a wall
-            # a class's arm (a student's own, or the shared one in a worker) meets a plane
-            # with its hand only: no block to choose there
-            self.contact = ContactTab(self, gui, servos=self.hardware, blocks=(
-                self.ctx.arms is None and self.ctx.arm_process is None))
+            self.contact = ContactTab(self, gui, servos=self.hardware)
         with tabs.add_tab("Teach", viser.Icon.SCHOOL):
             self.equations = gui.add_markdown("")
             self.design = gui.add_markdown(design_table(params, None, None))

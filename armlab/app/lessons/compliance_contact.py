@@ -158,12 +158,9 @@ class ContactTab:
         gui: where to add the controls.
         servos: real servos: the wall is the one the compliance law renders, and the tab
             says so.
-        blocks: the arm's world holds a block (the Shape choice shown; a class's arm,
-            its hand meeting a plane only, and servos: not shown).
     """
 
-    def __init__(self, lesson: ComplianceLesson, gui: viser.GuiApi, *, servos: bool,
-                 blocks: bool = True) -> None:
+    def __init__(self, lesson: ComplianceLesson, gui: viser.GuiApi, *, servos: bool) -> None:
         self._lesson = lesson
         self._lock = threading.RLock()
         self.servos = servos
@@ -199,7 +196,7 @@ class ContactTab:
             "Shape", SHAPES, initial_value=SHAPES[0],
             hint="The wall's plane, which the hand's tip meets, or a block in its place, "
                  "which the arm's links meet too (the simulated arm only)",
-            visible=blocks and not servos)
+            visible=not servos)
         self.friction = guarded_slider(
             gui, "Wall friction μ", name="wall friction", lo=0.0, hi=2.0, step=0.05,
             initial=0.0, apply=lambda v: self._changed(friction=v),

@@ -260,8 +260,7 @@ class RemoteBackend:
                  stiffness: float, damping: float, friction: float = 0.0,
                  size: tuple[float, float, float] | None = None) -> None:
         """``Touchable.set_wall`` in the worker (this arm's world only); a refused wall
-        raises here (ValueError), as in process (a box on a class's batched arm: they
-        touch a plane with the hand only)."""
+        raises here (ValueError), as in process."""
         self._owner.call("wall", self.arm_id,
                          None if origin is None else np.asarray(origin, dtype=float),
                          None if normal is None else np.asarray(normal, dtype=float),

@@ -296,15 +296,15 @@ class BatchedArmBackend(GoalLimits):
     def set_wall(self, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
                  stiffness: float, damping: float, friction: float = 0.0,
                  size: tuple[float, float, float] | None = None) -> None:
-        """A plane this arm's hand touches (``armlab.control.backend.Touchable``):
-        ``origin`` (3,) m on it, ``normal`` (3,) towards the free side, both base frame,
-        with Coulomb ``friction`` μ along it; None removes it. The other arms of the
-        plant never meet it.
+        """A plane (``size`` None: the hand's tip meets it) or a box (the tip and the
+        links' collision shapes meet it) this arm touches
+        (``armlab.control.backend.Touchable``): ``origin`` (3,) m on its face, ``normal``
+        (3,) towards the free side, both base frame, with Coulomb ``friction`` μ along
+        it; None removes it. The other arms of the plant never meet it.
 
         Raises:
-            ValueError: a bad argument (the wall as it was), a box (``size``: the batched
-                plant's arms touch a plane with the hand only, and say so), or a backend
-                made without ``walls``.
+            ValueError: a bad argument (the wall as it was), or a backend made without
+                ``walls``.
         """
         if self.walls is None:
             raise ValueError("this simulated arm takes no wall (its plant's walls were not "

@@ -58,12 +58,17 @@ from armlab.hardware.servos.servo_spec import DIRECTION_BIT, ServoSpec, signed_w
 from armlab.hardware.sim.contact import (
     FRICTION_DAMPING,
     HOLD_MARGIN_M,
+    Touch,
     checked_friction,
+    checked_size,
     checked_wall,
+    face_axes,
+    touch_groups,
 )
 from armlab.hardware.sim.plant import JointStops
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import batched_dynamics
+from armlab.kinematics.collision import contact_balls
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import clamp
 from armlab.kinematics.validate import index, scalar, vector
@@ -82,6 +87,11 @@ _FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
     "wall_normal": ((3,), np.float64), "wall_k": ((), np.float64),
     "wall_c": ((), np.float64), "wall_link": ((), np.int64), "wall_point": ((3,), np.float64),
     "wall_mu": ((), np.float64),
+    # a box (Plant's): its (width, height, thickness) m, the directions of its width and
+    # height (3,), and whether the links' contact balls meet it beside the point
+    "wall_box": ((), np.bool_), "wall_size": ((3,), np.float64),
+    "wall_across": ((3,), np.float64), "wall_up": ((3,), np.float64),
+    "wall_balls": ((), np.bool_),
     # m the wall's contact point is at least off its plane now (its depth when last
     # computed, less what the joints' speeds may have moved it since; 0: compute it)
     "wall_gap": ((), np.float64),
@@ -97,15 +107,19 @@ _STATE: dict[str, type] = {
 
 
 class _WallHold(NamedTuple):
-    """The walls near their arms' contact points at one state, as the step from it holds
-    them (Plant's :class:`~armlab.hardware.sim.contact.HeldTouch`, over the R arm rows
-    ``rows``): the state's step count, q₀ (n, R), the point's Jacobian columns (n, 3, R)
-    there and them along the normal (n, R), its depth behind the plane (R,) m (negative:
-    in front), the wall's normal (3, R), stiffness, damping and friction (R,), and
-    whether any of them has friction."""
+    """The walls near their arms' touches at one state, as the step from it holds them
+    (Plant's :class:`~armlab.hardware.sim.contact.HeldTouch`, over P touches of the R
+    arm rows ``rows``): the state's step count; the arm rows; each touch's row (P,) and
+    its place in ``rows`` (P,), and whether every row has one touch; q₀ (n, P), the
+    touch's Jacobian columns (n, 3, P) there and them along the normal (n, P), its depth
+    inside (P,) m (negative: outside), the obstacle's normal there (3, P), its stiffness,
+    damping and friction (P,), and whether any of them has friction."""
 
     step: int
     rows: np.ndarray
+    touch_rows: np.ndarray
+    slot: np.ndarray
+    single: bool
     q0: np.ndarray
     cols: np.ndarray
     along: np.ndarray
@@ -232,6 +246,16 @@ class BatchedPlant:
         self._f: dict[str, np.ndarray] = {k: np.zeros((*shape, 0), dtype=t)
                                           for k, (shape, t) in _FIELDS.items()}
         self._tip = tuple(float(x) for x in model.tip[:3, 3])
+        # a box's touches (Plant's: the tip, then every contact ball, grouped by link),
+        # their links (T,), points (3, T) and radii (T,), and how far any moves per rad
+        tips = [Touch(n - 1, cast("tuple[float, float, float]", self._tip))]
+        box = [t for g in touch_groups(tips + [Touch(b.link, b.centre, b.radius)
+                                               for b in contact_balls(model)])
+               for t in g.touches]
+        self._box_link = np.array([t.link for t in box], dtype=np.int64)
+        self._box_point = np.array([t.point for t in box], dtype=float).T
+        self._box_radius = np.array([t.radius for t in box], dtype=float)
+        self._box_reach = float(max(np.linalg.norm(t.point) + t.radius for t in box))
         for _ in range(int(n_arms)):
             self.add_arm(q0=q0, registers=registers)
 
@@ -516,9 +540,7 @@ class BatchedPlant:
                  damping: float = 30.0, link: int | None = None,
                  point: np.ndarray | None = None, friction: float = 0.0,
                  size: object = None) -> None:
-        """A plane arm ``arm`` can press on (Plant.set_wall); None removes it. The batch's
-        arms touch it with one point (the end effector's tip by default), not with their
-        links' collision shapes, and take no box (``size``: ValueError).
+        """A plane or a box arm ``arm`` can press on (Plant.set_wall); None removes it.
 
         Args:
             arm: the arm id.
@@ -527,12 +549,11 @@ class BatchedPlant:
             stiffness: N/m of penetration; damping: N·s/m in contact (never pulls).
             link, point: the contact point (3,) m on the arm (default the end effector;
                 a link without a point: its origin).
-            friction: μ of its Coulomb friction along the plane (Plant's).
-            size: must be None (a plane).
+            friction: μ of its Coulomb friction along the surface (Plant's).
+            size: None: the plane; (width, height, thickness) m: a box with its face on
+                it, met by the contact point and (no ``link`` nor ``point`` given) every
+                ball of the model's collision shapes, as Plant's.
         """
-        if size is not None:
-            raise ValueError("a class's private arms touch a wall (a plane) with the "
-                             "hand only, no box: a table or a block runs on one arm")
         r = self.row(arm)
         f = self._f
         self._hold = None
@@ -547,6 +568,12 @@ class BatchedPlant:
         f["wall_k"][r], f["wall_c"][r], f["wall_link"][r] = k, c, li
         f["wall_point"][:, r] = pt
         f["wall_mu"][r] = checked_friction(friction)
+        box = checked_size(size)
+        f["wall_box"][r] = box is not None
+        f["wall_balls"][r] = box is not None and link is None and point is None
+        across, up = face_axes(normal)
+        f["wall_size"][:, r] = (0.0, 0.0, 0.0) if box is None else box
+        f["wall_across"][:, r], f["wall_up"][:, r] = across, up
         f["wall_gap"][r] = -np.inf  # (where the point is: computed at the next step)
         f["wall_on"][r] = True
 
@@ -645,56 +672,124 @@ class BatchedPlant:
         return deriv
 
     def _near_walls(self) -> _WallHold:
-        """The walls held at the state now (:class:`_WallHold`): every arm's whose contact
-        point may be within :data:`~armlab.hardware.sim.contact.HOLD_MARGIN_M` of the
-        plane plus what the joints' speeds can move it in a step (2 dt · reach · Σ|θ̇|).
-        A wall farther off pushes nothing at any of the step's RK4 stages, so leaving it
-        out changes no number. Where the point is, is worked out by forward kinematics
-        only when what the joints may have moved it since it was last worked out
-        (``wall_gap``) could have brought it that close: an arm far from its wall costs a
-        few multiplications a step. Worked out once a state: the forces read at a step's
-        end (:meth:`wall_forces`) are the next step's start."""
+        """The walls held at the state now (:class:`_WallHold`): every touch that may be
+        within :data:`~armlab.hardware.sim.contact.HOLD_MARGIN_M` of its arm's wall plus
+        what the joints' speeds can move it in a step (2 dt · reach · Σ|θ̇|). A wall
+        farther off pushes nothing at any of the step's RK4 stages, so leaving it out
+        changes no number. Where an arm's touches are, is worked out by forward kinematics
+        only when what the joints may have moved them since it was last worked out
+        (``wall_gap``, the nearest's distance) could have brought one that close: an arm
+        far from its wall costs a few multiplications a step. Worked out once a state:
+        the forces read at a step's end (:meth:`wall_forces`) are the next step's start."""
         hold = self._hold
         if hold is not None and hold.step == self._k:
             return hold
         f, q, qd = self._f, self._s["q"], self._s["qd"]
         w_rows = np.flatnonzero(f["wall_on"])
         n = self.n
-        rows = np.zeros(0, dtype=np.int64)
-        cols, depth = np.zeros((n, 3, 0)), np.zeros(0)
+        touch_rows = np.zeros(0, dtype=np.int64)
+        cols, depth, nrm = np.zeros((n, 3, 0)), np.zeros(0), np.zeros((3, 0))
         if w_rows.size:
-            reach = self._reach + np.linalg.norm(f["wall_point"][:, w_rows], axis=0)
+            point = np.linalg.norm(f["wall_point"][:, w_rows], axis=0)
+            reach = self._reach + np.where(f["wall_balls"][w_rows],
+                                           np.maximum(point, self._box_reach), point)
             travel = 2.0 * self.dt * reach * np.sum(np.abs(qd[:, w_rows]), axis=0)
             gap = f["wall_gap"][w_rows]
             ask = gap < HOLD_MARGIN_M + travel  # may be close: where is it?
             if ask.any():
                 asked = w_rows[ask]
+                t_rows, t_link, t_point, t_radius = self._touches(asked)
                 fr = self._dyn.frames(q[:, asked]).reshape(n, 12, asked.size)
-                p, cols = self._points(fr, f["wall_link"][asked], f["wall_point"][:, asked])
-                nrm = f["wall_normal"][:, asked]
-                dist = (p[0] - f["wall_origin"][0, asked]) * nrm[0] + \
-                    (p[1] - f["wall_origin"][1, asked]) * nrm[1] + \
-                    (p[2] - f["wall_origin"][2, asked]) * nrm[2]
-                gap[ask] = dist
-                near = dist < HOLD_MARGIN_M + travel[ask]
-                rows, cols, depth = asked[near], cols[..., near], 0.0 - dist[near]
+                if t_radius is None:  # one point a row
+                    p, t_cols = self._points(fr, t_link, t_point)
+                    dist, t_nrm = self._surfaces(p, asked)
+                    inside = 0.0 - dist
+                    gap[ask] = dist
+                else:
+                    p, t_cols = self._points(fr[:, :, t_rows], t_link, t_point)
+                    dist, t_nrm = self._surfaces(p, asked[t_rows])
+                    inside = t_radius - dist
+                    starts = np.flatnonzero(np.r_[True, t_rows[1:] != t_rows[:-1]])
+                    gap[ask] = np.minimum.reduceat(-inside, starts)
+                near = inside > -(HOLD_MARGIN_M + travel[ask][t_rows])
+                touch_rows, cols = asked[t_rows[near]], t_cols[..., near]
+                depth, nrm = inside[near], t_nrm[:, near]
             f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
-        nrm = f["wall_normal"][:, rows]
+        single = bool(touch_rows.size < 2 or np.all(touch_rows[1:] != touch_rows[:-1]))
+        rows, slot = ((touch_rows, np.arange(touch_rows.size)) if single
+                      else np.unique(touch_rows, return_inverse=True))
         along = cols[:, 0] * nrm[0] + cols[:, 1] * nrm[1] + cols[:, 2] * nrm[2]
-        mu = f["wall_mu"][rows]
-        hold = _WallHold(self._k, rows, q[:, rows].copy(), cols, along, depth, nrm,
-                         f["wall_k"][rows], f["wall_c"][rows], mu, bool(np.any(mu > 0.0)))
+        mu = f["wall_mu"][touch_rows]
+        hold = _WallHold(self._k, rows, touch_rows, slot, single,
+                         q[:, touch_rows].copy(), cols, along, depth, nrm,
+                         f["wall_k"][touch_rows], f["wall_c"][touch_rows], mu,
+                         bool(np.any(mu > 0.0)))
         self._hold = hold
         return hold
 
+    def _touches(self, rows: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """The touches of the walls of arm rows ``rows`` (A,), each row's in Plant's order
+        (a plane's: its contact point; a box's: with the balls, :attr:`_box_link`): (their
+        places in ``rows`` (T,), links (T,), points (3, T) in the link's frame, radii (T,);
+        None: one point a row, T = A)."""
+        f = self._f
+        balls = f["wall_balls"][rows]
+        if not balls.any():
+            return np.arange(rows.size), f["wall_link"][rows], f["wall_point"][:, rows], None
+        counts = np.where(balls, self._box_link.size, 1)
+        at = np.repeat(np.arange(rows.size), counts)
+        k = np.arange(at.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        ball = balls[at]
+        link = np.where(ball, self._box_link[k], f["wall_link"][rows][at])
+        point = np.where(ball, self._box_point[:, k], f["wall_point"][:, rows][:, at])
+        radius = np.where(ball, self._box_radius[k], 0.0)
+        return at, link, point, radius
+
+    def _surfaces(self, p: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(signed distance (T,) m, outward unit normal (3, T)) of points ``p`` (3, T) from
+        the walls of arm rows ``rows`` (T,): Plant's
+        :func:`~armlab.hardware.sim.contact.surface` per point, its arithmetic in its
+        order (a plane: along its normal; a box: to its nearest point outside, out of its
+        nearest face inside)."""
+        f = self._f
+        o, nrm = f["wall_origin"][:, rows], f["wall_normal"][:, rows]
+        d0, d1, d2 = p[0] - o[0], p[1] - o[1], p[2] - o[2]
+        h = d0 * nrm[0] + d1 * nrm[1] + d2 * nrm[2]
+        box = f["wall_box"][rows]
+        if not box.any():
+            return h, nrm
+        ac, up, size = f["wall_across"][:, rows], f["wall_up"][:, rows], f["wall_size"][:, rows]
+        x = d0 * ac[0] + d1 * ac[1] + d2 * ac[2]
+        y = d0 * up[0] + d1 * up[1] + d2 * up[2]
+        z = h + size[2] / 2
+        sx, sy, sz = (np.where(c >= 0, 1.0, -1.0) for c in (x, y, z))
+        qx, qy, qz = np.abs(x) - size[0] / 2, np.abs(y) - size[1] / 2, np.abs(z) - size[2] / 2
+        out = (qx > 0.0) | (qy > 0.0) | (qz > 0.0)
+        ox, oy, oz = np.maximum(qx, 0.0) * sx, np.maximum(qy, 0.0) * sy, np.maximum(qz, 0.0) * sz
+        far = np.sqrt(ox * ox + oy * oy + oz * oz)
+        safe = np.where(out, far, 1.0)
+        fx = (qx >= qy) & (qx >= qz)  # inside: out of the nearest face
+        fy = ~fx & (qy >= qz)
+        fz = ~fx & ~fy
+        dist = np.where(out, far, np.where(fx, qx, np.where(fy, qy, qz)))
+        lx = np.where(out, ox / safe, np.where(fx, sx, 0.0))
+        ly = np.where(out, oy / safe, np.where(fy, sy, 0.0))
+        lz = np.where(out, oz / safe, np.where(fz, sz, 0.0))
+        normal = np.array([lx * ac[0] + ly * up[0] + lz * nrm[0],
+                           lx * ac[1] + ly * up[1] + lz * nrm[1],
+                           lx * ac[2] + ly * up[2] + lz * nrm[2]])
+        return np.where(box, dist, h), np.where(box, normal, nrm)
+
     def _wall_torques(self, hold: _WallHold, q: np.ndarray, qd: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
-        """((n, R) J^T F, (R,) N the normal push) of the walls ``hold`` holds, at (q, qd)
+        """((n, R) J^T F, (R,) N the normal push) of the walls ``hold`` holds on its arm
+        rows, at (q, qd)
         (n, N) (Plant's :func:`~armlab.hardware.sim.contact.held_push` per arm, its sums
         in its order: the point depth − nᵀJ (q − q₀) behind the plane, at the normal
         speed nᵀJ q̇; the push max(0, k·depth − c·vₙ), and its friction against the
         sliding J q̇ − vₙ n, the damper FRICTION_DAMPING capped at μ·push)."""
-        rows, along = hold.rows, hold.along
+        rows, along = hold.touch_rows, hold.along
         w = qd[:, rows]
         depth = hold.depth - (along * (q[:, rows] - hold.q0)).sum(axis=0)
         vn = (along * w).sum(axis=0)
@@ -708,7 +803,12 @@ class BatchedPlant:
             scale = np.where(speed > 0.0, -cap / np.where(speed > 0.0, speed, 1.0), 0.0)
             r = scale * slide
             tau = tau + (cols[:, 0] * r[0] + cols[:, 1] * r[1] + cols[:, 2] * r[2])
-        return tau, mag
+        if hold.single:
+            return tau, mag
+        by_row, push = np.zeros((self.n, hold.rows.size)), np.zeros(hold.rows.size)
+        np.add.at(by_row.T, hold.slot, tau.T)  # (in touch order, as Plant adds them)
+        np.add.at(push, hold.slot, mag)
+        return by_row, push
 
     def wall_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """(arm ids (R,), N (R,)): the normal force of each wall near its arm's contact

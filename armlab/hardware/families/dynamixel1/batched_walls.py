@@ -27,6 +27,7 @@ import numpy as np
 
 from armlab.control.backend import WallSetting
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
+from armlab.hardware.sim.contact import checked_size
 
 
 @dataclass
@@ -61,13 +62,13 @@ class BatchedWalls:
     def set(self, arm: int, origin: np.ndarray | None, normal: np.ndarray | None = None, *,
             stiffness: float, damping: float, friction: float = 0.0,
             size: tuple[float, float, float] | None = None) -> None:
-        """Arm ``arm``'s wall (:meth:`BatchedPlant.set_wall`, the hand its contact point;
-        the arguments as ``Touchable.set_wall``'s); None removes it.
+        """Arm ``arm``'s wall (:meth:`BatchedPlant.set_wall`: a plane its hand's tip
+        meets, or a box, ``size``, its links meet too; the arguments as
+        ``Touchable.set_wall``'s); None removes it.
 
         Raises:
-            ValueError: as ``BatchedPlant.set_wall`` (no such arm, a bad argument, a box:
-                ``size`` given, which the batched plant takes none of): the arm's wall as
-                it was.
+            ValueError: as ``BatchedPlant.set_wall`` (no such arm, a bad argument): the
+                arm's wall as it was.
         """
         arm = int(arm)
         self.plant.set_wall(arm, origin, normal, stiffness=stiffness, damping=damping,
@@ -80,7 +81,8 @@ class BatchedWalls:
         nrm = np.array(normal, dtype=float)
         nrm = nrm / float(np.linalg.norm(nrm))  # (the plant's own normalising)
         setting = WallSetting(np.array(origin, dtype=float), nrm, float(stiffness),
-                              float(damping), float(friction))
+                              float(damping), float(friction),
+                              checked_size(size))
         kept = old.peak if old is not None and old.peak is not None else (
             0.0 if arm in self._read else None)
         self._walls[arm] = _Tracked(setting, kept)
