@@ -126,6 +126,7 @@ def _link_pose(q: np.ndarray, link: int) -> np.ndarray:
     return T
 
 
+@pytest.mark.slow
 def test_a_torque_off_arm_falls_onto_a_table_top_with_its_forearm_and_comes_to_rest():
     """A table top (a box) under the forearm, well clear of the hand's tip: torque off,
     the arm falls onto it, the forearm's tube takes the weight (the tip never reaches the
@@ -181,6 +182,7 @@ def test_the_simulated_arm_keeps_its_box():
         backend.close()
 
 
+@pytest.mark.slow
 def test_a_class_of_arms_falling_on_tables_and_blocks_moves_as_single_plants():
     """Torque off, four arms of one batched plant and four single plants fall 1.5 s: onto a
     table top under the forearm (its tube's balls), the same with friction, onto a small
@@ -226,6 +228,7 @@ def test_a_class_of_arms_falling_on_tables_and_blocks_moves_as_single_plants():
     assert touched == {0, 1, 2, 3}, touched
 
 
+@pytest.mark.slow
 def test_a_block_across_the_line_meets_the_forearm_too(capsys):
     """``armlab experiment contact --block-cm``: a 6 × 4 cm block in the wall's place. The
     hand presses its face as it pressed the plane, and the forearm, which reaches past the
@@ -268,6 +271,7 @@ class _EveryStage(Plant):
         return super()._field_torques(q, qd, exact, q)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("obstacle", ["table", "plate"])
 def test_touches_held_from_the_steps_start_move_the_arm_as_touches_worked_out_every_stage(
         obstacle: str):

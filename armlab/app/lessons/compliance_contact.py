@@ -22,8 +22,9 @@ experiment contact`` runs them over its record.
 
 The wall is dragged along the line by its gizmo (the distance slider follows), and
 "Compare PD and compliance" runs ``armlab experiment contact-compare``'s two runs into the
-same wall on a simulated arm of its own (the lesson's model and gains, off the loop) and
-sets their figures side by side: the impact, the steady press, the bounces, the settling.
+same wall on a simulated arm of its own (the lesson's model and gains, in the lab's
+process for headless runs, :mod:`armlab.app.arm.off_server`) and sets their figures side
+by side: the impact, the steady press, the bounces, the settling.
 
 A contact challenge's run (:mod:`armlab.app.lessons.compliance_challenge`) puts its own
 wall in through :meth:`ContactTab.challenge_wall` (drawn as the tab's), and the tab's
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import math
 import threading
+from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -46,7 +48,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from armlab.app.arm.backends import make_backend
+from armlab.app.arm import off_server
 from armlab.app.lessons._common import esc, guarded, set_content
 from armlab.app.lessons._loop_state import check_running
 from armlab.app.lessons.compliance_scene import ARROW_M_PER_N, ARROW_MIN_N
@@ -60,11 +62,9 @@ from armlab.control.backend import WallSetting as BackendWall
 from armlab.control.commands import RunTrajectory, SetVirtualWall
 from armlab.control.experiments.contact import (
     HOLD_S,
-    compare_contact,
     contact_figures,
     joint_stiffness,
     predicted_force,
-    run_contact,
     wall_across_line,
 )
 from armlab.control.loop import VIRTUAL_WALL_SET_MAX_N
@@ -502,16 +502,13 @@ class ContactTab:
 
         depth = max(0.0, length - wall.distance_cm / 100.0)  # (a wall at the line's end: 0)
 
-        def one(controller: str) -> dict[str, Any]:
-            return run_contact(model, lambda m, q0: make_backend("sim", m, q0=q0), params,
-                               controller=controller, wall=wall.distance_cm / 100.0,
-                               depth=depth,
-                               stiffness=wall.stiffness, damping=wall.damping,
-                               friction=wall.friction, size=wall.size)
+        walls = {"wall": wall.distance_cm / 100.0, "depth": depth,
+                 "stiffness": wall.stiffness, "damping": wall.damping,
+                 "friction": wall.friction, "size": wall.size}
 
-        def work() -> None:
+        def done(future: Future[dict[str, Any]]) -> None:
             try:
-                text = comparison_markdown(compare_contact(one), wall)
+                text = comparison_markdown(future.result(), wall)
             except Exception as exc:  # noqa: BLE001 - said on the page, the lab goes on
                 text = f"**PD and compliance**: could not run ({esc(str(exc))})"
             with self._lock:
@@ -519,7 +516,13 @@ class ContactTab:
                 if not self._closed:
                     set_content(self.comparison, text)
 
-        threading.Thread(target=work, name="armlab-contact-compare", daemon=True).start()
+        try:  # (off the server's interpreter: seconds of simulation, a class pressing too)
+            off_server.submit(off_server.compare_on_sim, model, params,
+                              walls).add_done_callback(done)
+        except ValueError:
+            with self._lock:
+                self._comparing = False
+            raise
 
     def tick(self) -> None:
         """Sample the wall's force and measure a run once it is over (the publisher's every
