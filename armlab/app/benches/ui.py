@@ -251,7 +251,14 @@ class _Instrumented:
         lesson = self.lesson
         grab = lesson.rig.scene.hand.name
         model = lesson.rig.model
-        hand = model.fk(self.loop.recorder.snapshot(0.1)["q"][-1])[:3, 3]
+        recorded = self.loop.recorder.snapshot(0.1)["q"]
+        until = time.monotonic() + 60.0  # (a loop started on a busy machine: its first rows)
+        while not len(recorded) and time.monotonic() < until:
+            time.sleep(0.02)
+            recorded = self.loop.recorder.snapshot(0.1)["q"]
+        if not len(recorded):
+            raise RuntimeError("bench ui: the lab's loop recorded no row in 60 s")
+        hand = model.fk(recorded[-1])[:3, 3]
         where = tuple(float(x) for x in (model.base_pose @ np.append(hand, 1.0))[:3])
         hold: list[float] = []
         let_go: list[float] = []
