@@ -31,8 +31,9 @@ added later starts at the current t. Forces and points are in the model's base f
 as in ``Plant``.
 
 Per arm, as ``Plant``: pushes (held over a step), a spring (a hand dragging) and a wall
-(a plane to press on), both re-evaluated at each RK stage (the wall's contact point from
-its Jacobian held at the step's start, :mod:`armlab.hardware.sim.contact`). Left out of
+(a plane or a box to press on, met as Plant's), both re-evaluated at each RK stage (the
+wall's touches from their Jacobian held at the step's start,
+:mod:`armlab.hardware.sim.contact`). Left out of
 ``Plant`` (say so where it matters): :meth:`Plant.truth` / energies; the servo params
 (rotor, friction, overload time), directions and stops are one set for all arms;
 Coulomb friction uses ``numpy.tanh``, which may differ from ``math.tanh`` in the last
@@ -783,12 +784,12 @@ class BatchedPlant:
 
     def _wall_torques(self, hold: _WallHold, q: np.ndarray, qd: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
-        """((n, R) J^T F, (R,) N the normal push) of the walls ``hold`` holds on its arm
-        rows, at (q, qd)
-        (n, N) (Plant's :func:`~armlab.hardware.sim.contact.held_push` per arm, its sums
-        in its order: the point depth − nᵀJ (q − q₀) behind the plane, at the normal
-        speed nᵀJ q̇; the push max(0, k·depth − c·vₙ), and its friction against the
-        sliding J q̇ − vₙ n, the damper FRICTION_DAMPING capped at μ·push)."""
+        """((n, R) J^T F, (R,) N the normal push) of the walls ``hold`` holds, on its R
+        arm rows, at (q, qd) (n, N): Plant's :func:`~armlab.hardware.sim.contact.held_push`
+        per touch, its sums in its order (the touch depth − nᵀJ (q − q₀) inside, at the
+        normal speed nᵀJ q̇; the push max(0, k·depth − c·vₙ), and its friction against
+        the sliding J q̇ − vₙ n, the damper FRICTION_DAMPING capped at μ·push), each
+        arm's touches added in their order."""
         rows, along = hold.touch_rows, hold.along
         w = qd[:, rows]
         depth = hold.depth - (along * (q[:, rows] - hold.q0)).sum(axis=0)
