@@ -231,6 +231,10 @@ class BatchedPlant:
                             + np.linalg.norm(model.tip[:3, 3]))
         self._k = 0
         self._hold: _WallHold | None = None  #: :meth:`_near_walls`' last answer
+        none, empty = np.zeros(0, dtype=np.int64), np.zeros(0)
+        self._no_walls = _WallHold(-1, none, none, none, True, np.zeros((n, 0)),
+                                   np.zeros((n, 3, 0)), np.zeros((n, 0)), empty,
+                                   np.zeros((3, 0)), empty, empty, empty, False)
         #: (the hold, its arms' ids, their forces N): :meth:`wall_forces`' last answer
         self._forces: tuple[_WallHold, np.ndarray, np.ndarray] | None = None
         self._next_id = 0
@@ -688,6 +692,9 @@ class BatchedPlant:
         f, q, qd = self._f, self._s["q"], self._s["qd"]
         w_rows = np.flatnonzero(f["wall_on"])
         n = self.n
+        if not w_rows.size:  # (no wall: nothing to work out, a step of a free class)
+            self._hold = self._no_walls._replace(step=self._k)
+            return self._hold
         touch_rows = np.zeros(0, dtype=np.int64)
         cols, depth, nrm = np.zeros((n, 3, 0)), np.zeros(0), np.zeros((3, 0))
         if w_rows.size:
