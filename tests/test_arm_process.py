@@ -318,7 +318,6 @@ def test_a_shared_urdf_arm_in_its_worker_follows_a_target_with_its_spare_joints(
 
 
 @pytest.mark.slow
-@pytest.mark.realtime  # (a paced worker, niced: off the clock's full cores it starved)
 def test_a_worker_that_stops_answering_is_told_and_its_estop_lands_when_it_resumes(model):
     """The worker frozen (SIGSTOP: a machine starved of CPU looks the same): the arm's
     status says it is not answering, an E-STOP gives up waiting and says it could not be
