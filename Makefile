@@ -36,11 +36,13 @@ FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
 # the browser tests run in one process: a page drawn in software takes most of a
 # 2-core machine, and what ran beside it would take margin from both
 BROWSER := -m "browser"
-# then the real-time tests, three side by side (each module whole on one worker): they
-# mostly wait on the clock (an emulator's physics, a served lab's loop), so three take
-# a third of the time on two cores; REALTIME_PARALLEL= runs them in one process
+# then the real-time tests, two side by side (each module whole on one worker): they
+# mostly wait on the clock (an emulator's physics, a served lab's loop), so two take
+# half the time on two cores; three starved the emulators of a slower machine (the
+# SO-101's step and the quadruped's walk over the serial bus timed out, each passing
+# alone); REALTIME_PARALLEL= runs them in one process
 REALTIME := -m "realtime and not browser"
-REALTIME_PARALLEL ?= -n 3 --dist loadfile --no-loadscope-reorder
+REALTIME_PARALLEL ?= -n 2 --dist loadfile --no-loadscope-reorder
 
 # everything: the tests off the clock, the browser tests, then the real-time tests; any
 # part failing fails the run (the others run anyway, so one run reports every failure)
