@@ -100,7 +100,7 @@ WALL_SIZE_M = (0.22, 0.22, 0.006)  #: the slab drawn: width, height, thickness (
 #: hand, meets its side
 BLOCK_SIZE_M = (0.06, 0.04, 0.05)
 #: The Shape choice: the wall's plane (the hand's tip meets it) or the block (the links too)
-SHAPES = ("a wall (a plane)", "a block, 6 × 4 × 5 cm")
+SHAPES = ("a wall (a plane)", "a 6×4×5 cm block")  # (short: whole in Projector mode)
 CONTACT_RGB = (230, 120, 0)
 CHART_WINDOW_S = 10.0
 CHART_POINTS = 100  #: the loop's record thinned to about this many periods for the chart
