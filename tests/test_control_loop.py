@@ -331,3 +331,59 @@ def test_a_target_dragged_near_a_joint_limit_moves_the_hand_without_a_fault():
         assert np.linalg.norm(here - goal) < np.linalg.norm(start - goal) - 0.01
     finally:
         backend.close()
+
+
+def test_an_arm_still_falling_when_its_torque_goes_on_is_caught_then_run_from_rest():
+    """A limp SO-101 falling from upright (shoulder_lift at 10°) gets its torque on at
+    speed, as a person's Reset may find a serial arm. Started at once, the reference
+    (thesis eq. 2.20: driven by the arm's measured error and speed) wound up past the arm
+    and drove it the other way until the loop faulted ("more than 29° from its
+    reference", torque off: CI saw it on the emulated servos). The loop holds the goal
+    where the arm was until the arm is at rest, then runs the controller from there; the
+    trajectory asked meanwhile starts where the arm came to rest (no command jump)."""
+    from armlab.app.arm.backends import make_backend
+    from armlab.control.loop import CATCH_SPEED
+    from armlab.control.trajectory import hold
+
+    model = load_robot("so101")
+    pose = np.radians([0.0, -30.0, 60.0, 20.0, 0.0])
+    backend = make_backend("sim", model, q0=np.radians([0.0, 10.0, 0.0, 0.0, 0.0]))
+    backend.set_torque(False)  # limp, as a serial arm's servos start
+    loop = ControlLoop(model, backend, DEFAULT, realtime=False, history_s=30.0,
+                       hold_off="a person confirms the arm is clear")
+    try:
+        while loop.status.t < 2.0:  # limp: it falls
+            loop.step()
+            q = loop.recorder.snapshot(0.1)["q"]
+            if len(q) > 1 and np.max(np.abs(q[-1] - q[-2])) / DEFAULT.period > 6.0:
+                break
+        speed = np.abs(np.diff(loop.recorder.snapshot(0.1)["q"][-2:], axis=0)).max()
+        assert speed / DEFAULT.period > 30 * CATCH_SPEED  # falling fast, 6 rad/s
+        t_on = loop.status.t
+        loop.post(Reset())
+        loop.post(RunTrajectory(hold(pose, 0.2), approach=True))
+        loop.step()
+        assert loop.status.catching and loop.status.trajectory is None  # put off
+        while loop.status.catching and loop.status.fault is None:
+            loop.step()
+        t_rest = loop.status.t - DEFAULT.period  # the first period of the controller
+        assert t_rest - t_on < 1.0  # caught well inside CATCH_MAX
+        st = loop.status
+        assert st.fault is None and st.trajectory == "hold", st
+        loop.run_for(8.0)
+        assert loop.status.fault is None, loop.status.fault
+        snap = loop.recorder.snapshot(30.0)
+        t = snap["t"]
+        caught = (t >= t_on - 1e-9) & (t < t_rest - 1e-9)
+        # the catch holds one goal: where the arm was when its torque went on
+        np.testing.assert_allclose(snap["q_ref"][caught], snap["q_ref"][caught][:1]
+                                   .repeat(caught.sum(), axis=0))
+        after = np.flatnonzero(t >= t_rest - 1e-9)
+        rest = snap["q"][after[0]]
+        # the approach starts where the arm rested, and the reference never ran away
+        assert np.max(np.abs(snap["q_cmd"][after[0]] - rest)) < np.radians(0.5)
+        lag = np.max(np.abs(snap["q_ref"][after] - snap["q"][after]))
+        assert lag < np.radians(6.0), np.degrees(lag)  # without the catch: 19.6°
+        assert np.max(np.abs(snap["q"][-1] - pose)) < np.radians(6.0)  # the push-free pose
+    finally:
+        backend.close()

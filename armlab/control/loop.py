@@ -93,6 +93,12 @@ SPARE_MAX_SPEED = 0.5
 #: shoulder's limit, as a serial arm is caught), which the reference-acceleration check
 #: takes for unstable gains and switches the torque off
 TARGET_MAX_JOINT_SPEED = 1.5
+#: rad/s: an arm faster than this on any joint when its torque goes on (a limp arm still
+#: falling, a hand still moving it) is caught first (:meth:`ControlLoop._catch`)
+CATCH_SPEED = 0.2
+#: s, the longest catch: an arm still moving after it (a person moving it by hand) gets
+#: the controller from where it is then
+CATCH_MAX = 1.5
 
 
 @dataclass(frozen=True)
@@ -124,6 +130,8 @@ class LoopStatus:
             backend that can reconnect); Reset and Run do nothing until it is.
         held_off: why the loop keeps the torque off until a person's Reset (an arm whose
             joint map is not calibrated: its angles may not be the model's), or None.
+        catching: the arm was moving when its torque went on and the servos are holding
+            it where it was until it comes to rest; the controller starts from there.
     """
 
     running: bool
@@ -148,6 +156,7 @@ class LoopStatus:
     torque_off_unsent: bool = False
     link_down: bool = False
     held_off: str | None = None
+    catching: bool = False
 
 
 class _Fault(Exception):
@@ -233,6 +242,9 @@ class ControlLoop:
         self._traj: JointTrajectory | None = None
         self._traj_t0 = 0.0
         self._target: np.ndarray | None = None
+        #: loop time a catch ends by (None: no catch), the motion commands it put off
+        self._catch_end: float | None = None
+        self._deferred: list[Command] = []
         self._spare: UseSpareJoints = UseSpareJoints("off")
         self._active = False
         self._torque_on = False
@@ -329,6 +341,7 @@ class ControlLoop:
                 skipped_recent=pace.skipped_recent,
                 torque_off_unsent=self._torque_unsent, link_down=not self._backend_ok,
                 held_off=self._held_off,
+                catching=self._catch_end is not None and self._active,
             )
 
     def step(self) -> None:
@@ -432,6 +445,11 @@ class ControlLoop:
             alarm = meas.alarms[j] if meas.alarms else f"its servo reports error bits {e:#04x}"
             raise _Fault(f"joint {self.model.joints[j].name}: {alarm}; torque off "
                          "(check load, temperature and supply, then Reset)")
+        if self._catch_end is not None:
+            if t < self._catch_end and max(np.abs(qd).tolist()) > CATCH_SPEED:
+                self._catch(t, q, load, contact)
+                return
+            self._caught(meas)
         q_cmd, qd_cmd, qdd_cmd = self._command(t, p.period)
         st = self._state
         assert st is not None
@@ -536,20 +554,54 @@ class ControlLoop:
         return max(2, int(math.ceil(self.history_s / period)) + 1)
 
     def _start(self, meas: JointState) -> None:
-        """First period (or Reset): hold where the arm is, torque on."""
+        """First period (or Reset): hold where the arm is, torque on. An arm still moving
+        (faster than :data:`CATCH_SPEED`) is caught first (:meth:`_catch`)."""
         q = np.clip(np.asarray(meas.position, dtype=float), self.lower, self.upper)
         if not np.all(np.isfinite(q)):
             raise _Fault("the servos reported a non-finite position; torque off")
+        self._rest_at(q, meas)
+        self._traj = None
+        self._target = None
+        self._deferred = []
+        speed = np.nan_to_num(np.abs(np.asarray(meas.velocity, dtype=float)))
+        moving = max(speed.tolist()) > CATCH_SPEED
+        self.backend.set_torque(True)
+        with self._lock:
+            self._catch_end = self._t + CATCH_MAX if moving else None
+            self._torque_on = True
+            self._active = True
+
+    def _rest_at(self, q: np.ndarray, meas: JointState) -> None:
+        """The controller's state at rest at ``q`` (n,), holding it."""
         self._state = ControllerState.at_rest(q, np.nan_to_num(np.asarray(meas.load, float)))
         self._lag_time = 0.0
         self._hold = q.copy()
         self._qd_cmd_prev = np.zeros(self.model.n)
-        self._traj = None
-        self._target = None
-        self.backend.set_torque(True)
+
+    def _catch(self, t: float, q: np.ndarray, load: np.ndarray,
+               contact: dict[str, float]) -> None:
+        """One period of catching an arm that was moving when its torque went on: the
+        servos' own position loops hold the goal where the arm was, until it comes to
+        rest. The controller's reference is not run meanwhile: it is driven by the arm's
+        measured error and speed (thesis eq. 2.20), so started on an arm moving at speed
+        it would wind up past the arm and drive it the other way."""
+        assert self._hold is not None
+        self.backend.write(self._hold, self.max_speed)
+        self._note("catching the arm: it was moving when its torque went on")
+        self._record(t, q_cmd=self._hold, q_ref=self._hold, q=q, error=self._hold - q,
+                     load=load, **contact)
+
+    def _caught(self, meas: JointState) -> None:
+        """The catch is over: the controller starts at rest where the arm is now, and the
+        motion commands posted meanwhile run from there, in their order."""
+        q = np.clip(np.asarray(meas.position, dtype=float), self.lower, self.upper)
+        self._rest_at(q, meas)
+        deferred, self._deferred = self._deferred, []
         with self._lock:
-            self._torque_on = True
-            self._active = True
+            self._catch_end = None
+            self._message = "caught: holding the arm where it came to rest"
+        for cmd in deferred:
+            self._apply(cmd, meas)
 
     def _fail(self, why: str) -> None:
         sent = self._safe_estop()
@@ -649,6 +701,9 @@ class ControlLoop:
                 self._note("virtual wall: the compliance law renders it (PD renders none)")
             return
         assert self._hold is not None
+        if self._catch_end is not None:  # run once the arm is caught, from where it rests
+            self._deferred.append(cmd)
+            return
         current = self._current_cmd()
         if isinstance(cmd, Stop):
             self._hold, self._traj, self._target = current, None, None
