@@ -290,14 +290,17 @@ def test_a_bus_with_too_few_servos_gives_one_message_and_the_server_goes_on():
 
 @pytest.mark.realtime
 def test_twelve_emulated_servos_walk_over_the_serial_bus():
-    with emulator("--robot", "quadruped") as emu:
+    # the plant at 4 ms (``--dt``, as the bench's quadruped): twelve servos' physics at
+    # the default 1 ms took 85 % of a core of a slow machine on its own, and beside the
+    # other real-time tests its clock slipped 74 s in three minutes
+    with emulator("--robot", "quadruped", "--dt", "0.004") as emu:
         with served_lesson(build, LessonContext(robot="quadruped", backend="serial",
                                                 port=emu.port, realtime=True)) as handle:
             assert handle.backend is not None and handle.backend.n == 12
             handle.walk("forward")
             # twelve servos' physics in the emulator's process, on the wall clock: on a
-            # machine busy with other real-time tests it can slip seconds behind (CI saw
-            # 5.4 s, the stand-up taking over a minute), so the walk gets room
+            # machine busy with other real-time tests it can slip seconds behind, so the
+            # walk gets room
             walk_for(handle, 0.4, timeout=180.0)
             err = handle.servo_error(None)
             assert err is not None and err["samples"] >= 5, err
