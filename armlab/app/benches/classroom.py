@@ -73,6 +73,7 @@ never asserted by a test.
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -169,9 +170,9 @@ def _server_rss(room: Any) -> int:
             + (0 if shared is None else _rss_bytes(shared.pid)))
 
 
-def _probe(lesson: Any) -> None:  # a class's compliance lesson
+def _probe(lesson: Any) -> list[int]:  # a class's compliance lesson
     """A hidden node of ``lesson``'s page that each of its frames moves (the bench counts
-    them as the page receives them)."""
+    them as the page receives them); the count of frames that moved it, kept updated."""
     from armlab.app.benches.ui import OWN_PROBE
 
     node = lesson.server.scene.add_frame(OWN_PROBE, show_axes=False,
@@ -183,6 +184,7 @@ def _probe(lesson: Any) -> None:  # a class's compliance lesson
         node.position = (float(seq[0]), 0.0, 0.0)
 
     lesson.publisher.add_frame_hook(hook)
+    return seq
 
 
 def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict[str, float]:
@@ -201,6 +203,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
     made_from: dict[int, tuple[float, int]] = {}
     made_to: dict[int, tuple[float, int]] = {}
     faults: list[str] = []
+    probed: dict[int, list[int]] = {}  # lesson id -> [probe frames made]
 
     def students_play() -> None:
         while not stop.wait(0.5):
@@ -214,7 +217,7 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
             for lesson in lessons.values():
                 if id(lesson) not in seen:  # a probe node in each of its frames
                     seen[id(lesson)] = lesson
-                    _probe(lesson)
+                    probed[id(lesson)] = _probe(lesson)
                 made_to[id(lesson)] = (now, lesson.publisher.stats.pose_frames)
                 rig = lesson.rig
                 st = None if rig is None else rig.loop.status
@@ -242,6 +245,14 @@ def room_of_30(*, seconds: float, pages: int = 30, settle: float = 30.0) -> dict
         lab.close()
     if faults:
         raise RuntimeError(f"classroom bench: private arms faulted: {sorted(set(faults))[:3]}")
+    if res["own_pose_hz_min"] <= 0.0:  # a page got none: were its frames made, and sent?
+        print("a page received no frame of its own arm; each private lesson's publisher "
+              "(frames made over the count, probe frames, frames given up and waits with "
+              "its page behind, errors):",
+              sorted((made_to[i][1] - made_from[i][1] if i in made_from else -1,
+                      probed[i], lesson.publisher.stats.skipped_behind,
+                      lesson.publisher.stats.waited_behind, lesson.publisher.stats.errors)
+                     for i, lesson in seen.items())[:5], file=sys.stderr, flush=True)
     made = sum(lesson.publisher.stats.pose_frames for lesson in seen.values())
     behind = sum(lesson.publisher.stats.skipped_behind for lesson in seen.values())
     made_hz = [(made_to[i][1] - made_from[i][1]) / (made_to[i][0] - made_from[i][0])
