@@ -38,9 +38,8 @@ FAST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
 BROWSER := -m "browser"
 # then the real-time tests, two side by side (each module whole on one worker): they
 # mostly wait on the clock (an emulator's physics, a served lab's loop), so two take
-# half the time on two cores; three starved the emulators of a slower machine (the
-# SO-101's step and the quadruped's walk over the serial bus timed out, each passing
-# alone); REALTIME_PARALLEL= runs them in one process
+# half the time on two cores and leave each emulator a core's share; REALTIME_PARALLEL=
+# runs them in one process
 REALTIME := -m "realtime and not browser"
 REALTIME_PARALLEL ?= -n 2 --dist loadfile --no-loadscope-reorder
 
