@@ -83,6 +83,7 @@ def test_a_private_hand_and_quadruped_are_mirrored_from_their_first_period():
         boxes.close()
 
 
+@pytest.mark.slow
 def test_what_the_worker_refuses_is_raised_here_and_changes_nothing(model):
     """A refused command or gain raises in the server as it would in process; an
     argument that cannot be sent at all is refused before it goes."""

@@ -317,6 +317,7 @@ def test_walls_far_from_a_hand_are_left_out_without_changing_a_number() -> None:
     assert touched == set(range(N)), touched
 
 
+@pytest.mark.slow
 def test_spring_and_wall_per_arm_as_single_plants() -> None:
     """Arm 0 dragged by a spring (damped), arm 1 pressing a wall, arm 3 both, the rest free;
     the spring moved, the wall removed and put back mid-run, as Plant.set_spring/set_wall."""

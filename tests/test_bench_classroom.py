@@ -12,6 +12,7 @@ import pytest
 from armlab.app.benches.classroom import loops_ms_cost
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("walls", (False, True), ids=("free", "walls"))
 @pytest.mark.parametrize("batched", (True, False), ids=("batched", "single_plants"))
 def test_the_class_of_loops_runs_without_a_fault(batched: bool, walls: bool) -> None:

@@ -167,6 +167,7 @@ def test_the_halving_cases_need_the_halvings_they_name_and_a_given_up_step_is_q_
     assert not judge_value(ex, given_up[0], lambda q, *a: np.asarray(q) + 1e-13).passed
 
 
+@pytest.mark.slow
 def test_a_rank_deficient_jacobian_written_as_the_full_rank_formula_fails_at_its_line(tmp_path):
     path = tmp_path / "null_space_step.py"
     path.write_text(JOINT_RATE_AS_LIST.replace(

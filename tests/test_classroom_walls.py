@@ -37,6 +37,7 @@ GOALS = [np.array([0.5, 0.8, 1.0]), np.array([-0.3, 0.2, 0.4]), np.array([0.0, 0
 PERIOD_STEPS = 16  #: a loop's period in plant steps (16 ms at 1 ms)
 
 
+@pytest.mark.slow
 def test_each_arms_wall_is_its_own_and_reads_as_a_single_plants():
     """Four arms moving to goals; arms 0 and 3 have a wall across their hand's way (the
     hand pushed into it), arm 1 a wall far off, arm 2 none; arm 0's wall is taken away

@@ -45,6 +45,7 @@ def test_the_wall_pushes_on_penetration_never_pulls_and_keeps_its_peak():
     assert plant.wall_force() == 0.0 and plant.wall_peak() == 0.0
 
 
+@pytest.mark.slow
 def test_a_torque_off_arm_dropped_on_a_table_comes_to_rest_never_gaining_energy():
     """Torque off, the arm falls under gravity onto a table under its hand: the energy
     (kinetic + potential) never rises above where it started, and the arm ends at rest."""
@@ -103,6 +104,7 @@ def test_pd_winds_up_against_the_wall_and_the_compliance_law_presses_without_a_f
     assert cl["predicted_force_n"] > 0.0 and cl["joint_stiffness_nm_per_rad"] == 4.0
 
 
+@pytest.mark.slow
 def test_contact_compare_sets_the_two_laws_runs_side_by_side(capsys):
     """``contact-compare``: PD's and the compliance law's runs into the same wall, each
     the ``contact`` experiment's with that law, a row a figure."""
@@ -118,6 +120,7 @@ def test_contact_compare_sets_the_two_laws_runs_side_by_side(capsys):
     assert rows["torque off"] == ("yes", "no")
 
 
+@pytest.mark.slow
 def test_the_sensorless_estimate_reads_the_walls_torque_with_its_sign_and_stated_error():
     """Eq. 2.21-2.23 against the ground truth: pressed on the wall by the compliance law,
     the estimate τ_ext reads the torque the joints hold against the wall (−Jᵀ f n) with

@@ -41,6 +41,7 @@ def _run(stiffness: float, k_env: float | None, k_f: float | None, keep=None):  
                        damping=50.0, keep=keep)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("name", "stiffness", "k_env", "k_f"), CASES, ids=[c[0] for c in CASES])
 def test_each_estimate_reads_the_walls_steady_force_within_its_stated_error(
         name, stiffness, k_env, k_f):  # noqa: ANN001
@@ -64,6 +65,7 @@ def test_each_estimate_reads_the_walls_steady_force_within_its_stated_error(
         < abs(r["tau_ext_force_error_n"])
 
 
+@pytest.mark.slow
 def test_the_observers_on_a_growing_record_are_the_experiments_and_read_nil_off_the_wall():
     runs = []
     _run(2e4, None, None, keep=runs.append)

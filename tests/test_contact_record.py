@@ -67,6 +67,7 @@ def test_the_loop_records_the_walls_force_every_period_and_nan_without_a_wall():
                                  source="test", params={}).signals).isdisjoint(CONTACT_SIGNALS)
 
 
+@pytest.mark.slow
 def test_a_restarted_arm_meets_the_same_wall_and_records_the_same_force():
     """A challenge's restart makes a fresh simulated arm: the wall is the world's, so it is
     carried over, and the same plan from the restart records the same force, row for

@@ -333,6 +333,7 @@ def test_a_target_dragged_near_a_joint_limit_moves_the_hand_without_a_fault():
         backend.close()
 
 
+@pytest.mark.slow
 def test_an_arm_still_falling_when_its_torque_goes_on_is_caught_then_run_from_rest():
     """A limp SO-101 falling from upright (shoulder_lift at 10°) gets its torque on at
     speed, as a person's Reset may find a serial arm. Started at once, the reference

@@ -228,6 +228,7 @@ def test_no_import_circles():
         " <-> ".join(c) for c in found)
 
 
+@pytest.mark.slow
 def test_imports_point_downwards():
     """kinematics imports no control/hardware/exercises/app; control no
     hardware/exercises/app; hardware no exercises/app; exercises no app; only app imports

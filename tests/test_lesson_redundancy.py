@@ -120,6 +120,7 @@ def test_bad_typed_gain_is_refused_and_the_server_goes_on(lesson, value):
         wait_for(lambda: lesson.speed.value == 0.5, timeout=30.0)
 
 
+@pytest.mark.slow
 def test_the_3d_labels_fit_their_panels_at_any_zoom():
     """The five panels' labels are sized in the scene, so their room is a matter of
     metres: each title and status line fits its column (no word over a neighbour's), the

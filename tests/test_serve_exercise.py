@@ -140,6 +140,7 @@ def test_each_live_exercise_as_the_labs_own_runs_as_the_reference(tmp_path, name
         law.close()
 
 
+@pytest.mark.slow
 def test_a_garbage_collection_in_the_students_call_is_not_counted_as_theirs(arm):
     """A collection the student's call sets off visits the whole process's objects, not
     theirs: its CPU time is left out of the call's budget (a correct law once failed with

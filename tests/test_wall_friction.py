@@ -63,6 +63,7 @@ def _dropped(friction: float) -> tuple[float, list[float], float, float]:
     return e0, energies, touched, slid
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("friction", [0.3, 1.0])
 def test_a_dropped_arm_on_a_rough_table_never_gains_energy_and_slides_less(friction):
     e0, energies, touched, slid = _dropped(friction)
@@ -72,6 +73,7 @@ def test_a_dropped_arm_on_a_rough_table_never_gains_energy_and_slides_less(frict
     assert slid < smooth_slid, (slid, smooth_slid)
 
 
+@pytest.mark.slow
 def test_the_batched_plant_gives_the_single_plants_numbers_with_friction():
     q0s = [np.radians([0.0, 30.0, 20.0]), np.radians([10.0, 40.0, 10.0]),
            np.radians([-5.0, 20.0, 35.0])]
