@@ -17,6 +17,11 @@ numpy's cost is its per-call overhead: an array times a Python float costs ~1.7 
 array times a 0-d array (the float is converted at every call), and writing into a buffer
 skips an allocation. ``fd`` runs four times per plant step (RK4); the buffers are per thread.
 
+``fd`` and ``frames`` run the same float code compiled to machine code over the arms
+(:mod:`armlab.kinematics.compiled_dynamics`, numba) once it is compiled (the first
+call past :data:`FLOAT_ARMS` arms starts compiling it, in a thread), and the code above
+until then or without numba: equal bit for bit either way.
+
 Arguments are joint-major: ``q`` (n, N), i.e. row i holds joint i of every arm, so the
 generated ``q0, q1, q2, = q`` unpacks contiguous rows. Results come back as (m, N)
 arrays, constant entries (a structural 0.0 or 1.0 of the model) broadcast to N.
@@ -32,7 +37,9 @@ from typing import Any
 
 import numpy as np
 
+from armlab.kinematics import compiled_dynamics
 from armlab.kinematics._rnea_codegen import dynamics_model
+from armlab.kinematics.compiled_dynamics import as_input
 from armlab.kinematics.model import SerialChain
 
 # Any: the generated code returns floats and (N,) arrays
@@ -66,6 +73,8 @@ class BatchedDynamics:
     _raw: dict[str, _Fn]
     _float_fd: _Fn
     _fd_buffers: int  #: (N,) arrays the numpy ``fd`` writes into
+    #: ``fd`` and ``frames`` over arms in machine code (numba), once compiled
+    _machine: compiled_dynamics.CompiledDynamics = field(compare=False, repr=False)
     _work: threading.local = field(default_factory=threading.local, compare=False, repr=False)
 
     def rnea(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -78,6 +87,12 @@ class BatchedDynamics:
     def fd(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, g: Sequence[float],
            armature: Sequence[float]) -> np.ndarray:
         n_arms = q.shape[1]
+        kernel = self._kernel("fd", n_arms)
+        if kernel is not None:
+            out = np.empty(q.shape)
+            kernel(as_input(q), as_input(qd), as_input(tau), as_input(g), as_input(armature),
+                   out)
+            return out
         if n_arms <= FLOAT_ARMS:  # a few arms: the float code per arm is cheaper
             one = self._float_fd
             res = np.empty((n_arms, self.n))
@@ -91,7 +106,31 @@ class BatchedDynamics:
         return _stack(self._raw["fd"](q, qd, tau, g, armature, buffers), n_arms)
 
     def frames(self, q: np.ndarray) -> np.ndarray:
+        kernel = self._kernel("frames", q.shape[1])
+        if kernel is not None:
+            out = np.empty((12 * self.n, q.shape[1]))
+            kernel(as_input(q), out)
+            return out
         return _stack(self._raw["frames"](q), q.shape[1])
+
+    def compile(self, timeout: float | None = None) -> bool:
+        """Compile ``fd`` and ``frames`` over arms now (if not done) and wait up to
+        ``timeout`` s: True when the compiled code runs them from now on (False without
+        numba: :attr:`compile_error` says why)."""
+        return self._machine.wait(timeout)
+
+    @property
+    def compile_error(self) -> str | None:
+        """Why there is no compiled code (None: there is, or it is being compiled)."""
+        return self._machine.error
+
+    def _kernel(self, function: str, n_arms: int) -> compiled_dynamics.Kernel | None:
+        """``function``'s compiled loop if ready; past :data:`FLOAT_ARMS` arms, its
+        compiling started if it was not."""
+        kernel = self._machine.kernel(function)
+        if kernel is None and n_arms > FLOAT_ARMS:
+            self._machine.start()
+        return kernel
 
 
 def _stack(out: tuple[Any, ...], n_arms: int) -> np.ndarray:
@@ -203,6 +242,8 @@ def batched_dynamics(model: SerialChain) -> BatchedDynamics:
         raw, buffers = _compiled(dyn.source, f"<batched dynamics of {model.name}>")
         cached = BatchedDynamics(n=dyn.n, source=dyn.source, revolute=dyn.revolute,
                                  axes=dyn.axes, _raw=raw, _float_fd=dyn.fd,
-                                 _fd_buffers=buffers)
+                                 _fd_buffers=buffers,
+                                 _machine=compiled_dynamics.compiled_dynamics(
+                                     dyn.source, dyn.n, f"<compiled dynamics of {model.name}>"))
         model.__dict__[_CACHE_KEY] = cached
     return cached

@@ -18,6 +18,13 @@ Figures:
         records the force and its peak (:class:`BatchedWalls`, stepped in the plant's
         place); ``sandboxes_walls_over_free``: its cost over
         the wall-free class's, same run.
+    dynamics_compiled: 1 when the plant's dynamics ran compiled to machine code
+        (:mod:`armlab.kinematics.compiled_dynamics`, numba), 0 when numpy ran them (numba
+        missing: every figure then is numpy's); ``dynamics_compile_s``: how long compiling
+        the thesis arm's took, before any class was timed.
+    sandboxes_numpy_realtime_per_core: the free class's figure with the numpy code in
+        the compiled code's place, same run; ``sandboxes_compiled_over_numpy``: the
+        compiled figure over it.
     sandboxes_single_plants_realtime_per_core: the same figure, measured in the same run, of
         the design the batched plant replaced: 50 such loops, each over a plant of its own
         stepped in Python (:class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`);
@@ -92,7 +99,8 @@ from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.kinematics import load_robot
+from armlab.kinematics import compiled_dynamics, load_robot
+from armlab.kinematics.batched_dynamics import batched_dynamics
 
 LOOP_SIZES = (50, 100)
 #: runs of each class whose median is quoted (one with ``--quick``)
@@ -116,6 +124,8 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     dt = 1e-3
     plant = BatchedPlant(model, RX24F, dt=dt) if batched else None
     walled = BatchedWalls(plant) if plant is not None else None  # (as ClassArms steps it)
+    if plant is not None:  # timed compiled, never while it compiles (when numba is here)
+        batched_dynamics(model).compile()
     clock = SharedClock(walled.step if walled is not None else (lambda: None), dt=dt,
                         realtime=False)
     lock = clock.lock
@@ -390,6 +400,9 @@ def private_room(lesson: str, *, seconds: float, pages: int = 30,
 def run(quick: bool) -> dict[str, float]:
     """The figures above (about 1 min quick, 3 min otherwise)."""
     out: dict[str, float] = {}
+    t0 = time.perf_counter()
+    out["dynamics_compiled"] = float(batched_dynamics(load_robot("receptionist_arm")).compile())
+    out["dynamics_compile_s"] = time.perf_counter() - t0
     cost = 0.0
     seconds = 0.5 if quick else 2.0
     repeats = 1 if quick else REPEATS
@@ -402,6 +415,14 @@ def run(quick: bool) -> dict[str, float]:
                                             walls=True) for k in range(repeats)]))
     out["sandboxes_walls_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / walled
     out["sandboxes_walls_over_free"] = walled / cost  # the cost of contact, same run
+    compiled_dynamics.ENABLED = False
+    try:
+        numpy_cost = float(np.median([loops_ms_cost(LOOP_SIZES[-1], seconds=seconds, seed=k)
+                                      for k in range(repeats)]))
+    finally:
+        compiled_dynamics.ENABLED = True
+    out["sandboxes_numpy_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / numpy_cost
+    out["sandboxes_compiled_over_numpy"] = numpy_cost / cost
     n = LOOP_SIZES[0]
     single = float(np.median([loops_ms_cost(n, seconds=seconds, seed=k, batched=False)
                               for k in range(repeats)]))
