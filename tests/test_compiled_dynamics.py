@@ -13,7 +13,7 @@ import pytest
 from armlab.hardware.families.dynamixel1.batched_backend import add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.kinematics import compiled_dynamics, load_robot
+from armlab.kinematics import compiled_dynamics, load_robot, machine_code
 from armlab.kinematics._rnea_codegen import dynamics_model
 from armlab.kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
 
@@ -23,7 +23,7 @@ CHAINS = ("receptionist_arm", "so101", "planar_servo_arm", "redundant_planar",
 
 
 def _numpy(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(compiled_dynamics, "ENABLED", False)
+    monkeypatch.setattr(machine_code, "ENABLED", False)
 
 
 @pytest.mark.slow
@@ -81,7 +81,7 @@ def test_a_class_plant_steps_the_same_compiled_as_with_numpy(
     assert batched_dynamics(load_robot("receptionist_arm")).compile()
     runs = []
     for enabled in (True, False):
-        monkeypatch.setattr(compiled_dynamics, "ENABLED", enabled)
+        monkeypatch.setattr(machine_code, "ENABLED", enabled)
         plant = _class(FLOAT_ARMS + 8)
         forces = []
         for _ in range(300):
@@ -97,12 +97,13 @@ def test_a_class_plant_steps_the_same_compiled_as_with_numpy(
 
 
 def test_code_numba_cannot_compile_leaves_the_numpy_code_and_says_why() -> None:
-    broken = compiled_dynamics.CompiledDynamics(
-        "def fd(q, qd, tau, g, armature):\n    return undefined_name\n"
-        "def frames(q):\n    return undefined_name\n", 1, "<broken>")
+    source = ("def fd(q, qd, tau, g, armature):\n    return undefined_name\n"
+              "def frames(q):\n    return undefined_name\n")
+    broken = machine_code.MachineCode(
+        lambda: compiled_dynamics.compile_kernels(source, 1, "<broken>"), "<broken>")
     assert broken.wait(120.0) is False
     assert broken.kernel("fd") is None and broken.kernel("frames") is None
-    assert broken.error is not None and "could not compile" in broken.error
+    assert broken.error is not None and "could not compile <broken>" in broken.error
 
 
 @pytest.mark.slow

@@ -40,6 +40,7 @@ import numpy as np
 from armlab.kinematics import compiled_dynamics
 from armlab.kinematics._rnea_codegen import dynamics_model
 from armlab.kinematics.compiled_dynamics import as_input
+from armlab.kinematics.machine_code import Kernel, MachineCode
 from armlab.kinematics.model import SerialChain
 
 # Any: the generated code returns floats and (N,) arrays
@@ -74,7 +75,7 @@ class BatchedDynamics:
     _float_fd: _Fn
     _fd_buffers: int  #: (N,) arrays the numpy ``fd`` writes into
     #: ``fd`` and ``frames`` over arms in machine code (numba), once compiled
-    _machine: compiled_dynamics.CompiledDynamics = field(compare=False, repr=False)
+    _machine: MachineCode = field(compare=False, repr=False)
     _work: threading.local = field(default_factory=threading.local, compare=False, repr=False)
 
     def rnea(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -124,7 +125,7 @@ class BatchedDynamics:
         """Why there is no compiled code (None: there is, or it is being compiled)."""
         return self._machine.error
 
-    def _kernel(self, function: str, n_arms: int) -> compiled_dynamics.Kernel | None:
+    def _kernel(self, function: str, n_arms: int) -> Kernel | None:
         """``function``'s compiled loop if ready; past :data:`FLOAT_ARMS` arms, its
         compiling started if it was not."""
         kernel = self._machine.kernel(function)

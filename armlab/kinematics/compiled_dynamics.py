@@ -10,30 +10,20 @@ reassociation), so the results equal the float code's, and numpy's over arms
 (:mod:`armlab.kinematics.batched_dynamics`), bit for bit; a test checks it.
 
 Why: on the (n, N) arrays of a class (N ~ 100 arms), the numpy code's cost is numpy's
-per-call overhead, over 200 calls a forward dynamics, four a plant step (RK4). The
-compiled loop does the same arithmetic without it (``armlab bench --only classroom``).
-
-Compiling takes seconds (one for the thesis arm on a quiet machine), so
-:class:`CompiledDynamics` compiles in a thread of its own, started on first need, while
-the numpy code goes on; the two give the same numbers, so the switch changes none.
-Without numba (not installed, or a Python it has no wheel for), or when compiling fails,
-the numpy code runs, as it did before numba.
+per-call overhead, over 200 calls a forward dynamics, four a plant step (RK4); the
+compiled loop does the same arithmetic without it. It is compiled in a thread, the
+numpy code running meanwhile (:class:`armlab.kinematics.machine_code.MachineCode`).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-#: False: every :class:`CompiledDynamics` runs the numpy code (``armlab bench`` times both)
-ENABLED = True
-
-#: a compiled loop over arms: its arrays, the last one written (its results)
-Kernel = Callable[..., None]
+from armlab.kinematics.machine_code import Kernel, MachineCode
 
 #: numba's types of the loops' arguments: (n, N) and (m, N) C-ordered, (k,) vectors
 _SIGNATURES = {
@@ -98,69 +88,19 @@ def compile_kernels(source: str, n: int, name: str) -> dict[str, Kernel]:
     return kernels
 
 
-class CompiledDynamics:
-    """The compiled loops of one generated module, once compiled (one per source text in
-    a process: :func:`compiled_dynamics`).
-
-    :meth:`kernel` gives a compiled loop, or None while there is none; :meth:`start`
-    starts compiling them in a thread of its own; :meth:`wait` compiles and waits
-    (benches, tests). :attr:`error` says why there are none (numba missing, a failed
-    compile): the numpy code runs then.
-    """
-
-    def __init__(self, source: str, n: int, name: str) -> None:
-        self._source, self._n, self._name = source, n, name
-        self._lock = threading.Lock()
-        self._thread: threading.Thread | None = None
-        self._kernels: dict[str, Kernel] = {}
-        self.error: str | None = None
-
-    def kernel(self, function: str) -> Kernel | None:
-        """The compiled loop of ``function`` ("fd", "frames") when it is ready and
-        :data:`ENABLED`; None otherwise."""
-        return self._kernels.get(function) if ENABLED else None
-
-    def start(self) -> None:
-        """Start compiling in a thread of its own (nothing when started before, or when
-        not :data:`ENABLED`)."""
-        if not ENABLED:
-            return
-        with self._lock:
-            if self._thread is not None:
-                return
-            self._thread = threading.Thread(target=self._compile, daemon=True,
-                                            name=f"armlab-compile {self._name}")
-            self._thread.start()
-
-    def wait(self, timeout: float | None = None) -> bool:
-        """Compile (if not done) and wait up to ``timeout`` s; True when compiled."""
-        self.start()
-        thread = self._thread
-        if thread is not None:
-            thread.join(timeout)
-        return bool(self._kernels)
-
-    def _compile(self) -> None:
-        try:
-            self._kernels = compile_kernels(self._source, self._n, self._name)
-        except ImportError as exc:
-            self.error = f"numba is not installed ({exc})"
-        except Exception as exc:  # a numba that cannot compile this: numpy goes on
-            self.error = f"numba could not compile it ({type(exc).__name__}: {exc})"
-
-
-_SHARED: dict[str, CompiledDynamics] = {}
+_SHARED: dict[str, MachineCode] = {}
 _SHARED_LOCK = threading.Lock()
 
 
-def compiled_dynamics(source: str, n: int, name: str) -> CompiledDynamics:
-    """The process's :class:`CompiledDynamics` of the generated module ``source`` (``n``
-    joints): every model loaded again (``load_robot`` makes a new one each time) with the
-    same code shares one compile."""
+def compiled_dynamics(source: str, n: int, name: str) -> MachineCode:
+    """The process's compiled ``fd`` and ``frames`` loops of the generated module
+    ``source`` (``n`` joints; compiled on :meth:`~MachineCode.start`): every model loaded
+    again (``load_robot`` makes a new one each time) with the same code shares one."""
     with _SHARED_LOCK:
         found = _SHARED.get(source)
         if found is None:
-            found = _SHARED[source] = CompiledDynamics(source, n, name)
+            found = _SHARED[source] = MachineCode(
+                lambda: compile_kernels(source, n, name), name)
         return found
 
 

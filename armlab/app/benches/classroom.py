@@ -99,7 +99,7 @@ from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
-from armlab.kinematics import compiled_dynamics, load_robot
+from armlab.kinematics import load_robot, machine_code
 from armlab.kinematics.batched_dynamics import batched_dynamics
 
 LOOP_SIZES = (50, 100)
@@ -415,12 +415,12 @@ def run(quick: bool) -> dict[str, float]:
                                             walls=True) for k in range(repeats)]))
     out["sandboxes_walls_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / walled
     out["sandboxes_walls_over_free"] = walled / cost  # the cost of contact, same run
-    compiled_dynamics.ENABLED = False
+    machine_code.ENABLED = False
     try:
         numpy_cost = float(np.median([loops_ms_cost(LOOP_SIZES[-1], seconds=seconds, seed=k)
                                       for k in range(repeats)]))
     finally:
-        compiled_dynamics.ENABLED = True
+        machine_code.ENABLED = True
     out["sandboxes_numpy_realtime_per_core"] = LOOP_SIZES[-1] * 1e-3 / numpy_cost
     out["sandboxes_compiled_over_numpy"] = numpy_cost / cost
     n = LOOP_SIZES[0]

@@ -48,6 +48,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
+from armlab.hardware.families.dynamixel1 import compiled_firmware
 from armlab.hardware.families.dynamixel1.firmware import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
@@ -68,8 +69,10 @@ from armlab.hardware.sim.contact import (
 )
 from armlab.hardware.sim.plant import JointStops
 from armlab.hardware.sim.servo_motor import ServoParams
-from armlab.kinematics.batched_dynamics import batched_dynamics
+from armlab.kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
 from armlab.kinematics.collision import contact_balls
+from armlab.kinematics.compiled_dynamics import as_input
+from armlab.kinematics.machine_code import Kernel
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import clamp
 from armlab.kinematics.validate import index, scalar, vector
@@ -78,6 +81,14 @@ from armlab.kinematics.validate import index, scalar, vector
 REGISTERS: tuple[str, ...] = tuple(f.name for f in fields(ServoRegisters))
 _SLOPES = np.array([effective_slope(v) for v in range(256)], dtype=np.int64)  # Table 2.4
 _STOPS = JointStops()  #: Plant's default stops
+#: the registers the compiled tick reads, in its order (compiled_firmware.tick_servos)
+_TICK_REGISTERS = ("torque_limit", "torque_enable", "cw_angle_limit", "ccw_angle_limit",
+                   "goal_position", "moving_speed", "cw_compliance_margin",
+                   "ccw_compliance_margin", "cw_compliance_slope", "ccw_compliance_slope",
+                   "punch", "alarm_shutdown")
+#: the state it writes, in its order after the three it updates
+_TICK_OUTPUTS = ("present", "velocity", "enabled", "setpoint", "duty", "moving",
+                 "angle_error", "drive", "damping")
 
 #: The spring and the wall per arm: name -> (leading shape, dtype); arrays (*shape, N).
 _FIELDS: dict[str, tuple[tuple[int, ...], type]] = {
@@ -220,6 +231,10 @@ class BatchedPlant:
         self._temperature = [int(round(p.temperature)) for p in plist]
         self._armature = [p.rotor_inertia for p in plist]
         self._gravity = [float(x) for x in model.gravity]
+        #: per joint, what the compiled firmware tick takes (compiled_firmware.tick_servos)
+        self._joint = np.ascontiguousarray(np.concatenate(
+            [self._dir, self._cpr, self._cpsu, self._speed_unit, self._stall_speed,
+             self._overload_time, self._stall_torque, self._backemf], axis=1).T)
         self._lower = col([float(x) for x in model.lower])
         self._upper = col([float(x) for x in model.upper])
         if not all(self._dyn.revolute):
@@ -906,7 +921,15 @@ class BatchedPlant:
         self._s["push_tau"] = tau
 
     def _tick(self, q: np.ndarray, qd: np.ndarray) -> None:
-        """One firmware tick of every servo (ServoModel.update over (n, N); thesis §2.3)."""
+        """One firmware tick of every servo (ServoModel.update over (n, N); thesis §2.3):
+        compiled (:mod:`~armlab.hardware.families.dynamixel1.compiled_firmware`) once it
+        is (past FLOAT_ARMS arms it is compiled in a thread), numpy until then."""
+        kernel = compiled_firmware.MACHINE.kernel("tick")
+        if kernel is not None:
+            self._tick_compiled(kernel, q, qd)
+            return
+        if self.n_arms > FLOAT_ARMS:
+            compiled_firmware.MACHINE.start()
         s, r, dt = self._s, self._r, self.dt
         angle = self._dir * q
         velocity = self._dir * qd
@@ -980,6 +1003,21 @@ class BatchedPlant:
         nz = duty != 0.0
         s["drive"] = np.where(nz, duty * self._stall_torque, 0.0)
         s["damping"] = np.where(nz, self._backemf, 0.0)
+
+    def _tick_compiled(self, kernel: Kernel, q: np.ndarray, qd: np.ndarray) -> None:
+        """:meth:`_tick`'s numbers, by the compiled loop over every servo."""
+        s, r = self._s, self._r
+        regs = np.stack([r[name] for name in _TICK_REGISTERS])
+        shape = q.shape
+        out: dict[str, np.ndarray] = {name: np.empty(shape, dtype=_STATE[name])
+                                      for name in _TICK_OUTPUTS}
+        shutdown, overload, stall = s["shutdown"].copy(), s["overload"].copy(), s["stall"].copy()
+        kernel(as_input(q), as_input(qd), regs, shutdown, overload, stall,
+               np.ascontiguousarray(s["enabled"]), as_input(s["setpoint"]), self._joint,
+               _SLOPES, self.dt, *out.values())
+        s.update(out)
+        s["shutdown"], s["overload"], s["stall"] = shutdown, overload, stall
+        r["torque_limit"], r["torque_enable"] = regs[0], regs[1]  # (an overload's shutdown)
 
     # -- what the servos report ----------------------------------------------------------
 
