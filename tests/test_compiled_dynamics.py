@@ -51,9 +51,10 @@ def test_compiled_fd_and_frames_equal_the_numpy_and_float_code_bit_for_bit(
     assert np.array_equal(strided, numpy_frames[:, ::3])
 
 
-def _class(arms: int) -> BatchedPlant:
+def _class(arms: int, *, boxes: bool = False) -> BatchedPlant:
     """A class of ``arms`` thesis arms, each pushed, one on a spring, every other one at a
-    wall its hand is pressed into (planes, and boxes its links meet too)."""
+    wall its hand is pressed into (planes, some with friction; with ``boxes``, every
+    fourth wall a box its links meet too: many touches an arm)."""
     model = load_robot("receptionist_arm")
     plant = BatchedPlant(model, RX24F, dt=1e-3)
     rng = np.random.default_rng(11)
@@ -63,7 +64,7 @@ def _class(arms: int) -> BatchedPlant:
         tip = model.fk(q)[:3, 3]
         if a % 2 == 0:
             normal = np.array([0.0, 0.0, 1.0]) if a % 4 == 0 else np.array([1.0, 0.0, 0.0])
-            size = (0.2, 0.2, 0.1) if a % 8 == 0 else None
+            size = (0.2, 0.2, 0.1) if boxes and a % 8 == 0 else None
             plant.set_wall(a, tip + 0.002 * normal, normal, stiffness=2e4, damping=50.0,
                            friction=0.5 if a % 6 == 0 else 0.0, size=size)
         plant.push(a, rng.uniform(-3.0, 3.0, 3), link=2, point=np.array([0.1, 0.0, 0.0]),
@@ -74,15 +75,17 @@ def _class(arms: int) -> BatchedPlant:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("boxes", [False, True], ids=["planes", "boxes"])
 def test_a_class_plant_steps_the_same_compiled_as_with_numpy(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """A class past FLOAT_ARMS arms, walls, friction, pushes and a spring: 300 steps with
-    the compiled code and with numpy give the same states and servo words, bit for bit."""
-    assert batched_dynamics(load_robot("receptionist_arm")).compile()
+        boxes: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A class past FLOAT_ARMS arms, walls (planes, boxes), friction, pushes and a spring:
+    300 steps with the compiled code (every part of it: BatchedPlant.compile) and with
+    numpy give the same states, servo words and wall forces, bit for bit."""
+    assert _class(2).compile()  # the dynamics, link points, walls' pushes, firmware tick
     runs = []
     for enabled in (True, False):
         monkeypatch.setattr(machine_code, "ENABLED", enabled)
-        plant = _class(FLOAT_ARMS + 8)
+        plant = _class(FLOAT_ARMS + 8, boxes=boxes)
         forces = []
         for _ in range(300):
             plant.step()

@@ -107,3 +107,44 @@ def compiled_dynamics(source: str, n: int, name: str) -> MachineCode:
 def as_input(x: Any) -> np.ndarray:
     """``x`` as the compiled loops take it: a C-ordered float64 array (no copy if it is)."""
     return np.ascontiguousarray(x, dtype=float)
+
+
+def link_points(fr: np.ndarray, links: np.ndarray, points: np.ndarray, axes: np.ndarray,
+                p: np.ndarray, cols: np.ndarray) -> None:
+    """Base-frame positions ``p`` (3, P) of P link points and their Jacobian columns
+    ``cols`` (n, 3, P), written: ``BatchedPlant._points``' arithmetic per point, in its
+    order. ``fr`` (n, 12, P): the frames of each point's arm (per link R (9), o (3));
+    ``links`` (P,) each point's link, ``points`` (3, P) in its frame; ``axes`` (n, 3) the
+    joints' unit axes in their links' frames. Column j of point k is z_j × (p − o_j)
+    (thesis eq. 3.17) for j <= links[k], zero beyond."""
+    n = fr.shape[0]
+    for k in range(links.shape[0]):
+        link = links[k]
+        px, py, pz = points[0, k], points[1, k], points[2, k]
+        x = fr[link, 0, k] * px + fr[link, 1, k] * py + fr[link, 2, k] * pz + fr[link, 9, k]
+        y = fr[link, 3, k] * px + fr[link, 4, k] * py + fr[link, 5, k] * pz + fr[link, 10, k]
+        z = fr[link, 6, k] * px + fr[link, 7, k] * py + fr[link, 8, k] * pz + fr[link, 11, k]
+        p[0, k], p[1, k], p[2, k] = x, y, z
+        for j in range(n):
+            if j > link:
+                cols[j, 0, k], cols[j, 1, k], cols[j, 2, k] = 0.0, 0.0, 0.0
+                continue
+            a0, a1, a2 = axes[j, 0], axes[j, 1], axes[j, 2]
+            z0 = fr[j, 0, k] * a0 + fr[j, 1, k] * a1 + fr[j, 2, k] * a2
+            z1 = fr[j, 3, k] * a0 + fr[j, 4, k] * a1 + fr[j, 5, k] * a2
+            z2 = fr[j, 6, k] * a0 + fr[j, 7, k] * a1 + fr[j, 8, k] * a2
+            rx, ry, rz = x - fr[j, 9, k], y - fr[j, 10, k], z - fr[j, 11, k]
+            cols[j, 0, k] = z1 * rz - z2 * ry
+            cols[j, 1, k] = z2 * rx - z0 * rz
+            cols[j, 2, k] = z0 * ry - z1 * rx
+
+
+def _build_points() -> dict[str, Kernel]:
+    import numba
+
+    signature = "void(f8[:, :, ::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, :, ::1])"
+    return {"points": numba.njit(signature, nogil=True)(link_points)}
+
+
+#: the process's compiled :func:`link_points` (any chain, any number of points)
+POINTS = MachineCode(_build_points, "link points and their Jacobian columns")

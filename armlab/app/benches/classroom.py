@@ -18,10 +18,11 @@ Figures:
         records the force and its peak (:class:`BatchedWalls`, stepped in the plant's
         place); ``sandboxes_walls_over_free``: its cost over
         the wall-free class's, same run.
-    dynamics_compiled: 1 when the plant's dynamics ran compiled to machine code
-        (:mod:`armlab.kinematics.compiled_dynamics`, numba), 0 when numpy ran them (numba
-        missing: every figure then is numpy's); ``dynamics_compile_s``: how long compiling
-        the thesis arm's took, before any class was timed.
+    dynamics_compiled: 1 when the plant ran compiled to machine code (numba:
+        ``BatchedPlant.compile``, the dynamics, link points, walls' pushes and firmware
+        tick; :mod:`armlab.kinematics.machine_code`), 0 when numpy ran it (numba missing:
+        every figure then is numpy's); ``dynamics_compile_s``: how long compiling the
+        thesis arm's plant took, before any class was timed.
     sandboxes_numpy_realtime_per_core: the free class's figure with the numpy code in
         the compiled code's place, same run; ``sandboxes_compiled_over_numpy``: the
         compiled figure over it.
@@ -100,7 +101,6 @@ from armlab.hardware.families.dynamixel1.batched_walls import BatchedWalls
 from armlab.hardware.families.dynamixel1.sim_backend import SimBackend
 from armlab.hardware.servos.servo_spec import RX24F
 from armlab.kinematics import load_robot, machine_code
-from armlab.kinematics.batched_dynamics import batched_dynamics
 
 LOOP_SIZES = (50, 100)
 #: runs of each class whose median is quoted (one with ``--quick``)
@@ -125,7 +125,7 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     plant = BatchedPlant(model, RX24F, dt=dt) if batched else None
     walled = BatchedWalls(plant) if plant is not None else None  # (as ClassArms steps it)
     if plant is not None:  # timed compiled, never while it compiles (when numba is here)
-        batched_dynamics(model).compile()
+        plant.compile()
     clock = SharedClock(walled.step if walled is not None else (lambda: None), dt=dt,
                         realtime=False)
     lock = clock.lock
@@ -401,7 +401,8 @@ def run(quick: bool) -> dict[str, float]:
     """The figures above (about 1 min quick, 3 min otherwise)."""
     out: dict[str, float] = {}
     t0 = time.perf_counter()
-    out["dynamics_compiled"] = float(batched_dynamics(load_robot("receptionist_arm")).compile())
+    out["dynamics_compiled"] = float(BatchedPlant(load_robot("receptionist_arm"), RX24F,
+                                                  dt=1e-3).compile())
     out["dynamics_compile_s"] = time.perf_counter() - t0
     cost = 0.0
     seconds = 0.5 if quick else 2.0

@@ -48,7 +48,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from armlab.hardware.families.dynamixel1 import compiled_firmware
+from armlab.hardware.families.dynamixel1 import compiled_contact, compiled_firmware
 from armlab.hardware.families.dynamixel1.firmware import (
     ERROR_ANGLE_LIMIT,
     ERROR_OVERLOAD,
@@ -71,7 +71,7 @@ from armlab.hardware.sim.plant import JointStops
 from armlab.hardware.sim.servo_motor import ServoParams
 from armlab.kinematics.batched_dynamics import FLOAT_ARMS, batched_dynamics
 from armlab.kinematics.collision import contact_balls
-from armlab.kinematics.compiled_dynamics import as_input
+from armlab.kinematics.compiled_dynamics import POINTS, as_input
 from armlab.kinematics.machine_code import Kernel
 from armlab.kinematics.model import SerialChain
 from armlab.kinematics.smallarrays import clamp
@@ -240,6 +240,7 @@ class BatchedPlant:
         if not all(self._dyn.revolute):
             raise ValueError("model: BatchedPlant supports revolute joints only")
         self._axes = self._dyn.axes
+        self._axes_array = np.array(self._axes, dtype=float).reshape(n, 3)
         #: m no point of a link reaches further from any joint's axis (plus its own point's
         #: offset): the bound of how far a contact point moves per rad of the joints
         self._reach = float(sum(np.linalg.norm(j.origin[:3, 3]) for j in model.joints)
@@ -648,6 +649,15 @@ class BatchedPlant:
             bad = self._ids[~np.all(np.isfinite(s["qd"]), axis=0)].tolist()
             raise FloatingPointError(f"arms {bad} diverged at t = {self.t:.3f} s")
 
+    def compile(self, timeout: float | None = None) -> bool:
+        """Compile this plant's machine code now (its dynamics and link frames, link
+        points, the walls' pushes, the firmware tick; each waits up to ``timeout`` s) rather
+        than in threads once the class passes FLOAT_ARMS arms: True when all of it runs
+        from now on (False without numba; the numpy code gives the same numbers)."""
+        return all([self._dyn.compile(timeout), POINTS.wait(timeout),
+                    compiled_contact.MACHINE.wait(timeout),
+                    compiled_firmware.MACHINE.wait(timeout)])
+
     def advance_to(self, t: float) -> int:
         """Step until the plant time reaches ``t`` s (to within dt/2); returns the steps."""
         target = scalar("t", t)
@@ -813,6 +823,16 @@ class BatchedPlant:
         the sliding J q̇ − vₙ n, the damper FRICTION_DAMPING capped at μ·push), each
         arm's touches added in their order."""
         rows, along = hold.touch_rows, hold.along
+        kernel = compiled_contact.MACHINE.kernel("pushes") if hold.single else None
+        if kernel is not None:  # (compiled_contact.held_pushes: the same numbers)
+            tau, mag = np.empty((self.n, rows.size)), np.empty(rows.size)
+            kernel(as_input(q), as_input(qd), rows, as_input(hold.q0), as_input(along),
+                   as_input(hold.depth), as_input(hold.k), as_input(hold.c),
+                   as_input(hold.mu), as_input(hold.cols), as_input(hold.normal),
+                   hold.rubs, FRICTION_DAMPING, tau, mag)
+            return tau, mag
+        if self.n_arms > FLOAT_ARMS:
+            compiled_contact.MACHINE.start()
         w = qd[:, rows]
         depth = hold.depth - (along * (q[:, rows] - hold.q0)).sum(axis=0)
         vn = (along * w).sum(axis=0)
@@ -865,6 +885,14 @@ class BatchedPlant:
         the link of each point, ``points`` (3, P) in its frame. Column j of point k is
         z_j × (p − o_j) (thesis eq. 3.17) for j <= links[k], zero beyond."""
         P = links.size
+        kernel = POINTS.kernel("points")
+        if kernel is not None:  # (compiled_dynamics.link_points: the same numbers)
+            p, cols = np.empty((3, P)), np.empty((self.n, 3, P))
+            kernel(as_input(fr), np.ascontiguousarray(links, dtype=np.int64), as_input(points),
+                   self._axes_array, p, cols)
+            return p, cols
+        if self.n_arms > FLOAT_ARMS:
+            POINTS.start()
         one = int(links[0]) if P and bool(np.all(links == links[0])) else None
         lf = fr[one] if one is not None else fr[links, :, np.arange(P)].T  # (12, P)
         px, py, pz = points
