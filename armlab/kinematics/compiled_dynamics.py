@@ -143,7 +143,7 @@ def _build_points() -> dict[str, Kernel]:
     import numba
 
     signature = "void(f8[:, :, ::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, :, ::1])"
-    return {"points": numba.njit(signature, nogil=True)(link_points)}
+    return {"points": numba.njit(signature, nogil=True, cache=True)(link_points)}
 
 
 #: the process's compiled :func:`link_points` (any chain, any number of points)

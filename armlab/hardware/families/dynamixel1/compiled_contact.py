@@ -71,7 +71,7 @@ def _build() -> dict[str, Kernel]:
     signature = ("void(f8[:, ::1], f8[:, ::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[::1], "
                  "f8[::1], f8[::1], f8[::1], f8[:, :, ::1], f8[:, ::1], b1, f8, "
                  "f8[:, ::1], f8[::1])")
-    return {"pushes": numba.njit(signature, nogil=True)(held_pushes)}
+    return {"pushes": numba.njit(signature, nogil=True, cache=True)(held_pushes)}
 
 
 #: the process's compiled :func:`held_pushes` (any chain, any number of touches)

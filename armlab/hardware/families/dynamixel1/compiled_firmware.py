@@ -128,7 +128,7 @@ def _build() -> dict[str, Kernel]:
     """:func:`tick_servos` compiled, for the plant's arrays' types (C-ordered)."""
     import numba
 
-    kernel = numba.njit(nogil=True)(tick_servos)
+    kernel = numba.njit(nogil=True, cache=True)(tick_servos)
     f, b, i = np.zeros((1, 1)), np.zeros((1, 1), dtype=bool), np.zeros((1, 1), dtype=np.int64)
     kernel(f, f.copy(), np.zeros((12, 1, 1), dtype=np.int64), b.copy(), b.copy(), f.copy(),
            b.copy(), f.copy(), np.ones((8, 1)), np.ones(256, dtype=np.int64), 1e-3, i.copy(),
