@@ -18,10 +18,10 @@ Figures:
         records the force and its peak (:class:`BatchedWalls`, stepped in the plant's
         place); ``sandboxes_walls_over_free``: its cost over
         the wall-free class's, same run.
-    dynamics_compiled: 1 when the plant ran compiled to machine code (numba:
+    plant_compiled: 1 when the plant ran compiled to machine code (numba:
         ``BatchedPlant.compile``, the dynamics, link points, walls' pushes and firmware
         tick; :mod:`armlab.kinematics.machine_code`), 0 when numpy ran it (numba missing:
-        every figure then is numpy's); ``dynamics_compile_s``: how long compiling the
+        every figure then is numpy's); ``plant_compile_s``: how long compiling the
         thesis arm's plant took, before any class was timed.
     sandboxes_numpy_realtime_per_core: the free class's figure with the numpy code in
         the compiled code's place, same run; ``sandboxes_compiled_over_numpy``: the
@@ -401,9 +401,9 @@ def run(quick: bool) -> dict[str, float]:
     """The figures above (about 1 min quick, 3 min otherwise)."""
     out: dict[str, float] = {}
     t0 = time.perf_counter()
-    out["dynamics_compiled"] = float(BatchedPlant(load_robot("receptionist_arm"), RX24F,
+    out["plant_compiled"] = float(BatchedPlant(load_robot("receptionist_arm"), RX24F,
                                                   dt=1e-3).compile())
-    out["dynamics_compile_s"] = time.perf_counter() - t0
+    out["plant_compile_s"] = time.perf_counter() - t0
     cost = 0.0
     seconds = 0.5 if quick else 2.0
     repeats = 1 if quick else REPEATS

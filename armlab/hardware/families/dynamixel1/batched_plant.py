@@ -745,8 +745,10 @@ class BatchedPlant:
                     starts = np.flatnonzero(np.r_[True, t_rows[1:] != t_rows[:-1]])
                     gap[ask] = np.minimum.reduceat(-inside, starts)
                 near = inside > -(HOLD_MARGIN_M + travel[ask][t_rows])
-                touch_rows, cols = asked[t_rows[near]], t_cols[..., near]
-                depth, nrm = inside[near], t_nrm[:, near]
+                # (C-ordered once here: the compiled pushes read them at every RK stage)
+                touch_rows = asked[t_rows[near]]
+                cols = np.ascontiguousarray(t_cols[..., near])
+                depth, nrm = inside[near], np.ascontiguousarray(t_nrm[:, near])
             f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
         single = bool(touch_rows.size < 2 or np.all(touch_rows[1:] != touch_rows[:-1]))
         rows, slot = ((touch_rows, np.arange(touch_rows.size)) if single
