@@ -574,8 +574,11 @@ def test_home_brings_the_arm_back_to_the_line_start_at_the_approach_speed(lab, c
     loop = lesson.rig.loop
     wait_for(lambda: loop.status.active, 60, "the arm held")
     lesson.run_step(joint=2, step_deg=-25.0)
-    wait_for(lambda: loop.status.trajectory is None and loop.status.t > 2.0, 60,
-             "the step done")
+    step = lesson.experiment
+    # the step's trajectory lasts one period: wait on its command, not on its name
+    wait_for(lambda: loop.status.trajectory is None and abs(
+        loop.recorder.snapshot(0.1)["q_cmd"][-1][step.joint] - step.q1) < 1e-9, 60,
+        "the step done")
     start = lesson.rig.line.q[0]
     t0 = loop.status.t
     client.click("Home")
