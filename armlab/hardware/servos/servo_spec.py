@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class ServoSpec:
     position_range: float = math.radians(300.0)  # a Python float: numpy scalars are slow
     speed_unit: float = 0.111 * RPM
 
-    @property
+    @cached_property  # read for every servo every period
     def position_unit(self) -> float:
         """rad per position count (300° / 1023 ≈ 0.29°)."""
         return self.position_range / 1023.0

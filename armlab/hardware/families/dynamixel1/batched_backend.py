@@ -84,12 +84,17 @@ def decode_words(words: ReportWords, tables: Sequence[WordTables], t: float) -> 
     through each joint's :func:`word_tables`: what
     :func:`~armlab.hardware.families.dynamixel1.sim_backend.decode_reports`
     makes of the same words."""
+    position, velocity, load = [], [], []  # one pass in Python: a few joints, every period
+    for tb, x, v, f in zip(tables, words.position, words.speed, words.load, strict=True):
+        position.append(tb[0][x])
+        velocity.append(tb[1][v])
+        load.append(tb[2][f])
+    errors = tuple(words.error)
     return JointState(
-        t=t, position=np.array([tb[0][x] for tb, x in zip(tables, words.position, strict=True)]),
-        velocity=np.array([tb[1][x] for tb, x in zip(tables, words.speed, strict=True)]),
-        load=np.array([tb[2][x] for tb, x in zip(tables, words.load, strict=True)]),
-        errors=tuple(words.error), torque_on=tuple(map(bool, words.torque_enable)),
-        alarms=tuple(map(p1.error_names, words.error)))
+        t=t, position=np.array(position), velocity=np.array(velocity), load=np.array(load),
+        errors=errors, torque_on=tuple(map(bool, words.torque_enable)),
+        alarms=(tuple(map(p1.error_names, errors)) if any(errors)
+                else ("ok",) * len(errors)))  # healthy: error_names(0) each
 
 
 def add_sim_arm(plant: BatchedPlant, *, q0: np.ndarray | None = None,

@@ -294,6 +294,10 @@ class BatchedPlant:
 
     def row(self, arm: int) -> int:
         """The row of arm id ``arm``; ValueError naming ``arm`` when there is no such arm."""
+        if type(arm) is int:  # the usual case (every arm's every period): one lookup
+            r = self._row_of.get(arm)
+            if r is not None:
+                return r
         if isinstance(arm, bool) or not isinstance(arm, int | np.integer):
             raise ValueError(f"arm must be an arm id (int), got {arm!r}")
         r = self._row_of.get(int(arm))
