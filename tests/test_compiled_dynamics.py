@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from armlab.hardware.families.dynamixel1 import compiled_contact
 from armlab.hardware.families.dynamixel1.batched_backend import add_sim_arm
 from armlab.hardware.families.dynamixel1.batched_plant import BatchedPlant
 from armlab.hardware.servos.servo_spec import RX24F
@@ -82,6 +83,8 @@ def test_a_class_plant_steps_the_same_compiled_as_with_numpy(
     300 steps with the compiled code (every part of it: BatchedPlant.compile) and with
     numpy give the same states, servo words and wall forces, bit for bit."""
     assert _class(2).compile()  # the dynamics, link points, walls' pushes, firmware tick
+    # (planes only: the walls near their arms are found compiled too)
+    assert compiled_contact.MACHINE.kernel("plane_touches") is not None
     runs = []
     for enabled in (True, False):
         monkeypatch.setattr(machine_code, "ENABLED", enabled)

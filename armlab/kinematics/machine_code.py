@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from typing import Any
 
 #: False: no compiled code runs anywhere, the numpy code does (``armlab bench`` times both)
 ENABLED = True
 
-#: a compiled loop: its arrays (the outputs among them, written in place) -> None
-Kernel = Callable[..., None]
+#: a compiled loop: its arrays (the outputs among them, written in place) -> None, or a
+#: count of what it wrote
+Kernel = Callable[..., Any]
 
 
 class MachineCode:

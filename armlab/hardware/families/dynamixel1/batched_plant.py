@@ -724,6 +724,11 @@ class BatchedPlant:
         if not w_rows.size:  # (no wall: nothing to work out, a step of a free class)
             self._hold = self._no_walls._replace(step=self._k)
             return self._hold
+        asks = compiled_contact.MACHINE.kernel("plane_asks")
+        touches = compiled_contact.MACHINE.kernel("plane_touches")
+        if (asks is not None and touches is not None
+                and not np.any((f["wall_balls"] | f["wall_box"]) & f["wall_on"])):
+            return self._held(*self._near_planes(w_rows, asks, touches))
         touch_rows = np.zeros(0, dtype=np.int64)
         cols, depth, nrm = np.zeros((n, 3, 0)), np.zeros(0), np.zeros((3, 0))
         if w_rows.size:
@@ -754,10 +759,45 @@ class BatchedPlant:
                 cols = np.ascontiguousarray(t_cols[..., near])
                 depth, nrm = inside[near], np.ascontiguousarray(t_nrm[:, near])
             f["wall_gap"][w_rows] = gap - travel  # (at the step's end it is at least this far)
+        along = cols[:, 0] * nrm[0] + cols[:, 1] * nrm[1] + cols[:, 2] * nrm[2]
+        return self._held(touch_rows, cols, along, depth, nrm)
+
+    def _near_planes(self, w_rows: np.ndarray, asks: Kernel, touches: Kernel
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_near_walls`' touches when every wall is a plane its arm's tip meets,
+        compiled (``asks``, ``touches``:
+        :func:`~armlab.hardware.families.dynamixel1.compiled_contact.plane_asks` and
+        ``plane_touches``, its arithmetic in its order): (rows (P,), Jacobian columns
+        (n, 3, P), nᵀJ (n, P), depths (P,), normals (3, P)); the walls' gaps updated."""
+        f, n, W = self._f, self.n, w_rows.size
+        travel, ask = np.empty(W), np.empty(W, dtype=np.int64)
+        asked = asks(
+            w_rows, f["wall_point"], self._s["qd"], float(self._reach), self.dt,
+            f["wall_gap"], HOLD_MARGIN_M, travel, ask)
+        ask = ask[:asked]
+        rows = w_rows[ask]
+        if asked:
+            fr = self._dyn.frames(self._s["q"][:, rows]).reshape(n, 12, asked)
+            p, cols = self._points(fr, f["wall_link"][rows], f["wall_point"][:, rows])
+        else:
+            p, cols = np.zeros((3, 0)), np.zeros((n, 3, 0))
+        touch_rows, depth = np.empty(asked, dtype=np.int64), np.empty(asked)
+        t_cols, nrm, along = np.empty((n, 3, asked)), np.empty((3, asked)), np.empty((n, asked))
+        near = touches(
+            w_rows, ask, as_input(p), as_input(cols), f["wall_origin"], f["wall_normal"],
+            travel, HOLD_MARGIN_M, f["wall_gap"], touch_rows, t_cols, depth, nrm, along)
+        return (touch_rows[:near], np.ascontiguousarray(t_cols[..., :near]),
+                np.ascontiguousarray(along[:, :near]), depth[:near],
+                np.ascontiguousarray(nrm[:, :near]))
+
+    def _held(self, touch_rows: np.ndarray, cols: np.ndarray, along: np.ndarray,
+              depth: np.ndarray, nrm: np.ndarray) -> _WallHold:
+        """The hold of this state's touches near their walls (:meth:`_near_walls`),
+        kept for this step."""
+        f, q = self._f, self._s["q"]
         single = bool(touch_rows.size < 2 or np.all(touch_rows[1:] != touch_rows[:-1]))
         rows, slot = ((touch_rows, np.arange(touch_rows.size)) if single
                       else np.unique(touch_rows, return_inverse=True))
-        along = cols[:, 0] * nrm[0] + cols[:, 1] * nrm[1] + cols[:, 2] * nrm[2]
         mu = f["wall_mu"][touch_rows]
         hold = _WallHold(self._k, rows, touch_rows, slot, single,
                          q[:, touch_rows].copy(), cols, along, depth, nrm,
