@@ -714,7 +714,8 @@ class BatchedPlant:
         only when what the joints may have moved them since it was last worked out
         (``wall_gap``, the nearest's distance) could have brought one that close: an arm
         far from its wall costs a few multiplications a step. Worked out once a state:
-        the forces read at a step's end (:meth:`wall_forces`) are the next step's start."""
+        the forces read at a step's end (:meth:`wall_forces`) are the next step's start.
+        Compiled when every wall is a plane (:meth:`_near_planes`)."""
         hold = self._hold
         if hold is not None and hold.step == self._k:
             return hold
@@ -772,7 +773,7 @@ class BatchedPlant:
         f, n, W = self._f, self.n, w_rows.size
         travel, ask = np.empty(W), np.empty(W, dtype=np.int64)
         asked = asks(
-            w_rows, f["wall_point"], self._s["qd"], float(self._reach), self.dt,
+            w_rows, as_input(f["wall_point"]), as_input(self._s["qd"]), float(self._reach), self.dt,
             f["wall_gap"], HOLD_MARGIN_M, travel, ask)
         ask = ask[:asked]
         rows = w_rows[ask]
@@ -784,7 +785,8 @@ class BatchedPlant:
         touch_rows, depth = np.empty(asked, dtype=np.int64), np.empty(asked)
         t_cols, nrm, along = np.empty((n, 3, asked)), np.empty((3, asked)), np.empty((n, asked))
         near = touches(
-            w_rows, ask, as_input(p), as_input(cols), f["wall_origin"], f["wall_normal"],
+            w_rows, ask, as_input(p), as_input(cols), as_input(f["wall_origin"]),
+            as_input(f["wall_normal"]),
             travel, HOLD_MARGIN_M, f["wall_gap"], touch_rows, t_cols, depth, nrm, along)
         return (touch_rows[:near], np.ascontiguousarray(t_cols[..., :near]),
                 np.ascontiguousarray(along[:, :near]), depth[:near],
