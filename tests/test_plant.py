@@ -185,3 +185,48 @@ def test_the_straight_line_step_equals_the_readable_one_bit_for_bit(arm, params)
         _readable(readable)
         assert fast._q == readable._q and fast._qd == readable._qd
     assert fast.t == readable.t and abs(fast.q - np.array(q0)).max() > 0.1  # it moved
+
+
+def _readable_with_fields(plant: Plant) -> None:
+    """One step of ``plant`` through its readable RK4 with its spring and wall (the
+    touches near the wall held from the step's start), as Plant.step took every such
+    step before its straight-line step took them too."""
+    if plant._pushes:
+        plant._update_pushes(plant._q)
+    stops = plant.stops is not None and any(
+        x < lo + 0.05 or x > hi - 0.05
+        for x, lo, hi in zip(plant._q, plant._lower, plant._upper, strict=True))
+    plant._readable_step(plant._q, plant._qd, plant._held_torques(), plant._near_touches(),
+                         stops=stops)
+    plant._k += 1
+
+
+@pytest.mark.parametrize("shape", ["plane", "box"])
+def test_the_straight_line_step_with_a_wall_and_a_spring_equals_the_readable_one(arm, shape):
+    """With a wall (a plane the hand meets, with friction; or a box the links' balls
+    meet) and a spring, Plant.step's generated step re-evaluates their torques at each
+    RK4 stage as the readable step does: the same state to the last bit, step after
+    step, through the impact, the pressing and the spring's release."""
+    q0 = [0.0, 0.5, 0.6]
+    fast, readable = holding(arm, q0), holding(arm, q0)
+    hand = point_position(arm, np.array(q0), 2, arm.tip[:3, 3])
+    down = np.array([0.0, 0.0, -1.0])
+    for plant in (fast, readable):
+        for servo, q in zip(plant.servos, (0.1, 0.9, 0.9), strict=True):
+            servo.regs.goal_position = RX24F.position_to_raw(q)  # down, into the table
+        size = (0.3, 0.3, 0.05) if shape == "box" else None
+        plant.set_wall(hand + 0.01 * down, -down, stiffness=2e4, damping=50.0,
+                       friction=0.4 if shape == "plane" else 0.0, size=size)
+        plant.set_spring(hand + np.array([0.0, 0.05, 0.0]), stiffness=40.0, link=2,
+                         point=arm.tip[:3, 3], damping=1.0)
+    pressed = 0.0
+    for k in range(600):
+        if k == 400:
+            for plant in (fast, readable):
+                plant.set_spring(None, stiffness=0.0, link=2, point=arm.tip[:3, 3])
+        fast.step()
+        _readable_with_fields(readable)
+        assert fast._q == readable._q and fast._qd == readable._qd, k
+        pressed = max(pressed, fast.wall_force())
+    assert pressed > 1.0  # the wall was met and pressed
+    assert fast.t == readable.t

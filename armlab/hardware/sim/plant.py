@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, cast
 
 import numpy as np
@@ -115,6 +116,12 @@ class JointStops:
     stiffness: float = 50.0
     damping: float = 0.5
 
+
+
+def _floats(v: np.ndarray) -> tuple[float, float, float]:
+    """A (3,) array as a tuple of Python floats."""
+    x, y, z = v.tolist()
+    return float(x), float(y), float(z)
 
 
 class Plant:
@@ -237,7 +244,7 @@ class Plant:
         p = vector("point", point, 3)
         k = self._link(link)
         d = scalar("duration", duration, nonnegative=True)
-        self._pushes.append(_Push(tuple(f), k, tuple(p), self.t + d))
+        self._pushes.append(_Push(_floats(f), k, _floats(p), self.t + d))
 
     def set_spring(self, anchor_base: np.ndarray | None, *, stiffness: float, link: int,
                    point: np.ndarray, damping: float = 0.0) -> None:
@@ -248,8 +255,8 @@ class Plant:
             return
         k = scalar("stiffness", stiffness, nonnegative=True)
         c = scalar("damping", damping, nonnegative=True)
-        self._spring = _Spring(tuple(vector("anchor_base", anchor_base, 3)), k, c,
-                               self._link(link), tuple(vector("point", point, 3)))
+        self._spring = _Spring(_floats(vector("anchor_base", anchor_base, 3)), k, c,
+                               self._link(link), _floats(vector("point", point, 3)))
 
     def set_wall(self, origin_base: np.ndarray | None, normal_base: np.ndarray | None = None, *,
                  stiffness: float = 5000.0, damping: float = 30.0, link: int | None = None,
@@ -285,12 +292,10 @@ class Plant:
         if link is None and point is None and size is not None:
             touches += [Touch(b.link, b.centre, b.radius) for b in contact_balls(self.model)]
         across, up = face_axes(normal)
-        self._wall = Obstacle(
-            cast("tuple[float, float, float]", tuple(origin)),
-            cast("tuple[float, float, float]", tuple(normal)), k, c, touch_groups(touches),
-            checked_friction(friction), checked_size(size),
-            cast("tuple[float, float, float]", tuple(across)),
-            cast("tuple[float, float, float]", tuple(up)))
+        self._wall = Obstacle(  # (of Python floats: numpy's scalars would make every
+            # stage's arithmetic, the dynamics' too, several times slower)
+            _floats(origin), _floats(normal), k, c, touch_groups(touches),
+            checked_friction(friction), checked_size(size), _floats(across), _floats(up))
         # (a point p of link L moves |Σ_j ω_j × (p − o_j)| <= Σ|θ̇| · max |p − o_j|; a
         # prismatic joint moves it |θ̇| itself: at least 1 m per unit)
         self._wall_reach = max(1.0, float(
@@ -351,9 +356,10 @@ class Plant:
     def step(self) -> None:
         """Advance one ``dt``: servo firmware tick, then RK4 on the rigid body.
 
-        A step where no stop, spring or wall acts runs as the straight-line code of
-        :mod:`armlab.hardware.sim.plant_step`, which does the same float operations as
-        :meth:`_readable_step`, in the same order."""
+        A step where no joint-limit stop acts runs as the straight-line code of
+        :mod:`armlab.hardware.sim.plant_step` (with a spring or wall, their torques
+        re-evaluated at each stage by :meth:`_field_torques`), which does the same float
+        operations as :meth:`_readable_step`, in the same order."""
         q, qd = self._q, self._qd
         if self._pushes:
             self._update_pushes(q)
@@ -362,12 +368,15 @@ class Plant:
             x < lo + 0.05 or x > hi - 0.05
             for x, lo, hi in zip(q, self._lower, self._upper, strict=True))
         held = self._held_torques()
-        if stops or self._spring is not None or self._wall is not None:
+        fields = self._spring is not None or self._wall is not None
+        if stops:
             self._readable_step(q, qd, held, self._near_touches(), stops=stops)
         else:
-            self._q, self._qd = rk4_step(self.n, self._coulomb_joints, len(held))(
+            field = (partial(self._field_torques, near=self._near_touches(), q0=q)
+                     if fields else None)
+            self._q, self._qd = rk4_step(self.n, self._coulomb_joints, len(held), fields)(
                 q, qd, self.servos, self.directions, self._viscous, self._coulomb_pairs, held,
-                self._dyn.fd, self._gravity, self._armature, self.dt)
+                self._dyn.fd, self._gravity, self._armature, self.dt, field)
         self._k += 1
         if not finite(self._qd):
             raise FloatingPointError(f"plant diverged at t = {self.t:.3f} s (q = {self._q})")
@@ -500,8 +509,8 @@ class Plant:
                 cols.append(z)
         return p, cols
 
-    def _field_torques(self, q: list[float], qd: list[float], near: list[HeldTouch],
-                       q0: list[float]) -> list[float]:
+    def _field_torques(self, q: Sequence[float], qd: Sequence[float], near: list[HeldTouch],
+                       q0: Sequence[float]) -> list[float]:
         """J^T F of the spring and the wall at (q, qd): the spring's at q itself, the
         wall's on its touches ``near`` held at ``q0`` (:func:`held_push`)."""
         tau = [0.0] * self.n

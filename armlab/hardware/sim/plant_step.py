@@ -10,8 +10,10 @@ same order, so the two give bit-identical states (tests/test_plant.py compares t
 step by step, with and without friction, pushes and applied torques).
 
 The step here covers what is held over a step (servo duties, pushes, applied joint
-torques); a step where a joint-limit stop or a spring or wall acts, whose torques change
-within the step, takes the plant's readable path.
+torques) and, when asked (``fields``), the spring's and wall's torques, which change
+within the step: the plant's function of them is called at each RK4 stage, as the
+readable step calls it. A step where a joint-limit stop acts takes the plant's readable
+path.
 """
 
 from __future__ import annotations
@@ -20,22 +22,25 @@ import math
 from collections.abc import Callable
 from functools import cache
 
-#: ``step(q, qd, servos, directions, viscous, coulomb, held, fd, gravity, armature, dt)``
-#: -> (q, qd) after one dt, as lists.
+#: ``step(q, qd, servos, directions, viscous, coulomb, held, fd, gravity, armature, dt,
+#: field)`` -> (q, qd) after one dt, as lists.
 StepFunction = Callable[..., tuple[list[float], list[float]]]
 
 
 @cache
-def rk4_step(n: int, coulomb_joints: tuple[int, ...], held: int) -> StepFunction:
+def rk4_step(n: int, coulomb_joints: tuple[int, ...], held: int, fields: bool = False
+             ) -> StepFunction:
     """The compiled step of an ``n``-joint plant whose joints ``coulomb_joints`` have
     dry friction and that holds ``held`` torque vectors (a push's J^T F, the applied
-    joint torques) over the step, added in that order after the friction.
+    joint torques) over the step, added in that order after the friction; with
+    ``fields``, the torques ``field(q, qd)`` returns (n,) at each stage (a spring's, a
+    wall's) added last.
 
     The function it returns takes the state lists ``q``, ``qd``; the servo models (each
     ticked once, at direction · state); the joints' directions and viscous friction; one
     (coulomb, 1 / friction speed) pair per joint of ``coulomb_joints``; the ``held``
     vectors; the chain's generated forward dynamics ``fd`` with its gravity and armature;
-    and ``dt``. It returns the new (q, qd).
+    ``dt``; and ``field`` (None without ``fields``). It returns the new (q, qd).
     """
     js = range(n)
 
@@ -43,7 +48,8 @@ def rk4_step(n: int, coulomb_joints: tuple[int, ...], held: int) -> StepFunction
         return ", ".join(f"{prefix}{i}" for i in js) + ","
 
     lines = [
-        "def step(q, qd, servos, directions, viscous, coulomb, held, fd, g, arm, dt):",
+        "def step(q, qd, servos, directions, viscous, coulomb, held, fd, g, arm, dt, "
+        "field=None):",
         f"    {names('q')} = q",
         f"    {names('v')} = qd",
         f"    {names('s')} = servos",
@@ -66,25 +72,29 @@ def rk4_step(n: int, coulomb_joints: tuple[int, ...], held: int) -> StepFunction
             if i in coulomb_joints:
                 term += f" - cf{i} * _tanh({v}{i} * cr{i})"
             term += "".join(f" + e{m}_{i}" for m in range(held))
+            if fields:
+                term += f" + t{v}{i}"
             out.append(term)
         return "(" + ", ".join(out) + ",)"
 
     def vec(prefix: str) -> str:
         return "(" + names(prefix) + ")"
 
-    lines += [
-        "    h = 0.5 * dt",
-        f"    {names('a')} = fd({vec('q')}, {vec('v')}, {torques('v')}, g, arm)",
-    ]
+    def stage(out: str, x: str, v: str) -> list[str]:
+        """``out`` = q̈ at positions ``{x}{i}``, velocities ``{v}{i}``."""
+        field = [f"    {names(f't{v}')} = field({vec(x)}, {vec(v)})"] if fields else []
+        return [*field, f"    {names(out)} = fd({vec(x)}, {vec(v)}, {torques(v)}, g, arm)"]
+
+    lines += ["    h = 0.5 * dt", *stage("a", "q", "v")]
     lines += [f"    x{i} = q{i} + h * v{i}" for i in js]
     lines += [f"    w{i} = v{i} + h * a{i}" for i in js]
-    lines.append(f"    {names('b')} = fd({vec('x')}, {vec('w')}, {torques('w')}, g, arm)")
+    lines += stage("b", "x", "w")
     lines += [f"    y{i} = q{i} + h * w{i}" for i in js]
     lines += [f"    u{i} = v{i} + h * b{i}" for i in js]
-    lines.append(f"    {names('c')} = fd({vec('y')}, {vec('u')}, {torques('u')}, g, arm)")
+    lines += stage("c", "y", "u")
     lines += [f"    z{i} = q{i} + dt * u{i}" for i in js]
     lines += [f"    p{i} = v{i} + dt * c{i}" for i in js]
-    lines.append(f"    {names('d')} = fd({vec('z')}, {vec('p')}, {torques('p')}, g, arm)")
+    lines += stage("d", "z", "p")
     lines.append("    s = dt / 6.0")
     new_q = ", ".join(f"q{i} + s * (v{i} + 2.0 * (w{i} + u{i}) + p{i})" for i in js)
     new_qd = ", ".join(f"v{i} + s * (a{i} + 2.0 * (b{i} + c{i}) + d{i})" for i in js)
