@@ -19,13 +19,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
 from armlab.control.backend import JointState
 from armlab.control.laws import LAWS, ArrayT, ComplianceLaw, with_student
-from armlab.control.params import Params
+from armlab.control.params import ParamColumns, Params
 from armlab.kinematics.smallarrays import clamp
 
 Mode = Literal["none", "pd", "compliance"]
@@ -73,7 +73,8 @@ def environment_step(m_env: float, d_env: float, k_env: float, k_f: float, tau_e
 
 def integrate_reference(q_ref: ArrayT, qd_ref: ArrayT, qdd_ref: ArrayT,
                         dt: float) -> tuple[ArrayT, ArrayT]:
-    """θ̈_ref integrated twice over one period (semi-implicit Euler, as the thesis's loop).
+    """θ̈_ref integrated twice over one period (semi-implicit Euler, as the thesis's loop);
+    ``dt`` s (a (K, 1) column of periods for K arms' (K, n) rows).
 
     Returns:
         (θ_ref, θ̇_ref) after the step.
@@ -83,7 +84,8 @@ def integrate_reference(q_ref: ArrayT, qd_ref: ArrayT, qdd_ref: ArrayT,
 
 
 def lpf(y: ArrayT, x: ArrayT, alpha: float) -> ArrayT:
-    """The thesis's digital low-pass filter (ch. 4, on eq. 2.21–2.23): y + α (x − y).
+    """The thesis's digital low-pass filter (ch. 4, on eq. 2.21–2.23): y + α (x − y)
+    (α a (K, 1) column for K arms' (K, n) rows).
 
     α = dt / (RC + dt); the thesis uses α = 0.05.
     """
@@ -129,7 +131,7 @@ class Laws:
             return cls(environment=fn)
         raise ValueError(f"no equation {name!r}: pd, compliance or environment")
 
-    def law(self, params: Params) -> ComplianceLaw:
+    def law(self, params: Params | ParamColumns) -> ComplianceLaw:
         """The compliance law ``params`` picks (its ``law``), as this controller runs it."""
         return self.compliance[params.law]
 
@@ -187,13 +189,13 @@ class ComplianceController:
         self.mode: Mode = mode
         self.laws = Laws() if laws is None else laws
 
-    def effective_mode(self, params: Params) -> Mode:
+    def effective_mode(self, params: Params | ParamColumns) -> Mode:
         """The mode actually run: "compliance" with ``params.compliance`` off is "pd"."""
         if self.mode == "compliance" and not params.compliance:
             return "pd"
         return self.mode
 
-    def step(self, params: Params, state: ControllerState, q_cmd: np.ndarray,
+    def step(self, params: Params | ParamColumns, state: ControllerState, q_cmd: np.ndarray,
              qd_cmd: np.ndarray, qdd_cmd: np.ndarray, measured: JointState,
              tau_dyn: np.ndarray, tau_world: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -208,9 +210,15 @@ class ComplianceController:
 
         Returns:
             (θ_ref, θ̇_ref), each (n,): the goal position and signed speed to send.
+
+        K arms under this controller's limits step as one with ``params`` a
+        :class:`~armlab.control.params.ParamColumns`, ``state`` and every array (K, n)
+        (:mod:`armlab.control.law_batch`): each row gets the numbers its own step would.
         """
-        p, T = params, params.period
-        state.tau_lpf = lpf(state.tau_lpf, measured.load, p.alpha)
+        # ParamColumns' α and T are (K, 1) columns: they broadcast over the (K, n) rows as
+        # one arm's floats do over its (n,) arrays (lpf and integrate_reference take either)
+        p, T = params, cast(float, params.period)
+        state.tau_lpf = lpf(state.tau_lpf, measured.load, cast(float, p.alpha))
         state.tau_ext = external_torque(state.tau_lpf, tau_dyn)
         mode = self.effective_mode(p)
         if mode == "none":
@@ -236,7 +244,7 @@ class ComplianceController:
         q_ref, qd_ref = integrate_reference(state.q_ref, state.qd_ref, state.qdd_ref, T)
         qd_ref = clamp(qd_ref, -self.max_speed, self.max_speed)
         inside = clamp(q_ref, self.lower, self.upper)
-        if any((inside != q_ref).tolist()):  # at a limit: no speed further out
+        if any((inside != q_ref).ravel().tolist()):  # at a limit: no speed further out
             low, high = q_ref < self.lower, q_ref > self.upper
             qd_ref = np.where((low & (qd_ref < 0)) | (high & (qd_ref > 0)), 0.0, qd_ref)
         state.q_ref = inside

@@ -5,7 +5,10 @@ thread paced by the wall clock (``start()`` / ``shutdown()``), on a
 :class:`~armlab.control.periodic.SharedClock` with other loops and the world it steps
 (``clock=``; a class's private arms), or stepped as fast as possible by the caller
 (``step()``, ``run_for(seconds)``) for headless runs and tests. Backend time is
-the loop's own clock k·T, so a simulated arm gives the same numbers paced or not.
+the loop's own clock k·T, so a simulated arm gives the same numbers paced or not. On a
+shared clock, a period running the lab's own law waits at it for the clock's
+:class:`~armlab.control.law_batch.LawBatch`, which computes the law of every period due
+at the tick as one, with the same numbers.
 
 One writer per piece of state: only the loop touches the backend and the
 controller. Other threads
@@ -35,6 +38,7 @@ import queue
 import sys
 import threading
 import time
+from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +71,7 @@ from armlab.control.commands import (
     UseSpareJoints,
 )
 from armlab.control.compliance import MODES, ComplianceController, ControllerState, Laws, Mode
+from armlab.control.law_batch import LawAnswer, LawAsk, LawBatch
 from armlab.control.params import DEFAULT, GainCheck, Params, check_gains
 from armlab.control.periodic import SPIN_S, DrivenPacer, Pacer, SharedClock
 from armlab.control.recorder import Recorder
@@ -263,11 +268,15 @@ class ControlLoop:
         self._touch: Touchable | None = backend if isinstance(backend, Touchable) else None
         #: the wall the compliance law renders (SetVirtualWall), where the world has none
         self._virtual_wall: WallSetting | None = None
+        #: on a shared clock: its batch, which computes the lab's own law of the periods
+        #: due at one tick as one (a student's law runs in its own period)
+        self._batch = None if clock is None else LawBatch.of(clock)
+        self._laws_own = laws is None or laws == Laws()
         self._pacer: Pacer | DrivenPacer = (
             Pacer(self._tick, period=params.period, name="armlab-control", realtime=realtime,
                   spin_s=SPIN_S)  # a period's start within microseconds
             if clock is None else
-            clock.pacer(self._tick, period=params.period, name="armlab-control"))
+            clock.pacer(self._clock_tick, period=params.period, name="armlab-control"))
 
     # ------------------------------------------------------------------ public API
 
@@ -381,8 +390,36 @@ class ControlLoop:
     # ------------------------------------------------------------------ one period
 
     def _tick(self) -> None:
+        """One period, its law computed here."""
         try:
-            self._period()
+            self._drive(self._period(batched=False), None)
+        finally:
+            with self._lock:
+                self._k += 1
+                self._t += self._params.period
+
+    def _clock_tick(self) -> None:
+        """One period on a shared clock: one that runs the lab's own law waits for it in
+        the clock's :class:`LawBatch`, which computes it with the other periods due at this
+        tick and then lets the period finish (its checks, write and record)."""
+        assert self._batch is not None
+        self._batch.settle(self)  # a period of this loop still waiting: it finishes first
+        try:
+            self._drive(self._period(batched=self._laws_own), None)
+        finally:
+            with self._lock:
+                self._k += 1
+                self._t += self._params.period
+
+    def _drive(self, period: Generator[LawAsk, LawAnswer | None, None],
+               answer: LawAnswer | None) -> None:
+        """Run ``period`` on (sent ``answer``: the batch's law, or None to compute its own)
+        until it ends or waits for its law (then it joins the batch); a fault it raises
+        stops the controller (torque off, the reason in ``status.fault``)."""
+        try:
+            ask = period.send(answer)
+        except StopIteration:
+            return
         except _Fault as exc:
             self._fail(str(exc))
         except BackendError as exc:
@@ -392,12 +429,13 @@ class ControlLoop:
             self._fail(f"numerical failure ({exc}); torque off")
         except Exception as exc:  # keep the arm safe whatever went wrong in this period
             self._fail(f"internal error ({type(exc).__name__}: {exc}); torque off")
-        finally:
-            with self._lock:
-                self._k += 1
-                self._t += self._params.period
+        else:
+            assert self._batch is not None  # a period waits only when batched
+            self._batch.add(self, period, ask)
 
-    def _period(self) -> None:
+    def _period(self, *, batched: bool) -> Generator[LawAsk, LawAnswer | None, None]:
+        """One period's steps; ``batched``: it waits (``yield``) at its law for the clock's
+        batch to send it (None from the batch: it computes its own)."""
         self._swap_params()
         cmds: list[Command] = []
         while not self._commands.empty():  # this thread is the only one taking
@@ -457,8 +495,15 @@ class ControlLoop:
         # code armlab.kinematics.dynamics.rnea runs, without its checks (q, qd, θ̈_ref are finite)
         tau_dyn = np.array(self._rnea(q.tolist(), qd.tolist(), st.qdd_ref.tolist(),
                                       self._gravity))
-        q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn,
-                                             tau_world)
+        answer: LawAnswer | None = None
+        if batched and tau_world is None:
+            answer = yield LawAsk(self.controller, p, st, q_cmd, qd_cmd, qdd_cmd, meas,
+                                  tau_dyn)
+        if answer is None:
+            q_ref, qd_ref = self.controller.step(p, st, q_cmd, qd_cmd, qdd_cmd, meas, tau_dyn,
+                                                 tau_world)
+        else:
+            q_ref, qd_ref = answer
         if not all_finite(q_ref, qd_ref, st.qdd_ref):
             raise _Fault("the controller produced a non-finite goal (unstable gains?); "
                          "torque off")

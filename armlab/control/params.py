@@ -131,6 +131,42 @@ class Params:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
+#: the numeric fields of :class:`Params`, in their order
+GAINS: tuple[str, ...] = tuple(PARAM_SPECS)
+
+
+@dataclass(frozen=True)
+class ParamColumns:
+    """The parameters of K arms stepped as one (:class:`~armlab.control.law_batch.LawBatch`):
+    each numeric field of :class:`Params` a (K, 1) column of their values, so that an
+    equation written for one arm's (n,) arrays broadcasts over their (K, n) rows; the
+    choices (``compliance``, ``law``, ``feedforward``) are the K arms' one choice."""
+
+    kp: np.ndarray
+    kv: np.ndarray
+    m_env: np.ndarray
+    d_env: np.ndarray
+    k_env: np.ndarray
+    k_f: np.ndarray
+    alpha: np.ndarray
+    period: np.ndarray
+    compliance: bool
+    law: Law
+    feedforward: bool
+
+    @classmethod
+    def of(cls, params: list[Params]) -> ParamColumns:
+        """The columns of ``params`` (K of them, making the same three choices)."""
+        first = params[0]
+        if any((p.compliance, p.law, p.feedforward)
+               != (first.compliance, first.law, first.feedforward) for p in params):
+            raise ValueError("ParamColumns: the arms must make the same choices of "
+                             "compliance, law and feedforward")
+        table = np.array([[getattr(p, g) for g in GAINS] for p in params])  # (K, gains)
+        return cls(**{g: table[:, [i]] for i, g in enumerate(GAINS)},
+                   compliance=first.compliance, law=first.law, feedforward=first.feedforward)
+
+
 #: The well-damped default, designed with eq. 2.11–2.19 and the servos' own lag:
 #:   PD loop  Kp 20, Kv 5 -> ωp = 4.5 rad/s, ζp = 0.56: %OS 12 %, Tp 0.85 s, Ts 1.6 s;
 #:            ωp·T = 0.07 at 16 ms. Kv is what excites the servos' own position loop

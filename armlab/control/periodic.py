@@ -414,10 +414,12 @@ class SharedClock:
     """One thread stepping a world by ``dt`` and the loops attached to it in lockstep.
 
     Per tick, holding ``lock``: every attached :class:`DrivenPacer` whose period is due
-    runs it (in the order they were started), then ``step()`` advances the world one
-    ``dt`` and the clock's time by ``dt``. An exception of ``step`` is counted
-    (:attr:`errors`, :attr:`last_error`), passed to ``on_error`` and the clock goes on
-    (a period's exception is counted on its pacer; a ControlLoop catches its own).
+    runs it (in the order they were started), then the tick's finishers run (added with
+    :meth:`finish_periods`: e.g. the lab's law of every period due, computed as one), then
+    ``step()`` advances the world one ``dt`` and the clock's time by ``dt``. An exception
+    of ``step`` is counted (:attr:`errors`, :attr:`last_error`), passed to ``on_error``
+    and the clock goes on (a period's exception is counted on its pacer; a ControlLoop
+    catches its own).
 
     Args:
         step: one world step of ``dt`` (e.g. ``BatchedPlant.step``).
@@ -457,6 +459,7 @@ class SharedClock:
         self.hand_over_s = float(hand_over_s)
         self._k = 0
         self._pacers: list[DrivenPacer] = []
+        self._finishers: list[Callable[[], None]] = []
         self._ticking = False
         self._pacer = Pacer(self._tick, period=self.dt, name=name, realtime=realtime,
                             batch_s=max(self.dt, batch_s), max_catch_up=max_catch_up)
@@ -507,6 +510,13 @@ class SharedClock:
         """The clock's wake-up lateness and skips (its ticks; real time only)."""
         return self._pacer.stats()
 
+    def finish_periods(self, finish: Callable[[], None]) -> None:
+        """Run ``finish`` at every tick once its periods have run, before the world steps
+        (:class:`~armlab.control.law_batch.LawBatch`: the periods waiting for their law). An
+        exception of ``finish`` is counted (:attr:`errors`), and the world steps."""
+        if finish not in self._finishers:
+            self._finishers.append(finish)
+
     def _attach(self, pacer: DrivenPacer) -> None:
         if pacer not in self._pacers:
             self._pacers.append(pacer)
@@ -529,6 +539,12 @@ class SharedClock:
             finally:
                 self._ticking = False
                 self._pacers = [p for p in self._pacers if p._attached]
+            for finish in self._finishers:
+                try:
+                    finish()
+                except Exception as exc:  # the world steps whatever a finisher did
+                    self.errors += 1
+                    self.last_error = exc
             try:
                 self.step()
             except Exception as exc:  # e.g. one arm diverged: the others go on
