@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from dataclasses import fields
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from armlab.control.compliance import ComplianceController, ControllerState, Law
 from armlab.control.law_batch import LawAsk, LawBatch, step_many
 from armlab.control.laws import compliance_accel
 from armlab.control.loop import ControlLoop
-from armlab.control.params import ParamColumns, Params
+from armlab.control.params import GAINS, ParamColumns, Params
 from armlab.control.periodic import SharedClock
 from armlab.control.trajectory import minimum_jerk, thesis_line
 from armlab.hardware.families.dynamixel1.batched_backend import BatchedArmBackend, add_sim_arm
@@ -156,12 +157,10 @@ def test_step_many_gives_each_row_its_own_step_and_leaves_the_states_when_it_fai
     assert all(np.array_equal(a.state.q_ref, b) for a, b in zip(bad, before, strict=True))
 
 
-def test_param_columns_hold_one_choice_and_a_column_per_gain() -> None:
-    cols = ParamColumns.of([Params(kp=1.0), Params(kp=2.0, period=0.01)])
-    assert cols.kp.shape == (2, 1) and cols.kp[:, 0].tolist() == [1.0, 2.0]
-    assert cols.period[:, 0].tolist() == [0.016, 0.01] and cols.law == "2.6"
-    with pytest.raises(ValueError, match="same choices"):
-        ParamColumns.of([Params(), Params(law="2.26")])
+def test_param_columns_are_the_gains_columns_in_their_order() -> None:
+    """step_many builds ParamColumns from the gains in :data:`GAINS`' order."""
+    assert tuple(f.name for f in fields(ParamColumns))[:len(GAINS)] == GAINS
+    assert set(GAINS) < {f.name for f in fields(Params)}
 
 
 def test_one_batch_per_clock_at_the_end_of_its_ticks() -> None:

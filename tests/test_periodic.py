@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 
@@ -22,7 +23,7 @@ def test_ring_keeps_the_newest_rows_and_finds_a_window_by_time():
     np.testing.assert_allclose(ring.rows()[:, 1], [3, 4, 5, 6, 7])
     np.testing.assert_allclose(ring.rows(0.25)[:, 1], [5, 6, 7])  # t >= 0.875 - 0.25
     np.testing.assert_allclose(ring.rows(max_points=2)[:, 1], [4, 7])  # every 3rd, newest kept
-    ring.write(lambda row: row.__setitem__(0, 1.0))  # filled in place, the rest NaN
+    ring.append([1.0, math.nan])  # a row of Python floats (a recorder's)
     last = ring.rows()[-1]
     assert last[0] == 1.0 and np.isnan(last[1])
     ring.resize(3)

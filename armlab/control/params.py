@@ -140,7 +140,8 @@ class ParamColumns:
     """The parameters of K arms stepped as one (:class:`~armlab.control.law_batch.LawBatch`):
     each numeric field of :class:`Params` a (K, 1) column of their values, so that an
     equation written for one arm's (n,) arrays broadcasts over their (K, n) rows; the
-    choices (``compliance``, ``law``, ``feedforward``) are the K arms' one choice."""
+    choices (``compliance``, ``law``, ``feedforward``) are the K arms' one choice. The
+    numeric fields come first, in :data:`GAINS`' order."""
 
     kp: np.ndarray
     kv: np.ndarray
@@ -153,18 +154,6 @@ class ParamColumns:
     compliance: bool
     law: Law
     feedforward: bool
-
-    @classmethod
-    def of(cls, params: list[Params]) -> ParamColumns:
-        """The columns of ``params`` (K of them, making the same three choices)."""
-        first = params[0]
-        if any((p.compliance, p.law, p.feedforward)
-               != (first.compliance, first.law, first.feedforward) for p in params):
-            raise ValueError("ParamColumns: the arms must make the same choices of "
-                             "compliance, law and feedforward")
-        table = np.array([[getattr(p, g) for g in GAINS] for p in params])  # (K, gains)
-        return cls(**{g: table[:, [i]] for i, g in enumerate(GAINS)},
-                   compliance=first.compliance, law=first.law, feedforward=first.feedforward)
 
 
 #: The well-damped default, designed with eq. 2.11–2.19 and the servos' own lag:

@@ -77,6 +77,7 @@ class Recorder:
             self._cols[name] = slice(c, c + 1)
             c += 1
         self._ring = RingBuffer(c, capacity)
+        self._no_joints = [math.nan] * n  #: a joint signal not given this period
 
     @property
     def capacity(self) -> int:
@@ -89,15 +90,21 @@ class Recorder:
                wall: float = math.nan) -> None:
         """Add one row: loop time ``t`` s, the wall clock ``wall`` s (epoch) and each signal
         (n,), or a float for a contact signal (missing ones are NaN)."""
-        cols = self._cols
-
-        def fill(row: np.ndarray) -> None:
-            row[0] = t
-            row[1] = wall
-            for name, value in signals.items():
-                row[cols[name]] = value
-
-        self._ring.write(fill)
+        if not signals.keys() <= self._cols.keys():
+            raise KeyError(f"not a recorded signal: {sorted(signals.keys() - self._cols.keys())}")
+        n = self.n
+        row = [t, wall]  # the row as Python floats, written at once (every period of every arm)
+        for name in SIGNALS:
+            value = signals.get(name)
+            if value is None:
+                row.extend(self._no_joints)
+            elif type(value) is np.ndarray and value.shape == (n,):  # the loop's own
+                row.extend(value.tolist())
+            else:
+                row.extend(np.broadcast_to(np.asarray(value, dtype=float), (n,)).tolist())
+        for name in CONTACT_SIGNALS:
+            row.append(float(signals.get(name, math.nan)))  # a contact signal: one float
+        self._ring.append(row)
 
     def clear(self) -> None:
         self._ring.clear()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -45,18 +45,7 @@ class RingBuffer:
     def __len__(self) -> int:
         return self._count
 
-    def write(self, fill: Callable[[np.ndarray], object]) -> None:
-        """Add a row by ``fill(row)``: the oldest row, cleared to NaN, filled in place under
-        the lock (the writer's fast path: no allocation per period, no torn reads)."""
-        with self._lock:
-            row = self._data[self._head]
-            row.fill(np.nan)
-            fill(row)
-            self._head = (self._head + 1) % self.capacity
-            self._count = min(self._count + 1, self.capacity)
-            self._written += 1
-
-    def append(self, row: np.ndarray) -> None:
+    def append(self, row: np.ndarray | Sequence[float]) -> None:
         """Write ``row`` (width,) over the oldest one."""
         with self._lock:
             self._data[self._head] = row

@@ -10,7 +10,9 @@ a pending update of a property by the newer one, so a slow browser skips stale
 frames rather than queueing them; a publisher of one page
 (``armlab.app.classroom.private_page.Page``)
 makes no frame while that page has not been sent the last one: it looks again every
-:data:`BEHIND_RETRY_S` and gives the frame up only when the next one falls due. Nothing is
+:data:`BEHIND_RETRY_S` and gives the frame up only when the next one falls due; a page
+behind for :data:`BEHIND_MAX_S` gets its frame anyway (on a busy server a page kept behind
+by its share of the traffic must not freeze, and the frame wakes its sender). Nothing is
 computed or sent while no browser is connected; the first browser to connect
 gets a full frame at once.
 
@@ -41,6 +43,10 @@ CLOSE_SETTLE_S = 0.5
 #: Seconds after which a publisher of one page looks again when a frame fell due while
 #: the page had not yet been sent the last one.
 BEHIND_RETRY_S = 0.004
+#: Seconds a publisher of one page gives its frames up while the page is behind; then it
+#: makes one anyway (at most one a BEHIND_MAX_S: viser replaces a pending update by a newer
+#: one, so a page that is slow to read is never sent a growing backlog).
+BEHIND_MAX_S = 1.0
 
 
 @dataclass
@@ -52,6 +58,7 @@ class PublisherStats:
     skipped_idle: int = 0
     skipped_behind: int = 0  #: frames not made: the page had not been sent the last one
     waited_behind: int = 0  #: looks again a little later, for the same reason
+    forced_behind: int = 0  #: frames made with the page behind for BEHIND_MAX_S
     errors: int = 0
     last_pose_s: float = 0.0  #: wall time spent in the last pose frame
     last_plot_s: float = 0.0  #: wall time spent in the last plot frame
@@ -97,6 +104,7 @@ class Publisher:
         # the schedule (perf_counter s) and whether a page was open at the last tick
         self._next_pose = self._next_plot = 0.0
         self._had_clients = False
+        self._behind_since: float | None = None  #: when the page was first found behind
 
     def add_frame_hook(self, hook: Callable[[], None]) -> None:
         """Call ``hook()`` inside each pose frame's atomic block (after ``pose``)."""
@@ -142,8 +150,14 @@ class Publisher:
         has_clients = bool(self.server.get_clients())
         force = has_clients and not self._had_clients
         pose_due, plot_due = now >= self._next_pose, now >= self._next_plot
-        if (has_clients and (pose_due or plot_due) and not force
-                and self._behind is not None and self._behind()):
+        behind = (has_clients and (pose_due or plot_due) and not force
+                  and self._behind is not None and self._behind())
+        if not behind:
+            self._behind_since = None
+        elif self._behind_since is None:
+            self._behind_since = now
+        since = self._behind_since  # None exactly when the page is not behind
+        if since is not None and now - since < BEHIND_MAX_S:
             # the last frame is still on its way: look again shortly, and give this frame
             # up only when the next one falls due (a frame late rather than none)
             if now - min(self._next_pose, self._next_plot) < 1.0 / self.pose_hz:
@@ -151,6 +165,9 @@ class Publisher:
                 return now + BEHIND_RETRY_S
             self.stats.skipped_behind += 1
         elif has_clients and (pose_due or plot_due or force):
+            if behind:  # behind for BEHIND_MAX_S: this frame is made all the same
+                self.stats.forced_behind += 1
+                self._behind_since = None
             self._frame(pose=pose_due or force, plots=plot_due or force, force=force)
         elif not has_clients:
             self.stats.skipped_idle += 1
