@@ -72,6 +72,7 @@ def _class(*, own_laws: bool, dt: float = 1e-3) -> tuple[SharedClock, list[Contr
     walls = BatchedWalls(plant)
     lock = threading.RLock()
     clock = SharedClock(walls.step, dt=dt, realtime=False, lock=lock)
+    LawBatch.of(clock).smallest = 2  # this class's groups are of two and three
     loops: dict[int, ControlLoop] = {}
     done: set[tuple[int, int]] = set()
     for tick in range(round(1.2 / dt)):
@@ -104,8 +105,9 @@ def test_the_batched_law_records_every_arm_as_its_own_loop_does(dt: float) -> No
     At a clock (and plant) step of 2 ms the arm of 1 ms has two periods in every tick: the
     first computes its own law before the second starts."""
     clock, batched = _class(own_laws=True, dt=dt)
-    _, alone = _class(own_laws=False, dt=dt)
+    other, alone = _class(own_laws=False, dt=dt)
     assert clock.errors == 0
+    assert LawBatch.of(clock).batched > 20 and LawBatch.of(other).batched == 0
     for i, (a, b) in enumerate(zip(batched, alone, strict=True)):
         ra, rb = a.recorder._ring.rows(), b.recorder._ring.rows()
         assert ra.shape == rb.shape and len(ra) > 10, i

@@ -14,8 +14,8 @@ checks, its write, its record.
 
 The arithmetic is the per-arm step's, element by element, so every arm's numbers are its
 own loop's to the last bit (``tests/test_law_batch.py``). A student's own law runs in its
-own period, never here; a group of one, or a group whose batched step fails, computes
-each period's law on its own.
+own period, never here; a group smaller than :data:`SMALLEST`, or a group whose batched
+step fails, computes each period's law on its own.
 """
 
 from __future__ import annotations
@@ -41,6 +41,9 @@ LawAnswer = tuple[np.ndarray, np.ndarray]
 Waiting = Generator["LawAsk", "LawAnswer | None", None]
 
 _STATE = tuple(f.name for f in fields(ControllerState))
+#: the smallest group stepped as one: gathering a group into one table and back costs
+#: about what four periods' own steps cost (measured on the thesis arm)
+SMALLEST = 5
 
 
 @dataclass(frozen=True)
@@ -108,7 +111,11 @@ class LawBatch:
 
     _of: weakref.WeakKeyDictionary[SharedClock, LawBatch] = weakref.WeakKeyDictionary()
 
-    def __init__(self) -> None:
+    def __init__(self, *, smallest: int = SMALLEST) -> None:
+        #: groups of fewer periods compute each period's own law
+        self.smallest = smallest
+        #: periods whose law a batched step computed (since the batch was made)
+        self.batched = 0
         self._waiting: dict[ControlLoop, tuple[Waiting, LawAsk]] = {}
 
     @classmethod
@@ -144,9 +151,10 @@ class LawBatch:
             groups.setdefault(key, []).append((loop, period, ask))
         for group in groups.values():
             answers: list[LawAnswer | None] = [None] * len(group)
-            if len(group) > 1:
+            if len(group) >= max(2, self.smallest):
                 try:
                     answers = list(step_many([ask for _, _, ask in group]))
+                    self.batched += len(group)
                 except Exception:  # noqa: BLE001 - each period then computes its own
                     pass
             for (loop, period, _), answer in zip(group, answers, strict=True):
