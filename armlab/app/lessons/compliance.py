@@ -76,6 +76,7 @@ from armlab.control.loop import ControlLoop, LoopStatus
 from armlab.control.params import DEFAULT, Params
 from armlab.control.response import (
     Measured,
+    last_finite,
     line_errors,
     line_part,
     line_yield,
@@ -518,7 +519,7 @@ class ComplianceLesson(LessonBase):
             raise ValueError(f"step: no joint {joint} (the arm has {len(self.joint_labels)})")
         label = str(self.step_joint.value) if joint is None else self.joint_labels[joint]
         size = self._step_size.value if step_deg is None else step_deg
-        plan = plan_step(loop.recorder.snapshot(0.2), joint=self.joint_labels.index(label),
+        plan = plan_step(_recorded_commands(loop), joint=self.joint_labels.index(label),
                          step=math.radians(size), lower=loop.lower,
                          upper=loop.upper, params=loop.params, label=label)
         t0 = self._now()
@@ -968,3 +969,21 @@ def _largest(x: np.ndarray | None) -> float | None:
     if x is None or not np.any(np.isfinite(x)):
         return None
     return float(np.nanmax(np.abs(x)))
+
+
+#: wall seconds a Step waits for the first command of a loop that has just started
+FIRST_COMMAND_S = 0.5
+
+
+def _recorded_commands(loop: ControlLoop) -> dict[str, np.ndarray]:
+    """The loop's last 0.2 s of record (for :func:`plan_step`). A loop that has just become
+    active records its first command at the end of that period: a Step pressed in between
+    waits for it (up to :data:`FIRST_COMMAND_S`) rather than being told the controller is
+    not running."""
+    snap = loop.recorder.snapshot(0.2)
+    deadline = time.monotonic() + FIRST_COMMAND_S
+    while (last_finite(snap["q_cmd"]) is None and loop.status.active
+           and time.monotonic() < deadline):
+        time.sleep(0.005)
+        snap = loop.recorder.snapshot(0.2)
+    return snap
