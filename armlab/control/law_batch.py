@@ -8,8 +8,8 @@ Then, instead of each running the controller's few dozen numpy calls on its own
 3-vectors, the periods due at the tick wait here for their law. Once the tick's periods
 have run (:meth:`SharedClock.finish_periods`), the batch runs
 :meth:`~armlab.control.compliance.ComplianceController.step` once on (K, n) arrays for
-each group of periods that make the same choices (mode, law, feedforward) under the same
-joint limits, sends each period its row, and each finishes on its own: its run-time
+each group of periods that make the same choices (mode, compliance, law, feedforward)
+under the same joint limits, sends each period its row, and each finishes on its own: its run-time
 checks, its write, its record.
 
 The arithmetic is the per-arm step's, element by element, so every arm's numbers are its
@@ -75,8 +75,8 @@ def step_many(asks: list[LawAsk]) -> list[LawAnswer]:
     returned. Raises what the step raises, every state then as it was.
 
     Every number of the K asks is gathered into one (K, gains + 15 n) table, once; the
-    step's arrays are its columns (views): a group of a few arms costs little more than
-    one arm's own step."""
+    step's arrays are its columns (views). Gathering and scattering cost about four
+    periods' own steps, so it pays from :data:`SMALLEST` periods on."""
     first = asks[0]
     n = len(first.q_cmd)
     rows = []
