@@ -37,7 +37,8 @@ Action = Callable[[ControlLoop], object]
 
 #: per arm: its start, its parameters, when it joins (clock tick) and its events (loop
 #: period -> actions just before it). Mixed on purpose: both laws, PD, no feedforward,
-#: periods that fall on different ticks, a wall, an e-stop and Reset, gains that fault.
+#: periods that fall on different ticks (of other lengths, or changed), a wall, an e-stop
+#: and Reset, gains that fault.
 ARMS: list[tuple[np.ndarray, Params, int, dict[int, list[Action]]]] = [
     (LINE.q[0], Params(), 0, {3: [lambda lp: lp.post(RunTrajectory(LINE))]}),
     (np.array([0.2, 0.5, 0.8]), Params(kp=15.0, kv=4.0, k_env=30.0, period=0.010), 0,

@@ -275,7 +275,8 @@ def test_the_clock_thread_runs_attached_loops_and_stops() -> None:
 
 def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
     """Any period (not a multiple of dt), a period change from inside a period, a pacer
-    started later (its time starts at 0), pacers of one tick in the order started."""
+    started later (its time starts at 0, at the next whole number of its periods of class
+    time), pacers of one tick in the order started."""
     clock = SharedClock(lambda: None, dt=DT, realtime=False)
     fired: list[tuple[str, int, float]] = []
 
@@ -298,8 +299,8 @@ def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
     b.start()
     clock.run_for(0.05)
     c = make("c", 0.007)
-    c.start()
-    start_c = clock.steps
+    c.start()  # at 50 ms: its first period waits for 56 ms, 8 periods of 7 ms
+    start_c = 56
     clock.run_for(0.1)
     for name, offset in (("a", 0), ("b", 0), ("c", start_c)):
         k = 0
@@ -319,6 +320,39 @@ def test_periods_are_due_where_advance_to_would_put_their_own_plant() -> None:
     assert clock.loops == 1 and not c.running and isinstance(c.last_error, ValueError)
     with pytest.raises(ValueError, match="period"):
         clock.pacer(lambda: None, period=0.0, name="zero")
+
+
+def test_pacers_of_one_period_started_at_different_moments_share_their_ticks() -> None:
+    """Students join a class at moments of their own: each loop's first period waits for
+    the next whole number of its periods of class time (at most one period), so loops of
+    one period run at the same ticks, wherever they started (their law then computed as
+    one), and a restarted one keeps to them."""
+    clock = SharedClock(lambda: None, dt=DT, realtime=False)
+    ticks: dict[str, list[int]] = {}
+
+    def make(name: str, period: float):  # noqa: ANN202
+        ticks[name] = []
+        return clock.pacer(lambda: ticks[name].append(clock.steps), period=period, name=name)
+
+    pacers = {}
+    for name, period in (("a", 0.016), ("b", 0.016), ("c", 0.016), ("d", 0.008),
+                         ("e", 0.0025)):
+        pacers[name] = make(name, period)
+        pacers[name].start()
+        clock.run_for(5 * DT)  # the next joins 5 ms later
+    clock.run_for(0.2)
+    assert ticks["a"][0] == 0 and ticks["b"][0] == 16 and ticks["c"][0] == 16
+    assert ticks["d"][0] == 16 and ticks["e"][0] == 20  # (2.5 ms: every 2 steps)
+    every = [set(t) for t in (ticks["a"], ticks["b"], ticks["c"])]
+    assert every[1] <= every[0] and every[2] == every[1] and len(every[2]) > 10
+    assert set(ticks["a"][1:]) <= set(ticks["d"])  # 16 ms ticks are 8 ms ticks too
+    assert all(k % 16 == 0 for k in ticks["a"] + ticks["b"] + ticks["c"])
+    pacers["b"].stop(timeout=1.0)
+    clock.run_for(3 * DT)
+    pacers["b"].start()  # again, between two of its ticks: it waits for the next
+    before = len(ticks["b"])
+    clock.run_for(0.05)
+    assert all(k % 16 == 0 for k in ticks["b"][before:]) and len(ticks["b"]) > before
 
 
 @pytest.mark.slow

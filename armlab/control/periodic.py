@@ -240,8 +240,12 @@ class DrivenPacer:
     read after each period, so a change made in ``step`` counts from the next due time).
     Period m is run at the first clock step k with (k − k0 + 0.5)·dt > its local time,
     before the world steps: the world is then where ``Plant.advance_to`` of that time
-    would have put a plant of its own. Started again after a stop, it goes on from its
-    next local time (due at once).
+    would have put a plant of its own. k0 is the first clock step from the start that is
+    a whole number of periods of class time (:func:`aligned_step`): pacers of one period
+    started at different moments share their ticks, so the class's law of a tick is
+    computed for all of them as one (:mod:`armlab.control.law_batch`), and it waits at
+    most one period to begin. Started again after a stop, it goes on from its next local
+    time, due at the next such step.
 
     Attributes:
         errors: exceptions ``step`` raised (the clock went on); last_error: the latest.
@@ -278,12 +282,14 @@ class DrivenPacer:
         return self._attached and self._clock.alive
 
     def start(self) -> None:
-        """Attach to the clock: the next period is due at the clock's current step."""
+        """Attach to the clock: the next period is due at the first clock step from now
+        that is a whole number of periods of class time (:func:`aligned_step`)."""
         with self._clock.lock:
             if self._attached:
                 return
-            self._k0 = self._clock.steps - _steps_before(self._t_next, self._clock.dt)
-            self._k_due = self._clock.steps
+            due = aligned_step(self._clock.steps, self.period, self._clock.dt)
+            self._k0 = due - _steps_before(self._t_next, self._clock.dt)
+            self._k_due = due
             self._last_wall = None
             self._attached = True
             self._clock._attach(self)
@@ -342,6 +348,14 @@ class DrivenPacer:
             return
         self._t_next += self.period
         self._k_due = self._k0 + _steps_before(self._t_next, self._clock.dt)
+
+
+def aligned_step(k: int, period: float, dt: float) -> int:
+    """The first clock step from ``k`` on that is a whole number of periods of ``period``
+    s of class time (steps of ``dt`` s; a period rounded to whole steps, at least one):
+    where a :class:`DrivenPacer` started at step ``k`` runs its first period."""
+    every = max(1, round(period / dt))
+    return -(-k // every) * every
 
 
 def _steps_before(t: float, dt: float) -> int:

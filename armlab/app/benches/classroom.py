@@ -11,7 +11,8 @@ Figures:
         different gains; one of 0.5 s quick):
         N · 1e-3 s / (wall time per simulated ms) for the largest N of (50, 100); a tenth
         of the arms play a step trajectory, a tenth are pushed; the arms joined a tick
-        apart, so about N/16 periods are due at each tick (their law computed as one).
+        apart, as students join (each loop's first period then waits for the next whole
+        number of its periods: their law is computed as one).
     class_loops_step_us_n50 / _n100: wall µs per simulated ms of that class.
     sandboxes_walls_realtime_per_core: the same for the largest class with a wall per arm
         (the contact lesson's, 2·10⁴ N/m, 3 mm behind each hand: within the plant's margin,
@@ -116,9 +117,10 @@ def loops_ms_cost(n_arms: int, *, seconds: float, seed: int = 0,
     or each over a plant of its own
     (:class:`~armlab.hardware.families.dynamixel1.sim_backend.SimBackend`, stepped
     per arm in Python at its loop's periods: the design the batched plant replaced).
-    The arms join one tick apart, as students join a class at moments of their own, so
-    their periods fall on different ticks (about N/16 due at each, computing their law
-    together: :mod:`armlab.control.law_batch`).
+    The arms join one tick apart, as students join a class at moments of their own (each
+    loop's first period then waits for the next whole number of its periods of class
+    time, so their periods share ticks and their law is computed as one:
+    :func:`~armlab.control.periodic.aligned_step`, :mod:`armlab.control.law_batch`).
     ``walls``: each arm has a wall of its own 3 mm behind its hand (the contact lesson's
     2·10⁴ N/m; within the plant's margin, so computed at every step, touched or not), set
     through its backend as the Contact tab sets it, so its loop records the wall's force
